@@ -1,0 +1,14 @@
+// Subcommands of tgm-hmi. Each returns the process exit code: 0 success, 1 runtime failure,
+// 2 bad input (usage, config, G-code).
+#pragma once
+
+namespace tgm::hmi {
+
+//! `tgm-hmi compile FILE [--config YAML] [--dump jsonl|text] [--out FILE]`
+int run_compile(int argc, char** argv);
+
+//! `tgm-hmi simulate FILE [--config YAML] [--interpolator N] [--csv OUT] [--rel-speed R]
+//! [--check-limits]`
+int run_simulate(int argc, char** argv);
+
+}  // namespace tgm::hmi

@@ -1,0 +1,40 @@
+// tgm-hmi: the operator client of the tgm motion service.
+#include <cstdio>
+#include <cstring>
+#include <string_view>
+
+#include "commands.hpp"
+
+namespace {
+
+constexpr const char* kUsage =
+    "usage: tgm-hmi COMMAND [ARGS]\n"
+    "\n"
+    "Commands:\n"
+    "  compile FILE   compile G-code to intercode (--dump jsonl|text, --out FILE)\n"
+    "  simulate FILE  run a program through the interpolator offline, write a CSV\n"
+    "\n"
+    "Every command takes --config YAML (default: config/default.yaml) and --help.\n";
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2) {
+    std::fputs(kUsage, stderr);
+    return 2;
+  }
+  const std::string_view cmd = argv[1];
+  if (cmd == "--help" || cmd == "-h" || cmd == "help") {
+    std::fputs(kUsage, stdout);
+    return 0;
+  }
+  if (cmd == "--version") {
+    std::puts("tgm-hmi 0.1.0");
+    return 0;
+  }
+  // Subcommands see argv starting at their own name.
+  if (cmd == "compile") return tgm::hmi::run_compile(argc - 1, argv + 1);
+  if (cmd == "simulate") return tgm::hmi::run_simulate(argc - 1, argv + 1);
+  std::fprintf(stderr, "tgm-hmi: unknown command '%s'\n\n%s", argv[1], kUsage);
+  return 2;
+}

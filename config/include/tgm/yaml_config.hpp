@@ -1,0 +1,56 @@
+// YAML adapter: builds core's plain config structs plus the settings of the processes around
+// core (DDS, PLC emulator) from one YAML file (DESIGN.md section 7).
+#pragma once
+
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "tgm/config.hpp"
+
+namespace tgm {
+
+//! DDS settings shared by every process.
+struct DdsConfig {
+  int domain_id = 0;
+  //! Fast DDS XML profiles file; a relative path is taken relative to the YAML file.
+  std::string profiles_file = "fastdds_profiles.xml";
+  //! Prefix of participant names ("<prefix>-service", "<prefix>-plc", "<prefix>-hmi").
+  std::string participant_prefix = "tgm";
+};
+
+//! Behaviour of the PLC emulator (tgm-plc).
+struct PlcConfig {
+  //! Time the emulated PLC takes for an M-function without its own entry [s].
+  double default_m_delay_s = 0.1;
+  //! Time per M-number [s].
+  std::map<int, double> m_delay_s;
+};
+
+//! The whole YAML file.
+struct AppConfig {
+  MachineConfig machine;
+  DdsConfig dds;
+  PlcConfig plc;
+  //! The file it was read from ("" for built-in defaults).
+  std::string source_path;
+};
+
+//! Outcome of loading: a config, or every problem found as "FILE:LINE: key.path: reason".
+struct ConfigLoad {
+  std::optional<AppConfig> config;
+  std::vector<std::string> errors;
+};
+
+//! Parses YAML text. `path` is used in messages and to resolve relative file names.
+ConfigLoad load_config_text(const std::string& text, const std::string& path);
+
+//! Reads and parses a file.
+ConfigLoad load_config_file(const std::string& path);
+
+//! The config file used when none is given: $TGM_CONFIG, then the installed
+//! <prefix>/share/tgm/default.yaml, then config/default.yaml of the source tree.
+std::string default_config_path();
+
+}  // namespace tgm

@@ -1,0 +1,371 @@
+#include "tgm/yaml_config.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <set>
+#include <sstream>
+
+namespace tgm {
+
+namespace {
+
+// Walks a YAML tree, collecting errors instead of throwing, and rejecting unknown keys.
+class Reader {
+ public:
+  explicit Reader(std::string file) : file_(std::move(file)) {}
+
+  std::vector<std::string> errors;
+
+  void error(const YAML::Node& n, const std::string& path, const std::string& reason) {
+    std::string where = file_;
+    if (n.IsDefined() && n.Mark().line >= 0) where += ":" + std::to_string(n.Mark().line + 1);
+    errors.push_back(where + ": " + path + ": " + reason);
+  }
+
+  // Checks that `n` is a map whose keys are all in `known`.
+  bool map(const YAML::Node& n, const std::string& path, const std::set<std::string>& known) {
+    if (!n.IsMap()) {
+      error(n, path.empty() ? "(top level)" : path, "must be a mapping of key: value");
+      return false;
+    }
+    for (const auto& kv : n) {
+      const auto key = kv.first.as<std::string>("");
+      if (!known.count(key)) {
+        std::string list;
+        for (const auto& k : known) list += (list.empty() ? "" : ", ") + k;
+        error(kv.first, join(path, key), "unknown key (known: " + list + ")");
+      }
+    }
+    return true;
+  }
+
+  static std::string join(const std::string& path, const std::string& key) {
+    return path.empty() ? key : path + "." + key;
+  }
+
+  void number(const YAML::Node& parent, const std::string& path, const char* key, double& out) {
+    const auto n = parent[key];
+    if (!n) return;
+    double v = 0;
+    if (!scalar_double(n, v)) {
+      error(n, join(path, key), "must be a number, not '" + text(n) + "'");
+      return;
+    }
+    out = v;
+  }
+
+  template <typename Int>
+  void integer(const YAML::Node& parent, const std::string& path, const char* key, Int& out) {
+    const auto n = parent[key];
+    if (!n) return;
+    long long v = 0;
+    if (!scalar_int(n, v)) {
+      error(n, join(path, key), "must be a whole number, not '" + text(n) + "'");
+      return;
+    }
+    out = static_cast<Int>(v);
+  }
+
+  void boolean(const YAML::Node& parent, const std::string& path, const char* key, bool& out) {
+    const auto n = parent[key];
+    if (!n) return;
+    if (!n.IsScalar()) {
+      error(n, join(path, key), "must be true or false");
+      return;
+    }
+    const auto s = n.Scalar();
+    if (s == "true" || s == "yes" || s == "on") {
+      out = true;
+    } else if (s == "false" || s == "no" || s == "off") {
+      out = false;
+    } else {
+      error(n, join(path, key), "must be true or false, not '" + s + "'");
+    }
+  }
+
+  void string(const YAML::Node& parent, const std::string& path, const char* key,
+              std::string& out) {
+    const auto n = parent[key];
+    if (!n) return;
+    if (!n.IsScalar()) {
+      error(n, join(path, key), "must be a string");
+      return;
+    }
+    out = n.Scalar();
+  }
+
+  static std::string text(const YAML::Node& n) {
+    if (n.IsScalar()) return n.Scalar();
+    if (n.IsSequence()) return "[list]";
+    if (n.IsMap()) return "{mapping}";
+    return "null";
+  }
+
+  static bool scalar_double(const YAML::Node& n, double& v) {
+    if (!n.IsScalar()) return false;
+    const std::string& s = n.Scalar();
+    char* end = nullptr;
+    v = std::strtod(s.c_str(), &end);
+    return !s.empty() && end && *end == '\0' && std::isfinite(v);
+  }
+
+  static bool scalar_int(const YAML::Node& n, long long& v) {
+    if (!n.IsScalar()) return false;
+    const std::string& s = n.Scalar();
+    char* end = nullptr;
+    v = std::strtoll(s.c_str(), &end, 0);
+    return !s.empty() && end && *end == '\0';
+  }
+
+ private:
+  std::string file_;
+};
+
+const std::set<std::string> kAxisKeys = {"letter",
+                                         "max_velocity_mm_s",
+                                         "max_acceleration_mm_s2",
+                                         "max_jerk_mm_s3",
+                                         "rapid_velocity_mm_s",
+                                         "emergency_deceleration_mm_s2",
+                                         "corner_velocity_tolerance_mm_s",
+                                         "ratio_inc_per_mm",
+                                         "backlash_mm"};
+
+void read_axis(Reader& r, const YAML::Node& n, const std::string& path, AxisConfig& a,
+               bool letter_allowed) {
+  auto keys = kAxisKeys;
+  if (!letter_allowed) keys.erase("letter");
+  if (!r.map(n, path, keys)) return;
+  if (letter_allowed && n["letter"]) {
+    std::string s;
+    r.string(n, path, "letter", s);
+    if (s.size() != 1) {
+      r.error(n["letter"], path + ".letter", "must be one letter, not '" + s + "'");
+    } else {
+      a.letter = static_cast<char>(std::toupper(static_cast<unsigned char>(s[0])));
+    }
+  }
+  r.number(n, path, "max_velocity_mm_s", a.max_velocity_mm_s);
+  r.number(n, path, "max_acceleration_mm_s2", a.max_acceleration_mm_s2);
+  r.number(n, path, "max_jerk_mm_s3", a.max_jerk_mm_s3);
+  r.number(n, path, "rapid_velocity_mm_s", a.rapid_velocity_mm_s);
+  r.number(n, path, "emergency_deceleration_mm_s2", a.emergency_deceleration_mm_s2);
+  r.number(n, path, "corner_velocity_tolerance_mm_s", a.corner_velocity_tolerance_mm_s);
+  r.number(n, path, "ratio_inc_per_mm", a.ratio_inc_per_mm);
+  r.number(n, path, "backlash_mm", a.backlash_mm);
+}
+
+void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
+  if (!r.map(root, "",
+             {"cycle_time_us", "axis_defaults", "interpolators", "tools", "compiler", "smoothing",
+              "dds", "plc"})) {
+    return;
+  }
+  MachineConfig& m = cfg.machine;
+  r.integer(root, "", "cycle_time_us", m.cycle_time_us);
+
+  AxisConfig defaults;
+  if (root["axis_defaults"]) read_axis(r, root["axis_defaults"], "axis_defaults", defaults, false);
+
+  if (const auto ips = root["interpolators"]) {
+    if (!ips.IsSequence()) {
+      r.error(ips, "interpolators", "must be a list of interpolators");
+    } else {
+      m.interpolators.clear();
+      for (std::size_t k = 0; k < ips.size(); ++k) {
+        const std::string path = "interpolators[" + std::to_string(k) + "]";
+        const auto n = ips[k];
+        InterpolatorConfig ip;
+        if (!r.map(n, path, {"buffer_size", "axes"})) continue;
+        r.integer(n, path, "buffer_size", ip.buffer_size);
+        const auto axes = n["axes"];
+        if (!axes || !axes.IsSequence()) {
+          r.error(axes ? axes : n, path + ".axes", "a list of 1..10 axes is required");
+        } else {
+          for (std::size_t i = 0; i < axes.size(); ++i) {
+            AxisConfig a = defaults;
+            a.letter = default_axis_letter(static_cast<int>(i));
+            read_axis(r, axes[i], path + ".axes[" + std::to_string(i) + "]", a, true);
+            ip.axes.push_back(a);
+          }
+        }
+        m.interpolators.push_back(ip);
+      }
+    }
+  }
+
+  if (const auto tools = root["tools"]) {
+    if (!tools.IsSequence()) {
+      r.error(tools, "tools", "must be a list of {number, radius_mm, length_mm}");
+    } else {
+      m.tools.clear();
+      for (std::size_t i = 0; i < tools.size(); ++i) {
+        const std::string path = "tools[" + std::to_string(i) + "]";
+        ToolConfig t;
+        if (!r.map(tools[i], path, {"number", "radius_mm", "length_mm"})) continue;
+        r.integer(tools[i], path, "number", t.number);
+        r.number(tools[i], path, "radius_mm", t.radius_mm);
+        r.number(tools[i], path, "length_mm", t.length_mm);
+        m.tools.push_back(t);
+      }
+    }
+  }
+
+  if (const auto c = root["compiler"]) {
+    if (r.map(c, "compiler",
+              {"distance_mode", "default_feed_mm_per_min", "plc_redefined_m",
+               "max_program_segments", "max_call_depth"})) {
+      if (c["distance_mode"]) {
+        std::string mode;
+        r.string(c, "compiler", "distance_mode", mode);
+        if (mode == "G90" || mode == "g90") {
+          m.compiler.start_incremental = false;
+        } else if (mode == "G91" || mode == "g91") {
+          m.compiler.start_incremental = true;
+        } else {
+          r.error(c["distance_mode"], "compiler.distance_mode", "must be G90 or G91, not '" +
+                                                                    mode + "'");
+        }
+      }
+      r.number(c, "compiler", "default_feed_mm_per_min", m.compiler.default_feed_mm_per_min);
+      r.integer(c, "compiler", "max_program_segments", m.compiler.max_program_segments);
+      r.integer(c, "compiler", "max_call_depth", m.compiler.max_call_depth);
+      if (const auto list = c["plc_redefined_m"]) {
+        if (!list.IsSequence()) {
+          r.error(list, "compiler.plc_redefined_m", "must be a list of M-numbers");
+        } else {
+          m.compiler.plc_redefined_m.clear();
+          for (std::size_t i = 0; i < list.size(); ++i) {
+            long long v = 0;
+            if (!Reader::scalar_int(list[i], v)) {
+              r.error(list[i], "compiler.plc_redefined_m[" + std::to_string(i) + "]",
+                      "must be a whole number");
+            } else {
+              m.compiler.plc_redefined_m.push_back(static_cast<int>(v));
+            }
+          }
+        }
+      }
+    }
+  }
+
+  if (const auto s = root["smoothing"]) {
+    if (r.map(s, "smoothing",
+              {"spline_points", "spline_jerk_mm_s3", "iir_p_e6", "iir_q_e6", "iir_f_e6",
+               "iir_axis_mask"})) {
+      auto& sm = m.smoothing;
+      r.integer(s, "smoothing", "spline_points", sm.spline_points);
+      r.number(s, "smoothing", "spline_jerk_mm_s3", sm.spline_jerk_mm_s3);
+      r.integer(s, "smoothing", "iir_p_e6", sm.iir_p_e6);
+      r.integer(s, "smoothing", "iir_q_e6", sm.iir_q_e6);
+      r.integer(s, "smoothing", "iir_f_e6", sm.iir_f_e6);
+      r.integer(s, "smoothing", "iir_axis_mask", sm.iir_axis_mask);
+    }
+  }
+
+  if (const auto d = root["dds"]) {
+    if (r.map(d, "dds", {"domain_id", "profiles_file", "participant_prefix"})) {
+      r.integer(d, "dds", "domain_id", cfg.dds.domain_id);
+      r.string(d, "dds", "profiles_file", cfg.dds.profiles_file);
+      r.string(d, "dds", "participant_prefix", cfg.dds.participant_prefix);
+      if (cfg.dds.domain_id < 0 || cfg.dds.domain_id > 232) {
+        r.error(d["domain_id"], "dds.domain_id", "must be 0..232");
+      }
+    }
+  }
+
+  if (const auto p = root["plc"]) {
+    if (r.map(p, "plc", {"default_m_delay_s", "m_delay_s"})) {
+      r.number(p, "plc", "default_m_delay_s", cfg.plc.default_m_delay_s);
+      if (cfg.plc.default_m_delay_s < 0 || cfg.plc.default_m_delay_s > 3600) {
+        r.error(p["default_m_delay_s"], "plc.default_m_delay_s", "must be 0..3600 s");
+      }
+      if (const auto md = p["m_delay_s"]) {
+        if (!md.IsMap()) {
+          r.error(md, "plc.m_delay_s", "must map M-numbers to seconds, e.g. {51: 0.2}");
+        } else {
+          for (const auto& kv : md) {
+            long long mnum = 0;
+            double sec = 0;
+            const std::string key = "plc.m_delay_s." + kv.first.as<std::string>("?");
+            if (!Reader::scalar_int(kv.first, mnum) || mnum < 0) {
+              r.error(kv.first, key, "key must be an M-number");
+            } else if (!Reader::scalar_double(kv.second, sec) || sec < 0 || sec > 3600) {
+              r.error(kv.second, key, "must be 0..3600 s");
+            } else {
+              cfg.plc.m_delay_s[static_cast<int>(mnum)] = sec;
+            }
+          }
+        }
+      }
+    }
+  }
+}
+
+}  // namespace
+
+ConfigLoad load_config_text(const std::string& text, const std::string& path) {
+  ConfigLoad out;
+  AppConfig cfg;
+  cfg.machine = MachineConfig::default_machine();
+  cfg.source_path = path;
+  Reader r(path);
+  YAML::Node root;
+  try {
+    root = YAML::Load(text);
+  } catch (const YAML::Exception& e) {
+    out.errors.push_back(path + ":" + std::to_string(e.mark.line + 1) + ":" +
+                         std::to_string(e.mark.column + 1) + ": YAML syntax: " + e.msg);
+    return out;
+  }
+  try {
+    if (root.IsNull()) {
+      // An empty file means: all defaults.
+    } else {
+      read_file(r, root, cfg);
+    }
+  } catch (const YAML::Exception& e) {
+    r.errors.push_back(path + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg);
+  }
+  for (const auto& e : cfg.machine.validate()) r.errors.push_back(path + ": " + e);
+  if (!r.errors.empty()) {
+    out.errors = std::move(r.errors);
+    return out;
+  }
+  // Resolve the profiles file relative to the YAML file.
+  namespace fs = std::filesystem;
+  if (!cfg.dds.profiles_file.empty() && fs::path(cfg.dds.profiles_file).is_relative() &&
+      !path.empty()) {
+    cfg.dds.profiles_file = (fs::path(path).parent_path() / cfg.dds.profiles_file).string();
+  }
+  out.config = std::move(cfg);
+  return out;
+}
+
+ConfigLoad load_config_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    ConfigLoad out;
+    out.errors.push_back(path + ": cannot open the config file");
+    return out;
+  }
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return load_config_text(ss.str(), path);
+}
+
+std::string default_config_path() {
+  namespace fs = std::filesystem;
+  if (const char* env = std::getenv("TGM_CONFIG"); env && *env) return env;
+  const fs::path installed = fs::path(TGM_INSTALL_CONFIG_DIR) / "default.yaml";
+  std::error_code ec;
+  if (fs::exists(installed, ec)) return installed.string();
+  return (fs::path(TGM_SOURCE_CONFIG_DIR) / "default.yaml").string();
+}
+
+}  // namespace tgm

@@ -1,0 +1,95 @@
+// Plain configuration structs of the core. The YAML adapter (config/) builds them; tests build
+// them directly. `validate()` reports every bad value as "key.path: reason".
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "tgm/intercode.hpp"
+
+namespace tgm {
+
+//! Limits and mechanics of one axis.
+struct AxisConfig {
+  //! G-code address letter of the axis (X, Y, Z, A, B, C, U, V, W, E by default).
+  char letter = 'X';
+  double max_velocity_mm_s = 200.0;
+  double max_acceleration_mm_s2 = 2000.0;
+  double max_jerk_mm_s3 = 50000.0;
+  //! Rapid (G0) velocity of the axis [mm/s]; at most max_velocity_mm_s.
+  double rapid_velocity_mm_s = 200.0;
+  //! Deceleration of the emergency stop ramp (Command 4/5) [mm/s^2].
+  double emergency_deceleration_mm_s2 = 5000.0;
+  //! Largest velocity step of this axis accepted at a corner without slowing down [mm/s].
+  double corner_velocity_tolerance_mm_s = 2.0;
+  //! Gear ratio [inc/mm] at start (Command 1024 changes it).
+  double ratio_inc_per_mm = 1000.0;
+  //! Backlash compensated on direction reversal [mm].
+  double backlash_mm = 0.0;
+};
+
+//! One interpolator (axis group).
+struct InterpolatorConfig {
+  //! Configured axes, 1..kMaxAxes; axis i is register index i.
+  std::vector<AxisConfig> axes;
+  //! Ring buffer capacity in segments (manual: 1000..100000).
+  int buffer_size = 10000;
+};
+
+//! One entry of the tool table.
+struct ToolConfig {
+  int number = 1;
+  double radius_mm = 0.0;
+  double length_mm = 0.0;
+};
+
+//! How the G-code compiler reads programs.
+struct CompilerConfig {
+  //! Distance mode at program start: true = G91 (incremental), false = G90 (absolute).
+  bool start_incremental = true;
+  //! Feed used by G1/G2/G3 before any F word or M99 [mm/min].
+  double default_feed_mm_per_min = 1000.0;
+  //! M-numbers (from the redefinable set M2..M99) that the PLC handles as plain functions.
+  std::vector<int> plc_redefined_m;
+  //! Largest expanded program, in segments.
+  std::int64_t max_program_segments = 10'000'000;
+  //! Deepest subroutine nesting (G25/G26).
+  int max_call_depth = 16;
+};
+
+//! Default parameters of the smoothing stages (the PLC sets them with Command -1 / -2).
+struct SmoothingConfig {
+  //! Spline points (0 = off, else 50..500) and jerk limit [mm/s^3].
+  int spline_points = 0;
+  double spline_jerk_mm_s3 = 1'000'000.0;
+  //! IIR p, q, f as integers x 1e6 and the 10-bit axis mask (0 = off).
+  std::int64_t iir_p_e6 = 2'000'000;
+  std::int64_t iir_q_e6 = 1'000'000;
+  std::int64_t iir_f_e6 = 6'000'000;
+  std::uint32_t iir_axis_mask = 0;
+};
+
+//! The machine as core sees it.
+struct MachineConfig {
+  //! Interpolation cycle [us]: 250, 500 or 1000.
+  int cycle_time_us = 500;
+  std::vector<InterpolatorConfig> interpolators;
+  std::vector<ToolConfig> tools;
+  CompilerConfig compiler;
+  SmoothingConfig smoothing;
+
+  //! Every problem as "key.path: reason"; empty when the config is usable.
+  std::vector<std::string> validate() const;
+
+  //! Axis letters of interpolator `n`, e.g. "XYZ".
+  std::string axis_letters(int n) const;
+
+  //! A realistic small 3-axis milling machine, three interpolators; what config/default.yaml holds.
+  static MachineConfig default_machine();
+};
+
+//! Default letter of axis `i` (X Y Z A B C U V W E).
+char default_axis_letter(int i);
+
+}  // namespace tgm

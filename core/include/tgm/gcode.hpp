@@ -1,0 +1,48 @@
+// The G-code compiler: G-code text -> intercode (DESIGN.md section 4).
+#pragma once
+
+#include <array>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "tgm/config.hpp"
+#include "tgm/intercode.hpp"
+
+namespace tgm {
+
+//! One compile error at a place in the source.
+struct Diagnostic {
+  int line = 0;    //!< 1-based source line
+  int column = 0;  //!< 1-based column of the offending text
+  std::string reason;
+};
+
+//! "FILE:LINE:COL: error: reason".
+std::string format_diagnostic(std::string_view file, const Diagnostic& d);
+
+//! What the compiler needs to know about the machine.
+struct CompileOptions {
+  //! Letters of the configured axes, one per axis (1..kMaxAxes), e.g. "XYZ".
+  std::string axis_letters = "XYZ";
+  CompilerConfig compiler;
+  std::vector<ToolConfig> tools;
+  //! Machine position the program starts from [mm] (G91 moves and arcs are relative to it).
+  std::array<double, kMaxAxes> start_mm{};
+
+  //! Options for interpolator `n` of a machine.
+  static CompileOptions from_machine(const MachineConfig& m, int n);
+};
+
+//! Result of a compilation: a program when `errors` is empty, otherwise no records at all.
+struct CompileResult {
+  Program program;
+  std::vector<Diagnostic> errors;
+  bool ok() const { return errors.empty(); }
+};
+
+//! Compiles a whole program. Never throws on bad input; every error is reported with its place,
+//! and a program with errors yields no records.
+CompileResult compile_gcode(std::string_view source, const CompileOptions& options);
+
+}  // namespace tgm

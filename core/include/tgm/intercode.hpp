@@ -1,0 +1,131 @@
+// Intercode: the binary program the interpolator executes.
+//
+// The HMI compiles G-code text into a flat sequence of plain records (`Segment`). Subroutines,
+// cycles and jumps are already expanded, every coordinate is absolute machine millimetres, and
+// every record keeps the source line it came from. Side tables hold what only a few records
+// need (M-function parameters, message texts) so that a record stays small.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace tgm {
+
+//! Axes one interpolator can drive (manual: "up to ten actuators").
+inline constexpr int kMaxAxes = 10;
+//! Interpolators one service hosts (manual: "three independent interpolators").
+inline constexpr int kMaxInterpolators = 3;
+//! M-function parameter letters A..Z (manual: M_Function_Parameter, AllParams).
+inline constexpr int kParamLetters = 26;
+//! Value of a register or parameter that does not apply ("greater than 10^38" in the manual).
+inline constexpr double kNotSet = 1.0e39;
+
+//! True when a register value means "not set / does not apply".
+inline bool is_not_set(double v) { return v > 1.0e38; }
+
+//! What a record does. The numeric values of the motion types equal their G-numbers.
+enum class SegmentType : std::uint8_t {
+  kRapid = 0,    //!< G0: straight line at the axes' rapid limits
+  kLinear = 1,   //!< G1: straight line at the programmed feed
+  kArcCw = 2,    //!< G2: clockwise arc (or helix) in the record's plane
+  kArcCcw = 3,   //!< G3: counter-clockwise arc (or helix)
+  kDwell = 4,    //!< G4: wait `dwell_s` seconds standing still
+  kMFunction = 5,  //!< M-function (see `MKind`)
+  kMessage = 6,  //!< M29: publish `Program::messages[aux]`
+};
+
+//! How the interpolator treats an M-function record.
+enum class MKind : std::uint8_t {
+  kNone = 0,        //!< not an M-function record
+  kNormal = 1,      //!< M < 1000: stop, set M_Func, wait until the PLC writes it back to 0
+  kContinuous = 2,  //!< M > 1000: tell the PLC, keep moving
+  kProgramStop = 3,  //!< M0: pause until start
+  kProgramEnd = 4,   //!< M2 / M30: end of program (Status 3)
+};
+
+//! Active plane of circular interpolation; the values are the G-numbers (LookAheadBuffer Plane).
+enum class Plane : std::uint8_t { kXY = 17, kXZ = 18, kYZ = 19 };
+
+//! Tool radius compensation state recorded for each record (G40 / G41 / G42).
+enum class Compensation : std::uint8_t { kOff = 40, kLeft = 41, kRight = 42 };
+
+//! One intercode record. Plain data, trivially copyable.
+struct Segment {
+  SegmentType type = SegmentType::kLinear;
+  Plane plane = Plane::kXY;
+  Compensation compensation = Compensation::kOff;
+  MKind m_kind = MKind::kNone;
+  //! Source line (1-based) of the G-code block this record came from.
+  std::int32_t line = 0;
+  //! M-function number (M records), otherwise -1.
+  std::int32_t m = -1;
+  //! Active tool number (T word), 0 when none was selected.
+  std::int32_t tool = 0;
+  //! Full extra turns of an arc beyond the first (0 for an ordinary arc or one full circle).
+  std::int32_t turns = 0;
+  //! Index into `Program::params` (M records) or `Program::messages` (message records); -1 if none.
+  std::int32_t aux = -1;
+  //! End point of every axis in absolute machine coordinates [mm]; unconfigured axes hold 0.
+  std::array<double, kMaxAxes> end{};
+  //! Arc centre in absolute machine coordinates [mm] on the plane's first and second axis
+  //! (see `plane_axes`).
+  std::array<double, 2> center{};
+  //! Arc radius [mm]; 0 for non-arcs.
+  double radius = 0.0;
+  //! Programmed path feed [mm/min] (G1-G3); 0 for rapid (the axes' rapid limits apply).
+  double feed_mm_per_min = 0.0;
+  //! Dwell time [s] (G4 records).
+  double dwell_s = 0.0;
+  //! Compensation radius [mm] for G41/G42 (from D or the tool table), 0 otherwise.
+  double compensation_radius_mm = 0.0;
+
+  bool is_motion() const { return static_cast<int>(type) <= 3; }
+  bool is_arc() const { return type == SegmentType::kArcCw || type == SegmentType::kArcCcw; }
+};
+
+//! The 26 M-function parameters A..Z; letters not given hold `kNotSet`.
+using MParams = std::array<double, kParamLetters>;
+
+//! Parameters with every letter unset.
+inline MParams unset_params() {
+  MParams p;
+  p.fill(kNotSet);
+  return p;
+}
+
+//! Index of the two plane axes (first, second) and the normal axis for a plane, with axes 0, 1, 2
+//! being X, Y, Z of the interpolator. (first, second, normal) is right-handed, so an arc is CCW
+//! when it turns from `first` towards `second`.
+struct PlaneAxes {
+  int first;
+  int second;
+  int normal;
+};
+inline PlaneAxes plane_axes(Plane p) {
+  switch (p) {
+    case Plane::kXZ:
+      // G18 is the Z-X plane: (Z, X, Y) is right-handed, so CW/CCW are seen from +Y as in
+      // RS274/NGC.
+      return {2, 0, 1};
+    case Plane::kYZ:
+      return {1, 2, 0};
+    case Plane::kXY:
+    default:
+      return {0, 1, 2};
+  }
+}
+
+//! A compiled program: records plus their side tables.
+struct Program {
+  std::vector<Segment> segments;
+  std::vector<MParams> params;
+  std::vector<std::string> messages;
+  //! Number of configured axes the records were compiled for (1..kMaxAxes).
+  int number_axes = 3;
+  //! Axis letters, one per configured axis.
+  std::string axis_letters = "XYZ";
+};
+
+}  // namespace tgm

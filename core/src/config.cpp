@@ -1,0 +1,167 @@
+#include "tgm/config.hpp"
+
+#include <algorithm>
+#include <cstdio>
+#include <cmath>
+#include <set>
+#include <string>
+
+namespace tgm {
+
+namespace {
+
+bool finite_positive(double v) { return std::isfinite(v) && v > 0.0; }
+
+std::string num(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
+
+// The M-numbers the manual marks "can be redefined".
+bool redefinable_m(int m) {
+  return m == 2 || (m >= 3 && m <= 9) || m == 17 || m == 29 || m == 30 || m == 99;
+}
+
+}  // namespace
+
+char default_axis_letter(int i) {
+  static constexpr char kLetters[kMaxAxes + 1] = "XYZABCUVWE";
+  return (i >= 0 && i < kMaxAxes) ? kLetters[i] : '?';
+}
+
+std::string MachineConfig::axis_letters(int n) const {
+  std::string s;
+  if (n < 0 || n >= static_cast<int>(interpolators.size())) return s;
+  for (const auto& a : interpolators[static_cast<std::size_t>(n)].axes) s.push_back(a.letter);
+  return s;
+}
+
+std::vector<std::string> MachineConfig::validate() const {
+  std::vector<std::string> e;
+  if (cycle_time_us != 250 && cycle_time_us != 500 && cycle_time_us != 1000) {
+    e.push_back("cycle_time_us: must be 250, 500 or 1000, not " + std::to_string(cycle_time_us));
+  }
+  if (interpolators.empty() || interpolators.size() > static_cast<std::size_t>(kMaxInterpolators)) {
+    e.push_back("interpolators: between 1 and 3 interpolators are needed, not " +
+                std::to_string(interpolators.size()));
+  }
+  for (std::size_t n = 0; n < interpolators.size(); ++n) {
+    const auto& ip = interpolators[n];
+    const std::string base = "interpolators[" + std::to_string(n) + "]";
+    if (ip.buffer_size < 1000 || ip.buffer_size > 100000) {
+      e.push_back(base + ".buffer_size: must be 1000..100000 segments, not " +
+                  std::to_string(ip.buffer_size));
+    }
+    if (ip.axes.empty() || ip.axes.size() > static_cast<std::size_t>(kMaxAxes)) {
+      e.push_back(base + ".axes: between 1 and 10 axes are needed, not " +
+                  std::to_string(ip.axes.size()));
+    }
+    std::set<char> seen;
+    for (std::size_t i = 0; i < ip.axes.size(); ++i) {
+      const auto& a = ip.axes[i];
+      const std::string ab = base + ".axes[" + std::to_string(i) + "]";
+      const char L = a.letter;
+      const bool letter_ok = L >= 'A' && L <= 'Z' && L != 'D' && L != 'F' && L != 'G' &&
+                             L != 'I' && L != 'J' && L != 'K' && L != 'L' && L != 'M' &&
+                             L != 'N' && L != 'P' && L != 'R' && L != 'T';
+      if (!letter_ok) {
+        e.push_back(ab + ".letter: '" + std::string(1, L) +
+                    "' is not an axis letter (D F G I J K L M N P R T are G-code words)");
+      } else if (!seen.insert(L).second) {
+        e.push_back(ab + ".letter: '" + std::string(1, L) + "' is used by two axes");
+      }
+      auto pos = [&](const char* key, double v) {
+        if (!finite_positive(v)) e.push_back(ab + "." + key + ": must be > 0, not " + num(v));
+      };
+      pos("max_velocity_mm_s", a.max_velocity_mm_s);
+      pos("max_acceleration_mm_s2", a.max_acceleration_mm_s2);
+      pos("max_jerk_mm_s3", a.max_jerk_mm_s3);
+      pos("rapid_velocity_mm_s", a.rapid_velocity_mm_s);
+      pos("emergency_deceleration_mm_s2", a.emergency_deceleration_mm_s2);
+      pos("corner_velocity_tolerance_mm_s", a.corner_velocity_tolerance_mm_s);
+      if (!std::isfinite(a.ratio_inc_per_mm) || a.ratio_inc_per_mm == 0.0) {
+        e.push_back(ab + ".ratio_inc_per_mm: must be a finite non-zero number, not " +
+                    num(a.ratio_inc_per_mm));
+      }
+      if (!std::isfinite(a.backlash_mm) || a.backlash_mm < 0.0 || a.backlash_mm > 10.0) {
+        e.push_back(ab + ".backlash_mm: must be 0..10 mm, not " + num(a.backlash_mm));
+      }
+      if (finite_positive(a.rapid_velocity_mm_s) && finite_positive(a.max_velocity_mm_s) &&
+          a.rapid_velocity_mm_s > a.max_velocity_mm_s) {
+        e.push_back(ab + ".rapid_velocity_mm_s: " + num(a.rapid_velocity_mm_s) +
+                    " exceeds max_velocity_mm_s " + num(a.max_velocity_mm_s));
+      }
+    }
+  }
+  std::set<int> tool_numbers;
+  for (std::size_t i = 0; i < tools.size(); ++i) {
+    const auto& t = tools[i];
+    const std::string tb = "tools[" + std::to_string(i) + "]";
+    if (t.number < 0) e.push_back(tb + ".number: must be >= 0, not " + std::to_string(t.number));
+    if (!tool_numbers.insert(t.number).second) {
+      e.push_back(tb + ".number: tool " + std::to_string(t.number) + " is listed twice");
+    }
+    if (!std::isfinite(t.radius_mm) || t.radius_mm < 0.0) {
+      e.push_back(tb + ".radius_mm: must be >= 0, not " + num(t.radius_mm));
+    }
+    if (!std::isfinite(t.length_mm)) e.push_back(tb + ".length_mm: must be a finite number");
+  }
+  const auto& c = compiler;
+  if (!finite_positive(c.default_feed_mm_per_min)) {
+    e.push_back("compiler.default_feed_mm_per_min: must be > 0, not " +
+                num(c.default_feed_mm_per_min));
+  }
+  for (std::size_t i = 0; i < c.plc_redefined_m.size(); ++i) {
+    if (!redefinable_m(c.plc_redefined_m[i])) {
+      e.push_back("compiler.plc_redefined_m[" + std::to_string(i) + "]: M" +
+                  std::to_string(c.plc_redefined_m[i]) +
+                  " cannot be redefined (only M2-M9, M17, M29, M30, M99)");
+    }
+  }
+  if (c.max_program_segments < 1 || c.max_program_segments > 1'000'000'000) {
+    e.push_back("compiler.max_program_segments: must be 1..1000000000, not " +
+                std::to_string(c.max_program_segments));
+  }
+  if (c.max_call_depth < 1 || c.max_call_depth > 16) {
+    e.push_back("compiler.max_call_depth: must be 1..16, not " + std::to_string(c.max_call_depth));
+  }
+  const auto& s = smoothing;
+  if (s.spline_points != 0 && (s.spline_points < 50 || s.spline_points > 500)) {
+    e.push_back("smoothing.spline_points: must be 0 (off) or 50..500, not " +
+                std::to_string(s.spline_points));
+  }
+  if (!finite_positive(s.spline_jerk_mm_s3)) {
+    e.push_back("smoothing.spline_jerk_mm_s3: must be > 0, not " + num(s.spline_jerk_mm_s3));
+  }
+  if (s.iir_p_e6 <= 0) e.push_back("smoothing.iir_p_e6: must be > 0");
+  if (s.iir_q_e6 <= 0) e.push_back("smoothing.iir_q_e6: must be > 0");
+  if (s.iir_f_e6 <= 0) e.push_back("smoothing.iir_f_e6: must be > 0");
+  if (s.iir_axis_mask > 0x3FFu) e.push_back("smoothing.iir_axis_mask: only 10 bits (0..1023)");
+  return e;
+}
+
+MachineConfig MachineConfig::default_machine() {
+  // A small gantry mill: 15 m/min rapids, 1.5 m/s^2 acceleration with a jerk that lets a
+  // 50 mm circle at 6 m/min run at feed (centripetal 0.2 m/s^2).
+  MachineConfig m;
+  InterpolatorConfig ip;
+  ip.buffer_size = 10000;
+  for (int i = 0; i < 3; ++i) {
+    AxisConfig a;
+    a.letter = default_axis_letter(i);
+    a.max_velocity_mm_s = 250.0;
+    a.rapid_velocity_mm_s = 250.0;
+    a.max_acceleration_mm_s2 = 1500.0;
+    a.max_jerk_mm_s3 = 30000.0;
+    a.emergency_deceleration_mm_s2 = 4000.0;
+    a.corner_velocity_tolerance_mm_s = 2.0;
+    a.ratio_inc_per_mm = 1000.0;
+    ip.axes.push_back(a);
+  }
+  m.interpolators.assign(3, ip);
+  m.tools = {{1, 3.0, 50.0}, {2, 5.0, 60.0}, {3, 1.5, 40.0}};
+  return m;
+}
+
+}  // namespace tgm

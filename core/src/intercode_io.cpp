@@ -1,0 +1,372 @@
+#include "tgm/intercode_io.hpp"
+
+#include <charconv>
+#include <cmath>
+#include <cstring>
+
+namespace tgm {
+
+namespace {
+
+constexpr char kMagic[4] = {'T', 'G', 'M', 'I'};
+constexpr std::uint16_t kVersion = 1;
+
+template <typename T>
+void put(std::string& out, T v) {
+  char buf[sizeof(T)];
+  std::memcpy(buf, &v, sizeof(T));
+  out.append(buf, sizeof(T));
+}
+
+class In {
+ public:
+  explicit In(std::string_view b) : b_(b) {}
+  template <typename T>
+  bool get(T& v) {
+    if (b_.size() - pos_ < sizeof(T)) return false;
+    std::memcpy(&v, b_.data() + pos_, sizeof(T));
+    pos_ += sizeof(T);
+    return true;
+  }
+  bool bytes(std::size_t n, std::string& s) {
+    if (b_.size() - pos_ < n) return false;
+    s.assign(b_.data() + pos_, n);
+    pos_ += n;
+    return true;
+  }
+  bool at_end() const { return pos_ == b_.size(); }
+  std::size_t pos() const { return pos_; }
+
+ private:
+  std::string_view b_;
+  std::size_t pos_ = 0;
+};
+
+void num(std::string& out, double v) {
+  char buf[32];
+  auto r = std::to_chars(buf, buf + sizeof buf, v);
+  out.append(buf, r.ptr);
+}
+
+void json_string(std::string& out, std::string_view s) {
+  out.push_back('"');
+  for (unsigned char c : s) {
+    switch (c) {
+      case '"': out += "\\\""; break;
+      case '\\': out += "\\\\"; break;
+      case '\n': out += "\\n"; break;
+      case '\r': out += "\\r"; break;
+      case '\t': out += "\\t"; break;
+      default:
+        if (c < 0x20) {
+          char buf[8];
+          std::snprintf(buf, sizeof buf, "\\u%04x", c);
+          out += buf;
+        } else {
+          out.push_back(static_cast<char>(c));
+        }
+    }
+  }
+  out.push_back('"');
+}
+
+std::string_view m_kind_name(MKind k) {
+  switch (k) {
+    case MKind::kNormal: return "normal";
+    case MKind::kContinuous: return "continuous";
+    case MKind::kProgramStop: return "program_stop";
+    case MKind::kProgramEnd: return "program_end";
+    case MKind::kNone: break;
+  }
+  return "none";
+}
+
+}  // namespace
+
+std::string_view segment_type_name(SegmentType t) {
+  switch (t) {
+    case SegmentType::kRapid: return "G0";
+    case SegmentType::kLinear: return "G1";
+    case SegmentType::kArcCw: return "G2";
+    case SegmentType::kArcCcw: return "G3";
+    case SegmentType::kDwell: return "G4";
+    case SegmentType::kMFunction: return "M";
+    case SegmentType::kMessage: return "MSG";
+  }
+  return "?";
+}
+
+void encode_intercode(const Program& p, std::string& out) {
+  const int n = p.number_axes;
+  out.append(kMagic, 4);
+  put<std::uint16_t>(out, kVersion);
+  put<std::uint8_t>(out, static_cast<std::uint8_t>(n));
+  char letters[kMaxAxes] = {};
+  for (int i = 0; i < n && i < static_cast<int>(p.axis_letters.size()); ++i) {
+    letters[i] = p.axis_letters[static_cast<std::size_t>(i)];
+  }
+  out.append(letters, kMaxAxes);
+  put<std::uint64_t>(out, p.segments.size());
+  put<std::uint32_t>(out, static_cast<std::uint32_t>(p.params.size()));
+  put<std::uint32_t>(out, static_cast<std::uint32_t>(p.messages.size()));
+  out.reserve(out.size() + p.segments.size() * (24 + 8 * static_cast<std::size_t>(n) + 8));
+  for (const Segment& s : p.segments) {
+    put<std::uint8_t>(out, static_cast<std::uint8_t>(s.type));
+    put<std::uint8_t>(out, static_cast<std::uint8_t>(s.plane));
+    put<std::uint8_t>(out, static_cast<std::uint8_t>(s.compensation));
+    put<std::uint8_t>(out, static_cast<std::uint8_t>(s.m_kind));
+    put<std::int32_t>(out, s.line);
+    put<std::int32_t>(out, s.tool);
+    for (int i = 0; i < n; ++i) put<double>(out, s.end[static_cast<std::size_t>(i)]);
+    if (s.compensation != Compensation::kOff) put<double>(out, s.compensation_radius_mm);
+    if (s.is_motion()) put<double>(out, s.feed_mm_per_min);
+    if (s.is_arc()) {
+      put<double>(out, s.center[0]);
+      put<double>(out, s.center[1]);
+      put<double>(out, s.radius);
+      put<std::int32_t>(out, s.turns);
+    }
+    if (s.type == SegmentType::kDwell) put<double>(out, s.dwell_s);
+    if (s.type == SegmentType::kMFunction) {
+      put<std::int32_t>(out, s.m);
+      put<std::int32_t>(out, s.aux);
+    }
+    if (s.type == SegmentType::kMessage) put<std::int32_t>(out, s.aux);
+  }
+  for (const MParams& mp : p.params) {
+    for (double v : mp) put<double>(out, v);
+  }
+  for (const std::string& m : p.messages) {
+    put<std::uint32_t>(out, static_cast<std::uint32_t>(m.size()));
+    out += m;
+  }
+}
+
+bool decode_intercode(std::string_view bytes, Program& out, std::string& error) {
+  In in(bytes);
+  auto fail = [&](const std::string& why) {
+    error = "intercode at byte " + std::to_string(in.pos()) + ": " + why;
+    return false;
+  };
+  std::string magic;
+  if (!in.bytes(4, magic) || std::memcmp(magic.data(), kMagic, 4) != 0) {
+    return fail("not a tgm intercode file (bad magic)");
+  }
+  std::uint16_t version = 0;
+  std::uint8_t n = 0;
+  if (!in.get(version) || version != kVersion) return fail("unsupported version");
+  if (!in.get(n) || n < 1 || n > kMaxAxes) return fail("axis count must be 1..10");
+  std::string letters;
+  if (!in.bytes(kMaxAxes, letters)) return fail("truncated header");
+  std::uint64_t count = 0;
+  std::uint32_t nparams = 0, nmsg = 0;
+  if (!in.get(count) || !in.get(nparams) || !in.get(nmsg)) return fail("truncated header");
+  // Each record takes at least 12 + 8 n bytes: reject counts the input cannot hold.
+  if (count > bytes.size() / (12u + 8u * n)) return fail("record count exceeds the file size");
+  if (nparams > bytes.size() / (8u * kParamLetters) + 1) return fail("bad parameter count");
+  if (nmsg > bytes.size() / 4 + 1) return fail("bad message count");
+  Program p;
+  p.number_axes = n;
+  p.axis_letters = letters.substr(0, n);
+  p.segments.resize(count);
+  auto finite = [](double v) { return std::isfinite(v); };
+  for (std::uint64_t k = 0; k < count; ++k) {
+    Segment& s = p.segments[k];
+    std::uint8_t type = 0, plane = 0, comp = 0, mkind = 0;
+    if (!in.get(type) || !in.get(plane) || !in.get(comp) || !in.get(mkind) || !in.get(s.line) ||
+        !in.get(s.tool)) {
+      return fail("truncated record " + std::to_string(k));
+    }
+    if (type > 6) return fail("unknown record type " + std::to_string(type));
+    if (plane < 17 || plane > 19) return fail("bad plane " + std::to_string(plane));
+    if (comp < 40 || comp > 42) return fail("bad compensation " + std::to_string(comp));
+    if (mkind > 4) return fail("bad M kind " + std::to_string(mkind));
+    s.type = static_cast<SegmentType>(type);
+    s.plane = static_cast<Plane>(plane);
+    s.compensation = static_cast<Compensation>(comp);
+    s.m_kind = static_cast<MKind>(mkind);
+    for (int i = 0; i < n; ++i) {
+      double& v = s.end[static_cast<std::size_t>(i)];
+      if (!in.get(v)) return fail("truncated record " + std::to_string(k));
+      if (!finite(v)) return fail("non-finite coordinate in record " + std::to_string(k));
+    }
+    bool ok = true;
+    if (s.compensation != Compensation::kOff) ok = ok && in.get(s.compensation_radius_mm);
+    if (s.is_motion()) ok = ok && in.get(s.feed_mm_per_min);
+    if (s.is_arc()) {
+      ok = ok && in.get(s.center[0]) && in.get(s.center[1]) && in.get(s.radius) &&
+           in.get(s.turns);
+    }
+    if (s.type == SegmentType::kDwell) ok = ok && in.get(s.dwell_s);
+    if (s.type == SegmentType::kMFunction) ok = ok && in.get(s.m) && in.get(s.aux);
+    if (s.type == SegmentType::kMessage) ok = ok && in.get(s.aux);
+    if (!ok) return fail("truncated record " + std::to_string(k));
+    if (!finite(s.compensation_radius_mm) || !finite(s.feed_mm_per_min) || !finite(s.center[0]) ||
+        !finite(s.center[1]) || !finite(s.radius) || !finite(s.dwell_s) || s.feed_mm_per_min < 0 ||
+        s.radius < 0 || s.dwell_s < 0 || s.turns < 0) {
+      return fail("value out of range in record " + std::to_string(k));
+    }
+    if (s.type == SegmentType::kMFunction && (s.aux < 0 || s.aux >= static_cast<int>(nparams))) {
+      return fail("M record " + std::to_string(k) + " names a missing parameter set");
+    }
+    if (s.type == SegmentType::kMessage && (s.aux < 0 || s.aux >= static_cast<int>(nmsg))) {
+      return fail("message record " + std::to_string(k) + " names a missing text");
+    }
+  }
+  p.params.resize(nparams);
+  for (auto& mp : p.params) {
+    for (double& v : mp) {
+      if (!in.get(v)) return fail("truncated parameter table");
+      if (std::isnan(v)) return fail("NaN in parameter table");
+    }
+  }
+  p.messages.resize(nmsg);
+  for (auto& m : p.messages) {
+    std::uint32_t len = 0;
+    if (!in.get(len) || !in.bytes(len, m)) return fail("truncated message table");
+  }
+  if (!in.at_end()) return fail("trailing bytes after the message table");
+  out = std::move(p);
+  return true;
+}
+
+void dump_jsonl(const Program& p, std::string& out) {
+  const int n = p.number_axes;
+  auto letter = [&](int i) {
+    return i < static_cast<int>(p.axis_letters.size()) ? p.axis_letters[static_cast<std::size_t>(i)]
+                                                       : '?';
+  };
+  for (const Segment& s : p.segments) {
+    out += "{\"line\":";
+    out += std::to_string(s.line);
+    out += ",\"type\":\"";
+    out += segment_type_name(s.type);
+    out += "\",\"end\":{";
+    for (int i = 0; i < n; ++i) {
+      if (i) out.push_back(',');
+      out += '"';
+      out += letter(i);
+      out += "\":";
+      num(out, s.end[static_cast<std::size_t>(i)]);
+    }
+    out += '}';
+    if (s.is_motion()) {
+      out += ",\"feed_mm_per_min\":";
+      num(out, s.feed_mm_per_min);
+      out += ",\"plane\":";
+      out += std::to_string(static_cast<int>(s.plane));
+    }
+    if (s.is_arc()) {
+      const PlaneAxes pa = plane_axes(s.plane);
+      out += ",\"center\":{";
+      const int a0 = pa.first < n ? pa.first : -1;
+      const int a1 = pa.second < n ? pa.second : -1;
+      bool first = true;
+      for (int k = 0; k < 2; ++k) {
+        const int ax = k == 0 ? a0 : a1;
+        if (ax < 0) continue;
+        if (!first) out.push_back(',');
+        first = false;
+        out += '"';
+        out += letter(ax);
+        out += "\":";
+        num(out, s.center[static_cast<std::size_t>(k)]);
+      }
+      out += "},\"radius\":";
+      num(out, s.radius);
+      out += ",\"turns\":";
+      out += std::to_string(s.turns);
+    }
+    if (s.type == SegmentType::kDwell) {
+      out += ",\"seconds\":";
+      num(out, s.dwell_s);
+    }
+    if (s.type == SegmentType::kMFunction) {
+      out += ",\"m\":";
+      out += std::to_string(s.m);
+      out += ",\"kind\":\"";
+      out += m_kind_name(s.m_kind);
+      out += "\",\"params\":{";
+      if (s.aux >= 0 && s.aux < static_cast<int>(p.params.size())) {
+        bool first = true;
+        const MParams& mp = p.params[static_cast<std::size_t>(s.aux)];
+        for (int k = 0; k < kParamLetters; ++k) {
+          if (is_not_set(mp[static_cast<std::size_t>(k)])) continue;
+          if (!first) out.push_back(',');
+          first = false;
+          out += '"';
+          out += static_cast<char>('A' + k);
+          out += "\":";
+          num(out, mp[static_cast<std::size_t>(k)]);
+        }
+      }
+      out += '}';
+    }
+    if (s.type == SegmentType::kMessage) {
+      out += ",\"text\":";
+      json_string(out, s.aux >= 0 && s.aux < static_cast<int>(p.messages.size())
+                           ? std::string_view(p.messages[static_cast<std::size_t>(s.aux)])
+                           : std::string_view());
+    }
+    out += ",\"tool\":";
+    out += std::to_string(s.tool);
+    if (s.compensation != Compensation::kOff) {
+      out += ",\"compensation\":\"G";
+      out += std::to_string(static_cast<int>(s.compensation));
+      out += "\",\"compensation_radius_mm\":";
+      num(out, s.compensation_radius_mm);
+    }
+    out += "}\n";
+  }
+}
+
+void dump_text(const Program& p, std::string& out) {
+  const int n = p.number_axes;
+  char buf[64];
+  for (const Segment& s : p.segments) {
+    std::snprintf(buf, sizeof buf, "%6d  %-3s", s.line, std::string(segment_type_name(s.type)).c_str());
+    out += buf;
+    if (s.type == SegmentType::kMFunction) {
+      std::snprintf(buf, sizeof buf, " M%d (%s)", s.m, std::string(m_kind_name(s.m_kind)).c_str());
+      out += buf;
+      if (s.aux >= 0 && s.aux < static_cast<int>(p.params.size())) {
+        const MParams& mp = p.params[static_cast<std::size_t>(s.aux)];
+        for (int k = 0; k < kParamLetters; ++k) {
+          if (is_not_set(mp[static_cast<std::size_t>(k)])) continue;
+          std::snprintf(buf, sizeof buf, " %c%.6g", 'A' + k, mp[static_cast<std::size_t>(k)]);
+          out += buf;
+        }
+      }
+    } else if (s.type == SegmentType::kMessage) {
+      out += " \"";
+      if (s.aux >= 0 && s.aux < static_cast<int>(p.messages.size())) {
+        out += p.messages[static_cast<std::size_t>(s.aux)];
+      }
+      out += '"';
+    } else if (s.type == SegmentType::kDwell) {
+      std::snprintf(buf, sizeof buf, " %.6g s", s.dwell_s);
+      out += buf;
+    } else {
+      for (int i = 0; i < n; ++i) {
+        const char L = i < static_cast<int>(p.axis_letters.size())
+                           ? p.axis_letters[static_cast<std::size_t>(i)]
+                           : '?';
+        std::snprintf(buf, sizeof buf, " %c%.4f", L, s.end[static_cast<std::size_t>(i)]);
+        out += buf;
+      }
+      if (s.is_arc()) {
+        std::snprintf(buf, sizeof buf, "  centre(%.4f, %.4f) R%.4f G%d", s.center[0], s.center[1],
+                      s.radius, static_cast<int>(s.plane));
+        out += buf;
+        if (s.turns) out += " turns+" + std::to_string(s.turns);
+      }
+      if (s.type != SegmentType::kRapid) {
+        std::snprintf(buf, sizeof buf, "  F%.6g", s.feed_mm_per_min);
+        out += buf;
+      }
+    }
+    out += '\n';
+  }
+}
+
+}  // namespace tgm

@@ -1,0 +1,69 @@
+// Config: core validation and the YAML adapter (key paths, unknown keys, ranges).
+#include <gtest/gtest.h>
+
+#include "tgm/yaml_config.hpp"
+
+namespace tgm {
+namespace {
+
+bool has_error(const std::vector<std::string>& errors, const std::string& needle) {
+  for (const auto& e : errors) {
+    if (e.find(needle) != std::string::npos) return true;
+  }
+  return false;
+}
+
+TEST(Config, DefaultMachineIsValid) {
+  EXPECT_TRUE(MachineConfig::default_machine().validate().empty());
+}
+
+TEST(Config, DefaultYamlLoadsAndMatchesBuiltInDefaults) {
+  const auto load = load_config_file(TGM_SOURCE_DIR "/config/default.yaml");
+  ASSERT_TRUE(load.errors.empty()) << load.errors.front();
+  const auto& m = load.config->machine;
+  EXPECT_EQ(m.cycle_time_us, 500);
+  ASSERT_EQ(m.interpolators.size(), 3u);
+  EXPECT_EQ(m.axis_letters(0), "XYZ");
+  EXPECT_DOUBLE_EQ(m.interpolators[1].axes[2].max_jerk_mm_s3, 30000.0);
+  EXPECT_TRUE(m.compiler.start_incremental);
+  EXPECT_DOUBLE_EQ(load.config->plc.m_delay_s.at(51), 0.2);
+}
+
+TEST(Config, UnknownKeyIsAnErrorWithPathAndLine) {
+  const auto load = load_config_text("cycle_time_us: 500\ncompiler:\n  defualt_feed: 3\n", "m.yaml");
+  EXPECT_FALSE(load.config);
+  EXPECT_TRUE(has_error(load.errors, "m.yaml:3: compiler.defualt_feed: unknown key"));
+}
+
+TEST(Config, OutOfRangeValuesAreAllReported) {
+  const auto load = load_config_text(
+      "cycle_time_us: 300\n"
+      "interpolators:\n"
+      "  - buffer_size: 10\n"
+      "    axes: [{letter: X, max_jerk_mm_s3: -1}, {letter: X}]\n",
+      "m.yaml");
+  EXPECT_FALSE(load.config);
+  EXPECT_TRUE(has_error(load.errors, "cycle_time_us: must be 250, 500 or 1000, not 300"));
+  EXPECT_TRUE(has_error(load.errors, "interpolators[0].buffer_size: must be 1000..100000"));
+  EXPECT_TRUE(has_error(load.errors, "interpolators[0].axes[0].max_jerk_mm_s3: must be > 0"));
+  EXPECT_TRUE(has_error(load.errors, "interpolators[0].axes[1].letter: 'X' is used by two axes"));
+}
+
+TEST(Config, NonNumbersAndBadSyntaxAreErrors) {
+  auto load = load_config_text("cycle_time_us: fast\n", "m.yaml");
+  EXPECT_TRUE(has_error(load.errors, "m.yaml:1: cycle_time_us: must be a whole number, not 'fast'"));
+  load = load_config_text("a: [1, 2\n", "m.yaml");
+  EXPECT_FALSE(load.config);
+  EXPECT_TRUE(has_error(load.errors, "YAML syntax"));
+  load = load_config_text("compiler: {plc_redefined_m: [80]}\n", "m.yaml");
+  EXPECT_TRUE(has_error(load.errors, "compiler.plc_redefined_m[0]: M80 cannot be redefined"));
+}
+
+TEST(Config, MissingFileIsAnError) {
+  const auto load = load_config_file("/nonexistent/tgm.yaml");
+  ASSERT_EQ(load.errors.size(), 1u);
+  EXPECT_EQ(load.errors[0], "/nonexistent/tgm.yaml: cannot open the config file");
+}
+
+}  // namespace
+}  // namespace tgm
