@@ -218,7 +218,7 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
 
   if (const auto c = root["compiler"]) {
     if (r.map(c, "compiler",
-              {"distance_mode", "default_feed_mm_per_min", "plc_redefined_m",
+              {"distance_mode", "default_feed_mm_per_min", "initial_tool", "plc_redefined_m",
                "max_program_segments", "max_call_depth"})) {
       if (c["distance_mode"]) {
         std::string mode;
@@ -235,6 +235,7 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
       r.number(c, "compiler", "default_feed_mm_per_min", m.compiler.default_feed_mm_per_min);
       r.integer(c, "compiler", "max_program_segments", m.compiler.max_program_segments);
       r.integer(c, "compiler", "max_call_depth", m.compiler.max_call_depth);
+      r.integer(c, "compiler", "initial_tool", m.compiler.initial_tool);
       if (const auto list = c["plc_redefined_m"]) {
         if (!list.IsSequence()) {
           r.error(list, "compiler.plc_redefined_m", "must be a list of M-numbers");

@@ -112,6 +112,9 @@ std::vector<std::string> MachineConfig::validate() const {
     e.push_back("compiler.default_feed_mm_per_min: must be > 0, not " +
                 num(c.default_feed_mm_per_min));
   }
+  if (c.initial_tool < 0) {
+    e.push_back("compiler.initial_tool: must be >= 0, not " + std::to_string(c.initial_tool));
+  }
   for (std::size_t i = 0; i < c.plc_redefined_m.size(); ++i) {
     if (!redefinable_m(c.plc_redefined_m[i])) {
       e.push_back("compiler.plc_redefined_m[" + std::to_string(i) + "]: M" +

@@ -1,6 +1,1086 @@
+// G-code compiler (DESIGN.md section 4).
+//
+// Two passes over the text:
+//  1. Lexing and the checks that need no modal state: every line becomes a block of words
+//     (letter, value, column); unknown characters, words and numbers, repeated or conflicting
+//     words, missing required words and labels are reported for every line, including
+//     subroutines that are never called.
+//  2. Execution: the blocks run with the modal state and a call stack, subroutines, cycles and
+//     jumps are expanded, and every motion, dwell, M-function and message becomes one intercode
+//     record with absolute machine coordinates.
+// Errors never stop a pass early (up to kMaxErrors); a program with any error yields no records.
 #include "tgm/gcode.hpp"
 
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <unordered_map>
+
 namespace tgm {
+
+namespace {
+
+constexpr std::size_t kMaxErrors = 10000;
+//! Largest magnitude of any number in a program.
+constexpr double kMaxValue = 1.0e9;
+//! Largest feed [mm/min].
+constexpr double kMaxFeed = 1.0e6;
+//! Largest dwell [s].
+constexpr double kMaxDwell = 1.0e5;
+//! Largest M-number.
+constexpr int kMaxM = 999999;
+//! Largest repeat count of G26/G27.
+constexpr double kMaxRepeat = 1.0e9;
+//! Start and end closer than this make an IJK arc a full circle [mm].
+constexpr double kFullCircleEps = 1.0e-9;
+
+constexpr std::uint32_t bit(char letter) { return 1u << (letter - 'A'); }
+
+std::string fmt_num(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.10g", v);
+  return buf;
+}
+
+std::string fmt_mm(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.4f", v);
+  return buf;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Pass 1: lexing
+// ---------------------------------------------------------------------------------------------
+
+struct Word {
+  char letter;
+  std::uint32_t column;
+  double value;
+};
+
+// The G-codes of the dialect, with their modal group.
+enum class GGroup : std::uint8_t { kNone, kMotion, kPlane, kDistance, kComp, kNonModal, kUnits };
+
+GGroup g_group(int g) {
+  switch (g) {
+    case 0: case 1: case 2: case 3: return GGroup::kMotion;
+    case 17: case 18: case 19: return GGroup::kPlane;
+    case 90: case 91: return GGroup::kDistance;
+    case 40: case 41: case 42: return GGroup::kComp;
+    case 4: case 25: case 26: case 27: case 29: case 53: case 54: case 92: return GGroup::kNonModal;
+    case 21: return GGroup::kUnits;
+    default: return GGroup::kNone;
+  }
+}
+
+// A line after lexing. Words live in a shared vector.
+struct Block {
+  std::int32_t line = 0;
+  std::uint32_t first_word = 0;
+  std::uint16_t word_count = 0;
+  bool valid = true;  //!< false when pass 1 found an error: pass 2 skips it
+  //! First comment of the line (M29 text, G29 note), as offset/length into the source.
+  std::uint32_t comment_offset = 0;
+  std::uint32_t comment_length = 0;
+  bool has_comment = false;
+};
+
+class Compiler {
+ public:
+  Compiler(std::string_view src, const CompileOptions& opt) : src_(src), opt_(opt) {}
+
+  CompileResult run();
+
+ private:
+  // --- diagnostics
+  void error(int line, std::uint32_t column, std::string reason) {
+    if (errors_.size() >= kMaxErrors) {
+      ++suppressed_;
+      return;
+    }
+    errors_.push_back({line, static_cast<int>(column), std::move(reason)});
+  }
+
+  // --- pass 1
+  void lex();
+  void lex_line(std::size_t begin, std::size_t end, std::int32_t line);
+  bool parse_number(std::size_t& i, std::size_t end, double& out);
+  void check_block_static(Block& b);
+
+  // --- pass 2
+  void execute();
+  // Returns the index of the next block to execute.
+  std::size_t execute_block(std::size_t index);
+
+  // Helpers of pass 2.
+  bool emit_check();
+  Segment base_segment(const Block& b) const;
+  int axis_index(char letter) const {
+    return (letter >= 'A' && letter <= 'Z') ? axis_of_letter_[letter - 'A'] : -1;
+  }
+
+  std::string_view src_;
+  const CompileOptions& opt_;
+  std::vector<Diagnostic> errors_;
+  std::size_t suppressed_ = 0;
+
+  std::vector<Word> words_;
+  std::vector<Block> blocks_;
+  std::unordered_map<long long, std::size_t> labels_;  // label -> block index
+  std::uint32_t axis_mask_ = 0;                        // letters that are axes
+  std::array<int, 26> axis_of_letter_{};
+  int n_axes_ = 0;
+  std::vector<bool> redefined_;  // M-number -> handled by the PLC
+
+  // --- modal state of pass 2
+  struct Frame {
+    std::size_t return_block;  //!< block to continue with after M17
+    std::size_t call_block;    //!< the G25/G26 block (for messages)
+    std::size_t sub_block;     //!< first block of the subroutine (the label)
+    long long remaining;       //!< further G26 repetitions
+  };
+  std::vector<Frame> stack_;
+  std::vector<long long> jump_count_;  // per block: G27 jumps still to take (-1 = not active)
+  Program program_;
+  std::array<double, kMaxAxes> pos_{};      //!< machine position [mm]
+  std::array<double, kMaxAxes> shift_{};    //!< G54 zero-point shift
+  std::array<double, kMaxAxes> g92_{};      //!< G92 offset
+  std::array<double, kMaxAxes> mirror_{};   //!< +1 or -1 per axis
+  int motion_ = -1;                          //!< modal motion G-code, -1 before the first
+  bool incremental_ = true;
+  Plane plane_ = Plane::kXY;
+  Compensation comp_ = Compensation::kOff;
+  double comp_radius_ = 0.0;
+  double feed_ = 0.0;           //!< modal F, 0 when none is active
+  double default_feed_ = 0.0;   //!< M99 / config
+  int tool_ = 0;
+  bool ended_ = false;
+  bool too_big_ = false;
+  std::uint64_t executed_ = 0;
+};
+
+bool is_space(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v'; }
+bool is_digit(char c) { return c >= '0' && c <= '9'; }
+
+// Parses [+-] digits [. digits] with blanks allowed between the characters. Exact for up to 19
+// significant digits and 22 decimals (one correctly rounded division); longer numbers go
+// through strtod.
+bool Compiler::parse_number(std::size_t& i, std::size_t end, double& out) {
+  auto skip = [&] {
+    while (i < end && (src_[i] == ' ' || src_[i] == '\t')) ++i;
+  };
+  skip();
+  bool neg = false;
+  if (i < end && (src_[i] == '+' || src_[i] == '-')) {
+    neg = src_[i] == '-';
+    ++i;
+    skip();
+  }
+  std::uint64_t mant = 0;
+  int digits = 0;       // significant digits kept in mant
+  int frac = 0;         // decimals kept in mant
+  int dropped_int = 0;  // integer digits beyond 19
+  bool any = false, dot = false, long_form = false;
+  char buf[128];
+  std::size_t blen = 0;
+  while (i < end) {
+    const char c = src_[i];
+    if (is_digit(c)) {
+      any = true;
+      if (blen < sizeof buf - 1) buf[blen++] = c;
+      if (digits < 19) {
+        if (mant != 0 || c != '0') ++digits;
+        mant = mant * 10 + static_cast<std::uint64_t>(c - '0');
+        if (dot) ++frac;
+      } else {
+        long_form = true;
+        if (!dot) ++dropped_int;
+      }
+      ++i;
+    } else if (c == '.' && !dot) {
+      dot = true;
+      if (blen < sizeof buf - 1) buf[blen++] = c;
+      ++i;
+    } else if (c == ' ' || c == '\t') {
+      // Blanks inside a number are allowed ("X1 0.5" is X10.5) only when a digit follows.
+      std::size_t j = i;
+      while (j < end && (src_[j] == ' ' || src_[j] == '\t')) ++j;
+      if (j < end && (is_digit(src_[j]) || (src_[j] == '.' && !dot))) {
+        i = j;
+      } else {
+        break;
+      }
+    } else {
+      break;
+    }
+  }
+  if (!any) return false;
+  double v;
+  if (!long_form && frac <= 22) {
+    static constexpr double kPow10[23] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,
+                                          1e8,  1e9,  1e10, 1e11, 1e12, 1e13, 1e14, 1e15,
+                                          1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
+    v = static_cast<double>(mant);
+    if (mant >= (1ull << 53)) {
+      buf[blen] = '\0';
+      v = std::strtod(buf, nullptr);
+    } else if (frac) {
+      v /= kPow10[frac];
+    }
+  } else if (blen < sizeof buf - 1) {
+    buf[blen] = '\0';
+    v = std::strtod(buf, nullptr);
+  } else {
+    v = HUGE_VAL;  // more than 126 characters of digits: certainly out of range
+  }
+  (void)dropped_int;
+  out = neg ? -v : v;
+  return true;
+}
+
+void Compiler::lex() {
+  std::size_t begin = 0;
+  std::int32_t line = 1;
+  const std::size_t n = src_.size();
+  blocks_.reserve(n / 16 + 1);
+  words_.reserve(n / 5 + 1);
+  while (begin < n) {
+    const void* nl = std::memchr(src_.data() + begin, '\n', n - begin);
+    const std::size_t end = nl ? static_cast<std::size_t>(static_cast<const char*>(nl) - src_.data())
+                               : n;
+    lex_line(begin, end, line);
+    begin = end + 1;
+    ++line;
+  }
+}
+
+void Compiler::lex_line(std::size_t begin, std::size_t end, std::int32_t line) {
+  Block b;
+  b.line = line;
+  b.first_word = static_cast<std::uint32_t>(words_.size());
+  std::uint32_t seen = 0;  // letters already on this line (G excluded)
+  std::size_t i = begin;
+  auto col = [&](std::size_t at) { return static_cast<std::uint32_t>(at - begin + 1); };
+  // A line holding only '%' (tape start/end marker) is ignored.
+  {
+    std::size_t j = begin;
+    while (j < end && is_space(src_[j])) ++j;
+    if (j < end && src_[j] == '%') {
+      std::size_t k = j + 1;
+      while (k < end && is_space(src_[k])) ++k;
+      if (k == end) return;
+    }
+  }
+  while (i < end) {
+    const char c = src_[i];
+    if (is_space(c)) {
+      ++i;
+      continue;
+    }
+    if (c == ';') break;
+    if (c == '(') {
+      const std::size_t open = i;
+      std::size_t j = i + 1;
+      while (j < end && src_[j] != ')') {
+        if (src_[j] == '(') {
+          error(line, col(j), "'(' inside a comment: comments do not nest");
+          b.valid = false;
+        }
+        ++j;
+      }
+      if (j >= end) {
+        error(line, col(open), "comment '(' is not closed on this line");
+        b.valid = false;
+        break;
+      }
+      if (!b.has_comment) {
+        std::size_t s = open + 1, e = j;
+        while (s < e && is_space(src_[s])) ++s;
+        while (e > s && is_space(src_[e - 1])) --e;
+        b.has_comment = true;
+        b.comment_offset = static_cast<std::uint32_t>(s);
+        b.comment_length = static_cast<std::uint32_t>(e - s);
+      }
+      i = j + 1;
+      continue;
+    }
+    char L = c;
+    if (L >= 'a' && L <= 'z') L = static_cast<char>(L - 'a' + 'A');
+    if (L < 'A' || L > 'Z') {
+      const auto uc = static_cast<unsigned char>(c);
+      char buf[80];
+      if (uc >= 0x21 && uc < 0x7f) {
+        std::snprintf(buf, sizeof buf, "unexpected character '%c'", c);
+      } else {
+        std::snprintf(buf, sizeof buf, "unexpected byte 0x%02X", uc);
+      }
+      error(line, col(i), buf);
+      b.valid = false;
+      // Skip to the next letter so that one bad byte gives one error.
+      ++i;
+      while (i < end) {
+        const char d = src_[i];
+        if ((d >= 'A' && d <= 'Z') || (d >= 'a' && d <= 'z') || d == '(' || d == ';' || is_space(d))
+          break;
+        ++i;
+      }
+      continue;
+    }
+    const std::size_t wstart = i;
+    ++i;
+    double v = 0.0;
+    if (!parse_number(i, end, v)) {
+      std::string reason = std::string("word ") + L + " needs a number";
+      // Name what follows, so "XNAN" or "G1X" are clear.
+      if (i < end && src_[i] != '(' && src_[i] != ';') {
+        std::size_t j = i;
+        while (j < end && !is_space(src_[j]) && j - i < 16) ++j;
+        reason += ", not '" + std::string(src_.substr(i, j - i)) + "'";
+      }
+      error(line, col(wstart), reason);
+      b.valid = false;
+      while (i < end && !is_space(src_[i]) && src_[i] != '(' && src_[i] != ';' &&
+             !((src_[i] >= 'A' && src_[i] <= 'Z') || (src_[i] >= 'a' && src_[i] <= 'z'))) {
+        ++i;
+      }
+      // Also skip the letters of a word like "NAN" so they give no further errors.
+      while (i < end && ((src_[i] >= 'A' && src_[i] <= 'Z') || (src_[i] >= 'a' && src_[i] <= 'z'))) {
+        ++i;
+      }
+      continue;
+    }
+    if (!std::isfinite(v) || std::fabs(v) > kMaxValue) {
+      error(line, col(wstart),
+            std::string("value of ") + L + " is out of range (|value| <= 1e9): '" +
+                std::string(src_.substr(wstart, i - wstart)) + "'");
+      b.valid = false;
+      continue;
+    }
+    if (L != 'G' && (seen & bit(L))) {
+      error(line, col(wstart), std::string("word ") + L + " appears twice on one line");
+      b.valid = false;
+      continue;
+    }
+    if (L != 'G') seen |= bit(L);
+    words_.push_back({L, col(wstart), v});
+  }
+  const std::size_t count = words_.size() - b.first_word;
+  if (count > 0xFFFF) {
+    error(line, 1, "more than 65535 words on one line");
+    words_.resize(b.first_word);
+    b.valid = false;
+  }
+  b.word_count = static_cast<std::uint16_t>(words_.size() - b.first_word);
+  if (b.word_count == 0 && !b.has_comment && b.valid) return;  // empty line: no block
+  check_block_static(b);
+  blocks_.push_back(b);
+}
+
+bool integral(double v) { return v == std::floor(v); }
+
+// Checks that need no modal state; records labels.
+void Compiler::check_block_static(Block& b) {
+  const Word* w = words_.data() + b.first_word;
+  const Word* we = w + b.word_count;
+  const Word* g_of[7] = {};  // per GGroup: the G word of that group on this line
+  const Word* m_word = nullptr;
+  const Word* by_letter[26] = {};
+  for (const Word* p = w; p != we; ++p) {
+    if (p->letter == 'G') {
+      const double gv = p->value;
+      if (gv == 20.0) {
+        error(b.line, p->column, "G20 (inch units) is not supported: programs are in mm (G21)");
+        b.valid = false;
+        continue;
+      }
+      const int g = integral(gv) && gv >= 0 && gv < 1000 ? static_cast<int>(gv) : -1;
+      const GGroup grp = g >= 0 ? g_group(g) : GGroup::kNone;
+      if (grp == GGroup::kNone) {
+        error(b.line, p->column, "unknown G-code G" + fmt_num(gv));
+        b.valid = false;
+        continue;
+      }
+      const auto gi = static_cast<std::size_t>(grp);
+      if (g_of[gi]) {
+        error(b.line, p->column,
+              "G" + fmt_num(g_of[gi]->value) + " and G" + fmt_num(gv) +
+                  " cannot be on one line (same group)");
+        b.valid = false;
+        continue;
+      }
+      g_of[gi] = p;
+    } else if (p->letter == 'M') {
+      m_word = p;
+    } else {
+      by_letter[p->letter - 'A'] = p;
+    }
+  }
+  auto has = [&](char L) { return by_letter[L - 'A'] != nullptr; };
+  auto word = [&](char L) { return by_letter[L - 'A']; };
+  auto gnum = [&](GGroup grp) {
+    const Word* p = g_of[static_cast<std::size_t>(grp)];
+    return p ? static_cast<int>(p->value) : -1;
+  };
+  if (const Word* n = word('N'); n && (!integral(n->value) || n->value < 0)) {
+    error(b.line, n->column, "line number N must be a whole number >= 0, not " + fmt_num(n->value));
+    b.valid = false;
+  }
+
+  if (m_word) {
+    const double mv = m_word->value;
+    if (!integral(mv) || mv < 0 || mv > kMaxM) {
+      error(b.line, m_word->column,
+            "M-number must be a whole number 0..999999, not M" + fmt_num(mv));
+      b.valid = false;
+      return;
+    }
+    const int m = static_cast<int>(mv);
+    if (m == 1000) {
+      error(b.line, m_word->column,
+            "M1000 is neither a normal (< 1000) nor a continuous (> 1000) M-function");
+      b.valid = false;
+    }
+    // G-words that may share a line with an M-function: the modal settings without words.
+    for (std::size_t gi = 0; gi < 7; ++gi) {
+      const Word* gp = g_of[gi];
+      if (!gp) continue;
+      const int g = static_cast<int>(gp->value);
+      if (!(g == 17 || g == 18 || g == 19 || g == 90 || g == 91 || g == 53 || g == 21)) {
+        error(b.line, gp->column,
+              "G" + std::to_string(g) + " cannot share a line with M" + std::to_string(m) +
+                  " (the other words of an M line are its parameters)");
+        b.valid = false;
+      }
+    }
+    if (const Word* p = word('P')) {
+      error(b.line, p->column,
+            "P is reserved and cannot be an M-function parameter (reserved: G M N P)");
+      b.valid = false;
+    }
+    const bool plc = m < static_cast<int>(redefined_.size()) && redefined_[static_cast<std::size_t>(m)];
+    const bool builtin_no_params =
+        !plc && (m == 0 || m == 2 || m == 30 || m == 17 || m == 29 || (m >= 80 && m <= 87));
+    if (builtin_no_params) {
+      for (int k = 0; k < 26; ++k) {
+        const char L = static_cast<char>('A' + k);
+        if (by_letter[k] && L != 'N' && L != 'P') {
+          error(b.line, by_letter[k]->column,
+                "M" + std::to_string(m) + " takes no parameters, but " + L + " is given");
+          b.valid = false;
+        }
+      }
+    }
+    if (!plc && m == 99) {
+      if (!has('F')) {
+        error(b.line, m_word->column, "M99 needs F<mm/min>, the new default feed");
+        b.valid = false;
+      }
+      for (int k = 0; k < 26; ++k) {
+        const char L = static_cast<char>('A' + k);
+        if (by_letter[k] && L != 'N' && L != 'F' && L != 'P') {
+          error(b.line, by_letter[k]->column, std::string("M99 takes only F, not ") + L);
+          b.valid = false;
+        }
+      }
+      if (const Word* f = word('F'); f && (f->value <= 0 || f->value > kMaxFeed)) {
+        error(b.line, f->column, "feed F must be > 0 and <= 1000000 mm/min, not " + fmt_num(f->value));
+        b.valid = false;
+      }
+    }
+    if (!plc && m == 29 && (!b.has_comment || b.comment_length == 0)) {
+      error(b.line, m_word->column, "M29 needs its message text in parentheses: M29 (text)");
+      b.valid = false;
+    }
+    return;
+  }
+
+  // Not an M line: every letter must be a word of the dialect or an axis.
+  for (int k = 0; k < 26; ++k) {
+    const Word* p = by_letter[k];
+    if (!p) continue;
+    const char L = static_cast<char>('A' + k);
+    const bool known = (axis_mask_ & bit(L)) ||
+                       std::strchr("DFIJKLNPRT", L) != nullptr;
+    if (!known) {
+      error(b.line, p->column,
+            std::string("unknown word ") + L + fmt_num(p->value) +
+                (L >= 'A' && L <= 'Z' && std::strchr("ABCEUVWXYZ", L)
+                     ? " (not an axis of this interpolator)"
+                     : ""));
+      b.valid = false;
+    }
+  }
+  if (const Word* f = word('F'); f && (f->value <= 0 || f->value > kMaxFeed)) {
+    error(b.line, f->column, "feed F must be > 0 and <= 1000000 mm/min, not " + fmt_num(f->value));
+    b.valid = false;
+  }
+  if (const Word* t = word('T'); t && (!integral(t->value) || t->value < 0 || t->value > 99999)) {
+    error(b.line, t->column, "tool T must be a whole number 0..99999, not " + fmt_num(t->value));
+    b.valid = false;
+  }
+  if (const Word* d = word('D'); d && d->value < 0) {
+    error(b.line, d->column, "compensation radius D must be >= 0, not " + fmt_num(d->value));
+    b.valid = false;
+  }
+  if (const Word* r = word('R'); r && r->value == 0) {
+    error(b.line, r->column, "arc radius R must not be 0");
+    b.valid = false;
+  }
+  if (const Word* l = word('L'); l && (!integral(l->value) || l->value < 0)) {
+    error(b.line, l->column, "label L must be a whole number >= 0, not " + fmt_num(l->value));
+    b.valid = false;
+  }
+  const int nonmodal = gnum(GGroup::kNonModal);
+  const int motion = gnum(GGroup::kMotion);
+  bool axis_words = false;
+  for (int k = 0; k < 26; ++k) {
+    if (by_letter[k] && (axis_mask_ & (1u << k))) axis_words = true;
+  }
+  const Word* ng = g_of[static_cast<std::size_t>(GGroup::kNonModal)];
+  switch (nonmodal) {
+    case 4:
+      if (!has('P')) {
+        error(b.line, ng->column, "G4 needs P<seconds>");
+        b.valid = false;
+      } else if (word('P')->value < 0 || word('P')->value > kMaxDwell) {
+        error(b.line, word('P')->column,
+              "dwell P must be 0..100000 s, not " + fmt_num(word('P')->value));
+        b.valid = false;
+      }
+      break;
+    case 25: case 26: case 27: case 29:
+      if (nonmodal != 29 && !has('L')) {
+        error(b.line, ng->column, "G" + std::to_string(nonmodal) + " needs L<label>");
+        b.valid = false;
+      }
+      if (nonmodal == 26 && !has('K')) {
+        error(b.line, ng->column, "G26 needs K<count>, the number of calls");
+        b.valid = false;
+      }
+      if ((nonmodal == 26 || nonmodal == 27) && has('K')) {
+        const Word* k = word('K');
+        if (!integral(k->value) || k->value < 1 || k->value > kMaxRepeat) {
+          error(b.line, k->column, "count K must be a whole number 1..1000000000, not " +
+                                       fmt_num(k->value));
+          b.valid = false;
+        }
+      }
+      if (nonmodal == 29 && !has('L') && !b.has_comment) {
+        error(b.line, ng->column, "G29 needs L<label> or a text note in parentheses");
+        b.valid = false;
+      }
+      if (nonmodal == 29 && has('L') && b.valid) {
+        const auto label = static_cast<long long>(word('L')->value);
+        auto [it, inserted] = labels_.emplace(label, blocks_.size());
+        if (!inserted) {
+          error(b.line, word('L')->column,
+                "label " + std::to_string(label) + " is defined twice (first on line " +
+                    std::to_string(blocks_[it->second].line) + ")");
+          b.valid = false;
+        }
+      }
+      if (motion >= 0 || axis_words) {
+        const Word* culprit = motion >= 0 ? g_of[static_cast<std::size_t>(GGroup::kMotion)] : ng;
+        error(b.line, culprit->column,
+              "G" + std::to_string(nonmodal) + " cannot share a line with motion or axis words");
+        b.valid = false;
+      }
+      break;
+    case 92:
+    case 54:
+      if (!axis_words) {
+        error(b.line, ng->column,
+              nonmodal == 92 ? "G92 needs axis words: the coordinates the current point gets"
+                             : "G54 needs axis words: the zero-point shift per axis");
+        b.valid = false;
+      }
+      if (motion >= 0) {
+        error(b.line, g_of[static_cast<std::size_t>(GGroup::kMotion)]->column,
+              "G" + std::to_string(motion) + " and G" + std::to_string(nonmodal) +
+                  " both use the axis words: put them on separate lines");
+        b.valid = false;
+      }
+      break;
+    default:
+      break;
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Pass 2: execution
+// ---------------------------------------------------------------------------------------------
+
+bool Compiler::emit_check() {
+  if (static_cast<std::int64_t>(program_.segments.size()) >= opt_.compiler.max_program_segments) {
+    too_big_ = true;
+    return false;
+  }
+  return true;
+}
+
+Segment Compiler::base_segment(const Block& b) const {
+  Segment s;
+  s.line = b.line;
+  s.plane = plane_;
+  s.compensation = comp_;
+  s.compensation_radius_mm = comp_ != Compensation::kOff ? comp_radius_ : 0.0;
+  s.tool = tool_;
+  s.end = pos_;
+  return s;
+}
+
+std::size_t Compiler::execute_block(std::size_t index) {
+  const Block& b = blocks_[index];
+  const std::size_t next = index + 1;
+  if (!b.valid) return next;
+  const Word* w = words_.data() + b.first_word;
+  const Word* we = w + b.word_count;
+  const Word* by_letter[26] = {};
+  int g_motion = -1, g_plane = -1, g_dist = -1, g_comp = -1, g_nonmodal = -1;
+  const Word* motion_word = nullptr;
+  const Word* m_word = nullptr;
+  for (const Word* p = w; p != we; ++p) {
+    if (p->letter == 'G') {
+      const int g = static_cast<int>(p->value);
+      switch (g_group(g)) {
+        case GGroup::kMotion: g_motion = g; motion_word = p; break;
+        case GGroup::kPlane: g_plane = g; break;
+        case GGroup::kDistance: g_dist = g; break;
+        case GGroup::kComp: g_comp = g; break;
+        case GGroup::kNonModal: g_nonmodal = g; break;
+        default: break;
+      }
+    } else if (p->letter == 'M') {
+      m_word = p;
+    } else {
+      by_letter[p->letter - 'A'] = p;
+    }
+  }
+  auto word = [&](char L) { return by_letter[L - 'A']; };
+
+  // Modal settings first, so that "G17 G90 G2 ..." works on one line.
+  if (g_plane >= 0) plane_ = static_cast<Plane>(g_plane);
+  if (g_dist >= 0) incremental_ = g_dist == 91;
+  if (g_nonmodal == 53) shift_.fill(0.0);
+
+  if (m_word) {
+    const int m = static_cast<int>(m_word->value);
+    const bool plc = m < static_cast<int>(redefined_.size()) && redefined_[static_cast<std::size_t>(m)];
+    if (!plc) {
+      if (m == 17) {
+        if (stack_.empty()) {
+          error(b.line, m_word->column, "M17 (return) outside a subroutine");
+          return next;
+        }
+        Frame& f = stack_.back();
+        if (f.remaining > 0) {
+          --f.remaining;
+          return f.sub_block;
+        }
+        const std::size_t ret = f.return_block;
+        stack_.pop_back();
+        return ret;
+      }
+      if (m >= 80 && m <= 87) {
+        // Mirroring about program zero (manual table): which of X, Y, Z change sign.
+        static constexpr const char* kMirrored[8] = {"", "X", "Y", "Z", "XY", "XZ", "YZ", "XYZ"};
+        mirror_.fill(1.0);
+        for (const char* L = kMirrored[m - 80]; *L; ++L) {
+          const int a = axis_index(*L);
+          if (a < 0) {
+            error(b.line, m_word->column,
+                  "M" + std::to_string(m) + " mirrors " + *L + ", which this interpolator has no axis for");
+            continue;
+          }
+          mirror_[static_cast<std::size_t>(a)] = -1.0;
+        }
+        return next;
+      }
+      if (m == 99) {
+        default_feed_ = word('F')->value;
+        feed_ = 0.0;  // the new default is the active feed until the next F word
+        return next;
+      }
+      if (m == 29) {
+        if (!emit_check()) return next;
+        Segment s = base_segment(b);
+        s.type = SegmentType::kMessage;
+        s.aux = static_cast<std::int32_t>(program_.messages.size());
+        program_.messages.emplace_back(src_.substr(b.comment_offset, b.comment_length));
+        program_.segments.push_back(s);
+        return next;
+      }
+    }
+    // M0, M2/M30 and every PLC function become records.
+    if (!emit_check()) return next;
+    Segment s = base_segment(b);
+    s.type = SegmentType::kMFunction;
+    s.m = m;
+    if (!plc && m == 0) {
+      s.m_kind = MKind::kProgramStop;
+    } else if (!plc && (m == 2 || m == 30)) {
+      s.m_kind = MKind::kProgramEnd;
+    } else {
+      s.m_kind = m > 1000 ? MKind::kContinuous : MKind::kNormal;
+    }
+    MParams params = unset_params();
+    for (int k = 0; k < 26; ++k) {
+      const char L = static_cast<char>('A' + k);
+      if (by_letter[k] && L != 'N' && L != 'P') params[static_cast<std::size_t>(k)] = by_letter[k]->value;
+    }
+    // T on an M line (M6 T2) both selects the tool and is a parameter.
+    if (const Word* t = word('T'); t && integral(t->value) && t->value >= 0) {
+      tool_ = static_cast<int>(t->value);
+      s.tool = tool_;
+    }
+    s.aux = static_cast<std::int32_t>(program_.params.size());
+    program_.params.push_back(params);
+    program_.segments.push_back(s);
+    if (s.m_kind == MKind::kProgramEnd) ended_ = true;
+    return next;
+  }
+
+  // Words that set state.
+  if (const Word* f = word('F')) feed_ = f->value;
+  if (const Word* t = word('T')) tool_ = static_cast<int>(t->value);
+
+  if (g_comp >= 0) {
+    if (g_comp == 40) {
+      comp_ = Compensation::kOff;
+      comp_radius_ = 0.0;
+      if (const Word* d = word('D')) {
+        error(b.line, d->column, "D (compensation radius) belongs to G41/G42, not G40");
+      }
+    } else {
+      double radius = -1.0;
+      if (const Word* d = word('D')) {
+        radius = d->value;
+      } else {
+        for (const ToolConfig& t : opt_.tools) {
+          if (t.number == tool_) radius = t.radius_mm;
+        }
+        if (radius < 0) {
+          error(b.line, 1,
+                "G" + std::to_string(g_comp) + " needs a radius: D<mm> on the line, or tool T" +
+                    std::to_string(tool_) + " in the tool table");
+        }
+      }
+      // Mirroring one axis of the plane swaps the side of the contour.
+      const PlaneAxes pa = plane_axes(plane_);
+      const double m0 = pa.first < kMaxAxes ? mirror_[static_cast<std::size_t>(pa.first)] : 1.0;
+      const double m1 = pa.second < kMaxAxes ? mirror_[static_cast<std::size_t>(pa.second)] : 1.0;
+      const bool swap = m0 * m1 < 0;
+      comp_ = (g_comp == 41) != swap ? Compensation::kLeft : Compensation::kRight;
+      comp_radius_ = std::max(radius, 0.0);
+    }
+  } else if (const Word* d = word('D')) {
+    error(b.line, d->column, "D (compensation radius) is only used with G41/G42");
+  }
+
+  if (g_nonmodal == 4) {
+    if (emit_check()) {
+      Segment s = base_segment(b);
+      s.type = SegmentType::kDwell;
+      s.dwell_s = word('P')->value;
+      program_.segments.push_back(s);
+    }
+  } else if (const Word* p = word('P')) {
+    error(b.line, p->column, "P (dwell seconds) is only used with G4");
+  }
+
+  // Axis words: targets in program coordinates, mirrored.
+  bool any_axis = false;
+  std::array<bool, kMaxAxes> given{};
+  std::array<double, kMaxAxes> value{};
+  for (int a = 0; a < n_axes_; ++a) {
+    const char L = opt_.axis_letters[static_cast<std::size_t>(a)];
+    if (const Word* p = word(L)) {
+      given[static_cast<std::size_t>(a)] = true;
+      value[static_cast<std::size_t>(a)] = p->value * mirror_[static_cast<std::size_t>(a)];
+      any_axis = true;
+    }
+  }
+
+  if (g_nonmodal == 54) {
+    for (int a = 0; a < n_axes_; ++a) {
+      if (given[static_cast<std::size_t>(a)]) {
+        shift_[static_cast<std::size_t>(a)] =
+            word(opt_.axis_letters[static_cast<std::size_t>(a)])->value;
+      }
+    }
+    any_axis = false;  // the axis words were the shift
+  } else if (g_nonmodal == 92) {
+    // The current point gets the given coordinates: machine = program + shift + g92.
+    for (int a = 0; a < n_axes_; ++a) {
+      const auto i = static_cast<std::size_t>(a);
+      if (given[i]) g92_[i] = pos_[i] - shift_[i] - value[i];
+    }
+    any_axis = false;
+  }
+
+  if (g_motion >= 0) motion_ = g_motion;
+  const bool arc_words = word('I') || word('J') || word('K') || word('R');
+  const bool flow = g_nonmodal == 25 || g_nonmodal == 26 || g_nonmodal == 27;
+  if (!flow) {
+    // I/J/K/R only make sense on an arc.
+    const bool arc_mode = motion_ == 2 || motion_ == 3;
+    if (arc_words && !(arc_mode && (any_axis || g_motion >= 0))) {
+      const Word* p = word('I') ? word('I') : word('J') ? word('J') : word('K') ? word('K') : word('R');
+      error(b.line, p->column,
+            std::string(1, p->letter) + " is only used by an arc move (G2/G3)");
+    }
+  }
+  if (const Word* l = word('L'); l && !(g_nonmodal >= 25 && g_nonmodal <= 29 && g_nonmodal != 28)) {
+    error(b.line, l->column, "L (label) is only used by G25, G26, G27 and G29");
+  }
+
+  if (any_axis || g_motion >= 0) {
+    if (motion_ < 0) {
+      const Word* p = w;
+      error(b.line, p->column, "axis words without a motion G-code (G0, G1, G2 or G3) before them");
+    } else if (!any_axis && !(motion_ >= 2 && arc_words)) {
+      // "G1" alone: selects the mode, moves nowhere.
+    } else if (emit_check()) {
+      std::array<double, kMaxAxes> target = pos_;
+      for (int a = 0; a < n_axes_; ++a) {
+        const auto i = static_cast<std::size_t>(a);
+        if (!given[i]) continue;
+        target[i] = incremental_ ? pos_[i] + value[i] : value[i] + shift_[i] + g92_[i];
+      }
+      Segment s = base_segment(b);
+      s.type = static_cast<SegmentType>(motion_);
+      s.end = target;
+      const double feed = feed_ > 0 ? feed_ : default_feed_;
+      s.feed_mm_per_min = motion_ == 0 ? 0.0 : feed;
+      bool ok = true;
+      if (motion_ >= 2) {
+        const PlaneAxes pa = plane_axes(plane_);
+        const int a0 = pa.first, a1 = pa.second;
+        if (a0 >= n_axes_ || a1 >= n_axes_) {
+          error(b.line, motion_word ? motion_word->column : 1,
+                "arc in plane G" + std::to_string(static_cast<int>(plane_)) +
+                    " needs axes " + std::to_string(a0) + " and " + std::to_string(a1) +
+                    ", but this interpolator has " + std::to_string(n_axes_) + " axes");
+          ok = false;
+        } else {
+          const auto i0 = static_cast<std::size_t>(a0), i1 = static_cast<std::size_t>(a1);
+          const double sx = pos_[i0], sy = pos_[i1];
+          const double ex = target[i0], ey = target[i1];
+          // Offset letters per axis: X->I, Y->J, Z->K.
+          static constexpr char kOffsetLetter[3] = {'I', 'J', 'K'};
+          const char o0 = kOffsetLetter[a0], o1 = kOffsetLetter[a1];
+          const char onormal = kOffsetLetter[pa.normal];
+          const Word* wr = word('R');
+          const Word* wo0 = word(o0);
+          const Word* wo1 = word(o1);
+          if (const Word* wn = word(onormal)) {
+            error(b.line, wn->column,
+                  std::string(1, onormal) + " is not a centre offset in plane G" +
+                      std::to_string(static_cast<int>(plane_)) + " (use " + o0 + " and " + o1 + ")");
+            ok = false;
+          }
+          double cx = 0, cy = 0, radius = 0;
+          const bool cw = motion_ == 2;
+          if (wr && (wo0 || wo1)) {
+            error(b.line, wr->column, "an arc takes either R or centre offsets, not both");
+            ok = false;
+          } else if (wr) {
+            const double r = std::fabs(wr->value);
+            const double dx = ex - sx, dy = ey - sy;
+            const double d = std::hypot(dx, dy);
+            if (d < kFullCircleEps) {
+              error(b.line, wr->column,
+                    "an R arc cannot have its end at its start (use I/J/K for a full circle)");
+              ok = false;
+            } else if (d > 2.0 * r * (1.0 + 1e-9) + 1e-9) {
+              error(b.line, wr->column,
+                    "radius R" + fmt_num(r) + " is too small for the distance " + fmt_mm(d) +
+                        " mm between start and end");
+              ok = false;
+            } else {
+              const double h2 = r * r - 0.25 * d * d;
+              const double h = h2 > 0 ? std::sqrt(h2) : 0.0;
+              // Left of the chord (towards `second` from `first`) for a CCW arc of <= 180 deg.
+              double side = cw ? -1.0 : 1.0;
+              if (wr->value < 0) side = -side;
+              const double ux = -dy / d, uy = dx / d;
+              cx = 0.5 * (sx + ex) + side * h * ux;
+              cy = 0.5 * (sy + ey) + side * h * uy;
+              radius = r;
+            }
+          } else if (wo0 || wo1) {
+            cx = sx + (wo0 ? wo0->value * mirror_[i0] : 0.0);
+            cy = sy + (wo1 ? wo1->value * mirror_[i1] : 0.0);
+            const double r0 = std::hypot(sx - cx, sy - cy);
+            const double r1 = std::hypot(ex - cx, ey - cy);
+            radius = r0;
+            if (r0 < 1e-9) {
+              error(b.line, (wo0 ? wo0 : wo1)->column, "arc centre is at the start point (radius 0)");
+              ok = false;
+            } else if (std::fabs(r1 - r0) > std::max(0.005, 0.001 * r0)) {
+              error(b.line, (wo0 ? wo0 : wo1)->column,
+                    "arc end radius " + fmt_mm(r1) + " differs from start radius " + fmt_mm(r0) +
+                        " by " + fmt_mm(std::fabs(r1 - r0)) +
+                        " mm (allowed: max(0.005 mm, 0.1 % of the radius))");
+              ok = false;
+            }
+          } else {
+            error(b.line, motion_word ? motion_word->column : w->column,
+                  std::string("arc needs a centre: ") + o0 + "/" + o1 + " offsets or R");
+            ok = false;
+          }
+          // Mirroring one axis of the plane reverses the direction.
+          const bool flip = mirror_[i0] * mirror_[i1] < 0;
+          if (flip) s.type = cw ? SegmentType::kArcCcw : SegmentType::kArcCw;
+          s.center = {cx, cy};
+          s.radius = radius;
+          s.turns = 0;
+        }
+      }
+      if (ok) {
+        program_.segments.push_back(s);
+      }
+      pos_ = target;
+    }
+  }
+
+  // Flow control last.
+  if (g_nonmodal == 25 || g_nonmodal == 26 || g_nonmodal == 27) {
+    const Word* lw = word('L');
+    const auto label = static_cast<long long>(lw->value);
+    const auto it = labels_.find(label);
+    if (it == labels_.end()) {
+      error(b.line, lw->column, "unknown label L" + std::to_string(label) +
+                                    " (define it with G29 L" + std::to_string(label) + ")");
+      return next;
+    }
+    const std::size_t target = it->second;
+    if (g_nonmodal == 27) {
+      const Word* kw = word('K');
+      if (!kw) {
+        if (target <= index) {
+          error(b.line, lw->column,
+                "backward jump to L" + std::to_string(label) +
+                    " without K would loop forever (give K<count>)");
+          return next;
+        }
+        return target;
+      }
+      long long& left = jump_count_[index];
+      if (left < 0) left = static_cast<long long>(kw->value);
+      if (left > 0) {
+        --left;
+        return target;
+      }
+      left = -1;  // fall through, re-armed when reached again
+      return next;
+    }
+    if (static_cast<int>(stack_.size()) >= opt_.compiler.max_call_depth) {
+      error(b.line, lw->column,
+            "subroutine calls nested deeper than " + std::to_string(opt_.compiler.max_call_depth));
+      ended_ = true;  // an endless recursion: stop expanding
+      return next;
+    }
+    const long long times = g_nonmodal == 26 ? static_cast<long long>(word('K')->value) : 1;
+    stack_.push_back({next, index, target, times - 1});
+    return target;
+  }
+  return next;
+}
+
+void Compiler::execute() {
+  jump_count_.assign(blocks_.size(), -1);
+  // Enough for every real program, and a stop for loops that expand to nothing.
+  const std::uint64_t max_executed =
+      static_cast<std::uint64_t>(opt_.compiler.max_program_segments) * 10 + 1'000'000;
+  std::size_t i = 0;
+  while (i < blocks_.size() && !ended_) {
+    if (too_big_) {
+      error(blocks_[i].line, 1,
+            "program expands to more than " + std::to_string(opt_.compiler.max_program_segments) +
+                " segments (compiler.max_program_segments)");
+      return;
+    }
+    if (++executed_ > max_executed) {
+      error(blocks_[i].line, 1,
+            "program executes more than " + std::to_string(max_executed) +
+                " blocks without ending: an endless loop of calls or jumps?");
+      return;
+    }
+    i = execute_block(i);
+  }
+  if (too_big_) {
+    error(blocks_.empty() ? 1 : blocks_.back().line, 1,
+          "program expands to more than " + std::to_string(opt_.compiler.max_program_segments) +
+              " segments (compiler.max_program_segments)");
+  }
+  if (!ended_ && !stack_.empty()) {
+    const Block& call = blocks_[stack_.back().call_block];
+    error(call.line, 1, "subroutine called here runs to the end of the program without M17");
+  }
+}
+
+CompileResult Compiler::run() {
+  CompileResult result;
+  n_axes_ = static_cast<int>(opt_.axis_letters.size());
+  if (n_axes_ < 1 || n_axes_ > kMaxAxes) {
+    result.errors.push_back({0, 0, "the interpolator must have 1..10 axes, not " +
+                                       std::to_string(n_axes_)});
+    return result;
+  }
+  axis_of_letter_.fill(-1);
+  for (int a = 0; a < n_axes_; ++a) {
+    char L = opt_.axis_letters[static_cast<std::size_t>(a)];
+    if (L >= 'a' && L <= 'z') L = static_cast<char>(L - 'a' + 'A');
+    if (L < 'A' || L > 'Z' || std::strchr("DFGIJKLMNPRT", L) || (axis_mask_ & bit(L))) {
+      result.errors.push_back({0, 0, std::string("bad axis letter '") + L + "'"});
+      return result;
+    }
+    axis_mask_ |= bit(L);
+    axis_of_letter_[static_cast<std::size_t>(L - 'A')] = a;
+  }
+  redefined_.assign(100, false);
+  for (int m : opt_.compiler.plc_redefined_m) {
+    if (m >= 0 && m < 100) redefined_[static_cast<std::size_t>(m)] = true;
+  }
+  if (src_.size() > 0xFFFFFFF0u) {
+    result.errors.push_back({1, 1, "program text larger than 4 GiB"});
+    return result;
+  }
+
+  lex();
+
+  incremental_ = opt_.compiler.start_incremental;
+  default_feed_ = opt_.compiler.default_feed_mm_per_min;
+  tool_ = opt_.compiler.initial_tool;
+  mirror_.fill(1.0);
+  pos_ = opt_.start_mm;
+  program_.number_axes = n_axes_;
+  program_.axis_letters = opt_.axis_letters;
+  program_.segments.reserve(blocks_.size() + 16);
+  execute();
+
+  std::stable_sort(errors_.begin(), errors_.end(), [](const Diagnostic& a, const Diagnostic& b) {
+    return a.line != b.line ? a.line < b.line : a.column < b.column;
+  });
+  // A subroutine run several times reports its errors once.
+  errors_.erase(std::unique(errors_.begin(), errors_.end(),
+                            [](const Diagnostic& a, const Diagnostic& b) {
+                              return a.line == b.line && a.column == b.column && a.reason == b.reason;
+                            }),
+                errors_.end());
+  if (suppressed_ > 0) {
+    errors_.push_back({errors_.back().line, errors_.back().column,
+                       std::to_string(suppressed_) + " further errors not shown"});
+  }
+  result.errors = std::move(errors_);
+  if (result.errors.empty()) result.program = std::move(program_);
+  return result;
+}
+
+}  // namespace
 
 std::string format_diagnostic(std::string_view file, const Diagnostic& d) {
   return std::string(file) + ":" + std::to_string(d.line) + ":" + std::to_string(d.column) +
@@ -15,10 +1095,9 @@ CompileOptions CompileOptions::from_machine(const MachineConfig& m, int n) {
   return o;
 }
 
-CompileResult compile_gcode(std::string_view, const CompileOptions&) {
-  CompileResult r;
-  r.errors.push_back({1, 1, "compiler not written yet"});
-  return r;
+CompileResult compile_gcode(std::string_view source, const CompileOptions& options) {
+  Compiler c(source, options);
+  return c.run();
 }
 
 }  // namespace tgm

@@ -50,6 +50,8 @@ struct CompilerConfig {
   bool start_incremental = true;
   //! Feed used by G1/G2/G3 before any F word or M99 [mm/min].
   double default_feed_mm_per_min = 1000.0;
+  //! Tool in the spindle when a program starts (Tool_Number before the first T word).
+  int initial_tool = 1;
   //! M-numbers (from the redefinable set M2..M99) that the PLC handles as plain functions.
   std::vector<int> plc_redefined_m;
   //! Largest expanded program, in segments.

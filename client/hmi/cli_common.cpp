@@ -1,0 +1,167 @@
+#include "cli_common.hpp"
+
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+namespace tgm::hmi {
+
+Args::Args(int argc, char** argv, const char* command, const char* usage)
+    : argc_(argc), argv_(argv), command_(command), usage_(usage) {}
+
+bool Args::flag(const char* name, std::string& value) {
+  const std::string arg = argv_[i_];
+  const std::size_t n = std::strlen(name);
+  if (arg == name) {
+    if (i_ + 1 >= argc_) {
+      usage_error(std::string(name) + " needs a value");
+      failed_ = true;
+      ++i_;
+      return true;
+    }
+    value = argv_[i_ + 1];
+    i_ += 2;
+    return true;
+  }
+  if (arg.size() > n && arg.compare(0, n, name) == 0 && arg[n] == '=') {
+    value = arg.substr(n + 1);
+    ++i_;
+    return true;
+  }
+  return false;
+}
+
+bool Args::boolean(const char* name, bool& value) {
+  if (std::strcmp(argv_[i_], name) != 0) return false;
+  value = true;
+  ++i_;
+  return true;
+}
+
+bool Args::common() {
+  const std::string arg = argv_[i_];
+  if (arg == "--help" || arg == "-h") {
+    help_ = true;
+    ++i_;
+    return true;
+  }
+  return flag("--config", config_path_) || flag("--interpolator", interpolator_text_);
+}
+
+bool Args::positional(std::string& value) {
+  const char* arg = argv_[i_];
+  if (!value.empty() || (arg[0] == '-' && arg[1] != '\0')) return false;
+  value = arg;
+  ++i_;
+  return true;
+}
+
+int Args::fail() {
+  const char* arg = argv_[i_];
+  failed_ = true;
+  ++i_;
+  if (arg[0] == '-') return usage_error(std::string("unknown option '") + arg + "'");
+  return usage_error(std::string("unexpected argument '") + arg + "'");
+}
+
+bool Args::help() const {
+  if (help_) std::fputs(usage_, stdout);
+  return help_;
+}
+
+int Args::usage_error(const std::string& reason) const {
+  std::fprintf(stderr, "tgm-hmi %s: %s\n(see tgm-hmi %s --help)\n", command_, reason.c_str(),
+               command_);
+  return 2;
+}
+
+std::optional<AppConfig> Args::load_app() {
+  const std::string path = config_path_.empty() ? default_config_path() : config_path_;
+  ConfigLoad load = load_config_file(path);
+  if (!load.config) {
+    for (const auto& e : load.errors) std::fprintf(stderr, "%s\n", e.c_str());
+    std::fprintf(stderr, "tgm-hmi %s: the config has %zu problem%s\n", command_, load.errors.size(),
+                 load.errors.size() == 1 ? "" : "s");
+    return std::nullopt;
+  }
+  const int count = static_cast<int>(load.config->machine.interpolators.size());
+  if (!interpolator_text_.empty()) {
+    long long n = 0;
+    if (!parse_int(interpolator_text_, 0, count - 1, n)) {
+      usage_error("--interpolator must be 0.." + std::to_string(count - 1) + " (the config has " +
+                  std::to_string(count) + "), not '" + interpolator_text_ + "'");
+      return std::nullopt;
+    }
+    interpolator_ = static_cast<int>(n);
+  }
+  return load.config;
+}
+
+std::optional<MachineConfig> Args::load_machine() {
+  auto app = load_app();
+  if (!app) return std::nullopt;
+  return app->machine;
+}
+
+bool read_file(const std::string& path, std::string& out, std::string& error) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    error = std::string("cannot open: ") + std::strerror(errno);
+    return false;
+  }
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  if (in.bad()) {
+    error = "read error";
+    return false;
+  }
+  out = std::move(ss).str();
+  return true;
+}
+
+bool write_file_atomic(const std::string& path, const std::string& bytes, std::string& error) {
+  const std::string tmp = path + ".tmp";
+  std::FILE* f = std::fopen(tmp.c_str(), "wb");
+  if (!f) {
+    error = std::string("cannot create: ") + std::strerror(errno);
+    return false;
+  }
+  const bool ok = std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
+  const int close_rc = std::fclose(f);
+  if (!ok || close_rc != 0) {
+    error = std::string("cannot write: ") + std::strerror(errno);
+    std::remove(tmp.c_str());
+    return false;
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    error = std::string("cannot rename into place: ") + std::strerror(errno);
+    std::remove(tmp.c_str());
+    return false;
+  }
+  return true;
+}
+
+bool parse_int(const std::string& text, long long lo, long long hi, long long& out) {
+  if (text.empty()) return false;
+  char* end = nullptr;
+  errno = 0;
+  const long long v = std::strtoll(text.c_str(), &end, 10);
+  if (errno != 0 || *end != '\0' || v < lo || v > hi) return false;
+  out = v;
+  return true;
+}
+
+bool parse_double(const std::string& text, double& out) {
+  if (text.empty()) return false;
+  char* end = nullptr;
+  const double v = std::strtod(text.c_str(), &end);
+  if (*end != '\0' || !std::isfinite(v)) return false;
+  out = v;
+  return true;
+}
+
+}  // namespace tgm::hmi

@@ -1,0 +1,67 @@
+// Command-line plumbing shared by the tgm-hmi subcommands: flags, config loading, file I/O.
+#pragma once
+
+#include <optional>
+#include <string>
+
+#include "tgm/config.hpp"
+#include "tgm/yaml_config.hpp"
+
+namespace tgm::hmi {
+
+//! A small strict argument reader: `--flag VALUE` or `--flag=VALUE`, positionals, and the
+//! flags every subcommand shares (--config, --interpolator, --help). Problems are printed as
+//! "tgm-hmi CMD: reason" with a hint to --help.
+class Args {
+ public:
+  Args(int argc, char** argv, const char* command, const char* usage);
+
+  bool more() const { return i_ < argc_; }
+  //! Consumes `name VALUE` or `name=VALUE`; true when the current argument was `name`.
+  bool flag(const char* name, std::string& value);
+  //! Consumes a flag without a value.
+  bool boolean(const char* name, bool& value);
+  //! Consumes --config, --interpolator, --help.
+  bool common();
+  //! Consumes a positional argument if `value` is still empty.
+  bool positional(std::string& value);
+  //! Reports the current argument as unknown; returns the exit code 2.
+  int fail();
+
+  //! True (after printing the usage to stdout) when --help was given.
+  bool help() const;
+  //! True when a flag was malformed (already reported).
+  bool failed() const { return failed_; }
+  //! Prints "tgm-hmi CMD: reason" and a hint; returns 2.
+  int usage_error(const std::string& reason) const;
+
+  //! Loads and validates the config (printing every problem); nullopt on failure.
+  std::optional<MachineConfig> load_machine();
+  std::optional<AppConfig> load_app();
+  //! The --interpolator value (0 when not given); valid after load_machine().
+  int interpolator() const { return interpolator_; }
+  const std::string& config_path() const { return config_path_; }
+
+ private:
+  int argc_;
+  char** argv_;
+  int i_ = 1;
+  const char* command_;
+  const char* usage_;
+  bool help_ = false;
+  bool failed_ = false;
+  std::string config_path_;
+  std::string interpolator_text_;
+  int interpolator_ = 0;
+};
+
+//! Reads a whole file; on failure says why in `error`.
+bool read_file(const std::string& path, std::string& out, std::string& error);
+//! Writes `path` through a temporary file and rename, so a failed run leaves nothing half-written.
+bool write_file_atomic(const std::string& path, const std::string& bytes, std::string& error);
+//! Parses a whole number in [lo, hi]; false when `text` is not one.
+bool parse_int(const std::string& text, long long lo, long long hi, long long& out);
+//! Parses a finite number; false when `text` is not one.
+bool parse_double(const std::string& text, double& out);
+
+}  // namespace tgm::hmi
