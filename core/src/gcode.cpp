@@ -115,7 +115,7 @@ class Compiler {
   std::size_t execute_block(std::size_t index);
 
   // Helpers of pass 2.
-  bool emit_check();
+  bool emit_check(const Block& b);
   Segment base_segment(const Block& b) const;
   int axis_index(char letter) const {
     return (letter >= 'A' && letter <= 'Z') ? axis_of_letter_[letter - 'A'] : -1;
@@ -181,7 +181,6 @@ bool Compiler::parse_number(std::size_t& i, std::size_t end, double& out) {
   std::uint64_t mant = 0;
   int digits = 0;       // significant digits kept in mant
   int frac = 0;         // decimals kept in mant
-  int dropped_int = 0;  // integer digits beyond 19
   bool any = false, dot = false, long_form = false;
   char buf[128];
   std::size_t blen = 0;
@@ -196,7 +195,6 @@ bool Compiler::parse_number(std::size_t& i, std::size_t end, double& out) {
         if (dot) ++frac;
       } else {
         long_form = true;
-        if (!dot) ++dropped_int;
       }
       ++i;
     } else if (c == '.' && !dot) {
@@ -235,7 +233,6 @@ bool Compiler::parse_number(std::size_t& i, std::size_t end, double& out) {
   } else {
     v = HUGE_VAL;  // more than 126 characters of digits: certainly out of range
   }
-  (void)dropped_int;
   out = neg ? -v : v;
   return true;
 }
@@ -505,7 +502,7 @@ void Compiler::check_block_static(Block& b) {
                        std::strchr("DFIJKLNPRT", L) != nullptr;
     if (!known) {
       error(b.line, p->column,
-            std::string("unknown word ") + L + fmt_num(p->value) +
+            std::string("unknown word '") + L + fmt_num(p->value) + "'" +
                 (L >= 'A' && L <= 'Z' && std::strchr("ABCEUVWXYZ", L)
                      ? " (not an axis of this interpolator)"
                      : ""));
@@ -612,12 +609,18 @@ void Compiler::check_block_static(Block& b) {
 // Pass 2: execution
 // ---------------------------------------------------------------------------------------------
 
-bool Compiler::emit_check() {
-  if (static_cast<std::int64_t>(program_.segments.size()) >= opt_.compiler.max_program_segments) {
-    too_big_ = true;
-    return false;
+bool Compiler::emit_check(const Block& b) {
+  if (static_cast<std::int64_t>(program_.segments.size()) < opt_.compiler.max_program_segments) {
+    return true;
   }
-  return true;
+  if (!too_big_) {
+    error(b.line, 1,
+          "program expands to more than " + std::to_string(opt_.compiler.max_program_segments) +
+              " segments (compiler.max_program_segments)");
+  }
+  too_big_ = true;
+  ended_ = true;  // stop expanding
+  return false;
 }
 
 Segment Compiler::base_segment(const Block& b) const {
@@ -704,7 +707,7 @@ std::size_t Compiler::execute_block(std::size_t index) {
         return next;
       }
       if (m == 29) {
-        if (!emit_check()) return next;
+        if (!emit_check(b)) return next;
         Segment s = base_segment(b);
         s.type = SegmentType::kMessage;
         s.aux = static_cast<std::int32_t>(program_.messages.size());
@@ -714,7 +717,7 @@ std::size_t Compiler::execute_block(std::size_t index) {
       }
     }
     // M0, M2/M30 and every PLC function become records.
-    if (!emit_check()) return next;
+    if (!emit_check(b)) return next;
     Segment s = base_segment(b);
     s.type = SegmentType::kMFunction;
     s.m = m;
@@ -780,7 +783,7 @@ std::size_t Compiler::execute_block(std::size_t index) {
   }
 
   if (g_nonmodal == 4) {
-    if (emit_check()) {
+    if (emit_check(b)) {
       Segment s = base_segment(b);
       s.type = SegmentType::kDwell;
       s.dwell_s = word('P')->value;
@@ -842,7 +845,7 @@ std::size_t Compiler::execute_block(std::size_t index) {
       error(b.line, p->column, "axis words without a motion G-code (G0, G1, G2 or G3) before them");
     } else if (!any_axis && !(motion_ >= 2 && arc_words)) {
       // "G1" alone: selects the mode, moves nowhere.
-    } else if (emit_check()) {
+    } else if (emit_check(b)) {
       std::array<double, kMaxAxes> target = pos_;
       for (int a = 0; a < n_axes_; ++a) {
         const auto i = static_cast<std::size_t>(a);
@@ -997,12 +1000,6 @@ void Compiler::execute() {
       static_cast<std::uint64_t>(opt_.compiler.max_program_segments) * 10 + 1'000'000;
   std::size_t i = 0;
   while (i < blocks_.size() && !ended_) {
-    if (too_big_) {
-      error(blocks_[i].line, 1,
-            "program expands to more than " + std::to_string(opt_.compiler.max_program_segments) +
-                " segments (compiler.max_program_segments)");
-      return;
-    }
     if (++executed_ > max_executed) {
       error(blocks_[i].line, 1,
             "program executes more than " + std::to_string(max_executed) +
@@ -1010,11 +1007,6 @@ void Compiler::execute() {
       return;
     }
     i = execute_block(i);
-  }
-  if (too_big_) {
-    error(blocks_.empty() ? 1 : blocks_.back().line, 1,
-          "program expands to more than " + std::to_string(opt_.compiler.max_program_segments) +
-              " segments (compiler.max_program_segments)");
   }
   if (!ended_ && !stack_.empty()) {
     const Block& call = blocks_[stack_.back().call_block];

@@ -1,0 +1,516 @@
+// G-code compiler: the dialect of DESIGN.md section 4, pinned known values and the exact text of
+// every error class.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "tgm/gcode.hpp"
+#include "tgm/intercode_io.hpp"
+
+namespace tgm {
+namespace {
+
+CompileOptions options(bool incremental = false) {
+  CompileOptions o;
+  o.axis_letters = "XYZ";
+  o.compiler.start_incremental = incremental;
+  o.tools = {{1, 3.0, 50.0}, {2, 5.0, 60.0}};
+  return o;
+}
+
+Program compile_ok(const std::string& text, const CompileOptions& o = options()) {
+  CompileResult r = compile_gcode(text, o);
+  std::string all;
+  for (const auto& e : r.errors) all += format_diagnostic("t.ngc", e) + "\n";
+  EXPECT_TRUE(r.ok()) << all;
+  return r.program;
+}
+
+// Errors as "LINE:COL: reason", one per entry.
+std::vector<std::string> errors_of(const std::string& text, const CompileOptions& o = options()) {
+  CompileResult r = compile_gcode(text, o);
+  std::vector<std::string> out;
+  for (const auto& e : r.errors) {
+    out.push_back(std::to_string(e.line) + ":" + std::to_string(e.column) + ": " + e.reason);
+  }
+  if (!r.ok()) {
+    EXPECT_TRUE(r.program.segments.empty()) << "a program with errors must yield no records";
+  }
+  return out;
+}
+
+std::string read_text(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+constexpr double kTol = 1e-9;
+
+// --- The manual's example program ------------------------------------------------------------
+
+TEST(GcodeExample, CompilesWithTheDefaultG91Start) {
+  const std::string text = read_text(TGM_SOURCE_DIR "/tests/programs/manual_example.ngc");
+  ASSERT_FALSE(text.empty());
+  const Program p = compile_ok(text, options(/*incremental=*/true));
+  // 2 rapids, 7 arcs, M51 twice, M50 once, M2.
+  ASSERT_EQ(p.segments.size(), 13u);
+  const Segment& rapid = p.segments[0];
+  EXPECT_EQ(rapid.type, SegmentType::kRapid);
+  EXPECT_NEAR(rapid.end[0], 60.6051, kTol);
+  EXPECT_NEAR(rapid.end[1], 40.7723, kTol);
+
+  const Segment& m51 = p.segments[1];
+  EXPECT_EQ(m51.type, SegmentType::kMFunction);
+  EXPECT_EQ(m51.m, 51);
+  EXPECT_EQ(m51.m_kind, MKind::kNormal);
+  EXPECT_EQ(m51.line, 3);
+  EXPECT_EQ(m51.compensation, Compensation::kRight);
+  EXPECT_DOUBLE_EQ(m51.compensation_radius_mm, 3.0);  // initial tool 1 from the tool table
+
+  // First arc: centre = start + (I, J) and the end radius equals the start radius.
+  const Segment& a1 = p.segments[2];
+  EXPECT_EQ(a1.type, SegmentType::kArcCw);
+  EXPECT_EQ(a1.line, 4);
+  EXPECT_NEAR(a1.center[0], 60.6051 + 3.0336, kTol);
+  EXPECT_NEAR(a1.center[1], 40.7723 - 1.2601, kTol);
+  EXPECT_NEAR(a1.end[0], 60.6051, kTol);
+  EXPECT_NEAR(a1.end[1], 40.7723 - 2.5202, kTol);
+  EXPECT_NEAR(a1.radius, std::hypot(3.0336, 1.2601), kTol);
+  // Every arc closes: |end - centre| == radius within the compiler's tolerance.
+  for (const Segment& s : p.segments) {
+    if (!s.is_arc()) continue;
+    const double r1 = std::hypot(s.end[0] - s.center[0], s.end[1] - s.center[1]);
+    EXPECT_NEAR(r1, s.radius, std::max(0.005, 0.001 * s.radius)) << "line " << s.line;
+  }
+  // The last arc ends at X 60.6051 + sum of the X increments.
+  const double x_end = 60.6051 + 0 + 0.922 + 1.079 + 2.2624 + 1.9856 + 3.015 + 6.2889;
+  EXPECT_NEAR(p.segments[8].end[0], x_end, kTol);
+  EXPECT_EQ(p.segments[9].m, 50);
+  EXPECT_EQ(p.segments[9].compensation, Compensation::kRight);
+  EXPECT_EQ(p.segments[10].type, SegmentType::kRapid);
+  EXPECT_EQ(p.segments[10].compensation, Compensation::kOff);
+  EXPECT_NEAR(p.segments[10].end[0], x_end - 28.9085, kTol);
+  EXPECT_EQ(p.segments[12].m_kind, MKind::kProgramEnd);
+  EXPECT_EQ(p.segments[12].line, 17);
+}
+
+TEST(GcodeExample, DumpMatchesTheCheckedInGoldenFile) {
+  const std::string text = read_text(TGM_SOURCE_DIR "/tests/programs/manual_example.ngc");
+  const Program p = compile_ok(text, options(true));
+  std::string dump;
+  dump_jsonl(p, dump);
+  const std::string golden = read_text(TGM_SOURCE_DIR "/tests/programs/manual_example.jsonl");
+  EXPECT_EQ(dump, golden) << "regenerate with: tgm-hmi compile "
+                             "tests/programs/manual_example.ngc --dump jsonl";
+}
+
+TEST(GcodeExample, ReadAbsoluteTheArcsDoNotClose) {
+  // DESIGN section 4: the example only closes its arcs read incrementally.
+  const std::string text = read_text(TGM_SOURCE_DIR "/tests/programs/manual_example.ngc");
+  const auto errs = errors_of(text, options(false));
+  ASSERT_FALSE(errs.empty());
+  EXPECT_NE(errs[0].find("4:"), std::string::npos);
+  EXPECT_NE(errs[0].find("arc end radius"), std::string::npos);
+}
+
+// --- Dialect ---------------------------------------------------------------------------------
+
+TEST(Gcode, WordsAreCaseInsensitiveWithBlanksAndLeadingZeros) {
+  const Program p = compile_ok("g90\nn10 g01 x 1 0 . 5 y-.5 z+1. f 600\n");
+  ASSERT_EQ(p.segments.size(), 1u);
+  EXPECT_EQ(p.segments[0].type, SegmentType::kLinear);
+  EXPECT_DOUBLE_EQ(p.segments[0].end[0], 10.5);
+  EXPECT_DOUBLE_EQ(p.segments[0].end[1], -0.5);
+  EXPECT_DOUBLE_EQ(p.segments[0].end[2], 1.0);
+  EXPECT_DOUBLE_EQ(p.segments[0].feed_mm_per_min, 600.0);
+}
+
+TEST(Gcode, CommentsAndTapeMarkersAreIgnored) {
+  const Program p = compile_ok("%\n(header)\nG90 ; absolute\nG1 X1 (move) Y2 F100\n%\n");
+  ASSERT_EQ(p.segments.size(), 1u);
+  EXPECT_DOUBLE_EQ(p.segments[0].end[1], 2.0);
+}
+
+TEST(Gcode, DistanceModesAndModalMotion) {
+  const Program p = compile_ok("G90 G1 X10 Y10 F100\nX20\nG91 X5 Y-5\nG0 Z3\n");
+  ASSERT_EQ(p.segments.size(), 4u);
+  EXPECT_DOUBLE_EQ(p.segments[1].end[0], 20.0);
+  EXPECT_EQ(p.segments[1].type, SegmentType::kLinear);
+  EXPECT_DOUBLE_EQ(p.segments[2].end[0], 25.0);
+  EXPECT_DOUBLE_EQ(p.segments[2].end[1], 5.0);
+  EXPECT_EQ(p.segments[3].type, SegmentType::kRapid);
+  EXPECT_DOUBLE_EQ(p.segments[3].feed_mm_per_min, 0.0);
+  EXPECT_DOUBLE_EQ(p.segments[3].end[2], 3.0);
+}
+
+TEST(Gcode, FeedIsModalAndM99SetsTheDefault) {
+  CompileOptions o = options();
+  o.compiler.default_feed_mm_per_min = 700;
+  const Program p = compile_ok("G90 G1 X1\nF300 X2\nX3\nM99 F900\nX4\nF100 X5\n", o);
+  ASSERT_EQ(p.segments.size(), 5u);
+  EXPECT_DOUBLE_EQ(p.segments[0].feed_mm_per_min, 700.0);
+  EXPECT_DOUBLE_EQ(p.segments[1].feed_mm_per_min, 300.0);
+  EXPECT_DOUBLE_EQ(p.segments[2].feed_mm_per_min, 300.0);
+  EXPECT_DOUBLE_EQ(p.segments[3].feed_mm_per_min, 900.0);
+  EXPECT_DOUBLE_EQ(p.segments[4].feed_mm_per_min, 100.0);
+}
+
+TEST(Gcode, ZeroPointShiftAndG92) {
+  // machine = program + G54 shift + G92 offset
+  const Program p = compile_ok(
+      "G90 G54 X100 Y50\nG1 X1 Y1 F100\nG92 X0 Y0\nG1 X2\nG53\nG1 X3\nG91 G92 X10\nG1 X1\n");
+  ASSERT_EQ(p.segments.size(), 4u);
+  EXPECT_DOUBLE_EQ(p.segments[0].end[0], 101.0);
+  EXPECT_DOUBLE_EQ(p.segments[0].end[1], 51.0);
+  // G92 X0 at machine 101: offset 1 - ... the point (101, 51) now reads (0, 0).
+  EXPECT_DOUBLE_EQ(p.segments[1].end[0], 103.0);
+  EXPECT_DOUBLE_EQ(p.segments[1].end[1], 51.0);
+  // G53 drops the shift, the G92 offset (1, 1) stays.
+  EXPECT_DOUBLE_EQ(p.segments[2].end[0], 4.0);
+  // G92 X10 while incremental still sets a coordinate; G91 X1 moves by 1.
+  EXPECT_DOUBLE_EQ(p.segments[3].end[0], 5.0);
+}
+
+TEST(Gcode, ArcsByIjkAndR) {
+  const Program p = compile_ok(
+      "G90 G17 G1 X10 Y0 F100\n"
+      "G3 X0 Y10 I-10 J0\n"   // quarter circle CCW about the origin
+      "G2 X10 Y0 R10\n"       // back CW, short way: centre at the origin
+      "G2 X0 Y-10 R-10\n");   // 270 deg CW: centre at the origin again
+  ASSERT_EQ(p.segments.size(), 4u);
+  const Segment& a = p.segments[1];
+  EXPECT_EQ(a.type, SegmentType::kArcCcw);
+  EXPECT_NEAR(a.center[0], 0.0, kTol);
+  EXPECT_NEAR(a.center[1], 0.0, kTol);
+  EXPECT_NEAR(a.radius, 10.0, kTol);
+  const Segment& b = p.segments[2];
+  EXPECT_NEAR(b.center[0], 0.0, 1e-9);
+  EXPECT_NEAR(b.center[1], 0.0, 1e-9);
+  const Segment& c = p.segments[3];
+  // The short CW arc from (10,0) to (0,-10) has its centre at the origin; R<0 takes the other one.
+  EXPECT_NEAR(c.center[0], 10.0, 1e-9);
+  EXPECT_NEAR(c.center[1], -10.0, 1e-9);
+}
+
+TEST(Gcode, FullCircleAndHelixInEveryPlane) {
+  const Program p = compile_ok(
+      "G90 G17 G2 I5 F100\n"            // full circle, start == end
+      "G2 I5 Z-3\n"                      // helix: one turn, 3 mm down
+      "G18 G3 X5 Z-8 I0 K-5\n"           // XZ plane (K is the Z offset)
+      "G19 G2 Y5 Z-3 J0 K5 X7\n");       // YZ plane with X as the linear axis
+  ASSERT_EQ(p.segments.size(), 4u);
+  EXPECT_DOUBLE_EQ(p.segments[0].end[0], 0.0);
+  EXPECT_NEAR(p.segments[0].center[0], 5.0, kTol);
+  EXPECT_EQ(p.segments[0].turns, 0);
+  EXPECT_DOUBLE_EQ(p.segments[1].end[2], -3.0);
+  EXPECT_EQ(p.segments[2].plane, Plane::kXZ);
+  // G18 centre is stored as (Z, X) (plane_axes: first = Z, second = X).
+  EXPECT_NEAR(p.segments[2].center[0], -8.0, kTol);
+  EXPECT_NEAR(p.segments[2].center[1], 0.0, kTol);
+  EXPECT_EQ(p.segments[3].plane, Plane::kYZ);
+  EXPECT_DOUBLE_EQ(p.segments[3].end[0], 7.0);
+}
+
+TEST(Gcode, MirroringFlipsCoordinatesArcsAndCompensation) {
+  const Program p = compile_ok(
+      "G90 M81\nG1 X10 Y5 F100\nG2 X20 Y5 I5\nM84\nG41 D2\nG1 X1 Y1\nM80\nG1 X1 Y1\n");
+  ASSERT_EQ(p.segments.size(), 4u);
+  EXPECT_DOUBLE_EQ(p.segments[0].end[0], -10.0);
+  EXPECT_DOUBLE_EQ(p.segments[0].end[1], 5.0);
+  // X mirrored: the CW arc runs CCW, centre offset mirrored.
+  EXPECT_EQ(p.segments[1].type, SegmentType::kArcCcw);
+  EXPECT_NEAR(p.segments[1].center[0], -15.0, kTol);
+  EXPECT_DOUBLE_EQ(p.segments[1].end[0], -20.0);
+  // Both plane axes mirrored: G41 stays left.
+  EXPECT_EQ(p.segments[2].compensation, Compensation::kLeft);
+  EXPECT_DOUBLE_EQ(p.segments[2].end[0], -1.0);
+  EXPECT_DOUBLE_EQ(p.segments[2].end[1], -1.0);
+  EXPECT_DOUBLE_EQ(p.segments[3].end[0], 1.0);
+
+  const Program q = compile_ok("G90 M82\nG42 D1\nG1 X1 Y1 F100\n");
+  EXPECT_EQ(q.segments[0].compensation, Compensation::kLeft);  // one plane axis mirrored: swap
+}
+
+TEST(Gcode, CompensationRadiusFromDOrTheToolTable) {
+  const Program p = compile_ok("G90 T2\nG41\nG1 X1 F100\nG42 D0.5\nX2\nG40\nX3\n");
+  ASSERT_EQ(p.segments.size(), 3u);
+  EXPECT_EQ(p.segments[0].compensation, Compensation::kLeft);
+  EXPECT_DOUBLE_EQ(p.segments[0].compensation_radius_mm, 5.0);
+  EXPECT_EQ(p.segments[0].tool, 2);
+  EXPECT_EQ(p.segments[1].compensation, Compensation::kRight);
+  EXPECT_DOUBLE_EQ(p.segments[1].compensation_radius_mm, 0.5);
+  EXPECT_EQ(p.segments[2].compensation, Compensation::kOff);
+}
+
+TEST(Gcode, MFunctionsKindsAndParameters) {
+  const Program p = compile_ok("G90\nM3 S12000 T2\nM1005 A1 Z-2.5\nM0\nM29 (hello world)\nM30\nG1 X5\n");
+  ASSERT_EQ(p.segments.size(), 5u);  // nothing after M30
+  EXPECT_EQ(p.segments[0].m_kind, MKind::kNormal);
+  EXPECT_EQ(p.segments[0].tool, 2);
+  const MParams& m3 = p.params[static_cast<std::size_t>(p.segments[0].aux)];
+  EXPECT_DOUBLE_EQ(m3['S' - 'A'], 12000.0);
+  EXPECT_DOUBLE_EQ(m3['T' - 'A'], 2.0);
+  EXPECT_TRUE(is_not_set(m3['A' - 'A']));
+  EXPECT_EQ(p.segments[1].m_kind, MKind::kContinuous);
+  const MParams& m1005 = p.params[static_cast<std::size_t>(p.segments[1].aux)];
+  EXPECT_DOUBLE_EQ(m1005['Z' - 'A'], -2.5);
+  EXPECT_EQ(p.segments[2].m_kind, MKind::kProgramStop);
+  EXPECT_EQ(p.segments[3].type, SegmentType::kMessage);
+  EXPECT_EQ(p.messages.at(static_cast<std::size_t>(p.segments[3].aux)), "hello world");
+  EXPECT_EQ(p.segments[4].m_kind, MKind::kProgramEnd);
+}
+
+TEST(Gcode, RedefinedMFunctionsGoToThePlc) {
+  CompileOptions o = options();
+  o.compiler.plc_redefined_m = {2, 29};
+  const Program p = compile_ok("M29 X1\nM2\nG90 G1 X1 F10\n", o);
+  ASSERT_EQ(p.segments.size(), 3u);
+  EXPECT_EQ(p.segments[0].m_kind, MKind::kNormal);
+  EXPECT_EQ(p.segments[1].m_kind, MKind::kNormal);  // M2 no longer ends the program
+}
+
+TEST(Gcode, DwellRecord) {
+  const Program p = compile_ok("G4 P1.5\n");
+  ASSERT_EQ(p.segments.size(), 1u);
+  EXPECT_EQ(p.segments[0].type, SegmentType::kDwell);
+  EXPECT_DOUBLE_EQ(p.segments[0].dwell_s, 1.5);
+}
+
+TEST(Gcode, SubroutinesCyclesAndJumpsExpandFlat) {
+  const Program p = compile_ok(
+      "G90 G1 F100 X0\n"
+      "G25 L10\n"          // call once
+      "G26 L10 K3\n"       // call three times
+      "G29 L5\n"
+      "G91 G1 X100\n"
+      "G27 L5 K2\n"        // jump back twice: the X100 move runs 3 times
+      "M2\n"
+      "G29 L10\n"
+      "G91 G1 Y1\n"
+      "M17\n");
+  // X0, 4 subroutine moves, 3 X100 moves, M2
+  ASSERT_EQ(p.segments.size(), 9u);
+  EXPECT_DOUBLE_EQ(p.segments[4].end[1], 4.0);
+  EXPECT_EQ(p.segments[4].line, 9);
+  EXPECT_DOUBLE_EQ(p.segments[7].end[0], 300.0);
+}
+
+TEST(Gcode, NestedLoopsRearmTheirCounters) {
+  // The inner jump (K1: body twice) runs inside an outer loop (K2: three passes).
+  const Program p = compile_ok(
+      "G91 F100\nG29 L1\nG29 L2\nG1 X1\nG27 L2 K1\nG1 Y1\nG27 L1 K2\nM2\n");
+  int x = 0, y = 0;
+  for (const Segment& s : p.segments) {
+    if (s.line == 4) ++x;
+    if (s.line == 6) ++y;
+  }
+  EXPECT_EQ(x, 6);
+  EXPECT_EQ(y, 3);
+}
+
+// --- Errors: every class with its exact message ---------------------------------------------
+
+using ::testing::ElementsAre;
+
+TEST(GcodeErrors, UnknownWordAndCharacter) {
+  EXPECT_THAT(errors_of("G1 X1 Q5\n"), ElementsAre("1:7: unknown word 'Q5'"));
+  EXPECT_THAT(errors_of("G1 A5\n"),
+              ElementsAre("1:4: unknown word 'A5' (not an axis of this interpolator)"));
+  EXPECT_THAT(errors_of("G1 X1 #\n"), ElementsAre("1:7: unexpected character '#'"));
+  EXPECT_THAT(errors_of("G1 X1 \xff\n"), ElementsAre("1:7: unexpected byte 0xFF"));
+}
+
+TEST(GcodeErrors, UnknownGAndMNumbers) {
+  EXPECT_THAT(errors_of("G7\n"), ElementsAre("1:1: unknown G-code G7"));
+  EXPECT_THAT(errors_of("G91.1\n"), ElementsAre("1:1: unknown G-code G91.1"));
+  EXPECT_THAT(errors_of("G20\n"),
+              ElementsAre("1:1: G20 (inch units) is not supported: programs are in mm (G21)"));
+  EXPECT_THAT(errors_of("M1000\n"),
+              ElementsAre("1:1: M1000 is neither a normal (< 1000) nor a continuous (> 1000) "
+                          "M-function"));
+  EXPECT_THAT(errors_of("M3.5\n"),
+              ElementsAre("1:1: M-number must be a whole number 0..999999, not M3.5"));
+}
+
+TEST(GcodeErrors, NumbersMissingNotFiniteOrOutOfRange) {
+  EXPECT_THAT(errors_of("G1 XNAN\n"), ElementsAre("1:4: word X needs a number, not 'NAN'"));
+  EXPECT_THAT(errors_of("G1 X\n"), ElementsAre("1:4: word X needs a number"));
+  EXPECT_THAT(errors_of("G1 X1" + std::string(400, '0') + "\n"),
+              ElementsAre(::testing::StartsWith("1:4: value of X is out of range (|value| <= 1e9)")));
+  EXPECT_THAT(errors_of("G1 X2000000000\n"),
+              ElementsAre("1:4: value of X is out of range (|value| <= 1e9): 'X2000000000'"));
+  EXPECT_THAT(errors_of("G1 X1 F0\n"),
+              ElementsAre("1:7: feed F must be > 0 and <= 1000000 mm/min, not 0"));
+  EXPECT_THAT(errors_of("G4 P-1\n"), ElementsAre("1:4: dwell P must be 0..100000 s, not -1"));
+  EXPECT_THAT(errors_of("T1.5\n"), ElementsAre("1:1: tool T must be a whole number 0..99999, not 1.5"));
+  EXPECT_THAT(errors_of("G26 L1 K0\nM2\nG29 L1\nM17\n"),
+              ElementsAre("1:8: count K must be a whole number 1..1000000000, not 0"));
+}
+
+TEST(GcodeErrors, RepeatedAndConflictingWords) {
+  EXPECT_THAT(errors_of("G1 X1 X2\n"), ElementsAre("1:7: word X appears twice on one line"));
+  EXPECT_THAT(errors_of("G90 G91\n"),
+              ElementsAre("1:5: G90 and G91 cannot be on one line (same group)"));
+  EXPECT_THAT(errors_of("G1 G92 X1\n"),
+              ElementsAre("1:1: G1 and G92 both use the axis words: put them on separate lines"));
+  EXPECT_THAT(errors_of("G1 X1 M3\n"),
+              ElementsAre("1:1: G1 cannot share a line with M3 (the other words of an M line are "
+                          "its parameters)"));
+  EXPECT_THAT(errors_of("M3 P2\n"),
+              ElementsAre("1:4: P is reserved and cannot be an M-function parameter (reserved: G "
+                          "M N P)"));
+  EXPECT_THAT(errors_of("M2 X1\n"), ElementsAre("1:4: M2 takes no parameters, but X is given"));
+}
+
+TEST(GcodeErrors, MissingWords) {
+  EXPECT_THAT(errors_of("G4\n"), ElementsAre("1:1: G4 needs P<seconds>"));
+  EXPECT_THAT(errors_of("G25\n"), ElementsAre("1:1: G25 needs L<label>"));
+  EXPECT_THAT(errors_of("G26 L1\nM2\nG29 L1\nM17\n"),
+              ElementsAre("1:1: G26 needs K<count>, the number of calls"));
+  EXPECT_THAT(errors_of("G92\n"),
+              ElementsAre("1:1: G92 needs axis words: the coordinates the current point gets"));
+  EXPECT_THAT(errors_of("G54\n"),
+              ElementsAre("1:1: G54 needs axis words: the zero-point shift per axis"));
+  EXPECT_THAT(errors_of("M29\n"),
+              ElementsAre("1:1: M29 needs its message text in parentheses: M29 (text)"));
+  EXPECT_THAT(errors_of("M99\n"), ElementsAre("1:1: M99 needs F<mm/min>, the new default feed"));
+  EXPECT_THAT(errors_of("G90 G2 X10\n"), ElementsAre("1:5: arc needs a centre: I/J offsets or R"));
+  EXPECT_THAT(errors_of("X5\n"),
+              ElementsAre("1:1: axis words without a motion G-code (G0, G1, G2 or G3) before them"));
+  CompileOptions no_tool = options();
+  no_tool.compiler.initial_tool = 7;
+  EXPECT_THAT(errors_of("G41\n", no_tool),
+              ElementsAre("1:1: G41 needs a radius: D<mm> on the line, or tool T7 in the tool table"));
+}
+
+TEST(GcodeErrors, WordsOutOfPlace) {
+  EXPECT_THAT(errors_of("G1 X1 I2\n"), ElementsAre("1:7: I is only used by an arc move (G2/G3)"));
+  EXPECT_THAT(errors_of("G1 X1 P2\n"), ElementsAre("1:7: P (dwell seconds) is only used with G4"));
+  EXPECT_THAT(errors_of("G1 X1 L2\n"),
+              ElementsAre("1:7: L (label) is only used by G25, G26, G27 and G29"));
+  EXPECT_THAT(errors_of("G1 X1 D2\n"),
+              ElementsAre("1:7: D (compensation radius) is only used with G41/G42"));
+  EXPECT_THAT(errors_of("G17 G2 X2 I1 K2\n"),
+              ElementsAre("1:14: K is not a centre offset in plane G17 (use I and J)"));
+  EXPECT_THAT(errors_of("G2 X1 R1 I1\n"),
+              ElementsAre("1:7: an arc takes either R or centre offsets, not both"));
+}
+
+TEST(GcodeErrors, ArcGeometry) {
+  EXPECT_THAT(errors_of("G90 G2 X10 Y0 I3\n"),
+              ElementsAre("1:15: arc end radius 7.0000 differs from start radius 3.0000 by 4.0000 "
+                          "mm (allowed: max(0.005 mm, 0.1 % of the radius))"));
+  // Within tolerance: 0.004 mm off on a 3 mm radius is accepted.
+  EXPECT_TRUE(errors_of("G90 G2 X6.004 Y0 I3\n").empty());
+  EXPECT_THAT(errors_of("G90 G2 X10 R2\n"),
+              ElementsAre("1:12: radius R2 is too small for the distance 10.0000 mm between start "
+                          "and end"));
+  EXPECT_THAT(errors_of("G90 G2 X0 R2\n"),
+              ElementsAre("1:11: an R arc cannot have its end at its start (use I/J/K for a full "
+                          "circle)"));
+  EXPECT_THAT(errors_of("G2 X1 R0\n"), ElementsAre("1:7: arc radius R must not be 0"));
+  CompileOptions two = options();
+  two.axis_letters = "XY";
+  EXPECT_THAT(errors_of("G18 G2 X1 I1\n", two),
+              ElementsAre("1:5: arc in plane G18 needs axes 2 and 0, but this interpolator has 2 "
+                          "axes"));
+}
+
+TEST(GcodeErrors, LabelsAndFlowControl) {
+  EXPECT_THAT(errors_of("G25 L9\n"),
+              ElementsAre("1:5: unknown label L9 (define it with G29 L9)"));
+  EXPECT_THAT(errors_of("G29 L1\nG29 L1\n"),
+              ElementsAre("2:5: label 1 is defined twice (first on line 1)"));
+  EXPECT_THAT(errors_of("M17\n"), ElementsAre("1:1: M17 (return) outside a subroutine"));
+  EXPECT_THAT(errors_of("G29 L1\nG27 L1\n"),
+              ElementsAre("2:5: backward jump to L1 without K would loop forever (give K<count>)"));
+  EXPECT_THAT(errors_of("G25 L1\nG29 L1\nG91 G1 X1 F1\n"),
+              ElementsAre("1:1: subroutine called here runs to the end of the program without M17"));
+  EXPECT_THAT(errors_of("G29\n"), ElementsAre("1:1: G29 needs L<label> or a text note in parentheses"));
+  EXPECT_TRUE(errors_of("G29 (a text note)\n").empty());
+}
+
+TEST(GcodeErrors, NestingAndSizeLimits) {
+  // Endless recursion stops at the nesting limit.
+  EXPECT_THAT(errors_of("G29 L1\nG25 L1\n"),
+              ElementsAre("2:5: subroutine calls nested deeper than 16"));
+  CompileOptions small = options();
+  small.compiler.max_program_segments = 5;
+  EXPECT_THAT(errors_of("G91 G1 F1\nG29 L1\nX1\nG27 L1 K10\n", small),
+              ElementsAre("3:1: program expands to more than 5 segments "
+                          "(compiler.max_program_segments)"));
+  // A loop that makes nothing still ends with an error, not a hang.
+  small.compiler.max_program_segments = 10;
+  EXPECT_THAT(errors_of("G26 L1 K1000000000\nM2\nG29 L1\nM17\n", small),
+              ElementsAre(::testing::HasSubstr("blocks without ending: an endless loop")));
+}
+
+TEST(GcodeErrors, CommentsAndMirroring) {
+  EXPECT_THAT(errors_of("G1 X1 (open\n"), ElementsAre("1:7: comment '(' is not closed on this line"));
+  EXPECT_THAT(errors_of("(a (b) c)\n"),
+              ElementsAre("1:4: '(' inside a comment: comments do not nest",
+                          "1:8: word C needs a number, not ')'"));
+  CompileOptions two = options();
+  two.axis_letters = "XY";
+  EXPECT_THAT(errors_of("M83\n", two),
+              ElementsAre("1:1: M83 mirrors Z, which this interpolator has no axis for"));
+}
+
+TEST(GcodeErrors, AllErrorsAreReportedInLineOrder) {
+  const auto errs = errors_of("G7\nG1 X1 Q1\nG25 L3\nG1 X\n");
+  ASSERT_EQ(errs.size(), 4u);
+  EXPECT_EQ(errs[0].substr(0, 2), "1:");
+  EXPECT_EQ(errs[1].substr(0, 2), "2:");
+  EXPECT_EQ(errs[2].substr(0, 2), "3:");
+  EXPECT_EQ(errs[3].substr(0, 2), "4:");
+}
+
+TEST(GcodeErrors, UncalledSubroutinesAreCheckedToo) {
+  EXPECT_THAT(errors_of("M2\nG29 L1\nG1 X1 Q2\nM17\n"), ElementsAre("3:7: unknown word 'Q2'"));
+}
+
+TEST(Gcode, DiagnosticFormat) {
+  EXPECT_EQ(format_diagnostic("a.ngc", {3, 7, "unknown word 'Q5'"}),
+            "a.ngc:3:7: error: unknown word 'Q5'");
+}
+
+// --- Intercode encoding ------------------------------------------------------------------------
+
+TEST(Intercode, RoundTripKeepsEveryField) {
+  const Program p = compile_ok(
+      "G90 T2 G41 G1 X1 Y2 Z3 F100\nG18 G3 X9 Z3 I4 K0\nM3 S100\nM29 (msg)\nG4 P2\nM2\n");
+  std::string bytes;
+  encode_intercode(p, bytes);
+  Program q;
+  std::string err;
+  ASSERT_TRUE(decode_intercode(bytes, q, err)) << err;
+  std::string a, b;
+  dump_jsonl(p, a);
+  dump_jsonl(q, b);
+  EXPECT_EQ(a, b);
+  EXPECT_EQ(q.messages, p.messages);
+}
+
+TEST(Intercode, DecodeRejectsEveryTruncation) {
+  const Program p = compile_ok("G90 G1 X1 F100\nG2 X3 I1\nM3 S1\nM29 (x)\n");
+  std::string bytes;
+  encode_intercode(p, bytes);
+  for (std::size_t n = 0; n < bytes.size(); ++n) {
+    Program q;
+    std::string err;
+    EXPECT_FALSE(decode_intercode(std::string_view(bytes).substr(0, n), q, err)) << n;
+    EXPECT_FALSE(err.empty());
+  }
+  Program q;
+  std::string err;
+  EXPECT_FALSE(decode_intercode(bytes + "x", q, err));
+  EXPECT_NE(err.find("trailing bytes"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace tgm
