@@ -5,8 +5,11 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <fstream>
-#include <sstream>
+
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 namespace tgm::hmi {
 
@@ -108,18 +111,28 @@ std::optional<MachineConfig> Args::load_machine() {
 }
 
 bool read_file(const std::string& path, std::string& out, std::string& error) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (!f) {
     error = std::string("cannot open: ") + std::strerror(errno);
     return false;
   }
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  if (in.bad()) {
+  out.clear();
+  // One read of the known size; a pipe or a growing file is read to its end in blocks.
+  if (std::fseek(f, 0, SEEK_END) == 0) {
+    const long size = std::ftell(f);
+    if (size > 0) out.resize(static_cast<std::size_t>(size));
+    std::rewind(f);
+  }
+  std::size_t got = out.empty() ? 0 : std::fread(out.data(), 1, out.size(), f);
+  out.resize(got);
+  char buf[65536];
+  for (std::size_t n; (n = std::fread(buf, 1, sizeof buf, f)) > 0;) out.append(buf, n);
+  const bool bad = std::ferror(f) != 0;
+  std::fclose(f);
+  if (bad) {
     error = "read error";
     return false;
   }
-  out = std::move(ss).str();
   return true;
 }
 
@@ -142,6 +155,93 @@ bool write_file_atomic(const std::string& path, const std::string& bytes, std::s
     std::remove(tmp.c_str());
     return false;
   }
+  return true;
+}
+
+AtomicFile::~AtomicFile() {
+  if (f_) {
+    std::fclose(f_);
+    std::remove(tmp_.c_str());
+  }
+}
+
+bool AtomicFile::open(const std::string& path, std::string& error) {
+  path_ = path;
+  tmp_ = path + ".tmp";
+  f_ = std::fopen(tmp_.c_str(), "wb");
+  if (!f_) {
+    error = std::string("cannot create: ") + std::strerror(errno);
+    return false;
+  }
+  static thread_local char buffer[1 << 20];
+  std::setvbuf(f_, buffer, _IOFBF, sizeof buffer);
+  return true;
+}
+
+bool AtomicFile::write(const void* data, std::size_t size, std::string& error) {
+  if (std::fwrite(data, 1, size, f_) != size) {
+    error = std::string("cannot write: ") + std::strerror(errno);
+    return false;
+  }
+  return true;
+}
+
+bool AtomicFile::patch(long offset, const void* data, std::size_t size, std::string& error) {
+  const long here = std::ftell(f_);
+  if (here < 0 || std::fseek(f_, offset, SEEK_SET) != 0 || !write(data, size, error) ||
+      std::fseek(f_, here, SEEK_SET) != 0) {
+    if (error.empty()) error = std::string("cannot seek: ") + std::strerror(errno);
+    return false;
+  }
+  return true;
+}
+
+bool AtomicFile::commit(std::string& error) {
+  std::FILE* f = f_;
+  f_ = nullptr;
+  if (std::fclose(f) != 0) {
+    error = std::string("cannot write: ") + std::strerror(errno);
+    std::remove(tmp_.c_str());
+    return false;
+  }
+  if (std::rename(tmp_.c_str(), path_.c_str()) != 0) {
+    error = std::string("cannot rename into place: ") + std::strerror(errno);
+    std::remove(tmp_.c_str());
+    return false;
+  }
+  return true;
+}
+
+FileView::~FileView() {
+  if (map_) munmap(map_, map_size_);
+}
+
+bool FileView::open(const std::string& path, std::string& error) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) {
+    error = std::string("cannot open: ") + std::strerror(errno);
+    return false;
+  }
+  struct stat st {};
+  if (fstat(fd, &st) == 0 && S_ISDIR(st.st_mode)) {
+    ::close(fd);
+    error = "is a directory";
+    return false;
+  }
+  if (fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && st.st_size > 0) {
+    void* p = mmap(nullptr, static_cast<std::size_t>(st.st_size), PROT_READ,
+                   MAP_PRIVATE | MAP_POPULATE, fd, 0);
+    if (p != MAP_FAILED) {
+      ::close(fd);
+      map_ = p;
+      map_size_ = static_cast<std::size_t>(st.st_size);
+      text_ = std::string_view(static_cast<const char*>(p), map_size_);
+      return true;
+    }
+  }
+  ::close(fd);
+  if (!read_file(path, copy_, error)) return false;
+  text_ = copy_;
   return true;
 }
 

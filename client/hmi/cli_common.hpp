@@ -1,8 +1,10 @@
 // Command-line plumbing shared by the tgm-hmi subcommands: flags, config loading, file I/O.
 #pragma once
 
+#include <cstdio>
 #include <optional>
 #include <string>
+#include <string_view>
 
 #include "tgm/config.hpp"
 #include "tgm/yaml_config.hpp"
@@ -59,6 +61,43 @@ class Args {
 bool read_file(const std::string& path, std::string& out, std::string& error);
 //! Writes `path` through a temporary file and rename, so a failed run leaves nothing half-written.
 bool write_file_atomic(const std::string& path, const std::string& bytes, std::string& error);
+
+//! A file written in pieces through "<path>.tmp" and renamed into place by commit(); destroyed
+//! without commit() it removes the temporary file, so an error never leaves a partial output.
+class AtomicFile {
+ public:
+  AtomicFile() = default;
+  AtomicFile(const AtomicFile&) = delete;
+  AtomicFile& operator=(const AtomicFile&) = delete;
+  ~AtomicFile();
+  bool open(const std::string& path, std::string& error);
+  bool write(const void* data, std::size_t size, std::string& error);
+  //! Overwrites bytes already written at `offset`.
+  bool patch(long offset, const void* data, std::size_t size, std::string& error);
+  bool commit(std::string& error);
+  bool is_open() const { return f_ != nullptr; }
+
+ private:
+  std::string path_, tmp_;
+  std::FILE* f_ = nullptr;
+};
+
+//! A read-only view of a whole file (memory-mapped when possible).
+class FileView {
+ public:
+  FileView() = default;
+  FileView(const FileView&) = delete;
+  FileView& operator=(const FileView&) = delete;
+  ~FileView();
+  bool open(const std::string& path, std::string& error);
+  std::string_view text() const { return text_; }
+
+ private:
+  void* map_ = nullptr;
+  std::size_t map_size_ = 0;
+  std::string copy_;  // for files that cannot be mapped (pipes, empty files)
+  std::string_view text_;
+};
 //! Parses a whole number in [lo, hi]; false when `text` is not one.
 bool parse_int(const std::string& text, long long lo, long long hi, long long& out);
 //! Parses a finite number; false when `text` is not one.

@@ -1,7 +1,9 @@
 // tgm-hmi compile: G-code text -> binary intercode and/or a dump.
 #include <cerrno>
 #include <cstdio>
+#include <cstdint>
 #include <cstring>
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -51,13 +53,40 @@ int run_compile(int argc, char** argv) {
   const auto machine = args.load_machine();
   if (!machine) return 2;
 
-  std::string text;
-  if (std::string err; !read_file(file, text, err)) {
+  FileView input;
+  if (std::string err; !input.open(file, err)) {
     std::fprintf(stderr, "%s: error: %s\n", file.c_str(), err.c_str());
     return 2;
   }
+  const std::string_view text = input.text();
   const CompileOptions options = CompileOptions::from_machine(*machine, args.interpolator());
-  const CompileResult result = compile_gcode(text, options);
+
+  // Without a dump the records are encoded as they come and written out in 1 MiB pieces: a long
+  // program is never held in memory. The output only replaces --out when there is no error.
+  AtomicFile out;
+  std::string io_error;
+  if (!out_path.empty() && !out.open(out_path, io_error)) {
+    std::fprintf(stderr, "%s: error: %s\n", out_path.c_str(), io_error.c_str());
+    return 1;
+  }
+  std::string bytes;
+  std::optional<IntercodeEncoder> encoder;
+  CompileResult result;
+  bool write_ok = true;
+  if (dump.empty()) {
+    bytes.reserve(2u << 20);
+    encoder.emplace(bytes, static_cast<int>(options.axis_letters.size()), options.axis_letters,
+                    /*streaming=*/true);
+    result = compile_gcode(text, options, [&](const Segment& s) {
+      encoder->add(s);
+      if (bytes.size() >= (1u << 20)) {
+        if (out.is_open() && write_ok) write_ok = out.write(bytes.data(), bytes.size(), io_error);
+        bytes.clear();
+      }
+    });
+  } else {
+    result = compile_gcode(text, options);
+  }
   if (!result.ok()) {
     for (const Diagnostic& d : result.errors) {
       std::fprintf(stderr, "%s\n", format_diagnostic(file, d).c_str());
@@ -66,11 +95,19 @@ int run_compile(int argc, char** argv) {
                  result.errors.size(), result.errors.size() == 1 ? "" : "s");
     return 2;
   }
-  if (!out_path.empty()) {
-    std::string bytes;
-    encode_intercode(result.program, bytes);
-    if (std::string err; !write_file_atomic(out_path, bytes, err)) {
-      std::fprintf(stderr, "%s: error: %s\n", out_path.c_str(), err.c_str());
+  if (out.is_open()) {
+    if (encoder) {
+      const std::uint64_t count = encoder->records();
+      encoder->finish(result.program.params, result.program.messages);
+      write_ok = write_ok && out.write(bytes.data(), bytes.size(), io_error) &&
+                 out.patch(static_cast<long>(IntercodeEncoder::kCountOffset), &count,
+                           sizeof count, io_error);
+    } else {
+      encode_intercode(result.program, bytes);
+      write_ok = out.write(bytes.data(), bytes.size(), io_error);
+    }
+    if (!write_ok || !out.commit(io_error)) {
+      std::fprintf(stderr, "%s: error: %s\n", out_path.c_str(), io_error.c_str());
       return 1;
     }
   }
@@ -87,8 +124,8 @@ int run_compile(int argc, char** argv) {
     }
   }
   if (dump.empty()) {
-    std::fprintf(stderr, "%s: %zu records (%zu M-functions, %zu messages)%s%s\n", file.c_str(),
-                 result.program.segments.size(), result.program.params.size(),
+    std::fprintf(stderr, "%s: %llu records (%zu M-functions, %zu messages)%s%s\n", file.c_str(),
+                 static_cast<unsigned long long>(encoder->records()), result.program.params.size(),
                  result.program.messages.size(), out_path.empty() ? "" : " written to ",
                  out_path.c_str());
   }

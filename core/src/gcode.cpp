@@ -76,8 +76,20 @@ GGroup g_group(int g) {
 }
 
 // A line after lexing. Words live in a shared vector.
+// What pass 1 keeps of a line: its span in the source (pass 2 lexes it again instead of keeping
+// every word, which keeps a million-line program small in memory).
+struct LineRef {
+  std::uint32_t begin = 0;
+  std::uint32_t end = 0;
+  std::int32_t line = 0;
+  bool valid = true;  //!< false when pass 1 found an error: pass 2 skips it
+};
+
+// A line being looked at: its words are in Compiler::words_.
 struct Block {
   std::int32_t line = 0;
+  std::uint32_t begin = 0;
+  std::uint32_t end = 0;
   std::uint32_t first_word = 0;
   std::uint16_t word_count = 0;
   bool valid = true;  //!< false when pass 1 found an error: pass 2 skips it
@@ -85,17 +97,21 @@ struct Block {
   std::uint32_t comment_offset = 0;
   std::uint32_t comment_length = 0;
   bool has_comment = false;
+  //! Letters present on the line, bit k = 'A' + k (G and M excluded).
+  std::uint32_t letters = 0;
 };
 
 class Compiler {
  public:
-  Compiler(std::string_view src, const CompileOptions& opt) : src_(src), opt_(opt) {}
+  Compiler(std::string_view src, const CompileOptions& opt, const SegmentSink* sink)
+      : src_(src), opt_(opt), sink_(sink) {}
 
   CompileResult run();
 
  private:
   // --- diagnostics
   void error(int line, std::uint32_t column, std::string reason) {
+    if (!reporting_) return;
     if (errors_.size() >= kMaxErrors) {
       ++suppressed_;
       return;
@@ -106,16 +122,28 @@ class Compiler {
   // --- pass 1
   void lex();
   void lex_line(std::size_t begin, std::size_t end, std::int32_t line);
+  // Fills words_ (cleared first) and the comment of `b` from the text span of `b`.
+  bool lex_words(Block& b);
   bool parse_number(std::size_t& i, std::size_t end, double& out);
   void check_block_static(Block& b);
 
   // --- pass 2
   void execute();
   // Returns the index of the next block to execute.
-  std::size_t execute_block(std::size_t index);
+  std::size_t execute_block(std::size_t index, bool relex);
+  // execute_block with the endless-loop guard.
+  std::size_t step(std::size_t index, bool relex);
 
   // Helpers of pass 2.
   bool emit_check(const Block& b);
+  void emit(const Segment& s) {
+    ++emitted_;
+    if (sink_) {
+      (*sink_)(s);
+    } else {
+      program_.segments.push_back(s);
+    }
+  }
   Segment base_segment(const Block& b) const;
   int axis_index(char letter) const {
     return (letter >= 'A' && letter <= 'Z') ? axis_of_letter_[letter - 'A'] : -1;
@@ -123,11 +151,21 @@ class Compiler {
 
   std::string_view src_;
   const CompileOptions& opt_;
+  const SegmentSink* sink_;
+  std::int64_t emitted_ = 0;
   std::vector<Diagnostic> errors_;
   std::size_t suppressed_ = 0;
 
-  std::vector<Word> words_;
-  std::vector<Block> blocks_;
+  bool reporting_ = true;  //!< false while pass 2 lexes a line again
+  bool in_order_ = true;   //!< still executing each line as it is lexed
+  std::size_t resume_ = 0;  //!< first block execute() runs
+  std::uint64_t max_executed_ = 0;
+  // Comment of the line lexed last (lex_line keeps it for in-order execution).
+  bool cur_has_comment_ = false;
+  std::uint32_t cur_comment_offset_ = 0;
+  std::uint32_t cur_comment_length_ = 0;
+  std::vector<Word> words_;  //!< words of the line being looked at
+  std::vector<LineRef> blocks_;
   std::unordered_map<long long, std::size_t> labels_;  // label -> block index
   std::uint32_t axis_mask_ = 0;                        // letters that are axes
   std::array<int, 26> axis_of_letter_{};
@@ -142,7 +180,8 @@ class Compiler {
     long long remaining;       //!< further G26 repetitions
   };
   std::vector<Frame> stack_;
-  std::vector<long long> jump_count_;  // per block: G27 jumps still to take (-1 = not active)
+  //! Per G27 block with K: jumps still to take; absent when not active.
+  std::unordered_map<std::size_t, long long> jump_count_;
   Program program_;
   std::array<double, kMaxAxes> pos_{};      //!< machine position [mm]
   std::array<double, kMaxAxes> shift_{};    //!< G54 zero-point shift
@@ -242,21 +281,60 @@ void Compiler::lex() {
   std::int32_t line = 1;
   const std::size_t n = src_.size();
   blocks_.reserve(n / 16 + 1);
-  words_.reserve(n / 5 + 1);
+  words_.reserve(64);
   while (begin < n) {
     const void* nl = std::memchr(src_.data() + begin, '\n', n - begin);
     const std::size_t end = nl ? static_cast<std::size_t>(static_cast<const char*>(nl) - src_.data())
                                : n;
+    const std::size_t before = blocks_.size();
     lex_line(begin, end, line);
+    // While the program runs straight down, each line executes as soon as it is lexed, with
+    // the words at hand. The first call or jump leaves that mode: the rest then waits for every
+    // label to be known and runs in execute(), lexing its lines again.
+    if (in_order_ && !ended_ && blocks_.size() > before) {
+      const std::size_t next = step(before, /*relex=*/false);
+      if (next != before + 1) {
+        in_order_ = false;
+        resume_ = next;
+      }
+    }
     begin = end + 1;
     ++line;
   }
+  if (in_order_) resume_ = blocks_.size();
+}
+
+std::size_t Compiler::step(std::size_t index, bool relex) {
+  if (++executed_ > max_executed_) {
+    error(blocks_[index].line, 1,
+          "program executes more than " + std::to_string(max_executed_) +
+              " blocks without ending: an endless loop of calls or jumps?");
+    ended_ = true;
+    return index + 1;
+  }
+  return execute_block(index, relex);
 }
 
 void Compiler::lex_line(std::size_t begin, std::size_t end, std::int32_t line) {
   Block b;
   b.line = line;
-  b.first_word = static_cast<std::uint32_t>(words_.size());
+  b.begin = static_cast<std::uint32_t>(begin);
+  b.end = static_cast<std::uint32_t>(end);
+  const bool valid = lex_words(b);
+  if (b.word_count == 0 && !b.has_comment && valid) return;  // empty line: no block
+  check_block_static(b);
+  blocks_.push_back({b.begin, b.end, b.line, b.valid});
+  cur_has_comment_ = b.has_comment;
+  cur_comment_offset_ = b.comment_offset;
+  cur_comment_length_ = b.comment_length;
+}
+
+bool Compiler::lex_words(Block& b) {
+  const std::size_t begin = b.begin, end = b.end;
+  const std::int32_t line = b.line;
+  words_.clear();
+  b.first_word = 0;
+  b.has_comment = false;
   std::uint32_t seen = 0;  // letters already on this line (G excluded)
   std::size_t i = begin;
   auto col = [&](std::size_t at) { return static_cast<std::uint32_t>(at - begin + 1); };
@@ -267,7 +345,10 @@ void Compiler::lex_line(std::size_t begin, std::size_t end, std::int32_t line) {
     if (j < end && src_[j] == '%') {
       std::size_t k = j + 1;
       while (k < end && is_space(src_[k])) ++k;
-      if (k == end) return;
+      if (k == end) {
+        b.word_count = 0;
+        return true;
+      }
     }
   }
   while (i < end) {
@@ -370,9 +451,8 @@ void Compiler::lex_line(std::size_t begin, std::size_t end, std::int32_t line) {
     b.valid = false;
   }
   b.word_count = static_cast<std::uint16_t>(words_.size() - b.first_word);
-  if (b.word_count == 0 && !b.has_comment && b.valid) return;  // empty line: no block
-  check_block_static(b);
-  blocks_.push_back(b);
+  b.letters = seen & ~(bit('G') | bit('M'));
+  return b.valid;
 }
 
 bool integral(double v) { return v == std::floor(v); }
@@ -494,20 +574,18 @@ void Compiler::check_block_static(Block& b) {
   }
 
   // Not an M line: every letter must be a word of the dialect or an axis.
-  for (int k = 0; k < 26; ++k) {
+  constexpr std::uint32_t kWords =
+      bit('D') | bit('F') | bit('I') | bit('J') | bit('K') | bit('L') | bit('N') | bit('P') |
+      bit('R') | bit('T');
+  const std::uint32_t unknown = b.letters & ~(kWords | axis_mask_);
+  for (int k = 0; unknown && k < 26; ++k) {
     const Word* p = by_letter[k];
-    if (!p) continue;
+    if (!p || !(unknown & (1u << k))) continue;
     const char L = static_cast<char>('A' + k);
-    const bool known = (axis_mask_ & bit(L)) ||
-                       std::strchr("DFIJKLNPRT", L) != nullptr;
-    if (!known) {
-      error(b.line, p->column,
-            std::string("unknown word '") + L + fmt_num(p->value) + "'" +
-                (L >= 'A' && L <= 'Z' && std::strchr("ABCEUVWXYZ", L)
-                     ? " (not an axis of this interpolator)"
-                     : ""));
-      b.valid = false;
-    }
+    error(b.line, p->column,
+          std::string("unknown word '") + L + fmt_num(p->value) + "'" +
+              (std::strchr("ABCEUVWXYZ", L) ? " (not an axis of this interpolator)" : ""));
+    b.valid = false;
   }
   if (const Word* f = word('F'); f && (f->value <= 0 || f->value > kMaxFeed)) {
     error(b.line, f->column, "feed F must be > 0 and <= 1000000 mm/min, not " + fmt_num(f->value));
@@ -531,10 +609,7 @@ void Compiler::check_block_static(Block& b) {
   }
   const int nonmodal = gnum(GGroup::kNonModal);
   const int motion = gnum(GGroup::kMotion);
-  bool axis_words = false;
-  for (int k = 0; k < 26; ++k) {
-    if (by_letter[k] && (axis_mask_ & (1u << k))) axis_words = true;
-  }
+  const bool axis_words = (b.letters & axis_mask_) != 0;
   const Word* ng = g_of[static_cast<std::size_t>(GGroup::kNonModal)];
   switch (nonmodal) {
     case 4:
@@ -610,7 +685,7 @@ void Compiler::check_block_static(Block& b) {
 // ---------------------------------------------------------------------------------------------
 
 bool Compiler::emit_check(const Block& b) {
-  if (static_cast<std::int64_t>(program_.segments.size()) < opt_.compiler.max_program_segments) {
+  if (emitted_ < opt_.compiler.max_program_segments) {
     return true;
   }
   if (!too_big_) {
@@ -634,10 +709,25 @@ Segment Compiler::base_segment(const Block& b) const {
   return s;
 }
 
-std::size_t Compiler::execute_block(std::size_t index) {
-  const Block& b = blocks_[index];
+std::size_t Compiler::execute_block(std::size_t index, bool relex) {
   const std::size_t next = index + 1;
-  if (!b.valid) return next;
+  const LineRef& ref = blocks_[index];
+  if (!ref.valid) return next;
+  Block b;
+  b.line = ref.line;
+  b.begin = ref.begin;
+  b.end = ref.end;
+  if (relex) {
+    reporting_ = false;  // pass 1 reported this line's lexical errors already
+    lex_words(b);
+    reporting_ = true;
+  } else {
+    // words_ still holds this line; only the comment is needed again.
+    b.word_count = static_cast<std::uint16_t>(words_.size());
+    b.has_comment = cur_has_comment_;
+    b.comment_offset = cur_comment_offset_;
+    b.comment_length = cur_comment_length_;
+  }
   const Word* w = words_.data() + b.first_word;
   const Word* we = w + b.word_count;
   const Word* by_letter[26] = {};
@@ -712,7 +802,7 @@ std::size_t Compiler::execute_block(std::size_t index) {
         s.type = SegmentType::kMessage;
         s.aux = static_cast<std::int32_t>(program_.messages.size());
         program_.messages.emplace_back(src_.substr(b.comment_offset, b.comment_length));
-        program_.segments.push_back(s);
+        emit(s);
         return next;
       }
     }
@@ -740,7 +830,7 @@ std::size_t Compiler::execute_block(std::size_t index) {
     }
     s.aux = static_cast<std::int32_t>(program_.params.size());
     program_.params.push_back(params);
-    program_.segments.push_back(s);
+    emit(s);
     if (s.m_kind == MKind::kProgramEnd) ended_ = true;
     return next;
   }
@@ -787,7 +877,7 @@ std::size_t Compiler::execute_block(std::size_t index) {
       Segment s = base_segment(b);
       s.type = SegmentType::kDwell;
       s.dwell_s = word('P')->value;
-      program_.segments.push_back(s);
+      emit(s);
     }
   } else if (const Word* p = word('P')) {
     error(b.line, p->column, "P (dwell seconds) is only used with G4");
@@ -943,7 +1033,7 @@ std::size_t Compiler::execute_block(std::size_t index) {
         }
       }
       if (ok) {
-        program_.segments.push_back(s);
+        emit(s);
       }
       pos_ = target;
     }
@@ -954,6 +1044,9 @@ std::size_t Compiler::execute_block(std::size_t index) {
     const Word* lw = word('L');
     const auto label = static_cast<long long>(lw->value);
     const auto it = labels_.find(label);
+    if (it == labels_.end() && !relex) {
+      return index;  // a label further down: run this line again once every line is lexed
+    }
     if (it == labels_.end()) {
       error(b.line, lw->column, "unknown label L" + std::to_string(label) +
                                     " (define it with G29 L" + std::to_string(label) + ")");
@@ -971,13 +1064,13 @@ std::size_t Compiler::execute_block(std::size_t index) {
         }
         return target;
       }
-      long long& left = jump_count_[index];
-      if (left < 0) left = static_cast<long long>(kw->value);
-      if (left > 0) {
-        --left;
+      auto [it_count, armed] = jump_count_.try_emplace(index, static_cast<long long>(kw->value));
+      (void)armed;
+      if (it_count->second > 0) {
+        --it_count->second;
         return target;
       }
-      left = -1;  // fall through, re-armed when reached again
+      jump_count_.erase(it_count);  // fall through, re-armed when reached again
       return next;
     }
     if (static_cast<int>(stack_.size()) >= opt_.compiler.max_call_depth) {
@@ -994,22 +1087,10 @@ std::size_t Compiler::execute_block(std::size_t index) {
 }
 
 void Compiler::execute() {
-  jump_count_.assign(blocks_.size(), -1);
-  // Enough for every real program, and a stop for loops that expand to nothing.
-  const std::uint64_t max_executed =
-      static_cast<std::uint64_t>(opt_.compiler.max_program_segments) * 10 + 1'000'000;
-  std::size_t i = 0;
-  while (i < blocks_.size() && !ended_) {
-    if (++executed_ > max_executed) {
-      error(blocks_[i].line, 1,
-            "program executes more than " + std::to_string(max_executed) +
-                " blocks without ending: an endless loop of calls or jumps?");
-      return;
-    }
-    i = execute_block(i);
-  }
+  std::size_t i = resume_;
+  while (i < blocks_.size() && !ended_) i = step(i, /*relex=*/true);
   if (!ended_ && !stack_.empty()) {
-    const Block& call = blocks_[stack_.back().call_block];
+    const LineRef& call = blocks_[stack_.back().call_block];
     error(call.line, 1, "subroutine called here runs to the end of the program without M17");
   }
 }
@@ -1042,8 +1123,6 @@ CompileResult Compiler::run() {
     return result;
   }
 
-  lex();
-
   incremental_ = opt_.compiler.start_incremental;
   default_feed_ = opt_.compiler.default_feed_mm_per_min;
   tool_ = opt_.compiler.initial_tool;
@@ -1051,7 +1130,10 @@ CompileResult Compiler::run() {
   pos_ = opt_.start_mm;
   program_.number_axes = n_axes_;
   program_.axis_letters = opt_.axis_letters;
-  program_.segments.reserve(blocks_.size() + 16);
+  // Enough for every real program, and a stop for loops that expand to nothing.
+  max_executed_ = static_cast<std::uint64_t>(opt_.compiler.max_program_segments) * 10 + 1'000'000;
+
+  lex();  // executes the program as far as it runs straight down
   execute();
 
   std::stable_sort(errors_.begin(), errors_.end(), [](const Diagnostic& a, const Diagnostic& b) {
@@ -1088,8 +1170,16 @@ CompileOptions CompileOptions::from_machine(const MachineConfig& m, int n) {
 }
 
 CompileResult compile_gcode(std::string_view source, const CompileOptions& options) {
-  Compiler c(source, options);
+  Compiler c(source, options, nullptr);
   return c.run();
+}
+
+CompileResult compile_gcode(std::string_view source, const CompileOptions& options,
+                            const SegmentSink& sink) {
+  Compiler c(source, options, &sink);
+  CompileResult r = c.run();
+  if (!r.ok()) r.program = Program{};
+  return r;
 }
 
 }  // namespace tgm

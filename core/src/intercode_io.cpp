@@ -96,50 +96,73 @@ std::string_view segment_type_name(SegmentType t) {
   return "?";
 }
 
-void encode_intercode(const Program& p, std::string& out) {
-  const int n = p.number_axes;
-  out.append(kMagic, 4);
-  put<std::uint16_t>(out, kVersion);
-  put<std::uint8_t>(out, static_cast<std::uint8_t>(n));
+IntercodeEncoder::IntercodeEncoder(std::string& out, int number_axes,
+                                   std::string_view axis_letters, bool streaming)
+    : out_(out), count_offset_(0), streaming_(streaming), n_(number_axes) {
+  out_.append(kMagic, 4);
+  put<std::uint16_t>(out_, kVersion);
+  put<std::uint8_t>(out_, static_cast<std::uint8_t>(n_));
   char letters[kMaxAxes] = {};
-  for (int i = 0; i < n && i < static_cast<int>(p.axis_letters.size()); ++i) {
-    letters[i] = p.axis_letters[static_cast<std::size_t>(i)];
+  for (int i = 0; i < n_ && i < static_cast<int>(axis_letters.size()); ++i) {
+    letters[i] = axis_letters[static_cast<std::size_t>(i)];
   }
-  out.append(letters, kMaxAxes);
-  put<std::uint64_t>(out, p.segments.size());
-  put<std::uint32_t>(out, static_cast<std::uint32_t>(p.params.size()));
-  put<std::uint32_t>(out, static_cast<std::uint32_t>(p.messages.size()));
-  out.reserve(out.size() + p.segments.size() * (24 + 8 * static_cast<std::size_t>(n) + 8));
-  for (const Segment& s : p.segments) {
-    put<std::uint8_t>(out, static_cast<std::uint8_t>(s.type));
-    put<std::uint8_t>(out, static_cast<std::uint8_t>(s.plane));
-    put<std::uint8_t>(out, static_cast<std::uint8_t>(s.compensation));
-    put<std::uint8_t>(out, static_cast<std::uint8_t>(s.m_kind));
-    put<std::int32_t>(out, s.line);
-    put<std::int32_t>(out, s.tool);
-    for (int i = 0; i < n; ++i) put<double>(out, s.end[static_cast<std::size_t>(i)]);
-    if (s.compensation != Compensation::kOff) put<double>(out, s.compensation_radius_mm);
-    if (s.is_motion()) put<double>(out, s.feed_mm_per_min);
-    if (s.is_arc()) {
-      put<double>(out, s.center[0]);
-      put<double>(out, s.center[1]);
-      put<double>(out, s.radius);
-      put<std::int32_t>(out, s.turns);
-    }
-    if (s.type == SegmentType::kDwell) put<double>(out, s.dwell_s);
-    if (s.type == SegmentType::kMFunction) {
-      put<std::int32_t>(out, s.m);
-      put<std::int32_t>(out, s.aux);
-    }
-    if (s.type == SegmentType::kMessage) put<std::int32_t>(out, s.aux);
+  out_.append(letters, kMaxAxes);
+  count_offset_ = out_.size();
+  put<std::uint64_t>(out_, 0);  // record count, fixed by finish()
+}
+
+void IntercodeEncoder::add(const Segment& s) {
+  ++count_;
+  // Fixed part plus the variable fields, appended through one small stack buffer.
+  char buf[8 + 8 + 8 * kMaxAxes + 8 * 6 + 16];
+  std::size_t k = 0;
+  auto w = [&](const auto& v) {
+    std::memcpy(buf + k, &v, sizeof v);
+    k += sizeof v;
+  };
+  w(static_cast<std::uint8_t>(s.type));
+  w(static_cast<std::uint8_t>(s.plane));
+  w(static_cast<std::uint8_t>(s.compensation));
+  w(static_cast<std::uint8_t>(s.m_kind));
+  w(s.line);
+  w(s.tool);
+  for (int i = 0; i < n_; ++i) w(s.end[static_cast<std::size_t>(i)]);
+  if (s.compensation != Compensation::kOff) w(s.compensation_radius_mm);
+  if (s.is_motion()) w(s.feed_mm_per_min);
+  if (s.is_arc()) {
+    w(s.center[0]);
+    w(s.center[1]);
+    w(s.radius);
+    w(s.turns);
   }
-  for (const MParams& mp : p.params) {
-    for (double v : mp) put<double>(out, v);
+  if (s.type == SegmentType::kDwell) w(s.dwell_s);
+  if (s.type == SegmentType::kMFunction) {
+    w(s.m);
+    w(s.aux);
   }
-  for (const std::string& m : p.messages) {
-    put<std::uint32_t>(out, static_cast<std::uint32_t>(m.size()));
-    out += m;
+  if (s.type == SegmentType::kMessage) w(s.aux);
+  out_.append(buf, k);
+}
+
+void IntercodeEncoder::finish(const std::vector<MParams>& params,
+                              const std::vector<std::string>& messages) {
+  if (!streaming_) std::memcpy(out_.data() + count_offset_, &count_, sizeof count_);
+  put<std::uint32_t>(out_, static_cast<std::uint32_t>(params.size()));
+  put<std::uint32_t>(out_, static_cast<std::uint32_t>(messages.size()));
+  for (const MParams& mp : params) {
+    for (double v : mp) put<double>(out_, v);
   }
+  for (const std::string& m : messages) {
+    put<std::uint32_t>(out_, static_cast<std::uint32_t>(m.size()));
+    out_ += m;
+  }
+}
+
+void encode_intercode(const Program& p, std::string& out) {
+  out.reserve(out.size() + 64 + p.segments.size() * (20 + 8 * static_cast<std::size_t>(p.number_axes) + 8));
+  IntercodeEncoder enc(out, p.number_axes, p.axis_letters);
+  for (const Segment& s : p.segments) enc.add(s);
+  enc.finish(p.params, p.messages);
 }
 
 bool decode_intercode(std::string_view bytes, Program& out, std::string& error) {
@@ -159,12 +182,9 @@ bool decode_intercode(std::string_view bytes, Program& out, std::string& error) 
   std::string letters;
   if (!in.bytes(kMaxAxes, letters)) return fail("truncated header");
   std::uint64_t count = 0;
-  std::uint32_t nparams = 0, nmsg = 0;
-  if (!in.get(count) || !in.get(nparams) || !in.get(nmsg)) return fail("truncated header");
+  if (!in.get(count)) return fail("truncated header");
   // Each record takes at least 12 + 8 n bytes: reject counts the input cannot hold.
   if (count > bytes.size() / (12u + 8u * n)) return fail("record count exceeds the file size");
-  if (nparams > bytes.size() / (8u * kParamLetters) + 1) return fail("bad parameter count");
-  if (nmsg > bytes.size() / 4 + 1) return fail("bad message count");
   Program p;
   p.number_axes = n;
   p.axis_letters = letters.substr(0, n);
@@ -206,11 +226,18 @@ bool decode_intercode(std::string_view bytes, Program& out, std::string& error) 
         s.radius < 0 || s.dwell_s < 0 || s.turns < 0) {
       return fail("value out of range in record " + std::to_string(k));
     }
+  }
+  std::uint32_t nparams = 0, nmsg = 0;
+  if (!in.get(nparams) || !in.get(nmsg)) return fail("truncated table counts");
+  if (nparams > bytes.size() / (8u * kParamLetters) + 1) return fail("bad parameter count");
+  if (nmsg > bytes.size() / 4 + 1) return fail("bad message count");
+  for (const Segment& s : p.segments) {
     if (s.type == SegmentType::kMFunction && (s.aux < 0 || s.aux >= static_cast<int>(nparams))) {
-      return fail("M record " + std::to_string(k) + " names a missing parameter set");
+      return fail("an M record at line " + std::to_string(s.line) +
+                  " names a missing parameter set");
     }
     if (s.type == SegmentType::kMessage && (s.aux < 0 || s.aux >= static_cast<int>(nmsg))) {
-      return fail("message record " + std::to_string(k) + " names a missing text");
+      return fail("a message record at line " + std::to_string(s.line) + " names a missing text");
     }
   }
   p.params.resize(nparams);

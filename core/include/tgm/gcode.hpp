@@ -2,6 +2,7 @@
 #pragma once
 
 #include <array>
+#include <functional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -41,8 +42,17 @@ struct CompileResult {
   bool ok() const { return errors.empty(); }
 };
 
+//! Receives each record as the compiler makes it, in program order.
+using SegmentSink = std::function<void(const Segment&)>;
+
 //! Compiles a whole program. Never throws on bad input; every error is reported with its place,
 //! and a program with errors yields no records.
 CompileResult compile_gcode(std::string_view source, const CompileOptions& options);
+
+//! Compiles a whole program, handing the records to `sink` instead of keeping them (for very
+//! long programs: `result.program` then holds only the side tables). When the result has errors,
+//! whatever the sink received must be discarded.
+CompileResult compile_gcode(std::string_view source, const CompileOptions& options,
+                            const SegmentSink& sink);
 
 }  // namespace tgm

@@ -13,6 +13,32 @@ namespace tgm {
 //! configured axes and the fields a record type uses are stored).
 void encode_intercode(const Program& p, std::string& out);
 
+//! Writes binary intercode record by record, for programs too long to hold as `Segment`s.
+class IntercodeEncoder {
+ public:
+  //! Byte offset of the record count (uint64) in the header, for writers that stream the records
+  //! out before the count is known.
+  static constexpr std::size_t kCountOffset = 4 + 2 + 1 + kMaxAxes;
+
+  //! Appends the header to `out`; `out` must outlive the encoder. A `streaming` encoder's caller
+  //! empties `out` as it goes and writes the record count at kCountOffset itself.
+  IntercodeEncoder(std::string& out, int number_axes, std::string_view axis_letters,
+                   bool streaming = false);
+  //! Appends one record.
+  void add(const Segment& s);
+  //! Appends the side tables and, unless streaming, fixes the record count in the header.
+  void finish(const std::vector<MParams>& params, const std::vector<std::string>& messages);
+  //! Records added so far.
+  std::uint64_t records() const { return count_; }
+
+ private:
+  std::string& out_;
+  std::size_t count_offset_;
+  bool streaming_;
+  std::uint64_t count_ = 0;
+  int n_;
+};
+
 //! Parses binary intercode. On failure returns false and says why in `error`; never reads out
 //! of bounds and never accepts NaN, unknown record types or dangling side-table indices.
 bool decode_intercode(std::string_view bytes, Program& out, std::string& error);
