@@ -1,0 +1,169 @@
+// tgm-hmi compile as a user runs it: exit codes, the error format, nothing written on error, and
+// the streamed binary output equal to the in-process encoding.
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "tgm/gcode.hpp"
+#include "tgm/intercode_io.hpp"
+#include "tgm/yaml_config.hpp"
+
+namespace tgm {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct ProcessResult {
+  int exit_code = -1;
+  std::string out;
+  std::string err;
+};
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+class HmiCompile : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("tgm_cli_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  fs::path write(const std::string& name, const std::string& text) {
+    const fs::path p = dir_ / name;
+    std::ofstream(p, std::ios::binary) << text;
+    return p;
+  }
+
+  ProcessResult run(const std::string& args) {
+    const fs::path out = dir_ / "stdout", err = dir_ / "stderr";
+    const std::string cmd = std::string(TGM_HMI) + " " + args + " >" + out.string() + " 2>" +
+                            err.string() + " </dev/null";
+    const int status = std::system(cmd.c_str());
+    ProcessResult r;
+    r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    r.out = slurp(out);
+    r.err = slurp(err);
+    return r;
+  }
+
+  fs::path dir_;
+};
+
+const char* kConfig = TGM_SOURCE_DIR "/config/default.yaml";
+
+TEST_F(HmiCompile, ExampleProgramWritesIntercodeEqualToTheInProcessEncoding) {
+  const fs::path prog = TGM_SOURCE_DIR "/tests/programs/manual_example.ngc";
+  const fs::path out = dir_ / "ex.tgmi";
+  const ProcessResult r = run("compile " + prog.string() + " --config " + kConfig + " --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("13 records"), std::string::npos) << r.err;
+
+  const auto cfg = load_config_file(kConfig);
+  ASSERT_TRUE(cfg.config);
+  const CompileResult c =
+      compile_gcode(slurp(prog), CompileOptions::from_machine(cfg.config->machine, 0));
+  ASSERT_TRUE(c.ok());
+  std::string expected;
+  encode_intercode(c.program, expected);
+  EXPECT_EQ(slurp(out), expected);
+  EXPECT_FALSE(fs::exists(out.string() + ".tmp"));
+}
+
+TEST_F(HmiCompile, LongProgramStreamsInPiecesAndDecodes) {
+  // More than 1 MiB of records, with a subroutine so both execution modes run.
+  std::string text = "G91 G1 F1000\nG25 L1\n";
+  for (int i = 0; i < 40000; ++i) text += (i % 2) ? "G1 X0.1 Y-0.05\n" : "G2 X0.2 I0.1\n";
+  text += "M30\nG29 L1\nG1 Z1\nG1 Z-1\nM17\n";
+  const fs::path prog = write("long.ngc", text);
+  const fs::path out = dir_ / "long.tgmi";
+  const ProcessResult r = run("compile " + prog.string() + " --config " + kConfig + " --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  Program p;
+  std::string err;
+  ASSERT_TRUE(decode_intercode(slurp(out), p, err)) << err;
+  ASSERT_EQ(p.segments.size(), 40003u);
+  EXPECT_DOUBLE_EQ(p.segments[1].end[2], 0.0);  // subroutine: Z up and down
+  EXPECT_EQ(p.segments.back().m_kind, MKind::kProgramEnd);
+  EXPECT_NEAR(p.segments[40001].end[0], 20000 * 0.2 + 20000 * 0.1, 1e-6);
+}
+
+TEST_F(HmiCompile, ErrorsAreAllListedWithFileLineColumnAndNothingIsWritten) {
+  const fs::path prog = write("bad.ngc", "G90\nG1 X1 Q2\nG7\nG25 L4\n");
+  const fs::path out = dir_ / "bad.tgmi";
+  std::ofstream(out) << "previous";
+  const ProcessResult r = run("compile " + prog.string() + " --config " + kConfig + " --out " + out.string());
+  EXPECT_EQ(r.exit_code, 2);
+  const std::string f = prog.string();
+  EXPECT_EQ(r.err, f + ":2:7: error: unknown word 'Q2'\n" + f +
+                       ":3:1: error: unknown G-code G7\n" + f +
+                       ":4:5: error: unknown label L4 (define it with G29 L4)\n" + f +
+                       ": 3 errors, no intercode written\n");
+  EXPECT_EQ(slurp(out), "previous");
+  EXPECT_FALSE(fs::exists(out.string() + ".tmp"));
+  EXPECT_TRUE(r.out.empty());
+}
+
+TEST_F(HmiCompile, DumpJsonlMatchesTheGoldenFile) {
+  const ProcessResult r = run("compile " TGM_SOURCE_DIR "/tests/programs/manual_example.ngc --config " +
+                    std::string(kConfig) + " --dump jsonl");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.out, slurp(TGM_SOURCE_DIR "/tests/programs/manual_example.jsonl"));
+}
+
+TEST_F(HmiCompile, BadCommandLinesAndFilesAreUsageErrors) {
+  ProcessResult r = run("compile");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("a G-code FILE is required"), std::string::npos);
+  r = run("compile x.ngc --frobnicate");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("unknown option '--frobnicate'"), std::string::npos);
+  r = run("compile x.ngc --dump xml");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--dump takes jsonl or text, not 'xml'"), std::string::npos);
+  r = run("compile /nonexistent.ngc --config " + std::string(kConfig));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.err, "/nonexistent.ngc: error: cannot open: No such file or directory\n");
+  r = run("compile x.ngc --config " + std::string(kConfig) + " --interpolator 5");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--interpolator must be 0..2 (the config has 3), not '5'"),
+            std::string::npos);
+  r = run("frobnicate");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("unknown command 'frobnicate'"), std::string::npos);
+}
+
+TEST_F(HmiCompile, BadConfigNamesTheKey) {
+  const fs::path cfg = write("bad.yaml", "cycle_time_us: 400\ncompiler: {distance_mode: G92}\n");
+  const ProcessResult r = run("compile x.ngc --config " + cfg.string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find(cfg.string() + ":2: compiler.distance_mode: must be G90 or G91, not 'G92'"),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("cycle_time_us: must be 250, 500 or 1000, not 400"), std::string::npos);
+}
+
+TEST_F(HmiCompile, HelpIsPrintedAndSucceeds) {
+  ProcessResult r = run("--help");
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_NE(r.out.find("usage: tgm-hmi COMMAND"), std::string::npos);
+  r = run("compile --help");
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_NE(r.out.find("usage: tgm-hmi compile FILE"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace tgm
