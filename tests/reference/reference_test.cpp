@@ -10,7 +10,7 @@
 //
 // Environment: TGM_REF_SEED (default 20240611), TGM_REF_COUNT (default 20 programs; read when
 // the tests are listed), TGM_REF_MIN_LINES / TGM_REF_MAX_LINES (2000 / 20000),
-// TGM_REF_LONG_LINES (200000), TGM_REF_KEEP=1 (keep generated programs that pass), TGM_RS274 (path of rs274), TGM_REQUIRE_RS274=1 (a missing rs274
+// TGM_REF_LONG_LINES (200000), TGM_REF_CAM_LINES (100000), TGM_REF_KEEP=1 (keep generated programs that pass), TGM_RS274 (path of rs274), TGM_REQUIRE_RS274=1 (a missing rs274
 // fails instead of skipping; CI sets it).
 #include <gtest/gtest.h>
 
@@ -25,6 +25,7 @@
 #include <string>
 #include <vector>
 
+#include "gen/cam_program.hpp"  // tests/bench/gen: the compile benchmark's program
 #include "ngc_generator.hpp"
 #include "rs274_canon.hpp"
 #include "tgm/gcode.hpp"
@@ -376,6 +377,28 @@ TEST(GeneratedLong, AgreesWithRs274) {
   const auto lines = static_cast<int>(env_u64("TGM_REF_LONG_LINES", 200000));
   check_generated(base_seed() * 7919u + 1u, lines, "generated_long_" + std::to_string(base_seed()));
 }
+
+//! The CAM-like program of the compile benchmark (short G1 moves, small tangent arcs).
+class CamProgram : public ::testing::TestWithParam<bool> {};
+
+TEST_P(CamProgram, AgreesWithRs274) {
+  const bool incremental = GetParam();
+  std::string text;
+  tgm::bench::generate_cam_program(text, static_cast<long>(env_u64("TGM_REF_CAM_LINES", 100000)),
+                                   base_seed(), incremental);
+  const fs::path file = work_dir() / (std::string("cam_") + (incremental ? "g91" : "g90") + "_" +
+                                      std::to_string(base_seed()) + ".ngc");
+  {
+    std::ofstream f(file, std::ios::binary);
+    f << text;
+  }
+  check_program(file, text);
+}
+
+INSTANTIATE_TEST_SUITE_P(Bench, CamProgram, ::testing::Values(false, true),
+                         [](const ::testing::TestParamInfo<bool>& i) {
+                           return std::string(i.param ? "G91" : "G90");
+                         });
 
 }  // namespace
 }  // namespace tgm::ref
