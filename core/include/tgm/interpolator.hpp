@@ -1,0 +1,156 @@
+// The cycle interpolator: ring buffer of intercode records, look-ahead planner, jerk-limited path
+// velocity generator, registers (manual: Interpolator). Design and decisions: core/MOTION.md.
+//
+// Usage: create() once (allocates everything), then call step() once per Cycle_Time. Requests
+// (append, start, stop, M_Func acknowledge, Rel_Speed, ...) are made between two step() calls by
+// the same thread; each returns a code and a reason the service can forward. step() never
+// allocates, never blocks and never reads a clock.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+
+#include "tgm/config.hpp"
+#include "tgm/intercode.hpp"
+#include "tgm/registers.hpp"
+
+namespace tgm {
+
+//! Result of one step() (STYLE.md: Working = 0, Finished = 1, errors negative).
+enum class StepResult : std::int8_t {
+  kWorking = 0,   //!< moving, dwelling or about to continue on its own
+  kFinished = 1,  //!< the program ended (Status 3)
+  kWaiting = 2,   //!< waiting for a request: M_Func = 0, start (M0, after a stop), more segments
+  kIdle = 3,      //!< nothing to do: empty, or standing after a stop / emergency stop
+  kErrorInternal = -1,  //!< an invariant broke (never expected; the registers stay consistent)
+};
+
+//! Outcome class of a request.
+enum class RequestCode : std::int8_t {
+  kAccepted = 0,
+  kOutOfRange = -1,  //!< a value outside its documented range
+  kWrongState = -2,  //!< not allowed in the current Status
+  kBufferFull = -3,  //!< the ring buffer has no free slot for the records
+  kInvalid = -4,     //!< malformed data (NaN, bad index, axis not configured, ...)
+  kUnsupported = -5,  //!< a Command the core does not implement (yet)
+};
+
+//! Reply to a request: a code plus a reason the service forwards to the client.
+struct RequestResult {
+  RequestCode code = RequestCode::kAccepted;
+  std::string reason;
+  bool ok() const { return code == RequestCode::kAccepted; }
+};
+
+//! A deliberate velocity / acceleration step of the axes where two segments meet (a corner
+//! within the per-axis tolerance, or a curvature change). Recorded only when
+//! `InterpolatorOptions::record_corner_events` is set; the limit checker uses them.
+struct CornerEvent {
+  //! Cycle (Registers::cycle) in which the junction was crossed.
+  std::uint64_t cycle = 0;
+  //! Time of the crossing inside that cycle, as a fraction 0..1 of Cycle_Time.
+  double fraction = 0.0;
+  //! Source line of the segment entered.
+  std::int32_t line = 0;
+  //! Per-axis velocity step [mm/s] and acceleration step [mm/s^2] at the crossing.
+  std::array<double, kMaxAxes> dv{};
+  std::array<double, kMaxAxes> da{};
+};
+
+//! Summary of one executed motion record: how fast it ran and what limited it.
+struct BlockReport {
+  std::int32_t act_part = 0;  //!< Act_Part of the record
+  std::int32_t line = 0;      //!< source line
+  std::int32_t g = 0;         //!< 0..3
+  double length_mm = 0.0;
+  //! Programmed path speed [mm/min]: F, or the rapid speed along the line for G0.
+  double programmed_mm_min = 0.0;
+  double peak_mm_min = 0.0;   //!< highest path speed reached in the block
+  double duration_s = 0.0;
+  //! What limited the speed at the block's peak (kFeed when the programmed speed was reached).
+  LimitFactor factor = LimitFactor::kNone;
+};
+
+//! Behaviour switches of one interpolator.
+struct InterpolatorOptions {
+  //! Record CornerEvents (for the limit checker); off in production.
+  bool record_corner_events = false;
+  //! After an underrun stop (Status 8), continue by itself when segments arrive instead of
+  //! waiting for start (DESIGN section 5 asks for start; the option is for streaming tests).
+  bool resume_after_underrun = false;
+};
+
+//! One interpolator (axis group). Movable, not copyable.
+class Interpolator {
+ public:
+  //! Builds interpolator `number` of `machine`; nullopt (and `error`) when the config is invalid.
+  static std::optional<Interpolator> create(const MachineConfig& machine, int number,
+                                            const InterpolatorOptions& options = {},
+                                            std::string* error = nullptr);
+  Interpolator(Interpolator&&) noexcept;
+  Interpolator& operator=(Interpolator&&) noexcept;
+  ~Interpolator();
+
+  //! Advances one Cycle_Time (five calculation steps) and updates every register.
+  StepResult step();
+
+  //! The registers after the last step (or after creation).
+  const Registers& registers() const;
+
+  // ---- Requests (between two steps) ----
+
+  //! Appends records [first, first + count) of `program` (with their M parameters and messages)
+  //! to the ring buffer. Takes as many as fit; `accepted` says how many. `program_complete`
+  //! says that no further record will follow: the end of the buffer then ends the program
+  //! (Status 3) instead of being an underrun (Status 8). Allowed in every state except the
+  //! emergency ramp; appending to an empty or ended interpolator makes it Ready (Status 4).
+  RequestResult append(const Program& program, std::size_t first, std::size_t count,
+                       bool program_complete = false, std::size_t* accepted = nullptr);
+  //! Whole program, all records (must fit into the ring buffer).
+  RequestResult load(const Program& program);
+  //! Starts or resumes (Status 4, 7 after Command 4, 8, or a pause at M0).
+  RequestResult start();
+  //! Drops every record not yet executed; only while standing. Status becomes 0.
+  RequestResult clear();
+  //! Command register: 4 / 5 emergency stop on / off trajectory, 8 / 9 normal stop on / off
+  //! trajectory. Other commands belong to the command stage (smoothing, ratio, position).
+  RequestResult command(std::int32_t code);
+  //! PLC write of M_Func; only 0 (acknowledge) is accepted.
+  RequestResult write_m_func(std::int32_t value);
+  //! Rel_Speed 0.01..2; takes effect in the next calculation step through the jerk-limited ramp.
+  RequestResult set_rel_speed(double rel_speed);
+  //! Sets Orig_Position while standing (Command 2048/2049 will use it); drops the program.
+  RequestResult set_position(const std::array<double, kMaxAxes>& position_mm);
+
+  // ---- Read access for the service, the simulator and the checker ----
+
+  //! Free ring slots.
+  std::size_t free_slots() const;
+  //! Text of an M29 message by Registers::message_slot ("" when the slot is empty).
+  std::string_view message_text(std::int32_t slot) const;
+  //! Corner events of the last step (empty unless recording).
+  std::span<const CornerEvent> corner_events() const;
+  //! Motion records completed during the last step.
+  std::span<const BlockReport> block_reports() const;
+  //! Count of times the generator had to clamp at a stop point while still moving faster than
+  //! 1e-3 mm/s (a planning defect; 0 expected).
+  std::uint64_t hard_stops() const;
+  //! Cycle time [s] and calculation step [s].
+  double cycle_time_s() const;
+  double calc_step_s() const;
+  //! The axis group's config.
+  const InterpolatorConfig& config() const;
+
+ private:
+  struct Impl;
+  explicit Interpolator(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace tgm

@@ -1,0 +1,51 @@
+// One-dimensional jerk-limited path velocity helpers used by the interpolator's online generator.
+//
+// The path state is (s, v, a): position along the path [mm], path velocity [mm/s], path
+// acceleration [mm/s^2]. During one calculation step of length dt the jerk is constant, so a step
+// is fully described by the acceleration at its end (`x`).
+#pragma once
+
+namespace tgm::jerk {
+
+//! Path state.
+struct State {
+  double s = 0.0;  //!< [mm]
+  double v = 0.0;  //!< [mm/s]
+  double a = 0.0;  //!< [mm/s^2]
+};
+
+//! State after `dt` seconds at constant jerk that ends with acceleration `x`.
+inline State advance(const State& st, double x, double dt) {
+  const double j = (x - st.a) / dt;
+  State n;
+  n.s = st.s + dt * (st.v + dt * (0.5 * st.a + dt * j / 6.0));
+  n.v = st.v + 0.5 * (st.a + x) * dt;
+  n.a = x;
+  return n;
+}
+
+//! Path distance [mm] the interpolator needs, from velocity v and acceleration a, before the
+//! velocity is at most w and can stay there, braking with acceleration magnitude at most A and
+//! jerk at most J. 0 when no braking is needed. Monotone: non-decreasing in v and in a.
+//!
+//! Three cases: (1) no braking needed; (2) the acceleration is already so negative that ramping
+//! it back to zero at +J passes below w: the distance until v = w on that ramp; (3) the
+//! time-optimal S-curve to (w, 0): jerk -J to a peak deceleration <= A, hold, jerk +J to zero.
+double braking_distance(double v, double a, double w, double A, double J);
+
+//! End-of-step acceleration that tracks the target velocity `vt` time-optimally without
+//! overshoot (the velocity after bringing a to zero at full jerk equals vt), clipped to the
+//! jerk limit (|x - a| <= J dt) and to |x| <= A.
+double track_velocity(double v, double a, double vt, double A, double J, double dt);
+
+//! Lowest end-of-step acceleration that keeps the motion from reversing: with x < 0 the velocity
+//! at the end of the step must still allow ramping the acceleration back to 0 at jerk J before v
+//! reaches 0 (v' >= x^2 / (2J)).
+double floor_acceleration(double v, double a, double J, double dt);
+
+//! Distance to stop from (v, a) with limits A, J: braking_distance(v, a, 0, A, J).
+inline double stopping_distance(double v, double a, double A, double J) {
+  return braking_distance(v, a, 0.0, A, J);
+}
+
+}  // namespace tgm::jerk

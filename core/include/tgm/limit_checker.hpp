@@ -1,0 +1,105 @@
+// Limit checker: differentiates Orig_Position per cycle and reports every per-axis velocity,
+// acceleration or jerk excess, and every corner velocity step above the tolerance.
+//
+// Velocity is the first difference of the positions. At a corner the interpolator deliberately
+// lets an axis velocity jump (by at most the corner tolerance) and, with it, the acceleration
+// (curvature change, tangential acceleration redistributed). The checker removes exactly those
+// announced steps (CornerEvents: time inside the cycle, per-axis dv and da) from the positions
+// before taking the second difference (dv removed) and the third difference (dv and da removed),
+// and checks each announced dv against the tolerance. What remains is a weighted average of the
+// physical acceleration / jerk between the corners, so the only tolerance needed is floating
+// point noise (MOTION.md, "Limit checker").
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "tgm/config.hpp"
+#include "tgm/interpolator.hpp"
+#include "tgm/registers.hpp"
+
+namespace tgm {
+
+//! Which quantity exceeded its limit.
+enum class LimitQuantity : std::uint8_t {
+  kVelocity = 0,
+  kAcceleration = 1,
+  kJerk = 2,
+  kCornerStep = 3,  //!< velocity step at a corner above corner_velocity_tolerance_mm_s
+};
+
+//! "velocity", "acceleration", "jerk", "corner_step".
+const char* limit_quantity_name(LimitQuantity q);
+
+//! One excess.
+struct LimitViolation {
+  std::uint64_t cycle = 0;  //!< Registers::cycle
+  std::int32_t line = 0;    //!< source line executing in that cycle
+  int axis = 0;
+  LimitQuantity quantity = LimitQuantity::kVelocity;
+  double value = 0.0;  //!< |value| [mm/s, mm/s^2, mm/s^3]
+  double limit = 0.0;
+};
+
+//! Largest magnitudes seen per axis.
+struct AxisPeaks {
+  double velocity_mm_s = 0.0;
+  double acceleration_mm_s2 = 0.0;
+  double jerk_mm_s3 = 0.0;
+  double corner_step_mm_s = 0.0;
+};
+
+//! Checks one interpolator's output cycle by cycle.
+class LimitChecker {
+ public:
+  //! Relative tolerance on every limit (floating point only; see the header comment).
+  static constexpr double kRelativeTolerance = 1e-6;
+  //! Violations kept in detail; all are counted.
+  static constexpr std::size_t kMaxStored = 1000;
+
+  static std::optional<LimitChecker> create(const InterpolatorConfig& axes, int cycle_time_us,
+                                            std::string* error = nullptr);
+
+  //! Forgets the history (after a position set); the next cycle starts a new series.
+  void reset();
+
+  //! Feeds the registers after one step() and that step's corner events.
+  void add_cycle(const Registers& reg, std::span<const CornerEvent> events);
+
+  std::uint64_t violation_count() const { return count_; }
+  const std::vector<LimitViolation>& violations() const { return stored_; }
+  const std::array<AxisPeaks, kMaxAxes>& peaks() const { return peaks_; }
+  //! Limits used: velocity, acceleration, jerk per axis (normal, not emergency).
+  double velocity_limit(int axis) const { return vmax_[static_cast<std::size_t>(axis)]; }
+  double acceleration_limit(int axis) const { return amax_[static_cast<std::size_t>(axis)]; }
+  double jerk_limit(int axis) const { return jmax_[static_cast<std::size_t>(axis)]; }
+
+ private:
+  LimitChecker() = default;
+  void report(const Registers& reg, int axis, LimitQuantity q, double value, double limit);
+
+  struct Event {
+    std::uint64_t cycle;
+    double fraction;
+    std::array<double, kMaxAxes> dv;
+    std::array<double, kMaxAxes> da;
+  };
+
+  int n_ = 0;
+  double T_ = 0.0;
+  std::array<double, kMaxAxes> vmax_{}, amax_{}, jmax_{}, tol_{}, emax_{}, ejmax_{};
+  std::array<std::array<double, kMaxAxes>, 4> x_{};  // x_[0] newest
+  std::array<std::uint64_t, 4> cyc_{};
+  std::array<bool, 4> emergency_{};
+  int samples_ = 0;
+  std::vector<Event> events_;
+  std::uint64_t count_ = 0;
+  std::vector<LimitViolation> stored_;
+  std::array<AxisPeaks, kMaxAxes> peaks_{};
+};
+
+}  // namespace tgm

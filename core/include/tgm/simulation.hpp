@@ -1,0 +1,84 @@
+// Offline run of a whole program through one interpolator: what `tgm-hmi simulate`, the motion
+// tests and the benchmarks share. No clock: it calls step() as fast as it can, streams the
+// program into the ring buffer as slots free up, plays the PLC (acknowledges each normal
+// M-function after a configurable time, restarts after M0) and optionally checks the limits.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <optional>
+#include <span>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "tgm/config.hpp"
+#include "tgm/interpolator.hpp"
+#include "tgm/intercode.hpp"
+#include "tgm/limit_checker.hpp"
+
+namespace tgm {
+
+//! How the offline run behaves.
+struct SimulationOptions {
+  int interpolator = 0;
+  //! Rel_Speed at start, 0.01..2.
+  double rel_speed = 1.0;
+  //! Rel_Speed changes at given times [s].
+  std::vector<std::pair<double, double>> rel_speed_changes;
+  //! Time the emulated PLC takes per normal M-function [s], and per M number.
+  double m_ack_s = 0.1;
+  std::map<int, double> m_ack_by_number;
+  //! Time after an M0 pause until the emulated operator presses start [s].
+  double m0_restart_s = 0.0;
+  //! Run the limit checker (records corner events).
+  bool check_limits = false;
+  //! Give up after this much program time [s].
+  double max_time_s = 24.0 * 3600.0;
+};
+
+//! Outcome of a run.
+struct SimulationSummary {
+  StepResult result = StepResult::kWorking;  //!< kFinished when the program ended normally
+  std::string error;                          //!< why it did not finish (empty when it did)
+  std::uint64_t cycles = 0;
+  double program_time_s = 0.0;  //!< until Status 3
+  double distance_mm = 0.0;     //!< Move_Distance at the end
+  std::array<double, kMaxAxes> end_position{};
+  bool nan = false;             //!< a NaN / inf appeared in a register
+  std::uint64_t hard_stops = 0;
+  std::uint64_t m_functions = 0;  //!< normal M-functions acknowledged
+  //! Time [s] during which each LimitFactor limited the path speed (indexed by the enum value).
+  std::array<double, 11> factor_time_s{};
+  //! Limit checker (when enabled).
+  std::array<AxisPeaks, kMaxAxes> peaks{};
+  std::uint64_t violation_count = 0;
+  std::vector<LimitViolation> violations;
+};
+
+//! One offline run.
+class Simulation {
+ public:
+  static std::optional<Simulation> create(const MachineConfig& machine, const SimulationOptions& options,
+                                          std::string* error = nullptr);
+
+  //! Runs `program` (kept by reference until run() returns) to its end.
+  //! `on_cycle` sees the registers after every cycle, `on_block` every completed block.
+  SimulationSummary run(const Program& program,
+                        const std::function<void(const Registers&)>& on_cycle = {},
+                        const std::function<void(const BlockReport&)>& on_block = {});
+
+  Interpolator& interpolator() { return *ip_; }
+  const LimitChecker* checker() const { return checker_ ? &*checker_ : nullptr; }
+
+ private:
+  Simulation() = default;
+  SimulationOptions opt_;
+  int cycle_time_us_ = 500;
+  std::optional<Interpolator> ip_;
+  std::optional<LimitChecker> checker_;
+};
+
+}  // namespace tgm

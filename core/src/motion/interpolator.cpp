@@ -1,0 +1,1399 @@
+// The cycle interpolator. Design: core/MOTION.md.
+//
+// Records live in a ring indexed by a 64-bit sequence number q (slot = q % capacity). Every
+// record is planned when it is appended (geometry, speed caps, tangential acceleration / jerk
+// limits, the speed limit of the junction at its start, next-smaller-element links). step() runs
+// five calculation steps of the online jerk-limited path velocity generator; each one checks a
+// bounded set of upcoming speed limits (the prefix-minimum chains) and the end of the look-ahead
+// window, and chooses the highest end-of-step acceleration from which every one of them can still
+// be met.
+#include "tgm/interpolator.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <vector>
+#include <cstdio>
+#include <cstdlib>
+
+#include "path_geometry.hpp"
+#include "tgm/jerk_profile.hpp"
+
+namespace tgm {
+
+const char* limit_factor_name(LimitFactor f) {
+  switch (f) {
+    case LimitFactor::kNone: return "none";
+    case LimitFactor::kFeed: return "feed";
+    case LimitFactor::kAxisVelocity: return "axis_velocity";
+    case LimitFactor::kAccelJerk: return "accel_jerk";
+    case LimitFactor::kCorner: return "corner";
+    case LimitFactor::kArc: return "arc";
+    case LimitFactor::kLookAhead: return "lookahead";
+    case LimitFactor::kStarvation: return "starvation";
+    case LimitFactor::kOverride: return "override";
+    case LimitFactor::kMStop: return "stop_point";
+    case LimitFactor::kStopCommand: return "stop_command";
+  }
+  return "?";
+}
+
+namespace {
+
+using motion::Geometry;
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr std::uint64_t kNoQ = ~std::uint64_t{0};
+constexpr double kPi = 3.14159265358979323846;
+constexpr int kCalcSteps = 5;             // calculation steps per cycle (manual)
+constexpr int kChainMax = 8;              // constraints followed per chain and step
+constexpr int kMaxExtendPerStep = 64;     // records added to the window per calculation step
+constexpr std::size_t kMessageRing = 256;
+constexpr std::size_t kMaxBlockReports = 2048;
+constexpr std::size_t kMaxCornerEvents = 2048;
+constexpr double kMinLength = 1e-9;       // shorter motions are executed as no-ops [mm]
+constexpr double kArcSafety = 0.97;       // margin on the arc bounds (sum-of-terms, spiral)
+constexpr double kStandstillV = 1e-7;     // [mm/s]
+// Braking checks plan with slightly lower limits than the generator may use, so the discrete
+// constant-jerk steps can always follow a planned (bang-bang) braking curve.
+constexpr double kPlanMargin = 0.98;
+constexpr double kArriveD = 1e-9;         // [mm]
+constexpr double kArriveV = 1e-3;         // [mm/s]
+
+enum class RecKind : std::uint8_t { kMotion, kStop, kPass };
+
+// Planning data of one ring slot.
+struct Rec {
+  RecKind kind = RecKind::kPass;
+  Geometry g;
+  double s0 = 0.0;  // cumulative path position of the record's start [mm]
+  double f = 0.0;   // feed cap [mm/s] (x Rel_Speed)
+  double m = 0.0;   // machine cap [mm/s]
+  LimitFactor m_reason = LimitFactor::kAxisVelocity;
+  double at = 0.0, jt = 0.0;  // tangential acceleration / jerk limits
+  double wg = kInf, wf = kInf;  // junction limits at s0: hard, feed (x Rel_Speed)
+  LimitFactor wg_reason = LimitFactor::kNone;
+  std::uint64_t nse_g = kNoQ, nse_f = kNoQ;  // next record with a smaller wg / wf
+  std::int32_t msg_slot = -1;
+};
+
+// Fixed-capacity deque of sequence numbers (no allocation after init).
+class QDeque {
+ public:
+  void init(std::size_t cap) {
+    buf_.assign(cap, 0);
+    clear();
+  }
+  void clear() {
+    head_ = 0;
+    size_ = 0;
+  }
+  bool empty() const { return size_ == 0; }
+  std::uint64_t front() const { return buf_[head_]; }
+  std::uint64_t back() const { return buf_[idx(size_ - 1)]; }
+  void push_back(std::uint64_t q) {
+    if (size_ == buf_.size()) pop_front();  // cannot happen with cap >= ring size; stay safe
+    buf_[idx(size_)] = q;
+    ++size_;
+  }
+  void pop_back() { --size_; }
+  void pop_front() {
+    head_ = idx(1);
+    --size_;
+  }
+
+ private:
+  std::size_t idx(std::size_t k) const {
+    std::size_t i = head_ + k;
+    return i >= buf_.size() ? i - buf_.size() : i;
+  }
+  std::vector<std::uint64_t> buf_;
+  std::size_t head_ = 0;
+  std::size_t size_ = 0;
+};
+
+enum class Mode : std::uint8_t { kIdle, kMoving, kStopping, kEmergency, kWaitM, kDwell };
+
+// One speed limit ahead: distance [mm], velocity [mm/s], why.
+struct Constraint {
+  double d;
+  double w;
+  LimitFactor reason;
+};
+
+double norm_angle_deg(double rad) {
+  double d = rad * 180.0 / kPi;
+  d = std::fmod(d, 360.0);
+  if (d < 0.0) d += 360.0;
+  return d;
+}
+
+}  // namespace
+
+struct Interpolator::Impl {
+  // ---- configuration ----
+  InterpolatorConfig cfg;
+  InterpolatorOptions opt;
+  int number = 0;
+  int n = 0;               // axes
+  std::size_t cap = 0;     // ring capacity
+  double T = 0.0;          // cycle [s]
+  double dt = 0.0;         // calculation step [s]
+  std::array<double, kMaxAxes> vmax{}, amax{}, jmax{}, rapid{}, tol{};
+  double rho = 1.0;        // emergency / normal deceleration ratio (min over axes, >= 1)
+
+  // ---- ring ----
+  std::vector<Segment> seg;
+  std::vector<Rec> rec;
+  std::vector<MParams> par;
+  std::vector<std::string> msg;
+  std::size_t msg_next = 0;
+  std::uint64_t tail = 0;     // next q to write
+  std::uint64_t cur = 0;      // record being executed (== tail: none)
+  std::uint64_t base = 0;     // q of the program's first record (Act_Part = q - base + 1)
+  std::uint64_t win_end = 0;  // first record not in the look-ahead window
+  bool complete = false;
+  QDeque dq_a, dq_j, st_g, st_f;
+
+  // ---- planning tail (where the next appended motion starts) ----
+  std::array<double, kMaxAxes> pt_end{};
+  std::array<double, kMaxAxes> pt_tangent{};
+  bool pt_have_motion = false;
+  bool pt_stop_since = true;
+  double pt_f = 0.0, pt_m = 0.0;
+  LimitFactor pt_m_reason = LimitFactor::kAxisVelocity;
+  double s_tail = 0.0;
+
+  // ---- execution ----
+  Mode mode = Mode::kIdle;
+  bool on_path = false;  // `cur` is a motion record and the position is on it
+  jerk::State st;        // s local to the current motion record
+  std::array<double, kMaxAxes> rest{};
+  double rel = 1.0;
+  std::int64_t dwell_left = 0;
+  bool wait_m_first = false;
+  bool paused_m0 = false;
+  bool resume_wait_m = false;
+  bool stop_off = false;       // Command 9 / 5 in progress
+  bool resumable_estop = false;
+  std::uint64_t hard_stop_count = 0;
+  LimitFactor factor = LimitFactor::kNone;
+  bool braking_to_stop = false;
+  double last_vt = 0.0;
+  bool lookahead_dirty = true;
+  std::uint64_t lookahead_cur = kNoQ;
+
+  // block statistics of the current motion
+  double blk_peak = 0.0;
+  LimitFactor blk_factor = LimitFactor::kNone;
+  double blk_t0 = 0.0;
+  double time_s = 0.0;  // time at the start of the current calculation step
+
+  Registers reg;
+  std::vector<CornerEvent> events;
+  std::size_t n_events = 0;
+  std::vector<BlockReport> blocks;
+  std::size_t n_blocks = 0;
+
+  Rec& R(std::uint64_t q) { return rec[static_cast<std::size_t>(q % cap)]; }
+  const Rec& R(std::uint64_t q) const { return rec[static_cast<std::size_t>(q % cap)]; }
+  Segment& S(std::uint64_t q) { return seg[static_cast<std::size_t>(q % cap)]; }
+  const Segment& S(std::uint64_t q) const { return seg[static_cast<std::size_t>(q % cap)]; }
+
+  // ================= planning =================
+
+  double corner_limit(const std::array<double, kMaxAxes>& tin,
+                      const std::array<double, kMaxAxes>& tout) const {
+    double c = kInf;
+    for (int i = 0; i < n; ++i) {
+      const double d = std::fabs(tout[i] - tin[i]);
+      if (d > 1e-12) c = std::min(c, tol[i] / d);
+    }
+    return c;
+  }
+
+  // Geometry and caps of a motion record starting at `start`; false = not a motion (too short).
+  bool plan_motion(const Segment& sg, const std::array<double, kMaxAxes>& start, Rec& r) const {
+    Geometry& g = r.g;
+    g = Geometry{};
+    g.start = start;
+    for (int i = 0; i < n; ++i) g.end[i] = sg.end[i];
+    if (!sg.is_arc()) {
+      double l2 = 0.0;
+      for (int i = 0; i < n; ++i) l2 += (g.end[i] - g.start[i]) * (g.end[i] - g.start[i]);
+      g.length = std::sqrt(l2);
+      if (g.length < kMinLength) return false;
+      double m = kInf, at = kInf, jt = kInf, fr = kInf;
+      for (int i = 0; i < n; ++i) {
+        g.dir[i] = (g.end[i] - g.start[i]) / g.length;
+        const double c = std::fabs(g.dir[i]);
+        if (c < 1e-12) continue;
+        m = std::min(m, vmax[i] / c);
+        at = std::min(at, amax[i] / c);
+        jt = std::min(jt, jmax[i] / c);
+        fr = std::min(fr, rapid[i] / c);
+      }
+      r.f = sg.type == SegmentType::kRapid ? fr : sg.feed_mm_per_min / 60.0;
+      r.m = m;
+      r.m_reason = LimitFactor::kAxisVelocity;
+      r.at = at;
+      r.jt = jt;
+      return true;
+    }
+    const PlaneAxes pa = plane_axes(sg.plane);
+    g.arc = true;
+    g.first = pa.first;
+    g.second = pa.second;
+    g.cx = sg.center[0];
+    g.cy = sg.center[1];
+    const double sx = g.start[pa.first] - g.cx, sy = g.start[pa.second] - g.cy;
+    const double ex = g.end[pa.first] - g.cx, ey = g.end[pa.second] - g.cy;
+    const double r0 = std::hypot(sx, sy), r1 = std::hypot(ex, ey);
+    g.r0 = r0;
+    g.dr = r1 - r0;
+    g.th0 = std::atan2(sy, sx);
+    const double th1 = std::atan2(ey, ex);
+    const bool full = std::hypot(ex - sx, ey - sy) <= 1e-9 * std::max(1.0, r0);
+    double sweep;
+    if (sg.type == SegmentType::kArcCcw) {
+      sweep = full ? 2.0 * kPi : std::fmod(th1 - g.th0 + 4.0 * kPi, 2.0 * kPi);
+      if (sweep <= 0.0) sweep += 2.0 * kPi;
+    } else {
+      sweep = full ? 2.0 * kPi : std::fmod(g.th0 - th1 + 4.0 * kPi, 2.0 * kPi);
+      if (sweep <= 0.0) sweep += 2.0 * kPi;
+    }
+    sweep += 2.0 * kPi * std::max(0, sg.turns);
+    g.phi = sg.type == SegmentType::kArcCcw ? sweep : -sweep;
+    const double plane_len = sweep * 0.5 * (r0 + r1);
+    double lin2 = 0.0;
+    for (int i = 0; i < n; ++i) {
+      if (i == pa.first || i == pa.second) continue;
+      lin2 += (g.end[i] - g.start[i]) * (g.end[i] - g.start[i]);
+    }
+    g.length = std::sqrt(plane_len * plane_len + lin2);
+    if (g.length < kMinLength) return false;
+    for (int i = 0; i < n; ++i) {
+      if (i == pa.first || i == pa.second) continue;
+      g.dir[i] = (g.end[i] - g.start[i]) / g.length;
+    }
+    const double k = std::max((std::fabs(g.dr) + std::max(r0, r1) * sweep) / g.length, 1e-12);
+    const double rmin = std::max(std::min(r0, r1), 1e-9);
+    const int p[2] = {pa.first, pa.second};
+    double m_vel = kInf, m_arc = kInf;
+    for (int ax : p) {
+      m_vel = std::min(m_vel, vmax[ax] / k);
+      m_arc = std::min(m_arc, std::sqrt(0.5 * amax[ax] * rmin) / k);
+      m_arc = std::min(m_arc, std::cbrt(0.5 * jmax[ax] * rmin * rmin) / k);
+    }
+    for (int i = 0; i < n; ++i) {
+      const double c = std::fabs(g.dir[i]);
+      if (c > 1e-12) m_vel = std::min(m_vel, vmax[i] / c);
+    }
+    r.f = sg.feed_mm_per_min / 60.0;
+    r.m = kArcSafety * std::min(m_vel, m_arc);
+    r.m_reason = m_vel <= m_arc ? LimitFactor::kAxisVelocity : LimitFactor::kArc;
+    const double vb = std::min(r.m, 2.0 * r.f);
+    double at = kInf, jt = kInf;
+    for (int ax : p) {
+      const double cent = k * k * vb * vb / rmin;
+      at = std::min(at, (amax[ax] - cent) / k);
+      at = std::min(at, 0.25 * jmax[ax] * rmin / (3.0 * k * k * vb));
+    }
+    for (int i = 0; i < n; ++i) {
+      const double c = std::fabs(g.dir[i]);
+      if (c > 1e-12) {
+        at = std::min(at, amax[i] / c);
+        jt = std::min(jt, jmax[i] / c);
+      }
+    }
+    at *= kArcSafety;
+    for (int ax : p) {
+      const double rest_j = jmax[ax] - k * k * k * vb * vb * vb / (rmin * rmin) -
+                            3.0 * k * k * vb * at / rmin;
+      jt = std::min(jt, rest_j / k);
+    }
+    jt *= kArcSafety;
+    r.at = std::max(at, 1e-6);
+    r.jt = std::max(jt, 1e-6);
+    return true;
+  }
+
+  void push_nse(QDeque& stack, std::uint64_t q, bool hard) {
+    const double w = hard ? R(q).wg : R(q).wf;
+    while (!stack.empty()) {
+      Rec& b = R(stack.back());
+      const double wb = hard ? b.wg : b.wf;
+      if (wb <= w) break;
+      (hard ? b.nse_g : b.nse_f) = q;
+      stack.pop_back();
+    }
+    stack.push_back(q);
+  }
+
+  std::string validate(const Program& p, std::size_t i) const {
+    const Segment& sg = p.segments[i];
+    const std::string where = "record " + std::to_string(i) + " (line " + std::to_string(sg.line) + "): ";
+    if (static_cast<int>(sg.type) > 6) return where + "unknown record type";
+    for (int a = 0; a < n; ++a) {
+      if (!std::isfinite(sg.end[a])) return where + "end point is not a finite number";
+    }
+    if (sg.type == SegmentType::kLinear || sg.is_arc()) {
+      if (!std::isfinite(sg.feed_mm_per_min) || sg.feed_mm_per_min <= 0.0) {
+        return where + "feed must be > 0 mm/min";
+      }
+    }
+    if (sg.is_arc()) {
+      const PlaneAxes pa = plane_axes(sg.plane);
+      if (pa.first >= n || pa.second >= n) {
+        return where + "arc plane G" + std::to_string(static_cast<int>(sg.plane)) +
+               " needs axes that are not configured";
+      }
+      if (!std::isfinite(sg.center[0]) || !std::isfinite(sg.center[1]) || sg.turns < 0) {
+        return where + "arc centre is not finite or turns < 0";
+      }
+    }
+    if (sg.type == SegmentType::kDwell && (!std::isfinite(sg.dwell_s) || sg.dwell_s < 0.0 || sg.dwell_s > 1e6)) {
+      return where + "dwell must be 0..1e6 s";
+    }
+    if (sg.type == SegmentType::kMFunction) {
+      if (sg.m_kind == MKind::kNone) return where + "M record without M kind";
+      if (sg.aux >= static_cast<std::int32_t>(p.params.size())) return where + "M parameter index out of range";
+    }
+    if (sg.type == SegmentType::kMessage &&
+        (sg.aux < 0 || sg.aux >= static_cast<std::int32_t>(p.messages.size()))) {
+      return where + "message index out of range";
+    }
+    return {};
+  }
+
+  // Plans and stores one record at q = tail.
+  void store(const Program& p, std::size_t i) {
+    const std::uint64_t q = tail;
+    const Segment& sg = p.segments[i];
+    S(q) = sg;
+    Rec& r = R(q);
+    r = Rec{};
+    r.s0 = s_tail;
+    par[static_cast<std::size_t>(q % cap)] =
+        (sg.type == SegmentType::kMFunction && sg.aux >= 0) ? p.params[static_cast<std::size_t>(sg.aux)]
+                                                             : unset_params();
+    if (sg.type == SegmentType::kMessage) {
+      msg[msg_next] = p.messages[static_cast<std::size_t>(sg.aux)];
+      r.msg_slot = static_cast<std::int32_t>(msg_next);
+      msg_next = (msg_next + 1) % kMessageRing;
+    }
+    const bool stop = sg.type == SegmentType::kDwell ||
+                      (sg.type == SegmentType::kMFunction && sg.m_kind != MKind::kContinuous);
+    if (sg.is_motion() && plan_motion(sg, pt_end, r)) {
+      r.kind = RecKind::kMotion;
+      std::array<double, kMaxAxes> t0{};
+      motion::geometry_tangent(r.g, n, 0.0, t0.data());
+      if (pt_have_motion && !pt_stop_since) {
+        const double c = corner_limit(pt_tangent, t0);
+        double w = c;
+        LimitFactor why = LimitFactor::kCorner;
+        auto take = [&](double v, LimitFactor f) {
+          if (v < w) {
+            w = v;
+            why = f;
+          }
+        };
+        take(pt_m, pt_m_reason);
+        take(r.m, r.m_reason);
+        take(2.0 * pt_f, LimitFactor::kFeed);
+        take(2.0 * r.f, LimitFactor::kFeed);
+        r.wg = w;
+        r.wg_reason = why;
+        r.wf = std::min(pt_f, r.f);
+      } else {
+        r.wg = std::min(r.m, 2.0 * r.f);
+        r.wg_reason = r.m_reason;
+        r.wf = r.f;
+      }
+      motion::geometry_tangent(r.g, n, r.g.length, pt_tangent.data());
+      pt_end = r.g.end;
+      pt_have_motion = true;
+      pt_stop_since = false;
+      pt_f = r.f;
+      pt_m = r.m;
+      pt_m_reason = r.m_reason;
+      s_tail += r.g.length;
+    } else if (stop) {
+      r.kind = RecKind::kStop;
+      r.wg = 0.0;
+      r.wf = 0.0;
+      r.wg_reason = LimitFactor::kMStop;
+      pt_stop_since = true;
+    } else {
+      r.kind = RecKind::kPass;  // continuous M, message, zero-length motion
+    }
+    push_nse(st_g, q, true);
+    push_nse(st_f, q, false);
+    ++tail;
+  }
+
+  void drop_stale() {
+    while (!st_g.empty() && st_g.front() < cur) st_g.pop_front();
+    while (!st_f.empty() && st_f.front() < cur) st_f.pop_front();
+  }
+
+  // ================= execution =================
+
+  void current_position(double* out) const {
+    if (on_path) {
+      motion::geometry_position(R(cur).g, n, st.s, out);
+    } else {
+      for (int i = 0; i < n; ++i) out[i] = rest[i];
+    }
+  }
+
+  void reset_window() {
+    dq_a.clear();
+    dq_j.clear();
+    win_end = cur;
+  }
+
+  void push_min(QDeque& dq, std::uint64_t q, bool accel) {
+    const double v = accel ? R(q).at : R(q).jt;
+    while (!dq.empty() && (accel ? R(dq.back()).at : R(dq.back()).jt) >= v) dq.pop_back();
+    dq.push_back(q);
+  }
+
+  void update_window(double& A, double& J) {
+    while (!dq_a.empty() && dq_a.front() < cur) dq_a.pop_front();
+    while (!dq_j.empty() && dq_j.front() < cur) dq_j.pop_front();
+    if (win_end <= cur) {
+      dq_a.clear();
+      dq_j.clear();
+      win_end = cur;
+    }
+    const Rec& rc = R(cur);
+    double a0 = dq_a.empty() ? rc.at : R(dq_a.front()).at;
+    double j0 = dq_j.empty() ? rc.jt : R(dq_j.front()).jt;
+    const double v = st.v, a = st.a;
+    const double H = jerk::stopping_distance(v, a, a0, j0) + v * (std::fabs(a) + a0) / j0 +
+                     2.0 * v * dt + 1e-6;
+    const double limit = rc.s0 + st.s + H;
+    int added = 0;
+    while (win_end < tail && added < kMaxExtendPerStep) {
+      const Rec& r = R(win_end);
+      if (win_end > cur) {
+        if (r.kind == RecKind::kStop) break;
+        if (r.s0 > limit) break;
+      }
+      if (r.kind == RecKind::kMotion) {
+        push_min(dq_a, win_end, true);
+        push_min(dq_j, win_end, false);
+      }
+      ++win_end;
+      ++added;
+    }
+    A = dq_a.empty() ? rc.at : R(dq_a.front()).at;
+    J = dq_j.empty() ? rc.jt : R(dq_j.front()).jt;
+  }
+
+  // Collects the speed limits ahead into `c`; returns their count.
+  int gather(Constraint* c) const {
+    const Rec& rc = R(cur);
+    const double here = rc.s0 + st.s;
+    int k = 0;
+    for (int fam = 0; fam < 2; ++fam) {
+      std::uint64_t q = cur + 1;
+      int hops = 0;
+      while (q != kNoQ && q < win_end) {
+        const Rec& r = R(q);
+        const double w = fam == 0 ? r.wg : r.wf * rel;
+        if (hops == kChainMax) {  // conservative: stop at the first one not followed
+          c[k++] = {r.s0 - here, 0.0, LimitFactor::kLookAhead};
+          break;
+        }
+        if (w < kInf) {
+          LimitFactor why = fam == 0 ? r.wg_reason
+                                     : (rel == 1.0 ? LimitFactor::kFeed : LimitFactor::kOverride);
+          c[k++] = {r.s0 - here, w, why};
+          ++hops;
+        }
+        q = fam == 0 ? r.nse_g : r.nse_f;
+      }
+    }
+    // End of the window: a stop point, the end of the buffer, or the look-ahead reach.
+    if (win_end >= tail) {
+      c[k++] = {s_tail - here, 0.0, complete ? LimitFactor::kMStop : LimitFactor::kStarvation};
+    } else {
+      const Rec& r = R(win_end);
+      c[k++] = {r.s0 - here, 0.0,
+                r.kind == RecKind::kStop ? LimitFactor::kMStop : LimitFactor::kLookAhead};
+    }
+    return k;
+  }
+
+  // Next non-pass record after `q` is a stop, or the buffer ends there.
+  bool stop_follows(std::uint64_t q) const {
+    for (std::uint64_t k = q + 1; k < tail; ++k) {
+      const Rec& r = R(k);
+      if (r.kind == RecKind::kMotion) return false;
+      if (r.kind == RecKind::kStop) return true;
+    }
+    return true;
+  }
+
+  void begin_block() {
+    blk_peak = 0.0;
+    blk_factor = LimitFactor::kNone;
+    blk_t0 = time_s;
+  }
+
+  void end_block(std::uint64_t q, double t_end) {
+    if (n_blocks >= blocks.size()) return;
+    const Segment& sg = S(q);
+    const Rec& r = R(q);
+    BlockReport& b = blocks[n_blocks++];
+    b.act_part = static_cast<std::int32_t>(q - base + 1);
+    b.line = sg.line;
+    b.g = static_cast<std::int32_t>(sg.type);
+    b.length_mm = r.g.length;
+    b.programmed_mm_min = r.f * 60.0;
+    b.peak_mm_min = blk_peak * 60.0;
+    b.duration_s = t_end - blk_t0;
+    b.factor = blk_factor;
+  }
+
+  void execute_pass(std::uint64_t q) {
+    const Segment& sg = S(q);
+    if (sg.type == SegmentType::kMFunction) {
+      reg.m_func = sg.m;
+      reg.act_m_func = sg.m;
+      reg.last_cont_m_func = sg.m;
+      copy_params(q);
+    } else if (sg.type == SegmentType::kMessage) {
+      reg.message_count += 1;
+      reg.message_slot = R(q).msg_slot;
+    } else if (sg.is_motion()) {
+      reg.act_g_func = static_cast<std::int32_t>(sg.type);
+    }
+    reg.tool_number = sg.tool;
+  }
+
+  void copy_params(std::uint64_t q) {
+    const MParams& p = par[static_cast<std::size_t>(q % cap)];
+    for (int i = 0; i < kMFunctionParameters; ++i) {
+      reg.m_function_parameter[static_cast<std::size_t>(i)] =
+          i < kParamLetters ? p[static_cast<std::size_t>(i)] : kNotSet;
+    }
+  }
+
+  // Executes records from `cur` on until a motion starts, a stop waits, or the buffer ends.
+  void process_records() {
+    while (cur < tail) {
+      const Rec& r = R(cur);
+      const Segment& sg = S(cur);
+      if (r.kind == RecKind::kPass) {
+        execute_pass(cur);
+        ++cur;
+        continue;
+      }
+      if (r.kind == RecKind::kMotion) {
+        on_path = true;
+        st = jerk::State{};
+        reset_window();
+        mode = Mode::kMoving;
+        reg.status = static_cast<std::int32_t>(InterpolatorStatus::kRunning);
+        reg.act_g_func = static_cast<std::int32_t>(sg.type);
+        reg.tool_number = sg.tool;
+        begin_block();
+        return;
+      }
+      // Stop record.
+      on_path = false;
+      reg.tool_number = sg.tool;
+      if (sg.type == SegmentType::kDwell) {
+        mode = Mode::kDwell;
+        reg.act_g_func = 4;
+        dwell_left = static_cast<std::int64_t>(std::llround(sg.dwell_s / dt));
+        if (dwell_left <= 0) {
+          ++cur;
+          continue;
+        }
+        reg.status = static_cast<std::int32_t>(InterpolatorStatus::kRunning);
+        return;
+      }
+      reg.act_m_func = sg.m;
+      copy_params(cur);
+      if (sg.m_kind == MKind::kProgramEnd) {
+        mode = Mode::kIdle;
+        ++cur;  // the end record is executed
+        reg.status = static_cast<std::int32_t>(InterpolatorStatus::kEnded);
+        return;
+      }
+      if (sg.m_kind == MKind::kProgramStop) {
+        mode = Mode::kIdle;
+        paused_m0 = true;
+        reg.status = static_cast<std::int32_t>(InterpolatorStatus::kReady);
+        return;
+      }
+      mode = Mode::kWaitM;
+      wait_m_first = true;
+      reg.m_func = sg.m;
+      reg.status = static_cast<std::int32_t>(InterpolatorStatus::kRunning);
+      return;
+    }
+    // Buffer exhausted.
+    on_path = false;
+    mode = Mode::kIdle;
+    reg.status = static_cast<std::int32_t>(complete ? InterpolatorStatus::kEnded
+                                                    : InterpolatorStatus::kUnderrun);
+  }
+
+  // Solves s(tau) = dist inside a calculation step for the crossing time.
+  double crossing_time(const jerk::State& b, double j, double dist) const {
+    double lo = 0.0, hi = dt;
+    double tau = b.v > 1e-12 ? std::clamp(dist / b.v, 0.0, dt) : 0.5 * dt;
+    for (int it = 0; it < 60; ++it) {
+      const double f = tau * (b.v + tau * (0.5 * b.a + tau * j / 6.0)) - dist;
+      if (f > 0.0) hi = tau; else lo = tau;
+      const double fp = b.v + tau * (b.a + 0.5 * j * tau);
+      double nt = fp > 0.0 ? tau - f / fp : 0.5 * (lo + hi);
+      if (!(nt > lo && nt < hi)) nt = 0.5 * (lo + hi);
+      if (std::fabs(nt - tau) < 1e-18 || hi - lo < 1e-18) {
+        tau = nt;
+        break;
+      }
+      tau = nt;
+    }
+    return tau;
+  }
+
+  void record_corner(std::uint64_t qin, std::uint64_t qout, const jerk::State& b, double j,
+                     double dist, int calc_index) {
+    if (!opt.record_corner_events || n_events >= events.size()) return;
+    const double tau = crossing_time(b, j, dist);
+    const double vj = b.v + tau * (b.a + 0.5 * j * tau);
+    const double aj = b.a + j * tau;
+    double t_in[kMaxAxes], t_out[kMaxAxes], k_in[kMaxAxes], k_out[kMaxAxes];
+    const Geometry& gi = R(qin).g;
+    const Geometry& go = R(qout).g;
+    motion::geometry_tangent(gi, n, gi.length, t_in);
+    motion::geometry_tangent(go, n, 0.0, t_out);
+    motion::geometry_curvature(gi, n, gi.length, k_in);
+    motion::geometry_curvature(go, n, 0.0, k_out);
+    CornerEvent& e = events[n_events++];
+    e.cycle = reg.cycle;
+    e.fraction = (calc_index * dt + tau) / T;
+    e.line = S(qout).line;
+    for (int i = 0; i < kMaxAxes; ++i) {
+      if (i < n) {
+        e.dv[static_cast<std::size_t>(i)] = vj * (t_out[i] - t_in[i]);
+        e.da[static_cast<std::size_t>(i)] = aj * (t_out[i] - t_in[i]) + vj * vj * (k_out[i] - k_in[i]);
+      } else {
+        e.dv[static_cast<std::size_t>(i)] = 0.0;
+        e.da[static_cast<std::size_t>(i)] = 0.0;
+      }
+    }
+  }
+
+  // Arrival at a stop point or the end of the buffer while moving.
+  void arrive(double v_before) {
+    if (v_before > kArriveV) {
+      ++hard_stop_count;
+      if (std::getenv("TGM_DEBUG")) std::fprintf(stderr, "hard stop v=%g a=%g s=%.12g L=%.12g\n", v_before, st.a, st.s, R(cur).g.length);
+    }
+    st.v = 0.0;
+    st.a = 0.0;
+  }
+
+  // Finishes a ramp (stop command or emergency) at standstill.
+  void finish_ramp() {
+    st.v = 0.0;
+    st.a = 0.0;
+    const bool emergency = mode == Mode::kEmergency;
+    mode = Mode::kIdle;
+    reg.command = 0;
+    reg.command_status = 0;
+    if (emergency) {
+      reg.status = static_cast<std::int32_t>(InterpolatorStatus::kEmergencyStopped);
+      resumable_estop = !stop_off;
+    } else {
+      reg.status = static_cast<std::int32_t>(InterpolatorStatus::kReady);
+    }
+    if (stop_off) abandon_program();
+    stop_off = false;
+  }
+
+  // Drops the program (off trajectory): the position stays where it is.
+  void abandon_program() {
+    double p[kMaxAxes];
+    current_position(p);
+    for (int i = 0; i < n; ++i) rest[i] = p[i];
+    on_path = false;
+    paused_m0 = false;
+    resume_wait_m = false;
+    tail = cur;
+    complete = false;
+    reset_plan_tail();
+    reg.off_trajectory = 1;
+    if (reg.status != static_cast<std::int32_t>(InterpolatorStatus::kEmergencyStopped)) {
+      reg.status = static_cast<std::int32_t>(InterpolatorStatus::kEmpty);
+    }
+    lookahead_dirty = true;
+  }
+
+  void reset_plan_tail() {
+    st_g.clear();
+    st_f.clear();
+    dq_a.clear();
+    dq_j.clear();
+    win_end = cur;
+    pt_end = rest;
+    pt_have_motion = false;
+    pt_stop_since = true;
+    s_tail = 0.0;
+  }
+
+  // One calculation step of motion along the path.
+  void motion_step(int calc_index) {
+    double A = 0.0, J = 0.0;
+    update_window(A, J);
+    const Rec& rc = R(cur);
+    const jerk::State before = st;
+    const double v = st.v, a = st.a;
+    double x = 0.0;
+    braking_to_stop = false;
+    double vt = 0.0;
+    if (mode == Mode::kEmergency || mode == Mode::kStopping) {
+      if (mode == Mode::kEmergency) {
+        A *= rho;
+        J *= rho;
+      }
+      x = jerk::track_velocity(v, a, 0.0, A, J, dt);
+      x = std::max(x, std::min(jerk::floor_acceleration(v, a, J, dt), a + J * dt));
+      factor = LimitFactor::kStopCommand;
+      braking_to_stop = true;
+    } else {
+      const double fr = rc.f * rel;
+      LimitFactor target_reason;
+      if (fr <= rc.m) {
+        vt = fr;
+        target_reason = rel == 1.0 ? LimitFactor::kFeed : LimitFactor::kOverride;
+      } else {
+        vt = rc.m;
+        target_reason = rc.m_reason;
+      }
+      double lo = std::max(a - J * dt, -A);
+      double hi = std::min(a + J * dt, A);
+      if (lo > hi) {  // |a| above a limit that just dropped: recover at full jerk
+        if (a > A) hi = lo = std::max(a - J * dt, -A);
+        else lo = hi = std::min(a + J * dt, A);
+      }
+      lo = std::max(lo, std::min(jerk::floor_acceleration(v, a, J, dt), hi));
+      const double xd = std::clamp(jerk::track_velocity(v, a, vt, A, J, dt), lo, hi);
+
+      Constraint c[2 * kChainMax + 4];
+      const int nc = gather(c);
+      int viol[2 * kChainMax + 4];
+      int nv = 0;
+      double worst = 0.0;
+      int worst_k = -1;
+      auto excess = [&](double xx, int k) {
+        const jerk::State ns = jerk::advance(before, xx, dt);
+        const double ds = ns.s - before.s;
+        return jerk::braking_distance(std::max(ns.v, 0.0), ns.a, c[k].w, kPlanMargin * A,
+                                      kPlanMargin * J) -
+               (c[k].d - ds);
+      };
+      for (int k = 0; k < nc; ++k) {
+        const double e = excess(xd, k);
+        if (e > 1e-12) {
+          viol[nv++] = k;
+          if (worst_k < 0 || e > worst) {
+            worst = e;
+            worst_k = k;
+          }
+        }
+      }
+      if (nv == 0) {
+        x = xd;
+        const double vn = v + 0.5 * (a + x) * dt;
+        if (vn >= vt * (1.0 - 1e-3) - 1e-9) factor = target_reason;
+        else if (vn < vt) factor = LimitFactor::kAccelJerk;
+        else factor = target_reason;
+      } else {
+        auto ok = [&](double xx) {
+          for (int i = 0; i < nv; ++i) {
+            if (excess(xx, viol[i]) > 1e-12) return false;
+          }
+          return true;
+        };
+        double xs = lo, xu = xd;
+        if (!ok(xs)) {
+          x = xs;  // best effort: as much braking as the limits allow
+        } else {
+          for (int it = 0; it < 10; ++it) {
+            const double mid = 0.5 * (xs + xu);
+            if (ok(mid)) xs = mid; else xu = mid;
+          }
+          x = xs;
+        }
+        factor = c[worst_k].reason;
+        braking_to_stop = c[worst_k].w == 0.0;
+      }
+    }
+    last_vt = vt;
+    jerk::State ns = jerk::advance(before, x, dt);
+    if (ns.v < 0.0) ns.v = 0.0;
+    double ds = std::max(0.0, ns.s - before.s);
+    const double jerk_used = (x - a) / dt;
+    if (ns.v > blk_peak - 1e-12) {
+      blk_peak = ns.v;
+      blk_factor = factor;
+    }
+
+    // Move along the path, crossing junctions.
+    std::uint64_t q = cur;
+    double traveled = 0.0;
+    double s_local = before.s;
+    double remaining = ds;
+    bool arrived = false;
+    while (true) {
+      const double L = R(q).g.length;
+      const double room = L - s_local;
+      const bool stop_next = stop_follows(q);
+      if (remaining < room && !(stop_next && room - remaining <= kArriveD && ns.v <= kArriveV)) {
+        s_local += remaining;
+        traveled += remaining;
+        break;
+      }
+      // Cross the end of record q.
+      traveled += room;
+      remaining = std::max(0.0, remaining - room);
+      end_block(q, time_s + dt);
+      std::uint64_t k = q + 1;
+      while (k < tail && R(k).kind == RecKind::kPass) {
+        execute_pass(k);
+        ++k;
+      }
+      if (k < tail && R(k).kind == RecKind::kMotion &&
+          (mode == Mode::kMoving || remaining > 0.0 || ns.v > kStandstillV)) {
+        record_corner(q, k, before, jerk_used, traveled, calc_index);
+        for (int i = 0; i < n; ++i) rest[i] = R(q).g.end[i];
+        cur = k;
+        q = k;
+        s_local = 0.0;
+        const Segment& sn = S(k);
+        reg.act_g_func = static_cast<std::int32_t>(sn.type);
+        reg.tool_number = sn.tool;
+        begin_block();
+        blk_peak = ns.v;
+        blk_factor = factor;
+        continue;
+      }
+      // A stop point or the end of the buffer: standstill at the end of q.
+      for (int i = 0; i < n; ++i) rest[i] = R(q).g.end[i];
+      arrived = true;
+      arrive(ns.v);
+      ns.v = 0.0;
+      ns.a = 0.0;
+      cur = k;
+      on_path = false;
+      break;
+    }
+    reg.move_distance += traveled;
+    st.v = ns.v;
+    st.a = ns.a;
+    st.s = s_local;
+    if (arrived) {
+      if (mode == Mode::kMoving) {
+        process_records();
+      } else {
+        finish_ramp();
+      }
+      return;
+    }
+    if ((mode == Mode::kStopping || mode == Mode::kEmergency) && st.v <= kStandstillV &&
+        std::fabs(st.a) <= J * dt * (mode == Mode::kEmergency ? rho : 1.0)) {
+      finish_ramp();
+    }
+  }
+
+  void calc_step(int calc_index) {
+    switch (mode) {
+      case Mode::kMoving:
+      case Mode::kStopping:
+      case Mode::kEmergency:
+        motion_step(calc_index);
+        break;
+      case Mode::kDwell:
+        if (--dwell_left <= 0) {
+          ++cur;
+          process_records();
+        }
+        break;
+      case Mode::kWaitM:
+        if (reg.m_func == 0) {
+          ++cur;
+          process_records();
+        }
+        break;
+      case Mode::kIdle:
+        if (opt.resume_after_underrun &&
+            reg.status == static_cast<std::int32_t>(InterpolatorStatus::kUnderrun) && cur < tail) {
+          process_records();
+        }
+        break;
+    }
+    time_s += dt;
+  }
+
+  // ================= registers =================
+
+  void fill_entry(LookAheadEntry& e, std::uint64_t q, double pending_m, bool current) {
+    const Segment& sg = S(q);
+    const Rec& r = R(q);
+    e = LookAheadEntry{};
+    e.all_params = sg.type == SegmentType::kMFunction ? par[static_cast<std::size_t>(q % cap)] : unset_params();
+    if (!is_not_set(pending_m)) e.all_params[static_cast<std::size_t>('M' - 'A')] = pending_m;
+    e.plane = static_cast<std::int32_t>(sg.plane);
+    e.tool = sg.tool;
+    e.line = sg.line;
+    for (int i = 0; i < n; ++i) e.end_pos_mm[static_cast<std::size_t>(i)] = sg.end[static_cast<std::size_t>(i)];
+    if (sg.type == SegmentType::kMFunction) {
+      e.movement_type = 2;
+      e.movement_code = sg.m;
+      return;
+    }
+    e.movement_type = 1;
+    e.movement_code = static_cast<std::int32_t>(sg.type);
+    if (r.kind != RecKind::kMotion) return;
+    if (r.g.arc) {
+      e.radius_mm = r.g.r0;
+      e.start_angle_deg = norm_angle_deg(r.g.th0);
+      e.end_angle_deg = norm_angle_deg(r.g.th0 + r.g.phi);
+    }
+    e.tangent_deg = tangent_deg(r.g, current ? st.s : 0.0);
+  }
+
+  double tangent_deg(const Geometry& g, double s) const {
+    if (n < 2) return kNotSet;
+    double t[kMaxAxes];
+    motion::geometry_tangent(g, n, s, t);
+    if (std::hypot(t[0], t[1]) < 1e-12) return kNotSet;
+    return norm_angle_deg(std::atan2(t[1], t[0]));
+  }
+
+  void fill_lookahead() {
+    int e = 0;
+    double pending_m = kNotSet;
+    std::uint64_t q = cur;
+    int scanned = 0;
+    while (e < kLookAheadEntries && q < tail && scanned < 256) {
+      const Segment& sg = S(q);
+      ++scanned;
+      if (sg.type == SegmentType::kMessage) {
+        ++q;
+        continue;
+      }
+      if (sg.type == SegmentType::kMFunction && sg.m_kind == MKind::kContinuous) {
+        pending_m = sg.m;
+        ++q;
+        continue;
+      }
+      fill_entry(reg.lookahead[static_cast<std::size_t>(e)], q, pending_m, e == 0 && on_path && q == cur);
+      pending_m = kNotSet;
+      ++e;
+      ++q;
+    }
+    for (; e < kLookAheadEntries; ++e) reg.lookahead[static_cast<std::size_t>(e)] = LookAheadEntry{};
+  }
+
+  void fill_registers() {
+    double p[kMaxAxes] = {};
+    current_position(p);
+    double t[kMaxAxes] = {};
+    if (on_path) motion::geometry_tangent(R(cur).g, n, st.s, t);
+    for (int i = 0; i < n; ++i) {
+      const auto ui = static_cast<std::size_t>(i);
+      reg.orig_position[ui] = p[i];
+      reg.position[ui] = p[i];
+      reg.speed[ui] = st.v * t[i];
+      reg.position_inc[ui] =
+          static_cast<std::int64_t>(std::llround(p[i] * reg.ratio[ui])) + reg.offset[ui] + reg.backlash[ui];
+    }
+    reg.act_speed = st.v * 60.0;
+    reg.act_acceleration_mm_s2 = st.a;
+    reg.rel_speed = rel;
+    const bool have_cur = cur < tail;
+    if (have_cur) {
+      reg.act_part = static_cast<std::int32_t>(cur - base + 1);
+      reg.act_line = S(cur).line;
+      if (R(cur).kind == RecKind::kMotion) reg.set_speed = R(cur).f * 60.0;
+    }
+    reg.free_slots = static_cast<std::int32_t>(cap - (tail - cur));
+    // Run_Flag.
+    SectionState sec = SectionState::kStop;
+    switch (mode) {
+      case Mode::kMoving:
+      case Mode::kStopping:
+      case Mode::kEmergency:
+      case Mode::kDwell:
+        sec = SectionState::kRun;
+        break;
+      case Mode::kWaitM:
+        sec = wait_m_first ? SectionState::kWaitMFunc : SectionState::kWaitMFuncEnd;
+        wait_m_first = false;
+        break;
+      case Mode::kIdle:
+        break;
+    }
+    SpeedState spd = SpeedState::kNoMotion;
+    const double small_a = 1e-6 * std::max(1.0, std::fabs(st.a));
+    if (mode == Mode::kEmergency) {
+      spd = SpeedState::kEmergencyRamp;
+    } else if (st.v <= kStandstillV) {
+      spd = SpeedState::kNoMotion;
+    } else if (st.a > small_a && st.a > 1e-3) {
+      spd = SpeedState::kAccelerating;
+    } else if (st.a < -1e-3) {
+      spd = braking_to_stop ? SpeedState::kDeceleratingLast : SpeedState::kDecelerating;
+    } else if (mode == Mode::kMoving && st.v < last_vt * (1.0 - 1e-3)) {
+      spd = SpeedState::kNextSection;
+    } else {
+      spd = SpeedState::kConstant;
+    }
+    reg.run_flag = make_run_flag(sec, spd);
+    reg.limit_factor = (mode == Mode::kMoving || mode == Mode::kStopping || mode == Mode::kEmergency)
+                           ? factor
+                           : LimitFactor::kNone;
+    if (lookahead_dirty || lookahead_cur != cur) {
+      fill_lookahead();
+      lookahead_dirty = false;
+      lookahead_cur = cur;
+    } else if (on_path && R(cur).g.arc) {
+      reg.lookahead[0].tangent_deg = tangent_deg(R(cur).g, st.s);
+    }
+  }
+
+  StepResult result() const {
+    switch (mode) {
+      case Mode::kMoving:
+      case Mode::kStopping:
+      case Mode::kEmergency:
+      case Mode::kDwell:
+        return StepResult::kWorking;
+      case Mode::kWaitM:
+        return StepResult::kWaiting;
+      case Mode::kIdle:
+        break;
+    }
+    const auto s = static_cast<InterpolatorStatus>(reg.status);
+    if (s == InterpolatorStatus::kEnded) return StepResult::kFinished;
+    if (s == InterpolatorStatus::kUnderrun || paused_m0) return StepResult::kWaiting;
+    return StepResult::kIdle;
+  }
+};
+
+// ================= public API =================
+
+std::optional<Interpolator> Interpolator::create(const MachineConfig& machine, int number,
+                                                 const InterpolatorOptions& options,
+                                                 std::string* error) {
+  auto fail = [&](const std::string& why) -> std::optional<Interpolator> {
+    if (error) *error = why;
+    return std::nullopt;
+  };
+  const auto problems = machine.validate();
+  if (!problems.empty()) return fail("invalid machine config: " + problems.front());
+  if (number < 0 || number >= static_cast<int>(machine.interpolators.size())) {
+    return fail("interpolator " + std::to_string(number) + " is not configured (0.." +
+                std::to_string(machine.interpolators.size() - 1) + ")");
+  }
+  auto impl = std::make_unique<Impl>();
+  Impl& m = *impl;
+  m.cfg = machine.interpolators[static_cast<std::size_t>(number)];
+  m.opt = options;
+  m.number = number;
+  m.n = static_cast<int>(m.cfg.axes.size());
+  m.cap = static_cast<std::size_t>(m.cfg.buffer_size);
+  m.T = machine.cycle_time_us * 1e-6;
+  m.dt = m.T / kCalcSteps;
+  m.rho = kInf;
+  for (int i = 0; i < m.n; ++i) {
+    const AxisConfig& a = m.cfg.axes[static_cast<std::size_t>(i)];
+    const auto ui = static_cast<std::size_t>(i);
+    m.vmax[ui] = a.max_velocity_mm_s;
+    m.amax[ui] = a.max_acceleration_mm_s2;
+    m.jmax[ui] = a.max_jerk_mm_s3;
+    m.rapid[ui] = a.rapid_velocity_mm_s;
+    m.tol[ui] = a.corner_velocity_tolerance_mm_s;
+    m.rho = std::min(m.rho, a.emergency_deceleration_mm_s2 / a.max_acceleration_mm_s2);
+    m.reg.ratio[ui] = a.ratio_inc_per_mm;
+  }
+  m.rho = std::max(m.rho, 1.0);
+  m.seg.resize(m.cap);
+  m.rec.resize(m.cap);
+  m.par.resize(m.cap);
+  m.msg.resize(kMessageRing);
+  m.dq_a.init(m.cap + 1);
+  m.dq_j.init(m.cap + 1);
+  m.st_g.init(m.cap + 1);
+  m.st_f.init(m.cap + 1);
+  m.events.resize(options.record_corner_events ? kMaxCornerEvents : 0);
+  m.blocks.resize(kMaxBlockReports);
+  m.reg.number = number;
+  m.reg.number_axes = m.n;
+  m.reg.buffer_size = m.cfg.buffer_size;
+  m.reg.rel_speed = 1.0;
+  m.reg.free_slots = m.cfg.buffer_size;
+  m.reg.m_function_parameter.fill(kNotSet);
+  m.reset_plan_tail();
+  m.fill_registers();
+  return Interpolator(std::move(impl));
+}
+
+Interpolator::Interpolator(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+Interpolator::Interpolator(Interpolator&&) noexcept = default;
+Interpolator& Interpolator::operator=(Interpolator&&) noexcept = default;
+Interpolator::~Interpolator() = default;
+
+StepResult Interpolator::step() {
+  Impl& m = *impl_;
+  m.n_events = 0;
+  m.n_blocks = 0;
+  m.reg.cycle += 1;
+  for (int k = 0; k < kCalcSteps; ++k) m.calc_step(k);
+  m.fill_registers();
+  for (int i = 0; i < m.n; ++i) {
+    if (!std::isfinite(m.reg.orig_position[static_cast<std::size_t>(i)])) return StepResult::kErrorInternal;
+  }
+  return m.result();
+}
+
+const Registers& Interpolator::registers() const { return impl_->reg; }
+
+namespace {
+RequestResult refuse(RequestCode c, std::string why) { return {c, std::move(why)}; }
+}  // namespace
+
+RequestResult Interpolator::append(const Program& program, std::size_t first, std::size_t count,
+                                   bool program_complete, std::size_t* accepted) {
+  Impl& m = *impl_;
+  if (accepted) *accepted = 0;
+  if (m.mode == Mode::kEmergency) return refuse(RequestCode::kWrongState, "emergency ramp in progress");
+  if (program.number_axes != m.n) {
+    return refuse(RequestCode::kInvalid, "program was compiled for " + std::to_string(program.number_axes) +
+                                             " axes, interpolator " + std::to_string(m.number) + " has " +
+                                             std::to_string(m.n));
+  }
+  if (first > program.segments.size() || count > program.segments.size() - first) {
+    return refuse(RequestCode::kOutOfRange, "record range outside the program");
+  }
+  const std::size_t free = m.cap - static_cast<std::size_t>(m.tail - m.cur);
+  const std::size_t take = std::min(free, count);
+  for (std::size_t i = first; i < first + take; ++i) {
+    std::string why = m.validate(program, i);
+    if (!why.empty()) return refuse(RequestCode::kInvalid, why);
+  }
+  const auto status = static_cast<InterpolatorStatus>(m.reg.status);
+  const bool fresh = m.mode == Mode::kIdle && m.cur >= m.tail && !m.paused_m0 &&
+                     (status == InterpolatorStatus::kEmpty || status == InterpolatorStatus::kEnded ||
+                      (status == InterpolatorStatus::kEmergencyStopped && m.reg.off_trajectory));
+  if (fresh) {
+    m.base = m.tail;
+    m.reg.move_distance = 0.0;
+    m.reset_plan_tail();
+  }
+  m.drop_stale();
+  for (std::size_t i = first; i < first + take; ++i) m.store(program, i);
+  if (take == count) m.complete = program_complete;
+  m.lookahead_dirty = true;
+  if (fresh && take > 0) {
+    m.reg.status = static_cast<std::int32_t>(InterpolatorStatus::kReady);
+    m.reg.off_trajectory = 0;
+  }
+  m.reg.free_slots = static_cast<std::int32_t>(m.cap - (m.tail - m.cur));
+  if (accepted) *accepted = take;
+  if (take < count) {
+    return refuse(RequestCode::kBufferFull, "ring buffer full: " + std::to_string(take) + " of " +
+                                                std::to_string(count) + " records taken");
+  }
+  return {};
+}
+
+RequestResult Interpolator::load(const Program& program) {
+  return append(program, 0, program.segments.size(), true);
+}
+
+RequestResult Interpolator::start() {
+  Impl& m = *impl_;
+  if (m.mode != Mode::kIdle) return refuse(RequestCode::kWrongState, "already running");
+  const auto s = static_cast<InterpolatorStatus>(m.reg.status);
+  switch (s) {
+    case InterpolatorStatus::kEmpty:
+      return refuse(RequestCode::kWrongState, m.reg.off_trajectory
+                                                  ? "off trajectory: load a new program or set the position"
+                                                  : "nothing loaded");
+    case InterpolatorStatus::kEnded:
+      return refuse(RequestCode::kWrongState, "program ended: clear and load a new program");
+    case InterpolatorStatus::kEmergencyStopped:
+      if (!m.resumable_estop) {
+        return refuse(RequestCode::kWrongState, "off trajectory after Command 5: load a new program or set the position");
+      }
+      break;
+    default:
+      break;
+  }
+  if (!m.on_path && m.cur >= m.tail && !m.paused_m0) {
+    return refuse(RequestCode::kWrongState, "buffer empty: append segments first");
+  }
+  m.resumable_estop = false;
+  m.reg.status = static_cast<std::int32_t>(InterpolatorStatus::kRunning);
+  if (m.paused_m0) {
+    m.paused_m0 = false;
+    ++m.cur;
+    m.process_records();
+  } else if (m.resume_wait_m) {
+    m.resume_wait_m = false;
+    m.mode = Mode::kWaitM;
+  } else if (m.on_path) {
+    m.mode = Mode::kMoving;
+  } else {
+    m.process_records();
+  }
+  m.lookahead_dirty = true;
+  return {};
+}
+
+RequestResult Interpolator::clear() {
+  Impl& m = *impl_;
+  if (m.mode != Mode::kIdle && m.mode != Mode::kWaitM && m.mode != Mode::kDwell) {
+    return refuse(RequestCode::kWrongState, "cannot clear while moving: stop first");
+  }
+  double p[kMaxAxes];
+  m.current_position(p);
+  for (int i = 0; i < m.n; ++i) m.rest[static_cast<std::size_t>(i)] = p[i];
+  m.on_path = false;
+  m.mode = Mode::kIdle;
+  m.paused_m0 = false;
+  m.resume_wait_m = false;
+  m.resumable_estop = false;
+  m.tail = m.cur;
+  m.base = m.cur;
+  m.complete = false;
+  m.st = jerk::State{};
+  m.reset_plan_tail();
+  m.reg.status = static_cast<std::int32_t>(InterpolatorStatus::kEmpty);
+  m.reg.move_distance = 0.0;
+  m.reg.act_part = 0;
+  m.lookahead_dirty = true;
+  m.fill_registers();
+  return {};
+}
+
+RequestResult Interpolator::command(std::int32_t code) {
+  Impl& m = *impl_;
+  switch (code) {
+    case 8:
+    case 9:
+    case 4:
+    case 5: {
+      const bool emergency = code == 4 || code == 5;
+      const bool off = code == 5 || code == 9;
+      m.reg.command = code;
+      if (m.mode == Mode::kMoving || m.mode == Mode::kStopping || m.mode == Mode::kEmergency) {
+        if (emergency) {
+          m.mode = Mode::kEmergency;
+          m.reg.status = static_cast<std::int32_t>(InterpolatorStatus::kEmergencyRamp);
+        } else if (m.mode != Mode::kEmergency) {
+          m.mode = Mode::kStopping;
+        }
+        m.stop_off = m.stop_off || off;
+        m.reg.command_status = 1;
+        return {};
+      }
+      // Standing (idle, dwell, M wait): the stop takes effect at once.
+      if (m.mode == Mode::kWaitM) m.resume_wait_m = true;
+      if (m.mode == Mode::kDwell) {
+        ++m.cur;  // the rest of the dwell is dropped
+      }
+      const bool had_program = m.reg.status != static_cast<std::int32_t>(InterpolatorStatus::kEmpty);
+      m.mode = Mode::kIdle;
+      if (emergency) {
+        m.reg.status = static_cast<std::int32_t>(InterpolatorStatus::kEmergencyStopped);
+        m.resumable_estop = !off && had_program;
+      } else if (m.reg.status == static_cast<std::int32_t>(InterpolatorStatus::kRunning)) {
+        m.reg.status = static_cast<std::int32_t>(InterpolatorStatus::kReady);
+      }
+      if (off) m.abandon_program();
+      m.reg.command = 0;
+      m.reg.command_status = 0;
+      m.fill_registers();
+      return {};
+    }
+    default:
+      return refuse(RequestCode::kUnsupported,
+                    "command " + std::to_string(code) + " is not handled by the motion core");
+  }
+}
+
+RequestResult Interpolator::write_m_func(std::int32_t value) {
+  if (value != 0) {
+    return refuse(RequestCode::kOutOfRange, "M_Func can only be written with 0 (acknowledge), not " +
+                                                std::to_string(value));
+  }
+  impl_->reg.m_func = 0;
+  return {};
+}
+
+RequestResult Interpolator::set_rel_speed(double rel_speed) {
+  if (!std::isfinite(rel_speed) || rel_speed < 0.01 || rel_speed > 2.0) {
+    return refuse(RequestCode::kOutOfRange, "Rel_Speed must be 0.01..2");
+  }
+  impl_->rel = rel_speed;
+  impl_->reg.rel_speed = rel_speed;
+  return {};
+}
+
+RequestResult Interpolator::set_position(const std::array<double, kMaxAxes>& position_mm) {
+  Impl& m = *impl_;
+  if (m.mode != Mode::kIdle) return refuse(RequestCode::kWrongState, "set position only while standing");
+  for (int i = 0; i < m.n; ++i) {
+    if (!std::isfinite(position_mm[static_cast<std::size_t>(i)])) {
+      return refuse(RequestCode::kInvalid, "position is not finite");
+    }
+  }
+  m.on_path = false;
+  m.paused_m0 = false;
+  m.resume_wait_m = false;
+  m.resumable_estop = false;
+  m.tail = m.cur;
+  m.base = m.cur;
+  m.complete = false;
+  for (int i = 0; i < m.n; ++i) m.rest[static_cast<std::size_t>(i)] = position_mm[static_cast<std::size_t>(i)];
+  m.st = jerk::State{};
+  m.reset_plan_tail();
+  m.reg.off_trajectory = 0;
+  m.reg.status = static_cast<std::int32_t>(InterpolatorStatus::kEmpty);
+  m.lookahead_dirty = true;
+  m.fill_registers();
+  return {};
+}
+
+std::size_t Interpolator::free_slots() const { return impl_->cap - (impl_->tail - impl_->cur); }
+
+std::string_view Interpolator::message_text(std::int32_t slot) const {
+  if (slot < 0 || static_cast<std::size_t>(slot) >= impl_->msg.size()) return {};
+  return impl_->msg[static_cast<std::size_t>(slot)];
+}
+
+std::span<const CornerEvent> Interpolator::corner_events() const {
+  return {impl_->events.data(), impl_->n_events};
+}
+
+std::span<const BlockReport> Interpolator::block_reports() const {
+  return {impl_->blocks.data(), impl_->n_blocks};
+}
+
+std::uint64_t Interpolator::hard_stops() const { return impl_->hard_stop_count; }
+double Interpolator::cycle_time_s() const { return impl_->T; }
+double Interpolator::calc_step_s() const { return impl_->dt; }
+const InterpolatorConfig& Interpolator::config() const { return impl_->cfg; }
+
+}  // namespace tgm

@@ -1,0 +1,65 @@
+#include "tgm/jerk_profile.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace tgm::jerk {
+
+double braking_distance(double v, double a, double w, double A, double J) {
+  if (w < 0.0) w = 0.0;
+  a = std::clamp(a, -A, A);
+  // Velocity once the acceleration is brought to zero along the shortest ramp.
+  const double vz = v + a * std::fabs(a) / (2.0 * J);
+  if (v <= w && (a <= 0.0 || vz <= w)) return 0.0;
+  if (vz <= w) {
+    // Case 2: a < 0 and v > w; ramp a up at +J, v reaches w before a reaches 0.
+    const double disc = std::max(0.0, a * a - 2.0 * J * (v - w));
+    const double t = (-a - std::sqrt(disc)) / J;
+    return t * (v + t * (0.5 * a + t * J / 6.0));
+  }
+  // Case 3: S-curve from (v, a) to (w, 0).
+  double ap = std::sqrt(J * (v - w) + 0.5 * a * a);  // peak deceleration without a hold phase
+  double t2 = 0.0;
+  if (ap > A) {
+    ap = A;
+    t2 = (v + (a * a - 2.0 * A * A) / (2.0 * J) - w) / A;
+    if (t2 < 0.0) t2 = 0.0;
+  }
+  const double t1 = (a + ap) / J;  // jerk -J from a to -ap
+  const double d1 = t1 * (v + t1 * (0.5 * a - t1 * J / 6.0));
+  const double v1 = v + t1 * (a - 0.5 * J * t1);
+  const double d2 = t2 * (v1 - 0.5 * ap * t2);
+  const double v2 = v1 - ap * t2;
+  const double t3 = ap / J;  // jerk +J from -ap to 0
+  const double d3 = t3 * (v2 + t3 * (-0.5 * ap + t3 * J / 6.0));
+  return d1 + d2 + d3;
+}
+
+double track_velocity(double v, double a, double vt, double A, double J, double dt) {
+  // With end acceleration x the velocity after the step is v + (a + x) dt / 2, and bringing x to
+  // zero at full jerk then adds x|x| / (2J). Solve v + (a + x) dt / 2 + x|x| / (2J) = vt.
+  const double c = v + 0.5 * a * dt - vt;
+  // Close to the target: two steps, this one to x and the next one back to zero acceleration,
+  // land exactly on vt (dead-beat; the one-step formula below would oscillate around vt).
+  const double x2 = -c / dt;
+  if (std::fabs(x2) <= J * dt && std::fabs(x2 - a) <= J * dt && std::fabs(x2) <= A) return x2;
+  double x;
+  if (c <= 0.0) {
+    x = J * (-0.5 * dt + std::sqrt(0.25 * dt * dt - 2.0 * c / J));
+  } else {
+    x = J * (0.5 * dt - std::sqrt(0.25 * dt * dt + 2.0 * c / J));
+  }
+  const double lo = std::max(a - J * dt, -A);
+  const double hi = std::min(a + J * dt, A);
+  if (lo > hi) return a > A ? std::max(a - J * dt, -A) : std::min(a + J * dt, A);
+  return std::clamp(x, lo, hi);
+}
+
+double floor_acceleration(double v, double a, double J, double dt) {
+  // x^2 <= 2J (v + (a + x) dt / 2) for x < 0  <=>  x >= (J dt - sqrt(J^2 dt^2 + 8J (v + a dt/2))) / 2.
+  const double c = v + 0.5 * a * dt;
+  if (c <= 0.0) return -a - 2.0 * v / dt;  // even x = 0 would reverse: end the step at v' = 0
+  return 0.5 * (J * dt - std::sqrt(J * J * dt * dt + 8.0 * J * c));
+}
+
+}  // namespace tgm::jerk

@@ -1,0 +1,145 @@
+#include "tgm/limit_checker.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace tgm {
+
+const char* limit_quantity_name(LimitQuantity q) {
+  switch (q) {
+    case LimitQuantity::kVelocity: return "velocity";
+    case LimitQuantity::kAcceleration: return "acceleration";
+    case LimitQuantity::kJerk: return "jerk";
+    case LimitQuantity::kCornerStep: return "corner_step";
+  }
+  return "?";
+}
+
+std::optional<LimitChecker> LimitChecker::create(const InterpolatorConfig& axes, int cycle_time_us,
+                                                 std::string* error) {
+  if (axes.axes.empty() || axes.axes.size() > static_cast<std::size_t>(kMaxAxes) || cycle_time_us <= 0) {
+    if (error) *error = "limit checker needs 1..10 axes and a positive cycle time";
+    return std::nullopt;
+  }
+  LimitChecker c;
+  c.n_ = static_cast<int>(axes.axes.size());
+  c.T_ = cycle_time_us * 1e-6;
+  for (std::size_t i = 0; i < axes.axes.size(); ++i) {
+    const AxisConfig& a = axes.axes[i];
+    c.vmax_[i] = a.max_velocity_mm_s;
+    c.amax_[i] = a.max_acceleration_mm_s2;
+    c.jmax_[i] = a.max_jerk_mm_s3;
+    c.tol_[i] = a.corner_velocity_tolerance_mm_s;
+    // The emergency ramp may decelerate harder; its jerk scales with the same ratio.
+    const double ratio = std::max(1.0, a.emergency_deceleration_mm_s2 / a.max_acceleration_mm_s2);
+    c.emax_[i] = a.max_acceleration_mm_s2 * ratio;
+    c.ejmax_[i] = a.max_jerk_mm_s3 * ratio;
+  }
+  c.stored_.reserve(kMaxStored);
+  return c;
+}
+
+void LimitChecker::reset() {
+  samples_ = 0;
+  events_.clear();
+}
+
+void LimitChecker::report(const Registers& reg, int axis, LimitQuantity q, double value, double limit) {
+  ++count_;
+  if (stored_.size() < kMaxStored) stored_.push_back({reg.cycle, reg.act_line, axis, q, value, limit});
+}
+
+void LimitChecker::add_cycle(const Registers& reg, std::span<const CornerEvent> events) {
+  // Shift the history.
+  for (int k = 3; k > 0; --k) {
+    x_[static_cast<std::size_t>(k)] = x_[static_cast<std::size_t>(k - 1)];
+    cyc_[static_cast<std::size_t>(k)] = cyc_[static_cast<std::size_t>(k - 1)];
+    emergency_[static_cast<std::size_t>(k)] = emergency_[static_cast<std::size_t>(k - 1)];
+  }
+  double xmax = 1.0;
+  for (int i = 0; i < n_; ++i) {
+    x_[0][static_cast<std::size_t>(i)] = reg.orig_position[static_cast<std::size_t>(i)];
+    xmax = std::max(xmax, std::fabs(reg.orig_position[static_cast<std::size_t>(i)]));
+  }
+  cyc_[0] = reg.cycle;
+  emergency_[0] = reg.status == static_cast<std::int32_t>(InterpolatorStatus::kEmergencyRamp);
+  if (samples_ < 4) ++samples_;
+  // Cycles must be consecutive; otherwise start a new series.
+  for (int k = 1; k < samples_; ++k) {
+    if (cyc_[static_cast<std::size_t>(k - 1)] != cyc_[static_cast<std::size_t>(k)] + 1) {
+      samples_ = k;
+      break;
+    }
+  }
+  for (const CornerEvent& e : events) {
+    events_.push_back({e.cycle, e.fraction, e.dv, e.da});
+    for (int i = 0; i < n_; ++i) {
+      const auto ui = static_cast<std::size_t>(i);
+      const double dv = std::fabs(e.dv[ui]);
+      peaks_[ui].corner_step_mm_s = std::max(peaks_[ui].corner_step_mm_s, dv);
+      if (dv > tol_[ui] * (1.0 + kRelativeTolerance) + 1e-9) {
+        report(reg, i, LimitQuantity::kCornerStep, dv, tol_[ui]);
+      }
+    }
+  }
+  // Events older than the jerk window no longer matter.
+  const std::uint64_t c = reg.cycle;
+  events_.erase(std::remove_if(events_.begin(), events_.end(),
+                               [&](const Event& e) { return e.cycle + 3 <= c; }),
+                events_.end());
+
+  const double T = T_;
+  const double ulp = 2.3e-16 * xmax;  // position rounding [mm]
+  bool emergency = false;
+  for (int k = 0; k < samples_; ++k) emergency = emergency || emergency_[static_cast<std::size_t>(k)];
+  // Sample k (0 = newest) is at time -k*T relative to now; event at (cycle - 1 + f) T - c T.
+  auto kink = [&](const Event& e, int k, bool with_da) {
+    const double tj = (static_cast<double>(e.cycle) - 1.0 + e.fraction - static_cast<double>(c)) * T;
+    const double dt = -k * T - tj;
+    return [=](std::size_t i) {
+      if (dt <= 0.0) return 0.0;
+      return e.dv[i] * dt + (with_da ? 0.5 * e.da[i] * dt * dt : 0.0);
+    };
+  };
+  for (int i = 0; i < n_; ++i) {
+    const auto ui = static_cast<std::size_t>(i);
+    if (samples_ >= 2) {
+      const double v = (x_[0][ui] - x_[1][ui]) / T;
+      peaks_[ui].velocity_mm_s = std::max(peaks_[ui].velocity_mm_s, std::fabs(v));
+      if (std::fabs(v) > vmax_[ui] * (1.0 + kRelativeTolerance) + 4.0 * ulp / T) {
+        report(reg, i, LimitQuantity::kVelocity, std::fabs(v), vmax_[ui]);
+      }
+    }
+    if (samples_ >= 3) {
+      double y[3];
+      for (int k = 0; k < 3; ++k) {
+        y[k] = x_[static_cast<std::size_t>(k)][ui];
+        for (const Event& e : events_) {
+          if (e.cycle + 2 <= c) continue;  // at or before sample 2: linear on the window
+          y[k] -= kink(e, k, false)(ui);
+        }
+      }
+      const double a = (y[0] - 2.0 * y[1] + y[2]) / (T * T);
+      const double lim = emergency ? emax_[ui] : amax_[ui];
+      peaks_[ui].acceleration_mm_s2 = std::max(peaks_[ui].acceleration_mm_s2, std::fabs(a));
+      if (std::fabs(a) > lim * (1.0 + kRelativeTolerance) + 8.0 * ulp / (T * T)) {
+        report(reg, i, LimitQuantity::kAcceleration, std::fabs(a), lim);
+      }
+    }
+    if (samples_ >= 4) {
+      double z[4];
+      for (int k = 0; k < 4; ++k) {
+        z[k] = x_[static_cast<std::size_t>(k)][ui];
+        for (const Event& e : events_) z[k] -= kink(e, k, true)(ui);
+      }
+      const double j = (z[0] - 3.0 * z[1] + 3.0 * z[2] - z[3]) / (T * T * T);
+      const double lim = emergency ? ejmax_[ui] : jmax_[ui];
+      peaks_[ui].jerk_mm_s3 = std::max(peaks_[ui].jerk_mm_s3, std::fabs(j));
+      if (std::fabs(j) > lim * (1.0 + kRelativeTolerance) + 16.0 * ulp / (T * T * T)) {
+        report(reg, i, LimitQuantity::kJerk, std::fabs(j), lim);
+      }
+    }
+  }
+}
+
+}  // namespace tgm

@@ -1,0 +1,180 @@
+// Known values: end points, times, peak speeds, arc closure, helix pitch, register sequences.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "program_builder.hpp"
+#include "tgm/interpolator.hpp"
+#include "tgm/limit_checker.hpp"
+#include "tgm/simulation.hpp"
+
+namespace tgm {
+namespace {
+
+using test::ProgramBuilder;
+constexpr double kPi = 3.14159265358979323846;
+
+MachineConfig machine() { return MachineConfig::default_machine(); }
+
+SimulationSummary simulate(const Program& p, SimulationOptions o = {},
+                           const std::function<void(const Registers&)>& on_cycle = {},
+                           MachineConfig m = machine(), const std::array<double, kMaxAxes>& start = {}) {
+  o.check_limits = true;
+  auto sim = Simulation::create(m, o);
+  EXPECT_TRUE(sim.has_value());
+  EXPECT_TRUE(sim->interpolator().set_position(start).ok());
+  return sim->run(p, on_cycle);
+}
+
+void expect_clean(const SimulationSummary& s) {
+  EXPECT_EQ(s.result, StepResult::kFinished) << s.error;
+  EXPECT_FALSE(s.nan);
+  EXPECT_EQ(s.hard_stops, 0u);
+  EXPECT_EQ(s.violation_count, 0u);
+  for (const auto& v : s.violations) {
+    ADD_FAILURE() << "cycle " << v.cycle << " line " << v.line << " axis " << v.axis << " "
+                  << limit_quantity_name(v.quantity) << " " << v.value << " > " << v.limit;
+    break;
+  }
+}
+
+TEST(KnownValues, StraightMoveEndTimeAndPeak) {
+  ProgramBuilder b;
+  b.line({100.0, 0.0, 0.0}, 6000.0).end();
+  double peak = 0.0;
+  const auto s = simulate(b.program(), {}, [&](const Registers& r) { peak = std::max(peak, r.act_speed); });
+  expect_clean(s);
+  EXPECT_EQ(s.end_position[0], 100.0);
+  EXPECT_EQ(s.end_position[1], 0.0);
+  EXPECT_NEAR(peak, 6000.0, 1e-6);
+  // S-curve with a constant-acceleration phase (v = 100 > A^2/J = 75): t = D/v + v/A + A/J.
+  const double t = 100.0 / 100.0 + 100.0 / 1500.0 + 1500.0 / 30000.0;
+  EXPECT_NEAR(s.program_time_s, t, 0.002);
+  EXPECT_NEAR(s.distance_mm, 100.0, 1e-9);
+}
+
+TEST(KnownValues, ShortMoveNeverReachesFeed) {
+  // 1 mm at F6000: jerk-limited, no cruise. Peak speed from the symmetric S-curve.
+  ProgramBuilder b;
+  b.line({1.0, 0.0, 0.0}, 6000.0).end();
+  double peak = 0.0;
+  const auto s = simulate(b.program(), {}, [&](const Registers& r) { peak = std::max(peak, r.act_speed); });
+  expect_clean(s);
+  EXPECT_EQ(s.end_position[0], 1.0);
+  // Without reaching A: D = 2 * v * sqrt(v/J)  ->  v = (D/2)^(2/3) J^(1/3).
+  const double v = std::pow(0.5, 2.0 / 3.0) * std::cbrt(30000.0);
+  EXPECT_NEAR(peak / 60.0, v, 0.02 * v);
+  EXPECT_LT(peak / 60.0, v * 1.0001);
+}
+
+TEST(KnownValues, FullCircleClosesInEveryPlane) {
+  for (Plane pl : {Plane::kXY, Plane::kXZ, Plane::kYZ}) {
+    for (bool ccw : {false, true}) {
+      const PlaneAxes pa = plane_axes(pl);
+      std::array<double, kMaxAxes> start{};
+      start[static_cast<std::size_t>(pa.first)] = 12.5;
+      start[static_cast<std::size_t>(pa.second)] = -3.25;
+      ProgramBuilder b(3, start);
+      b.arc(ccw, start, {12.5 - 20.0, -3.25}, 3000.0, pl).end();
+      const auto s = simulate(b.program(), {}, {}, machine(), start);
+      expect_clean(s);
+      for (int i = 0; i < 3; ++i) EXPECT_NEAR(s.end_position[static_cast<std::size_t>(i)], start[static_cast<std::size_t>(i)], 1e-9);
+      EXPECT_NEAR(s.distance_mm, 2.0 * kPi * 20.0, 1e-9);
+    }
+  }
+}
+
+TEST(KnownValues, CircleStaysOnRadiusAndTurnsTheRightWay) {
+  ProgramBuilder b;
+  b.arc(true, {10.0, 0.0, 0.0}, {0.0, 0.0}, 3000.0).end();  // full CCW circle from (10, 0)
+  b.program().segments[0].end = {10.0, 0.0, 0.0};
+  std::vector<double> angles;
+  double max_dev = 0.0;
+  ProgramBuilder c(3, {10.0, 0.0, 0.0});
+  c.arc(true, {10.0, 0.0, 0.0}, {0.0, 0.0}, 3000.0).end();
+  SimulationOptions o;
+  auto m = machine();
+  auto sim = Simulation::create(m, o);
+  ASSERT_TRUE(sim);
+  sim->interpolator().set_position({10.0, 0.0, 0.0});
+  const auto s = sim->run(c.program(), [&](const Registers& r) {
+    max_dev = std::max(max_dev, std::fabs(std::hypot(r.orig_position[0], r.orig_position[1]) - 10.0));
+    angles.push_back(std::atan2(r.orig_position[1], r.orig_position[0]));
+  });
+  EXPECT_EQ(s.result, StepResult::kFinished) << s.error;
+  EXPECT_LT(max_dev, 1e-9);
+  // CCW: early samples have positive y.
+  ASSERT_GT(angles.size(), 100u);
+  EXPECT_GT(angles[50], 0.0);
+}
+
+TEST(KnownValues, HelixPitch) {
+  // Two full turns (turns = 1) of radius 5 rising 6 mm: pitch 3 mm per turn.
+  ProgramBuilder b(3, {5.0, 0.0, 0.0});
+  b.arc(true, {5.0, 0.0, 6.0}, {0.0, 0.0}, 2000.0, Plane::kXY, 1).end();
+  double prev = 0.0, unwrapped = 0.0, worst = 0.0;
+  auto sim = Simulation::create(machine(), {});
+  ASSERT_TRUE(sim);
+  sim->interpolator().set_position({5.0, 0.0, 0.0});
+  const auto s = sim->run(b.program(), [&](const Registers& r) {
+    const double ang = std::atan2(r.orig_position[1], r.orig_position[0]);
+    double d = ang - prev;
+    if (d < -kPi) d += 2 * kPi;
+    if (d > kPi) d -= 2 * kPi;
+    unwrapped += d;
+    prev = ang;
+    worst = std::max(worst, std::fabs(r.orig_position[2] - 3.0 * unwrapped / (2 * kPi)));
+  });
+  EXPECT_EQ(s.result, StepResult::kFinished) << s.error;
+  EXPECT_NEAR(unwrapped, 4 * kPi, 1e-9);
+  EXPECT_LT(worst, 1e-9);
+  EXPECT_NEAR(s.end_position[2], 6.0, 1e-12);
+  EXPECT_NEAR(s.end_position[0], 5.0, 1e-9);
+}
+
+TEST(KnownValues, MFunctionHandshakeSequence) {
+  ProgramBuilder b;
+  b.line({10.0, 0.0, 0.0}, 3000.0).m(10, MKind::kNormal).line({20.0, 0.0, 0.0}, 3000.0).end();
+  auto ip = Interpolator::create(machine(), 0);
+  ASSERT_TRUE(ip);
+  ASSERT_TRUE(ip->load(b.program()).ok());
+  EXPECT_EQ(ip->registers().status, 4);
+  ASSERT_TRUE(ip->start().ok());
+  // (status, section state, speed state, m_func) whenever it changes.
+  std::vector<std::array<int, 4>> seq;
+  int waiting = 0;
+  for (int c = 0; c < 20000; ++c) {
+    const StepResult r = ip->step();
+    const Registers& g = ip->registers();
+    const std::array<int, 4> now = {g.status, static_cast<int>(run_flag_section(g.run_flag)),
+                                    static_cast<int>(run_flag_speed(g.run_flag)), g.m_func};
+    if (seq.empty() || seq.back() != now) seq.push_back(now);
+    if (run_flag_section(g.run_flag) == SectionState::kWaitMFuncEnd && ++waiting == 10) {
+      EXPECT_EQ(g.m_func, 10);
+      EXPECT_EQ(g.act_m_func, 10);
+      EXPECT_EQ(g.orig_position[0], 10.0);
+      EXPECT_FALSE(ip->write_m_func(5).ok());
+      ASSERT_TRUE(ip->write_m_func(0).ok());
+    }
+    if (r == StepResult::kFinished) break;
+  }
+  const std::vector<std::array<int, 4>> expect = {
+      {1, 1, 2, 0},   // run, accelerating
+      {1, 1, 3, 0},   // run, at feed
+      {1, 1, 4, 0},   // decelerating ... (to the stop: 6)
+  };
+  ASSERT_GE(seq.size(), 8u);
+  EXPECT_EQ(seq[0], expect[0]);
+  EXPECT_EQ(seq[1], expect[1]);
+  // Deceleration to the M stop is "decelerating on last section" (6).
+  EXPECT_EQ(seq[2], (std::array<int, 4>{1, 1, 6, 0}));
+  EXPECT_EQ(seq[3], (std::array<int, 4>{1, 4, 1, 10}));  // M handed over
+  EXPECT_EQ(seq[4], (std::array<int, 4>{1, 5, 1, 10}));  // waiting for M_Func = 0
+  EXPECT_EQ(seq[5], (std::array<int, 4>{1, 1, 2, 0}));   // acknowledged: moving again
+  EXPECT_EQ(seq.back(), (std::array<int, 4>{3, 0, 1, 0}));  // end of program
+  EXPECT_EQ(ip->registers().orig_position[0], 20.0);
+}
+
+}  // namespace
+}  // namespace tgm
