@@ -145,9 +145,11 @@ std::string find_rs274() {
   std::string_view p = path != nullptr ? path : "/usr/local/bin:/usr/bin:/bin";
   while (true) {
     const std::size_t colon = p.find(':');
-    std::string dir(p.substr(0, colon));
+    std::string_view dir = p.substr(0, colon);
     if (dir.empty()) dir = ".";
-    const std::string candidate = dir + "/rs274";
+    std::string candidate;
+    candidate.reserve(dir.size() + 8);
+    candidate.append(dir).append("/rs274");
     if (::access(candidate.c_str(), X_OK) == 0) return candidate;
     if (colon == std::string_view::npos) break;
     p.remove_prefix(colon + 1);
