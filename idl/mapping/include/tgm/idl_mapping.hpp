@@ -1,0 +1,97 @@
+// Mapping between core's plain structs and the generated DDS types (DESIGN.md section 2: one
+// place, linked by the service and the clients).
+//
+// The program stream carries intercode records (`tgm::Segment`) as `tgm::msg::Segment`. Core keeps
+// M-function parameters and message texts in side tables of `tgm::Program` and points at them
+// with `Segment::aux`; on the wire each record carries its own payload instead (empty when it
+// has none), so that chunks can be consumed one by one. The receiver rebuilds the side tables.
+//
+// Nothing here throws or blocks: results are status codes, because the service maps chunks on
+// its receiving thread and the HMI maps while streaming.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "tgm/intercode.hpp"
+#include "tgm/msg/tgm.h"
+
+namespace tgm::mapping {
+
+//! Largest serialized size of a chunk the chunker produces [bytes]: well under the 64 KiB of a
+//! UDP datagram, so a chunk is never fragmented.
+inline constexpr std::size_t kChunkByteBudget = 32 * 1024;
+//! Records in a chunk at most (the IDL bound).
+inline constexpr std::size_t kMaxChunkSegments = TGM_MAX_CHUNK_SEGMENTS;
+//! Longest message text on the wire [characters] (the IDL bound).
+inline constexpr std::size_t kMaxTextLength = TGM_MAX_TEXT;
+
+//! Outcome of a mapping. `kOk = 0`; every other value is a reason the input is rejected.
+enum class MapStatus : std::int8_t {
+  kOk = 0,
+  kBadType = -1,          //!< segment type, plane, compensation or M kind outside its enum
+  kBadAux = -2,           //!< `aux` does not point into the program's side table (core -> IDL)
+  kTextTooLong = -3,      //!< message longer than kMaxTextLength (core -> IDL)
+  kBadParams = -4,        //!< parameter count neither 0 nor 26, or parameters on a non-M record
+  kUnexpectedText = -5,   //!< text on a record that is not a message
+  kNotFinite = -6,        //!< NaN or infinity in a coordinate, radius, feed or time
+  kTooManySegments = -7,  //!< chunk holds more records than the IDL bound
+  kBadAxisCount = -8,     //!< number of axes outside 1..kMaxAxes
+  kBadIndex = -9,         //!< first record index beyond the end of the program
+};
+
+//! A short English reason for a status ("ok" for kOk).
+std::string_view to_string(MapStatus s);
+
+//! Side-table payload of one record, as the program stream carries it.
+struct SegmentPayload {
+  bool has_params = false;
+  MParams params = unset_params();
+  bool has_message = false;
+  std::string message;
+};
+
+//! Core record -> wire record. `params` / `message` are the record's side-table entries (null
+//! when it has none); `out.params` / `out.text` stay empty otherwise.
+MapStatus to_idl(const Segment& in, const MParams* params, const std::string* message,
+                 msg::Segment& out);
+
+//! Record `index` of `program` -> wire record, resolving `aux` in the program's side tables.
+MapStatus to_idl(const Program& program, std::size_t index, msg::Segment& out);
+
+//! Wire record -> core record plus its payload. `out.aux` is set to -1: the caller stores the
+//! payload in its own side table and sets `aux`. Validates enums, finiteness and payload shape.
+MapStatus from_idl(const msg::Segment& in, Segment& out, SegmentPayload& payload);
+
+//! Wire record appended to `program`, its payload appended to the side tables with `aux` set.
+//! On error `program` is unchanged.
+MapStatus append_from_idl(const msg::Segment& in, Program& program);
+
+//! Addressing of the chunks of one program.
+struct ChunkHeader {
+  std::uint16_t interpolator = 0;
+  //! Program identity chosen by the sender; non-zero.
+  std::uint32_t program_id = 1;
+};
+
+//! Fills `out` with records of `program` starting at `first`: at most kMaxChunkSegments and at
+//! most kChunkByteBudget bytes serialized (at least one record). `next` receives the index after
+//! the last record taken; `end_of_program` is set on the chunk that takes the last record.
+//! An empty program gives one empty chunk with `end_of_program`.
+MapStatus fill_chunk(const Program& program, std::size_t first, const ChunkHeader& header,
+                     msg::ProgramChunk& out, std::size_t& next);
+
+//! The whole program as chunks (convenient for small programs and tests; a streaming sender
+//! calls fill_chunk as flow control allows). On error `chunks` is empty.
+MapStatus to_chunks(const Program& program, const ChunkHeader& header,
+                    std::vector<msg::ProgramChunk>& chunks);
+
+//! Appends every record of `chunk` to `program` (and sets `program.number_axes`). Validates the
+//! whole chunk first: on error `program` is unchanged. Sequence numbers are the caller's business
+//! (it knows which one it expects).
+MapStatus append_chunk(const msg::ProgramChunk& chunk, Program& program);
+
+}  // namespace tgm::mapping

@@ -1,0 +1,234 @@
+#include "tgm/idl_mapping.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace tgm::mapping {
+
+namespace {
+
+bool finite_all(const auto& values) {
+  return std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v); });
+}
+
+// Checks a wire record before anything of it is used.
+MapStatus validate(const msg::Segment& in) {
+  if (in.type() > static_cast<std::uint8_t>(SegmentType::kMessage) ||
+      in.plane() < static_cast<std::uint8_t>(Plane::kXY) ||
+      in.plane() > static_cast<std::uint8_t>(Plane::kYZ) ||
+      in.compensation() < static_cast<std::uint8_t>(Compensation::kOff) ||
+      in.compensation() > static_cast<std::uint8_t>(Compensation::kRight) ||
+      in.m_kind() > static_cast<std::uint8_t>(MKind::kProgramEnd)) {
+    return MapStatus::kBadType;
+  }
+  const auto type = static_cast<SegmentType>(in.type());
+  // The deserializer does not enforce IDL bounds: check them here.
+  if (!in.params().empty() &&
+      (in.params().size() != kParamLetters || type != SegmentType::kMFunction)) {
+    return MapStatus::kBadParams;
+  }
+  // (A bounded IDL string is a fixed_string that truncates on assignment: it cannot be longer.)
+  if (in.text().size() != 0 && type != SegmentType::kMessage) return MapStatus::kUnexpectedText;
+  if (!finite_all(in.end()) || !finite_all(in.center()) || !finite_all(in.params()) ||
+      !std::isfinite(in.radius()) || !std::isfinite(in.feed_mm_per_min()) ||
+      !std::isfinite(in.dwell_s()) || !std::isfinite(in.compensation_radius_mm())) {
+    return MapStatus::kNotFinite;
+  }
+  return MapStatus::kOk;
+}
+
+// Serialized bytes of a chunk with no records (header, sequence length, trailer) plus slack for
+// alignment.
+std::size_t empty_chunk_bytes() {
+  static const std::size_t bytes = msg::ProgramChunk::getCdrSerializedSize(msg::ProgramChunk{}) + 16;
+  return bytes;
+}
+
+}  // namespace
+
+std::string_view to_string(MapStatus s) {
+  switch (s) {
+    case MapStatus::kOk:
+      return "ok";
+    case MapStatus::kBadType:
+      return "segment type, plane, compensation or M kind out of range";
+    case MapStatus::kBadAux:
+      return "aux does not point into the program's side table";
+    case MapStatus::kTextTooLong:
+      return "message text longer than 255 characters";
+    case MapStatus::kBadParams:
+      return "M-function parameters must be 26 values on an M-function record";
+    case MapStatus::kUnexpectedText:
+      return "text on a record that is not a message";
+    case MapStatus::kNotFinite:
+      return "NaN or infinity in a record";
+    case MapStatus::kTooManySegments:
+      return "chunk holds more records than its bound";
+    case MapStatus::kBadAxisCount:
+      return "number of axes outside 1..10";
+    case MapStatus::kBadIndex:
+      return "record index beyond the end of the program";
+  }
+  return "unknown mapping status";
+}
+
+MapStatus to_idl(const Segment& in, const MParams* params, const std::string* message,
+                 msg::Segment& out) {
+  if (params != nullptr && in.type != SegmentType::kMFunction) return MapStatus::kBadParams;
+  if (message != nullptr && in.type != SegmentType::kMessage) return MapStatus::kUnexpectedText;
+  if (message != nullptr && message->size() > kMaxTextLength) return MapStatus::kTextTooLong;
+  out.type(static_cast<std::uint8_t>(in.type));
+  out.plane(static_cast<std::uint8_t>(in.plane));
+  out.compensation(static_cast<std::uint8_t>(in.compensation));
+  out.m_kind(static_cast<std::uint8_t>(in.m_kind));
+  out.line(in.line);
+  out.m(in.m);
+  out.tool(in.tool);
+  out.turns(in.turns);
+  out.end() = in.end;
+  out.center() = in.center;
+  out.radius(in.radius);
+  out.feed_mm_per_min(in.feed_mm_per_min);
+  out.dwell_s(in.dwell_s);
+  out.compensation_radius_mm(in.compensation_radius_mm);
+  if (params != nullptr) {
+    out.params().assign(params->begin(), params->end());
+  } else {
+    out.params().clear();
+  }
+  if (message != nullptr) {
+    out.text() = *message;
+  } else {
+    out.text() = "";
+  }
+  return MapStatus::kOk;
+}
+
+MapStatus to_idl(const Program& program, std::size_t index, msg::Segment& out) {
+  if (index >= program.segments.size()) return MapStatus::kBadIndex;
+  const Segment& s = program.segments[index];
+  const MParams* params = nullptr;
+  const std::string* message = nullptr;
+  if (s.aux >= 0) {
+    const auto aux = static_cast<std::size_t>(s.aux);
+    if (s.type == SegmentType::kMFunction && aux < program.params.size()) {
+      params = &program.params[aux];
+    } else if (s.type == SegmentType::kMessage && aux < program.messages.size()) {
+      message = &program.messages[aux];
+    } else {
+      return MapStatus::kBadAux;
+    }
+  } else if (s.type == SegmentType::kMessage) {
+    return MapStatus::kBadAux;  // a message record always has its text
+  }
+  return to_idl(s, params, message, out);
+}
+
+MapStatus from_idl(const msg::Segment& in, Segment& out, SegmentPayload& payload) {
+  if (const MapStatus st = validate(in); st != MapStatus::kOk) return st;
+  out.type = static_cast<SegmentType>(in.type());
+  out.plane = static_cast<Plane>(in.plane());
+  out.compensation = static_cast<Compensation>(in.compensation());
+  out.m_kind = static_cast<MKind>(in.m_kind());
+  out.line = in.line();
+  out.m = in.m();
+  out.tool = in.tool();
+  out.turns = in.turns();
+  out.aux = -1;
+  out.end = in.end();
+  out.center = in.center();
+  out.radius = in.radius();
+  out.feed_mm_per_min = in.feed_mm_per_min();
+  out.dwell_s = in.dwell_s();
+  out.compensation_radius_mm = in.compensation_radius_mm();
+  payload.has_params = !in.params().empty();
+  if (payload.has_params) {
+    std::copy(in.params().begin(), in.params().end(), payload.params.begin());
+  }
+  payload.has_message = out.type == SegmentType::kMessage;
+  if (payload.has_message) {
+    payload.message = in.text().to_string();
+  } else {
+    payload.message.clear();
+  }
+  return MapStatus::kOk;
+}
+
+MapStatus append_from_idl(const msg::Segment& in, Program& program) {
+  Segment s;
+  SegmentPayload payload;
+  if (const MapStatus st = from_idl(in, s, payload); st != MapStatus::kOk) return st;
+  if (payload.has_params) {
+    s.aux = static_cast<std::int32_t>(program.params.size());
+    program.params.push_back(payload.params);
+  } else if (payload.has_message) {
+    s.aux = static_cast<std::int32_t>(program.messages.size());
+    program.messages.push_back(std::move(payload.message));
+  }
+  program.segments.push_back(s);
+  return MapStatus::kOk;
+}
+
+MapStatus fill_chunk(const Program& program, std::size_t first, const ChunkHeader& header,
+                     msg::ProgramChunk& out, std::size_t& next) {
+  const std::size_t total = program.segments.size();
+  next = first;
+  if (first > total) return MapStatus::kBadIndex;
+  if (program.number_axes < 1 || program.number_axes > kMaxAxes) return MapStatus::kBadAxisCount;
+  out.interpolator(header.interpolator);
+  out.program_id(header.program_id);
+  out.sequence_number(first);
+  out.number_axes(static_cast<std::uint16_t>(program.number_axes));
+  auto& segs = out.segments();
+  segs.clear();
+  std::size_t bytes = empty_chunk_bytes();
+  std::size_t i = first;
+  while (i < total && segs.size() < kMaxChunkSegments) {
+    msg::Segment& s = segs.emplace_back();
+    if (const MapStatus st = to_idl(program, i, s); st != MapStatus::kOk) {
+      segs.clear();
+      return st;
+    }
+    bytes += msg::Segment::getCdrSerializedSize(s, bytes);
+    if (bytes > kChunkByteBudget && segs.size() > 1) {
+      segs.pop_back();
+      break;
+    }
+    ++i;
+  }
+  next = i;
+  out.end_of_program(i == total);
+  return MapStatus::kOk;
+}
+
+MapStatus to_chunks(const Program& program, const ChunkHeader& header,
+                    std::vector<msg::ProgramChunk>& chunks) {
+  chunks.clear();
+  std::size_t first = 0;
+  do {
+    std::size_t next = first;
+    if (const MapStatus st = fill_chunk(program, first, header, chunks.emplace_back(), next);
+        st != MapStatus::kOk) {
+      chunks.clear();
+      return st;
+    }
+    first = next;
+  } while (!chunks.back().end_of_program());
+  return MapStatus::kOk;
+}
+
+MapStatus append_chunk(const msg::ProgramChunk& chunk, Program& program) {
+  if (chunk.segments().size() > kMaxChunkSegments) return MapStatus::kTooManySegments;
+  if (chunk.number_axes() < 1 || chunk.number_axes() > kMaxAxes) return MapStatus::kBadAxisCount;
+  for (const msg::Segment& s : chunk.segments()) {
+    if (const MapStatus st = validate(s); st != MapStatus::kOk) return st;
+  }
+  program.number_axes = chunk.number_axes();
+  program.segments.reserve(program.segments.size() + chunk.segments().size());
+  for (const msg::Segment& s : chunk.segments()) {
+    (void)append_from_idl(s, program);  // validated above, cannot fail
+  }
+  return MapStatus::kOk;
+}
+
+}  // namespace tgm::mapping

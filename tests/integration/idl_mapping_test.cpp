@@ -1,0 +1,379 @@
+// Mapping between core intercode and the generated DDS types (idl/mapping): round trips through
+// chunks and through the CDR wire format, chunk bounds, and rejection of bad wire records.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <limits>
+#include <random>
+#include <string>
+
+#include <fastdds/rtps/common/SerializedPayload.h>
+
+#include "tgm/idl_mapping.hpp"
+#include "tgm/msg/tgmPubSubTypes.h"
+
+namespace tgm {
+namespace {
+
+using mapping::MapStatus;
+
+bool same_segment(const Segment& a, const Segment& b) {
+  return a.type == b.type && a.plane == b.plane && a.compensation == b.compensation &&
+         a.m_kind == b.m_kind && a.line == b.line && a.m == b.m && a.tool == b.tool &&
+         a.turns == b.turns && a.aux == b.aux && a.end == b.end && a.center == b.center &&
+         a.radius == b.radius && a.feed_mm_per_min == b.feed_mm_per_min &&
+         a.dwell_s == b.dwell_s && a.compensation_radius_mm == b.compensation_radius_mm;
+}
+
+void expect_same_program(const Program& a, const Program& b) {
+  ASSERT_EQ(a.segments.size(), b.segments.size());
+  for (std::size_t i = 0; i < a.segments.size(); ++i) {
+    ASSERT_TRUE(same_segment(a.segments[i], b.segments[i])) << "record " << i;
+  }
+  EXPECT_EQ(a.params, b.params);
+  EXPECT_EQ(a.messages, b.messages);
+  EXPECT_EQ(a.number_axes, b.number_axes);
+}
+
+Segment line_to(double x, double y, int line) {
+  Segment s;
+  s.type = SegmentType::kLinear;
+  s.line = line;
+  s.end[0] = x;
+  s.end[1] = y;
+  s.feed_mm_per_min = 1200.0;
+  return s;
+}
+
+// A small program with every kind of record, side tables in the order records use them.
+Program sample_program() {
+  Program p;
+  p.number_axes = 4;
+  p.axis_letters = "XYZA";
+  Segment rapid;
+  rapid.type = SegmentType::kRapid;
+  rapid.line = 1;
+  rapid.end = {1, 2, 3, 4, 0, 0, 0, 0, 0, 0};
+  p.segments.push_back(rapid);
+  p.segments.push_back(line_to(10.5, -2.25, 2));
+  Segment arc;
+  arc.type = SegmentType::kArcCcw;
+  arc.plane = Plane::kXZ;
+  arc.compensation = Compensation::kLeft;
+  arc.compensation_radius_mm = 3.0;
+  arc.line = 3;
+  arc.turns = 2;
+  arc.tool = 7;
+  arc.end = {0.1, 0.2, 0.3, 0.4, 0, 0, 0, 0, 0, 0};
+  arc.center = {-5.5, 6.25};
+  arc.radius = 12.5;
+  arc.feed_mm_per_min = 800.0;
+  p.segments.push_back(arc);
+  Segment m;
+  m.type = SegmentType::kMFunction;
+  m.m_kind = MKind::kNormal;
+  m.m = 50;
+  m.line = 4;
+  m.aux = 0;
+  MParams params = unset_params();
+  params['S' - 'A'] = 1200.0;
+  params['Q' - 'A'] = -0.5;
+  p.params.push_back(params);
+  p.segments.push_back(m);
+  Segment cont = m;
+  cont.m = 1005;
+  cont.m_kind = MKind::kContinuous;
+  cont.aux = -1;  // an M record without parameters
+  cont.line = 5;
+  p.segments.push_back(cont);
+  Segment msg;
+  msg.type = SegmentType::kMessage;
+  msg.line = 6;
+  msg.aux = 0;
+  p.messages.emplace_back("tool change: T7 (\xc3\xa9paisseur 3 mm)");
+  p.segments.push_back(msg);
+  Segment empty_msg = msg;
+  empty_msg.aux = 1;
+  empty_msg.line = 7;
+  p.messages.emplace_back("");
+  p.segments.push_back(empty_msg);
+  Segment dwell;
+  dwell.type = SegmentType::kDwell;
+  dwell.dwell_s = 1.5;
+  dwell.line = 8;
+  p.segments.push_back(dwell);
+  Segment end;
+  end.type = SegmentType::kMFunction;
+  end.m_kind = MKind::kProgramEnd;
+  end.m = 30;
+  end.line = 9;
+  p.segments.push_back(end);
+  return p;
+}
+
+// Seeded random program: mostly G1, some arcs, M records with random letters, messages of
+// random length up to the bound.
+Program random_program(std::uint32_t seed, std::size_t count) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> coord(-1000.0, 1000.0);
+  std::uniform_int_distribution<int> pick(0, 99);
+  std::uniform_int_distribution<int> letter(0, kParamLetters - 1);
+  std::uniform_int_distribution<int> len(0, static_cast<int>(mapping::kMaxTextLength));
+  Program p;
+  p.number_axes = 10;
+  p.axis_letters = "XYZABCUVWE";
+  for (std::size_t i = 0; i < count; ++i) {
+    Segment s;
+    s.line = static_cast<std::int32_t>(i + 1);
+    for (double& e : s.end) e = coord(rng);
+    const int k = pick(rng);
+    if (k < 80) {
+      s.type = SegmentType::kLinear;
+      s.feed_mm_per_min = std::abs(coord(rng));
+    } else if (k < 90) {
+      s.type = (k % 2 == 0) ? SegmentType::kArcCw : SegmentType::kArcCcw;
+      s.plane = static_cast<Plane>(17 + k % 3);
+      s.center = {coord(rng), coord(rng)};
+      s.radius = std::abs(coord(rng));
+      s.feed_mm_per_min = std::abs(coord(rng));
+    } else if (k < 96) {
+      s.type = SegmentType::kMFunction;
+      s.m_kind = MKind::kNormal;
+      s.m = 100 + k;
+      if (k % 2 == 0) {
+        MParams params = unset_params();
+        for (int j = 0; j < 3; ++j) params[static_cast<std::size_t>(letter(rng))] = coord(rng);
+        s.aux = static_cast<std::int32_t>(p.params.size());
+        p.params.push_back(params);
+      }
+    } else {
+      s.type = SegmentType::kMessage;
+      s.aux = static_cast<std::int32_t>(p.messages.size());
+      std::string text(static_cast<std::size_t>(len(rng)), ' ');
+      for (char& c : text) c = static_cast<char>('!' + pick(rng) % 90);
+      p.messages.push_back(text);
+    }
+    p.segments.push_back(s);
+  }
+  return p;
+}
+
+// Serializes and deserializes a chunk with the generated CDR code, as the wire would.
+msg::ProgramChunk through_cdr(msg::ProgramChunk& chunk, std::uint32_t* size_out = nullptr) {
+  msg::ProgramChunkPubSubType type;
+  const std::uint32_t size = type.getSerializedSizeProvider(&chunk)();
+  eprosima::fastrtps::rtps::SerializedPayload_t payload(size);
+  EXPECT_TRUE(type.serialize(&chunk, &payload));
+  msg::ProgramChunk back;
+  EXPECT_TRUE(type.deserialize(&payload, &back));
+  if (size_out != nullptr) *size_out = payload.length;
+  return back;
+}
+
+TEST(IdlMapping, SampleProgramRoundTripsThroughChunks) {
+  const Program p = sample_program();
+  std::vector<msg::ProgramChunk> chunks;
+  ASSERT_EQ(mapping::to_chunks(p, {2, 77}, chunks), MapStatus::kOk);
+  ASSERT_EQ(chunks.size(), 1u);
+  EXPECT_EQ(chunks[0].interpolator(), 2);
+  EXPECT_EQ(chunks[0].program_id(), 77u);
+  EXPECT_EQ(chunks[0].sequence_number(), 0u);
+  EXPECT_TRUE(chunks[0].end_of_program());
+  EXPECT_EQ(chunks[0].number_axes(), 4);
+  // Payloads ride only on the records that have them.
+  EXPECT_EQ(chunks[0].segments()[3].params().size(), 26u);
+  EXPECT_DOUBLE_EQ(chunks[0].segments()[3].params()['S' - 'A'], 1200.0);
+  EXPECT_TRUE(chunks[0].segments()[4].params().empty());
+  EXPECT_EQ(chunks[0].segments()[5].text(), p.messages[0]);
+  EXPECT_TRUE(chunks[0].segments()[1].params().empty());
+  EXPECT_EQ(chunks[0].segments()[1].text().size(), 0u);
+
+  Program back;
+  back.number_axes = 1;
+  for (auto& c : chunks) ASSERT_EQ(mapping::append_chunk(through_cdr(c), back), MapStatus::kOk);
+  expect_same_program(p, back);
+}
+
+TEST(IdlMapping, SeededRandomProgramsRoundTripThroughCdr) {
+  const std::uint32_t seeds = 20;
+  for (std::uint32_t seed = 1; seed <= seeds; ++seed) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    const Program p = random_program(seed, 1000 + seed * 37);
+    std::vector<msg::ProgramChunk> chunks;
+    ASSERT_EQ(mapping::to_chunks(p, {1, seed}, chunks), MapStatus::kOk);
+    Program back;
+    std::uint64_t expected_sequence = 0;
+    for (std::size_t i = 0; i < chunks.size(); ++i) {
+      std::uint32_t bytes = 0;
+      const msg::ProgramChunk wire = through_cdr(chunks[i], &bytes);
+      EXPECT_LE(bytes, mapping::kChunkByteBudget);
+      EXPECT_GE(wire.segments().size(), 1u);
+      EXPECT_LE(wire.segments().size(), mapping::kMaxChunkSegments);
+      EXPECT_EQ(wire.sequence_number(), expected_sequence);
+      EXPECT_EQ(wire.end_of_program(), i + 1 == chunks.size());
+      expected_sequence += wire.segments().size();
+      ASSERT_EQ(mapping::append_chunk(wire, back), MapStatus::kOk);
+    }
+    EXPECT_EQ(expected_sequence, p.segments.size());
+    expect_same_program(p, back);
+  }
+}
+
+TEST(IdlMapping, PlainMovesFillAChunkAndStaySmall) {
+  Program p;
+  for (int i = 0; i < 1000; ++i) p.segments.push_back(line_to(i * 0.05, 0.0, i + 1));
+  msg::ProgramChunk chunk;
+  std::size_t next = 0;
+  ASSERT_EQ(mapping::fill_chunk(p, 0, {}, chunk, next), MapStatus::kOk);
+  EXPECT_EQ(next, mapping::kMaxChunkSegments);
+  EXPECT_FALSE(chunk.end_of_program());
+  std::uint32_t bytes = 0;
+  (void)through_cdr(chunk, &bytes);
+  // 128 records of 10 doubles + 4 more doubles + 4 ints + 4 octets + 2 empty payloads.
+  EXPECT_LE(bytes, 128u * 176u + 64u);
+}
+
+TEST(IdlMapping, LongMessagesSplitChunksByBytes) {
+  Program p;
+  for (int i = 0; i < 300; ++i) {
+    Segment s;
+    s.type = SegmentType::kMessage;
+    s.aux = i;
+    p.messages.emplace_back(mapping::kMaxTextLength, 'x');
+    Segment m;
+    m.type = SegmentType::kMFunction;
+    m.m_kind = MKind::kNormal;
+    m.m = 10;
+    m.aux = i;
+    p.params.push_back(unset_params());
+    p.segments.push_back(s);
+    p.segments.push_back(m);
+  }
+  std::vector<msg::ProgramChunk> chunks;
+  ASSERT_EQ(mapping::to_chunks(p, {}, chunks), MapStatus::kOk);
+  ASSERT_GT(chunks.size(), p.segments.size() / mapping::kMaxChunkSegments + 1);
+  Program back;
+  for (auto& c : chunks) {
+    std::uint32_t bytes = 0;
+    const auto wire = through_cdr(c, &bytes);
+    EXPECT_LE(bytes, mapping::kChunkByteBudget);
+    ASSERT_EQ(mapping::append_chunk(wire, back), MapStatus::kOk);
+  }
+  back.number_axes = p.number_axes;
+  expect_same_program(p, back);
+}
+
+TEST(IdlMapping, EmptyProgramIsOneFinalChunk) {
+  Program p;
+  std::vector<msg::ProgramChunk> chunks;
+  ASSERT_EQ(mapping::to_chunks(p, {}, chunks), MapStatus::kOk);
+  ASSERT_EQ(chunks.size(), 1u);
+  EXPECT_TRUE(chunks[0].end_of_program());
+  EXPECT_TRUE(chunks[0].segments().empty());
+}
+
+TEST(IdlMapping, CoreSideErrors) {
+  Program p = sample_program();
+  p.messages[0] = std::string(mapping::kMaxTextLength + 1, 'y');
+  std::vector<msg::ProgramChunk> chunks;
+  EXPECT_EQ(mapping::to_chunks(p, {}, chunks), MapStatus::kTextTooLong);
+  EXPECT_TRUE(chunks.empty());
+
+  p = sample_program();
+  p.segments[3].aux = 5;  // no such params entry
+  EXPECT_EQ(mapping::to_chunks(p, {}, chunks), MapStatus::kBadAux);
+  p = sample_program();
+  p.segments[5].aux = -1;  // a message without text
+  EXPECT_EQ(mapping::to_chunks(p, {}, chunks), MapStatus::kBadAux);
+  p = sample_program();
+  p.segments[1].aux = 0;  // a G1 pointing into a side table
+  EXPECT_EQ(mapping::to_chunks(p, {}, chunks), MapStatus::kBadAux);
+  p = sample_program();
+  p.number_axes = 11;
+  EXPECT_EQ(mapping::to_chunks(p, {}, chunks), MapStatus::kBadAxisCount);
+
+  msg::ProgramChunk chunk;
+  std::size_t next = 0;
+  EXPECT_EQ(mapping::fill_chunk(sample_program(), 100, {}, chunk, next), MapStatus::kBadIndex);
+}
+
+TEST(IdlMapping, WireSideErrorsLeaveTheProgramUnchanged) {
+  const Program p = sample_program();
+  std::vector<msg::ProgramChunk> chunks;
+  ASSERT_EQ(mapping::to_chunks(p, {}, chunks), MapStatus::kOk);
+  const msg::ProgramChunk good = chunks[0];
+
+  struct Case {
+    const char* what;
+    void (*spoil)(msg::ProgramChunk&);
+    MapStatus expected;
+  };
+  const Case cases[] = {
+      {"type 7", [](msg::ProgramChunk& c) { c.segments()[1].type(7); }, MapStatus::kBadType},
+      {"plane 20", [](msg::ProgramChunk& c) { c.segments()[1].plane(20); }, MapStatus::kBadType},
+      {"compensation 39", [](msg::ProgramChunk& c) { c.segments()[1].compensation(39); },
+       MapStatus::kBadType},
+      {"m kind 5", [](msg::ProgramChunk& c) { c.segments()[1].m_kind(5); }, MapStatus::kBadType},
+      {"NaN end", [](msg::ProgramChunk& c) { c.segments()[1].end()[9] = std::nan(""); },
+       MapStatus::kNotFinite},
+      {"inf feed",
+       [](msg::ProgramChunk& c) {
+         c.segments()[2].feed_mm_per_min(std::numeric_limits<double>::infinity());
+       },
+       MapStatus::kNotFinite},
+      {"NaN param", [](msg::ProgramChunk& c) { c.segments()[3].params()[0] = std::nan(""); },
+       MapStatus::kNotFinite},
+      {"5 params", [](msg::ProgramChunk& c) { c.segments()[3].params().resize(5); },
+       MapStatus::kBadParams},
+      {"params on G1", [](msg::ProgramChunk& c) { c.segments()[1].params().assign(26, 0.0); },
+       MapStatus::kBadParams},
+      {"text on G1", [](msg::ProgramChunk& c) { c.segments()[1].text("hi"); },
+       MapStatus::kUnexpectedText},
+      {"0 axes", [](msg::ProgramChunk& c) { c.number_axes(0); }, MapStatus::kBadAxisCount},
+      {"129 records",
+       [](msg::ProgramChunk& c) { c.segments().resize(mapping::kMaxChunkSegments + 1); },
+       MapStatus::kTooManySegments},
+  };
+  for (const Case& k : cases) {
+    SCOPED_TRACE(k.what);
+    msg::ProgramChunk bad = good;
+    k.spoil(bad);
+    Program target = sample_program();
+    const Program before = target;
+    EXPECT_EQ(mapping::append_chunk(bad, target), k.expected);
+    expect_same_program(before, target);
+    EXPECT_FALSE(mapping::to_string(k.expected).empty());
+  }
+}
+
+TEST(IdlMapping, SingleRecordPayloadIsReported) {
+  msg::Segment wire;
+  MParams params = unset_params();
+  params[25] = 3.0;
+  Segment m;
+  m.type = SegmentType::kMFunction;
+  m.m_kind = MKind::kContinuous;
+  m.m = 1500;
+  ASSERT_EQ(mapping::to_idl(m, &params, nullptr, wire), MapStatus::kOk);
+  Segment back;
+  mapping::SegmentPayload payload;
+  ASSERT_EQ(mapping::from_idl(wire, back, payload), MapStatus::kOk);
+  EXPECT_TRUE(payload.has_params);
+  EXPECT_FALSE(payload.has_message);
+  EXPECT_EQ(payload.params, params);
+  EXPECT_EQ(back.m, 1500);
+  EXPECT_EQ(back.aux, -1);
+  // The same wire object reused for a plain move loses the payload.
+  ASSERT_EQ(mapping::to_idl(line_to(1, 2, 3), nullptr, nullptr, wire), MapStatus::kOk);
+  EXPECT_TRUE(wire.params().empty());
+  ASSERT_EQ(mapping::from_idl(wire, back, payload), MapStatus::kOk);
+  EXPECT_FALSE(payload.has_params);
+  // A payload the record type cannot have is refused on the core side too.
+  const std::string text = "x";
+  EXPECT_EQ(mapping::to_idl(line_to(1, 2, 3), &params, nullptr, wire), MapStatus::kBadParams);
+  EXPECT_EQ(mapping::to_idl(line_to(1, 2, 3), nullptr, &text, wire), MapStatus::kUnexpectedText);
+}
+
+}  // namespace
+}  // namespace tgm
