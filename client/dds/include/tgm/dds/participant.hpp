@@ -1,0 +1,132 @@
+// Small Fast DDS helpers shared by tgm-service, tgm-plc and tgm-hmi (STYLE.md "The DDS
+// application shape"): a participant built from the YAML config, typed topics, writers and
+// readers created by XML profile name with every creation checked, waiting for matches and data.
+//
+// Construction throws SetupError (setup time only). Nothing here throws after setup: waiting and
+// taking return bool.
+#pragma once
+
+#include <chrono>
+#include <initializer_list>
+#include <map>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <fastdds/dds/core/condition/GuardCondition.hpp>
+#include <fastdds/dds/core/condition/WaitSet.hpp>
+#include <fastdds/dds/domain/DomainParticipant.hpp>
+#include <fastdds/dds/publisher/DataWriter.hpp>
+#include <fastdds/dds/publisher/Publisher.hpp>
+#include <fastdds/dds/subscriber/DataReader.hpp>
+#include <fastdds/dds/subscriber/SampleInfo.hpp>
+#include <fastdds/dds/subscriber/Subscriber.hpp>
+#include <fastdds/dds/topic/Topic.hpp>
+#include <fastdds/dds/topic/TypeSupport.hpp>
+
+#include "tgm/dds/topics.hpp"
+#include "tgm/yaml_config.hpp"
+
+namespace tgm::dds {
+
+namespace fdds = eprosima::fastdds::dds;
+
+//! A DDS entity could not be set up; the message says which entity, which profile and why.
+class SetupError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+//! Loads a Fast DDS XML profiles file into this process. Loading a path again does nothing.
+//! Throws SetupError when the file is missing or Fast DDS rejects it.
+void load_profiles(const std::string& path);
+
+//! One DomainParticipant with one Publisher and one Subscriber. Owns every entity it creates;
+//! the destructor deletes them all (delete_contained_entities), then the participant.
+class Participant {
+ public:
+  //! Loads `config.profiles_file`, creates the participant from `profile` on
+  //! `config.domain_id`, named "<participant_prefix>-<role>". Throws SetupError.
+  Participant(const DdsConfig& config, std::string_view role,
+              std::string_view profile = kParticipantProfile);
+  ~Participant();
+  Participant(const Participant&) = delete;
+  Participant& operator=(const Participant&) = delete;
+
+  //! Registers the generated type `PubSubType` (without type objects, see DESIGN.md section 6)
+  //! and creates the topic `name`; a second call with the same name returns the same topic.
+  template <class PubSubType>
+  fdds::Topic& topic(std::string_view name) {
+    return make_topic(name, fdds::TypeSupport(new PubSubType()));
+  }
+
+  //! Creates a writer on `topic` with the XML data_writer profile `profile`. Throws SetupError.
+  fdds::DataWriter& writer(fdds::Topic& topic, std::string_view profile);
+  //! Creates a reader on `topic` with the XML data_reader profile `profile`. Throws SetupError.
+  fdds::DataReader& reader(fdds::Topic& topic, std::string_view profile);
+
+  //! Writer on the topic `spec` with its writer profile.
+  template <class PubSubType>
+  fdds::DataWriter& writer(const TopicSpec& spec) {
+    return writer(topic<PubSubType>(spec.name), spec.writer_profile);
+  }
+  //! Reader on the topic `spec` with its reader profile.
+  template <class PubSubType>
+  fdds::DataReader& reader(const TopicSpec& spec) {
+    return reader(topic<PubSubType>(spec.name), spec.reader_profile);
+  }
+
+  fdds::DomainParticipant& get() { return *participant_; }
+  const std::string& name() const { return name_; }
+  int domain_id() const { return domain_id_; }
+
+ private:
+  fdds::Topic& make_topic(std::string_view name, fdds::TypeSupport type);
+
+  std::string name_;
+  int domain_id_ = 0;
+  fdds::DomainParticipant* participant_ = nullptr;
+  fdds::Publisher* publisher_ = nullptr;
+  fdds::Subscriber* subscriber_ = nullptr;
+  std::map<std::string, fdds::Topic*, std::less<>> topics_;
+};
+
+//! Waits until `writer` is matched with at least `min_readers` readers. Writing before the
+//! match loses the samples on a VOLATILE topic. False on timeout.
+bool wait_for_match(fdds::DataWriter& writer, int min_readers, std::chrono::milliseconds timeout);
+//! Waits until `reader` is matched with at least `min_writers` writers. False on timeout.
+bool wait_for_match(fdds::DataReader& reader, int min_writers, std::chrono::milliseconds timeout);
+
+//! Blocks a thread until one of some readers has data, or until wake() (for stop()). A WaitSet
+//! on the readers' DATA_AVAILABLE conditions plus a guard condition.
+class DataWaiter {
+ public:
+  explicit DataWaiter(std::initializer_list<fdds::DataReader*> readers);
+  ~DataWaiter();
+  DataWaiter(const DataWaiter&) = delete;
+  DataWaiter& operator=(const DataWaiter&) = delete;
+
+  //! True when data may be available (or wake() was called); false on timeout.
+  bool wait(std::chrono::nanoseconds timeout);
+  //! Makes the current and every later wait() return at once (thread-safe; for stop()).
+  void wake();
+
+ private:
+  fdds::WaitSet waitset_;
+  fdds::GuardCondition guard_;
+  std::vector<fdds::DataReader*> readers_;
+};
+
+//! Takes the next valid sample of `reader` into `sample`; false when there is none left.
+//! Samples without data (disposal, unregistration notices) are skipped.
+template <class T>
+bool take_next(fdds::DataReader& reader, T& sample) {
+  fdds::SampleInfo info;
+  while (reader.take_next_sample(&sample, &info) == eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
+    if (info.valid_data) return true;
+  }
+  return false;
+}
+
+}  // namespace tgm::dds

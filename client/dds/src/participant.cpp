@@ -1,0 +1,199 @@
+#include "tgm/dds/participant.hpp"
+
+#include <filesystem>
+#include <mutex>
+#include <set>
+#include <thread>
+
+#include <fastdds/dds/domain/DomainParticipantFactory.hpp>
+#include <fastdds/dds/domain/qos/DomainParticipantQos.hpp>
+
+namespace tgm::dds {
+
+namespace {
+
+using eprosima::fastrtps::types::ReturnCode_t;
+
+bool ok(const ReturnCode_t& rc) { return rc == ReturnCode_t::RETCODE_OK; }
+
+std::string code_text(const ReturnCode_t& rc) {
+  switch (rc()) {
+    case ReturnCode_t::RETCODE_OK:
+      return "ok";
+    case ReturnCode_t::RETCODE_BAD_PARAMETER:
+      return "bad parameter (unknown profile name?)";
+    case ReturnCode_t::RETCODE_PRECONDITION_NOT_MET:
+      return "precondition not met";
+    case ReturnCode_t::RETCODE_INCONSISTENT_POLICY:
+      return "inconsistent QoS policy";
+    case ReturnCode_t::RETCODE_OUT_OF_RESOURCES:
+      return "out of resources";
+    default:
+      return "Fast DDS return code " + std::to_string(rc());
+  }
+}
+
+eprosima::fastrtps::Duration_t to_duration(std::chrono::nanoseconds ns) {
+  const auto sec = std::chrono::duration_cast<std::chrono::seconds>(ns);
+  return eprosima::fastrtps::Duration_t(static_cast<std::int32_t>(sec.count()),
+                                        static_cast<std::uint32_t>((ns - sec).count()));
+}
+
+// Polls a matched count until it reaches `min` (setup time only; 2 ms steps).
+template <class CountFn>
+bool poll_until(CountFn count, int min, std::chrono::milliseconds timeout) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (true) {
+    if (count() >= min) return true;
+    if (std::chrono::steady_clock::now() >= deadline) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+}
+
+}  // namespace
+
+void load_profiles(const std::string& path) {
+  static std::mutex mutex;
+  static std::set<std::string> loaded;
+  std::error_code ec;
+  const std::string key = std::filesystem::weakly_canonical(path, ec).string();
+  const std::lock_guard lock(mutex);
+  if (loaded.count(key) != 0) return;
+  if (!std::filesystem::is_regular_file(path, ec)) {
+    throw SetupError("DDS profiles file '" + path + "' does not exist");
+  }
+  const ReturnCode_t rc =
+      fdds::DomainParticipantFactory::get_instance()->load_XML_profiles_file(path);
+  if (!ok(rc)) {
+    throw SetupError("DDS profiles file '" + path + "' was rejected by Fast DDS (" +
+                     code_text(rc) + "); see the Fast DDS log above for the line");
+  }
+  loaded.insert(key);
+}
+
+Participant::Participant(const DdsConfig& config, std::string_view role, std::string_view profile)
+    : name_(config.participant_prefix + "-" + std::string(role)), domain_id_(config.domain_id) {
+  if (config.domain_id < 0 || config.domain_id > 232) {
+    throw SetupError("DDS domain id " + std::to_string(config.domain_id) + " outside 0..232");
+  }
+  if (!config.profiles_file.empty()) load_profiles(config.profiles_file);
+  auto* factory = fdds::DomainParticipantFactory::get_instance();
+  fdds::DomainParticipantQos qos;
+  if (const ReturnCode_t rc = factory->get_participant_qos_from_profile(std::string(profile), qos);
+      !ok(rc)) {
+    throw SetupError("DDS participant profile '" + std::string(profile) + "' not found in '" +
+                     config.profiles_file + "'");
+  }
+  qos.name(name_);
+  participant_ = factory->create_participant(static_cast<fdds::DomainId_t>(domain_id_), qos);
+  if (participant_ == nullptr) {
+    throw SetupError("cannot create DDS participant '" + name_ + "' on domain " +
+                     std::to_string(domain_id_) + " from profile '" + std::string(profile) + "'");
+  }
+  publisher_ = participant_->create_publisher(fdds::PUBLISHER_QOS_DEFAULT);
+  subscriber_ = participant_->create_subscriber(fdds::SUBSCRIBER_QOS_DEFAULT);
+  if (publisher_ == nullptr || subscriber_ == nullptr) {
+    participant_->delete_contained_entities();
+    factory->delete_participant(participant_);
+    throw SetupError("cannot create the publisher / subscriber of DDS participant '" + name_ +
+                     "'");
+  }
+}
+
+Participant::~Participant() {
+  // Entities first (writers, readers, publisher, subscriber, topics), then the participant.
+  participant_->delete_contained_entities();
+  fdds::DomainParticipantFactory::get_instance()->delete_participant(participant_);
+}
+
+fdds::Topic& Participant::make_topic(std::string_view name, fdds::TypeSupport type) {
+  if (auto it = topics_.find(name); it != topics_.end()) {
+    if (it->second->get_type_name() != type.get_type_name()) {
+      throw SetupError("DDS topic '" + std::string(name) + "' already has type '" +
+                       it->second->get_type_name() + "', not '" + type.get_type_name() + "'");
+    }
+    return *it->second;
+  }
+  // No type objects / type information: with them, other vendors refuse to match (DESIGN 6).
+  type->auto_fill_type_object(false);
+  type->auto_fill_type_information(false);
+  if (participant_->find_type(type.get_type_name()).empty()) {
+    if (const ReturnCode_t rc = type.register_type(participant_); !ok(rc)) {
+      throw SetupError("cannot register DDS type '" + type.get_type_name() + "' (" +
+                       code_text(rc) + ")");
+    }
+  }
+  fdds::Topic* t = participant_->create_topic(std::string(name), type.get_type_name(),
+                                              fdds::TOPIC_QOS_DEFAULT);
+  if (t == nullptr) {
+    throw SetupError("cannot create DDS topic '" + std::string(name) + "' of type '" +
+                     type.get_type_name() + "'");
+  }
+  topics_.emplace(std::string(name), t);
+  return *t;
+}
+
+fdds::DataWriter& Participant::writer(fdds::Topic& topic, std::string_view profile) {
+  fdds::DataWriter* w = publisher_->create_datawriter_with_profile(&topic, std::string(profile));
+  if (w == nullptr) {
+    throw SetupError("cannot create DDS writer on topic '" + topic.get_name() +
+                     "' with profile '" + std::string(profile) +
+                     "' (unknown profile or inconsistent QoS; see the Fast DDS log above)");
+  }
+  return *w;
+}
+
+fdds::DataReader& Participant::reader(fdds::Topic& topic, std::string_view profile) {
+  fdds::DataReader* r = subscriber_->create_datareader_with_profile(&topic, std::string(profile));
+  if (r == nullptr) {
+    throw SetupError("cannot create DDS reader on topic '" + topic.get_name() +
+                     "' with profile '" + std::string(profile) +
+                     "' (unknown profile or inconsistent QoS; see the Fast DDS log above)");
+  }
+  return *r;
+}
+
+bool wait_for_match(fdds::DataWriter& writer, int min_readers, std::chrono::milliseconds timeout) {
+  return poll_until(
+      [&writer] {
+        fdds::PublicationMatchedStatus st;
+        writer.get_publication_matched_status(st);
+        return st.current_count;
+      },
+      min_readers, timeout);
+}
+
+bool wait_for_match(fdds::DataReader& reader, int min_writers, std::chrono::milliseconds timeout) {
+  return poll_until(
+      [&reader] {
+        fdds::SubscriptionMatchedStatus st;
+        reader.get_subscription_matched_status(st);
+        return st.current_count;
+      },
+      min_writers, timeout);
+}
+
+DataWaiter::DataWaiter(std::initializer_list<fdds::DataReader*> readers) : readers_(readers) {
+  for (fdds::DataReader* r : readers_) {
+    r->get_statuscondition().set_enabled_statuses(fdds::StatusMask::data_available());
+    if (!ok(waitset_.attach_condition(r->get_statuscondition()))) {
+      throw SetupError("cannot attach DDS reader of topic '" + r->get_topicdescription()->get_name() +
+                       "' to a wait set");
+    }
+  }
+  if (!ok(waitset_.attach_condition(guard_))) throw SetupError("cannot attach a guard condition");
+}
+
+DataWaiter::~DataWaiter() {
+  for (fdds::DataReader* r : readers_) waitset_.detach_condition(r->get_statuscondition());
+  waitset_.detach_condition(guard_);
+}
+
+bool DataWaiter::wait(std::chrono::nanoseconds timeout) {
+  fdds::ConditionSeq active;
+  return ok(waitset_.wait(active, to_duration(timeout)));
+}
+
+void DataWaiter::wake() { guard_.set_trigger_value(true); }
+
+}  // namespace tgm::dds

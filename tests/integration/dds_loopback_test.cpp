@@ -1,0 +1,295 @@
+// Samples over real Fast DDS participants (in this process, and one helper process): the
+// program stream delivers every chunk once and in order, a late state reader gets the current
+// state of each interpolator, requests get replies, and a killed peer is noticed by liveliness
+// before the participant lease expires. Timeouts only guard against hangs; nothing is timed.
+#include <gtest/gtest.h>
+
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+
+#include <atomic>
+#include <chrono>
+#include <thread>
+
+#include "dds_test_util.hpp"
+#include "tgm/dds/participant.hpp"
+#include "tgm/idl_mapping.hpp"
+#include "tgm/msg/tgmPubSubTypes.h"
+
+extern char** environ;
+
+namespace tgm {
+namespace {
+
+using namespace std::chrono_literals;
+namespace fdds = eprosima::fastdds::dds;
+
+constexpr auto kHang = 20s;  // guards against a hang, never a performance limit
+
+Program long_program(std::size_t count) {
+  Program p;
+  p.number_axes = 3;
+  for (std::size_t i = 0; i < count; ++i) {
+    Segment s;
+    s.line = static_cast<std::int32_t>(i + 1);
+    s.end[0] = static_cast<double>(i) * 0.05;
+    s.end[1] = static_cast<double>(i % 7);
+    s.feed_mm_per_min = 3000.0;
+    if (i % 500 == 250) {
+      s.type = SegmentType::kMFunction;
+      s.m_kind = MKind::kNormal;
+      s.m = 50;
+      s.aux = static_cast<std::int32_t>(p.params.size());
+      MParams params = unset_params();
+      params[0] = static_cast<double>(i);
+      p.params.push_back(params);
+    } else if (i % 500 == 499) {
+      s.type = SegmentType::kMessage;
+      s.aux = static_cast<std::int32_t>(p.messages.size());
+      p.messages.push_back("message at " + std::to_string(i));
+    }
+    p.segments.push_back(s);
+  }
+  return p;
+}
+
+TEST(DdsLoopback, ProgramStreamDeliversEveryChunkOnceInOrder) {
+  const Program program = long_program(20'000);
+  const auto t = test::test_topic(dds::kProgramTopic);
+  dds::Participant hmi(test::test_config(), "hmi");
+  dds::Participant service(test::test_config(), "service");
+  auto& writer = hmi.writer<msg::ProgramChunkPubSubType>(t.spec);
+  auto& reader = service.reader<msg::ProgramChunkPubSubType>(t.spec);
+  ASSERT_TRUE(dds::wait_for_match(writer, 1, kHang));
+
+  // The service side: take chunks, check sequence numbers, rebuild the program.
+  Program received;
+  std::uint64_t expected_sequence = 0;
+  bool order_ok = true;
+  std::atomic<bool> done{false};
+  // Chunks taken so far: stands in for InterpolatorState.next_sequence, the sender's window.
+  std::atomic<std::size_t> taken{0};
+  std::thread consumer([&] {
+    dds::DataWaiter waiter({&reader});
+    msg::ProgramChunk chunk;
+    const auto deadline = std::chrono::steady_clock::now() + kHang;
+    while (!done && std::chrono::steady_clock::now() < deadline) {
+      waiter.wait(100ms);
+      while (dds::take_next(reader, chunk)) {
+        order_ok = order_ok && chunk.sequence_number() == expected_sequence &&
+                   chunk.program_id() == 9 && chunk.interpolator() == 0;
+        expected_sequence += chunk.segments().size();
+        if (mapping::append_chunk(chunk, received) != mapping::MapStatus::kOk) order_ok = false;
+        if (chunk.end_of_program()) done = true;
+        ++taken;
+        // A consumer slower than the sender, so that the window is what limits the stream.
+        if (taken % 16 == 0) std::this_thread::sleep_for(1ms);
+      }
+    }
+  });
+
+  msg::ProgramChunk chunk;
+  std::size_t first = 0;
+  std::size_t chunks = 0;
+  bool writes_ok = true;
+  const auto window_deadline = std::chrono::steady_clock::now() + kHang;
+  do {
+    std::size_t next = 0;
+    ASSERT_EQ(mapping::fill_chunk(program, first, {0, 9}, chunk, next), mapping::MapStatus::kOk);
+    while (chunks >= taken + dds::kProgramChunksInFlight &&
+           std::chrono::steady_clock::now() < window_deadline) {
+      std::this_thread::sleep_for(100us);
+    }
+    writes_ok = writes_ok && writer.write(&chunk);
+    first = next;
+    ++chunks;
+  } while (!chunk.end_of_program());
+  consumer.join();
+  fdds::SampleRejectedStatus rejected;
+  fdds::SampleLostStatus lost;
+  reader.get_sample_rejected_status(rejected);
+  reader.get_sample_lost_status(lost);
+  EXPECT_EQ(rejected.total_count, 0) << "the window did not keep the reader history from filling";
+  EXPECT_EQ(lost.total_count, 0);
+  EXPECT_TRUE(writes_ok);
+  EXPECT_TRUE(done);
+  EXPECT_TRUE(order_ok);
+  EXPECT_GT(chunks, program.segments.size() / mapping::kMaxChunkSegments);
+  EXPECT_EQ(expected_sequence, program.segments.size());
+  ASSERT_EQ(received.segments.size(), program.segments.size());
+  EXPECT_EQ(received.params, program.params);
+  EXPECT_EQ(received.messages, program.messages);
+  for (std::size_t i = 0; i < program.segments.size(); i += 997) {
+    EXPECT_EQ(received.segments[i].end, program.segments[i].end) << i;
+  }
+}
+
+TEST(DdsLoopback, LateStateReaderGetsCurrentStateOfEachInterpolator) {
+  const auto t = test::test_topic(dds::kStateTopic);
+  dds::Participant service(test::test_config(), "service");
+  auto& writer = service.writer<msg::InterpolatorStatePubSubType>(t.spec);
+  msg::InterpolatorState s;
+  // Every interpolator, 0 included: Fast DDS 2.3/2.4 dropped samples whose key serialized to
+  // all zeros (eProsima/Fast-DDS#2306, seen in 2.3 and 2.4).
+  for (std::uint16_t n = 0; n < 3; ++n) {
+    for (int k = 1; k <= 5; ++k) {  // only the last of these counts (KEEP_LAST 1)
+      s.interpolator(n);
+      s.number(n);
+      s.cycle_counter(static_cast<std::uint64_t>(k));
+      s.position()[0] = 10.0 * n + k;
+      s.look_ahead_buffer()[7].radius(n + 0.5);
+      s.message_text("state " + std::to_string(n));
+      ASSERT_TRUE(writer.write(&s));
+    }
+  }
+  // The HMI starts after the state was published.
+  dds::Participant hmi(test::test_config(), "hmi");
+  auto& reader = hmi.reader<msg::InterpolatorStatePubSubType>(t.spec);
+  dds::DataWaiter waiter({&reader});
+  bool seen[3] = {false, false, false};
+  int samples = 0;
+  const auto deadline = std::chrono::steady_clock::now() + kHang;
+  while (!(seen[0] && seen[1] && seen[2]) && std::chrono::steady_clock::now() < deadline) {
+    waiter.wait(100ms);
+    msg::InterpolatorState got;
+    while (dds::take_next(reader, got)) {
+      ++samples;
+      ASSERT_LT(got.interpolator(), 3);
+      EXPECT_EQ(got.cycle_counter(), 5u);
+      EXPECT_DOUBLE_EQ(got.position()[0], 10.0 * got.interpolator() + 5);
+      EXPECT_DOUBLE_EQ(got.look_ahead_buffer()[7].radius(), got.interpolator() + 0.5);
+      EXPECT_EQ(got.message_text(), "state " + std::to_string(got.interpolator()));
+      seen[got.interpolator()] = true;
+    }
+  }
+  EXPECT_TRUE(seen[0] && seen[1] && seen[2]);
+  EXPECT_EQ(samples, 3);
+}
+
+TEST(DdsLoopback, RequestGetsItsReply) {
+  const auto req_t = test::test_topic(dds::kRequestTopic);
+  const auto rep_t = test::test_topic(dds::kReplyTopic);
+  dds::Participant plc(test::test_config(), "plc");
+  dds::Participant service(test::test_config(), "service");
+  auto& req_w = plc.writer<msg::RequestPubSubType>(req_t.spec);
+  auto& rep_r = plc.reader<msg::ReplyPubSubType>(rep_t.spec);
+  auto& req_r = service.reader<msg::RequestPubSubType>(req_t.spec);
+  auto& rep_w = service.writer<msg::ReplyPubSubType>(rep_t.spec);
+  ASSERT_TRUE(dds::wait_for_match(req_w, 1, kHang));
+  ASSERT_TRUE(dds::wait_for_match(rep_w, 1, kHang));
+
+  std::thread responder([&] {
+    dds::DataWaiter waiter({&req_r});
+    msg::Request req;
+    const auto deadline = std::chrono::steady_clock::now() + kHang;
+    int answered = 0;
+    while (answered < 2 && std::chrono::steady_clock::now() < deadline) {
+      waiter.wait(100ms);
+      while (dds::take_next(req_r, req)) {
+        msg::Reply rep;
+        rep.request_id(req.request_id());
+        rep.client_name(req.client_name());
+        rep.interpolator(req.interpolator());
+        const bool ok = req.kind() == msg::REQUEST_KIND_WRITE_REL_SPEED && req.value() >= 0.01 &&
+                        req.value() <= 2.0;
+        rep.accepted(ok);
+        rep.code(ok ? msg::REPLY_CODE_ACCEPTED : msg::REPLY_CODE_OUT_OF_RANGE);
+        if (!ok) rep.reason("Rel_Speed " + std::to_string(req.value()) + " outside 0.01..2");
+        rep_w.write(&rep);
+        ++answered;
+      }
+    }
+  });
+
+  msg::Request req;
+  req.role(msg::CLIENT_ROLE_PLC);
+  req.client_name(plc.name());
+  req.interpolator(2);
+  req.kind(msg::REQUEST_KIND_WRITE_REL_SPEED);
+  req.request_id(41);
+  req.value(0.5);
+  ASSERT_TRUE(req_w.write(&req));
+  req.request_id(42);
+  req.value(3.0);
+  ASSERT_TRUE(req_w.write(&req));
+
+  dds::DataWaiter waiter({&rep_r});
+  msg::Reply replies[2];
+  int got = 0;
+  const auto deadline = std::chrono::steady_clock::now() + kHang;
+  while (got < 2 && std::chrono::steady_clock::now() < deadline) {
+    waiter.wait(100ms);
+    while (got < 2 && dds::take_next(rep_r, replies[got])) ++got;
+  }
+  responder.join();
+  ASSERT_EQ(got, 2);
+  EXPECT_EQ(replies[0].request_id(), 41u);
+  EXPECT_TRUE(replies[0].accepted());
+  EXPECT_EQ(replies[0].code(), msg::REPLY_CODE_ACCEPTED);
+  EXPECT_EQ(replies[0].client_name(), "tgmtest-plc");
+  EXPECT_EQ(replies[0].interpolator(), 2);
+  EXPECT_EQ(replies[1].request_id(), 42u);
+  EXPECT_FALSE(replies[1].accepted());
+  EXPECT_EQ(replies[1].code(), msg::REPLY_CODE_OUT_OF_RANGE);
+  EXPECT_NE(replies[1].reason().to_string().find("outside"), std::string::npos);
+}
+
+// A PLC process killed with SIGKILL cannot say goodbye. Its request writer must be reported
+// not alive by the 100 ms liveliness lease while it is still matched, i.e. before the 1 s
+// participant lease removes it: liveliness, not discovery, is what notices the death.
+TEST(DdsLoopback, KilledPeerIsNoticedByLivelinessBeforeTheParticipantLease) {
+  const auto t = test::test_topic(dds::kRequestTopic);
+  dds::Participant service(test::test_config(), "service");
+  auto& reader = service.reader<msg::RequestPubSubType>(t.spec);
+
+  const std::string domain = std::to_string(test::test_domain());
+  const std::string profiles = test::profiles_path();
+  const char* argv[] = {TGM_DDS_TEST_PEER, profiles.c_str(), domain.c_str(), t.name.c_str(),
+                        nullptr};
+  pid_t pid = 0;
+  ASSERT_EQ(posix_spawn(&pid, TGM_DDS_TEST_PEER, nullptr, nullptr, const_cast<char**>(argv),
+                        environ),
+            0);
+  ASSERT_TRUE(dds::wait_for_match(reader, 1, kHang));
+  // Alive once the first sample or assertion arrived.
+  fdds::LivelinessChangedStatus live;
+  msg::Request r;
+  auto deadline = std::chrono::steady_clock::now() + kHang;
+  do {
+    std::this_thread::sleep_for(1ms);
+    reader.get_liveliness_changed_status(live);
+  } while (live.alive_count < 1 && std::chrono::steady_clock::now() < deadline);
+  ASSERT_EQ(live.alive_count, 1);
+  {
+    dds::DataWaiter waiter({&reader});
+    bool got = false;
+    for (int i = 0; i < 200 && !(got = dds::take_next(reader, r)); ++i) waiter.wait(100ms);
+    EXPECT_TRUE(got);
+    EXPECT_EQ(r.client_name(), "peer");
+  }
+
+  ASSERT_EQ(::kill(pid, SIGKILL), 0);
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  const auto killed = std::chrono::steady_clock::now();
+  fdds::SubscriptionMatchedStatus matched;
+  deadline = killed + kHang;
+  do {
+    std::this_thread::sleep_for(1ms);
+    reader.get_subscription_matched_status(matched);
+    reader.get_liveliness_changed_status(live);
+  } while (live.alive_count > 0 && matched.current_count > 0 &&
+           std::chrono::steady_clock::now() < deadline);
+  const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(
+      std::chrono::steady_clock::now() - killed);
+  std::printf("dead peer noticed after %lld ms (alive %d, not alive %d, matched %d)\n",
+              static_cast<long long>(ms.count()), live.alive_count, live.not_alive_count,
+              matched.current_count);
+  EXPECT_EQ(live.alive_count, 0);
+  EXPECT_EQ(live.not_alive_count, 1);
+  EXPECT_EQ(matched.current_count, 1) << "the participant lease noticed it first";
+}
+
+}  // namespace
+}  // namespace tgm
