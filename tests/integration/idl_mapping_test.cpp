@@ -377,3 +377,150 @@ TEST(IdlMapping, SingleRecordPayloadIsReported) {
 
 }  // namespace
 }  // namespace tgm
+
+namespace tgm {
+namespace {
+
+Registers random_registers(std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> real(-1e6, 1e6);
+  std::uniform_int_distribution<std::int32_t> integer(-100000, 100000);
+  std::uniform_int_distribution<std::int64_t> inc(-(std::int64_t{1} << 40), std::int64_t{1} << 40);
+  Registers r;
+  r.number = 2;
+  r.number_axes = integer(rng);
+  r.buffer_size = integer(rng);
+  r.command = integer(rng);
+  for (auto& v : r.command_parameter) v = integer(rng);
+  r.command_status = -1;
+  r.status = 8;
+  r.act_part = integer(rng);
+  r.address_external_position = integer(rng);
+  r.m_func = integer(rng);
+  r.act_g_func = integer(rng);
+  r.act_m_func = integer(rng);
+  r.last_cont_m_func = integer(rng);
+  r.run_flag = make_run_flag(SectionState::kWaitMFuncEnd, SpeedState::kEmergencyRamp);
+  r.tool_number = integer(rng);
+  for (auto& v : r.orig_position) v = real(rng);
+  for (auto& v : r.position) v = real(rng);
+  for (auto& v : r.position_inc) v = inc(rng);
+  for (auto& v : r.backlash) v = inc(rng);
+  for (auto& v : r.offset) v = inc(rng);
+  for (auto& v : r.speed) v = real(rng);
+  for (auto& v : r.ratio) v = real(rng);
+  for (auto& v : r.m_function_parameter) v = real(rng);
+  r.m_function_parameter[3] = kNotSet;
+  r.rel_speed = real(rng);
+  r.set_speed = real(rng);
+  r.act_speed = real(rng);
+  r.move_distance = real(rng);
+  for (auto& e : r.lookahead) {
+    for (auto& v : e.all_params) v = real(rng);
+    e.tangent_deg = real(rng);
+    e.movement_type = integer(rng);
+    e.movement_code = integer(rng);
+    e.plane = integer(rng);
+    e.tool = integer(rng);
+    for (auto& v : e.end_pos_mm) v = real(rng);
+    e.start_angle_deg = real(rng);
+    e.end_angle_deg = kNotSet;
+    e.radius_mm = real(rng);
+    e.line = integer(rng);
+  }
+  r.cycle = (std::uint64_t{1} << 50) + seed;
+  r.act_line = integer(rng);
+  r.free_slots = integer(rng);
+  r.message_count = 7;
+  r.off_trajectory = 1;
+  r.act_acceleration_mm_s2 = real(rng);
+  r.limit_factor = LimitFactor::kStopCommand;
+  return r;
+}
+
+void expect_same_registers(const Registers& a, const Registers& b) {
+  EXPECT_EQ(a.number, b.number);
+  EXPECT_EQ(a.number_axes, b.number_axes);
+  EXPECT_EQ(a.buffer_size, b.buffer_size);
+  EXPECT_EQ(a.command, b.command);
+  EXPECT_EQ(a.command_parameter, b.command_parameter);
+  EXPECT_EQ(a.command_status, b.command_status);
+  EXPECT_EQ(a.status, b.status);
+  EXPECT_EQ(a.act_part, b.act_part);
+  EXPECT_EQ(a.address_external_position, b.address_external_position);
+  EXPECT_EQ(a.m_func, b.m_func);
+  EXPECT_EQ(a.act_g_func, b.act_g_func);
+  EXPECT_EQ(a.act_m_func, b.act_m_func);
+  EXPECT_EQ(a.last_cont_m_func, b.last_cont_m_func);
+  EXPECT_EQ(a.run_flag, b.run_flag);
+  EXPECT_EQ(a.tool_number, b.tool_number);
+  EXPECT_EQ(a.orig_position, b.orig_position);
+  EXPECT_EQ(a.position, b.position);
+  EXPECT_EQ(a.position_inc, b.position_inc);
+  EXPECT_EQ(a.backlash, b.backlash);
+  EXPECT_EQ(a.offset, b.offset);
+  EXPECT_EQ(a.speed, b.speed);
+  EXPECT_EQ(a.ratio, b.ratio);
+  EXPECT_EQ(a.m_function_parameter, b.m_function_parameter);
+  EXPECT_EQ(a.rel_speed, b.rel_speed);
+  EXPECT_EQ(a.set_speed, b.set_speed);
+  EXPECT_EQ(a.act_speed, b.act_speed);
+  EXPECT_EQ(a.move_distance, b.move_distance);
+  for (std::size_t i = 0; i < a.lookahead.size(); ++i) {
+    SCOPED_TRACE("look-ahead entry " + std::to_string(i));
+    const auto& x = a.lookahead[i];
+    const auto& y = b.lookahead[i];
+    EXPECT_EQ(x.all_params, y.all_params);
+    EXPECT_EQ(x.tangent_deg, y.tangent_deg);
+    EXPECT_EQ(x.movement_type, y.movement_type);
+    EXPECT_EQ(x.movement_code, y.movement_code);
+    EXPECT_EQ(x.plane, y.plane);
+    EXPECT_EQ(x.tool, y.tool);
+    EXPECT_EQ(x.end_pos_mm, y.end_pos_mm);
+    EXPECT_EQ(x.start_angle_deg, y.start_angle_deg);
+    EXPECT_EQ(x.end_angle_deg, y.end_angle_deg);
+    EXPECT_EQ(x.radius_mm, y.radius_mm);
+    EXPECT_EQ(x.line, y.line);
+  }
+  EXPECT_EQ(a.cycle, b.cycle);
+  EXPECT_EQ(a.act_line, b.act_line);
+  EXPECT_EQ(a.free_slots, b.free_slots);
+  EXPECT_EQ(a.message_count, b.message_count);
+  EXPECT_EQ(a.off_trajectory, b.off_trajectory);
+  EXPECT_EQ(a.act_acceleration_mm_s2, b.act_acceleration_mm_s2);
+  EXPECT_EQ(a.limit_factor, b.limit_factor);
+}
+
+TEST(IdlMapping, RegistersRoundTripThroughCdr) {
+  for (std::uint32_t seed = 1; seed <= 10; ++seed) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    const Registers r = random_registers(seed);
+    msg::InterpolatorState state;
+    state.program_id(5);  // a service field: the mapping leaves it alone
+    state.lateness_max_ns(1234);
+    mapping::to_idl(r, 2, state);
+    EXPECT_EQ(state.interpolator(), 2);
+    EXPECT_EQ(state.program_id(), 5u);
+    EXPECT_EQ(state.lateness_max_ns(), 1234);
+    EXPECT_EQ(static_cast<std::uint32_t>(state.run_flag()) >> 16, 7u);
+
+    msg::InterpolatorStatePubSubType type;
+    eprosima::fastrtps::rtps::SerializedPayload_t payload(type.getSerializedSizeProvider(&state)());
+    ASSERT_TRUE(type.serialize(&state, &payload));
+    msg::InterpolatorState wire;
+    ASSERT_TRUE(type.deserialize(&payload, &wire));
+    Registers back;
+    mapping::from_idl(wire, back);
+    expect_same_registers(r, back);
+
+    msg::Setpoints sp;
+    mapping::to_setpoints(r, 1, sp);
+    EXPECT_EQ(sp.interpolator(), 1);
+    EXPECT_EQ(sp.cycle_counter(), r.cycle);
+    EXPECT_EQ(sp.position(), r.position);
+    EXPECT_EQ(sp.position_inc(), r.position_inc);
+  }
+}
+
+}  // namespace
+}  // namespace tgm

@@ -5,6 +5,13 @@
 
 namespace tgm::mapping {
 
+// The IDL bounds and core's sizes are the same registers: a mismatch must not compile.
+static_assert(TGM_MAX_AXES == kMaxAxes);
+static_assert(TGM_PARAM_LETTERS == kParamLetters);
+static_assert(TGM_COMMAND_PARAMETERS == kCommandParameters);
+static_assert(TGM_M_FUNCTION_PARAMETERS == kMFunctionParameters);
+static_assert(TGM_LOOK_AHEAD_ENTRIES == kLookAheadEntries);
+
 namespace {
 
 bool finite_all(const auto& values) {
@@ -229,6 +236,126 @@ MapStatus append_chunk(const msg::ProgramChunk& chunk, Program& program) {
     (void)append_from_idl(s, program);  // validated above, cannot fail
   }
   return MapStatus::kOk;
+}
+
+namespace {
+
+void to_idl(const LookAheadEntry& e, msg::LookAheadEntry& out) {
+  out.all_params() = e.all_params;
+  out.tangent(e.tangent_deg);
+  out.movement_type(e.movement_type);
+  out.movement_code(e.movement_code);
+  out.plane(e.plane);
+  out.tool(e.tool);
+  out.end_pos() = e.end_pos_mm;
+  out.start_angle(e.start_angle_deg);
+  out.end_angle(e.end_angle_deg);
+  out.radius(e.radius_mm);
+  out.line(e.line);
+}
+
+void from_idl(const msg::LookAheadEntry& e, LookAheadEntry& out) {
+  out.all_params = e.all_params();
+  out.tangent_deg = e.tangent();
+  out.movement_type = e.movement_type();
+  out.movement_code = e.movement_code();
+  out.plane = e.plane();
+  out.tool = e.tool();
+  out.end_pos_mm = e.end_pos();
+  out.start_angle_deg = e.start_angle();
+  out.end_angle_deg = e.end_angle();
+  out.radius_mm = e.radius();
+  out.line = e.line();
+}
+
+}  // namespace
+
+void to_idl(const Registers& r, std::uint16_t interpolator, msg::InterpolatorState& out) {
+  out.interpolator(interpolator);
+  out.number(r.number);
+  out.number_axes(r.number_axes);
+  out.buffer_size(r.buffer_size);
+  out.command(r.command);
+  out.command_parameter() = r.command_parameter;
+  out.command_status(r.command_status);
+  out.status(r.status);
+  out.act_part(r.act_part);
+  out.address_external_position(r.address_external_position);
+  out.m_func(r.m_func);
+  out.act_g_func(r.act_g_func);
+  out.act_m_func(r.act_m_func);
+  out.last_cont_m_func(r.last_cont_m_func);
+  out.run_flag(static_cast<std::int32_t>(r.run_flag));
+  out.tool_number(r.tool_number);
+  out.orig_position() = r.orig_position;
+  out.position() = r.position;
+  out.position_inc() = r.position_inc;
+  out.backlash() = r.backlash;
+  out.offset() = r.offset;
+  out.speed() = r.speed;
+  out.ratio() = r.ratio;
+  out.m_function_parameter() = r.m_function_parameter;
+  out.rel_speed(r.rel_speed);
+  out.set_speed(r.set_speed);
+  out.act_speed(r.act_speed);
+  out.move_distance(r.move_distance);
+  for (std::size_t i = 0; i < r.lookahead.size(); ++i) {
+    to_idl(r.lookahead[i], out.look_ahead_buffer()[i]);
+  }
+  out.act_line(r.act_line);
+  out.off_trajectory(r.off_trajectory != 0);
+  out.act_acceleration_mm_s2(r.act_acceleration_mm_s2);
+  out.limit_factor(static_cast<std::uint8_t>(r.limit_factor));
+  out.free_buffer_slots(r.free_slots);
+  out.cycle_counter(r.cycle);
+  out.message_counter(r.message_count);
+}
+
+void from_idl(const msg::InterpolatorState& in, Registers& out) {
+  out.number = in.number();
+  out.number_axes = in.number_axes();
+  out.buffer_size = in.buffer_size();
+  out.command = in.command();
+  out.command_parameter = in.command_parameter();
+  out.command_status = in.command_status();
+  out.status = in.status();
+  out.act_part = in.act_part();
+  out.address_external_position = in.address_external_position();
+  out.m_func = in.m_func();
+  out.act_g_func = in.act_g_func();
+  out.act_m_func = in.act_m_func();
+  out.last_cont_m_func = in.last_cont_m_func();
+  out.run_flag = static_cast<std::uint32_t>(in.run_flag());
+  out.tool_number = in.tool_number();
+  out.orig_position = in.orig_position();
+  out.position = in.position();
+  out.position_inc = in.position_inc();
+  out.backlash = in.backlash();
+  out.offset = in.offset();
+  out.speed = in.speed();
+  out.ratio = in.ratio();
+  out.m_function_parameter = in.m_function_parameter();
+  out.rel_speed = in.rel_speed();
+  out.set_speed = in.set_speed();
+  out.act_speed = in.act_speed();
+  out.move_distance = in.move_distance();
+  for (std::size_t i = 0; i < out.lookahead.size(); ++i) {
+    from_idl(in.look_ahead_buffer()[i], out.lookahead[i]);
+  }
+  out.act_line = in.act_line();
+  out.off_trajectory = in.off_trajectory() ? 1 : 0;
+  out.act_acceleration_mm_s2 = in.act_acceleration_mm_s2();
+  out.limit_factor = static_cast<LimitFactor>(in.limit_factor());
+  out.free_slots = in.free_buffer_slots();
+  out.cycle = in.cycle_counter();
+  out.message_count = in.message_counter();
+}
+
+void to_setpoints(const Registers& r, std::uint16_t interpolator, msg::Setpoints& out) {
+  out.interpolator(interpolator);
+  out.cycle_counter(r.cycle);
+  out.position() = r.position;
+  out.position_inc() = r.position_inc;
 }
 
 }  // namespace tgm::mapping

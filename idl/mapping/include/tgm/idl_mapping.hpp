@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "tgm/intercode.hpp"
+#include "tgm/registers.hpp"
 #include "tgm/msg/tgm.h"
 
 namespace tgm::mapping {
@@ -93,5 +94,21 @@ MapStatus to_chunks(const Program& program, const ChunkHeader& header,
 //! whole chunk first: on error `program` is unchanged. Sequence numbers are the caller's business
 //! (it knows which one it expects).
 MapStatus append_chunk(const msg::ProgramChunk& chunk, Program& program);
+
+// ---------------------------------------------------------------------------------------------
+// State and setpoints.
+
+//! Core registers -> state sample: every register of the manual and the core's extensions;
+//! `cycle_counter` = r.cycle, `free_buffer_slots` = r.free_slots, `message_counter` =
+//! r.message_count. The service's own fields (program_id, next_sequence, buffered_segments,
+//! message_text, lateness_*, missed_cycles) are left as they are in `out`.
+void to_idl(const Registers& r, std::uint16_t interpolator, msg::InterpolatorState& out);
+
+//! State sample -> core registers (for clients that work with the core struct). `message_slot`
+//! is not on the wire and is left as it is.
+void from_idl(const msg::InterpolatorState& in, Registers& out);
+
+//! Core registers -> the cycle's setpoints (Position, PositionInc).
+void to_setpoints(const Registers& r, std::uint16_t interpolator, msg::Setpoints& out);
 
 }  // namespace tgm::mapping
