@@ -45,8 +45,9 @@ nlines=$(wc -l < "$prog")
 out=$work/out.tgmi
 
 # Both must accept the program and see the same number of motions.
-if ! "$hmi" compile "$prog" --config "$config" --out "$out" > /dev/null; then
-  echo "tgm-hmi rejected $prog" >&2
+if ! "$hmi" compile "$prog" --config "$config" --out "$out" > "$work/tgm.log" 2>&1; then
+  echo "tgm-hmi rejected $prog:" >&2
+  head -20 "$work/tgm.log" >&2
   exit 1
 fi
 if ! "$rs274" -g "$prog" > "$work/rs274.out" 2> "$work/rs274.err"; then
