@@ -26,12 +26,17 @@ inline State advance(const State& st, double x, double dt) {
 
 //! Path distance [mm] the interpolator needs, from velocity v and acceleration a, before the
 //! velocity is at most w and can stay there, braking with acceleration magnitude at most A and
-//! jerk at most J. 0 when no braking is needed. Monotone: non-decreasing in v and in a.
+//! jerk at most J. 0 when no braking is needed; infinity when the deceleration is already so
+//! large that the velocity would cross zero before the acceleration is back at zero.
 //!
 //! Three cases: (1) no braking needed; (2) the acceleration is already so negative that ramping
 //! it back to zero at +J passes below w: the distance until v = w on that ramp; (3) the
 //! time-optimal S-curve to (w, 0): jerk -J to a peak deceleration <= A, hold, jerk +J to zero.
 double braking_distance(double v, double a, double w, double A, double J);
+
+//! braking_distance with limits (A, J) that hold from here on, when the current deceleration may
+//! exceed what they allow: the deceleration is first eased at the current jerk limit J_now.
+double braking_distance_from(double v, double a, double w, double A, double J, double J_now);
 
 //! End-of-step acceleration that tracks the target velocity `vt` time-optimally without
 //! overshoot (the velocity after bringing a to zero at full jerk equals vt), clipped to the

@@ -13,8 +13,6 @@
 #include <cmath>
 #include <limits>
 #include <vector>
-#include <cstdio>
-#include <cstdlib>
 
 #include "path_geometry.hpp"
 #include "tgm/jerk_profile.hpp"
@@ -46,21 +44,36 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr std::uint64_t kNoQ = ~std::uint64_t{0};
 constexpr double kPi = 3.14159265358979323846;
 constexpr int kCalcSteps = 5;             // calculation steps per cycle (manual)
-constexpr int kChainMax = 8;              // constraints followed per chain and step
+constexpr int kChainMax = 24;             // constraints followed per chain and step
 constexpr int kMaxExtendPerStep = 64;     // records added to the window per calculation step
 constexpr std::size_t kMessageRing = 256;
 constexpr std::size_t kMaxBlockReports = 2048;
 constexpr std::size_t kMaxCornerEvents = 2048;
 constexpr double kMinLength = 1e-9;       // shorter motions are executed as no-ops [mm]
 constexpr double kArcSafety = 0.97;       // margin on the arc bounds (sum-of-terms, spiral)
+// Every limit the planner derives from the axis limits uses 99.9 % of it: the discrete
+// generator may overshoot a target by a few 1e-5 (landing on a speed, end-of-step rounding).
+constexpr double kLimitSafety = 0.999;
 constexpr double kStandstillV = 1e-7;     // [mm/s]
 // Braking checks plan with slightly lower limits than the generator may use, so the discrete
 // constant-jerk steps can always follow a planned (bang-bang) braking curve.
 constexpr double kPlanMargin = 0.98;
+// Jerk used by braking plans: 90 % of the limit, so a state that can take its deceleration
+// back before standstill stays so when the path enters a record whose jerk limit is lower.
+constexpr double kPlanMarginJ = 0.9;
+// The floor itself uses a little more jerk than the plans, so a planned final ramp is strictly
+// inside it (equal factors would make the two bounds meet and the discrete choice flip).
+constexpr double kFloorMarginJ = 0.92;
 constexpr double kArriveD = 1e-9;         // [mm]
 constexpr double kArriveV = 1e-3;         // [mm/s]
 
 enum class RecKind : std::uint8_t { kMotion, kStop, kPass };
+
+struct Link {
+  std::uint64_t nse = kNoQ;
+  double amin = kInf;
+  double jmin = kInf;
+};
 
 // Planning data of one ring slot.
 struct Rec {
@@ -73,7 +86,10 @@ struct Rec {
   double at = 0.0, jt = 0.0;  // tangential acceleration / jerk limits
   double wg = kInf, wf = kInf;  // junction limits at s0: hard, feed (x Rel_Speed)
   LimitFactor wg_reason = LimitFactor::kNone;
-  std::uint64_t nse_g = kNoQ, nse_f = kNoQ;  // next record with a smaller wg / wf
+  // Next-smaller-element links of the three chains (0: wg, 1: wf, 2: at) with the minimum
+  // tangential acceleration / jerk over the records [this, nse): the limits a braking curve
+  // from here to the linked record passes through.
+  std::array<Link, 3> link{};
   std::int32_t msg_slot = -1;
 };
 
@@ -114,11 +130,16 @@ class QDeque {
 
 enum class Mode : std::uint8_t { kIdle, kMoving, kStopping, kEmergency, kWaitM, kDwell };
 
-// One speed limit ahead: distance [mm], velocity [mm/s], why.
+// One limit ahead at distance d [mm]: the path velocity must be at most w [mm/s] there
+// (accel = false), or |a| at most w [mm/s^2] (accel = true); A and J are the tangential limits of
+// the records before it (what a braking curve to it may use).
 struct Constraint {
   double d;
   double w;
+  double A;
+  double J;
   LimitFactor reason;
+  bool accel;
 };
 
 double norm_angle_deg(double rad) {
@@ -153,7 +174,7 @@ struct Interpolator::Impl {
   std::uint64_t base = 0;     // q of the program's first record (Act_Part = q - base + 1)
   std::uint64_t win_end = 0;  // first record not in the look-ahead window
   bool complete = false;
-  QDeque dq_a, dq_j, st_g, st_f;
+  QDeque dq_a, dq_j, st_g, st_f, st_a;
 
   // ---- planning tail (where the next appended motion starts) ----
   std::array<double, kMaxAxes> pt_end{};
@@ -207,7 +228,7 @@ struct Interpolator::Impl {
     double c = kInf;
     for (int i = 0; i < n; ++i) {
       const double d = std::fabs(tout[i] - tin[i]);
-      if (d > 1e-12) c = std::min(c, tol[i] / d);
+      if (d > 1e-12) c = std::min(c, kLimitSafety * tol[i] / d);
     }
     return c;
   }
@@ -234,10 +255,10 @@ struct Interpolator::Impl {
         fr = std::min(fr, rapid[i] / c);
       }
       r.f = sg.type == SegmentType::kRapid ? fr : sg.feed_mm_per_min / 60.0;
-      r.m = m;
+      r.m = kLimitSafety * m;
       r.m_reason = LimitFactor::kAxisVelocity;
-      r.at = at;
-      r.jt = jt;
+      r.at = kLimitSafety * at;
+      r.jt = kLimitSafety * jt;
       return true;
     }
     const PlaneAxes pa = plane_axes(sg.plane);
@@ -318,15 +339,33 @@ struct Interpolator::Impl {
     return true;
   }
 
-  void push_nse(QDeque& stack, std::uint64_t q, bool hard) {
-    const double w = hard ? R(q).wg : R(q).wf;
+  static double chain_value(const Rec& r, int fam) {
+    return fam == 0 ? r.wg : (fam == 1 ? r.wf : (r.kind == RecKind::kMotion ? r.at : kInf));
+  }
+
+  // Appends q to the next-smaller-element stack of chain `fam`. While on the stack, a record's
+  // link holds the a / j minimum over [record, next stack element) (or [record, tail) on top).
+  void push_chain(QDeque& stack, std::uint64_t q, int fam) {
+    const auto f = static_cast<std::size_t>(fam);
+    const double w = chain_value(R(q), fam);
     while (!stack.empty()) {
       Rec& b = R(stack.back());
-      const double wb = hard ? b.wg : b.wf;
-      if (wb <= w) break;
-      (hard ? b.nse_g : b.nse_f) = q;
+      if (chain_value(b, fam) <= w) break;
+      b.link[f].nse = q;  // its range [b, q) is final
+      const Link done = b.link[f];
       stack.pop_back();
+      if (!stack.empty()) {
+        Link& below = R(stack.back()).link[f];
+        below.amin = std::min(below.amin, done.amin);
+        below.jmin = std::min(below.jmin, done.jmin);
+      }
     }
+    // The new record extends the range of the element below it.
+    Rec& r = R(q);
+    const bool motion = r.kind == RecKind::kMotion;
+    r.link[f].nse = kNoQ;
+    r.link[f].amin = motion ? r.at : kInf;
+    r.link[f].jmin = motion ? r.jt : kInf;
     stack.push_back(q);
   }
 
@@ -427,14 +466,16 @@ struct Interpolator::Impl {
     } else {
       r.kind = RecKind::kPass;  // continuous M, message, zero-length motion
     }
-    push_nse(st_g, q, true);
-    push_nse(st_f, q, false);
+    push_chain(st_g, q, 0);
+    push_chain(st_f, q, 1);
+    push_chain(st_a, q, 2);
     ++tail;
   }
 
   void drop_stale() {
     while (!st_g.empty() && st_g.front() < cur) st_g.pop_front();
     while (!st_f.empty() && st_f.front() < cur) st_f.pop_front();
+    while (!st_a.empty() && st_a.front() < cur) st_a.pop_front();
   }
 
   // ================= execution =================
@@ -492,39 +533,72 @@ struct Interpolator::Impl {
     J = dq_j.empty() ? rc.jt : R(dq_j.front()).jt;
   }
 
-  // Collects the speed limits ahead into `c`; returns their count.
-  int gather(Constraint* c) const {
+  // Collects the limits ahead into `c`; returns their count. Window minima Aw, Jw apply to the
+  // end of the window.
+  int gather(Constraint* c, double Aw, double Jw) const {
     const Rec& rc = R(cur);
     const double here = rc.s0 + st.s;
     int k = 0;
-    for (int fam = 0; fam < 2; ++fam) {
+    for (int fam = 0; fam < 3; ++fam) {
+      const auto f = static_cast<std::size_t>(fam);
       std::uint64_t q = cur + 1;
+      double A = rc.at, J = rc.jt;  // limits over [cur, q)
       int hops = 0;
-      while (q != kNoQ && q < win_end) {
+      while (q < win_end) {
         const Rec& r = R(q);
-        const double w = fam == 0 ? r.wg : r.wf * rel;
-        if (hops == kChainMax) {  // conservative: stop at the first one not followed
-          c[k++] = {r.s0 - here, 0.0, LimitFactor::kLookAhead};
+        const double w = chain_value(r, fam) * (fam == 1 ? rel : 1.0);
+        if (hops == kChainMax) {  // not followed further: a conservative stop here
+          c[k++] = {r.s0 - here, 0.0, A, J, LimitFactor::kLookAhead, false};
           break;
         }
         if (w < kInf) {
           LimitFactor why = fam == 0 ? r.wg_reason
-                                     : (rel == 1.0 ? LimitFactor::kFeed : LimitFactor::kOverride);
-          c[k++] = {r.s0 - here, w, why};
+                                     : (fam == 2 ? LimitFactor::kAccelJerk
+                                                 : (rel == 1.0 ? LimitFactor::kFeed : LimitFactor::kOverride));
+          c[k++] = {r.s0 - here, w, A, J, why, fam == 2};
           ++hops;
         }
-        q = fam == 0 ? r.nse_g : r.nse_f;
+        if (r.link[f].nse == kNoQ) break;
+        A = std::min(A, r.link[f].amin);
+        J = std::min(J, r.link[f].jmin);
+        q = r.link[f].nse;
       }
     }
     // End of the window: a stop point, the end of the buffer, or the look-ahead reach.
     if (win_end >= tail) {
-      c[k++] = {s_tail - here, 0.0, complete ? LimitFactor::kMStop : LimitFactor::kStarvation};
+      c[k++] = {s_tail - here, 0.0, Aw, Jw, complete ? LimitFactor::kMStop : LimitFactor::kStarvation, false};
     } else {
       const Rec& r = R(win_end);
-      c[k++] = {r.s0 - here, 0.0,
-                r.kind == RecKind::kStop ? LimitFactor::kMStop : LimitFactor::kLookAhead};
+      c[k++] = {r.s0 - here, 0.0, Aw, Jw,
+                r.kind == RecKind::kStop ? LimitFactor::kMStop : LimitFactor::kLookAhead, false};
     }
     return k;
+  }
+
+  // Distance [mm] needed from (v, a) to bring |a| within w at jerk J (0 when it already is).
+  static double accel_distance(double v, double a, double w, double J) {
+    if (std::fabs(a) <= w) return 0.0;
+    const double t = (std::fabs(a) - w) / J;
+    const double jj = a > 0.0 ? -J : J;
+    return std::max(0.0, t * (v + t * (0.5 * a + t * jj / 6.0)));
+  }
+
+  // Tangential limits for this calculation step: the records it can reach.
+  void step_limits(double& A, double& J) const {
+    const Rec& rc = R(cur);
+    A = rc.at;
+    J = rc.jt;
+    const double reach = st.v * dt + 0.5 * rc.at * dt * dt + rc.jt * dt * dt * dt / 6.0 + 1e-9;
+    const double limit = rc.s0 + st.s + reach;
+    int scanned = 0;
+    for (std::uint64_t q = cur + 1; q < tail && scanned < kMaxExtendPerStep; ++q, ++scanned) {
+      const Rec& r = R(q);
+      if (r.s0 > limit || r.kind == RecKind::kStop) return;
+      if (r.kind == RecKind::kMotion) {
+        A = std::min(A, r.at);
+        J = std::min(J, r.jt);
+      }
+    }
   }
 
   // Next non-pass record after `q` is a stop, or the buffer ends there.
@@ -693,10 +767,7 @@ struct Interpolator::Impl {
 
   // Arrival at a stop point or the end of the buffer while moving.
   void arrive(double v_before) {
-    if (v_before > kArriveV) {
-      ++hard_stop_count;
-      if (std::getenv("TGM_DEBUG")) std::fprintf(stderr, "hard stop v=%g a=%g s=%.12g L=%.12g\n", v_before, st.a, st.s, R(cur).g.length);
-    }
+    if (v_before > kArriveV) ++hard_stop_count;
     st.v = 0.0;
     st.a = 0.0;
   }
@@ -740,6 +811,7 @@ struct Interpolator::Impl {
   void reset_plan_tail() {
     st_g.clear();
     st_f.clear();
+    st_a.clear();
     dq_a.clear();
     dq_j.clear();
     win_end = cur;
@@ -751,8 +823,9 @@ struct Interpolator::Impl {
 
   // One calculation step of motion along the path.
   void motion_step(int calc_index) {
+    double Aw = 0.0, Jw = 0.0;
+    update_window(Aw, Jw);
     double A = 0.0, J = 0.0;
-    update_window(A, J);
     const Rec& rc = R(cur);
     const jerk::State before = st;
     const double v = st.v, a = st.a;
@@ -760,6 +833,8 @@ struct Interpolator::Impl {
     braking_to_stop = false;
     double vt = 0.0;
     if (mode == Mode::kEmergency || mode == Mode::kStopping) {
+      A = Aw;
+      J = Jw;
       if (mode == Mode::kEmergency) {
         A *= rho;
         J *= rho;
@@ -769,8 +844,9 @@ struct Interpolator::Impl {
       factor = LimitFactor::kStopCommand;
       braking_to_stop = true;
     } else {
+      step_limits(A, J);
       const double fr = rc.f * rel;
-      LimitFactor target_reason;
+      LimitFactor target_reason = LimitFactor::kFeed;
       if (fr <= rc.m) {
         vt = fr;
         target_reason = rel == 1.0 ? LimitFactor::kFeed : LimitFactor::kOverride;
@@ -784,21 +860,30 @@ struct Interpolator::Impl {
         if (a > A) hi = lo = std::max(a - J * dt, -A);
         else lo = hi = std::min(a + J * dt, A);
       }
-      lo = std::max(lo, std::min(jerk::floor_acceleration(v, a, J, dt), hi));
+      lo = std::max(lo, std::min(jerk::floor_acceleration(v, a, kFloorMarginJ * J, dt), hi));
       const double xd = std::clamp(jerk::track_velocity(v, a, vt, A, J, dt), lo, hi);
 
-      Constraint c[2 * kChainMax + 4];
-      const int nc = gather(c);
-      int viol[2 * kChainMax + 4];
+      Constraint c[3 * kChainMax + 4];
+      const int nc = gather(c, Aw, Jw);
+      int viol[3 * kChainMax + 4];
       int nv = 0;
       double worst = 0.0;
       int worst_k = -1;
       auto excess = [&](double xx, int k) {
         const jerk::State ns = jerk::advance(before, xx, dt);
         const double ds = ns.s - before.s;
-        return jerk::braking_distance(std::max(ns.v, 0.0), ns.a, c[k].w, kPlanMargin * A,
-                                      kPlanMargin * J) -
-               (c[k].d - ds);
+        const Constraint& ck = c[k];
+        const double remain = ck.d - ds;
+        if (remain < 0.0) {  // passed during this step: judge the end-of-step state itself
+          return ck.accel ? ns.a - ck.w : ns.v - ck.w;
+        }
+        if (ck.accel) {
+          if (ns.a <= ck.w) return -1.0;
+          return accel_distance(std::max(ns.v, 0.0), ns.a, ck.w, kPlanMarginJ * ck.J) - remain;
+        }
+        return jerk::braking_distance_from(std::max(ns.v, 0.0), ns.a, ck.w, kPlanMargin * ck.A,
+                                           kPlanMarginJ * ck.J, kPlanMarginJ * J) -
+               remain;
       };
       for (int k = 0; k < nc; ++k) {
         const double e = excess(xd, k);
@@ -1135,6 +1220,7 @@ std::optional<Interpolator> Interpolator::create(const MachineConfig& machine, i
   m.dq_j.init(m.cap + 1);
   m.st_g.init(m.cap + 1);
   m.st_f.init(m.cap + 1);
+  m.st_a.init(m.cap + 1);
   m.events.resize(options.record_corner_events ? kMaxCornerEvents : 0);
   m.blocks.resize(kMaxBlockReports);
   m.reg.number = number;

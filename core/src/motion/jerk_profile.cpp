@@ -2,15 +2,20 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace tgm::jerk {
 
 double braking_distance(double v, double a, double w, double A, double J) {
   if (w < 0.0) w = 0.0;
-  a = std::clamp(a, -A, A);
+  // No clamp of a to [-A, A]: the planner may check with limits slightly below those the
+  // generator uses, and an acceleration above A must be ramped down, not assumed away.
   // Velocity once the acceleration is brought to zero along the shortest ramp.
   const double vz = v + a * std::fabs(a) / (2.0 * J);
   if (v <= w && (a <= 0.0 || vz <= w)) return 0.0;
+  // Braking so hard that even ramping the acceleration back at +J ends below standstill: the
+  // motion would have to reverse. No distance makes that state acceptable.
+  if (vz < 0.0) return std::numeric_limits<double>::infinity();
   if (vz <= w) {
     // Case 2: a < 0 and v > w; ramp a up at +J, v reaches w before a reaches 0.
     const double disc = std::max(0.0, a * a - 2.0 * J * (v - w));
@@ -20,9 +25,10 @@ double braking_distance(double v, double a, double w, double A, double J) {
   // Case 3: S-curve from (v, a) to (w, 0).
   double ap = std::sqrt(J * (v - w) + 0.5 * a * a);  // peak deceleration without a hold phase
   double t2 = 0.0;
-  if (ap > A) {
-    ap = A;
-    t2 = (v + (a * a - 2.0 * A * A) / (2.0 * J) - w) / A;
+  const double cap = std::max(A, -a);  // already braking harder than A: hold that
+  if (ap > cap) {
+    ap = cap;
+    t2 = (v + (a * a - 2.0 * ap * ap) / (2.0 * J) - w) / ap;
     if (t2 < 0.0) t2 = 0.0;
   }
   const double t1 = (a + ap) / J;  // jerk -J from a to -ap
@@ -60,6 +66,30 @@ double floor_acceleration(double v, double a, double J, double dt) {
   const double c = v + 0.5 * a * dt;
   if (c <= 0.0) return -a - 2.0 * v / dt;  // even x = 0 would reverse: end the step at v' = 0
   return 0.5 * (J * dt - std::sqrt(J * J * dt * dt + 8.0 * J * c));
+}
+
+}  // namespace tgm::jerk
+
+namespace tgm::jerk {
+
+double braking_distance_from(double v, double a, double w, double A, double J, double J_now) {
+  if (a >= 0.0 || J_now <= J) {
+    if (a >= -A && v - a * a / (2.0 * J) >= 0.0) return braking_distance(v, a, w, A, J);
+  }
+  // Decelerating harder than the limits ahead allow (|a| > A, or too hard for jerk J to take back
+  // before standstill): first ease the deceleration at the current jerk J_now.
+  double target = std::max(a, -A);
+  double t = 0.0, v0 = v;
+  for (int it = 0; it < 3; ++it) {
+    t = std::max(0.0, (target - a) / J_now);
+    v0 = v + t * (a + 0.5 * J_now * t);
+    if (v0 <= 0.0) return std::numeric_limits<double>::infinity();
+    const double floor_a = -std::sqrt(2.0 * J * v0);
+    if (target >= floor_a) break;
+    target = floor_a * 0.999;
+  }
+  const double d0 = t * (v + t * (0.5 * a + t * J_now / 6.0));
+  return d0 + braking_distance(v0, target, w, A, J);
 }
 
 }  // namespace tgm::jerk

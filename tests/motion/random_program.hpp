@@ -1,0 +1,136 @@
+// Seeded random programs and machines for the sweeps, the debugging driver and the benchmarks.
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <random>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "program_builder.hpp"
+#include "tgm/config.hpp"
+
+namespace tgm::test {
+
+inline constexpr double kSweepPi = 3.14159265358979323846;
+
+struct Generated {
+  Program program;
+  std::array<double, kMaxAxes> end{};
+  std::vector<std::pair<double, double>> overrides;
+};
+
+// A random program for `axes` axes inside a +-200 mm box.
+inline Generated random_program(std::mt19937_64& rng, int axes, int blocks) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  auto uni = [&](double a, double b) { return a + (b - a) * u(rng); };
+  ProgramBuilder b(axes);
+  auto clampbox = [](double v) { return std::clamp(v, -200.0, 200.0); };
+  for (int k = 0; k < blocks; ++k) {
+    const double feed = u(rng) < 0.2 ? uni(50.0, 500.0) : uni(500.0, 15000.0);
+    const double kind = u(rng);
+    std::array<double, kMaxAxes> p = b.position();
+    if (kind < 0.30) {  // line, random length and direction in a random subset of axes
+      const double len = u(rng) < 0.3 ? uni(0.001, 0.5) : uni(0.5, 60.0);
+      for (int i = 0; i < axes; ++i) {
+        if (u(rng) < 0.6 || i == 0) p[static_cast<std::size_t>(i)] = clampbox(p[static_cast<std::size_t>(i)] + uni(-len, len));
+      }
+      if (u(rng) < 0.1) {
+        std::array<double, kMaxAxes> e = p;
+        Segment s;
+        (void)s;
+        b.line_to(e, feed);
+        b.program().segments.back().type = SegmentType::kRapid;
+        b.program().segments.back().feed_mm_per_min = 0.0;
+      } else {
+        b.line_to(p, feed);
+      }
+    } else if (kind < 0.55 && axes >= 2) {  // arc or helix in a random plane
+      Plane pl = Plane::kXY;
+      if (axes >= 3) {
+        const double r = u(rng);
+        pl = r < 0.6 ? Plane::kXY : (r < 0.8 ? Plane::kXZ : Plane::kYZ);
+      }
+      const PlaneAxes pa = plane_axes(pl);
+      const double radius = u(rng) < 0.3 ? uni(0.2, 2.0) : uni(2.0, 40.0);
+      const double a0 = uni(0, 2 * kSweepPi);
+      const auto f = static_cast<std::size_t>(pa.first), s = static_cast<std::size_t>(pa.second);
+      const std::array<double, 2> c = {p[f] - radius * std::cos(a0), p[s] - radius * std::sin(a0)};
+      const bool ccw = u(rng) < 0.5;
+      const bool full = u(rng) < 0.15;
+      const double sweep = full ? 2 * kSweepPi : uni(0.05, 2 * kSweepPi - 0.05);
+      const double a1 = a0 + (ccw ? sweep : -sweep);
+      std::array<double, kMaxAxes> e = p;
+      if (!full) {
+        e[f] = c[0] + radius * std::cos(a1);
+        e[s] = c[1] + radius * std::sin(a1);
+      }
+      if (u(rng) < 0.35) {  // helix: the other axes move
+        for (int i = 0; i < axes; ++i) {
+          if (i != pa.first && i != pa.second) e[static_cast<std::size_t>(i)] = clampbox(p[static_cast<std::size_t>(i)] + uni(-10.0, 10.0));
+        }
+      }
+      b.arc(ccw, e, c, feed, pl, full && u(rng) < 0.2 ? 1 : 0);
+    } else if (kind < 0.70) {  // CAM-like polyline: chords of a curve
+      const int n = static_cast<int>(uni(5, 200));
+      const double step = uni(0.01, 0.3);
+      const double curv = uni(-0.2, 0.2);
+      double heading = uni(0, 2 * kSweepPi);
+      const int ax2 = axes >= 2 ? 1 : 0;
+      for (int i = 0; i < n; ++i) {
+        heading += curv * step + uni(-0.02, 0.02);
+        p[0] = clampbox(p[0] + step * std::cos(heading));
+        if (ax2 == 1) p[1] = clampbox(p[1] + step * std::sin(heading));
+        if (axes >= 3) p[2] = clampbox(p[2] + uni(-0.002, 0.002));
+        b.line_to(p, feed);
+      }
+    } else if (kind < 0.78) {
+      b.m(static_cast<int>(uni(3, 999)), MKind::kNormal);
+    } else if (kind < 0.86) {
+      b.m(static_cast<int>(uni(1001, 5000)), MKind::kContinuous);
+    } else if (kind < 0.90) {
+      b.dwell(uni(0.0, 0.05));
+    } else if (kind < 0.93) {
+      b.message("note " + std::to_string(k));
+    } else {  // sharp zig-zag
+      for (int i = 0; i < 4; ++i) {
+        p[0] = clampbox(p[0] + uni(-5, 5));
+        if (axes >= 2) p[1] = clampbox(p[1] + uni(-5, 5));
+        b.line_to(p, feed);
+      }
+    }
+  }
+  Generated g;
+  g.end = b.position();
+  b.end();
+  g.program = b.program();
+  const int changes = static_cast<int>(uni(0, 4));
+  for (int i = 0; i < changes; ++i) g.overrides.push_back({uni(0.0, 5.0), uni(0.01, 2.0)});
+  return g;
+}
+
+inline MachineConfig random_machine(std::mt19937_64& rng, int axes) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  MachineConfig m = MachineConfig::default_machine();
+  m.cycle_time_us = std::array<int, 3>{250, 500, 1000}[static_cast<std::size_t>(u(rng) * 2.999)];
+  InterpolatorConfig& ip = m.interpolators[0];
+  ip.buffer_size = u(rng) < 0.3 ? 1000 : 10000;
+  ip.axes.clear();
+  for (int i = 0; i < axes; ++i) {
+    AxisConfig a;
+    a.letter = default_axis_letter(i);
+    a.max_velocity_mm_s = 50.0 + 300.0 * u(rng);
+    a.rapid_velocity_mm_s = a.max_velocity_mm_s * (0.5 + 0.5 * u(rng));
+    a.max_acceleration_mm_s2 = 300.0 + 3000.0 * u(rng);
+    a.max_jerk_mm_s3 = 5000.0 + 100000.0 * u(rng);
+    a.emergency_deceleration_mm_s2 = a.max_acceleration_mm_s2 * (1.0 + 2.0 * u(rng));
+    a.corner_velocity_tolerance_mm_s = 0.5 + 5.0 * u(rng);
+    ip.axes.push_back(a);
+  }
+  return m;
+}
+
+
+}  // namespace tgm::test
