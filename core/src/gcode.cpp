@@ -987,7 +987,9 @@ std::size_t Compiler::execute_block(std::size_t index, bool relex) {
               error(b.line, wr->column,
                     "an R arc cannot have its end at its start (use I/J/K for a full circle)");
               ok = false;
-            } else if (d > 2.0 * r * (1.0 + 1e-9) + 1e-9) {
+            } else if (0.5 * d - r > std::max(0.005, 0.001 * r)) {
+              // Short of half the chord by more than the arc tolerance. Within it (R rounded
+              // by a CAM post) the arc is the half circle over the chord, as in rs274.
               error(b.line, wr->column,
                     "radius R" + fmt_num(r) + " is too small for the distance " + fmt_mm(d) +
                         " mm between start and end");
@@ -1001,7 +1003,7 @@ std::size_t Compiler::execute_block(std::size_t index, bool relex) {
               const double ux = -dy / d, uy = dx / d;
               cx = 0.5 * (sx + ex) + side * h * ux;
               cy = 0.5 * (sy + ey) + side * h * uy;
-              radius = r;
+              radius = std::max(r, 0.5 * d);
             }
           } else if (wo0 || wo1) {
             cx = sx + (wo0 ? wo0->value * mirror_[i0] : 0.0);

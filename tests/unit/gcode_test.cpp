@@ -410,6 +410,14 @@ TEST(GcodeErrors, ArcGeometry) {
   EXPECT_THAT(errors_of("G90 G2 X10 R2\n"),
               ElementsAre("1:12: radius R2 is too small for the distance 10.0000 mm between start "
                           "and end"));
+  // R short of half the chord within max(0.005 mm, 0.1 %): the half circle over the chord.
+  const Program half = compile_ok("G90 G2 X10 R4.996\n");
+  EXPECT_NEAR(half.segments[0].center[0], 5.0, kTol);
+  EXPECT_NEAR(half.segments[0].center[1], 0.0, kTol);
+  EXPECT_NEAR(half.segments[0].radius, 5.0, kTol);
+  EXPECT_THAT(errors_of("G90 G2 X10 R4.99\n"),
+              ElementsAre("1:12: radius R4.99 is too small for the distance 10.0000 mm between "
+                          "start and end"));
   EXPECT_THAT(errors_of("G90 G2 X0 R2\n"),
               ElementsAre("1:11: an R arc cannot have its end at its start (use I/J/K for a full "
                           "circle)"));
