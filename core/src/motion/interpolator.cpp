@@ -174,7 +174,7 @@ struct Interpolator::Impl {
   std::uint64_t base = 0;     // q of the program's first record (Act_Part = q - base + 1)
   std::uint64_t win_end = 0;  // first record not in the look-ahead window
   bool complete = false;
-  QDeque dq_a, dq_j, st_g, st_f, st_a;
+  QDeque dq_a, dq_j, dq_wg, dq_wf, st_g, st_f, st_a;
 
   // ---- planning tail (where the next appended motion starts) ----
   std::array<double, kMaxAxes> pt_end{};
@@ -491,21 +491,37 @@ struct Interpolator::Impl {
   void reset_window() {
     dq_a.clear();
     dq_j.clear();
+    dq_wg.clear();
+    dq_wf.clear();
     win_end = cur;
   }
 
-  void push_min(QDeque& dq, std::uint64_t q, bool accel) {
-    const double v = accel ? R(q).at : R(q).jt;
-    while (!dq.empty() && (accel ? R(dq.back()).at : R(dq.back()).jt) >= v) dq.pop_back();
+  // Sliding-window minimum of one field (0: at, 1: jt, 2: wg, 3: wf).
+  double field(std::uint64_t q, int which) const {
+    const Rec& r = R(q);
+    switch (which) {
+      case 0: return r.at;
+      case 1: return r.jt;
+      case 2: return r.wg;
+      default: return r.wf;
+    }
+  }
+  void push_min(QDeque& dq, std::uint64_t q, int which) {
+    const double v = field(q, which);
+    while (!dq.empty() && field(dq.back(), which) >= v) dq.pop_back();
     dq.push_back(q);
   }
 
   void update_window(double& A, double& J) {
     while (!dq_a.empty() && dq_a.front() < cur) dq_a.pop_front();
     while (!dq_j.empty() && dq_j.front() < cur) dq_j.pop_front();
+    while (!dq_wg.empty() && dq_wg.front() <= cur) dq_wg.pop_front();
+    while (!dq_wf.empty() && dq_wf.front() <= cur) dq_wf.pop_front();
     if (win_end <= cur) {
       dq_a.clear();
       dq_j.clear();
+      dq_wg.clear();
+      dq_wf.clear();
       win_end = cur;
     }
     const Rec& rc = R(cur);
@@ -523,8 +539,12 @@ struct Interpolator::Impl {
         if (r.s0 > limit) break;
       }
       if (r.kind == RecKind::kMotion) {
-        push_min(dq_a, win_end, true);
-        push_min(dq_j, win_end, false);
+        push_min(dq_a, win_end, 0);
+        push_min(dq_j, win_end, 1);
+      }
+      if (win_end > cur) {
+        push_min(dq_wg, win_end, 2);
+        push_min(dq_wf, win_end, 3);
       }
       ++win_end;
       ++added;
@@ -547,8 +567,17 @@ struct Interpolator::Impl {
       while (q < win_end) {
         const Rec& r = R(q);
         const double w = chain_value(r, fam) * (fam == 1 ? rel : 1.0);
-        if (hops == kChainMax) {  // not followed further: a conservative stop here
-          c[k++] = {r.s0 - here, 0.0, A, J, LimitFactor::kLookAhead, false};
+        if (hops == kChainMax) {
+          // Not followed further: from here on assume the lowest limit of the whole window
+          // (a long monotone run, e.g. the axis projections around a circle of chords).
+          if (fam == 0 && !dq_wg.empty()) {
+            const Rec& m = R(dq_wg.front());
+            c[k++] = {r.s0 - here, m.wg, A, J, m.wg_reason, false};
+          } else if (fam == 1 && !dq_wf.empty()) {
+            c[k++] = {r.s0 - here, R(dq_wf.front()).wf * rel, A, J, LimitFactor::kFeed, false};
+          } else if (fam == 2) {
+            c[k++] = {r.s0 - here, Aw, A, J, LimitFactor::kAccelJerk, true};
+          }
           break;
         }
         if (w < kInf) {
@@ -814,6 +843,8 @@ struct Interpolator::Impl {
     st_a.clear();
     dq_a.clear();
     dq_j.clear();
+    dq_wg.clear();
+    dq_wf.clear();
     win_end = cur;
     pt_end = rest;
     pt_have_motion = false;
@@ -1218,6 +1249,8 @@ std::optional<Interpolator> Interpolator::create(const MachineConfig& machine, i
   m.msg.resize(kMessageRing);
   m.dq_a.init(m.cap + 1);
   m.dq_j.init(m.cap + 1);
+  m.dq_wg.init(m.cap + 1);
+  m.dq_wf.init(m.cap + 1);
   m.st_g.init(m.cap + 1);
   m.st_f.init(m.cap + 1);
   m.st_a.init(m.cap + 1);

@@ -1,0 +1,404 @@
+// Behaviour: short segments at feed, override, stops, underrun, M-functions, dwell, messages,
+// limit factors, LookAheadBuffer, refused requests, and a limit checker that can fail.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "program_builder.hpp"
+#include "tgm/interpolator.hpp"
+#include "tgm/limit_checker.hpp"
+#include "tgm/simulation.hpp"
+
+namespace tgm {
+namespace {
+
+using test::ProgramBuilder;
+constexpr double kPi = 3.14159265358979323846;
+
+MachineConfig machine() { return MachineConfig::default_machine(); }
+
+Interpolator make(InterpolatorOptions o = {}) {
+  auto ip = Interpolator::create(machine(), 0, o);
+  EXPECT_TRUE(ip.has_value());
+  return std::move(*ip);
+}
+
+// Steps until `pred` holds or `max` cycles pass; returns the cycles stepped.
+template <class P>
+int run_until(Interpolator& ip, P pred, int max = 200000) {
+  for (int c = 1; c <= max; ++c) {
+    ip.step();
+    if (pred(ip.registers())) return c;
+  }
+  return -1;
+}
+
+TEST(ShortSegments, CircleOfChordsRunsAtFeed) {
+  // Radius 50 mm, 0.05 mm chords, F6000, default machine: >= 95 % of the length at feed.
+  const double r = 50.0, chord = 0.05, feed = 6000.0;
+  const int n = static_cast<int>(std::ceil(2 * kPi * r / chord));
+  ProgramBuilder b(3, {r, 0.0, 0.0});
+  for (int i = 1; i <= n; ++i) {
+    const double a = 2 * kPi * i / n;
+    b.line({r * std::cos(a), r * std::sin(a), 0.0}, feed);
+  }
+  b.end();
+  SimulationOptions o;
+  o.check_limits = true;
+  auto sim = Simulation::create(machine(), o);
+  ASSERT_TRUE(sim);
+  ASSERT_TRUE(sim->interpolator().set_position({r, 0.0, 0.0}).ok());
+  double at_feed = 0.0, prev = 0.0;
+  const auto s = sim->run(b.program(), [&](const Registers& g) {
+    if (g.act_speed >= 0.99 * feed) at_feed += g.move_distance - prev;
+    prev = g.move_distance;
+  });
+  ASSERT_EQ(s.result, StepResult::kFinished) << s.error;
+  EXPECT_EQ(s.violation_count, 0u);
+  EXPECT_EQ(s.hard_stops, 0u);
+  const double fraction = at_feed / s.distance_mm;
+  EXPECT_GE(fraction, 0.95) << "only " << fraction * 100 << " % at feed";
+  // Program time over the feed-limited lower bound.
+  EXPECT_LT(s.program_time_s / (s.distance_mm / (feed / 60.0)), 1.05);
+  RecordProperty("fraction_at_feed", std::to_string(fraction));
+}
+
+TEST(Override, ActsWithinOneCycleThroughAJerkLimitedRamp) {
+  ProgramBuilder b;
+  b.line({300.0, 0.0, 0.0}, 6000.0).end();
+  SimulationOptions o;
+  o.check_limits = true;
+  o.rel_speed_changes = {{1.0, 0.5}, {2.0, 1.5}};
+  auto sim = Simulation::create(machine(), o);
+  ASSERT_TRUE(sim);
+  std::vector<Registers> regs;
+  const auto s = sim->run(b.program(), [&](const Registers& g) { regs.push_back(g); });
+  ASSERT_EQ(s.result, StepResult::kFinished) << s.error;
+  EXPECT_EQ(s.violation_count, 0u);
+  const std::size_t k = 2000;  // the change at 1.0 s applies before cycle 2001 (500 us)
+  ASSERT_GT(regs.size(), k + 2000);
+  EXPECT_NEAR(regs[k - 1].act_speed, 6000.0, 1e-6);
+  EXPECT_LT(regs[k].act_acceleration_mm_s2, 0.0);  // the very next cycle brakes
+  EXPECT_LT(regs[k].act_speed, 6000.0);
+  EXPECT_EQ(regs[k].limit_factor, LimitFactor::kOverride);
+  EXPECT_NEAR(regs[k + 1500].act_speed, 3000.0, 1e-6);  // settled within 0.75 s
+  EXPECT_NEAR(regs[k + 3500].act_speed, 9000.0, 1e-6);
+}
+
+TEST(Stops, NormalStopOnTrajectoryResumes) {
+  Interpolator ip = make();
+  ProgramBuilder b;
+  b.line({100.0, 50.0, 0.0}, 6000.0).end();
+  ASSERT_TRUE(ip.load(b.program()).ok());
+  ASSERT_TRUE(ip.start().ok());
+  run_until(ip, [](const Registers& g) { return g.act_speed >= 6000.0 - 1e-9; });
+  ASSERT_TRUE(ip.command(8).ok());
+  ip.step();
+  EXPECT_EQ(ip.registers().status, 1);  // decelerating
+  EXPECT_EQ(run_flag_speed(ip.registers().run_flag), SpeedState::kDeceleratingLast);
+  ASSERT_GT(run_until(ip, [](const Registers& g) { return g.status == 4; }), 0);
+  const auto& g = ip.registers();
+  EXPECT_EQ(g.act_speed, 0.0);
+  EXPECT_NEAR(g.orig_position[1], g.orig_position[0] / 2.0, 1e-9);  // still on the line
+  EXPECT_LT(g.orig_position[0], 100.0);
+  EXPECT_EQ(g.command, 0);
+  ASSERT_TRUE(ip.start().ok());
+  ASSERT_GT(run_until(ip, [](const Registers& r) { return r.status == 3; }), 0);
+  EXPECT_EQ(ip.registers().orig_position[0], 100.0);
+}
+
+TEST(Stops, NormalStopOffTrajectoryNeedsANewProgram) {
+  Interpolator ip = make();
+  ProgramBuilder b;
+  b.line({100.0, 0.0, 0.0}, 6000.0).end();
+  ASSERT_TRUE(ip.load(b.program()).ok());
+  ASSERT_TRUE(ip.start().ok());
+  run_until(ip, [](const Registers& g) { return g.orig_position[0] > 20.0; });
+  ASSERT_TRUE(ip.command(9).ok());
+  ASSERT_GT(run_until(ip, [](const Registers& g) { return g.act_speed == 0.0; }), 0);
+  EXPECT_EQ(ip.registers().status, 0);
+  EXPECT_EQ(ip.registers().off_trajectory, 1);
+  const auto r = ip.start();
+  EXPECT_EQ(r.code, RequestCode::kWrongState);
+  EXPECT_NE(r.reason.find("off trajectory"), std::string::npos);
+  // A new program from where it stands.
+  const double x = ip.registers().orig_position[0];
+  ProgramBuilder c(3, {x, 0.0, 0.0});
+  c.line({x, 10.0, 0.0}, 3000.0).end();
+  ASSERT_TRUE(ip.load(c.program()).ok());
+  EXPECT_EQ(ip.registers().off_trajectory, 0);
+  ASSERT_TRUE(ip.start().ok());
+  ASSERT_GT(run_until(ip, [](const Registers& g) { return g.status == 3; }), 0);
+  EXPECT_EQ(ip.registers().orig_position[1], 10.0);
+}
+
+TEST(Stops, EmergencyStopRampThenStoppedThenResume) {
+  Interpolator ip = make();
+  ProgramBuilder b;
+  b.line({200.0, 0.0, 0.0}, 12000.0).end();
+  ASSERT_TRUE(ip.load(b.program()).ok());
+  ASSERT_TRUE(ip.start().ok());
+  run_until(ip, [](const Registers& g) { return g.act_speed >= 12000.0 - 1e-9; });
+  const double x0 = ip.registers().orig_position[0];
+  ASSERT_TRUE(ip.command(4).ok());
+  ip.step();
+  EXPECT_EQ(ip.registers().status, 6);
+  EXPECT_EQ(run_flag_speed(ip.registers().run_flag), SpeedState::kEmergencyRamp);
+  const int cycles = run_until(ip, [](const Registers& g) { return g.status == 7; });
+  ASSERT_GT(cycles, 0);
+  // Emergency deceleration 4000 mm/s^2 with the jerk scaled by the same 4000/1500: from
+  // 200 mm/s it stops in v/E + E/J' = 0.05 + 0.05 s, against 0.183 s on the normal ramp.
+  EXPECT_NEAR(cycles * 0.0005, 0.1, 0.003);
+  EXPECT_LT(ip.registers().orig_position[0] - x0, 200.0 * 200.0 / (2 * 1500.0));
+  ASSERT_TRUE(ip.start().ok());
+  ASSERT_GT(run_until(ip, [](const Registers& g) { return g.status == 3; }), 0);
+  EXPECT_EQ(ip.registers().orig_position[0], 200.0);
+}
+
+TEST(Stops, EmergencyStopOffTrajectoryRefusesStart) {
+  Interpolator ip = make();
+  ProgramBuilder b;
+  b.line({200.0, 0.0, 0.0}, 12000.0).end();
+  ASSERT_TRUE(ip.load(b.program()).ok());
+  ASSERT_TRUE(ip.start().ok());
+  run_until(ip, [](const Registers& g) { return g.orig_position[0] > 10.0; });
+  ASSERT_TRUE(ip.command(5).ok());
+  ASSERT_GT(run_until(ip, [](const Registers& g) { return g.status == 7; }), 0);
+  EXPECT_EQ(ip.registers().off_trajectory, 1);
+  EXPECT_EQ(ip.start().code, RequestCode::kWrongState);
+  EXPECT_EQ(ip.command(1024).code, RequestCode::kUnsupported);
+}
+
+TEST(Buffer, UnderrunStopsOnTrajectoryAndResumes) {
+  Interpolator ip = make();
+  ProgramBuilder b;
+  for (int i = 1; i <= 6; ++i) b.line({10.0 * i, 0.0, 0.0}, 6000.0);
+  b.end();
+  std::size_t took = 0;
+  ASSERT_TRUE(ip.append(b.program(), 0, 3, false, &took).ok());
+  EXPECT_EQ(took, 3u);
+  ASSERT_TRUE(ip.start().ok());
+  ASSERT_GT(run_until(ip, [](const Registers& g) { return g.status == 8; }), 0);
+  EXPECT_EQ(ip.registers().orig_position[0], 30.0);
+  EXPECT_EQ(ip.step(), StepResult::kWaiting);
+  ASSERT_TRUE(ip.append(b.program(), 3, 4, true).ok());
+  ASSERT_TRUE(ip.start().ok());
+  ASSERT_GT(run_until(ip, [](const Registers& g) { return g.status == 3; }), 0);
+  EXPECT_EQ(ip.registers().orig_position[0], 60.0);
+}
+
+TEST(Buffer, FillWhileRunningKeepsMoving) {
+  // A ring of 1000 slots fed 1000 short records at a time: no underrun, no stop.
+  MachineConfig m = machine();
+  m.interpolators[0].buffer_size = 1000;
+  auto ip = Interpolator::create(m, 0);
+  ASSERT_TRUE(ip);
+  ProgramBuilder b;
+  for (int i = 1; i <= 5000; ++i) b.line({0.2 * i, 0.0, 0.0}, 3000.0);
+  b.end();
+  std::size_t next = 0;
+  auto feed = [&] {
+    std::size_t took = 0;
+    ip->append(b.program(), next, b.program().segments.size() - next, true, &took);
+    next += took;
+  };
+  feed();
+  EXPECT_EQ(next, 1000u);
+  ASSERT_TRUE(ip->start().ok());
+  int stops_mid = 0;
+  for (int c = 0; c < 100000; ++c) {
+    feed();
+    if (ip->step() == StepResult::kFinished) break;
+    const auto& g = ip->registers();
+    if (g.act_speed == 0.0 && g.orig_position[0] > 1.0 && g.orig_position[0] < 999.0) ++stops_mid;
+    EXPECT_NE(g.status, 8);
+  }
+  EXPECT_EQ(stops_mid, 0);
+  EXPECT_EQ(ip->registers().orig_position[0], 1000.0);
+}
+
+TEST(MFunctions, ContinuousDoesNotStop) {
+  Interpolator ip = make();
+  ProgramBuilder b;
+  b.line({50.0, 0.0, 0.0}, 3000.0).m(1234, MKind::kContinuous).line({100.0, 0.0, 0.0}, 3000.0).end();
+  ASSERT_TRUE(ip.load(b.program()).ok());
+  ASSERT_TRUE(ip.start().ok());
+  double min_speed_mid = 1e9;
+  run_until(ip, [&](const Registers& g) {
+    if (g.orig_position[0] > 45.0 && g.orig_position[0] < 55.0) min_speed_mid = std::min(min_speed_mid, g.act_speed);
+    return g.last_cont_m_func == 1234;
+  });
+  EXPECT_EQ(ip.registers().m_func, 1234);
+  EXPECT_NEAR(ip.registers().act_speed, 3000.0, 1e-6);
+  run_until(ip, [&](const Registers& g) {
+    if (g.orig_position[0] > 45.0 && g.orig_position[0] < 55.0) min_speed_mid = std::min(min_speed_mid, g.act_speed);
+    return g.status == 3;
+  });
+  EXPECT_NEAR(min_speed_mid, 3000.0, 1e-6);
+}
+
+TEST(MFunctions, ProgramStopPausesUntilStart) {
+  Interpolator ip = make();
+  ProgramBuilder b;
+  b.line({10.0, 0.0, 0.0}, 3000.0).m(0, MKind::kProgramStop).line({20.0, 0.0, 0.0}, 3000.0).end();
+  ASSERT_TRUE(ip.load(b.program()).ok());
+  ASSERT_TRUE(ip.start().ok());
+  ASSERT_GT(run_until(ip, [](const Registers& g) { return g.status == 4; }), 0);
+  EXPECT_EQ(ip.registers().orig_position[0], 10.0);
+  EXPECT_EQ(run_flag_section(ip.registers().run_flag), SectionState::kStop);
+  for (int i = 0; i < 100; ++i) EXPECT_EQ(ip.step(), StepResult::kWaiting);
+  ASSERT_TRUE(ip.start().ok());
+  ASSERT_GT(run_until(ip, [](const Registers& g) { return g.status == 3; }), 0);
+  EXPECT_EQ(ip.registers().orig_position[0], 20.0);
+}
+
+TEST(MFunctions, DwellWaitsItsTime) {
+  auto time_of = [](double dwell) {
+    ProgramBuilder b;
+    b.line({10.0, 0.0, 0.0}, 3000.0);
+    b.dwell(dwell);  // G4 P0 still stops the motion
+    b.line({20.0, 0.0, 0.0}, 3000.0).end();
+    auto sim = Simulation::create(machine(), {});
+    return sim->run(b.program()).program_time_s;
+  };
+  const double t0 = time_of(0.0), t1 = time_of(0.5);
+  EXPECT_NEAR(t1 - t0, 0.5, 1e-9);
+}
+
+TEST(Messages, M29TextIsPublished) {
+  Interpolator ip = make();
+  ProgramBuilder b;
+  b.line({1.0, 0.0, 0.0}, 3000.0).message("tool check").line({2.0, 0.0, 0.0}, 3000.0).end();
+  ASSERT_TRUE(ip.load(b.program()).ok());
+  ASSERT_TRUE(ip.start().ok());
+  ASSERT_GT(run_until(ip, [](const Registers& g) { return g.message_count == 1; }), 0);
+  EXPECT_EQ(ip.message_text(ip.registers().message_slot), "tool check");
+}
+
+TEST(LimitFactors, EachBlockSaysWhatLimitedIt) {
+  ProgramBuilder b;
+  b.line({300.0, 0.0, 0.0}, 30000.0)       // above 250 mm/s axis velocity
+      .line({400.0, 0.0, 0.0}, 3000.0)     // long, at feed
+      .line({400.0, 100.0, 0.0}, 3000.0)   // 90 deg corner before it: ends at the corner limit
+      .line({400.0, 100.05, 0.0}, 6000.0)  // too short to reach the feed
+      .line({400.0, 120.0, 0.0}, 6000.0)
+      .arc(true, {400.0, 120.0, 0.0}, {398.0, 120.0}, 12000.0)  // r = 2 mm full circle
+      .end();
+  std::vector<BlockReport> blocks;
+  auto sim = Simulation::create(machine(), {});
+  const auto s = sim->run(b.program(), {}, [&](const BlockReport& r) { blocks.push_back(r); });
+  ASSERT_EQ(s.result, StepResult::kFinished) << s.error;
+  ASSERT_EQ(blocks.size(), 6u);
+  EXPECT_EQ(blocks[0].factor, LimitFactor::kAxisVelocity);
+  EXPECT_NEAR(blocks[0].peak_mm_min, 0.999 * 15000.0, 0.01);
+  EXPECT_EQ(blocks[1].factor, LimitFactor::kFeed);
+  EXPECT_EQ(blocks[2].factor, LimitFactor::kFeed);
+  EXPECT_EQ(blocks[3].factor, LimitFactor::kAccelJerk);
+  EXPECT_EQ(blocks[5].factor, LimitFactor::kArc);
+  EXPECT_LT(blocks[5].peak_mm_min, 12000.0);
+  for (const auto& r : blocks) EXPECT_GT(r.duration_s, 0.0);
+}
+
+TEST(LookAhead, EntriesShowTheNextSections) {
+  Interpolator ip = make();
+  ProgramBuilder b;
+  MParams p = unset_params();
+  p[static_cast<std::size_t>('S' - 'A')] = 1200.0;
+  b.line({10.0, 0.0, 0.0}, 3000.0)
+      .m(1003, MKind::kContinuous)
+      .arc(true, {10.0, 10.0, 0.0}, {10.0, 5.0}, 3000.0)
+      .m(6, MKind::kNormal, &p)
+      .line({0.0, 10.0, 0.0}, 3000.0)
+      .end();
+  ASSERT_TRUE(ip.load(b.program()).ok());
+  ASSERT_TRUE(ip.start().ok());
+  ip.step();
+  const auto& la = ip.registers().lookahead;
+  EXPECT_EQ(la[0].movement_type, 1);
+  EXPECT_EQ(la[0].movement_code, 1);
+  EXPECT_NEAR(la[0].tangent_deg, 0.0, 1e-9);
+  EXPECT_EQ(la[1].movement_code, 3);  // the arc, with the continuous M in its AllParams
+  EXPECT_EQ(la[1].all_params[static_cast<std::size_t>('M' - 'A')], 1003.0);
+  EXPECT_NEAR(la[1].radius_mm, 5.0, 1e-12);
+  EXPECT_NEAR(la[1].start_angle_deg, 270.0, 1e-9);
+  EXPECT_NEAR(la[1].end_angle_deg, 90.0, 1e-9);
+  EXPECT_EQ(la[2].movement_type, 2);
+  EXPECT_EQ(la[2].movement_code, 6);
+  EXPECT_EQ(la[2].all_params[static_cast<std::size_t>('S' - 'A')], 1200.0);
+  EXPECT_EQ(la[3].movement_code, 1);
+  EXPECT_EQ(la[4].movement_code, 2);
+  EXPECT_EQ(la[5].movement_type, 0);
+  EXPECT_TRUE(is_not_set(la[0].start_angle_deg));
+}
+
+TEST(Requests, RefusedWithReasons) {
+  Interpolator ip = make();
+  EXPECT_EQ(ip.start().code, RequestCode::kWrongState);
+  EXPECT_EQ(ip.set_rel_speed(2.5).code, RequestCode::kOutOfRange);
+  EXPECT_EQ(ip.set_rel_speed(0.0).code, RequestCode::kOutOfRange);
+  EXPECT_TRUE(ip.set_rel_speed(0.01).ok());
+  ProgramBuilder b(2);
+  b.line({1.0, 0.0}, 100.0);
+  EXPECT_EQ(ip.load(b.program()).code, RequestCode::kInvalid);  // compiled for 2 axes
+  ProgramBuilder c;
+  c.line({1.0, 0.0, 0.0}, 0.0);
+  const auto r = ip.load(c.program());
+  EXPECT_EQ(r.code, RequestCode::kInvalid);
+  EXPECT_NE(r.reason.find("feed"), std::string::npos);
+  ProgramBuilder d;
+  d.line({std::nan(""), 0.0, 0.0}, 100.0);
+  EXPECT_EQ(ip.load(d.program()).code, RequestCode::kInvalid);
+  ProgramBuilder e;
+  e.line({100.0, 0.0, 0.0}, 3000.0).end();
+  ASSERT_TRUE(ip.load(e.program()).ok());
+  ASSERT_TRUE(ip.start().ok());
+  ip.step();
+  EXPECT_EQ(ip.clear().code, RequestCode::kWrongState);
+  EXPECT_EQ(ip.set_position({}).code, RequestCode::kWrongState);
+  EXPECT_EQ(ip.start().code, RequestCode::kWrongState);
+  std::string err;
+  EXPECT_FALSE(Interpolator::create(machine(), 5, {}, &err));
+  EXPECT_NE(err.find("not configured"), std::string::npos);
+}
+
+TEST(LimitChecker, FindsAJumpAndAnOversizedCorner) {
+  auto ch = LimitChecker::create(machine().interpolators[0], 500);
+  ASSERT_TRUE(ch);
+  Registers g;
+  g.number_axes = 3;
+  for (int c = 1; c <= 10; ++c) {
+    g.cycle = static_cast<std::uint64_t>(c);
+    g.orig_position[0] = c < 6 ? 0.0 : 0.01;  // a 10 um step: 20 mm/s in one cycle
+    ch->add_cycle(g, {});
+  }
+  EXPECT_GT(ch->violation_count(), 0u);
+  bool accel = false, jerk = false;
+  for (const auto& v : ch->violations()) {
+    accel = accel || v.quantity == LimitQuantity::kAcceleration;
+    jerk = jerk || v.quantity == LimitQuantity::kJerk;
+  }
+  EXPECT_TRUE(accel);
+  EXPECT_TRUE(jerk);
+  // A smooth constant-velocity ramp passes; an announced 3 mm/s corner step does not.
+  auto ok = LimitChecker::create(machine().interpolators[0], 500);
+  for (int c = 1; c <= 10; ++c) {
+    g.cycle = static_cast<std::uint64_t>(c);
+    g.orig_position[0] = 0.05 * c;
+    ok->add_cycle(g, {});
+  }
+  EXPECT_EQ(ok->violation_count(), 0u);
+  CornerEvent e;
+  e.cycle = 11;
+  e.fraction = 0.5;
+  e.dv[1] = 3.0;
+  g.cycle = 11;
+  g.orig_position[0] = 0.55;
+  g.orig_position[1] = 3.0 * 0.5 * 0.0005;
+  ok->add_cycle(g, std::span<const CornerEvent>(&e, 1));
+  ASSERT_GT(ok->violation_count(), 0u);
+  EXPECT_EQ(ok->violations().front().quantity, LimitQuantity::kCornerStep);
+}
+
+}  // namespace
+}  // namespace tgm
