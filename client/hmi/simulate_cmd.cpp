@@ -1,12 +1,205 @@
+// tgm-hmi simulate: runs a G-code program through the interpolator core offline (no DDS, as fast
+// as the machine allows), writes the registers per cycle as CSV and prints a summary.
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstring>
 #include <cstdio>
+#include <memory>
+#include <string>
+#include <vector>
 
+#include "cli_common.hpp"
 #include "commands.hpp"
+#include "tgm/gcode.hpp"
+#include "tgm/simulation.hpp"
 
 namespace tgm::hmi {
 
-int run_simulate(int /*argc*/, char** /*argv*/) {
-  std::fprintf(stderr, "tgm-hmi simulate: not built yet\n");
-  return 1;
+namespace {
+
+constexpr const char* kUsage =
+    "usage: tgm-hmi simulate FILE [--config YAML] [--interpolator N] [--csv OUT]\n"
+    "                             [--rel-speed R] [--check-limits] [--m-ack S] [--blocks OUT]\n"
+    "\n"
+    "Compiles FILE and runs it through interpolator N (default 0) offline, cycle by cycle,\n"
+    "acknowledging every M-function like the PLC emulator would (plc.default_m_delay_s and\n"
+    "plc.m_delay_s of the config, or --m-ack S for all) and restarting after M0 at once.\n"
+    "  --csv OUT        one row per cycle: time_s, line, act_part, status, run_flag, m_func,\n"
+    "                   act_speed_mm_min, move_distance_mm, orig_<axis>, speed_<axis>, limit_factor\n"
+    "  --blocks OUT     one row per executed motion block: line, length, programmed and peak\n"
+    "                   speed, duration and the factor that limited its speed\n"
+    "  --rel-speed R    feed override 0.01..2 (default 1)\n"
+    "  --check-limits   differentiate Orig_Position per cycle and fail on any per-axis velocity,\n"
+    "                   acceleration, jerk or corner-step excess (listed with cycle and line)\n"
+    "  --m-ack S        time the emulated PLC takes per normal M-function [s]\n"
+    "\n"
+    "Prints program time, distance, per-axis peaks against the limits, violations and the time\n"
+    "spent per limit factor. Exit code: 0 finished, 1 did not finish or limits were exceeded,\n"
+    "2 bad input (usage, config, G-code errors as FILE:LINE:COL: error: reason).\n";
+
+struct CloseFile {
+  void operator()(std::FILE* f) const {
+    if (f) std::fclose(f);
+  }
+};
+using File = std::unique_ptr<std::FILE, CloseFile>;
+
+File open_out(const std::string& path) {
+  File f(std::fopen(path.c_str(), "w"));
+  if (!f) std::fprintf(stderr, "%s: error: cannot write: %s\n", path.c_str(), std::strerror(errno));
+  return f;
+}
+
+}  // namespace
+
+int run_simulate(int argc, char** argv) {
+  Args args(argc, argv, "simulate", kUsage);
+  std::string file, csv_path, blocks_path, rel_text, m_ack_text;
+  bool check_limits = false;
+  while (args.more()) {
+    if (args.flag("--csv", csv_path)) continue;
+    if (args.flag("--blocks", blocks_path)) continue;
+    if (args.flag("--rel-speed", rel_text)) continue;
+    if (args.flag("--m-ack", m_ack_text)) continue;
+    if (args.boolean("--check-limits", check_limits)) continue;
+    if (args.common()) continue;
+    if (args.positional(file)) continue;
+    return args.fail();
+  }
+  if (args.help()) return 0;
+  if (args.failed()) return 2;
+  if (file.empty()) return args.usage_error("a G-code FILE is required");
+  double rel = 1.0;
+  if (!rel_text.empty() && (!parse_double(rel_text, rel) || rel < 0.01 || rel > 2.0)) {
+    return args.usage_error("--rel-speed takes a number 0.01..2, not '" + rel_text + "'");
+  }
+  double m_ack = -1.0;
+  if (!m_ack_text.empty() && (!parse_double(m_ack_text, m_ack) || m_ack < 0.0 || m_ack > 3600.0)) {
+    return args.usage_error("--m-ack takes seconds 0..3600, not '" + m_ack_text + "'");
+  }
+  const auto app = args.load_app();
+  if (!app) return 2;
+  const MachineConfig& machine = app->machine;
+  const int ip_index = args.interpolator();
+
+  FileView input;
+  if (std::string err; !input.open(file, err)) {
+    std::fprintf(stderr, "%s: error: %s\n", file.c_str(), err.c_str());
+    return 2;
+  }
+  const CompileResult compiled = compile_gcode(input.text(), CompileOptions::from_machine(machine, ip_index));
+  if (!compiled.ok()) {
+    for (const auto& d : compiled.errors) std::fprintf(stderr, "%s\n", format_diagnostic(file, d).c_str());
+    return 2;
+  }
+
+  SimulationOptions so;
+  so.interpolator = ip_index;
+  so.rel_speed = rel;
+  so.m_ack_s = m_ack >= 0.0 ? m_ack : app->plc.default_m_delay_s;
+  if (m_ack < 0.0) {
+    for (const auto& [m, s] : app->plc.m_delay_s) so.m_ack_by_number[m] = s;
+  }
+  so.check_limits = true;  // peaks need it; violations only fail the run with --check-limits
+  std::string err;
+  auto sim = Simulation::create(machine, so, &err);
+  if (!sim) {
+    std::fprintf(stderr, "tgm-hmi simulate: %s\n", err.c_str());
+    return 2;
+  }
+  const std::string letters = machine.axis_letters(ip_index);
+  const int n = static_cast<int>(letters.size());
+
+  File csv, blocks;
+  if (!csv_path.empty() && !(csv = open_out(csv_path))) return 1;
+  if (!blocks_path.empty() && !(blocks = open_out(blocks_path))) return 1;
+  std::vector<char> csv_buf(1 << 20), blk_buf(1 << 16);
+  if (csv) {
+    std::setvbuf(csv.get(), csv_buf.data(), _IOFBF, csv_buf.size());
+    std::fputs("time_s,line,act_part,status,run_flag,m_func,act_speed_mm_min,move_distance_mm", csv.get());
+    for (char l : letters) std::fprintf(csv.get(), ",orig_%c", l);
+    for (char l : letters) std::fprintf(csv.get(), ",speed_%c", l);
+    std::fputs(",limit_factor\n", csv.get());
+  }
+  if (blocks) {
+    std::setvbuf(blocks.get(), blk_buf.data(), _IOFBF, blk_buf.size());
+    std::fputs("line,act_part,g,length_mm,programmed_mm_min,peak_mm_min,duration_s,limit_factor\n", blocks.get());
+  }
+  const double T = machine.cycle_time_us * 1e-6;
+  double peak_speed = 0.0;
+  std::array<double, kMaxAxes> peak_v{};
+  const auto wall0 = std::chrono::steady_clock::now();
+  const SimulationSummary sum = sim->run(
+      compiled.program,
+      [&](const Registers& r) {
+        peak_speed = std::max(peak_speed, r.act_speed);
+        for (int i = 0; i < n; ++i) {
+          peak_v[static_cast<std::size_t>(i)] =
+              std::max(peak_v[static_cast<std::size_t>(i)], std::fabs(r.speed[static_cast<std::size_t>(i)]));
+        }
+        if (!csv) return;
+        std::FILE* f = csv.get();
+        std::fprintf(f, "%.6f,%d,%d,%d,%u,%d,%.6f,%.9f", static_cast<double>(r.cycle) * T, r.act_line, r.act_part,
+                     r.status, r.run_flag, r.m_func, r.act_speed, r.move_distance);
+        for (int i = 0; i < n; ++i) std::fprintf(f, ",%.9f", r.orig_position[static_cast<std::size_t>(i)]);
+        for (int i = 0; i < n; ++i) std::fprintf(f, ",%.6f", r.speed[static_cast<std::size_t>(i)]);
+        std::fprintf(f, ",%s\n", limit_factor_name(r.limit_factor));
+      },
+      [&](const BlockReport& b) {
+        if (!blocks) return;
+        std::fprintf(blocks.get(), "%d,%d,%d,%.9f,%.3f,%.3f,%.6f,%s\n", b.line, b.act_part, b.g, b.length_mm,
+                     b.programmed_mm_min, b.peak_mm_min, b.duration_s, limit_factor_name(b.factor));
+      });
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  bool io_ok = true;
+  for (File* f : {&csv, &blocks}) {
+    if (*f && (std::fflush(f->get()) != 0 || std::ferror(f->get()))) io_ok = false;
+  }
+
+  const bool finished = sum.result == StepResult::kFinished;
+  std::printf("program:   %s (%zu records, interpolator %d, %d us cycle)\n", file.c_str(),
+              compiled.program.segments.size(), ip_index, machine.cycle_time_us);
+  std::printf("result:    %s%s%s\n", finished ? "finished" : "NOT finished", sum.error.empty() ? "" : ": ",
+              sum.error.c_str());
+  std::printf("time:      %.4f s program time, %llu cycles, simulated %.0fx faster than real time\n",
+              sum.program_time_s, static_cast<unsigned long long>(sum.cycles),
+              wall > 0.0 ? sum.program_time_s / wall : 0.0);
+  std::printf("distance:  %.4f mm, peak path speed %.1f mm/min, %llu M-functions acknowledged\n",
+              sum.distance_mm, peak_speed, static_cast<unsigned long long>(sum.m_functions));
+  std::printf("end:      ");
+  for (int i = 0; i < n; ++i) std::printf(" %c=%.6f", letters[static_cast<std::size_t>(i)], sum.end_position[static_cast<std::size_t>(i)]);
+  std::printf("\naxis   |v| peak / limit [mm/s]   |a| peak / limit [mm/s^2]   |j| peak / limit [mm/s^3]   corner step / tol [mm/s]\n");
+  const auto& axes = machine.interpolators[static_cast<std::size_t>(ip_index)].axes;
+  for (int i = 0; i < n; ++i) {
+    const auto ui = static_cast<std::size_t>(i);
+    const AxisConfig& a = axes[ui];
+    std::printf("%c      %9.3f / %-9.3f      %10.1f / %-10.1f      %11.0f / %-11.0f      %7.3f / %.3f\n",
+                a.letter, sum.peaks[ui].velocity_mm_s, a.max_velocity_mm_s, sum.peaks[ui].acceleration_mm_s2,
+                a.max_acceleration_mm_s2, sum.peaks[ui].jerk_mm_s3, a.max_jerk_mm_s3,
+                sum.peaks[ui].corner_step_mm_s, a.corner_velocity_tolerance_mm_s);
+  }
+  std::printf("violations: %llu\n", static_cast<unsigned long long>(sum.violation_count));
+  std::size_t shown = 0;
+  for (const auto& v : sum.violations) {
+    if (++shown > 20) break;
+    std::printf("  cycle %llu line %d axis %c %s %.6g > %.6g\n", static_cast<unsigned long long>(v.cycle), v.line,
+                letters[static_cast<std::size_t>(v.axis)], limit_quantity_name(v.quantity), v.value, v.limit);
+  }
+  std::printf("limited by (time):");
+  for (std::size_t k = 1; k < sum.factor_time_s.size(); ++k) {
+    if (sum.factor_time_s[k] > 0.0) {
+      std::printf(" %s %.3f s", limit_factor_name(static_cast<LimitFactor>(k)), sum.factor_time_s[k]);
+    }
+  }
+  std::printf("\n");
+  if (!io_ok) {
+    std::fprintf(stderr, "tgm-hmi simulate: error writing the output files\n");
+    return 1;
+  }
+  if (!finished || sum.nan) return 1;
+  if (check_limits && sum.violation_count > 0) return 1;
+  return 0;
 }
 
 }  // namespace tgm::hmi
