@@ -45,7 +45,8 @@ constexpr std::uint64_t kNoQ = ~std::uint64_t{0};
 constexpr double kPi = 3.14159265358979323846;
 constexpr int kCalcSteps = 5;             // calculation steps per cycle (manual)
 constexpr int kChainMax = 24;             // constraints followed per chain and step
-constexpr int kMaxExtendPerStep = 64;     // records added to the window per calculation step
+constexpr int kMaxExtendPerStep = 64;     // records scanned for the limits of one calculation step
+constexpr int kMaxExtendPerCycle = 320;   // records added to the look-ahead window per cycle
 constexpr std::size_t kMessageRing = 256;
 constexpr std::size_t kMaxBlockReports = 2048;
 constexpr std::size_t kMaxCornerEvents = 2048;
@@ -91,6 +92,7 @@ struct Rec {
   // from here to the linked record passes through.
   std::array<Link, 3> link{};
   std::int32_t msg_slot = -1;
+  double tan0_deg = kNotSet;  // XY tangent at the start [deg] (LookAheadBuffer)
 };
 
 // Fixed-capacity deque of sequence numbers (no allocation after init).
@@ -202,6 +204,18 @@ struct Interpolator::Impl {
   bool braking_to_stop = false;
   double last_vt = 0.0;
   bool lookahead_dirty = true;
+  // Limits ahead, gathered once per cycle (distances from cons_here, cumulative path).
+  std::array<Constraint, 3 * kChainMax + 4> cons{};
+  int ncons = 0;
+  double cons_here = 0.0;
+  double cons_Aw = 0.0, cons_Jw = 0.0;
+  bool cons_valid = false;
+  double horizon = 0.0;
+  // Cruise shortcut: at constant speed the smallest slack over the gathered limits only
+  // shrinks by the distance travelled, so it is computed once per gather.
+  bool cruise_valid = false;
+  double cruise_v = 0.0;
+  double cruise_margin = 0.0;
   std::uint64_t lookahead_cur = kNoQ;
 
   // block statistics of the current motion
@@ -449,6 +463,7 @@ struct Interpolator::Impl {
         r.wg_reason = r.m_reason;
         r.wf = r.f;
       }
+      r.tan0_deg = tangent_deg(r.g, 0.0);
       motion::geometry_tangent(r.g, n, r.g.length, pt_tangent.data());
       pt_end = r.g.end;
       pt_have_motion = true;
@@ -489,6 +504,7 @@ struct Interpolator::Impl {
   }
 
   void reset_window() {
+    cons_valid = false;
     dq_a.clear();
     dq_j.clear();
     dq_wg.clear();
@@ -525,29 +541,39 @@ struct Interpolator::Impl {
       win_end = cur;
     }
     const Rec& rc = R(cur);
-    double a0 = dq_a.empty() ? rc.at : R(dq_a.front()).at;
-    double j0 = dq_j.empty() ? rc.jt : R(dq_j.front()).jt;
     const double v = st.v, a = st.a;
-    const double H = jerk::stopping_distance(v, a, a0, j0) + v * (std::fabs(a) + a0) / j0 +
-                     2.0 * v * dt + 1e-6;
-    const double limit = rc.s0 + st.s + H;
     int added = 0;
-    while (win_end < tail && added < kMaxExtendPerStep) {
-      const Rec& r = R(win_end);
-      if (win_end > cur) {
-        if (r.kind == RecKind::kStop) break;
-        if (r.s0 > limit) break;
+    // Extend until the window covers the horizon computed with the window's own minima (new
+    // records may lower them and so lengthen the horizon).
+    for (int pass = 0; pass < 3; ++pass) {
+      const double a0 = dq_a.empty() ? rc.at : R(dq_a.front()).at;
+      const double j0 = dq_j.empty() ? rc.jt : R(dq_j.front()).jt;
+      // The window and the chains are gathered once per cycle: take the fastest state the
+      // cycle can reach (full jerk from here) and one more cycle of travel as margin.
+      const double jc = rc.jt, ac = std::max(std::fabs(a) + jc * T, 0.0);
+      const double vc = v + std::fabs(a) * T + 0.5 * jc * T * T;
+      horizon = jerk::stopping_distance(vc, ac, kPlanMargin * a0, kPlanMarginJ * j0) +
+                vc * (ac + a0) / (kPlanMarginJ * j0) + 2.0 * vc * T + 1e-6;
+      const double limit = rc.s0 + st.s + horizon;
+      const int before = added;
+      while (win_end < tail && added < kMaxExtendPerCycle) {
+        const Rec& r = R(win_end);
+        if (win_end > cur) {
+          if (r.kind == RecKind::kStop) break;
+          if (r.s0 > limit) break;
+        }
+        if (r.kind == RecKind::kMotion) {
+          push_min(dq_a, win_end, 0);
+          push_min(dq_j, win_end, 1);
+        }
+        if (win_end > cur) {
+          push_min(dq_wg, win_end, 2);
+          push_min(dq_wf, win_end, 3);
+        }
+        ++win_end;
+        ++added;
       }
-      if (r.kind == RecKind::kMotion) {
-        push_min(dq_a, win_end, 0);
-        push_min(dq_j, win_end, 1);
-      }
-      if (win_end > cur) {
-        push_min(dq_wg, win_end, 2);
-        push_min(dq_wf, win_end, 3);
-      }
-      ++win_end;
-      ++added;
+      if (added == before) break;
     }
     A = dq_a.empty() ? rc.at : R(dq_a.front()).at;
     J = dq_j.empty() ? rc.jt : R(dq_j.front()).jt;
@@ -566,6 +592,7 @@ struct Interpolator::Impl {
       int hops = 0;
       while (q < win_end) {
         const Rec& r = R(q);
+        if (r.s0 - here > horizon) break;  // beyond any braking or acceleration change from here
         const double w = chain_value(r, fam) * (fam == 1 ? rel : 1.0);
         if (hops == kChainMax) {
           // Not followed further: from here on assume the lowest limit of the whole window
@@ -838,6 +865,7 @@ struct Interpolator::Impl {
   }
 
   void reset_plan_tail() {
+    cons_valid = false;
     st_g.clear();
     st_f.clear();
     st_a.clear();
@@ -854,8 +882,14 @@ struct Interpolator::Impl {
 
   // One calculation step of motion along the path.
   void motion_step(int calc_index) {
-    double Aw = 0.0, Jw = 0.0;
-    update_window(Aw, Jw);
+    if (calc_index == 0 || !cons_valid) {
+      update_window(cons_Aw, cons_Jw);
+      ncons = gather(cons.data(), cons_Aw, cons_Jw);
+      cons_here = R(cur).s0 + st.s;
+      cons_valid = true;
+      cruise_valid = false;
+    }
+    const double Aw = cons_Aw, Jw = cons_Jw;
     double A = 0.0, J = 0.0;
     const Rec& rc = R(cur);
     const jerk::State before = st;
@@ -894,8 +928,9 @@ struct Interpolator::Impl {
       lo = std::max(lo, std::min(jerk::floor_acceleration(v, a, kFloorMarginJ * J, dt), hi));
       const double xd = std::clamp(jerk::track_velocity(v, a, vt, A, J, dt), lo, hi);
 
-      Constraint c[3 * kChainMax + 4];
-      const int nc = gather(c, Aw, Jw);
+      const Constraint* c = cons.data();
+      const int nc = ncons;
+      const double moved = rc.s0 + before.s - cons_here;  // since the constraints were gathered
       int viol[3 * kChainMax + 4];
       int nv = 0;
       double worst = 0.0;
@@ -904,7 +939,7 @@ struct Interpolator::Impl {
         const jerk::State ns = jerk::advance(before, xx, dt);
         const double ds = ns.s - before.s;
         const Constraint& ck = c[k];
-        const double remain = ck.d - ds;
+        const double remain = ck.d - moved - ds;
         if (remain < 0.0) {  // passed during this step: judge the end-of-step state itself
           return ck.accel ? ns.a - ck.w : ns.v - ck.w;
         }
@@ -916,7 +951,36 @@ struct Interpolator::Impl {
                                            kPlanMarginJ * ck.J, kPlanMarginJ * J) -
                remain;
       };
+      if (a == 0.0 && xd == 0.0) {
+        if (!cruise_valid || cruise_v != v) {
+          double m = kInf;
+          for (int k = 0; k < nc; ++k) {
+            if (c[k].accel || c[k].d - moved < 0.0) continue;
+            m = std::min(m, c[k].d - jerk::braking_distance_from(v, 0.0, c[k].w, kPlanMargin * c[k].A,
+                                                                  kPlanMarginJ * c[k].J, kPlanMarginJ * J));
+          }
+          cruise_margin = m;
+          cruise_v = v;
+          cruise_valid = true;
+        }
+        if (cruise_margin - moved - v * dt > 1e-9) {
+          x = 0.0;
+          factor = target_reason;
+          goto integrate;
+        }
+      }
+      // One stopping distance with the window's lowest limits bounds every braking distance
+      // and acceleration change: constraints farther than that need no evaluation.
+      const jerk::State nd = jerk::advance(before, xd, dt);
+      const double bound = jerk::braking_distance_from(std::max(nd.v, 0.0), nd.a, 0.0, kPlanMargin * Aw,
+                                                       kPlanMarginJ * Jw, kPlanMarginJ * J) +
+                           (nd.s - before.s);
       for (int k = 0; k < nc; ++k) {
+        const double dk = c[k].d - moved;
+        if (dk < 0.0) continue;  // passed in an earlier calculation step
+        // Landing on w > 0 with zero acceleration can take longer than stopping, by less than
+        // w times the final jerk phase (A/J); twice that as margin.
+        if (dk > bound + 2.0 * c[k].w * c[k].A / (kPlanMarginJ * c[k].J)) continue;
         const double e = excess(xd, k);
         if (e > 1e-12) {
           viol[nv++] = k;
@@ -953,6 +1017,7 @@ struct Interpolator::Impl {
         braking_to_stop = c[worst_k].w == 0.0;
       }
     }
+  integrate:
     last_vt = vt;
     jerk::State ns = jerk::advance(before, x, dt);
     if (ns.v < 0.0) ns.v = 0.0;
@@ -990,6 +1055,8 @@ struct Interpolator::Impl {
       if (k < tail && R(k).kind == RecKind::kMotion &&
           (mode == Mode::kMoving || remaining > 0.0 || ns.v > kStandstillV)) {
         record_corner(q, k, before, jerk_used, traveled, calc_index);
+        // Limits the passed junction dominated may matter now: gather again.
+        cons_valid = false;
         for (int i = 0; i < n; ++i) rest[i] = R(q).g.end[i];
         cur = k;
         q = k;
@@ -1084,14 +1151,14 @@ struct Interpolator::Impl {
       e.start_angle_deg = norm_angle_deg(r.g.th0);
       e.end_angle_deg = norm_angle_deg(r.g.th0 + r.g.phi);
     }
-    e.tangent_deg = tangent_deg(r.g, current ? st.s : 0.0);
+    e.tangent_deg = current && r.g.arc ? tangent_deg(r.g, st.s) : r.tan0_deg;
   }
 
   double tangent_deg(const Geometry& g, double s) const {
     if (n < 2) return kNotSet;
     double t[kMaxAxes];
     motion::geometry_tangent(g, n, s, t);
-    if (std::hypot(t[0], t[1]) < 1e-12) return kNotSet;
+    if (t[0] * t[0] + t[1] * t[1] < 1e-24) return kNotSet;
     return norm_angle_deg(std::atan2(t[1], t[0]));
   }
 

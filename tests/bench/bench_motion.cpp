@@ -1,0 +1,178 @@
+// Motion core benchmarks (figures and how to reproduce them: tests/bench/BENCHMARKS.md, "Motion").
+//
+//   BM_Step/3, BM_Step/10   cost of one Interpolator::step() (one 500 us cycle, five calculation
+//                           steps) on a long CAM-like program: mean (Google Benchmark time) and the
+//                           per-step distribution (counters p50_ns, p99_ns, p999_ns, max_ns)
+//   BM_SimulationSpeed      whole offline run (Simulation, limit checker off): program time
+//                           over wall time (counter x_realtime)
+//   BM_ShortSegmentRatio    circle r = 50 mm of 0.05 mm chords at F6000, default machine:
+//                           program time over the feed-limited lower bound (counter ratio)
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "../motion/program_builder.hpp"
+#include "tgm/interpolator.hpp"
+#include "tgm/simulation.hpp"
+
+namespace {
+
+using tgm::MachineConfig;
+using tgm::Program;
+using tgm::test::ProgramBuilder;
+constexpr double kPi = 3.14159265358979323846;
+
+MachineConfig machine_with_axes(int axes) {
+  MachineConfig m = MachineConfig::default_machine();
+  auto& ip = m.interpolators[0];
+  const tgm::AxisConfig base = ip.axes[0];
+  ip.axes.clear();
+  for (int i = 0; i < axes; ++i) {
+    tgm::AxisConfig a = base;
+    a.letter = tgm::default_axis_letter(i);
+    ip.axes.push_back(a);
+  }
+  ip.buffer_size = 10000;
+  return m;
+}
+
+// A CAM-like program: polylines of 0.02..0.5 mm chords along wavy curves, arcs, helices and
+// longer moves, all axes moving a little, one normal M-function every 500 records.
+Program cam_program(int axes, int records, unsigned seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  ProgramBuilder b(axes);
+  std::array<double, tgm::kMaxAxes> p{};
+  double heading = 0.0;
+  int count = 0;
+  while (count < records) {
+    const double kind = u(rng);
+    if (kind < 0.7) {
+      const int n = 50 + static_cast<int>(u(rng) * 200);
+      const double step = 0.02 + 0.48 * u(rng);
+      const double curv = (u(rng) - 0.5) * 0.4;
+      for (int i = 0; i < n; ++i, ++count) {
+        heading += curv * step;
+        p[0] += step * std::cos(heading);
+        if (axes > 1) p[1] += step * std::sin(heading);
+        for (int a = 2; a < axes; ++a) p[static_cast<std::size_t>(a)] += 0.001 * std::sin(0.01 * count + a);
+        b.line_to(p, 4000.0);
+      }
+    } else if (kind < 0.85 && axes >= 2) {
+      const double r = 2.0 + 20.0 * u(rng);
+      const std::array<double, 2> c = {p[0] - r, p[1]};
+      auto e = p;
+      const double ang = 0.5 + 2.0 * u(rng);
+      e[0] = c[0] + r * std::cos(ang);
+      e[1] = c[1] + r * std::sin(ang);
+      if (axes > 2) e[2] += 1.0;
+      b.arc(true, e, c, 3000.0);
+      p = e;
+      ++count;
+    } else {
+      p[0] += 20.0 * (u(rng) - 0.5);
+      if (axes > 1) p[1] += 20.0 * (u(rng) - 0.5);
+      b.line_to(p, 8000.0);
+      ++count;
+    }
+    if (count % 500 < 2) {
+      b.m(10, tgm::MKind::kNormal);
+      ++count;
+    }
+  }
+  b.end();
+  return b.program();
+}
+
+void BM_Step(benchmark::State& state) {
+  const int axes = static_cast<int>(state.range(0));
+  const MachineConfig m = machine_with_axes(axes);
+  const Program prog = cam_program(axes, 200000, 42);
+  auto ip = tgm::Interpolator::create(m, 0);
+  std::size_t next = 0;
+  std::vector<double> ns;
+  ns.reserve(1 << 22);
+  auto restart = [&] {
+    ip->clear();
+    ip->set_position({});
+    next = 0;
+  };
+  restart();
+  for (auto _ : state) {
+    // Feeding, acknowledging and restarting happen between cycles, outside the timed step().
+    state.PauseTiming();
+    if (next < prog.segments.size()) {
+      std::size_t took = 0;
+      ip->append(prog, next, prog.segments.size() - next, true, &took);
+      next += took;
+    }
+    const auto& r = ip->registers();
+    if (r.m_func != 0) ip->write_m_func(0);
+    if (r.status == 4) ip->start();
+    if (r.status == 3) {
+      restart();
+      ip->append(prog, 0, prog.segments.size(), true, &next);
+      ip->start();
+    }
+    state.ResumeTiming();
+    const auto t0 = std::chrono::steady_clock::now();
+    benchmark::DoNotOptimize(ip->step());
+    const auto t1 = std::chrono::steady_clock::now();
+    ns.push_back(std::chrono::duration<double, std::nano>(t1 - t0).count());
+  }
+  std::sort(ns.begin(), ns.end());
+  auto pct = [&](double p) { return ns.empty() ? 0.0 : ns[std::min(ns.size() - 1, static_cast<std::size_t>(p * static_cast<double>(ns.size())))]; };
+  state.counters["p50_ns"] = pct(0.5);
+  state.counters["p99_ns"] = pct(0.99);
+  state.counters["p999_ns"] = pct(0.999);
+  state.counters["max_ns"] = ns.empty() ? 0.0 : ns.back();
+}
+BENCHMARK(BM_Step)->Arg(3)->Arg(10)->Iterations(400000)->Unit(benchmark::kNanosecond);
+
+void BM_SimulationSpeed(benchmark::State& state) {
+  const int axes = 3;
+  const MachineConfig m = machine_with_axes(axes);
+  const Program prog = cam_program(axes, 50000, 7);
+  double program_s = 0.0, wall_s = 0.0;
+  for (auto _ : state) {
+    tgm::SimulationOptions o;
+    o.m_ack_s = 0.0;
+    auto sim = tgm::Simulation::create(m, o);
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto s = sim->run(prog);
+    wall_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    program_s += s.program_time_s;
+    if (s.result != tgm::StepResult::kFinished) state.SkipWithError(s.error.c_str());
+  }
+  state.counters["x_realtime"] = program_s / wall_s;
+  state.counters["program_s"] = program_s / static_cast<double>(state.iterations());
+}
+BENCHMARK(BM_SimulationSpeed)->Iterations(3)->Unit(benchmark::kMillisecond);
+
+void BM_ShortSegmentRatio(benchmark::State& state) {
+  const double r = 50.0, chord = 0.05, feed = 6000.0;
+  const int n = static_cast<int>(std::ceil(2 * kPi * r / chord));
+  ProgramBuilder b(3, {r, 0.0, 0.0});
+  for (int i = 1; i <= n; ++i) {
+    const double a = 2 * kPi * i / n;
+    b.line({r * std::cos(a), r * std::sin(a), 0.0}, feed);
+  }
+  b.end();
+  double ratio = 0.0;
+  for (auto _ : state) {
+    auto sim = tgm::Simulation::create(MachineConfig::default_machine(), {});
+    sim->interpolator().set_position({r, 0.0, 0.0});
+    const auto s = sim->run(b.program());
+    ratio = s.program_time_s / (s.distance_mm / (feed / 60.0));
+  }
+  state.counters["ratio"] = ratio;
+}
+BENCHMARK(BM_ShortSegmentRatio)->Iterations(1)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+
+BENCHMARK_MAIN();
