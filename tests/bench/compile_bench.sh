@@ -76,6 +76,11 @@ if command -v hyperfine > /dev/null; then
   mapfile -t med < <(grep -o '"median": *[0-9.e+-]*' "$json" | sed 's/.*: *//')
   t_tgm=${med[0]}
   t_rs=${med[1]}
+  # Mean CPU time (user + system): steadier than wall time on a shared machine.
+  mapfile -t usr < <(grep -o '"user": *[0-9.e+-]*' "$json" | sed 's/.*: *//')
+  mapfile -t sys < <(grep -o '"system": *[0-9.e+-]*' "$json" | sed 's/.*: *//')
+  cpu_note=$(awk -v a="${usr[0]}" -v b="${sys[0]}" -v c="${usr[1]}" -v d="${sys[1]}" \
+    'BEGIN { printf "CPU time (user+system, mean): tgm-hmi %.4f s, rs274 %.4f s, ratio %.1f", a + b, c + d, (c + d) / (a + b) }')
   how="hyperfine, median of $runs runs after 1 warm-up"
 else
   time_runs() {
@@ -99,3 +104,6 @@ awk -v n="$nlines" -v a="$t_tgm" -v b="$t_rs" -v how="$how" 'BEGIN {
   printf "%-10s %12.4f %16.0f\n", "rs274", b, n / b
   printf "ratio (rs274 time / tgm-hmi time): %.1f   (%s)\n", b / a, how
 }'
+if [[ -n ${cpu_note:-} ]]; then
+  echo "$cpu_note"
+fi
