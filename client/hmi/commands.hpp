@@ -11,4 +11,13 @@ int run_compile(int argc, char** argv);
 //! [--check-limits]`
 int run_simulate(int argc, char** argv);
 
+#ifdef TGM_HMI_DDS
+//! DDS subcommands (hmi/dds/): `run FILE`, `status`, `watch`, `stop`, `command WHAT`.
+int run_run(int argc, char** argv);
+int run_status(int argc, char** argv);
+int run_watch(int argc, char** argv);
+int run_stop(int argc, char** argv);
+int run_command(int argc, char** argv);
+#endif
+
 }  // namespace tgm::hmi

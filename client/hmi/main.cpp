@@ -13,6 +13,13 @@ constexpr const char* kUsage =
     "Commands:\n"
     "  compile FILE   compile G-code to intercode (--dump jsonl|text, --out FILE)\n"
     "  simulate FILE  run a program through the interpolator offline, write a CSV\n"
+#ifdef TGM_HMI_DDS
+    "  run FILE       stream a program to tgm-service, start it, follow it (--plot OUT.svg)\n"
+    "  status         print the registers of an interpolator once\n"
+    "  watch          follow the registers\n"
+    "  stop           normal stop on the trajectory\n"
+    "  command WHAT   start, stop, clear, estop, ... or a Command code with parameters\n"
+#endif
     "\n"
     "Every command takes --config YAML (default: config/default.yaml) and --help.\n";
 
@@ -35,6 +42,13 @@ int main(int argc, char** argv) {
   // Subcommands see argv starting at their own name.
   if (cmd == "compile") return tgm::hmi::run_compile(argc - 1, argv + 1);
   if (cmd == "simulate") return tgm::hmi::run_simulate(argc - 1, argv + 1);
+#ifdef TGM_HMI_DDS
+  if (cmd == "run") return tgm::hmi::run_run(argc - 1, argv + 1);
+  if (cmd == "status") return tgm::hmi::run_status(argc - 1, argv + 1);
+  if (cmd == "watch") return tgm::hmi::run_watch(argc - 1, argv + 1);
+  if (cmd == "stop") return tgm::hmi::run_stop(argc - 1, argv + 1);
+  if (cmd == "command") return tgm::hmi::run_command(argc - 1, argv + 1);
+#endif
   std::fprintf(stderr, "tgm-hmi: unknown command '%s'\n\n%s", argv[1], kUsage);
   return 2;
 }

@@ -1,0 +1,205 @@
+// tgm-hmi status / watch / stop / start / clear / command: one-shot views and requests.
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "commands.hpp"
+#include "dds_common.hpp"
+
+namespace tgm::hmi {
+
+namespace {
+
+using namespace std::chrono_literals;
+
+constexpr const char* kStatusUsage =
+    "usage: tgm-hmi status [--interpolator N | --all] [--config YAML] [DDS overrides]\n"
+    "\n"
+    "Prints every register of the interpolator once (the state is TRANSIENT_LOCAL: a new reader\n"
+    "gets the current one at once).\n"
+    "  --all   every interpolator the service hosts\n";
+constexpr const char* kWatchUsage =
+    "usage: tgm-hmi watch [--interpolator N] [--interval S] [--count K] [--config YAML] [DDS overrides]\n"
+    "\n"
+    "Follows the registers: prints them every S seconds (default 0.5) until Ctrl-C, or K times.\n";
+constexpr const char* kStopUsage =
+    "usage: tgm-hmi stop [--interpolator N] [--config YAML] [DDS overrides]\n"
+    "\n"
+    "Normal stop on the trajectory (Command 8); `tgm-hmi command start` resumes.\n";
+constexpr const char* kCommandUsage =
+    "usage: tgm-hmi command WHAT [P0 P1 ...] [--interpolator N] [--config YAML] [DDS overrides]\n"
+    "\n"
+    "Sends one request as the HMI and prints the reply. WHAT is one of\n"
+    "  start, stop, clear             program control\n"
+    "  estop                          Command 4, emergency stop on the trajectory\n"
+    "  estop-off                      Command 5, emergency stop, off the trajectory\n"
+    "  stop-off                       Command 9, normal stop, off the trajectory\n"
+    "  CODE [P0 .. P11]               the Command register with its parameters (the service\n"
+    "                                 refuses what the HMI may not do, e.g. 1024)\n"
+    "Exit code 0 when accepted, 1 when refused or unanswered.\n";
+
+struct Common {
+  DdsOverrides overrides;
+  std::string error;
+  std::optional<AppConfig> config;
+  std::optional<client::Client> client;
+};
+
+int connect(Args& args, Common& c) {
+  if (!c.error.empty()) return args.usage_error(c.error);
+  if (const int rc = make_client(args, c.overrides, c.config, c.client); rc != 0) return rc;
+  return 0;
+}
+
+int report(const char* what, const client::Reply& r) {
+  std::printf("%s: %s\n", what, client::describe(r).c_str());
+  return r.accepted ? 0 : 1;
+}
+
+}  // namespace
+
+int run_status(int argc, char** argv) {
+  Args args(argc, argv, "status", kStatusUsage);
+  Common c;
+  bool all = false;
+  while (args.more()) {
+    if (dds_flag(args, c.overrides, c.error)) continue;
+    if (args.boolean("--all", all)) continue;
+    if (args.common()) continue;
+    return args.fail();
+  }
+  if (args.help()) return 0;
+  if (args.failed()) return 2;
+  if (const int rc = connect(args, c); rc != 0) return rc;
+  const int first = all ? 0 : args.interpolator();
+  const int last = all ? static_cast<int>(c.config->machine.interpolators.size()) - 1 : first;
+  if (!wait_for_service(*c.client, *c.config, first, "status")) return 1;
+  if (all) c.client->poll(200ms);  // the other instances arrive together
+  for (int i = first; i <= last; ++i) {
+    if (i != first && !c.client->wait_for_state(i, 2s)) {
+      std::printf("Interpolator %d: no state\n", i);
+      continue;
+    }
+    std::fputs(format_state(*c.client->state(i), c.config->machine.axis_letters(i)).c_str(), stdout);
+  }
+  return 0;
+}
+
+int run_watch(int argc, char** argv) {
+  Args args(argc, argv, "watch", kWatchUsage);
+  Common c;
+  std::string interval_text, count_text;
+  while (args.more()) {
+    if (dds_flag(args, c.overrides, c.error)) continue;
+    if (args.flag("--interval", interval_text)) continue;
+    if (args.flag("--count", count_text)) continue;
+    if (args.common()) continue;
+    return args.fail();
+  }
+  if (args.help()) return 0;
+  if (args.failed()) return 2;
+  double interval = 0.5;
+  long long count = 0;
+  if (!interval_text.empty() && (!parse_double(interval_text, interval) || interval <= 0)) {
+    return args.usage_error("--interval must be a positive number of seconds");
+  }
+  if (!count_text.empty() && !parse_int(count_text, 1, 1'000'000'000, count)) {
+    return args.usage_error("--count must be a positive whole number");
+  }
+  if (const int rc = connect(args, c); rc != 0) return rc;
+  install_signal_flag();
+  const int ip = args.interpolator();
+  if (!wait_for_service(*c.client, *c.config, ip, "watch")) return 1;
+  const bool tty = ::isatty(1) != 0;
+  for (long long k = 0; !g_interrupted && (count == 0 || k < count); ++k) {
+    if (k > 0) {
+      const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(interval);
+      while (!g_interrupted && std::chrono::steady_clock::now() < until) c.client->poll(10ms);
+    }
+    if (tty) std::printf("\033[H\033[2J");
+    std::fputs(format_state(*c.client->state(ip), c.config->machine.axis_letters(ip)).c_str(), stdout);
+    for (const auto& m : c.client->take_messages()) {
+      if (m.interpolator() == ip) std::printf("message (line %d): %s\n", m.source_line(), m.text().c_str());
+    }
+    if (!tty) std::printf("\n");
+    std::fflush(stdout);
+  }
+  return 0;
+}
+
+int run_stop(int argc, char** argv) {
+  Args args(argc, argv, "stop", kStopUsage);
+  Common c;
+  while (args.more()) {
+    if (dds_flag(args, c.overrides, c.error)) continue;
+    if (args.common()) continue;
+    return args.fail();
+  }
+  if (args.help()) return 0;
+  if (args.failed()) return 2;
+  if (const int rc = connect(args, c); rc != 0) return rc;
+  return report("stop", c.client->stop(args.interpolator()));
+}
+
+int run_command(int argc, char** argv) {
+  // Negative numbers (Command -1 / -2, parameters) are words, not options: mark them so the
+  // argument reader takes them as positionals.
+  std::vector<std::string> marked(argv, argv + argc);
+  std::vector<char*> ptrs;
+  for (std::string& a : marked) {
+    if (a.size() > 1 && a[0] == '-' && a.find_first_not_of("0123456789", 1) == std::string::npos) a[0] = '~';
+    ptrs.push_back(a.data());
+  }
+  argv = ptrs.data();
+  Args args(argc, argv, "command", kCommandUsage);
+  Common c;
+  std::vector<std::string> words;
+  while (args.more()) {
+    if (dds_flag(args, c.overrides, c.error)) continue;
+    if (args.common()) continue;
+    std::string w;
+    if (args.positional(w)) {
+      if (w[0] == '~') w[0] = '-';
+      words.push_back(w);
+      continue;
+    }
+    return args.fail();
+  }
+  if (args.help()) return 0;
+  if (args.failed()) return 2;
+  if (words.empty()) return args.usage_error("say WHAT to send (start, stop, clear, estop, ... or a Command code)");
+  const std::string what = words[0];
+  std::vector<std::int32_t> params;
+  long long code = 0;
+  bool is_code = false;
+  if (what == "start" || what == "stop" || what == "clear" || what == "estop" || what == "estop-off" ||
+      what == "stop-off") {
+    if (words.size() > 1) return args.usage_error("'" + what + "' takes no parameters");
+  } else if (parse_int(what, -1'000'000, 1'000'000, code)) {
+    is_code = true;
+    if (words.size() > 13) return args.usage_error("at most 12 Command parameters");
+    for (std::size_t k = 1; k < words.size(); ++k) {
+      long long v = 0;
+      if (!parse_int(words[k], INT32_MIN, INT32_MAX, v)) return args.usage_error("parameter '" + words[k] + "' is not an integer");
+      params.push_back(static_cast<std::int32_t>(v));
+    }
+  } else {
+    return args.usage_error("unknown command '" + what + "'");
+  }
+  if (const int rc = connect(args, c); rc != 0) return rc;
+  const int ip = args.interpolator();
+  client::Client& cl = *c.client;
+  if (what == "start") return report("start", cl.start(ip));
+  if (what == "stop") return report("stop", cl.stop(ip));
+  if (what == "clear") return report("clear", cl.clear(ip));
+  if (what == "estop") return report("Command 4", cl.command(ip, 4));
+  if (what == "estop-off") return report("Command 5", cl.command(ip, 5));
+  if (what == "stop-off") return report("Command 9", cl.command(ip, 9));
+  (void)is_code;
+  return report(("Command " + what).c_str(), cl.command(ip, static_cast<std::int32_t>(code), params));
+}
+
+}  // namespace tgm::hmi

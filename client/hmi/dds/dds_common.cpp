@@ -1,0 +1,118 @@
+#include "dds_common.hpp"
+
+#include <signal.h>
+
+#include <cstdio>
+
+#include "tgm/intercode.hpp"
+#include "tgm/registers.hpp"
+
+namespace tgm::hmi {
+
+std::atomic<bool> g_interrupted{false};
+
+namespace {
+void on_signal(int) { g_interrupted = true; }
+}  // namespace
+
+void install_signal_flag() {
+  struct sigaction sa{};
+  sa.sa_handler = on_signal;
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+}
+
+bool dds_flag(Args& args, DdsOverrides& o, std::string& error) {
+  std::string v;
+  if (args.flag("--domain", v)) return o.take("--domain", v, error), true;
+  if (args.flag("--profiles", v)) return o.take("--profiles", v, error), true;
+  if (args.flag("--participant-prefix", v)) return o.take("--participant-prefix", v, error), true;
+  return false;
+}
+
+int make_client(Args& args, const DdsOverrides& o, std::optional<AppConfig>& config,
+                std::optional<client::Client>& c, const client::ClientOptions& options) {
+  config = args.load_app();
+  if (!config) return 2;
+  o.apply(config->dds);
+  try {
+    c.emplace(config->dds, client::Role::kHmi, options);
+  } catch (const dds::SetupError& e) {
+    std::fprintf(stderr, "tgm-hmi: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}
+
+bool wait_for_service(client::Client& c, const AppConfig& config, int interpolator, const char* command) {
+  if (c.wait_for_state(interpolator, std::chrono::seconds(10))) return true;
+  std::fprintf(stderr,
+               "tgm-hmi %s: no state of interpolator %d from tgm-service on DDS domain %d within 10 s "
+               "(is tgm-service running with the same domain and profiles?)\n",
+               command, interpolator, config.dds.domain_id);
+  return false;
+}
+
+std::string format_state(const msg::InterpolatorState& s, const std::string& letters) {
+  std::string out;
+  char buf[512];
+  auto line = [&](const char* fmt, auto... args) {
+    std::snprintf(buf, sizeof buf, fmt, args...);
+    out += buf;
+    out += '\n';
+  };
+  const int n = std::max(1, std::min<int>(s.number_axes(), kMaxAxes));
+  auto axes = [&](const char* name, auto get, const char* fmt) {
+    std::string t = name;
+    for (int i = 0; i < n; ++i) {
+      char b[64];
+      std::snprintf(b, sizeof b, fmt, i < static_cast<int>(letters.size()) ? letters[static_cast<std::size_t>(i)] : '?',
+                    get(static_cast<std::size_t>(i)));
+      t += b;
+    }
+    out += t + '\n';
+  };
+  const auto rf = static_cast<std::uint32_t>(s.run_flag());
+  line("Interpolator %d: Status %d (%s), Number_Axes %d, Buffer_Size %d", s.number(), s.status(),
+       std::string(client::status_name(s.status())).c_str(), s.number_axes(), s.buffer_size());
+  line("  Command %d, Command_Status %d, Run_Flag 0x%08x (section %u, speed %u)", s.command(), s.command_status(), rf,
+       rf & 0xFFFFu, rf >> 16);
+  line("  Act_Part %d, line %d, Act_G_Func %d, Act_M_Func %d, M_Func %d, Last_Cont_M_Func %d, Tool_Number %d",
+       s.act_part(), s.act_line(), s.act_g_func(), s.act_m_func(), s.m_func(), s.last_cont_m_func(), s.tool_number());
+  line("  Rel_Speed %.3f, Set_Speed %.1f mm/min, Act_Speed %.1f mm/min, Move_Distance %.3f mm", s.rel_speed(),
+       s.set_speed(), s.act_speed(), s.move_distance());
+  axes("  Orig_Position [mm]   ", [&](std::size_t i) { return s.orig_position()[i]; }, " %c %.4f");
+  axes("  Position [mm]        ", [&](std::size_t i) { return s.position()[i]; }, " %c %.4f");
+  axes("  PositionInc [inc]    ", [&](std::size_t i) { return static_cast<long long>(s.position_inc()[i]); }, " %c %lld");
+  axes("  Speed [mm/s]         ", [&](std::size_t i) { return s.speed()[i]; }, " %c %.3f");
+  axes("  Ratio [inc/mm]       ", [&](std::size_t i) { return s.ratio()[i]; }, " %c %g");
+  axes("  Offset [inc]         ", [&](std::size_t i) { return static_cast<long long>(s.offset()[i]); }, " %c %lld");
+  std::string params;
+  for (std::size_t k = 0; k < kParamLetters; ++k) {
+    if (is_not_set(s.m_function_parameter()[k])) continue;
+    std::snprintf(buf, sizeof buf, " %c%g", static_cast<char>('A' + k), s.m_function_parameter()[k]);
+    params += buf;
+  }
+  line("  M_Function_Parameter:%s", params.empty() ? " (none)" : params.c_str());
+  line("  LookAheadBuffer:");
+  for (std::size_t e = 0; e < s.look_ahead_buffer().size(); ++e) {
+    const auto& l = s.look_ahead_buffer()[e];
+    if (l.movement_type() == 0) {
+      line("    [%zu] invalid", e);
+      continue;
+    }
+    line("    [%zu] %s%d line %d plane %d tool %d end (%.4f, %.4f, %.4f) radius %.4f", e,
+         l.movement_type() == 1 ? "G" : "M", l.movement_code(), l.line(), l.plane(), l.tool(), l.end_pos()[0],
+         l.end_pos()[1], l.end_pos()[2], l.radius());
+  }
+  line("  program %u: next_sequence %llu, buffered %d, free %d", s.program_id(),
+       static_cast<unsigned long long>(s.next_sequence()), s.buffered_segments(), s.free_buffer_slots());
+  line("  cycle %llu, lateness last %.1f us, max %.1f us, p99.9 %.1f us, missed cycles %llu",
+       static_cast<unsigned long long>(s.cycle_counter()), static_cast<double>(s.lateness_last_ns()) / 1e3,
+       static_cast<double>(s.lateness_max_ns()) / 1e3, static_cast<double>(s.lateness_p999_ns()) / 1e3,
+       static_cast<unsigned long long>(s.missed_cycles()));
+  if (s.message_counter() > 0) line("  last message (%u): %s", s.message_counter(), s.message_text().c_str());
+  return out;
+}
+
+}  // namespace tgm::hmi

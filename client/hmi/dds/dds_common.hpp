@@ -1,0 +1,32 @@
+// Shared by the tgm-hmi subcommands that talk to tgm-service over DDS.
+#pragma once
+
+#include <atomic>
+#include <optional>
+#include <string>
+
+#include "cli_common.hpp"
+#include "tgm/client/client.hpp"
+#include "tgm/dds_overrides.hpp"
+
+namespace tgm::hmi {
+
+//! Set by SIGINT / SIGTERM once install_signal_flag() ran.
+extern std::atomic<bool> g_interrupted;
+void install_signal_flag();
+
+//! Consumes the DDS override flags (--domain, --profiles, --participant-prefix).
+bool dds_flag(Args& args, DdsOverrides& o, std::string& error);
+
+//! Loads the config, applies the overrides and creates an HMI client; prints why not.
+//! Returns the exit code on failure (2 config, 1 DDS), 0 on success.
+int make_client(Args& args, const DdsOverrides& o, std::optional<AppConfig>& config,
+                std::optional<client::Client>& c, const client::ClientOptions& options = {});
+
+//! Waits for the state of `interpolator`; prints a clear error when there is none.
+bool wait_for_service(client::Client& c, const AppConfig& config, int interpolator, const char* command);
+
+//! The registers of one interpolator as readable lines.
+std::string format_state(const msg::InterpolatorState& s, const std::string& axis_letters);
+
+}  // namespace tgm::hmi

@@ -1,0 +1,407 @@
+// tgm-hmi run: compile a program, stream it into an interpolator's buffer (flow controlled by
+// the free buffer count; a program larger than Buffer_Size streams while it runs), start it and
+// follow it to the end with a progress display, M29 messages and a summary.
+#include <poll.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "commands.hpp"
+#include "dds_common.hpp"
+#include "tgm/gcode.hpp"
+#include "tgm/intercode_io.hpp"
+#include "tgm/registers.hpp"
+
+namespace tgm::hmi {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using namespace std::chrono_literals;
+
+constexpr const char* kUsage =
+    "usage: tgm-hmi run FILE [--interpolator N] [--config YAML] [OPTIONS]\n"
+    "\n"
+    "Compiles FILE (G-code, or intercode written by `tgm-hmi compile --out`, *.tgmi), streams it\n"
+    "into the interpolator's buffer, starts it and follows it to the end. Exit code 0 when the\n"
+    "program ended, 1 when it was stopped or failed, 2 on bad input.\n"
+    "\n"
+    "  --interpolator N      interpolator 0..2 (default 0)\n"
+    "  --config YAML         machine config (default: $TGM_CONFIG or config/default.yaml)\n"
+    "  --domain N, --profiles FILE, --participant-prefix P   DDS overrides\n"
+    "  --plot OUT.svg        draw the executed toolpath (XY) and the path speed over time\n"
+    "  --progress-interval S plain progress line every S seconds when not on a terminal (default 1)\n"
+    "  --m0-continue S       after an M0 program stop, start again after S seconds (default: on a\n"
+    "                        terminal wait for Enter, otherwise 1 s)\n"
+    "  --timeout S           give up (stop the interpolator, exit 1) after S seconds (default none)\n"
+    "  --quiet               no progress display, only messages and the summary\n"
+    "\n"
+    "Ctrl-C stops the interpolator (normal stop on the trajectory) and exits with 130.\n";
+
+struct PlotData {
+  std::vector<std::pair<double, double>> path;      // Position of the first two axes [mm]
+  std::vector<std::pair<double, double>> speed;     // (time [s], Act_Speed [mm/min])
+};
+
+bool write_svg(const std::string& path, const PlotData& d, const std::string& letters, std::string& error) {
+  const double W = 900, H = 420, pad = 40;
+  std::string s;
+  char b[256];
+  std::snprintf(b, sizeof b,
+                "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"%.0f\" height=\"%.0f\" font-family=\"sans-serif\" "
+                "font-size=\"12\">\n<rect width=\"100%%\" height=\"100%%\" fill=\"white\"/>\n",
+                W, H);
+  s += b;
+  auto polyline = [&](const std::vector<std::pair<double, double>>& pts, double x0, double y0, double w, double h,
+                      const char* colour, const char* title, bool equal) {
+    double minx = 1e300, maxx = -1e300, miny = 1e300, maxy = -1e300;
+    for (auto [x, y] : pts) {
+      minx = std::min(minx, x), maxx = std::max(maxx, x), miny = std::min(miny, y), maxy = std::max(maxy, y);
+    }
+    if (pts.empty()) minx = maxx = miny = maxy = 0;
+    double sx = (maxx - minx) > 1e-12 ? w / (maxx - minx) : 1.0;
+    double sy = (maxy - miny) > 1e-12 ? h / (maxy - miny) : 1.0;
+    if (equal) sx = sy = std::min(sx, sy);
+    std::snprintf(b, sizeof b, "<rect x=\"%.1f\" y=\"%.1f\" width=\"%.1f\" height=\"%.1f\" fill=\"none\" stroke=\"#ccc\"/>\n",
+                  x0, y0, w, h);
+    s += b;
+    std::snprintf(b, sizeof b, "<text x=\"%.1f\" y=\"%.1f\">%s</text>\n", x0, y0 - 8, title);
+    s += b;
+    std::snprintf(b, sizeof b,
+                  "<text x=\"%.1f\" y=\"%.1f\" fill=\"#666\">x %.3g..%.3g, y %.3g..%.3g</text>\n", x0, y0 + h + 16,
+                  minx, maxx, miny, maxy);
+    s += b;
+    s += "<polyline fill=\"none\" stroke=\"";
+    s += colour;
+    s += "\" stroke-width=\"1.2\" points=\"";
+    for (auto [x, y] : pts) {
+      std::snprintf(b, sizeof b, "%.2f,%.2f ", x0 + (x - minx) * sx, y0 + h - (y - miny) * sy);
+      s += b;
+    }
+    s += "\"/>\n";
+  };
+  const std::string t1 = std::string("toolpath ") + (letters.size() > 0 ? letters[0] : 'X') + "/" +
+                         (letters.size() > 1 ? letters[1] : 'Y') + " [mm]";
+  polyline(d.path, pad, pad, W / 2 - 2 * pad, H - 2 * pad - 10, "#1565c0", t1.c_str(), true);
+  polyline(d.speed, W / 2 + pad / 2, pad, W / 2 - 1.5 * pad, H - 2 * pad - 10, "#c62828",
+           "path speed Act_Speed [mm/min] over time [s]", false);
+  s += "</svg>\n";
+  return write_file_atomic(path, s, error);
+}
+
+bool stdin_has_line() {
+  pollfd p{0, POLLIN, 0};
+  if (::poll(&p, 1, 0) <= 0) return false;
+  char buf[256];
+  return ::read(0, buf, sizeof buf) >= 0;
+}
+
+}  // namespace
+
+int run_run(int argc, char** argv) {
+  Args args(argc, argv, "run", kUsage);
+  DdsOverrides overrides;
+  std::string file, plot_path, interval_text, m0_text, timeout_text, error;
+  bool quiet = false;
+  while (args.more()) {
+    if (dds_flag(args, overrides, error)) continue;
+    if (args.flag("--plot", plot_path)) continue;
+    if (args.flag("--progress-interval", interval_text)) continue;
+    if (args.flag("--m0-continue", m0_text)) continue;
+    if (args.flag("--timeout", timeout_text)) continue;
+    if (args.boolean("--quiet", quiet)) continue;
+    if (args.common()) continue;
+    if (args.positional(file)) continue;
+    return args.fail();
+  }
+  if (args.help()) return 0;
+  if (args.failed()) return 2;
+  if (!error.empty()) return args.usage_error(error);
+  if (file.empty()) return args.usage_error("a program FILE is required");
+  double interval_s = 1.0, m0_s = -1.0, timeout_s = 0.0;
+  if (!interval_text.empty() && (!parse_double(interval_text, interval_s) || interval_s <= 0)) {
+    return args.usage_error("--progress-interval must be a positive number of seconds");
+  }
+  if (!m0_text.empty() && (!parse_double(m0_text, m0_s) || m0_s < 0)) {
+    return args.usage_error("--m0-continue must be >= 0 seconds");
+  }
+  if (!timeout_text.empty() && (!parse_double(timeout_text, timeout_s) || timeout_s <= 0)) {
+    return args.usage_error("--timeout must be a positive number of seconds");
+  }
+
+  // Config and program first: bad input never touches the service.
+  std::optional<AppConfig> config = args.load_app();
+  if (!config) return 2;
+  overrides.apply(config->dds);
+  const int ip = args.interpolator();
+  const std::string letters = config->machine.axis_letters(ip);
+  Program program;
+  {
+    FileView input;
+    if (!input.open(file, error)) {
+      std::fprintf(stderr, "%s: error: %s\n", file.c_str(), error.c_str());
+      return 2;
+    }
+    const bool intercode = file.size() > 5 && file.compare(file.size() - 5, 5, ".tgmi") == 0;
+    if (intercode) {
+      if (!decode_intercode(input.text(), program, error)) {
+        std::fprintf(stderr, "%s: error: %s\n", file.c_str(), error.c_str());
+        return 2;
+      }
+    } else {
+      CompileResult r = compile_gcode(input.text(), CompileOptions::from_machine(config->machine, ip));
+      if (!r.ok()) {
+        for (const Diagnostic& d : r.errors) std::fprintf(stderr, "%s\n", format_diagnostic(file, d).c_str());
+        std::fprintf(stderr, "%s: %zu error%s, nothing sent\n", file.c_str(), r.errors.size(),
+                     r.errors.size() == 1 ? "" : "s");
+        return 2;
+      }
+      program = std::move(r.program);
+    }
+  }
+  if (program.segments.empty()) {
+    std::fprintf(stderr, "%s: the program has no records\n", file.c_str());
+    return 2;
+  }
+  std::int32_t last_line = 0;
+  for (const Segment& s : program.segments) last_line = std::max(last_line, s.line);
+
+  install_signal_flag();
+  std::optional<client::Client> hmi;
+  client::ClientOptions copt;
+  copt.setpoints = !plot_path.empty();
+  try {
+    hmi.emplace(config->dds, client::Role::kHmi, copt);
+  } catch (const dds::SetupError& e) {
+    std::fprintf(stderr, "tgm-hmi run: %s\n", e.what());
+    return 1;
+  }
+  if (!wait_for_service(*hmi, *config, ip, "run")) return 1;
+
+  // Take the interpolator over: clear what it holds (only while it stands).
+  const msg::InterpolatorState* st = hmi->state(ip);
+  if (st->status() == 1 || st->status() == 6) {
+    std::fprintf(stderr, "tgm-hmi run: interpolator %d is busy (status %d %s); stop it first (tgm-hmi stop)\n", ip,
+                 st->status(), std::string(client::status_name(st->status())).c_str());
+    return 1;
+  }
+  if (st->status() != 0) {
+    const client::Reply r = hmi->clear(ip);
+    if (!r.accepted) {
+      std::fprintf(stderr, "tgm-hmi run: clearing interpolator %d: %s\n", ip, client::describe(r).c_str());
+      return 1;
+    }
+  }
+
+  PlotData plot;
+  std::uint64_t first_cycle = 0;
+  const double cycle_s = config->machine.cycle_time_us * 1e-6;
+  if (!plot_path.empty()) {
+    hmi->on_setpoints = [&](const msg::Setpoints& s) {
+      if (s.interpolator() != ip) return;
+      const std::pair<double, double> p{s.position()[0], s.position()[1]};
+      if (plot.path.empty() || std::hypot(p.first - plot.path.back().first, p.second - plot.path.back().second) > 0.05)
+        plot.path.push_back(p);
+    };
+    hmi->on_state = [&](const msg::InterpolatorState& s) {
+      if (s.interpolator() != ip || first_cycle == 0) return;
+      plot.speed.emplace_back(static_cast<double>(s.cycle_counter() - first_cycle) * cycle_s, s.act_speed());
+    };
+  }
+
+  const std::uint32_t program_id = client::new_program_id();
+  client::ProgramSender sender(*hmi, program, ip, program_id);
+  const bool tty = ::isatty(1) != 0;
+  const auto t0 = Clock::now();
+  auto last_line_at = t0;
+  bool started = false, m0_wait = false, stop_reported = false;
+  Clock::time_point m0_since{};
+  std::uint64_t start_cycle = 0, m_waits = 0;
+  std::uint64_t fresh_after = 0;  // ignore states from before our last start request
+  std::int32_t m_part = -1;
+  std::uint64_t m_wait_cycles = 0, m_wait_from = 0;
+  std::size_t messages = 0;
+  int exit_code = 0;
+  bool progress_shown = false;
+  auto clear_progress = [&] {
+    if (tty && progress_shown) std::printf("\r\033[K");
+    progress_shown = false;
+  };
+  std::printf("tgm-hmi run: %s: %zu records for interpolator %d (program %u), DDS domain %d\n", file.c_str(),
+              program.segments.size(), ip, program_id, config->dds.domain_id);
+  std::fflush(stdout);
+
+  while (true) {
+    hmi->poll(2ms);
+    if (!sender.pump()) {
+      clear_progress();
+      std::fprintf(stderr, "tgm-hmi run: %s\n", sender.error().c_str());
+      exit_code = 1;
+      break;
+    }
+    st = hmi->state(ip);
+    for (const msg::Message& m : hmi->take_messages()) {
+      if (m.interpolator() != ip) continue;
+      clear_progress();
+      const bool err = m.severity() == msg::SEVERITY_ERROR;
+      std::printf("%s (line %d): %s\n", err ? "ERROR" : m.severity() == msg::SEVERITY_WARNING ? "warning" : "M29",
+                  m.source_line(), m.text().c_str());
+      ++messages;
+      if (err && std::string(m.text().c_str()).find(std::to_string(program_id)) != std::string::npos) exit_code = 1;
+    }
+    if (exit_code != 0) break;
+    if (g_interrupted) {
+      clear_progress();
+      std::printf("tgm-hmi run: interrupted: normal stop: %s\n", client::describe(hmi->stop(ip)).c_str());
+      exit_code = 130;
+      break;
+    }
+    if (timeout_s > 0 && Clock::now() - t0 > std::chrono::duration<double>(timeout_s)) {
+      clear_progress();
+      std::printf("tgm-hmi run: timeout after %.1f s: normal stop: %s\n", timeout_s,
+                  client::describe(hmi->stop(ip)).c_str());
+      exit_code = 1;
+      break;
+    }
+    const bool ours = st->program_id() == program_id;
+    // Start once everything is in the buffer, or once the buffer is half full.
+    if (!started && ours &&
+        (sender.all_confirmed() || sender.confirmed() >= static_cast<std::uint64_t>(st->buffer_size() / 2) ||
+         st->free_buffer_slots() == 0)) {
+      const client::Reply r = hmi->start(ip);
+      if (!r.accepted) {
+        std::fprintf(stderr, "tgm-hmi run: start: %s\n", client::describe(r).c_str());
+        exit_code = 1;
+        break;
+      }
+      started = true;
+      start_cycle = r.cycle;
+      fresh_after = r.cycle;
+      first_cycle = r.cycle;
+      continue;
+    }
+    if (!started || !ours || st->cycle_counter() <= fresh_after) continue;
+    const auto section = static_cast<SectionState>(static_cast<std::uint32_t>(st->run_flag()) & 0xFFFFu);
+    const bool m_waiting = section == SectionState::kWaitMFunc || section == SectionState::kWaitMFuncEnd;
+    if (m_waiting && st->act_part() != m_part) {
+      m_part = st->act_part();
+      ++m_waits;
+      m_wait_from = st->cycle_counter();
+    } else if (!m_waiting && m_wait_from != 0) {
+      m_wait_cycles += st->cycle_counter() - m_wait_from;
+      m_wait_from = 0;
+    }
+    const auto status = static_cast<InterpolatorStatus>(st->status());
+    if (status == InterpolatorStatus::kEnded && sender.all_confirmed()) break;
+    if (status == InterpolatorStatus::kEmpty) {
+      clear_progress();
+      std::fprintf(stderr, "tgm-hmi run: the program was cleared by someone else\n");
+      exit_code = 1;
+      break;
+    }
+    if (status == InterpolatorStatus::kEmergencyStopped || status == InterpolatorStatus::kEmergencyRamp) {
+      if (status == InterpolatorStatus::kEmergencyRamp) continue;
+      clear_progress();
+      std::fprintf(stderr, "tgm-hmi run: emergency stop (Command %d)%s at line %d\n", st->command(),
+                   st->off_trajectory() ? ", off trajectory" : "", st->act_line());
+      exit_code = 1;
+      break;
+    }
+    if (status == InterpolatorStatus::kUnderrun && st->buffered_segments() > 0) {
+      fresh_after = hmi->start(ip).cycle;  // the buffer ran empty and got more: go on
+      continue;
+    }
+    if (status == InterpolatorStatus::kReady) {
+      const auto& l0 = st->look_ahead_buffer()[0];
+      const bool at_m0 = l0.movement_type() == 2 && l0.movement_code() == 0;
+      if (at_m0) {
+        if (!m0_wait) {
+          m0_wait = true;
+          m0_since = Clock::now();
+          clear_progress();
+          std::printf("M0 program stop at line %d: %s\n", st->act_line(),
+                      m0_s >= 0 || !::isatty(0) ? "continuing shortly" : "press Enter to continue");
+          std::fflush(stdout);
+        }
+        const double wait = m0_s >= 0 ? m0_s : ::isatty(0) ? -1.0 : 1.0;
+        const bool go = wait < 0 ? stdin_has_line()
+                                 : Clock::now() - m0_since >= std::chrono::duration<double>(wait);
+        if (go) {
+          m0_wait = false;
+          fresh_after = hmi->start(ip).cycle;
+        }
+      } else if (!stop_reported) {
+        stop_reported = true;
+        clear_progress();
+        std::printf("stopped by a stop command at line %d; `tgm-hmi command start` resumes\n", st->act_line());
+      }
+    } else {
+      stop_reported = false;
+    }
+    // Progress.
+    const auto now = Clock::now();
+    if (!quiet && (tty ? now - last_line_at >= 100ms : now - last_line_at >= std::chrono::duration<double>(interval_s))) {
+      last_line_at = now;
+      const double pct = 100.0 * static_cast<double>(std::max(st->act_part(), 0)) /
+                         static_cast<double>(program.segments.size());
+      char bar[21];
+      const int filled = std::clamp(static_cast<int>(pct / 5.0), 0, 20);
+      for (int k = 0; k < 20; ++k) bar[k] = k < filled ? '#' : '.';
+      bar[20] = '\0';
+      std::string dro;
+      for (int a = 0; a < std::min<int>(st->number_axes(), 3); ++a) {
+        char b[40];
+        std::snprintf(b, sizeof b, " %c%.3f", letters.size() > static_cast<std::size_t>(a) ? letters[static_cast<std::size_t>(a)] : '?',
+                      st->position()[static_cast<std::size_t>(a)]);
+        dro += b;
+      }
+      std::string wait;
+      if (m_waiting) wait = " waiting for M" + std::to_string(st->m_func());
+      std::printf("%s[%s] %5.1f%% line %d/%d%s F%.0f %s%s%s", tty ? "\r\033[K" : "", bar, pct, st->act_line(), last_line,
+                  dro.c_str(), st->act_speed(), std::string(client::status_name(st->status())).c_str(), wait.c_str(),
+                  tty ? "" : "\n");
+      std::fflush(stdout);
+      progress_shown = true;
+    }
+  }
+  clear_progress();
+  for (int k = 0; k < 50 && !plot_path.empty(); ++k) hmi->poll(1ms);  // last samples for the plot
+  st = hmi->state(ip);
+  const double program_s = static_cast<double>(st->cycle_counter() - start_cycle) * cycle_s;
+  if (exit_code == 0) {
+    std::string dro;
+    for (int a = 0; a < st->number_axes(); ++a) {
+      char b[40];
+      std::snprintf(b, sizeof b, " %c%.4f", letters.size() > static_cast<std::size_t>(a) ? letters[static_cast<std::size_t>(a)] : '?',
+                    st->position()[static_cast<std::size_t>(a)]);
+      dro += b;
+    }
+    std::printf(
+        "done: %llu records, %d lines in %.3f s (%llu cycles), distance %.3f mm, %llu M-function wait%s "
+        "(%.3f s), %zu message%s\n  end position%s\n  service cycle lateness: max %.1f us, p99.9 %.1f us, "
+        "missed cycles %llu\n",
+        static_cast<unsigned long long>(sender.total()), last_line, program_s,
+        static_cast<unsigned long long>(st->cycle_counter() - start_cycle), st->move_distance(),
+        static_cast<unsigned long long>(m_waits), m_waits == 1 ? "" : "s", static_cast<double>(m_wait_cycles) * cycle_s,
+        messages, messages == 1 ? "" : "s", dro.c_str(), static_cast<double>(st->lateness_max_ns()) / 1e3,
+        static_cast<double>(st->lateness_p999_ns()) / 1e3, static_cast<unsigned long long>(st->missed_cycles()));
+  }
+  if (!plot_path.empty()) {
+    if (!write_svg(plot_path, plot, letters, error)) {
+      std::fprintf(stderr, "%s: error: %s\n", plot_path.c_str(), error.c_str());
+      if (exit_code == 0) exit_code = 1;
+    } else {
+      std::printf("plot: %s (%zu path points, %zu speed samples)\n", plot_path.c_str(), plot.path.size(),
+                  plot.speed.size());
+    }
+  }
+  std::fflush(stdout);
+  return exit_code;
+}
+
+}  // namespace tgm::hmi

@@ -1,0 +1,247 @@
+#include "tgm/client/client.hpp"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+
+#include "tgm/dds/topics.hpp"
+#include "tgm/idl_mapping.hpp"
+#include "tgm/msg/tgmPubSubTypes.h"
+
+namespace tgm::client {
+
+namespace fdds = eprosima::fastdds::dds;
+using Clock = std::chrono::steady_clock;
+
+std::string_view reply_code_name(msg::ReplyCode c) {
+  switch (c) {
+    case msg::REPLY_CODE_ACCEPTED: return "accepted";
+    case msg::REPLY_CODE_WRONG_ROLE: return "wrong role";
+    case msg::REPLY_CODE_OUT_OF_RANGE: return "out of range";
+    case msg::REPLY_CODE_WRONG_STATE: return "wrong state";
+    case msg::REPLY_CODE_BAD_REQUEST: return "bad request";
+    case msg::REPLY_CODE_UNSUPPORTED: return "unsupported";
+  }
+  return "unknown reply code";
+}
+
+std::string describe(const Reply& r) {
+  if (r.timed_out) return "no reply (is tgm-service running on this domain?)";
+  if (r.accepted) return "accepted";
+  return "refused (" + std::string(reply_code_name(r.code)) + "): " + r.reason;
+}
+
+std::string_view status_name(std::int32_t status) {
+  switch (status) {
+    case 0: return "empty";
+    case 1: return "running";
+    case 3: return "ended";
+    case 4: return "ready";
+    case 6: return "emergency ramp";
+    case 7: return "emergency stopped";
+    case 8: return "underrun";
+    default: return "?";
+  }
+}
+
+Client::Client(const DdsConfig& config, Role role, const ClientOptions& options)
+    : role_(role),
+      participant_(config, role == Role::kPlc ? "plc" : "hmi"),
+      name_(participant_.name() + "-" + std::to_string(::getpid())),
+      state_reader_(participant_.reader<msg::InterpolatorStatePubSubType>(dds::kStateTopic)),
+      reply_reader_(participant_.reader<msg::ReplyPubSubType>(dds::kReplyTopic)),
+      message_reader_(participant_.reader<msg::MessagePubSubType>(dds::kMessageTopic)),
+      request_writer_(participant_.writer<msg::RequestPubSubType>(dds::kRequestTopic)),
+      program_writer_(participant_.writer<msg::ProgramChunkPubSubType>(dds::kProgramTopic)) {
+  if (options.setpoints) {
+    setpoint_reader_ = &participant_.reader<msg::SetpointsPubSubType>(dds::kSetpointsTopic);
+    waiter_.emplace(std::initializer_list<fdds::DataReader*>{&state_reader_, &reply_reader_,
+                                                             &message_reader_, setpoint_reader_});
+  } else {
+    waiter_.emplace(std::initializer_list<fdds::DataReader*>{&state_reader_, &reply_reader_,
+                                                             &message_reader_});
+  }
+  states_.resize(kMaxInterpolators);
+  state_samples_.resize(kMaxInterpolators, 0);
+}
+
+void Client::poll(std::chrono::nanoseconds timeout) {
+  if (timeout.count() > 0) waiter_->wait(timeout);
+  while (dds::take_next(state_reader_, state_scratch_)) {
+    const std::size_t i = state_scratch_.interpolator();
+    if (i >= states_.size()) continue;
+    states_[i] = state_scratch_;
+    ++state_samples_[i];
+    if (on_state) on_state(state_scratch_);
+  }
+  msg::Reply reply;
+  while (dds::take_next(reply_reader_, reply)) {
+    if (reply.client_name() == name_) replies_.push_back(reply);
+  }
+  msg::Message m;
+  while (dds::take_next(message_reader_, m)) messages_.push_back(m);
+  if (setpoint_reader_ != nullptr) {
+    while (dds::take_next(*setpoint_reader_, setpoints_scratch_)) {
+      if (on_setpoints) on_setpoints(setpoints_scratch_);
+    }
+  }
+}
+
+bool Client::wait_for_state(int interpolator, std::chrono::milliseconds timeout) {
+  return wait_until(interpolator, [](const msg::InterpolatorState&) { return true; }, timeout);
+}
+
+bool Client::wait_until(int interpolator,
+                        const std::function<bool(const msg::InterpolatorState&)>& pred,
+                        std::chrono::milliseconds timeout) {
+  const auto deadline = Clock::now() + timeout;
+  while (true) {
+    poll(std::chrono::nanoseconds(0));
+    if (const auto* s = state(interpolator); s != nullptr && pred(*s)) return true;
+    const auto now = Clock::now();
+    if (now >= deadline) return false;
+    poll(std::min<std::chrono::nanoseconds>(deadline - now, 20ms));
+  }
+}
+
+const msg::InterpolatorState* Client::state(int interpolator) const {
+  if (interpolator < 0 || static_cast<std::size_t>(interpolator) >= states_.size()) return nullptr;
+  const auto& s = states_[static_cast<std::size_t>(interpolator)];
+  return s ? &*s : nullptr;
+}
+
+std::uint64_t Client::state_samples(int interpolator) const {
+  if (interpolator < 0 || static_cast<std::size_t>(interpolator) >= states_.size()) return 0;
+  return state_samples_[static_cast<std::size_t>(interpolator)];
+}
+
+std::vector<msg::Message> Client::take_messages() {
+  std::vector<msg::Message> out;
+  out.swap(messages_);
+  return out;
+}
+
+Reply Client::request(msg::Request r, std::chrono::milliseconds timeout) {
+  Reply out;
+  const auto deadline = Clock::now() + timeout;
+  // The request topic is VOLATILE: a request written before the service's reader matched is lost.
+  if (!dds::wait_for_match(request_writer_, 1, timeout) ||
+      !dds::wait_for_match(reply_reader_, 1, std::chrono::duration_cast<std::chrono::milliseconds>(
+                                                 std::max(deadline - Clock::now(), Clock::duration(0))))) {
+    out.timed_out = true;
+    return out;
+  }
+  r.request_id(next_request_id_++);
+  r.role(role_ == Role::kPlc ? msg::CLIENT_ROLE_PLC : msg::CLIENT_ROLE_HMI);
+  r.client_name(name_);
+  if (!request_writer_.write(&r)) {
+    out.timed_out = true;
+    return out;
+  }
+  while (true) {
+    poll(std::chrono::nanoseconds(0));
+    for (auto it = replies_.begin(); it != replies_.end(); ++it) {
+      if (it->request_id() == r.request_id()) {
+        out.accepted = it->accepted();
+        out.code = it->code();
+        out.reason = it->reason();
+        out.cycle = it->cycle_counter();
+        replies_.erase(it);
+        return out;
+      }
+    }
+    const auto now = Clock::now();
+    if (now >= deadline) {
+      out.timed_out = true;
+      return out;
+    }
+    poll(std::min<std::chrono::nanoseconds>(deadline - now, 20ms));
+  }
+}
+
+namespace {
+msg::Request make(int interpolator, msg::RequestKind kind) {
+  msg::Request r;
+  r.interpolator(static_cast<std::uint16_t>(interpolator));
+  r.kind(kind);
+  return r;
+}
+}  // namespace
+
+Reply Client::start(int i) { return request(make(i, msg::REQUEST_KIND_START)); }
+Reply Client::stop(int i) { return request(make(i, msg::REQUEST_KIND_STOP)); }
+Reply Client::clear(int i) { return request(make(i, msg::REQUEST_KIND_CLEAR)); }
+
+Reply Client::command(int i, std::int32_t code, std::span<const std::int32_t> params) {
+  msg::Request r = make(i, msg::REQUEST_KIND_COMMAND);
+  r.command(code);
+  for (std::size_t k = 0; k < params.size() && k < r.command_parameter().size(); ++k) {
+    r.command_parameter()[k] = params[k];
+  }
+  return request(r);
+}
+
+Reply Client::ack_m_func(int i) {
+  msg::Request r = make(i, msg::REQUEST_KIND_WRITE_M_FUNC);
+  r.value(0.0);
+  return request(r);
+}
+
+Reply Client::set_rel_speed(int i, double rel_speed) {
+  msg::Request r = make(i, msg::REQUEST_KIND_WRITE_REL_SPEED);
+  r.value(rel_speed);
+  return request(r);
+}
+
+// ---- ProgramSender ----
+
+ProgramSender::ProgramSender(Client& client, const Program& program, int interpolator,
+                             std::uint32_t program_id)
+    : client_(client),
+      program_(program),
+      interpolator_(interpolator),
+      program_id_(program_id),
+      total_(program.segments.size()) {}
+
+bool ProgramSender::pump() {
+  const msg::InterpolatorState* s = client_.state(interpolator_);
+  if (s == nullptr) return true;
+  if (s->program_id() == program_id_) confirmed_ = std::max<std::uint64_t>(confirmed_, s->next_sequence());
+  while (!chunk_ends_.empty() && chunk_ends_.front() <= confirmed_) chunk_ends_.erase(chunk_ends_.begin());
+  if (!matched_) {
+    fdds::PublicationMatchedStatus st;
+    client_.program_writer().get_publication_matched_status(st);
+    if (st.current_count < 1) return true;
+    matched_ = true;
+  }
+  const std::uint64_t free_slots = static_cast<std::uint64_t>(std::max(0, s->free_buffer_slots()));
+  while (!end_written_ && chunk_ends_.size() < static_cast<std::size_t>(dds::kProgramChunksInFlight)) {
+    std::size_t end = 0;
+    const mapping::MapStatus st =
+        mapping::fill_chunk(program_, next_, {static_cast<std::uint16_t>(interpolator_), program_id_}, chunk_, end);
+    if (st != mapping::MapStatus::kOk) {
+      error_ = "record " + std::to_string(next_) + ": " + std::string(mapping::to_string(st));
+      return false;
+    }
+    const std::uint64_t in_flight = next_ - confirmed_;
+    const std::uint64_t n = end - next_;
+    if (in_flight > 0 && in_flight + n > free_slots) break;
+    if (!client_.program_writer().write(&chunk_)) {
+      error_ = "writing program chunk " + std::to_string(next_) + " failed";
+      return false;
+    }
+    next_ = end;
+    chunk_ends_.push_back(end);
+    if (chunk_.end_of_program()) end_written_ = true;
+  }
+  return true;
+}
+
+std::uint32_t new_program_id() {
+  const auto t = static_cast<std::uint64_t>(Clock::now().time_since_epoch().count());
+  std::uint32_t id = static_cast<std::uint32_t>(t ^ (t >> 32) ^ (static_cast<std::uint64_t>(::getpid()) << 16));
+  return id == 0 ? 1 : id;
+}
+
+}  // namespace tgm::client

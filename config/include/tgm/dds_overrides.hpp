@@ -1,0 +1,59 @@
+// Command-line overrides of the DDS settings of the YAML config (DESIGN.md section 6: domain id,
+// participant names and the profile file come from the config and can be overridden on the
+// command line). Shared by tgm-service, tgm-plc and tgm-hmi so the flags mean the same
+// everywhere. Header-only: the binaries parse their own arguments and call these.
+#pragma once
+
+#include <cstdlib>
+#include <string>
+#include <string_view>
+
+#include "tgm/yaml_config.hpp"
+
+namespace tgm {
+
+//! The flags below, for --help texts.
+inline constexpr const char* kDdsOverrideHelp =
+    "  --domain N            DDS domain id 0..232 (overrides dds.domain_id)\n"
+    "  --profiles FILE       Fast DDS XML profiles (overrides dds.profiles_file)\n"
+    "  --participant-prefix P  participant names P-service, P-plc, P-hmi\n";
+
+//! DDS settings given on the command line (empty / -1 = not given).
+struct DdsOverrides {
+  int domain_id = -1;
+  std::string profiles_file;
+  std::string participant_prefix;
+
+  //! Takes `flag` with `value` when it is one of the DDS flags; false otherwise. A bad value
+  //! sets `error` (and returns true).
+  bool take(std::string_view flag, const std::string& value, std::string& error) {
+    if (flag == "--domain") {
+      char* end = nullptr;
+      const long v = std::strtol(value.c_str(), &end, 10);
+      if (value.empty() || *end != '\0' || v < 0 || v > 232) {
+        error = "--domain must be 0..232, not '" + value + "'";
+      } else {
+        domain_id = static_cast<int>(v);
+      }
+      return true;
+    }
+    if (flag == "--profiles") {
+      profiles_file = value;
+      return true;
+    }
+    if (flag == "--participant-prefix") {
+      if (value.empty()) error = "--participant-prefix must not be empty";
+      participant_prefix = value;
+      return true;
+    }
+    return false;
+  }
+  //! Applies what was given to `c`.
+  void apply(DdsConfig& c) const {
+    if (domain_id >= 0) c.domain_id = domain_id;
+    if (!profiles_file.empty()) c.profiles_file = profiles_file;
+    if (!participant_prefix.empty()) c.participant_prefix = participant_prefix;
+  }
+};
+
+}  // namespace tgm

@@ -1,0 +1,81 @@
+// The cycle logic of tgm-service without clocks or DDS: once per cycle it applies the queued
+// requests (with a budget), moves program chunks into the ring buffers (in bounded pieces),
+// steps every interpolator and hands a snapshot to the port. The real-time loop (rt_loop.hpp)
+// calls cycle() at absolute deadlines; tests call it as fast as they like with a mock port.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "tgm/config.hpp"
+#include "tgm/interpolator.hpp"
+#include "tgm/service/port.hpp"
+
+namespace tgm::service {
+
+//! Budgets that bound the work of one cycle.
+struct EngineOptions {
+  //! Requests applied per cycle at most; the rest wait for the next cycle.
+  int max_requests_per_cycle = 32;
+  //! Program records appended per interpolator per cycle at most (a 128-record chunk may take
+  //! several cycles when the budget is small).
+  std::size_t max_segments_per_cycle = 1024;
+  //! Options for every interpolator.
+  InterpolatorOptions interpolator;
+};
+
+//! What the engine counted (for the log at shutdown and for tests).
+struct EngineCounters {
+  std::uint64_t requests = 0;
+  std::uint64_t refused_requests = 0;
+  std::uint64_t chunks = 0;
+  std::uint64_t segments = 0;
+  std::uint64_t duplicate_chunks = 0;
+  std::uint64_t refused_chunks = 0;
+  std::uint64_t lost_replies = 0;
+  std::uint64_t lost_messages = 0;
+};
+
+//! Role rule of a request (DESIGN.md section 1), exposed for tests and documentation.
+//! Empty when `role` may send it, else the reason.
+std::string role_violation(Role role, RequestKind kind, std::int32_t command);
+
+class Engine {
+ public:
+  static std::optional<Engine> create(const MachineConfig& machine, const EngineOptions& options,
+                                      std::string* error = nullptr);
+
+  //! One interpolation cycle. `lateness` goes into the snapshot unchanged.
+  void cycle(CyclePort& port, const LatenessStats& lateness);
+
+  int count() const { return static_cast<int>(ips_.size()); }
+  const Interpolator& interpolator(int i) const { return ips_[static_cast<std::size_t>(i)].ip; }
+  const EngineCounters& counters() const { return counters_; }
+  std::uint64_t cycles() const { return cycles_; }
+  double cycle_time_s() const;
+
+ private:
+  struct Slot {
+    Interpolator ip;
+    std::uint32_t program_id = 0;
+    std::uint64_t next_sequence = 0;
+    std::uint32_t refused_program = 0;  // last program id a refusal message was sent for
+    std::uint32_t message_seen = 0;
+    std::uint32_t message_counter = 0;
+    FixedText<256> message_text;
+  };
+  Engine(std::vector<Slot> ips, const EngineOptions& o) : ips_(std::move(ips)), opt_(o) {}
+  ReplyOut apply(const RequestIn& r);
+  void apply_chunks(CyclePort& port, int i);
+  void refuse_chunk(CyclePort& port, int i, const ChunkIn& c, std::string_view why);
+
+  std::vector<Slot> ips_;
+  EngineOptions opt_;
+  EngineCounters counters_;
+  std::uint64_t cycles_ = 0;
+  Snapshot snapshot_;
+};
+
+}  // namespace tgm::service

@@ -1,0 +1,143 @@
+// What the cycle loop exchanges with the outside world, and the abstract port it talks through
+// (STYLE.md "Transport behind an interface"): the DDS adapter implements the port in
+// service/src, a mock implements it in tests/service. Every type here is plain data with fixed
+// capacity, so handing it between threads never allocates.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <cstring>
+#include <string_view>
+
+#include "tgm/intercode.hpp"
+#include "tgm/registers.hpp"
+#include "tgm/service/lateness.hpp"
+
+namespace tgm::service {
+
+//! Who sent a request (DESIGN.md section 1).
+enum class Role : std::uint8_t { kPlc = 0, kHmi = 1 };
+
+//! What a request asks for; mirrors tgm::msg::RequestKind.
+enum class RequestKind : std::uint8_t {
+  kCommand = 0,
+  kWriteMFunc = 1,
+  kWriteRelSpeed = 2,
+  kWriteOffset = 3,
+  kWriteRatio = 4,
+  kWriteNumberAxes = 5,
+  kStart = 6,
+  kStop = 7,
+  kClear = 8,
+  kUnknown = 255,
+};
+
+//! Outcome of a request; mirrors tgm::msg::ReplyCode.
+enum class ReplyCode : std::uint8_t {
+  kAccepted = 0,
+  kWrongRole = 1,
+  kOutOfRange = 2,
+  kWrongState = 3,
+  kBadRequest = 4,
+  kUnsupported = 5,
+};
+
+//! A fixed-capacity, always NUL-terminated text.
+template <std::size_t N>
+struct FixedText {
+  std::array<char, N> chars{};
+  void set(std::string_view s) {
+    const std::size_t n = s.size() < N - 1 ? s.size() : N - 1;
+    std::memcpy(chars.data(), s.data(), n);
+    chars[n] = '\0';
+  }
+  std::string_view view() const { return {chars.data(), std::strlen(chars.data())}; }
+};
+
+//! A request as the cycle thread sees it.
+struct RequestIn {
+  std::uint64_t request_id = 0;
+  Role role = Role::kHmi;
+  FixedText<65> client;
+  int interpolator = 0;
+  RequestKind kind = RequestKind::kUnknown;
+  std::int32_t command = 0;
+  std::array<std::int32_t, kCommandParameters> command_parameter{};
+  int axis = 0;
+  double value = 0.0;
+};
+
+//! The answer to one request.
+struct ReplyOut {
+  std::uint64_t request_id = 0;
+  FixedText<65> client;
+  int interpolator = 0;
+  ReplyCode code = ReplyCode::kAccepted;
+  FixedText<256> reason;
+  //! Cycle (Registers::cycle numbering) in which the request was handled.
+  std::uint64_t cycle = 0;
+};
+
+//! A message for the HMI (M29 text, a refused program chunk, ...).
+struct MessageOut {
+  enum class Severity : std::uint8_t { kInfo = 0, kWarning = 1, kError = 2 };
+  int interpolator = 0;
+  Severity severity = Severity::kInfo;
+  FixedText<256> text;
+  std::int32_t source_line = 0;
+};
+
+//! A program chunk, already decoded on the receiving thread. The cycle thread applies it in
+//! pieces (`applied` records so far) and gives it back with pop_chunk().
+struct ChunkIn {
+  int interpolator = 0;
+  std::uint32_t program_id = 0;
+  std::uint64_t sequence_number = 0;
+  bool end_of_program = false;
+  //! 0 when decoding worked; otherwise `error` says why the chunk is unusable.
+  int decode_status = 0;
+  FixedText<128> error;
+  //! The records with their side tables (number_axes set from the chunk).
+  Program program;
+  //! Records of `program` already in the ring buffer (cycle thread only).
+  std::size_t applied = 0;
+};
+
+//! One interpolator's part of a snapshot: its registers and what the service adds.
+struct InterpolatorSnapshot {
+  Registers reg;
+  std::uint32_t program_id = 0;
+  std::uint64_t next_sequence = 0;
+  std::int32_t buffered_segments = 0;
+  std::uint32_t message_counter = 0;
+  FixedText<256> message_text;
+};
+
+//! Everything the publisher needs after one cycle.
+struct Snapshot {
+  std::uint64_t cycle = 0;
+  int count = 0;
+  std::array<InterpolatorSnapshot, kMaxInterpolators> ip{};
+  LatenessStats lateness;
+};
+
+//! The cycle loop's window to the world. Called only from the cycle thread; no call may block,
+//! allocate in the steady state, or wait for a DDS thread.
+class CyclePort {
+ public:
+  virtual ~CyclePort() = default;
+  //! Next request, oldest first; false when there is none.
+  virtual bool next_request(RequestIn& out) = 0;
+  //! Oldest program chunk of `interpolator` not yet given back, or null.
+  virtual ChunkIn* front_chunk(int interpolator) = 0;
+  //! Gives back the chunk front_chunk() returned (fully applied or dropped).
+  virtual void pop_chunk(int interpolator) = 0;
+  //! Queues a reply; false when the outgoing queue is full (the reply is lost and counted).
+  virtual bool reply(const ReplyOut& r) = 0;
+  //! Queues a message; false when the outgoing queue is full.
+  virtual bool message(const MessageOut& m) = 0;
+  //! Hands the newest snapshot over (latest value wins).
+  virtual void publish(const Snapshot& s) = 0;
+};
+
+}  // namespace tgm::service

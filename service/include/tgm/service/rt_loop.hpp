@@ -1,0 +1,46 @@
+// The real-time cycle loop: absolute deadlines on CLOCK_MONOTONIC (clock_nanosleep with
+// TIMER_ABSTIME), optional SCHED_FIFO and mlockall when permitted, lateness measured per cycle.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <string>
+
+#include "tgm/service/engine.hpp"
+#include "tgm/service/lateness.hpp"
+#include "tgm/service/port.hpp"
+
+namespace tgm::service {
+
+struct RtOptions {
+  //! Try SCHED_FIFO at `priority` and mlockall; without permission the loop runs as a normal
+  //! thread (one log line says so).
+  bool realtime = true;
+  int priority = 80;
+};
+
+//! Tries mlockall and SCHED_FIFO for the calling thread; returns a log line saying what worked.
+std::string make_realtime(const RtOptions& o);
+
+//! Runs `engine` against `port` every `period_ns` until `stop` becomes true. Call from the
+//! thread that is to be the cycle thread. A cycle that starts a whole period or more late counts
+//! the periods it missed as missed cycles; their deadlines are skipped (no catch-up burst).
+class RtLoop {
+ public:
+  RtLoop(Engine& engine, CyclePort& port, std::int64_t period_ns)
+      : engine_(engine), port_(port), period_ns_(period_ns) {}
+  void run(const std::atomic<bool>& stop);
+  //! Valid after run() returned.
+  const LatenessHistogram& histogram() const { return hist_; }
+  const LatenessStats& stats() const { return stats_; }
+
+ private:
+  Engine& engine_;
+  CyclePort& port_;
+  std::int64_t period_ns_;
+  LatenessHistogram hist_;
+  LatenessStats stats_;
+};
+
+}  // namespace tgm::service

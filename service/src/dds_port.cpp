@@ -1,0 +1,317 @@
+#include "dds_port.hpp"
+
+#include <linux/futex.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
+#include <climits>
+#include <cstdio>
+
+#include "tgm/dds/topics.hpp"
+#include "tgm/idl_mapping.hpp"
+
+namespace tgm::service {
+
+namespace fdds = eprosima::fastdds::dds;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+std::int64_t steady_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch()).count();
+}
+
+RequestKind from_msg(msg::RequestKind k) {
+  switch (k) {
+    case msg::REQUEST_KIND_COMMAND: return RequestKind::kCommand;
+    case msg::REQUEST_KIND_WRITE_M_FUNC: return RequestKind::kWriteMFunc;
+    case msg::REQUEST_KIND_WRITE_REL_SPEED: return RequestKind::kWriteRelSpeed;
+    case msg::REQUEST_KIND_WRITE_OFFSET: return RequestKind::kWriteOffset;
+    case msg::REQUEST_KIND_WRITE_RATIO: return RequestKind::kWriteRatio;
+    case msg::REQUEST_KIND_WRITE_NUMBER_AXES: return RequestKind::kWriteNumberAxes;
+    case msg::REQUEST_KIND_START: return RequestKind::kStart;
+    case msg::REQUEST_KIND_STOP: return RequestKind::kStop;
+    case msg::REQUEST_KIND_CLEAR: return RequestKind::kClear;
+  }
+  return RequestKind::kUnknown;
+}
+
+msg::ReplyCode to_msg(ReplyCode c) {
+  switch (c) {
+    case ReplyCode::kAccepted: return msg::REPLY_CODE_ACCEPTED;
+    case ReplyCode::kWrongRole: return msg::REPLY_CODE_WRONG_ROLE;
+    case ReplyCode::kOutOfRange: return msg::REPLY_CODE_OUT_OF_RANGE;
+    case ReplyCode::kWrongState: return msg::REPLY_CODE_WRONG_STATE;
+    case ReplyCode::kBadRequest: return msg::REPLY_CODE_BAD_REQUEST;
+    case ReplyCode::kUnsupported: return msg::REPLY_CODE_UNSUPPORTED;
+  }
+  return msg::REPLY_CODE_BAD_REQUEST;
+}
+
+// Fields whose change is an event the clients must see at once (M-function handshake, status,
+// commands, messages); progress-only changes (position, next_sequence, Act_Part) are rate-limited.
+bool event_changed(const Registers& a, const Registers& b) {
+  return a.status != b.status || a.m_func != b.m_func || a.act_m_func != b.act_m_func ||
+         a.last_cont_m_func != b.last_cont_m_func || a.run_flag != b.run_flag ||
+         a.command != b.command || a.command_status != b.command_status ||
+         a.off_trajectory != b.off_trajectory || a.rel_speed != b.rel_speed ||
+         a.tool_number != b.tool_number || a.number_axes != b.number_axes;
+}
+
+bool progress_changed(const Registers& a, const Registers& b) {
+  return a.act_part != b.act_part || a.free_slots != b.free_slots || a.act_speed != b.act_speed ||
+         a.orig_position != b.orig_position || a.position != b.position;
+}
+
+}  // namespace
+
+void Doorbell::ring() {
+  word_.fetch_add(1, std::memory_order_release);
+  syscall(SYS_futex, reinterpret_cast<std::uint32_t*>(&word_), FUTEX_WAKE_PRIVATE, INT_MAX, nullptr,
+          nullptr, 0);
+}
+
+void Doorbell::wait(std::uint32_t seen, std::chrono::nanoseconds timeout) {
+  timespec ts{};
+  ts.tv_sec = static_cast<time_t>(timeout.count() / 1'000'000'000);
+  ts.tv_nsec = static_cast<long>(timeout.count() % 1'000'000'000);
+  syscall(SYS_futex, reinterpret_cast<std::uint32_t*>(&word_), FUTEX_WAIT_PRIVATE, seen, &ts,
+          nullptr, 0);
+}
+
+DdsPort::DdsPort(const DdsConfig& config, const DdsPortOptions& options)
+    : opt_(options),
+      participant_(config, "service"),
+      state_writer_(participant_.writer<msg::InterpolatorStatePubSubType>(dds::kStateTopic)),
+      setpoint_writer_(participant_.writer<msg::SetpointsPubSubType>(dds::kSetpointsTopic)),
+      reply_writer_(participant_.writer<msg::ReplyPubSubType>(dds::kReplyTopic)),
+      message_writer_(participant_.writer<msg::MessagePubSubType>(dds::kMessageTopic)),
+      request_reader_(participant_.reader<msg::RequestPubSubType>(dds::kRequestTopic)),
+      program_reader_(participant_.reader<msg::ProgramChunkPubSubType>(dds::kProgramTopic)),
+      waiter_({&request_reader_, &program_reader_}),
+      free_chunks_(static_cast<std::size_t>(options.interpolators) * 4 * dds::kProgramChunksInFlight) {
+  const auto n = static_cast<std::size_t>(opt_.interpolators);
+  for (std::size_t i = 0; i < n; ++i) {
+    chunks_.push_back(std::make_unique<SpscQueue<ChunkIn*>>(2 * dds::kProgramChunksInFlight));
+    m_written_ns_.push_back(std::make_unique<std::atomic<std::int64_t>>(0));
+  }
+  backlog_.resize(n);
+  published_.resize(n);
+  published_setpoints_.resize(n);
+  // Chunk objects: enough for every queue plus the window of every sender.
+  for (std::size_t i = 0; i < free_chunks_.capacity(); ++i) {
+    chunk_pool_.push_back(std::make_unique<ChunkIn>());
+    chunk_pool_.back()->program.segments.reserve(mapping::kMaxChunkSegments);
+    free_chunks_.push(chunk_pool_.back().get());
+  }
+}
+
+DdsPort::~DdsPort() { stop(); }
+
+void DdsPort::start() {
+  receiver_ = std::thread([this] { receive_loop(); });
+  publisher_ = std::thread([this] { publish_loop(); });
+}
+
+void DdsPort::stop() {
+  stopping_ = true;
+  waiter_.wake();
+  doorbell_.ring();
+  if (receiver_.joinable()) receiver_.join();
+  if (publisher_.joinable()) publisher_.join();
+}
+
+// ---- cycle thread ----
+
+bool DdsPort::next_request(RequestIn& out) { return requests_.pop(out); }
+
+ChunkIn* DdsPort::front_chunk(int i) {
+  ChunkIn** c = chunks_[static_cast<std::size_t>(i)]->front();
+  return c != nullptr ? *c : nullptr;
+}
+
+void DdsPort::pop_chunk(int i) {
+  auto& q = *chunks_[static_cast<std::size_t>(i)];
+  ChunkIn** c = q.front();
+  if (c == nullptr) return;
+  ChunkIn* chunk = *c;
+  q.pop_front();
+  free_chunks_.push(chunk);  // never full: it holds every pool object
+}
+
+bool DdsPort::reply(const ReplyOut& r) { return replies_.push(r); }
+bool DdsPort::message(const MessageOut& m) { return messages_.push(m); }
+
+void DdsPort::publish(const Snapshot& s) {
+  latest_.write_slot() = s;
+  latest_.publish();
+  doorbell_.ring();
+}
+
+// ---- receiver thread ----
+
+void DdsPort::take_requests() {
+  msg::Request r;
+  while (!requests_.full() && dds::take_next(request_reader_, r)) {
+    RequestIn in;
+    in.request_id = r.request_id();
+    in.role = r.role() == msg::CLIENT_ROLE_PLC ? Role::kPlc : Role::kHmi;
+    in.client.set(r.client_name().c_str());
+    in.interpolator = r.interpolator();
+    in.kind = from_msg(r.kind());
+    in.command = r.command();
+    for (std::size_t k = 0; k < in.command_parameter.size(); ++k) {
+      in.command_parameter[k] = r.command_parameter()[k];
+    }
+    in.axis = r.axis();
+    in.value = r.value();
+    if (in.kind == RequestKind::kWriteMFunc && in.interpolator >= 0 &&
+        in.interpolator < opt_.interpolators) {
+      auto& written = *m_written_ns_[static_cast<std::size_t>(in.interpolator)];
+      const std::int64_t t0 = written.exchange(0);
+      if (t0 != 0 && handshakes_.size() < 1'000'000) {
+        handshakes_.push_back({in.interpolator, steady_ns() - t0});
+      }
+    }
+    requests_.push(in);
+  }
+}
+
+void DdsPort::take_chunks() {
+  // Hand queued chunks to the cycle thread first (keeps the order per interpolator).
+  for (std::size_t i = 0; i < backlog_.size(); ++i) {
+    while (!backlog_[i].empty() && chunks_[i]->push(backlog_[i].front())) backlog_[i].pop_front();
+  }
+  while (true) {
+    if (spare_ == nullptr && !free_chunks_.pop(spare_)) return;  // all in use: later
+    if (!dds::take_next(program_reader_, chunk_sample_)) return;
+    const int i = chunk_sample_.interpolator();
+    if (i < 0 || i >= opt_.interpolators) {
+      std::fprintf(stderr, "tgm-service: program chunk for interpolator %d dropped (the service hosts 0..%d)\n",
+                   i, opt_.interpolators - 1);
+      continue;
+    }
+    ChunkIn* c = spare_;
+    spare_ = nullptr;
+    c->interpolator = i;
+    c->program_id = chunk_sample_.program_id();
+    c->sequence_number = chunk_sample_.sequence_number();
+    c->end_of_program = chunk_sample_.end_of_program();
+    c->applied = 0;
+    c->program.segments.clear();
+    c->program.params.clear();
+    c->program.messages.clear();
+    const mapping::MapStatus st = mapping::append_chunk(chunk_sample_, c->program);
+    c->decode_status = static_cast<int>(st);
+    c->error.set(st == mapping::MapStatus::kOk ? std::string_view{} : mapping::to_string(st));
+    auto& backlog = backlog_[static_cast<std::size_t>(i)];
+    if (backlog.empty() && chunks_[static_cast<std::size_t>(i)]->push(c)) continue;
+    backlog.push_back(c);
+  }
+}
+
+void DdsPort::receive_loop() {
+  while (!stopping_) {
+    bool pending = spare_ == nullptr;
+    for (const auto& b : backlog_) pending = pending || !b.empty();
+    pending = pending || requests_.full();
+    waiter_.wait(pending ? std::chrono::nanoseconds(std::chrono::milliseconds(1))
+                         : std::chrono::nanoseconds(std::chrono::milliseconds(100)));
+    if (stopping_) break;
+    take_requests();
+    take_chunks();
+  }
+}
+
+// ---- publisher thread ----
+
+void DdsPort::publish_state(int i, const InterpolatorSnapshot& s, const Snapshot& all) {
+  mapping::to_idl(s.reg, static_cast<std::uint16_t>(i), state_sample_);
+  state_sample_.program_id(s.program_id);
+  state_sample_.next_sequence(s.next_sequence);
+  state_sample_.buffered_segments(s.buffered_segments);
+  state_sample_.message_counter(s.message_counter);
+  state_sample_.message_text(std::string(s.message_text.view()));
+  state_sample_.cycle_counter(all.cycle);
+  state_sample_.lateness_last_ns(all.lateness.last_ns);
+  state_sample_.lateness_max_ns(all.lateness.max_ns);
+  state_sample_.lateness_p999_ns(all.lateness.p999_ns);
+  state_sample_.missed_cycles(all.lateness.missed_cycles);
+  Published& p = published_[static_cast<std::size_t>(i)];
+  const bool new_m = s.reg.m_func != 0 && (!p.any || p.reg.m_func != s.reg.m_func ||
+                                           p.reg.act_part != s.reg.act_part);
+  state_writer_.write(&state_sample_);
+  ++states_published_;
+  if (new_m) m_written_ns_[static_cast<std::size_t>(i)]->store(steady_ns());
+  p.any = true;
+  p.reg = s.reg;
+  p.program_id = s.program_id;
+  p.next_sequence = s.next_sequence;
+  p.message_counter = s.message_counter;
+  p.at = Clock::now();
+}
+
+void DdsPort::publish_loop() {
+  const Snapshot* snap = nullptr;
+  std::uint32_t seen = doorbell_.value();
+  while (true) {
+    doorbell_.wait(seen, std::chrono::milliseconds(10));
+    seen = doorbell_.value();
+    ReplyOut r;
+    msg::Reply reply;
+    while (replies_.pop(r)) {
+      reply.request_id(r.request_id);
+      reply.client_name(std::string(r.client.view()));
+      reply.interpolator(static_cast<std::uint16_t>(r.interpolator));
+      reply.accepted(r.code == ReplyCode::kAccepted);
+      reply.code(to_msg(r.code));
+      reply.reason(std::string(r.reason.view()));
+      reply.cycle_counter(r.cycle);
+      reply_writer_.write(&reply);
+    }
+    MessageOut m;
+    msg::Message message;
+    while (messages_.pop(m)) {
+      message.interpolator(static_cast<std::uint16_t>(m.interpolator));
+      message.severity(m.severity == MessageOut::Severity::kError     ? msg::SEVERITY_ERROR
+                       : m.severity == MessageOut::Severity::kWarning ? msg::SEVERITY_WARNING
+                                                                      : msg::SEVERITY_INFO);
+      message.text(std::string(m.text.view()));
+      message.source_line(m.source_line);
+      message_writer_.write(&message);
+    }
+    if (stopping_) break;
+    const bool fresh = latest_.read(snap);
+    if (snap == nullptr) continue;
+    const auto now = Clock::now();
+    if (fresh) ++snapshots_seen_;
+    for (int i = 0; i < snap->count; ++i) {
+      const InterpolatorSnapshot& s = snap->ip[static_cast<std::size_t>(i)];
+      const Published& p = published_[static_cast<std::size_t>(i)];
+      bool send = !p.any || now - p.at >= opt_.state_period;
+      if (!send && fresh) {
+        send = event_changed(s.reg, p.reg) || s.program_id != p.program_id ||
+               s.message_counter != p.message_counter ||
+               ((s.next_sequence != p.next_sequence || progress_changed(s.reg, p.reg)) &&
+                now - p.at >= opt_.progress_period);
+      }
+      if (send) publish_state(i, s, *snap);
+      // Setpoints: every cycle the publisher sees while the positions change (decimated by
+      // --setpoint-decimation), and with the state period while they stand still.
+      Published& sp = published_setpoints_[static_cast<std::size_t>(i)];
+      const bool moved = !sp.any || s.reg.position_inc != sp.reg.position_inc;
+      if (fresh && (moved || now - sp.at >= opt_.state_period) &&
+          (snapshots_seen_ % static_cast<std::uint64_t>(opt_.setpoint_decimation)) == 0) {
+        sp.any = true;
+        sp.reg.position_inc = s.reg.position_inc;
+        sp.at = now;
+        mapping::to_setpoints(s.reg, static_cast<std::uint16_t>(i), setpoint_sample_);
+        setpoint_sample_.cycle_counter(snap->cycle);
+        setpoint_writer_.write(&setpoint_sample_);
+        ++setpoints_published_;
+      }
+    }
+  }
+}
+
+}  // namespace tgm::service

@@ -1,0 +1,137 @@
+// The DDS side of tgm-service: implements CyclePort with lock-free queues and a latest-value
+// buffer, and owns the two DDS threads (STYLE.md "DDS application shape", DESIGN.md section 3):
+// - the receiver thread waits on the request and program readers (WaitSet), converts samples to
+//   plain structs and queues them for the cycle thread;
+// - the publisher thread wakes after each cycle, writes replies and messages, and publishes the
+//   state (on change, at most every `progress_period` for progress-only changes, at least every
+//   `state_period`) and the setpoints (every cycle it sees).
+// The cycle thread only touches the queues and the latest-value buffer.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "tgm/dds/participant.hpp"
+#include "tgm/msg/tgmPubSubTypes.h"
+#include "tgm/service/latest_value.hpp"
+#include "tgm/service/port.hpp"
+#include "tgm/service/spsc_queue.hpp"
+
+namespace tgm::service {
+
+struct DdsPortOptions {
+  int interpolators = 3;
+  std::chrono::milliseconds state_period{20};
+  std::chrono::microseconds progress_period{2000};
+  //! Publish setpoints every Nth snapshot the publisher sees (1 = every cycle).
+  int setpoint_decimation = 1;
+};
+
+//! M-function handshake measurement: from the write of the state sample that shows a new
+//! M_Func until the acknowledging request is taken by the receiver thread [ns].
+struct HandshakeSample {
+  int interpolator;
+  std::int64_t round_trip_ns;
+};
+
+//! A futex-backed doorbell: ring() never blocks; wait() sleeps until rung or timeout.
+class Doorbell {
+ public:
+  void ring();
+  void wait(std::uint32_t seen, std::chrono::nanoseconds timeout);
+  std::uint32_t value() const { return word_.load(std::memory_order_acquire); }
+
+ private:
+  std::atomic<std::uint32_t> word_{0};
+};
+
+class DdsPort final : public CyclePort {
+ public:
+  DdsPort(const DdsConfig& config, const DdsPortOptions& options);
+  ~DdsPort() override;
+
+  //! Starts the receiver and publisher threads.
+  void start();
+  //! Stops and joins them (idempotent).
+  void stop();
+
+  bool next_request(RequestIn& out) override;
+  ChunkIn* front_chunk(int interpolator) override;
+  void pop_chunk(int interpolator) override;
+  bool reply(const ReplyOut& r) override;
+  bool message(const MessageOut& m) override;
+  void publish(const Snapshot& s) override;
+
+  //! Valid after stop().
+  const std::vector<HandshakeSample>& handshakes() const { return handshakes_; }
+  std::uint64_t states_published() const { return states_published_; }
+  std::uint64_t setpoints_published() const { return setpoints_published_; }
+  const std::string& participant_name() const { return participant_.name(); }
+
+ private:
+  void receive_loop();
+  void publish_loop();
+  void take_requests();
+  void take_chunks();
+  void publish_state(int i, const InterpolatorSnapshot& s, const Snapshot& all);
+
+  DdsPortOptions opt_;
+  dds::Participant participant_;
+  eprosima::fastdds::dds::DataWriter& state_writer_;
+  eprosima::fastdds::dds::DataWriter& setpoint_writer_;
+  eprosima::fastdds::dds::DataWriter& reply_writer_;
+  eprosima::fastdds::dds::DataWriter& message_writer_;
+  eprosima::fastdds::dds::DataReader& request_reader_;
+  eprosima::fastdds::dds::DataReader& program_reader_;
+  dds::DataWaiter waiter_;
+
+  // cycle <- receiver
+  SpscQueue<RequestIn> requests_{256};
+  std::vector<std::unique_ptr<SpscQueue<ChunkIn*>>> chunks_;
+  // cycle -> receiver: chunk objects to reuse
+  SpscQueue<ChunkIn*> free_chunks_;
+  std::vector<std::unique_ptr<ChunkIn>> chunk_pool_;
+  // cycle -> publisher
+  SpscQueue<ReplyOut> replies_{256};
+  SpscQueue<MessageOut> messages_{256};
+  LatestValue<Snapshot> latest_;
+  Doorbell doorbell_;
+
+  // receiver thread only
+  std::vector<std::deque<ChunkIn*>> backlog_;
+  std::vector<HandshakeSample> handshakes_;
+  ChunkIn* spare_ = nullptr;
+  tgm::msg::ProgramChunk chunk_sample_;
+  // publisher -> receiver: when the state with a new M_Func was written [steady ns], 0 = none
+  std::vector<std::unique_ptr<std::atomic<std::int64_t>>> m_written_ns_;
+
+  // publisher thread only
+  struct Published {
+    bool any = false;
+    Registers reg;
+    std::uint32_t program_id = 0;
+    std::uint64_t next_sequence = 0;
+    std::uint32_t message_counter = 0;
+    std::chrono::steady_clock::time_point at{};
+  };
+  std::vector<Published> published_;
+  std::vector<Published> published_setpoints_;
+  tgm::msg::InterpolatorState state_sample_;
+  tgm::msg::Setpoints setpoint_sample_;
+  std::uint64_t states_published_ = 0;
+  std::uint64_t setpoints_published_ = 0;
+  std::uint64_t snapshots_seen_ = 0;
+
+  std::atomic<bool> stopping_{false};
+  std::thread receiver_;
+  std::thread publisher_;
+};
+
+}  // namespace tgm::service

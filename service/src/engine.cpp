@@ -1,0 +1,303 @@
+#include "tgm/service/engine.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+namespace tgm::service {
+
+namespace {
+
+constexpr unsigned kPlc = 1u << static_cast<unsigned>(Role::kPlc);
+constexpr unsigned kHmi = 1u << static_cast<unsigned>(Role::kHmi);
+constexpr unsigned kBoth = kPlc | kHmi;
+
+const char* role_name(Role r) { return r == Role::kPlc ? "PLC" : "HMI"; }
+
+using Handler = RequestResult (*)(Interpolator&, const RequestIn&);
+
+RequestResult unsupported(std::string what) {
+  return {RequestCode::kUnsupported, what + " is not supported by the motion core yet"};
+}
+
+// ---- The request table (DESIGN.md section 1). A new register write or command is one line. ----
+
+struct KindRule {
+  RequestKind kind;
+  unsigned roles;
+  const char* name;
+  Handler handler;  // null for kCommand (see kCommands)
+};
+
+const KindRule kKinds[] = {
+    {RequestKind::kCommand, kBoth, "Command", nullptr},
+    {RequestKind::kWriteMFunc, kPlc, "M_Func write",
+     [](Interpolator& ip, const RequestIn& r) {
+       if (r.value != std::floor(r.value) || std::abs(r.value) > 2e9) {
+         return RequestResult{RequestCode::kOutOfRange, "M_Func must be a whole number"};
+       }
+       return ip.write_m_func(static_cast<std::int32_t>(r.value));
+     }},
+    {RequestKind::kWriteRelSpeed, kPlc, "Rel_Speed write",
+     [](Interpolator& ip, const RequestIn& r) { return ip.set_rel_speed(r.value); }},
+    {RequestKind::kWriteOffset, kPlc, "Offset write",
+     [](Interpolator&, const RequestIn&) { return unsupported("writing Offset"); }},
+    {RequestKind::kWriteRatio, kPlc, "Ratio write",
+     [](Interpolator&, const RequestIn&) { return unsupported("writing Ratio"); }},
+    {RequestKind::kWriteNumberAxes, kPlc, "Number_Axes write",
+     [](Interpolator&, const RequestIn&) { return unsupported("writing Number_Axes"); }},
+    {RequestKind::kStart, kHmi, "start", [](Interpolator& ip, const RequestIn&) { return ip.start(); }},
+    {RequestKind::kStop, kBoth, "stop", [](Interpolator& ip, const RequestIn&) { return ip.command(8); }},
+    {RequestKind::kClear, kHmi, "clear", [](Interpolator& ip, const RequestIn&) { return ip.clear(); }},
+};
+
+struct CommandRule {
+  std::int32_t code;
+  unsigned roles;
+  const char* name;
+};
+
+// Every Command goes to core's command(); core answers kUnsupported for those it does not
+// implement yet (1024, 2048, 2049, -1, -2), which becomes REPLY_CODE_UNSUPPORTED.
+const CommandRule kCommands[] = {
+    {4, kBoth, "emergency stop on trajectory"},
+    {5, kBoth, "emergency stop off trajectory"},
+    {8, kBoth, "normal stop on trajectory"},
+    {9, kBoth, "normal stop off trajectory"},
+    {1024, kPlc, "gear ratio"},
+    {2048, kPlc, "set position on trajectory"},
+    {2049, kPlc, "set position off trajectory"},
+    {-1, kPlc, "IIR filter parameters"},
+    {-2, kPlc, "spline parameters"},
+};
+
+const KindRule* find_kind(RequestKind k) {
+  for (const KindRule& r : kKinds) {
+    if (r.kind == k) return &r;
+  }
+  return nullptr;
+}
+const CommandRule* find_command(std::int32_t code) {
+  for (const CommandRule& r : kCommands) {
+    if (r.code == code) return &r;
+  }
+  return nullptr;
+}
+
+ReplyCode to_reply(RequestCode c) {
+  switch (c) {
+    case RequestCode::kAccepted:
+      return ReplyCode::kAccepted;
+    case RequestCode::kOutOfRange:
+      return ReplyCode::kOutOfRange;
+    case RequestCode::kWrongState:
+    case RequestCode::kBufferFull:
+      return ReplyCode::kWrongState;
+    case RequestCode::kInvalid:
+      return ReplyCode::kBadRequest;
+    case RequestCode::kUnsupported:
+      return ReplyCode::kUnsupported;
+  }
+  return ReplyCode::kBadRequest;
+}
+
+bool standing_without_program(const Registers& r) {
+  const auto s = static_cast<InterpolatorStatus>(r.status);
+  return s == InterpolatorStatus::kEmpty || s == InterpolatorStatus::kEnded ||
+         (s == InterpolatorStatus::kEmergencyStopped && r.off_trajectory != 0);
+}
+
+}  // namespace
+
+std::string role_violation(Role role, RequestKind kind, std::int32_t command) {
+  const KindRule* k = find_kind(kind);
+  if (k == nullptr) return {};
+  unsigned roles = k->roles;
+  std::string what = k->name;
+  if (kind == RequestKind::kCommand) {
+    const CommandRule* c = find_command(command);
+    if (c == nullptr) return {};
+    roles = c->roles;
+    what = "Command " + std::to_string(command) + " (" + c->name + ")";
+  }
+  if ((roles & (1u << static_cast<unsigned>(role))) != 0) return {};
+  std::string why = std::string("the ") + role_name(role) + " may not send " + what;
+  if (kind == RequestKind::kStart) why += ": only the HMI starts the interpolator";
+  return why;
+}
+
+std::optional<Engine> Engine::create(const MachineConfig& machine, const EngineOptions& options,
+                                     std::string* error) {
+  std::vector<Slot> ips;
+  for (int i = 0; i < static_cast<int>(machine.interpolators.size()); ++i) {
+    std::string why;
+    auto ip = Interpolator::create(machine, i, options.interpolator, &why);
+    if (!ip) {
+      if (error) *error = "interpolator " + std::to_string(i) + ": " + why;
+      return std::nullopt;
+    }
+    Slot slot{std::move(*ip), 0, 0, 0, 0, 0, {}};
+    ips.push_back(std::move(slot));
+  }
+  if (ips.empty() || ips.size() > static_cast<std::size_t>(kMaxInterpolators)) {
+    if (error) *error = "the config must have 1.." + std::to_string(kMaxInterpolators) + " interpolators";
+    return std::nullopt;
+  }
+  return Engine(std::move(ips), options);
+}
+
+double Engine::cycle_time_s() const { return ips_.front().ip.cycle_time_s(); }
+
+ReplyOut Engine::apply(const RequestIn& r) {
+  ReplyOut out;
+  out.request_id = r.request_id;
+  out.client = r.client;
+  out.interpolator = r.interpolator;
+  out.cycle = cycles_;
+  ++counters_.requests;
+  auto refuse = [&](ReplyCode c, std::string_view why) {
+    out.code = c;
+    out.reason.set(why);
+    ++counters_.refused_requests;
+    return out;
+  };
+  if (r.interpolator < 0 || r.interpolator >= count()) {
+    return refuse(ReplyCode::kBadRequest, "interpolator " + std::to_string(r.interpolator) +
+                                              " does not exist (the service hosts 0.." +
+                                              std::to_string(count() - 1) + ")");
+  }
+  const KindRule* k = find_kind(r.kind);
+  if (k == nullptr) return refuse(ReplyCode::kBadRequest, "unknown request kind");
+  if (r.kind == RequestKind::kCommand && find_command(r.command) == nullptr) {
+    return refuse(ReplyCode::kBadRequest, "unknown Command " + std::to_string(r.command) +
+                                              " (known: 4, 5, 8, 9, 1024, 2048, 2049, -1, -2)");
+  }
+  if (std::string why = role_violation(r.role, r.kind, r.command); !why.empty()) {
+    return refuse(ReplyCode::kWrongRole, why);
+  }
+  Interpolator& ip = ips_[static_cast<std::size_t>(r.interpolator)].ip;
+  const RequestResult res = k->handler != nullptr ? k->handler(ip, r) : ip.command(r.command);
+  if (!res.ok()) return refuse(to_reply(res.code), res.reason);
+  if (r.kind == RequestKind::kClear) {
+    Slot& s = ips_[static_cast<std::size_t>(r.interpolator)];
+    s.program_id = 0;
+    s.next_sequence = 0;
+  }
+  return out;
+}
+
+void Engine::refuse_chunk(CyclePort& port, int i, const ChunkIn& c, std::string_view why) {
+  Slot& s = ips_[static_cast<std::size_t>(i)];
+  ++counters_.refused_chunks;
+  if (s.refused_program == c.program_id) return;  // one message per refused program
+  s.refused_program = c.program_id;
+  MessageOut m;
+  m.interpolator = i;
+  m.severity = MessageOut::Severity::kError;
+  m.text.set("program " + std::to_string(c.program_id) + " refused: " + std::string(why));
+  if (!port.message(m)) ++counters_.lost_messages;
+}
+
+void Engine::apply_chunks(CyclePort& port, int i) {
+  Slot& s = ips_[static_cast<std::size_t>(i)];
+  std::size_t budget = opt_.max_segments_per_cycle;
+  while (budget > 0) {
+    ChunkIn* c = port.front_chunk(i);
+    if (c == nullptr) return;
+    if (c->decode_status != 0) {
+      refuse_chunk(port, i, *c, c->error.view());
+      port.pop_chunk(i);
+      continue;
+    }
+    if (c->program_id != s.program_id) {
+      if (c->sequence_number != 0 || c->applied != 0) {
+        refuse_chunk(port, i, *c, "chunk " + std::to_string(c->sequence_number) +
+                                      " of a program that is not loaded (cleared?)");
+        port.pop_chunk(i);
+        continue;
+      }
+      if (!standing_without_program(s.ip.registers())) {
+        refuse_chunk(port, i, *c, "interpolator " + std::to_string(i) + " still holds program " +
+                                      std::to_string(s.program_id) + " (status " +
+                                      std::to_string(s.ip.registers().status) + "): clear it first");
+        port.pop_chunk(i);
+        continue;
+      }
+      s.program_id = c->program_id;
+      s.next_sequence = 0;
+      s.refused_program = 0;
+    }
+    const std::size_t total = c->program.segments.size();
+    const std::uint64_t at = c->sequence_number + c->applied;
+    if (at != s.next_sequence) {
+      if (c->sequence_number + total <= s.next_sequence) {
+        ++counters_.duplicate_chunks;  // already applied (a resent chunk): drop quietly
+      } else {
+        refuse_chunk(port, i, *c, "chunk " + std::to_string(c->sequence_number) + " expected " +
+                                      std::to_string(s.next_sequence) + " (gap in the stream)");
+      }
+      port.pop_chunk(i);
+      continue;
+    }
+    const std::size_t rest = total - c->applied;
+    const std::size_t piece = std::min(rest, budget);
+    const bool last_piece = piece == rest;
+    std::size_t accepted = 0;
+    const RequestResult res =
+        s.ip.append(c->program, c->applied, piece, last_piece && c->end_of_program, &accepted);
+    c->applied += accepted;
+    s.next_sequence += accepted;
+    counters_.segments += accepted;
+    budget -= std::min(budget, accepted);
+    if (!res.ok() && res.code != RequestCode::kBufferFull) {
+      refuse_chunk(port, i, *c, res.reason);
+      port.pop_chunk(i);
+      continue;
+    }
+    if (c->applied == total) {
+      ++counters_.chunks;
+      port.pop_chunk(i);
+      continue;
+    }
+    return;  // buffer full or budget spent: the rest waits for the next cycle
+  }
+}
+
+void Engine::cycle(CyclePort& port, const LatenessStats& lateness) {
+  for (int n = 0; n < opt_.max_requests_per_cycle; ++n) {
+    RequestIn r;
+    if (!port.next_request(r)) break;
+    if (!port.reply(apply(r))) ++counters_.lost_replies;
+  }
+  for (int i = 0; i < count(); ++i) apply_chunks(port, i);
+  ++cycles_;
+  snapshot_.cycle = cycles_;
+  snapshot_.count = count();
+  snapshot_.lateness = lateness;
+  for (int i = 0; i < count(); ++i) {
+    Slot& s = ips_[static_cast<std::size_t>(i)];
+    s.ip.step();
+    const Registers& reg = s.ip.registers();
+    if (reg.message_count != s.message_seen) {
+      s.message_seen = reg.message_count;
+      const std::string_view text = s.ip.message_text(reg.message_slot);
+      ++s.message_counter;
+      s.message_text.set(text);
+      MessageOut m;
+      m.interpolator = i;
+      m.text.set(text);
+      m.source_line = reg.act_line;
+      if (!port.message(m)) ++counters_.lost_messages;
+    }
+    InterpolatorSnapshot& o = snapshot_.ip[static_cast<std::size_t>(i)];
+    o.reg = reg;
+    o.program_id = s.program_id;
+    o.next_sequence = s.next_sequence;
+    o.buffered_segments = reg.buffer_size - static_cast<std::int32_t>(s.ip.free_slots());
+    o.message_counter = s.message_counter;
+    o.message_text = s.message_text;
+  }
+  port.publish(snapshot_);
+}
+
+}  // namespace tgm::service

@@ -1,0 +1,238 @@
+// tgm-service: hosts the configured interpolators, runs the interpolation cycle in real time and
+// serves them over DDS (DESIGN.md sections 1, 3, 6). SIGINT / SIGTERM stop it cleanly.
+#include <pthread.h>
+#include <signal.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <ctime>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "dds_port.hpp"
+#include "tgm/dds_overrides.hpp"
+#include "tgm/service/engine.hpp"
+#include "tgm/service/rt_loop.hpp"
+#include "tgm/yaml_config.hpp"
+
+namespace {
+
+constexpr const char* kUsage =
+    "usage: tgm-service [--config YAML] [OPTIONS]\n"
+    "\n"
+    "Hosts the configured interpolators (1..3), runs their cycle every cycle_time_us with\n"
+    "absolute deadlines and serves state, setpoints, requests and the program stream over DDS.\n"
+    "Stops cleanly on SIGINT / SIGTERM (exit code 0).\n"
+    "\n"
+    "  --config YAML          machine config (default: $TGM_CONFIG, the installed or the\n"
+    "                         in-tree config/default.yaml)\n"
+    "%s"
+    "  --no-realtime          do not try SCHED_FIFO / mlockall\n"
+    "  --rt-priority N        SCHED_FIFO priority of the cycle thread, 1..99 (default 80)\n"
+    "  --chunk-budget N       program records appended per interpolator per cycle (default 1024)\n"
+    "  --state-period-ms N    publish each state at least every N ms (default 20, 1..50)\n"
+    "  --setpoint-decimation N  publish setpoints every Nth cycle (default 1)\n"
+    "  --duration S           stop by itself after S seconds\n"
+    "  --stats FILE           write lateness, handshake and counter figures as JSON at exit\n"
+    "  --help                 this text\n";
+
+int usage_error(const std::string& why) {
+  std::fprintf(stderr, "tgm-service: %s\n(see tgm-service --help)\n", why.c_str());
+  return 2;
+}
+
+bool parse_long(const std::string& text, long lo, long hi, long& out) {
+  char* end = nullptr;
+  errno = 0;
+  const long v = std::strtol(text.c_str(), &end, 10);
+  if (text.empty() || *end != '\0' || errno != 0 || v < lo || v > hi) return false;
+  out = v;
+  return true;
+}
+
+std::int64_t percentile(std::vector<std::int64_t> v, double q) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  const auto k = static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5);
+  return v[std::min(k, v.size() - 1)];
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string config_path;
+  std::string stats_path;
+  tgm::DdsOverrides overrides;
+  tgm::service::RtOptions rt;
+  tgm::service::EngineOptions engine_options;
+  tgm::service::DdsPortOptions port_options;
+  double duration_s = 0.0;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--help" || arg == "-h") {
+      std::printf(kUsage, tgm::kDdsOverrideHelp);
+      return 0;
+    }
+    if (arg == "--no-realtime") {
+      rt.realtime = false;
+      continue;
+    }
+    std::string flag = arg;
+    std::string value;
+    if (const auto eq = arg.find('='); arg.rfind("--", 0) == 0 && eq != std::string::npos) {
+      flag = arg.substr(0, eq);
+      value = arg.substr(eq + 1);
+    } else if (arg.rfind("--", 0) == 0) {
+      if (i + 1 >= argc) return usage_error(arg + " needs a value, or is unknown");
+      value = argv[++i];
+    } else {
+      return usage_error("unexpected argument '" + arg + "'");
+    }
+    std::string error;
+    long n = 0;
+    if (overrides.take(flag, value, error)) {
+      if (!error.empty()) return usage_error(error);
+    } else if (flag == "--config") {
+      config_path = value;
+    } else if (flag == "--stats") {
+      stats_path = value;
+    } else if (flag == "--rt-priority") {
+      if (!parse_long(value, 1, 99, n)) return usage_error("--rt-priority must be 1..99");
+      rt.priority = static_cast<int>(n);
+    } else if (flag == "--chunk-budget") {
+      if (!parse_long(value, 1, 1'000'000, n)) return usage_error("--chunk-budget must be 1..1000000");
+      engine_options.max_segments_per_cycle = static_cast<std::size_t>(n);
+    } else if (flag == "--state-period-ms") {
+      if (!parse_long(value, 1, 50, n)) return usage_error("--state-period-ms must be 1..50");
+      port_options.state_period = std::chrono::milliseconds(n);
+    } else if (flag == "--setpoint-decimation") {
+      if (!parse_long(value, 1, 10000, n)) return usage_error("--setpoint-decimation must be 1..10000");
+      port_options.setpoint_decimation = static_cast<int>(n);
+    } else if (flag == "--duration") {
+      char* end = nullptr;
+      duration_s = std::strtod(value.c_str(), &end);
+      if (value.empty() || *end != '\0' || !(duration_s > 0.0)) {
+        return usage_error("--duration must be a positive number of seconds");
+      }
+    } else {
+      return usage_error("unknown option '" + flag + "'");
+    }
+  }
+
+  if (config_path.empty()) config_path = tgm::default_config_path();
+  tgm::ConfigLoad load = tgm::load_config_file(config_path);
+  if (!load.config) {
+    for (const auto& e : load.errors) std::fprintf(stderr, "%s\n", e.c_str());
+    std::fprintf(stderr, "tgm-service: the config %s has %zu problem%s\n", config_path.c_str(),
+                 load.errors.size(), load.errors.size() == 1 ? "" : "s");
+    return 2;
+  }
+  tgm::AppConfig config = *load.config;
+  overrides.apply(config.dds);
+
+  std::string error;
+  auto engine = tgm::service::Engine::create(config.machine, engine_options, &error);
+  if (!engine) {
+    std::fprintf(stderr, "tgm-service: %s\n", error.c_str());
+    return 2;
+  }
+  port_options.interpolators = engine->count();
+
+  // SIGINT / SIGTERM are taken by sigwait in this thread only: block them before any other
+  // thread (Fast DDS's included) exists, so no other thread is interrupted.
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  std::unique_ptr<tgm::service::DdsPort> port;
+  try {
+    port = std::make_unique<tgm::service::DdsPort>(config.dds, port_options);
+  } catch (const tgm::dds::SetupError& e) {
+    std::fprintf(stderr, "tgm-service: %s\n", e.what());
+    return 1;
+  }
+  port->start();
+
+  const auto period_ns = static_cast<std::int64_t>(config.machine.cycle_time_us) * 1000;
+  std::printf("tgm-service: %d interpolator%s, cycle %d us, DDS domain %d as '%s'\n",
+              engine->count(), engine->count() == 1 ? "" : "s", config.machine.cycle_time_us,
+              config.dds.domain_id, port->participant_name().c_str());
+  std::fflush(stdout);
+
+  std::atomic<bool> stop{false};
+  tgm::service::RtLoop loop(*engine, *port, period_ns);
+  std::thread cycle_thread([&] {
+    const std::string rt_log = tgm::service::make_realtime(rt);
+    std::printf("tgm-service: %s\n", rt_log.c_str());
+    std::fflush(stdout);
+    loop.run(stop);
+  });
+
+  int sig = 0;
+  if (duration_s > 0.0) {
+    timespec ts{};
+    ts.tv_sec = static_cast<time_t>(duration_s);
+    ts.tv_nsec = static_cast<long>((duration_s - static_cast<double>(ts.tv_sec)) * 1e9);
+    sig = sigtimedwait(&signals, nullptr, &ts);
+  } else {
+    while (sigwait(&signals, &sig) != 0) {
+    }
+  }
+  stop = true;
+  cycle_thread.join();
+  port->stop();
+
+  const auto& st = loop.stats();
+  const auto& hist = loop.histogram();
+  const auto& c = engine->counters();
+  std::vector<std::int64_t> rt_ns;
+  for (const auto& h : port->handshakes()) rt_ns.push_back(h.round_trip_ns);
+  std::printf(
+      "tgm-service: stopping (%s) after %llu cycles: lateness p50 %.1f us, p99 %.1f us, p99.9 %.1f us,"
+      " max %.1f us, missed %llu; %llu requests (%llu refused), %llu chunks, %llu segments,"
+      " %llu states, %llu setpoints published\n",
+      sig > 0 ? strsignal(sig) : "time is up", static_cast<unsigned long long>(st.cycles),
+      static_cast<double>(hist.quantile_ns(0.5)) / 1e3, static_cast<double>(hist.quantile_ns(0.99)) / 1e3,
+      static_cast<double>(hist.quantile_ns(0.999)) / 1e3, static_cast<double>(hist.max_ns()) / 1e3,
+      static_cast<unsigned long long>(st.missed_cycles), static_cast<unsigned long long>(c.requests),
+      static_cast<unsigned long long>(c.refused_requests), static_cast<unsigned long long>(c.chunks),
+      static_cast<unsigned long long>(c.segments),
+      static_cast<unsigned long long>(port->states_published()),
+      static_cast<unsigned long long>(port->setpoints_published()));
+  if (!stats_path.empty()) {
+    if (std::FILE* f = std::fopen(stats_path.c_str(), "w")) {
+      std::fprintf(f,
+                   "{\"cycles\": %llu, \"cycle_time_us\": %d, \"interpolators\": %d,\n"
+                   " \"lateness_ns\": {\"p50\": %lld, \"p99\": %lld, \"p999\": %lld, \"max\": %lld},\n"
+                   " \"missed_cycles\": %llu,\n"
+                   " \"handshake_ns\": {\"count\": %zu, \"min\": %lld, \"p50\": %lld, \"p99\": %lld, \"max\": %lld},\n"
+                   " \"requests\": %llu, \"chunks\": %llu, \"segments\": %llu, \"duplicate_chunks\": %llu,"
+                   " \"refused_chunks\": %llu, \"lost_replies\": %llu, \"lost_messages\": %llu,\n"
+                   " \"states_published\": %llu, \"setpoints_published\": %llu}\n",
+                   static_cast<unsigned long long>(st.cycles), config.machine.cycle_time_us, engine->count(),
+                   static_cast<long long>(hist.quantile_ns(0.5)), static_cast<long long>(hist.quantile_ns(0.99)),
+                   static_cast<long long>(hist.quantile_ns(0.999)), static_cast<long long>(hist.max_ns()),
+                   static_cast<unsigned long long>(st.missed_cycles), rt_ns.size(),
+                   static_cast<long long>(percentile(rt_ns, 0.0)), static_cast<long long>(percentile(rt_ns, 0.5)),
+                   static_cast<long long>(percentile(rt_ns, 0.99)), static_cast<long long>(percentile(rt_ns, 1.0)),
+                   static_cast<unsigned long long>(c.requests), static_cast<unsigned long long>(c.chunks),
+                   static_cast<unsigned long long>(c.segments), static_cast<unsigned long long>(c.duplicate_chunks),
+                   static_cast<unsigned long long>(c.refused_chunks), static_cast<unsigned long long>(c.lost_replies),
+                   static_cast<unsigned long long>(c.lost_messages),
+                   static_cast<unsigned long long>(port->states_published()),
+                   static_cast<unsigned long long>(port->setpoints_published()));
+      std::fclose(f);
+    } else {
+      std::fprintf(stderr, "tgm-service: cannot write %s: %s\n", stats_path.c_str(), std::strerror(errno));
+    }
+  }
+  port.reset();
+  return 0;
+}

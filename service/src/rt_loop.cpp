@@ -1,0 +1,75 @@
+#include "tgm/service/rt_loop.hpp"
+
+#include <pthread.h>
+#include <sched.h>
+#include <sys/mman.h>
+#include <time.h>
+
+#include <cerrno>
+#include <cstring>
+
+namespace tgm::service {
+
+namespace {
+
+std::int64_t to_ns(const timespec& t) {
+  return static_cast<std::int64_t>(t.tv_sec) * 1'000'000'000 + t.tv_nsec;
+}
+timespec to_timespec(std::int64_t ns) {
+  timespec t{};
+  t.tv_sec = static_cast<time_t>(ns / 1'000'000'000);
+  t.tv_nsec = static_cast<long>(ns % 1'000'000'000);
+  return t;
+}
+std::int64_t now_ns() {
+  timespec t{};
+  clock_gettime(CLOCK_MONOTONIC, &t);
+  return to_ns(t);
+}
+
+}  // namespace
+
+std::string make_realtime(const RtOptions& o) {
+  if (!o.realtime) return "real-time scheduling off (--no-realtime): normal thread";
+  std::string log;
+  if (mlockall(MCL_CURRENT | MCL_FUTURE) == 0) {
+    log = "memory locked";
+  } else {
+    log = std::string("mlockall not permitted (") + std::strerror(errno) + "), memory not locked";
+  }
+  sched_param p{};
+  p.sched_priority = o.priority;
+  if (const int rc = pthread_setschedparam(pthread_self(), SCHED_FIFO, &p); rc == 0) {
+    log += ", cycle thread SCHED_FIFO priority " + std::to_string(o.priority);
+  } else {
+    log += std::string(", SCHED_FIFO not permitted (") + std::strerror(rc) +
+           "): cycle thread runs with normal priority";
+  }
+  return log;
+}
+
+void RtLoop::run(const std::atomic<bool>& stop) {
+  std::int64_t deadline = now_ns() + period_ns_;
+  while (!stop.load(std::memory_order_relaxed)) {
+    const timespec ts = to_timespec(deadline);
+    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
+    }
+    const std::int64_t late = now_ns() - deadline;
+    hist_.record(late);
+    stats_.last_ns = late;
+    stats_.max_ns = hist_.max_ns();
+    ++stats_.cycles;
+    if (late >= period_ns_) {
+      const std::int64_t skipped = late / period_ns_;
+      stats_.missed_cycles += static_cast<std::uint64_t>(skipped);
+      deadline += skipped * period_ns_;
+    }
+    // The percentile walks the histogram: every 64 cycles is plenty for a published value.
+    if ((stats_.cycles & 63u) == 1u) stats_.p999_ns = hist_.quantile_ns(0.999);
+    engine_.cycle(port_, stats_);
+    deadline += period_ns_;
+  }
+  stats_.p999_ns = hist_.quantile_ns(0.999);
+}
+
+}  // namespace tgm::service
