@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstring>
 #include <cstdio>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -101,7 +102,9 @@ int run_simulate(int argc, char** argv) {
   if (m_ack < 0.0) {
     for (const auto& [m, s] : app->plc.m_delay_s) so.m_ack_by_number[m] = s;
   }
-  so.check_limits = true;  // peaks need it; violations only fail the run with --check-limits
+  // The checker needs every cycle, so it runs only when asked (as does the CSV); otherwise the
+  // run skips through cruise, dwells and M waits (Interpolator::advance, same trajectory).
+  so.check_limits = check_limits;
   std::string err;
   auto sim = Simulation::create(machine, so, &err);
   if (!sim) {
@@ -128,29 +131,24 @@ int run_simulate(int argc, char** argv) {
   }
   const double T = machine.cycle_time_us * 1e-6;
   double peak_speed = 0.0;
-  std::array<double, kMaxAxes> peak_v{};
   const auto wall0 = std::chrono::steady_clock::now();
-  const SimulationSummary sum = sim->run(
-      compiled.program,
-      [&](const Registers& r) {
-        peak_speed = std::max(peak_speed, r.act_speed);
-        for (int i = 0; i < n; ++i) {
-          peak_v[static_cast<std::size_t>(i)] =
-              std::max(peak_v[static_cast<std::size_t>(i)], std::fabs(r.speed[static_cast<std::size_t>(i)]));
-        }
-        if (!csv) return;
-        std::FILE* f = csv.get();
-        std::fprintf(f, "%.6f,%d,%d,%d,%u,%d,%.6f,%.9f", static_cast<double>(r.cycle) * T, r.act_line, r.act_part,
-                     r.status, r.run_flag, r.m_func, r.act_speed, r.move_distance);
-        for (int i = 0; i < n; ++i) std::fprintf(f, ",%.9f", r.orig_position[static_cast<std::size_t>(i)]);
-        for (int i = 0; i < n; ++i) std::fprintf(f, ",%.6f", r.speed[static_cast<std::size_t>(i)]);
-        std::fprintf(f, ",%s\n", limit_factor_name(r.limit_factor));
-      },
-      [&](const BlockReport& b) {
-        if (!blocks) return;
-        std::fprintf(blocks.get(), "%d,%d,%d,%.9f,%.3f,%.3f,%.6f,%s\n", b.line, b.act_part, b.g, b.length_mm,
-                     b.programmed_mm_min, b.peak_mm_min, b.duration_s, limit_factor_name(b.factor));
-      });
+  std::function<void(const Registers&)> on_cycle;
+  if (csv) {
+    on_cycle = [&](const Registers& r) {
+      std::FILE* f = csv.get();
+      std::fprintf(f, "%.6f,%d,%d,%d,%u,%d,%.6f,%.9f", static_cast<double>(r.cycle) * T, r.act_line, r.act_part,
+                   r.status, r.run_flag, r.m_func, r.act_speed, r.move_distance);
+      for (int i = 0; i < n; ++i) std::fprintf(f, ",%.9f", r.orig_position[static_cast<std::size_t>(i)]);
+      for (int i = 0; i < n; ++i) std::fprintf(f, ",%.6f", r.speed[static_cast<std::size_t>(i)]);
+      std::fprintf(f, ",%s\n", limit_factor_name(r.limit_factor));
+    };
+  }
+  const SimulationSummary sum = sim->run(compiled.program, on_cycle, [&](const BlockReport& b) {
+    peak_speed = std::max(peak_speed, b.peak_mm_min);
+    if (!blocks) return;
+    std::fprintf(blocks.get(), "%d,%d,%d,%.9f,%.3f,%.3f,%.6f,%s\n", b.line, b.act_part, b.g, b.length_mm,
+                 b.programmed_mm_min, b.peak_mm_min, b.duration_s, limit_factor_name(b.factor));
+  });
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   bool io_ok = true;
   for (File* f : {&csv, &blocks}) {
@@ -169,22 +167,27 @@ int run_simulate(int argc, char** argv) {
               sum.distance_mm, peak_speed, static_cast<unsigned long long>(sum.m_functions));
   std::printf("end:      ");
   for (int i = 0; i < n; ++i) std::printf(" %c=%.6f", letters[static_cast<std::size_t>(i)], sum.end_position[static_cast<std::size_t>(i)]);
-  std::printf("\naxis   |v| peak / limit [mm/s]   |a| peak / limit [mm/s^2]   |j| peak / limit [mm/s^3]   corner step / tol [mm/s]\n");
+  std::printf("\n");
   const auto& axes = machine.interpolators[static_cast<std::size_t>(ip_index)].axes;
-  for (int i = 0; i < n; ++i) {
-    const auto ui = static_cast<std::size_t>(i);
-    const AxisConfig& a = axes[ui];
-    std::printf("%c      %9.3f / %-9.3f      %10.1f / %-10.1f      %11.0f / %-11.0f      %7.3f / %.3f\n",
-                a.letter, sum.peaks[ui].velocity_mm_s, a.max_velocity_mm_s, sum.peaks[ui].acceleration_mm_s2,
-                a.max_acceleration_mm_s2, sum.peaks[ui].jerk_mm_s3, a.max_jerk_mm_s3,
-                sum.peaks[ui].corner_step_mm_s, a.corner_velocity_tolerance_mm_s);
-  }
-  std::printf("violations: %llu\n", static_cast<unsigned long long>(sum.violation_count));
-  std::size_t shown = 0;
-  for (const auto& v : sum.violations) {
-    if (++shown > 20) break;
-    std::printf("  cycle %llu line %d axis %c %s %.6g > %.6g\n", static_cast<unsigned long long>(v.cycle), v.line,
-                letters[static_cast<std::size_t>(v.axis)], limit_quantity_name(v.quantity), v.value, v.limit);
+  if (!check_limits) {
+    std::printf("axis peaks and violations: not checked (--check-limits differentiates every cycle)\n");
+  } else {
+    std::printf("axis   |v| peak / limit [mm/s]   |a| peak / limit [mm/s^2]   |j| peak / limit [mm/s^3]   corner step / tol [mm/s]\n");
+    for (int i = 0; i < n; ++i) {
+      const auto ui = static_cast<std::size_t>(i);
+      const AxisConfig& a = axes[ui];
+      std::printf("%c      %9.3f / %-9.3f      %10.1f / %-10.1f      %11.0f / %-11.0f      %7.3f / %.3f\n",
+                  a.letter, sum.peaks[ui].velocity_mm_s, a.max_velocity_mm_s, sum.peaks[ui].acceleration_mm_s2,
+                  a.max_acceleration_mm_s2, sum.peaks[ui].jerk_mm_s3, a.max_jerk_mm_s3,
+                  sum.peaks[ui].corner_step_mm_s, a.corner_velocity_tolerance_mm_s);
+    }
+    std::printf("violations: %llu\n", static_cast<unsigned long long>(sum.violation_count));
+    std::size_t shown = 0;
+    for (const auto& v : sum.violations) {
+      if (++shown > 20) break;
+      std::printf("  cycle %llu line %d axis %c %s %.6g > %.6g\n", static_cast<unsigned long long>(v.cycle), v.line,
+                  letters[static_cast<std::size_t>(v.axis)], limit_quantity_name(v.quantity), v.value, v.limit);
+    }
   }
   std::printf("limited by (time):");
   for (std::size_t k = 1; k < sum.factor_time_s.size(); ++k) {

@@ -1,5 +1,6 @@
 // Offline run of a whole program through one interpolator: what `tgm-hmi simulate`, the motion
-// tests and the benchmarks share. No clock: it calls step() as fast as it can, streams the
+// tests and the benchmarks share. No clock: it calls step() (or Interpolator::advance, which
+// skips cycles where nothing changes qualitatively) as fast as it can, streams the
 // program into the ring buffer as slots free up, plays the PLC (acknowledges each normal
 // M-function after a configurable time, restarts after M0) and optionally checks the limits.
 #pragma once
@@ -37,6 +38,10 @@ struct SimulationOptions {
   bool check_limits = false;
   //! Give up after this much program time [s].
   double max_time_s = 24.0 * 3600.0;
+  //! When run() has no per-cycle callback and no limit checker, advance through cruise, dwells,
+  //! M waits and standstill with Interpolator::advance (same registers, far fewer evaluations).
+  //! false = step() every cycle (what the equivalence tests compare against).
+  bool fast_forward = true;
 };
 
 //! Outcome of a run.

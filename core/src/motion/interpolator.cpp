@@ -48,6 +48,7 @@ constexpr int kChainMax = 24;             // constraints followed per chain and 
 constexpr int kMaxExtendPerStep = 64;     // records scanned for the limits of one calculation step
 constexpr int kMaxExtendPerCycle = 320;   // records added to the look-ahead window per cycle
 constexpr std::size_t kMessageRing = 256;
+constexpr std::uint64_t kMaxSkipCycles = 1'000'000;  // per advance() call (bounds its work)
 constexpr std::size_t kMaxBlockReports = 2048;
 constexpr std::size_t kMaxCornerEvents = 2048;
 constexpr double kMinLength = 1e-9;       // shorter motions are executed as no-ops [mm]
@@ -528,6 +529,16 @@ struct Interpolator::Impl {
     dq.push_back(q);
   }
 
+  // Look-ahead horizon [mm] from (v, a) with the current record's jerk limit jc and the window
+  // minima a0, j0: the stopping distance from the fastest state the cycle can reach (full jerk
+  // from here), the distance to take back the acceleration, and one more cycle of travel.
+  double horizon_for(double v, double a, double jc, double a0, double j0) const {
+    const double ac = std::max(std::fabs(a) + jc * T, 0.0);
+    const double vc = v + std::fabs(a) * T + 0.5 * jc * T * T;
+    return jerk::stopping_distance(vc, ac, kPlanMargin * a0, kPlanMarginJ * j0) +
+           vc * (ac + a0) / (kPlanMarginJ * j0) + 2.0 * vc * T + 1e-6;
+  }
+
   void update_window(double& A, double& J) {
     while (!dq_a.empty() && dq_a.front() < cur) dq_a.pop_front();
     while (!dq_j.empty() && dq_j.front() < cur) dq_j.pop_front();
@@ -550,10 +561,7 @@ struct Interpolator::Impl {
       const double j0 = dq_j.empty() ? rc.jt : R(dq_j.front()).jt;
       // The window and the chains are gathered once per cycle: take the fastest state the
       // cycle can reach (full jerk from here) and one more cycle of travel as margin.
-      const double jc = rc.jt, ac = std::max(std::fabs(a) + jc * T, 0.0);
-      const double vc = v + std::fabs(a) * T + 0.5 * jc * T * T;
-      horizon = jerk::stopping_distance(vc, ac, kPlanMargin * a0, kPlanMarginJ * j0) +
-                vc * (ac + a0) / (kPlanMarginJ * j0) + 2.0 * vc * T + 1e-6;
+      horizon = horizon_for(v, a, rc.jt, a0, j0);
       const double limit = rc.s0 + st.s + horizon;
       const int before = added;
       while (win_end < tail && added < kMaxExtendPerCycle) {
@@ -581,7 +589,7 @@ struct Interpolator::Impl {
 
   // Collects the limits ahead into `c`; returns their count. Window minima Aw, Jw apply to the
   // end of the window.
-  int gather(Constraint* c, double Aw, double Jw) const {
+  int gather(Constraint* c, double Aw, double Jw, double reach) const {
     const Rec& rc = R(cur);
     const double here = rc.s0 + st.s;
     int k = 0;
@@ -592,7 +600,7 @@ struct Interpolator::Impl {
       int hops = 0;
       while (q < win_end) {
         const Rec& r = R(q);
-        if (r.s0 - here > horizon) break;  // beyond any braking or acceleration change from here
+        if (r.s0 - here > reach) break;  // beyond any braking or acceleration change from here
         const double w = chain_value(r, fam) * (fam == 1 ? rel : 1.0);
         if (hops == kChainMax) {
           // Not followed further: from here on assume the lowest limit of the whole window
@@ -884,7 +892,7 @@ struct Interpolator::Impl {
   void motion_step(int calc_index) {
     if (calc_index == 0 || !cons_valid) {
       update_window(cons_Aw, cons_Jw);
-      ncons = gather(cons.data(), cons_Aw, cons_Jw);
+      ncons = gather(cons.data(), cons_Aw, cons_Jw, horizon);
       cons_here = R(cur).s0 + st.s;
       cons_valid = true;
       cruise_valid = false;
@@ -1020,6 +1028,13 @@ struct Interpolator::Impl {
   integrate:
     last_vt = vt;
     jerk::State ns = jerk::advance(before, x, dt);
+    // Landed on the target speed (within 1e-12 of it, acceleration negligible): hold exactly
+    // (vt, 0). Otherwise rounding leaves a 1e-10 mm/s^2 dither that keeps every cruise step on
+    // the full check and keeps Interpolator::advance from skipping the cruise.
+    if (vt > 0.0 && std::fabs(x) * dt <= 1e-12 * vt && std::fabs(ns.v - vt) <= 1e-12 * vt) {
+      ns.v = vt;
+      ns.a = 0.0;
+    }
     if (ns.v < 0.0) ns.v = 0.0;
     double ds = std::max(0.0, ns.s - before.s);
     const double jerk_used = (x - a) / dt;
@@ -1124,6 +1139,130 @@ struct Interpolator::Impl {
         break;
     }
     time_s += dt;
+  }
+
+  // ================= offline fast path (Interpolator::advance) =================
+
+  // Adds the calculation steps of k cycles to the block clock, as calc_step does one by one.
+  void pass_time(std::uint64_t k) {
+    for (std::uint64_t i = 0; i < k * kCalcSteps; ++i) time_s += dt;
+  }
+
+  // Whole cycles, at most `max`, in which step() would only let time pass (dwell, M wait,
+  // standing) or move at constant speed inside the current record (cruise). Advances them with
+  // exactly the arithmetic step() uses and returns their count; 0 = nothing to skip, step().
+  std::uint64_t skip_cycles(std::uint64_t max) {
+    max = std::min<std::uint64_t>(max, kMaxSkipCycles);
+    switch (mode) {
+      case Mode::kDwell: {
+        // Each calculation step decrements dwell_left; the dwell ends when it reaches 0.
+        const std::int64_t whole = (dwell_left - 1) / kCalcSteps;
+        const std::uint64_t k = std::min<std::uint64_t>(max, whole > 0 ? static_cast<std::uint64_t>(whole) : 0);
+        dwell_left -= static_cast<std::int64_t>(k) * kCalcSteps;
+        pass_time(k);
+        return k;
+      }
+      case Mode::kWaitM:
+        if (reg.m_func == 0 || wait_m_first) return 0;
+        pass_time(max);
+        return max;
+      case Mode::kIdle:
+        if (opt.resume_after_underrun &&
+            reg.status == static_cast<std::int32_t>(InterpolatorStatus::kUnderrun) && cur < tail) {
+          return 0;
+        }
+        pass_time(max);
+        return max;
+      case Mode::kMoving:
+        return skip_cruise(max);
+      case Mode::kStopping:
+      case Mode::kEmergency:
+        break;
+    }
+    return 0;
+  }
+
+  // Cruise: a = 0 at exactly the record's target speed. motion_step then chooses x = 0 in every
+  // calculation step as long as (1) no limit it could gather has less slack than the distance
+  // travelled, (2) the window would not grow (no new record enters the horizon, so the gathered
+  // set stays a subset of the whole window's chains), and (3) the record's end is not reached.
+  std::uint64_t skip_cruise(std::uint64_t max) {
+    if (!on_path || cur >= tail || win_end <= cur || !cons_valid) return 0;
+    const Rec& rc = R(cur);
+    const double v = st.v;
+    if (st.a != 0.0 || !(v > 0.0)) return 0;
+    const double fr = rc.f * rel;
+    const double vt = fr <= rc.m ? fr : rc.m;
+    if (v != vt) return 0;
+    // The window's deques must be current (update_window pops these at the next cycle).
+    if ((!dq_a.empty() && dq_a.front() < cur) || (!dq_j.empty() && dq_j.front() < cur) ||
+        (!dq_wg.empty() && dq_wg.front() <= cur) || (!dq_wf.empty() && dq_wf.front() <= cur)) {
+      return 0;
+    }
+    const double a0 = dq_a.empty() ? rc.at : R(dq_a.front()).at;
+    const double j0 = dq_j.empty() ? rc.jt : R(dq_j.front()).jt;
+    const double hz = horizon_for(v, 0.0, rc.jt, a0, j0);
+    // (1) Every limit of the window's chains (no horizon cut), the truncation stand-ins and
+    // the window end, judged from the cruise state.
+    std::array<Constraint, 3 * kChainMax + 4> all;
+    const int na = gather(all.data(), a0, j0, kInf);
+    double slack = kInf;
+    for (int k = 0; k < na; ++k) {
+      const Constraint& ck = all[static_cast<std::size_t>(k)];
+      if (ck.accel) continue;  // |a| = 0 is within every acceleration limit
+      slack = std::min(slack, ck.d - jerk::braking_distance_from(v, 0.0, ck.w, kPlanMargin * ck.A,
+                                                                  kPlanMarginJ * ck.J, kPlanMarginJ * rc.jt));
+    }
+    const double s_start = st.s;
+    const double safety = 1e-6 + 1e-12 * (std::fabs(rc.s0) + rc.g.length);
+    const bool window_can_grow = win_end < tail && R(win_end).kind != RecKind::kStop;
+    const double next_s0 = window_can_grow ? R(win_end).s0 : kInf;
+    const double L = rc.g.length;
+    const LimitFactor target_reason =
+        fr <= rc.m ? (rel == 1.0 ? LimitFactor::kFeed : LimitFactor::kOverride) : rc.m_reason;
+    std::uint64_t k = 0;
+    jerk::State s = st;
+    double dist = reg.move_distance;
+    double t = time_s;
+    while (k < max) {
+      // (2) update_window at the start of this cycle adds nothing.
+      if (!(next_s0 > rc.s0 + s.s + hz)) break;
+      jerk::State c = s;
+      double dc = dist, tc = t;
+      bool ok = true;
+      for (int i = 0; i < kCalcSteps; ++i) {
+        const jerk::State ns = jerk::advance(c, 0.0, dt);
+        const double ds = std::max(0.0, ns.s - c.s);
+        const double s_next = c.s + ds;
+        // (1) and (3), with a margin for the rounding of the cumulative path positions.
+        if (!(slack - (s_next - s_start) > safety) || !(s_next < L - safety) || ns.v != v) {
+          ok = false;
+          break;
+        }
+        c.s = s_next;
+        c.v = ns.v;
+        c.a = ns.a;
+        dc += ds;
+        tc += dt;
+      }
+      if (!ok) break;
+      s = c;
+      dist = dc;
+      t = tc;
+      ++k;
+    }
+    if (k == 0) return 0;
+    st = s;
+    reg.move_distance = dist;
+    time_s = t;
+    factor = target_reason;
+    last_vt = vt;
+    braking_to_stop = false;
+    if (v > blk_peak - 1e-12) {
+      blk_peak = v;
+      blk_factor = factor;
+    }
+    return k;
   }
 
   // ================= registers =================
@@ -1346,6 +1485,26 @@ StepResult Interpolator::step() {
   m.reg.cycle += 1;
   for (int k = 0; k < kCalcSteps; ++k) m.calc_step(k);
   m.fill_registers();
+  for (int i = 0; i < m.n; ++i) {
+    if (!std::isfinite(m.reg.orig_position[static_cast<std::size_t>(i)])) return StepResult::kErrorInternal;
+  }
+  return m.result();
+}
+
+StepResult Interpolator::advance(std::uint64_t max_cycles, std::uint64_t* advanced) {
+  Impl& m = *impl_;
+  if (advanced) *advanced = 0;
+  if (max_cycles == 0) return m.result();
+  const std::uint64_t k = m.skip_cycles(max_cycles);
+  if (k == 0) {
+    if (advanced) *advanced = 1;
+    return step();
+  }
+  m.n_events = 0;
+  m.n_blocks = 0;
+  m.reg.cycle += k;
+  m.fill_registers();
+  if (advanced) *advanced = k;
   for (int i = 0; i < m.n; ++i) {
     if (!std::isfinite(m.reg.orig_position[static_cast<std::size_t>(i)])) return StepResult::kErrorInternal;
   }

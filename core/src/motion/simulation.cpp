@@ -37,7 +37,9 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
   auto feed = [&]() -> bool {
     if (next >= total) return true;
     std::size_t took = 0;
-    const auto r = ip.append(program, next, total - next, true, &took);
+    // Only what fits, so a full ring is not a refusal (whose reason would be formatted).
+    const std::size_t count = std::min(total - next, std::max<std::size_t>(ip.free_slots(), 1));
+    const auto r = ip.append(program, next, count, next + count == total, &took);
     next += took;
     if (!r.ok() && r.code != RequestCode::kBufferFull) {
       sum.error = "append: " + r.reason;
@@ -63,9 +65,17 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
   std::size_t change = 0;
   auto changes = opt_.rel_speed_changes;
   std::sort(changes.begin(), changes.end());
-  double m_wait_left = -1.0;
-  double m0_wait_left = -1.0;
+  // The emulated PLC and operator count whole cycles, so stepping and advance() agree: a wait
+  // of s seconds first seen after cycle c ends after cycle c + n - 1, n = max(1, ceil(s / T)).
+  auto wait_cycles = [&](double s) -> std::uint64_t {
+    const double n = std::ceil((s - 1e-12) / T);
+    return n < 1.0 ? 1 : static_cast<std::uint64_t>(n);
+  };
+  bool m_pending = false, m0_pending = false;
+  std::uint64_t m_ack_at = 0, m0_start_at = 0;
   const std::uint64_t max_cycles = static_cast<std::uint64_t>(opt_.max_time_s / T) + 1;
+  const bool batch = opt_.fast_forward && !on_cycle && !checker_;
+  std::array<std::uint64_t, 11> factor_cycles{};
   std::uint64_t cycle = 0;
   while (true) {
     const double t = static_cast<double>(cycle) * T;
@@ -73,19 +83,35 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
       ip.set_rel_speed(changes[change].second);
       ++change;
     }
-    if (!feed()) {
+    if (ip.free_slots() > 0 && !feed()) {
       sum.result = StepResult::kErrorInternal;
       break;
     }
-    const StepResult r = ip.step();
-    ++cycle;
+    // Cycles that may pass before this loop has something to do.
+    std::uint64_t allow = 1;
+    if (batch) {
+      allow = max_cycles - cycle;
+      if (change < changes.size()) {
+        // The next change applies before the first cycle c > cycle with c T >= its time.
+        const double first = changes[change].first;
+        auto c = static_cast<std::uint64_t>(std::max(0.0, std::ceil(first / T)));
+        while (static_cast<double>(c) * T < first) ++c;
+        while (c > cycle + 1 && static_cast<double>(c - 1) * T >= first) --c;
+        allow = std::min(allow, std::max<std::uint64_t>(c, cycle + 1) - cycle);
+      }
+      if (m_pending) allow = std::min(allow, std::max<std::uint64_t>(m_ack_at, cycle + 1) - cycle);
+      if (m0_pending) allow = std::min(allow, std::max<std::uint64_t>(m0_start_at, cycle + 1) - cycle);
+    }
+    std::uint64_t done = 1;
+    const StepResult r = batch ? ip.advance(allow, &done) : ip.step();
+    cycle += done;
     const Registers& reg = ip.registers();
     for (int i = 0; i < reg.number_axes; ++i) {
       if (!std::isfinite(reg.orig_position[static_cast<std::size_t>(i)])) sum.nan = true;
     }
     if (!std::isfinite(reg.act_speed)) sum.nan = true;
     const auto lf = static_cast<std::size_t>(reg.limit_factor);
-    if (lf < sum.factor_time_s.size()) sum.factor_time_s[lf] += T;
+    if (lf < factor_cycles.size()) factor_cycles[lf] += done;
     if (checker_) checker_->add_cycle(reg, ip.corner_events());
     if (on_cycle) on_cycle(reg);
     if (on_block) {
@@ -106,31 +132,32 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
       break;
     }
     // The emulated PLC and operator.
-    if (reg.m_func != 0 && reg.last_cont_m_func == reg.m_func &&
-        run_flag_section(reg.run_flag) != SectionState::kWaitMFunc &&
-        run_flag_section(reg.run_flag) != SectionState::kWaitMFuncEnd) {
+    const SectionState sec = run_flag_section(reg.run_flag);
+    const bool waiting_m = sec == SectionState::kWaitMFunc || sec == SectionState::kWaitMFuncEnd;
+    if (reg.m_func != 0 && reg.last_cont_m_func == reg.m_func && !waiting_m) {
       ip.write_m_func(0);  // continuous M: the PLC takes note at once
     }
-    if (run_flag_section(reg.run_flag) == SectionState::kWaitMFunc ||
-        run_flag_section(reg.run_flag) == SectionState::kWaitMFuncEnd) {
-      if (m_wait_left < 0.0) {
+    if (waiting_m) {
+      if (!m_pending) {
         const auto it = opt_.m_ack_by_number.find(reg.m_func);
-        m_wait_left = it != opt_.m_ack_by_number.end() ? it->second : opt_.m_ack_s;
+        m_ack_at = cycle - 1 + wait_cycles(it != opt_.m_ack_by_number.end() ? it->second : opt_.m_ack_s);
+        m_pending = true;
       }
-      m_wait_left -= T;
-      if (m_wait_left <= 1e-12) {
+      if (cycle >= m_ack_at) {
         ip.write_m_func(0);
         ++sum.m_functions;
-        m_wait_left = -1.0;
+        m_pending = false;
       }
     }
     if (r == StepResult::kWaiting &&
         reg.status == static_cast<std::int32_t>(InterpolatorStatus::kReady)) {  // paused at M0
-      if (m0_wait_left < 0.0) m0_wait_left = opt_.m0_restart_s;
-      m0_wait_left -= T;
-      if (m0_wait_left <= 1e-12) {
+      if (!m0_pending) {
+        m0_start_at = cycle - 1 + wait_cycles(opt_.m0_restart_s);
+        m0_pending = true;
+      }
+      if (cycle >= m0_start_at) {
         ip.start();
-        m0_wait_left = -1.0;
+        m0_pending = false;
       }
     }
     if (r == StepResult::kWaiting &&
@@ -153,6 +180,9 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
       sum.error = "time limit reached";
       break;
     }
+  }
+  for (std::size_t k = 0; k < factor_cycles.size(); ++k) {
+    sum.factor_time_s[k] = static_cast<double>(factor_cycles[k]) * T;
   }
   const Registers& reg = ip.registers();
   sum.cycles = cycle;

@@ -1,0 +1,221 @@
+// Interpolator::advance (the simulator's fast path) against step(): on seeded random programs
+// the registers after every advance() call must equal, bit for bit, those after as many step()
+// calls, and whole simulations must give the same summary and block reports.
+//
+// TGM_SEED (default 1) and TGM_ADVANCE_COUNT (default 40) choose the programs.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "random_program.hpp"
+#include "tgm/interpolator.hpp"
+#include "tgm/simulation.hpp"
+
+namespace tgm {
+namespace {
+
+using test::random_machine;
+using test::random_program;
+
+std::uint64_t env_u64(const char* name, std::uint64_t fallback) {
+  const char* v = std::getenv(name);
+  if (!v || !*v) return fallback;
+  return std::strtoull(v, nullptr, 10);
+}
+
+// Every register, compared exactly (doubles with ==, so -0.0 == 0.0 is the only slack).
+void expect_same(const Registers& a, const Registers& b, const std::string& ctx) {
+  ASSERT_EQ(a.cycle, b.cycle) << ctx;
+  EXPECT_EQ(a.status, b.status) << ctx;
+  EXPECT_EQ(a.run_flag, b.run_flag) << ctx;
+  EXPECT_EQ(a.act_part, b.act_part) << ctx;
+  EXPECT_EQ(a.act_line, b.act_line) << ctx;
+  EXPECT_EQ(a.m_func, b.m_func) << ctx;
+  EXPECT_EQ(a.act_g_func, b.act_g_func) << ctx;
+  EXPECT_EQ(a.act_m_func, b.act_m_func) << ctx;
+  EXPECT_EQ(a.last_cont_m_func, b.last_cont_m_func) << ctx;
+  EXPECT_EQ(a.tool_number, b.tool_number) << ctx;
+  EXPECT_EQ(a.command, b.command) << ctx;
+  EXPECT_EQ(a.command_status, b.command_status) << ctx;
+  EXPECT_EQ(a.free_slots, b.free_slots) << ctx;
+  EXPECT_EQ(a.message_count, b.message_count) << ctx;
+  EXPECT_EQ(a.limit_factor, b.limit_factor) << ctx;
+  EXPECT_EQ(a.rel_speed, b.rel_speed) << ctx;
+  EXPECT_EQ(a.set_speed, b.set_speed) << ctx;
+  EXPECT_EQ(a.act_speed, b.act_speed) << ctx;
+  EXPECT_EQ(a.act_acceleration_mm_s2, b.act_acceleration_mm_s2) << ctx;
+  EXPECT_EQ(a.move_distance, b.move_distance) << ctx;
+  EXPECT_EQ(a.orig_position, b.orig_position) << ctx;
+  EXPECT_EQ(a.position, b.position) << ctx;
+  EXPECT_EQ(a.position_inc, b.position_inc) << ctx;
+  EXPECT_EQ(a.speed, b.speed) << ctx;
+  EXPECT_EQ(a.m_function_parameter, b.m_function_parameter) << ctx;
+  for (std::size_t e = 0; e < a.lookahead.size(); ++e) {
+    const LookAheadEntry& x = a.lookahead[e];
+    const LookAheadEntry& y = b.lookahead[e];
+    EXPECT_EQ(x.movement_type, y.movement_type) << ctx << " entry " << e;
+    EXPECT_EQ(x.movement_code, y.movement_code) << ctx << " entry " << e;
+    EXPECT_EQ(x.line, y.line) << ctx << " entry " << e;
+    EXPECT_EQ(x.tangent_deg, y.tangent_deg) << ctx << " entry " << e;
+    EXPECT_EQ(x.end_pos_mm, y.end_pos_mm) << ctx << " entry " << e;
+    EXPECT_EQ(x.all_params, y.all_params) << ctx << " entry " << e;
+  }
+}
+
+bool same_block(const BlockReport& a, const BlockReport& b) {
+  return a.act_part == b.act_part && a.line == b.line && a.g == b.g && a.length_mm == b.length_mm &&
+         a.programmed_mm_min == b.programmed_mm_min && a.peak_mm_min == b.peak_mm_min &&
+         a.duration_s == b.duration_s && a.factor == b.factor;
+}
+
+// Two interpolators driven alike: `stepped` by step(), `fast` by advance() limited to the next
+// cycle at which the driver acts (override change, M acknowledge, restart after M0).
+TEST(Advance, RegistersEqualSteppingBitForBit) {
+  const std::uint64_t seed = env_u64("TGM_SEED", 1);
+  const std::uint64_t count = env_u64("TGM_ADVANCE_COUNT", 40);
+  std::uint64_t skipped = 0, total = 0;
+  for (std::uint64_t k = 0; k < count; ++k) {
+    std::mt19937_64 rng(seed * 7919ull + k);
+    std::uniform_int_distribution<int> axes_d(1, 10);
+    const int axes = k % 4 == 0 ? 3 : axes_d(rng);
+    const MachineConfig m = random_machine(rng, axes);
+    const test::Generated g = random_program(rng, axes, 12);
+    const std::string ctx0 = "seed " + std::to_string(seed) + " program " + std::to_string(k);
+    auto stepped = Interpolator::create(m, 0);
+    auto fast = Interpolator::create(m, 0);
+    ASSERT_TRUE(stepped && fast);
+    const double T = stepped->cycle_time_s();
+    // Override changes at whole cycles.
+    std::vector<std::pair<std::uint64_t, double>> changes;
+    for (const auto& [t, r] : g.overrides) changes.push_back({static_cast<std::uint64_t>(t / T) + 1, r});
+    std::sort(changes.begin(), changes.end());
+    const std::size_t n = g.program.segments.size();
+    std::size_t next_s = 0, next_f = 0;
+    auto feed = [&](Interpolator& ip, std::size_t& next) {
+      if (next >= n || ip.free_slots() == 0) return;
+      const std::size_t c = std::min(n - next, ip.free_slots());
+      std::size_t took = 0;
+      ip.append(g.program, next, c, next + c == n, &took);
+      next += took;
+    };
+    feed(*stepped, next_s);
+    feed(*fast, next_f);
+    ASSERT_TRUE(stepped->start().ok());
+    ASSERT_TRUE(fast->start().ok());
+    std::uint64_t cycle = 0, m_ack_at = 0, m0_at = 0;
+    bool m_pending = false, m0_pending = false;
+    std::size_t change = 0;
+    std::vector<BlockReport> blocks_s, blocks_f;
+    const std::uint64_t limit = static_cast<std::uint64_t>(600.0 / T);
+    while (cycle < limit) {
+      while (change < changes.size() && changes[change].first <= cycle) {
+        stepped->set_rel_speed(changes[change].second);
+        fast->set_rel_speed(changes[change].second);
+        ++change;
+      }
+      feed(*stepped, next_s);
+      feed(*fast, next_f);
+      std::uint64_t allow = limit - cycle;
+      if (change < changes.size()) allow = std::min(allow, changes[change].first - cycle);
+      if (m_pending) allow = std::min(allow, m_ack_at - cycle);
+      if (m0_pending) allow = std::min(allow, m0_at - cycle);
+      std::uint64_t done = 0;
+      const StepResult rf = fast->advance(allow, &done);
+      ASSERT_GE(done, 1u) << ctx0;
+      ASSERT_LE(done, allow) << ctx0;
+      for (const BlockReport& b : fast->block_reports()) blocks_f.push_back(b);
+      StepResult rs = StepResult::kWorking;
+      for (std::uint64_t i = 0; i < done; ++i) {
+        rs = stepped->step();
+        for (const BlockReport& b : stepped->block_reports()) blocks_s.push_back(b);
+      }
+      cycle += done;
+      total += done;
+      if (done > 1) skipped += done;
+      const std::string ctx = ctx0 + " cycle " + std::to_string(cycle);
+      ASSERT_EQ(rs, rf) << ctx;
+      expect_same(stepped->registers(), fast->registers(), ctx);
+      if (::testing::Test::HasFailure()) return;
+      if (rs == StepResult::kFinished || rs == StepResult::kErrorInternal || rs == StepResult::kIdle) break;
+      const Registers& r = fast->registers();
+      const SectionState sec = run_flag_section(r.run_flag);
+      const bool waiting_m = sec == SectionState::kWaitMFunc || sec == SectionState::kWaitMFuncEnd;
+      if (r.m_func != 0 && r.last_cont_m_func == r.m_func && !waiting_m) {
+        stepped->write_m_func(0);
+        fast->write_m_func(0);
+      }
+      if (waiting_m && !m_pending) {
+        m_pending = true;
+        m_ack_at = cycle + 37;  // the PLC takes 37 cycles
+      }
+      if (m_pending && cycle >= m_ack_at) {
+        stepped->write_m_func(0);
+        fast->write_m_func(0);
+        m_pending = false;
+      }
+      if (rs == StepResult::kWaiting && r.status == static_cast<std::int32_t>(InterpolatorStatus::kReady)) {
+        if (!m0_pending) {
+          m0_pending = true;
+          m0_at = cycle + 11;
+        }
+        if (cycle >= m0_at) {
+          stepped->start();
+          fast->start();
+          m0_pending = false;
+        }
+      }
+      if (rs == StepResult::kWaiting && r.status == static_cast<std::int32_t>(InterpolatorStatus::kUnderrun)) {
+        stepped->start();
+        fast->start();
+      }
+    }
+    // (A program slowed by a low override may not end within the limit; what ran is compared.)
+    ASSERT_EQ(blocks_s.size(), blocks_f.size()) << ctx0;
+    for (std::size_t i = 0; i < blocks_s.size(); ++i) {
+      EXPECT_TRUE(same_block(blocks_s[i], blocks_f[i])) << ctx0 << " block " << i;
+    }
+  }
+  // The fast path must actually be exercised (cruise, dwells, M waits).
+  EXPECT_GT(skipped, total / 4) << skipped << " of " << total << " cycles skipped";
+  RecordProperty("skipped_cycles", std::to_string(skipped));
+  RecordProperty("cycles", std::to_string(total));
+}
+
+// Whole simulations: fast-forward and stepping give the same summary and block reports.
+TEST(Advance, SimulationSummaryEqualsStepping) {
+  const std::uint64_t seed = env_u64("TGM_SEED", 1);
+  for (std::uint64_t k = 0; k < 10; ++k) {
+    std::mt19937_64 rng(seed * 104729ull + k);
+    const int axes = 3;
+    const MachineConfig m = random_machine(rng, axes);
+    const test::Generated g = random_program(rng, axes, 16);
+    SimulationOptions o;
+    o.m_ack_s = 0.0123;
+    o.rel_speed_changes = g.overrides;
+    std::vector<BlockReport> b[2];
+    SimulationSummary s[2];
+    for (int mode = 0; mode < 2; ++mode) {
+      o.fast_forward = mode == 1;
+      auto sim = Simulation::create(m, o);
+      ASSERT_TRUE(sim);
+      s[mode] = sim->run(g.program, {}, [&](const BlockReport& r) { b[mode].push_back(r); });
+    }
+    const std::string ctx = "seed " + std::to_string(seed) + " program " + std::to_string(k);
+    ASSERT_EQ(s[0].result, StepResult::kFinished) << ctx << ": " << s[0].error;
+    EXPECT_EQ(s[0].result, s[1].result) << ctx;
+    EXPECT_EQ(s[0].cycles, s[1].cycles) << ctx;
+    EXPECT_EQ(s[0].distance_mm, s[1].distance_mm) << ctx;
+    EXPECT_EQ(s[0].end_position, s[1].end_position) << ctx;
+    EXPECT_EQ(s[0].m_functions, s[1].m_functions) << ctx;
+    EXPECT_EQ(s[0].factor_time_s, s[1].factor_time_s) << ctx;
+    ASSERT_EQ(b[0].size(), b[1].size()) << ctx;
+    for (std::size_t i = 0; i < b[0].size(); ++i) EXPECT_TRUE(same_block(b[0][i], b[1][i])) << ctx << " block " << i;
+  }
+}
+
+}  // namespace
+}  // namespace tgm
