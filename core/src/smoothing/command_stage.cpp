@@ -1,0 +1,154 @@
+// Commands 1024, 2048, 2049, -1, -2 and Number_Axes (core/SMOOTHING.md, "Commands").
+#include <string>
+
+#include "tgm/command_stage.hpp"
+
+namespace tgm {
+
+namespace {
+
+RequestResult refuse(RequestCode c, std::string why) { return {c, std::move(why)}; }
+
+}  // namespace
+
+bool is_stage_command(std::int32_t code) {
+  return code == kCommandSetRatio || code == kCommandSetPositionOn ||
+         code == kCommandSetPositionOff || code == kCommandIir || code == kCommandSpline;
+}
+
+RequestResult check_command(std::int32_t code,
+                            const std::array<std::int32_t, kCommandParameters>& p,
+                            const CommandContext& c) {
+  switch (code) {
+    case 4:
+    case 5:
+    case 8:
+    case 9:
+      return {};
+    case kCommandSetRatio: {
+      if (p[0] < 0 || p[0] >= c.number_axes) {
+        return refuse(RequestCode::kOutOfRange, "Command 1024: axis (Command_Parameter[0]) must be 0.." +
+                                                    std::to_string(c.number_axes - 1) + ", not " +
+                                                    std::to_string(p[0]));
+      }
+      if (p[1] == 0) {
+        return refuse(RequestCode::kOutOfRange,
+                      "Command 1024: numerator (Command_Parameter[1]) must not be 0 inc");
+      }
+      if (p[2] <= 0) {
+        return refuse(RequestCode::kOutOfRange,
+                      "Command 1024: denominator (Command_Parameter[2]) must be > 0 mm, not " +
+                          std::to_string(p[2]));
+      }
+      if (!c.standing) {
+        return refuse(RequestCode::kWrongState, "Command 1024: the ratio can only be set while standing");
+      }
+      return {};
+    }
+    case kCommandSetPositionOn:
+    case kCommandSetPositionOff:
+      if (!c.idle || !c.standing) {
+        return refuse(RequestCode::kWrongState,
+                      "Command " + std::to_string(code) +
+                          ": the position can only be set while no program is executing");
+      }
+      return {};
+    case kCommandIir: {
+      const std::uint32_t mask = static_cast<std::uint32_t>(p[3]) & 0x3FFu;
+      if (mask != 0) {
+        RequestResult r = IirFilter::check(p[0], p[1], p[2]);
+        if (!r.ok()) return r;
+      }
+      if (!c.standing) {
+        return refuse(RequestCode::kWrongState, "Command -1: IIR parameters can only be set while standing");
+      }
+      return {};
+    }
+    case kCommandSpline: {
+      RequestResult r = SplineSmoother::check(p[0], p[1]);
+      if (!r.ok()) return r;
+      if (!c.standing) {
+        return refuse(RequestCode::kWrongState, "Command -2: Spline parameters can only be set while standing");
+      }
+      return {};
+    }
+    default:
+      return refuse(RequestCode::kOutOfRange,
+                    "unknown Command " + std::to_string(code) +
+                        " (valid: 4, 5, 8, 9, 1024, 2048, 2049, -1, -2)");
+  }
+}
+
+RequestResult check_number_axes(std::int64_t value, const CommandContext& c) {
+  if (value < 1 || value > kMaxAxes) {
+    return refuse(RequestCode::kOutOfRange, "Number_Axes must be 1..10, not " + std::to_string(value));
+  }
+  if (value > c.configured_axes) {
+    return refuse(RequestCode::kOutOfRange, "Number_Axes " + std::to_string(value) + ": only " +
+                                                std::to_string(c.configured_axes) +
+                                                " axes are configured");
+  }
+  if (!c.idle || !c.standing) {
+    return refuse(RequestCode::kWrongState, "Number_Axes can only be written while no program is executing");
+  }
+  return {};
+}
+
+RequestResult execute_command(std::int32_t code,
+                              const std::array<std::int32_t, kCommandParameters>& p,
+                              const CommandContext& c, SmoothingStage& smoothing,
+                              OutputStage& output, std::array<double, kMaxAxes>* position_mm) {
+  if (!is_stage_command(code)) {
+    return refuse(RequestCode::kUnsupported,
+                  "Command " + std::to_string(code) + " is not executed by the command stage");
+  }
+  RequestResult r = check_command(code, p, c);
+  if (!r.ok()) return r;
+  switch (code) {
+    case kCommandSetRatio:
+      if (!smoothing.settled()) {
+        return refuse(RequestCode::kWrongState,
+                      "Command 1024: the axes are still moving behind the spline / IIR filter");
+      }
+      return output.set_ratio(p[0], p[1], p[2]);
+    case kCommandSetPositionOn:
+    case kCommandSetPositionOff: {
+      if (!smoothing.settled()) {
+        return refuse(RequestCode::kWrongState,
+                      "Command " + std::to_string(code) +
+                          ": the axes are still moving behind the spline / IIR filter");
+      }
+      std::array<double, kMaxAxes> pos{};
+      for (int i = 0; i < output.axes(); ++i) pos[static_cast<std::size_t>(i)] = output.position_from_inc(i, p[static_cast<std::size_t>(i)]);
+      smoothing.reset(pos.data());
+      output.reset(pos.data());
+      output.update(pos.data(), 0.0);
+      if (position_mm) *position_mm = pos;
+      return {};
+    }
+    case kCommandIir: {
+      IirParams ip;
+      ip.p_e6 = p[0];
+      ip.q_e6 = p[1];
+      ip.f_e6 = p[2];
+      ip.axis_mask = static_cast<std::uint32_t>(p[3]);
+      return smoothing.configure_iir(ip);
+    }
+    case kCommandSpline:
+      return smoothing.configure_spline(p[0], p[1]);
+    default:
+      return {};
+  }
+}
+
+void command_begin(Registers& r, std::int32_t code) {
+  r.command = code;
+  r.command_status = 1;
+}
+
+void command_end(Registers& r, const RequestResult& result) {
+  r.command = 0;
+  r.command_status = result.ok() ? 0 : -1;
+}
+
+}  // namespace tgm

@@ -1,0 +1,165 @@
+// Ratio, Offset, backlash compensation and PositionInc (core/SMOOTHING.md, "Output stage").
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "tgm/output_stage.hpp"
+
+namespace tgm {
+
+namespace {
+
+RequestResult refuse(RequestCode c, std::string why) { return {c, std::move(why)}; }
+
+}  // namespace
+
+OutputStage::OutputStage(const InterpolatorConfig& config)
+    : axes_(std::min(static_cast<int>(config.axes.size()), kMaxAxes)) {
+  for (int i = 0; i < axes_; ++i) {
+    const auto ui = static_cast<std::size_t>(i);
+    const AxisConfig& a = config.axes[ui];
+    ratio_[ui] = a.ratio_inc_per_mm;
+    half_backlash_[ui] = 0.5 * a.backlash_mm;
+    ramp_v_[ui] = kBacklashRampShare * a.max_velocity_mm_s;
+    ramp_a_[ui] = kBacklashRampShare * a.max_acceleration_mm_s2;
+  }
+}
+
+void OutputStage::reset(const double* position_mm) {
+  for (int i = 0; i < axes_; ++i) {
+    const auto ui = static_cast<std::size_t>(i);
+    pos_[ui] = extreme_[ui] = position_mm[i];
+  }
+}
+
+void OutputStage::update(const double* position_mm, double dt_s) {
+  for (int i = 0; i < axes_; ++i) {
+    const auto ui = static_cast<std::size_t>(i);
+    const double p = position_mm[i];
+    pos_[ui] = p;
+    // Direction: follow the extreme in the current direction; a reversal is travel of more than
+    // the threshold back from it.
+    int& d = dir_[ui];
+    double& x = extreme_[ui];
+    if (d == 0) {
+      if (p - x > kReversalThresholdMm) {
+        d = 1;
+        x = p;
+      } else if (x - p > kReversalThresholdMm) {
+        d = -1;
+        x = p;
+      }
+    } else if (d == 1) {
+      if (p > x) {
+        x = p;
+      } else if (x - p > kReversalThresholdMm) {
+        d = -1;
+        x = p;
+      }
+    } else {
+      if (p < x) {
+        x = p;
+      } else if (p - x > kReversalThresholdMm) {
+        d = 1;
+        x = p;
+      }
+    }
+    // Ramp of the compensation towards +-backlash/2: velocity and acceleration limited, so
+    // the setpoint gets no step (SMOOTHING.md).
+    const double target = d * half_backlash_[ui];
+    double& c = comp_[ui];
+    double& v = comp_v_[ui];
+    const double err = target - c;
+    if (err == 0.0 && v == 0.0) continue;
+    const double a = ramp_a_[ui], vmax = ramp_v_[ui];
+    const double want = std::copysign(std::min(vmax, std::sqrt(2.0 * a * std::fabs(err))), err);
+    v += std::clamp(want - v, -a * dt_s, a * dt_s);
+    const double stepv = v * dt_s;
+    if ((err > 0.0 && stepv >= err) || (err < 0.0 && stepv <= err) || err == 0.0) {
+      c = target;
+      v = 0.0;
+    } else {
+      c += stepv;
+    }
+  }
+}
+
+std::int64_t OutputStage::backlash_inc(int axis) const {
+  const auto ui = static_cast<std::size_t>(axis);
+  return static_cast<std::int64_t>(std::llround(comp_[ui] * ratio_[ui]));
+}
+
+std::int64_t OutputStage::position_inc(int axis) const {
+  const auto ui = static_cast<std::size_t>(axis);
+  return static_cast<std::int64_t>(std::llround(pos_[ui] * ratio_[ui])) + offset_[ui] +
+         backlash_inc(axis);
+}
+
+void OutputStage::fill(Registers& r) const {
+  for (int i = 0; i < axes_; ++i) {
+    const auto ui = static_cast<std::size_t>(i);
+    r.ratio[ui] = ratio_[ui];
+    r.offset[ui] = offset_[ui];
+    r.backlash[ui] = backlash_inc(i);
+    r.position_inc[ui] = position_inc(i);
+  }
+}
+
+RequestResult OutputStage::write_ratio(std::int64_t axis, double ratio_inc_per_mm) {
+  if (axis < 0 || axis >= axes_) {
+    return refuse(RequestCode::kOutOfRange, "Ratio: axis " + std::to_string(axis) + " is not 0.." +
+                                                std::to_string(axes_ - 1));
+  }
+  const double m = std::fabs(ratio_inc_per_mm);
+  if (!std::isfinite(ratio_inc_per_mm) || m < kMinRatio || m > kMaxRatio) {
+    return refuse(RequestCode::kOutOfRange,
+                  "Ratio: |ratio| must be 1e-06..1e+09 inc/mm, not " + std::to_string(ratio_inc_per_mm));
+  }
+  ratio_[static_cast<std::size_t>(axis)] = ratio_inc_per_mm;
+  return {};
+}
+
+RequestResult OutputStage::set_ratio(std::int64_t axis, std::int64_t numerator_inc,
+                                     std::int64_t denominator_mm) {
+  if (axis < 0 || axis >= axes_) {
+    return refuse(RequestCode::kOutOfRange, "Command 1024: axis (Command_Parameter[0]) must be 0.." +
+                                                std::to_string(axes_ - 1) + ", not " +
+                                                std::to_string(axis));
+  }
+  if (numerator_inc == 0) {
+    return refuse(RequestCode::kOutOfRange,
+                  "Command 1024: numerator (Command_Parameter[1]) must not be 0 inc");
+  }
+  if (denominator_mm <= 0) {
+    return refuse(RequestCode::kOutOfRange,
+                  "Command 1024: denominator (Command_Parameter[2]) must be > 0 mm, not " +
+                      std::to_string(denominator_mm));
+  }
+  const double ratio = static_cast<double>(numerator_inc) / static_cast<double>(denominator_mm);
+  if (std::fabs(ratio) < kMinRatio || std::fabs(ratio) > kMaxRatio) {
+    return refuse(RequestCode::kOutOfRange,
+                  "Command 1024: |numerator / denominator| must be 1e-06..1e+09 inc/mm");
+  }
+  ratio_[static_cast<std::size_t>(axis)] = ratio;
+  return {};
+}
+
+RequestResult OutputStage::write_offset(std::int64_t axis, std::int64_t offset_inc) {
+  if (axis < 0 || axis >= axes_) {
+    return refuse(RequestCode::kOutOfRange, "Offset: axis " + std::to_string(axis) + " is not 0.." +
+                                                std::to_string(axes_ - 1));
+  }
+  if (offset_inc < -kMaxOffsetInc || offset_inc > kMaxOffsetInc) {
+    return refuse(RequestCode::kOutOfRange, "Offset: |offset| must be <= 1e15 inc, not " +
+                                                std::to_string(offset_inc));
+  }
+  offset_[static_cast<std::size_t>(axis)] = offset_inc;
+  return {};
+}
+
+double OutputStage::position_from_inc(int axis, std::int64_t inc) const {
+  const auto ui = static_cast<std::size_t>(axis);
+  return static_cast<double>(inc - offset_[ui] - backlash_inc(axis)) / ratio_[ui];
+}
+
+}  // namespace tgm

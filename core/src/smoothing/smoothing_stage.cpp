@@ -1,0 +1,81 @@
+// Spline -> IIR pipeline with the event delay line (core/SMOOTHING.md, "Pipeline", "Events").
+#include <string>
+
+#include "tgm/smoothing.hpp"
+
+namespace tgm {
+
+SmoothingStage::SmoothingStage(int axes, int cycle_time_us)
+    : axes_(axes < 1 ? 1 : (axes > kMaxAxes ? kMaxAxes : axes)),
+      dt_(cycle_time_us * 1e-6 / 5.0),
+      spline_(dt_),
+      iir_(dt_) {
+  const std::array<double, kMaxAxes> zero{};
+  spline_.configure(0, 0.0, axes_, zero.data());
+  iir_.configure(IirParams{0, 0, 0, 0}, axes_);
+}
+
+RequestResult SmoothingStage::configure_spline(std::int64_t points, std::int64_t jerk_mm_s3) {
+  RequestResult r = SplineSmoother::check(points, jerk_mm_s3);
+  if (!r.ok()) return r;
+  if (!spline_.settled() || ev_count_ != 0) {
+    return {RequestCode::kWrongState,
+            "Spline: the buffer still holds motion or M-functions (it drains " +
+                std::to_string(2 * spline_.delay_steps() + 4) +
+                " calculation steps after the interpolator stands)"};
+  }
+  // The spline input equals its output here; the new buffer starts full of that position.
+  return spline_.configure(static_cast<int>(points), static_cast<double>(jerk_mm_s3), axes_,
+                           mid_.data());
+}
+
+RequestResult SmoothingStage::configure_iir(const IirParams& params) {
+  return iir_.configure(params, axes_);
+}
+
+void SmoothingStage::reset(const double* position_mm) {
+  spline_.reset(position_mm);
+  iir_.reset(position_mm);
+  for (int i = 0; i < axes_; ++i) {
+    const auto ui = static_cast<std::size_t>(i);
+    mid_[ui] = pos_[ui] = position_mm[i];
+    speed_[ui] = 0.0;
+  }
+  ev_head_ = ev_count_ = 0;
+}
+
+void SmoothingStage::step(const double* orig_mm) {
+  double out[kMaxAxes];
+  spline_.step(orig_mm, mid_.data());
+  iir_.step(mid_.data(), out);
+  const double inv = 1.0 / dt_;
+  for (int i = 0; i < axes_; ++i) {
+    const auto ui = static_cast<std::size_t>(i);
+    speed_[ui] = (out[i] - pos_[ui]) * inv;
+    pos_[ui] = out[i];
+  }
+  ++steps_;
+}
+
+bool SmoothingStage::push_event(const SmoothingEvent& e) {
+  if (ev_count_ == kEventCapacity) return false;
+  Slot& s = ev_[(ev_head_ + ev_count_) % kEventCapacity];
+  s.release = steps_ + static_cast<std::uint64_t>(spline_.delay_steps());
+  s.e = e;
+  ++ev_count_;
+  return true;
+}
+
+bool SmoothingStage::pop_event(SmoothingEvent* e) {
+  if (ev_count_ == 0 || ev_[ev_head_].release > steps_) return false;
+  *e = ev_[ev_head_].e;
+  ev_head_ = (ev_head_ + 1) % kEventCapacity;
+  --ev_count_;
+  return true;
+}
+
+bool SmoothingStage::settled() const {
+  return spline_.settled() && iir_.settled() && ev_count_ == 0;
+}
+
+}  // namespace tgm

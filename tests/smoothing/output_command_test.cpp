@@ -1,0 +1,249 @@
+// Output stage (Ratio, Offset, backlash ramp, PositionInc) and the command stage (checks with
+// exact reasons, Command_Status sequence, position set, Number_Axes).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+#include "tgm/command_stage.hpp"
+
+namespace tgm {
+namespace {
+
+InterpolatorConfig three_axes(double backlash_mm = 0.0) {
+  InterpolatorConfig c;
+  for (int i = 0; i < 3; ++i) {
+    AxisConfig a;
+    a.letter = default_axis_letter(i);
+    a.ratio_inc_per_mm = 1000.0;
+    a.backlash_mm = backlash_mm;
+    a.max_velocity_mm_s = 200.0;
+    a.max_acceleration_mm_s2 = 2000.0;
+    c.axes.push_back(a);
+  }
+  return c;
+}
+
+TEST(OutputStage, PositionIncIsPositionTimesRatioPlusOffsetPlusBacklash) {
+  OutputStage o(three_axes());
+  ASSERT_TRUE(o.set_ratio(1, 4096, 5).ok());  // 819.2 inc/mm
+  ASSERT_TRUE(o.write_offset(0, 123).ok());
+  ASSERT_TRUE(o.write_offset(1, -7).ok());
+  ASSERT_TRUE(o.write_ratio(2, -250.0).ok());  // a reversed axis
+  const double p[3] = {1.2345, 10.0, 2.0};
+  o.update(p, 0.0);
+  Registers r;
+  o.fill(r);
+  EXPECT_EQ(r.position_inc[0], 1235 + 123);  // round(1234.5) = 1235
+  EXPECT_EQ(r.position_inc[1], 8192 - 7);
+  EXPECT_EQ(r.position_inc[2], -500);
+  EXPECT_DOUBLE_EQ(r.ratio[1], 819.2);
+  EXPECT_EQ(r.offset[0], 123);
+  EXPECT_EQ(r.backlash[0], 0);
+  for (int i = 0; i < 3; ++i) {
+    const auto ui = static_cast<std::size_t>(i);
+    EXPECT_EQ(r.position_inc[ui], std::llround(p[i] * r.ratio[ui]) + r.offset[ui] + r.backlash[ui]);
+    EXPECT_NEAR(o.position_from_inc(i, r.position_inc[ui]), p[i], 0.5 / std::fabs(r.ratio[ui]) + 1e-12);
+  }
+}
+
+TEST(OutputStage, RefusedWritesWithReasons) {
+  OutputStage o(three_axes());
+  EXPECT_EQ(o.write_offset(3, 0).reason, "Offset: axis 3 is not 0..2");
+  EXPECT_EQ(o.write_offset(0, 2'000'000'000'000'000).reason,
+            "Offset: |offset| must be <= 1e15 inc, not 2000000000000000");
+  EXPECT_EQ(o.write_ratio(0, 0.0).reason, "Ratio: |ratio| must be 1e-06..1e+09 inc/mm, not 0.000000");
+  EXPECT_EQ(o.write_ratio(0, NAN).code, RequestCode::kOutOfRange);
+  EXPECT_EQ(o.set_ratio(0, 1, 0).reason, "Command 1024: denominator (Command_Parameter[2]) must be > 0 mm, not 0");
+  EXPECT_EQ(o.set_ratio(0, 0, 1).reason, "Command 1024: numerator (Command_Parameter[1]) must not be 0 inc");
+  EXPECT_EQ(o.set_ratio(-1, 1, 1).reason, "Command 1024: axis (Command_Parameter[0]) must be 0..2, not -1");
+  EXPECT_EQ(o.ratio(0), 1000.0);
+}
+
+TEST(OutputStage, BacklashRampsOnReversalWithoutStep) {
+  // Backlash 0.02 mm: +0.01 mm moving +, -0.01 mm moving -; ramp at 10 % of 200 mm/s and
+  // 2000 mm/s^2. Per calculation step of 100 us.
+  OutputStage o(three_axes(0.02));
+  const double dt = 100e-6;
+  double p[3] = {0.0, 0.0, 0.0};
+  o.reset(p);
+  double prev_c = 0.0, prev_v = 0.0, max_dc = 0.0, max_dv = 0.0;
+  int flips = 0, last_dir = 0;
+  for (int k = 0; k < 4000; ++k) {
+    // X: forward 50 mm/s for 0.1 s, back for 0.1 s, forward again.
+    const double t = k * dt;
+    const double v = (t < 0.1 || t >= 0.2) ? 50.0 : -50.0;
+    p[0] += v * dt;
+    o.update(p, dt);
+    const double c = o.compensation_mm(0);
+    max_dc = std::max(max_dc, std::fabs(c - prev_c));
+    max_dv = std::max(max_dv, std::fabs((c - prev_c) / dt - prev_v));
+    prev_v = (c - prev_c) / dt;
+    prev_c = c;
+    if (o.direction(0) != last_dir) ++flips;
+    last_dir = o.direction(0);
+    if (k == 999) {
+      EXPECT_EQ(c, 0.01);  // settled moving +
+    }
+    if (k == 1999) {
+      EXPECT_EQ(c, -0.01);  // settled moving -
+    }
+    Registers r;
+    o.fill(r);
+    ASSERT_EQ(r.position_inc[0], std::llround(p[0] * 1000.0) + r.backlash[0]);
+    ASSERT_EQ(r.backlash[0], std::llround(c * 1000.0));
+  }
+  EXPECT_EQ(flips, 3);  // 0 -> +, + -> -, - -> +
+  EXPECT_EQ(prev_c, 0.01);
+  EXPECT_LE(max_dc, 20.0 * dt + 1e-15);        // rate <= 10 % of the axis velocity limit
+  EXPECT_LE(max_dv, 200.0 * dt + 20.0 + 1e-9);  // acceleration-limited, except the landing
+  EXPECT_EQ(o.direction(1), 0);
+  EXPECT_EQ(o.compensation_mm(1), 0.0);
+}
+
+TEST(OutputStage, TinyJitterIsNotAReversal) {
+  OutputStage o(three_axes(0.02));
+  double p[3] = {0.0, 0.0, 0.0};
+  o.reset(p);
+  for (int k = 0; k < 100; ++k) {
+    p[0] += 0.001;
+    o.update(p, 1e-4);
+  }
+  ASSERT_EQ(o.direction(0), 1);
+  p[0] -= 0.5e-6;  // below the 1e-6 mm threshold
+  o.update(p, 1e-4);
+  EXPECT_EQ(o.direction(0), 1);
+  p[0] -= 1e-6;
+  o.update(p, 1e-4);
+  EXPECT_EQ(o.direction(0), -1);
+}
+
+// ---- Commands ----
+
+using Params = std::array<std::int32_t, kCommandParameters>;
+
+CommandContext standing(int axes = 3) { return CommandContext{true, true, axes, axes}; }
+CommandContext moving(int axes = 3) { return CommandContext{false, false, axes, axes}; }
+
+TEST(Commands, ValidAndInvalidParametersWithExactReasons) {
+  struct Case {
+    std::int32_t code;
+    Params p;
+    CommandContext c;
+    RequestCode want;
+    const char* reason;
+  };
+  const Case cases[] = {
+      {1024, {0, 4096, 5}, standing(), RequestCode::kAccepted, ""},
+      {1024, {3, 4096, 5}, standing(), RequestCode::kOutOfRange,
+       "Command 1024: axis (Command_Parameter[0]) must be 0..2, not 3"},
+      {1024, {0, 0, 5}, standing(), RequestCode::kOutOfRange,
+       "Command 1024: numerator (Command_Parameter[1]) must not be 0 inc"},
+      {1024, {0, 10, -5}, standing(), RequestCode::kOutOfRange,
+       "Command 1024: denominator (Command_Parameter[2]) must be > 0 mm, not -5"},
+      {1024, {0, 4096, 5}, moving(), RequestCode::kWrongState,
+       "Command 1024: the ratio can only be set while standing"},
+      {2048, {1, 2, 3}, standing(), RequestCode::kAccepted, ""},
+      {2049, {1, 2, 3}, moving(), RequestCode::kWrongState,
+       "Command 2049: the position can only be set while no program is executing"},
+      {2048, {1, 2, 3}, CommandContext{true, false, 3, 3}, RequestCode::kWrongState,
+       "Command 2048: the position can only be set while no program is executing"},
+      {-1, {2'000'000, 1'000'000, 6'000'000, 0b111}, standing(), RequestCode::kAccepted, ""},
+      {-1, {2'000'000, 1'000'000, 6'000'000, 0b111}, CommandContext{true, false, 3, 3},
+       RequestCode::kAccepted, ""},  // standing at an M-function: fine (bumpless)
+      {-1, {0, 0, 0, 0}, standing(), RequestCode::kAccepted, ""},  // mask 0: off
+      {-1, {0, 1'000'000, 6'000'000, 1}, standing(), RequestCode::kOutOfRange,
+       "IIR p (Command_Parameter[0]) must be 1000..1000000000 (x 1e-6), not 0"},
+      {-1, {2'000'000, 1'000'000, 0, 1}, standing(), RequestCode::kOutOfRange,
+       "IIR f (Command_Parameter[2]) must be 1000000..2000000000 (1..2000 ms x 1e6), not 0"},
+      {-1, {2'000'000, 1'000'000, 6'000'000, 1}, moving(), RequestCode::kWrongState,
+       "Command -1: IIR parameters can only be set while standing"},
+      {-2, {200, 1'000'000}, standing(), RequestCode::kAccepted, ""},
+      {-2, {0, 0}, standing(), RequestCode::kAccepted, ""},
+      {-2, {20, 1'000'000}, standing(), RequestCode::kOutOfRange,
+       "Spline points (Command_Parameter[0]) must be 0 (off) or 50..500, not 20"},
+      {-2, {200, -1}, standing(), RequestCode::kOutOfRange,
+       "Spline jerk limit (Command_Parameter[1]) must be > 0 mm/s^3, not -1"},
+      {-2, {200, 1'000'000}, moving(), RequestCode::kWrongState,
+       "Command -2: Spline parameters can only be set while standing"},
+      {7, {}, standing(), RequestCode::kOutOfRange,
+       "unknown Command 7 (valid: 4, 5, 8, 9, 1024, 2048, 2049, -1, -2)"},
+      {8, {}, moving(), RequestCode::kAccepted, ""},
+  };
+  for (const Case& c : cases) {
+    const RequestResult r = check_command(c.code, c.p, c.c);
+    EXPECT_EQ(r.code, c.want) << c.code << " " << r.reason;
+    EXPECT_EQ(r.reason, c.reason) << c.code;
+  }
+}
+
+TEST(Commands, NumberAxes) {
+  EXPECT_TRUE(check_number_axes(1, standing()).ok());
+  EXPECT_TRUE(check_number_axes(3, standing()).ok());
+  EXPECT_EQ(check_number_axes(0, standing()).reason, "Number_Axes must be 1..10, not 0");
+  EXPECT_EQ(check_number_axes(11, standing()).reason, "Number_Axes must be 1..10, not 11");
+  EXPECT_EQ(check_number_axes(4, standing()).reason, "Number_Axes 4: only 3 axes are configured");
+  EXPECT_EQ(check_number_axes(2, moving()).code, RequestCode::kWrongState);
+  EXPECT_EQ(check_number_axes(2, moving()).reason,
+            "Number_Axes can only be written while no program is executing");
+}
+
+TEST(Commands, StatusSequence) {
+  Registers r;
+  command_begin(r, -2);
+  EXPECT_EQ(r.command, -2);
+  EXPECT_EQ(r.command_status, 1);
+  command_end(r, {});
+  EXPECT_EQ(r.command, 0);
+  EXPECT_EQ(r.command_status, 0);
+  command_begin(r, 1024);
+  EXPECT_EQ(r.command_status, 1);
+  command_end(r, {RequestCode::kOutOfRange, "x"});
+  EXPECT_EQ(r.command, 0);
+  EXPECT_EQ(r.command_status, -1);
+}
+
+TEST(Commands, ExecuteRatioSplineIirAndPositionSet) {
+  const InterpolatorConfig cfg = three_axes(0.0);
+  SmoothingStage s(3, 500);
+  OutputStage o(cfg);
+  std::array<double, kMaxAxes> pos{};
+  Params p{};
+  // 1024: axis 2, 8192 inc per 5 mm.
+  p = {2, 8192, 5};
+  ASSERT_TRUE(execute_command(1024, p, standing(), s, o, nullptr).ok());
+  EXPECT_DOUBLE_EQ(o.ratio(2), 1638.4);
+  // -2 and -1.
+  p = {100, 1'000'000};
+  ASSERT_TRUE(execute_command(-2, p, standing(), s, o, nullptr).ok());
+  EXPECT_EQ(s.spline().delay_steps(), 100);
+  p = {3'000'000, 3'000'000, 10'000'000, 0b011};
+  ASSERT_TRUE(execute_command(-1, p, standing(), s, o, nullptr).ok());
+  EXPECT_EQ(s.iir().mask(), 0b011u);
+  // 2048 with offsets: Orig = (inc - Offset - Backlash) / Ratio; PositionInc reproduces inc.
+  ASSERT_TRUE(o.write_offset(0, 500).ok());
+  p = {1500, -2000, 16384};
+  ASSERT_TRUE(execute_command(2048, p, standing(), s, o, &pos).ok());
+  EXPECT_DOUBLE_EQ(pos[0], 1.0);
+  EXPECT_DOUBLE_EQ(pos[1], -2.0);
+  EXPECT_DOUBLE_EQ(pos[2], 10.0);
+  Registers r;
+  o.fill(r);
+  EXPECT_EQ(r.position_inc[0], 1500);
+  EXPECT_EQ(r.position_inc[1], -2000);
+  EXPECT_EQ(r.position_inc[2], 16384);
+  EXPECT_EQ(s.position()[2], 10.0);
+  // Moving: the smoothing does not stand still -> 2049 and 1024 refused for state.
+  const double target[3] = {5.0, -2.0, 10.0};
+  for (int k = 0; k < 10; ++k) s.step(target);
+  EXPECT_EQ(execute_command(2049, p, standing(), s, o, &pos).reason,
+            "Command 2049: the axes are still moving behind the spline / IIR filter");
+  p = {0, 1, 1};
+  EXPECT_EQ(execute_command(1024, p, standing(), s, o, nullptr).code, RequestCode::kWrongState);
+  p = {50, 1'000'000};
+  EXPECT_EQ(execute_command(-2, p, standing(), s, o, nullptr).code, RequestCode::kWrongState);
+  EXPECT_EQ(execute_command(4, p, standing(), s, o, nullptr).code, RequestCode::kUnsupported);
+}
+
+}  // namespace
+}  // namespace tgm
