@@ -9,7 +9,7 @@ namespace tgm {
 namespace {
 
 constexpr char kMagic[4] = {'T', 'G', 'M', 'I'};
-constexpr std::uint16_t kVersion = 1;
+constexpr std::uint16_t kVersion = 2;  // 2: records store only what changed
 
 template <typename T>
 void put(std::string& out, T v) {
@@ -111,24 +111,61 @@ IntercodeEncoder::IntercodeEncoder(std::string& out, int number_axes,
   put<std::uint64_t>(out_, 0);  // record count, fixed by finish()
 }
 
+namespace {
+
+// Record flags (format version 2): which delta fields follow.
+constexpr std::uint8_t kHasModes = 1u << 0;   // plane / compensation / M kind changed
+constexpr std::uint8_t kHasTool = 1u << 1;    // tool changed
+constexpr std::uint8_t kHasFeed = 1u << 2;    // feed of a motion record changed
+constexpr std::uint8_t kHasLine = 1u << 3;    // line is not the previous line + 1
+constexpr std::uint8_t kHasCompRadius = 1u << 4;  // compensation radius changed
+constexpr std::uint8_t kKnownFlags = 0x1F;
+
+std::uint8_t pack_modes(const Segment& s) {
+  return static_cast<std::uint8_t>((static_cast<int>(s.plane) - 17) |
+                                   ((static_cast<int>(s.compensation) - 40) << 2) |
+                                   (static_cast<int>(s.m_kind) << 4));
+}
+
+bool same_bits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+
+}  // namespace
+
 void IntercodeEncoder::add(const Segment& s) {
   ++count_;
-  // Fixed part plus the variable fields, appended through one small stack buffer.
-  char buf[8 + 8 + 8 * kMaxAxes + 8 * 6 + 16];
+  // Each record stores what differs from the record before it: a CAM G1 move in one plane
+  // takes 20 bytes instead of 44.
+  char buf[2 + 2 + 1 + 4 + 4 + 8 * kMaxAxes + 8 * 6 + 16];
   std::size_t k = 0;
   auto w = [&](const auto& v) {
     std::memcpy(buf + k, &v, sizeof v);
     k += sizeof v;
   };
+  const std::uint8_t modes = pack_modes(s);
+  std::uint8_t flags = 0;
+  if (modes != prev_modes_) flags |= kHasModes;
+  if (s.tool != prev_tool_) flags |= kHasTool;
+  if (s.is_motion() && !same_bits(s.feed_mm_per_min, prev_feed_)) flags |= kHasFeed;
+  if (s.line != prev_line_ + 1) flags |= kHasLine;
+  if (s.compensation != Compensation::kOff && !same_bits(s.compensation_radius_mm, prev_comp_radius_)) {
+    flags |= kHasCompRadius;
+  }
+  std::uint16_t mask = 0;
+  for (int i = 0; i < n_; ++i) {
+    const auto a = static_cast<std::size_t>(i);
+    if (!same_bits(s.end[a], prev_end_[a])) mask = static_cast<std::uint16_t>(mask | (1u << i));
+  }
   w(static_cast<std::uint8_t>(s.type));
-  w(static_cast<std::uint8_t>(s.plane));
-  w(static_cast<std::uint8_t>(s.compensation));
-  w(static_cast<std::uint8_t>(s.m_kind));
-  w(s.line);
-  w(s.tool);
-  for (int i = 0; i < n_; ++i) w(s.end[static_cast<std::size_t>(i)]);
-  if (s.compensation != Compensation::kOff) w(s.compensation_radius_mm);
-  if (s.is_motion()) w(s.feed_mm_per_min);
+  w(flags);
+  w(mask);
+  if (flags & kHasModes) w(modes);
+  if (flags & kHasTool) w(s.tool);
+  if (flags & kHasLine) w(s.line);
+  for (int i = 0; i < n_; ++i) {
+    if (mask & (1u << i)) w(s.end[static_cast<std::size_t>(i)]);
+  }
+  if (flags & kHasCompRadius) w(s.compensation_radius_mm);
+  if (flags & kHasFeed) w(s.feed_mm_per_min);
   if (s.is_arc()) {
     w(s.center[0]);
     w(s.center[1]);
@@ -142,6 +179,12 @@ void IntercodeEncoder::add(const Segment& s) {
   }
   if (s.type == SegmentType::kMessage) w(s.aux);
   out_.append(buf, k);
+  prev_modes_ = modes;
+  prev_tool_ = s.tool;
+  prev_line_ = s.line;
+  prev_end_ = s.end;
+  if (s.is_motion()) prev_feed_ = s.feed_mm_per_min;
+  if (s.compensation != Compensation::kOff) prev_comp_radius_ = s.compensation_radius_mm;
 }
 
 void IntercodeEncoder::finish(const std::vector<MParams>& params,
@@ -183,36 +226,51 @@ bool decode_intercode(std::string_view bytes, Program& out, std::string& error) 
   if (!in.bytes(kMaxAxes, letters)) return fail("truncated header");
   std::uint64_t count = 0;
   if (!in.get(count)) return fail("truncated header");
-  // Each record takes at least 12 + 8 n bytes: reject counts the input cannot hold.
-  if (count > bytes.size() / (12u + 8u * n)) return fail("record count exceeds the file size");
+  // Each record takes at least 4 bytes: reject counts the input cannot hold.
+  if (count > bytes.size() / 4) return fail("record count exceeds the file size");
   Program p;
   p.number_axes = n;
   p.axis_letters = letters.substr(0, n);
   p.segments.resize(count);
   auto finite = [](double v) { return std::isfinite(v); };
+  // The state the delta fields apply to, as the encoder starts it.
+  Segment prev;
+  prev.line = 0;
+  prev.tool = 0;
+  double prev_feed = 0.0, prev_comp_radius = 0.0;
+  std::uint8_t modes = pack_modes(prev);
   for (std::uint64_t k = 0; k < count; ++k) {
     Segment& s = p.segments[k];
-    std::uint8_t type = 0, plane = 0, comp = 0, mkind = 0;
-    if (!in.get(type) || !in.get(plane) || !in.get(comp) || !in.get(mkind) || !in.get(s.line) ||
-        !in.get(s.tool)) {
-      return fail("truncated record " + std::to_string(k));
-    }
+    const std::string rec = "record " + std::to_string(k);
+    std::uint8_t type = 0, flags = 0;
+    std::uint16_t mask = 0;
+    if (!in.get(type) || !in.get(flags) || !in.get(mask)) return fail("truncated " + rec);
     if (type > 6) return fail("unknown record type " + std::to_string(type));
-    if (plane < 17 || plane > 19) return fail("bad plane " + std::to_string(plane));
-    if (comp < 40 || comp > 42) return fail("bad compensation " + std::to_string(comp));
-    if (mkind > 4) return fail("bad M kind " + std::to_string(mkind));
+    if (flags & ~kKnownFlags) return fail("unknown flags in " + rec);
+    if (mask >> n) return fail("axis mask names an axis beyond " + std::to_string(n) + " in " + rec);
     s.type = static_cast<SegmentType>(type);
+    if ((flags & kHasModes) && !in.get(modes)) return fail("truncated " + rec);
+    const int plane = 17 + (modes & 3), comp = 40 + ((modes >> 2) & 3), mkind = modes >> 4;
+    if (plane > 19 || comp > 42 || mkind > 4) return fail("bad modes in " + rec);
     s.plane = static_cast<Plane>(plane);
     s.compensation = static_cast<Compensation>(comp);
     s.m_kind = static_cast<MKind>(mkind);
+    s.tool = prev.tool;
+    if ((flags & kHasTool) && !in.get(s.tool)) return fail("truncated " + rec);
+    s.line = prev.line + 1;
+    if ((flags & kHasLine) && !in.get(s.line)) return fail("truncated " + rec);
+    s.end = prev.end;
     for (int i = 0; i < n; ++i) {
+      if (!(mask & (1u << i))) continue;
       double& v = s.end[static_cast<std::size_t>(i)];
-      if (!in.get(v)) return fail("truncated record " + std::to_string(k));
-      if (!finite(v)) return fail("non-finite coordinate in record " + std::to_string(k));
+      if (!in.get(v)) return fail("truncated " + rec);
+      if (!finite(v)) return fail("non-finite coordinate in " + rec);
     }
     bool ok = true;
-    if (s.compensation != Compensation::kOff) ok = ok && in.get(s.compensation_radius_mm);
-    if (s.is_motion()) ok = ok && in.get(s.feed_mm_per_min);
+    if (flags & kHasCompRadius) ok = ok && in.get(prev_comp_radius);
+    if (flags & kHasFeed) ok = ok && in.get(prev_feed);
+    s.compensation_radius_mm = s.compensation != Compensation::kOff ? prev_comp_radius : 0.0;
+    s.feed_mm_per_min = s.is_motion() ? prev_feed : 0.0;
     if (s.is_arc()) {
       ok = ok && in.get(s.center[0]) && in.get(s.center[1]) && in.get(s.radius) &&
            in.get(s.turns);
@@ -220,12 +278,13 @@ bool decode_intercode(std::string_view bytes, Program& out, std::string& error) 
     if (s.type == SegmentType::kDwell) ok = ok && in.get(s.dwell_s);
     if (s.type == SegmentType::kMFunction) ok = ok && in.get(s.m) && in.get(s.aux);
     if (s.type == SegmentType::kMessage) ok = ok && in.get(s.aux);
-    if (!ok) return fail("truncated record " + std::to_string(k));
+    if (!ok) return fail("truncated " + rec);
     if (!finite(s.compensation_radius_mm) || !finite(s.feed_mm_per_min) || !finite(s.center[0]) ||
         !finite(s.center[1]) || !finite(s.radius) || !finite(s.dwell_s) || s.feed_mm_per_min < 0 ||
-        s.radius < 0 || s.dwell_s < 0 || s.turns < 0) {
-      return fail("value out of range in record " + std::to_string(k));
+        s.radius < 0 || s.dwell_s < 0 || s.turns < 0 || s.compensation_radius_mm < 0) {
+      return fail("value out of range in " + rec);
     }
+    prev = s;
   }
   std::uint32_t nparams = 0, nmsg = 0;
   if (!in.get(nparams) || !in.get(nmsg)) return fail("truncated table counts");

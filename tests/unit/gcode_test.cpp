@@ -504,6 +504,15 @@ TEST(Intercode, RoundTripKeepsEveryField) {
   EXPECT_EQ(q.messages, p.messages);
 }
 
+TEST(Intercode, RecordsStoreOnlyWhatChanged) {
+  // Header 25 bytes; first move: type, flags, axis mask, tool (initial tool 1), X, feed = 24;
+  // then X only = 12 each; the table counts 8.
+  const Program p = compile_ok("G90 G1 X1 F100\nX2\nX3\n");
+  std::string bytes;
+  encode_intercode(p, bytes);
+  EXPECT_EQ(bytes.size(), 25u + 24u + 12u + 12u + 8u);
+}
+
 TEST(Intercode, DecodeRejectsEveryTruncation) {
   const Program p = compile_ok("G90 G1 X1 F100\nG2 X3 I1\nM3 S1\nM29 (x)\n");
   std::string bytes;

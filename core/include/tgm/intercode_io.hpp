@@ -2,15 +2,19 @@
 // Everything works on memory buffers; files are the callers' business.
 #pragma once
 
+#include <array>
+#include <cstdint>
 #include <string>
+#include <vector>
 #include <string_view>
 
 #include "tgm/intercode.hpp"
 
 namespace tgm {
 
-//! Appends the binary intercode of `p` to `out` (little-endian, versioned, compact: only the
-//! configured axes and the fields a record type uses are stored).
+//! Appends the binary intercode of `p` to `out` (little-endian, versioned, compact: a record
+//! stores the configured axes and modal fields that differ from the record before it, and only
+//! the fields its type uses).
 void encode_intercode(const Program& p, std::string& out);
 
 //! Writes binary intercode record by record, for programs too long to hold as `Segment`s.
@@ -37,6 +41,13 @@ class IntercodeEncoder {
   bool streaming_;
   std::uint64_t count_ = 0;
   int n_;
+  // What the previous record left (the delta base); the decoder starts from the same values.
+  std::array<double, kMaxAxes> prev_end_{};
+  std::int32_t prev_line_ = 0;
+  std::int32_t prev_tool_ = 0;
+  std::uint8_t prev_modes_ = 0;  // G17, G40, no M kind
+  double prev_feed_ = 0.0;
+  double prev_comp_radius_ = 0.0;
 };
 
 //! Parses binary intercode. On failure returns false and says why in `error`; never reads out
