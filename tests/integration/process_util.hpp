@@ -1,0 +1,115 @@
+// Helpers of the service integration tests: start the real binaries as child processes with
+// their output in a log file, stop them with SIGINT like a user would, and write a test config.
+#pragma once
+
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+extern char** environ;
+
+namespace tgm::test {
+
+//! A child process; killed (SIGKILL) by the destructor if it still runs.
+class Child {
+ public:
+  Child() = default;
+  Child(const Child&) = delete;
+  Child& operator=(const Child&) = delete;
+  ~Child() {
+    if (pid_ > 0) {
+      ::kill(pid_, SIGKILL);
+      int st = 0;
+      ::waitpid(pid_, &st, 0);
+    }
+  }
+  //! Starts `args[0]` with `args`; stdout and stderr go to `log_path`.
+  bool start(const std::vector<std::string>& args, const std::string& log_path) {
+    log_ = log_path;
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_addopen(&fa, 1, log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_adddup2(&fa, 1, 2);
+    posix_spawn_file_actions_addopen(&fa, 0, "/dev/null", O_RDONLY, 0);
+    std::vector<char*> argv;
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    const int rc = posix_spawn(&pid_, argv[0], &fa, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&fa);
+    if (rc != 0) pid_ = -1;
+    return rc == 0;
+  }
+  //! Waits for the exit; the exit code, 128 + signal when killed by one, -1 on timeout.
+  int wait(std::chrono::milliseconds timeout) {
+    if (pid_ <= 0) return code_;
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    while (true) {
+      int st = 0;
+      const pid_t r = ::waitpid(pid_, &st, WNOHANG);
+      if (r == pid_) {
+        pid_ = -1;
+        code_ = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
+        return code_;
+      }
+      if (std::chrono::steady_clock::now() >= deadline) return -1;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  }
+  //! SIGINT (or `sig`), then the exit code (SIGKILL and -1 after `timeout`).
+  int interrupt(std::chrono::milliseconds timeout = std::chrono::seconds(10), int sig = SIGINT) {
+    if (pid_ > 0) ::kill(pid_, sig);
+    const int code = wait(timeout);
+    if (code == -1 && pid_ > 0) {
+      ::kill(pid_, SIGKILL);
+      wait(std::chrono::seconds(5));
+      return -1;
+    }
+    return code;
+  }
+  bool running() const { return pid_ > 0; }
+  std::string log() const {
+    std::ifstream f(log_);
+    std::stringstream ss;
+    ss << f.rdbuf();
+    return ss.str();
+  }
+
+ private:
+  pid_t pid_ = -1;
+  int code_ = -1;
+  std::string log_;
+};
+
+inline std::string read_text(const std::string& path) {
+  std::ifstream f(path);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+//! Replaces the first occurrence of `from` (which must exist) in `text`.
+inline bool replace_first(std::string& text, const std::string& from, const std::string& to) {
+  const auto p = text.find(from);
+  if (p == std::string::npos) return false;
+  text.replace(p, from.size(), to);
+  return true;
+}
+
+//! Counts occurrences of `what` in `text`.
+inline int count_of(const std::string& text, const std::string& what) {
+  int n = 0;
+  for (auto p = text.find(what); p != std::string::npos; p = text.find(what, p + 1)) ++n;
+  return n;
+}
+
+}  // namespace tgm::test

@@ -1,0 +1,292 @@
+// tgm-service, tgm-plc and tgm-hmi as real processes over DDS on this machine (loopback / shared
+// memory): the manual's example end to end, the M-function handshake, a late-joining HMI, role
+// enforcement, and a 100,000-record program streamed into a 1,000-record buffer while it runs.
+// Time bounds only guard against hangs; what is checked is counted in interpolation cycles.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <optional>
+#include <fstream>
+#include <string>
+
+#include "service_test_env.hpp"
+#include "tgm/client/client.hpp"
+#include "tgm/gcode.hpp"
+#include "tgm/registers.hpp"
+#include "tgm/yaml_config.hpp"
+
+namespace tgm {
+namespace {
+
+using namespace std::chrono_literals;
+using test::ServiceEnv;
+
+constexpr auto kHang = 60s;
+
+Program compile(const std::string& gcode, const std::string& config_path) {
+  const ConfigLoad load = load_config_file(config_path);
+  EXPECT_TRUE(load.config.has_value());
+  CompileResult r = compile_gcode(gcode, CompileOptions::from_machine(load.config->machine, 0));
+  EXPECT_TRUE(r.ok());
+  return r.program;
+}
+
+// Streams and starts `program` on interpolator 0 and runs until Status 3 (restarting after an
+// underrun, as tgm-hmi run does). Returns false on a hang or an error message.
+bool run_program(client::Client& hmi, const Program& program, std::string& why,
+                 std::uint64_t* underruns = nullptr) {
+  client::ProgramSender sender(hmi, program, 0, client::new_program_id());
+  bool started = false;
+  std::uint64_t fresh_after = 0;
+  const auto deadline = std::chrono::steady_clock::now() + 5 * kHang;
+  while (std::chrono::steady_clock::now() < deadline) {
+    hmi.poll(2ms);
+    if (!sender.pump()) {
+      why = sender.error();
+      return false;
+    }
+    for (const auto& m : hmi.take_messages()) {
+      if (m.severity() == msg::SEVERITY_ERROR) {
+        why = "service: " + std::string(m.text().c_str());
+        return false;
+      }
+    }
+    const auto* s = hmi.state(0);
+    if (s == nullptr || s->program_id() != sender.program_id()) continue;
+    if (!started && (sender.all_confirmed() || sender.confirmed() >= static_cast<std::uint64_t>(s->buffer_size() / 2))) {
+      const auto r = hmi.start(0);
+      if (!r.accepted) {
+        why = "start: " + client::describe(r);
+        return false;
+      }
+      started = true;
+      fresh_after = r.cycle;
+    }
+    if (!started || s->cycle_counter() <= fresh_after) continue;
+    if (s->status() == 3 && sender.all_confirmed()) return true;
+    if (s->status() == 8 && s->buffered_segments() > 0) {
+      if (underruns) ++*underruns;
+      fresh_after = hmi.start(0).cycle;
+    }
+    if (s->status() == 7 || s->status() == 0) {
+      why = "status " + std::to_string(s->status());
+      return false;
+    }
+  }
+  why = "timeout";
+  return false;
+}
+
+TEST(ServiceProcesses, ManualExampleEndToEndWithPlcAndHmiProcesses) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  test::Child plc;
+  ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.config()}, env.path("plc.log")));
+  test::Child hmi;
+  ASSERT_TRUE(hmi.start({TGM_HMI_BIN, "run", TGM_SOURCE_DIR "/tests/programs/manual_example.ngc", "--config",
+                         env.config(), "--plot", env.path("plot.svg")},
+                        env.path("hmi.log")));
+  const int hmi_code = hmi.wait(kHang);
+  EXPECT_EQ(hmi_code, 0) << hmi.log() << "\n--- plc:\n" << plc.log() << "\n--- service:\n" << env.service.log();
+  EXPECT_EQ(plc.interrupt(), 0);
+  EXPECT_EQ(env.service.interrupt(), 0) << env.service.log();
+  const std::string out = hmi.log();
+  EXPECT_NE(out.find("done: 13 records"), std::string::npos) << out;
+  EXPECT_NE(out.find("3 M-function waits"), std::string::npos) << out;
+  const std::string plc_log = plc.log();
+  EXPECT_EQ(test::count_of(plc_log, "M51 acknowledged"), 2) << plc_log;
+  EXPECT_EQ(test::count_of(plc_log, "M50 acknowledged"), 1) << plc_log;
+  EXPECT_EQ(test::count_of(plc_log, "M51 normal"), 2) << plc_log;
+  EXPECT_NE(test::read_text(env.path("plot.svg")).find("<polyline"), std::string::npos);
+  EXPECT_NE(env.service.log().find("stopping (Interrupt)"), std::string::npos) << env.service.log();
+}
+
+// One DDS participant per test process: Fast DDS 2.9 can deadlock two participants of one process
+// on its intra-process liveliness path, so the HMI side runs as `tgm-hmi run`, as in production.
+TEST(ServiceProcesses, MFunctionWaitsUntilThePlcAcksAndNotLonger) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  client::Client plc(env.dds(), client::Role::kPlc);
+  ASSERT_TRUE(plc.wait_for_state(0, kHang));
+  std::ofstream(env.path("m51.ngc")) << "G1 X5\nM51 A7\nG1 X5\nM2\n";
+  test::Child hmi;
+  ASSERT_TRUE(hmi.start({TGM_HMI_BIN, "run", env.path("m51.ngc"), "--config", env.config()}, env.path("hmi.log")));
+
+  // The PLC sees M51 (normal: the section state says it waits) with its parameter.
+  auto waiting = [](const msg::InterpolatorState& s) {
+    const auto sec = static_cast<SectionState>(static_cast<std::uint32_t>(s.run_flag()) & 0xFFFFu);
+    return s.m_func() == 51 && (sec == SectionState::kWaitMFunc || sec == SectionState::kWaitMFuncEnd);
+  };
+  ASSERT_TRUE(plc.wait_until(0, waiting, kHang)) << hmi.log();
+  const std::uint64_t m_cycle = plc.state(0)->cycle_counter();
+  const std::int32_t m_part = plc.state(0)->act_part();
+  EXPECT_DOUBLE_EQ(plc.state(0)->m_function_parameter()[0], 7.0);
+
+  // Without an ack the interpolator keeps waiting: 0.5 s of cycles later it still stands at M51.
+  const double cycle_s = 500e-6;
+  const auto hold = static_cast<std::uint64_t>(0.5 / cycle_s);
+  bool left_early = false;
+  ASSERT_TRUE(plc.wait_until(0, [&](const msg::InterpolatorState& s) {
+    left_early = left_early || !waiting(s) || s.act_part() != m_part;
+    return s.cycle_counter() >= m_cycle + hold;
+  }, kHang));
+  EXPECT_FALSE(left_early) << "the interpolator went on without the PLC's acknowledgement";
+
+  const auto ack = plc.ack_m_func(0);
+  ASSERT_TRUE(ack.accepted) << client::describe(ack);
+  EXPECT_GE(ack.cycle, m_cycle + hold);
+  // It resumes in the cycle the ack is applied in: the first state published after that cycle no
+  // longer waits and is past the M record. Publishing may lag a little behind the cycle; 200
+  // cycles (0.1 s) is a generous bound for that lag.
+  ASSERT_TRUE(plc.wait_until(0, [&](const msg::InterpolatorState& s) { return s.cycle_counter() > ack.cycle; }, kHang));
+  const msg::InterpolatorState s = *plc.state(0);
+  EXPECT_FALSE(waiting(s));
+  EXPECT_EQ(s.m_func(), 0);
+  EXPECT_GT(s.act_part(), m_part);
+  EXPECT_LE(s.cycle_counter() - ack.cycle, 200u) << "state published late";
+  EXPECT_EQ(hmi.wait(kHang), 0) << hmi.log();
+  EXPECT_NE(hmi.log().find("done: 4 records"), std::string::npos) << hmi.log();
+  EXPECT_NE(hmi.log().find("end position X10.0000"), std::string::npos) << hmi.log();
+  std::printf("M51: waited %llu cycles, acknowledged in cycle %llu, first state after it: cycle %llu\n",
+              static_cast<unsigned long long>(ack.cycle - m_cycle), static_cast<unsigned long long>(ack.cycle),
+              static_cast<unsigned long long>(s.cycle_counter()));
+}
+
+TEST(ServiceProcesses, LateJoiningHmiSeesTheCurrentStateAtOnce) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  {
+    client::Client plc(env.dds(), client::Role::kPlc);
+    ASSERT_TRUE(plc.wait_for_state(1, kHang));
+    ASSERT_TRUE(plc.set_rel_speed(1, 0.37).accepted);
+    ASSERT_TRUE(plc.wait_until(1, [](const msg::InterpolatorState& s) { return s.rel_speed() == 0.37; }, kHang));
+  }
+  // A new HMI process-equivalent joins now: TRANSIENT_LOCAL hands it the current sample of every
+  // interpolator as soon as it matches, without waiting for the next publication.
+  client::Client late(env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(late.wait_for_state(1, kHang));
+  EXPECT_DOUBLE_EQ(late.state(1)->rel_speed(), 0.37);
+  EXPECT_GT(late.state(1)->cycle_counter(), 0u);
+  ASSERT_TRUE(late.wait_for_state(0, 5s));
+  ASSERT_TRUE(late.wait_for_state(2, 5s));
+
+  // The same with `tgm-hmi status` as a process.
+  test::Child status;
+  ASSERT_TRUE(status.start({TGM_HMI_BIN, "status", "--interpolator", "1", "--config", env.config()},
+                           env.path("status.log")));
+  EXPECT_EQ(status.wait(kHang), 0) << status.log();
+  EXPECT_NE(status.log().find("Rel_Speed 0.370"), std::string::npos) << status.log();
+}
+
+TEST(ServiceProcesses, ThePlcCannotStartAndOtherRolesAreEnforced) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  {
+    client::Client plc(env.dds(), client::Role::kPlc);
+    ASSERT_TRUE(plc.wait_for_state(0, kHang));
+    const auto start = plc.start(0);
+    EXPECT_FALSE(start.accepted);
+    EXPECT_EQ(start.code, msg::REPLY_CODE_WRONG_ROLE);
+    EXPECT_NE(start.reason.find("only the HMI starts"), std::string::npos) << start.reason;
+    EXPECT_EQ(plc.clear(0).code, msg::REPLY_CODE_WRONG_ROLE);
+    EXPECT_EQ(plc.set_rel_speed(0, 3.0).code, msg::REPLY_CODE_OUT_OF_RANGE);
+    EXPECT_EQ(plc.command(0, 77).code, msg::REPLY_CODE_BAD_REQUEST);
+    const auto ratio = plc.command(0, 1024);
+    EXPECT_TRUE(ratio.code == msg::REPLY_CODE_UNSUPPORTED || ratio.accepted) << client::describe(ratio);
+    EXPECT_TRUE(plc.command(0, 8).accepted);
+  }
+  {
+    client::Client hmi(env.dds(), client::Role::kHmi);
+    ASSERT_TRUE(hmi.wait_for_state(0, kHang));
+    EXPECT_EQ(hmi.ack_m_func(0).code, msg::REPLY_CODE_WRONG_ROLE);
+    EXPECT_EQ(hmi.set_rel_speed(0, 0.5).code, msg::REPLY_CODE_WRONG_ROLE);
+    EXPECT_EQ(hmi.command(0, 1024).code, msg::REPLY_CODE_WRONG_ROLE);
+    EXPECT_EQ(hmi.start(0).code, msg::REPLY_CODE_WRONG_STATE) << "the HMI may start; nothing is loaded";
+  }
+  // A loaded program, and tgm-plc --try-start as a process: the refusal is logged and the
+  // interpolator is still ready, not running.
+  std::ofstream(env.path("short.ngc")) << "G1 X1\nM2\n";
+  test::Child plc_process;
+  ASSERT_TRUE(plc_process.start({TGM_PLC_BIN, "--config", env.config(), "--try-start", "--interpolator", "0",
+                                 "--no-basic-params", "--duration", "3"},
+                                env.path("plc.log")));
+  EXPECT_EQ(plc_process.wait(kHang), 0);
+  EXPECT_NE(plc_process.log().find("trying to start as the PLC: refused (wrong role)"), std::string::npos)
+      << plc_process.log();
+  client::Client watcher(env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(watcher.wait_for_state(0, kHang));
+  EXPECT_EQ(watcher.state(0)->status(), 0);
+}
+
+TEST(ServiceProcesses, HundredThousandRecordsStreamIntoAThousandRecordBufferWhileRunning) {
+  test::ConfigEdits edits;
+  edits.buffer_size0 = 1000;
+  ServiceEnv env(edits);
+  ASSERT_TRUE(env.start_service());
+  client::Client hmi(env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(hmi.wait_for_state(0, kHang));
+  ASSERT_EQ(hmi.state(0)->buffer_size(), 1000);
+
+  // 100,000 collinear 0.025 mm moves at the rapid-limit feed, then M2: 2.5 m in about 10 s.
+  constexpr std::size_t kRecords = 100'000;
+  std::string gcode = "F15000\n";
+  gcode.reserve(kRecords * 10);
+  for (std::size_t i = 0; i < kRecords; ++i) gcode += "G1 X0.025\n";
+  gcode += "M2\n";
+  const Program program = compile(gcode, env.config());
+  ASSERT_EQ(program.segments.size(), kRecords + 1);
+
+  std::uint64_t max_buffered = 0;
+  hmi.on_state = [&](const msg::InterpolatorState& s) {
+    if (s.interpolator() == 0) max_buffered = std::max<std::uint64_t>(max_buffered, s.buffered_segments());
+  };
+  std::string why;
+  std::uint64_t underruns = 0;
+  ASSERT_TRUE(run_program(hmi, program, why, &underruns)) << why << "\n" << env.service.log();
+  const auto* s = hmi.state(0);
+  // Every record executed once and in order: the count, the distance (a reordered or repeated
+  // record would add a backward move) and the end point.
+  EXPECT_EQ(s->next_sequence(), kRecords + 1);
+  // Act_Part counts records from 1; at the end it stands on the last motion or on M2.
+  EXPECT_GE(static_cast<std::size_t>(s->act_part()), kRecords);
+  EXPECT_NEAR(s->move_distance(), 2500.0, 1e-6);
+  EXPECT_NEAR(s->orig_position()[0], 2500.0, 1e-6);
+  EXPECT_LE(max_buffered, 1000u);
+  EXPECT_EQ(env.service.interrupt(), 0);
+  const std::string stats = test::read_text(env.stats_path());
+  EXPECT_NE(stats.find("\"segments\": 100001,"), std::string::npos) << stats;
+  EXPECT_NE(stats.find("\"duplicate_chunks\": 0,"), std::string::npos) << stats;
+  EXPECT_NE(stats.find("\"refused_chunks\": 0,"), std::string::npos) << stats;
+  std::printf("streamed %zu records through a 1000-record buffer, %llu underrun restarts\n", kRecords + 1,
+              static_cast<unsigned long long>(underruns));
+}
+
+TEST(ServiceProcesses, ServiceStopsCleanlyOnSigtermAndRejectsBadFlags) {
+  ServiceEnv env;
+  test::Child bad;
+  ASSERT_TRUE(bad.start({TGM_SERVICE_BIN, "--config", env.config(), "--bogus", "1"}, env.path("bad.log")));
+  EXPECT_EQ(bad.wait(kHang), 2);
+  EXPECT_NE(bad.log().find("unknown option '--bogus'"), std::string::npos) << bad.log();
+  test::Child bad_config;
+  ASSERT_TRUE(bad_config.start({TGM_PLC_BIN, "--config", env.path("missing.yaml")}, env.path("bad_config.log")));
+  EXPECT_EQ(bad_config.wait(kHang), 2);
+  test::Child help;
+  ASSERT_TRUE(help.start({TGM_PLC_BIN, "--help"}, env.path("help.log")));
+  EXPECT_EQ(help.wait(kHang), 0);
+  EXPECT_NE(help.log().find("--refuse-ack"), std::string::npos);
+
+  ASSERT_TRUE(env.start_service());
+  client::Client hmi(env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(hmi.wait_for_state(0, kHang));
+  test::Child plc;
+  ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.config()}, env.path("plc.log")));
+  std::this_thread::sleep_for(300ms);
+  // SIGTERM as from systemd or docker stop: both exit 0 and say so.
+  EXPECT_EQ(plc.interrupt(10s, SIGTERM), 0) << plc.log();
+  EXPECT_EQ(env.service.interrupt(10s, SIGTERM), 0) << env.service.log();
+  EXPECT_NE(env.service.log().find("stopping (Terminated)"), std::string::npos) << env.service.log();
+}
+
+}  // namespace
+}  // namespace tgm

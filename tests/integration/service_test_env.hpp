@@ -1,0 +1,82 @@
+// A running tgm-service for one integration test: its own temp directory, a config derived from
+// config/default.yaml (domain of this test process, absolute profiles path, faster default
+// feed so the manual's example runs in seconds), and helpers to run tgm-plc / tgm-hmi.
+#pragma once
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "dds_test_util.hpp"
+#include "process_util.hpp"
+
+namespace tgm::test {
+
+struct ConfigEdits {
+  double default_feed_mm_per_min = 6000;
+  //! Buffer_Size of interpolator 0 (the default config has 10000).
+  int buffer_size0 = 10000;
+  std::string profiles = profiles_path();
+  int domain = test_domain();
+};
+
+class ServiceEnv {
+ public:
+  explicit ServiceEnv(const ConfigEdits& e = {}) : domain_(e.domain), profiles_(e.profiles) {
+    dir_ = std::filesystem::temp_directory_path() /
+           ("tgm_it_" + std::to_string(::getpid()) + "_" + std::to_string(counter()++));
+    std::filesystem::create_directories(dir_);
+    std::string yaml = read_text(TGM_SOURCE_DIR "/config/default.yaml");
+    bool ok = replace_first(yaml, "default_feed_mm_per_min: 1000",
+                            "default_feed_mm_per_min: " + std::to_string(e.default_feed_mm_per_min));
+    ok = ok && replace_first(yaml, "profiles_file: fastdds_profiles.xml", "profiles_file: " + e.profiles);
+    ok = ok && replace_first(yaml, "domain_id: 0", "domain_id: " + std::to_string(e.domain));
+    ok = ok && replace_first(yaml, "buffer_size: 10000", "buffer_size: " + std::to_string(e.buffer_size0));
+    EXPECT_TRUE(ok) << "config/default.yaml changed: the test's edits no longer apply";
+    config_ = (dir_ / "config.yaml").string();
+    std::ofstream(config_) << yaml;
+  }
+  ~ServiceEnv() {
+    service.interrupt();
+    std::error_code ec;
+    if (!::testing::Test::HasFailure()) std::filesystem::remove_all(dir_, ec);
+  }
+  ServiceEnv(const ServiceEnv&) = delete;
+  ServiceEnv& operator=(const ServiceEnv&) = delete;
+
+  //! Starts tgm-service (no real-time scheduling: tests share the machine) with extra args.
+  bool start_service(std::vector<std::string> extra = {}) {
+    std::vector<std::string> args{TGM_SERVICE_BIN, "--config", config_, "--no-realtime", "--stats", stats_path()};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return service.start(args, path("service.log"));
+  }
+  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+  std::string stats_path() const { return path("service_stats.json"); }
+  const std::string& config() const { return config_; }
+  int domain() const { return domain_; }
+  DdsConfig dds() const {
+    DdsConfig c;
+    c.domain_id = domain_;
+    c.profiles_file = profiles_;
+    c.participant_prefix = "tgm";
+    return c;
+  }
+
+  Child service;
+
+ private:
+  static int& counter() {
+    static int n = 0;
+    return n;
+  }
+  std::filesystem::path dir_;
+  std::string config_;
+  int domain_;
+  std::string profiles_;
+};
+
+}  // namespace tgm::test

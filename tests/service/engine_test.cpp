@@ -1,0 +1,205 @@
+// The cycle engine against a mock port: role rules, request budget, program chunks in bounded
+// pieces, sequence checks, the M-function handshake and M29 messages, all without a network.
+#include <gtest/gtest.h>
+
+#include "mock_port.hpp"
+#include "tgm/config.hpp"
+#include "tgm/service/engine.hpp"
+
+namespace tgm::service {
+namespace {
+
+using test::MockPort;
+
+Program line_program(int moves, bool with_m51 = false, bool with_message = false) {
+  Program p;
+  p.number_axes = 3;
+  p.axis_letters = "XYZ";
+  for (int i = 0; i < moves; ++i) {
+    Segment s;
+    s.type = SegmentType::kLinear;
+    s.line = i + 1;
+    s.end[0] = 0.1 * (i + 1);
+    s.feed_mm_per_min = 6000;
+    p.segments.push_back(s);
+    if (with_m51 && i == 0) {
+      Segment m;
+      m.type = SegmentType::kMFunction;
+      m.m_kind = MKind::kNormal;
+      m.m = 51;
+      m.line = 1;
+      m.end = s.end;
+      m.aux = static_cast<std::int32_t>(p.params.size());
+      p.params.push_back(unset_params());
+      p.segments.push_back(m);
+    }
+    if (with_message && i == 0) {
+      Segment t;
+      t.type = SegmentType::kMessage;
+      t.line = 1;
+      t.end = s.end;
+      t.aux = static_cast<std::int32_t>(p.messages.size());
+      p.messages.push_back("hello from M29");
+      p.segments.push_back(t);
+    }
+  }
+  Segment end;
+  end.type = SegmentType::kMFunction;
+  end.m_kind = MKind::kProgramEnd;
+  end.m = 2;
+  end.line = moves + 1;
+  end.end = p.segments.back().end;
+  p.segments.push_back(end);
+  return p;
+}
+
+Engine make_engine(EngineOptions o = {}) {
+  auto e = Engine::create(MachineConfig::default_machine(), o);
+  EXPECT_TRUE(e.has_value());
+  return std::move(*e);
+}
+
+TEST(Engine, RoleTableFollowsDesignSectionOne) {
+  EXPECT_EQ(role_violation(Role::kHmi, RequestKind::kStart, 0), "");
+  EXPECT_NE(role_violation(Role::kPlc, RequestKind::kStart, 0).find("only the HMI starts"), std::string::npos);
+  EXPECT_NE(role_violation(Role::kHmi, RequestKind::kWriteMFunc, 0), "");
+  EXPECT_EQ(role_violation(Role::kPlc, RequestKind::kWriteMFunc, 0), "");
+  EXPECT_NE(role_violation(Role::kHmi, RequestKind::kWriteRelSpeed, 0), "");
+  EXPECT_NE(role_violation(Role::kPlc, RequestKind::kClear, 0), "");
+  for (int code : {4, 5, 8, 9}) {
+    EXPECT_EQ(role_violation(Role::kPlc, RequestKind::kCommand, code), "") << code;
+    EXPECT_EQ(role_violation(Role::kHmi, RequestKind::kCommand, code), "") << code;
+  }
+  for (int code : {1024, 2048, 2049, -1, -2}) {
+    EXPECT_EQ(role_violation(Role::kPlc, RequestKind::kCommand, code), "") << code;
+    EXPECT_NE(role_violation(Role::kHmi, RequestKind::kCommand, code), "") << code;
+  }
+}
+
+TEST(Engine, RepliesSayWhy) {
+  Engine e = make_engine();
+  MockPort port;
+  port.add_request(Role::kPlc, RequestKind::kStart);
+  port.add_request(Role::kHmi, RequestKind::kStart);  // nothing loaded
+  port.add_request(Role::kPlc, RequestKind::kWriteRelSpeed).value = 5.0;
+  port.add_request(Role::kPlc, RequestKind::kWriteRelSpeed).value = 0.5;
+  port.add_request(Role::kPlc, RequestKind::kCommand).command = 1024;
+  port.add_request(Role::kPlc, RequestKind::kCommand).command = 3;
+  port.add_request(Role::kPlc, RequestKind::kWriteOffset);
+  port.add_request(Role::kHmi, RequestKind::kClear, 7);
+  e.cycle(port, {});
+  ASSERT_EQ(port.replies.size(), 8u);
+  EXPECT_EQ(port.replies[0].code, ReplyCode::kWrongRole);
+  EXPECT_EQ(port.replies[1].code, ReplyCode::kWrongState);
+  EXPECT_EQ(port.replies[2].code, ReplyCode::kOutOfRange);
+  EXPECT_EQ(port.replies[3].code, ReplyCode::kAccepted);
+  EXPECT_EQ(port.replies[4].code, ReplyCode::kUnsupported) << port.replies[4].reason.view();
+  EXPECT_EQ(port.replies[5].code, ReplyCode::kBadRequest);
+  EXPECT_EQ(port.replies[6].code, ReplyCode::kUnsupported);
+  EXPECT_EQ(port.replies[7].code, ReplyCode::kBadRequest);
+  for (const auto& r : port.replies) {
+    if (r.code != ReplyCode::kAccepted) {
+      EXPECT_FALSE(r.reason.view().empty());
+    }
+    EXPECT_EQ(r.cycle, 0u);  // handled at the start of the first cycle
+    EXPECT_EQ(r.client.view(), "test");
+  }
+  EXPECT_DOUBLE_EQ(port.last.ip[0].reg.rel_speed, 0.5);
+}
+
+TEST(Engine, RequestsBeyondTheBudgetWaitForTheNextCycle) {
+  EngineOptions o;
+  o.max_requests_per_cycle = 4;
+  Engine e = make_engine(o);
+  MockPort port;
+  for (int i = 0; i < 10; ++i) port.add_request(Role::kPlc, RequestKind::kWriteRelSpeed).value = 1.0;
+  e.cycle(port, {});
+  EXPECT_EQ(port.replies.size(), 4u);
+  e.cycle(port, {});
+  e.cycle(port, {});
+  EXPECT_EQ(port.replies.size(), 10u);
+  EXPECT_EQ(port.replies.back().cycle, 2u);
+}
+
+TEST(Engine, ChunksAreAppliedInBoundedPiecesAndInOrder) {
+  EngineOptions o;
+  o.max_segments_per_cycle = 10;
+  Engine e = make_engine(o);
+  MockPort port;
+  const Program p = line_program(99);  // 100 records
+  port.add_chunk(0, p, 0, 64, 5, false);
+  port.add_chunk(0, p, 64, 36, 5, true);
+  std::uint64_t last = 0;
+  for (int c = 0; c < 10; ++c) {
+    e.cycle(port, {});
+    const auto& s = port.last.ip[0];
+    EXPECT_EQ(s.program_id, 5u);
+    EXPECT_LE(s.next_sequence - last, 10u);
+    last = s.next_sequence;
+  }
+  EXPECT_EQ(last, 100u);
+  EXPECT_TRUE(port.chunks[0].empty());
+  EXPECT_TRUE(port.messages.empty());
+  EXPECT_EQ(e.counters().segments, 100u);
+}
+
+TEST(Engine, DuplicatesAreDroppedGapsAndForeignProgramsRefused) {
+  Engine e = make_engine();
+  MockPort port;
+  const Program p = line_program(9);
+  port.add_chunk(0, p, 0, 5, 5, false);
+  port.add_chunk(0, p, 0, 5, 5, false);   // duplicate
+  port.add_chunk(0, p, 7, 3, 5, true);    // gap (5, 6 missing)
+  e.cycle(port, {});
+  EXPECT_EQ(port.last.ip[0].next_sequence, 5u);
+  EXPECT_EQ(e.counters().duplicate_chunks, 1u);
+  ASSERT_EQ(port.messages.size(), 1u);
+  EXPECT_EQ(port.messages[0].severity, MessageOut::Severity::kError);
+  EXPECT_NE(port.messages[0].text.view().find("gap"), std::string_view::npos);
+  // Another program while program 5 is loaded: refused with a reason, program 5 untouched.
+  port.add_chunk(0, p, 0, 10, 6, true);
+  e.cycle(port, {});
+  ASSERT_EQ(port.messages.size(), 2u);
+  EXPECT_NE(port.messages[1].text.view().find("clear it first"), std::string_view::npos);
+  EXPECT_EQ(port.last.ip[0].program_id, 5u);
+  // After clear, the new program loads.
+  port.add_request(Role::kHmi, RequestKind::kClear);
+  port.add_chunk(0, p, 0, 10, 6, true);
+  e.cycle(port, {});
+  EXPECT_EQ(port.last.ip[0].program_id, 6u);
+  EXPECT_EQ(port.last.ip[0].next_sequence, 10u);
+  EXPECT_EQ(port.last.ip[0].reg.status, static_cast<std::int32_t>(InterpolatorStatus::kReady));
+}
+
+TEST(Engine, NormalMFunctionWaitsForTheAckAndResumesInTheSameCycle) {
+  Engine e = make_engine();
+  MockPort port;
+  const Program p = line_program(3, /*with_m51=*/true, /*with_message=*/true);
+  port.add_chunk(0, p, 0, p.segments.size(), 9, true);
+  e.cycle(port, {});
+  port.add_request(Role::kHmi, RequestKind::kStart);
+  int cycles = 0;
+  while (port.last.ip[0].reg.m_func != 51 && cycles++ < 20000) e.cycle(port, {});
+  ASSERT_EQ(port.last.ip[0].reg.m_func, 51);
+  const std::int32_t part = port.last.ip[0].reg.act_part;
+  for (int i = 0; i < 1000; ++i) e.cycle(port, {});  // 0.5 s without an ack
+  EXPECT_EQ(port.last.ip[0].reg.m_func, 51);
+  EXPECT_EQ(port.last.ip[0].reg.act_part, part);
+  port.add_request(Role::kPlc, RequestKind::kWriteMFunc).value = 0;
+  e.cycle(port, {});
+  EXPECT_EQ(port.replies.back().code, ReplyCode::kAccepted);
+  EXPECT_EQ(port.last.ip[0].reg.m_func, 0);
+  EXPECT_GT(port.last.ip[0].reg.act_part, part) << "resumes in the cycle the ack is applied in";
+  cycles = 0;
+  while (port.last.ip[0].reg.status != 3 && cycles++ < 20000) e.cycle(port, {});
+  EXPECT_EQ(port.last.ip[0].reg.status, 3);
+  // The M29 text went out as a message and into the state.
+  bool found = false;
+  for (const auto& m : port.messages) found = found || m.text.view() == "hello from M29";
+  EXPECT_TRUE(found);
+  EXPECT_EQ(port.last.ip[0].message_text.view(), "hello from M29");
+  EXPECT_EQ(port.last.ip[0].message_counter, 1u);
+}
+
+}  // namespace
+}  // namespace tgm::service
