@@ -2,7 +2,8 @@
 // M-functions, dwells and override changes must finish at the programmed end point, never give
 // NaN, and the limit checker must find no excess on Orig_Position differentiated per cycle.
 //
-// TGM_SEED (default 1) and TGM_SWEEP_COUNT (default 200) choose the sweep; a long run:
+// TGM_SEED (default 1), TGM_SWEEP_COUNT (default 200) and TGM_SWEEP_FIRST (default 0) choose the
+// sweep; a long run:
 //   TGM_SEED=7 TGM_SWEEP_COUNT=5000 build/tests/motion/tgm_motion_tests --gtest_filter='RandomSweep.*'
 #include <gtest/gtest.h>
 
@@ -30,8 +31,9 @@ std::uint64_t env_u64(const char* name, std::uint64_t fallback) {
 TEST(RandomSweep, ProgramsFinishAtTheirEndWithinLimits) {
   const std::uint64_t seed = env_u64("TGM_SEED", 1);
   const std::uint64_t count = env_u64("TGM_SWEEP_COUNT", 200);
+  const std::uint64_t first = env_u64("TGM_SWEEP_FIRST", 0);  // to rerun one program
   std::uint64_t total_cycles = 0;
-  for (std::uint64_t k = 0; k < count; ++k) {
+  for (std::uint64_t k = first; k < first + count; ++k) {
     std::mt19937_64 rng(seed * 1000003ull + k);
     std::uniform_int_distribution<int> axes_d(1, 10);
     const int axes = k % 5 == 0 ? 3 : axes_d(rng);

@@ -109,6 +109,11 @@ class Interpolator {
   //! calls act as between steps.
   StepResult advance(std::uint64_t max_cycles, std::uint64_t* advanced);
 
+  //! Makes this interpolator an exact copy of `other` (created from the same config: the ring
+  //! is copied in place, only message texts may allocate). For benchmarks and tests that replay
+  //! the same step; not for the cycle path.
+  void copy_state_from(const Interpolator& other);
+
   //! The registers after the last step (or after creation).
   const Registers& registers() const;
 

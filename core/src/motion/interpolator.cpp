@@ -46,6 +46,7 @@ constexpr double kPi = 3.14159265358979323846;
 constexpr int kCalcSteps = 5;             // calculation steps per cycle (manual)
 constexpr int kChainMax = 24;             // constraints followed per chain and step
 constexpr int kMaxExtendPerStep = 64;     // records scanned for the limits of one calculation step
+constexpr int kMaxDecelLimits = 8;        // deceleration limits ahead checked per calculation step
 constexpr int kMaxExtendPerCycle = 320;   // records added to the look-ahead window per cycle
 constexpr std::size_t kMessageRing = 256;
 constexpr std::uint64_t kMaxSkipCycles = 1'000'000;  // per advance() call (bounds its work)
@@ -143,6 +144,9 @@ struct Constraint {
   double J;
   LimitFactor reason;
   bool accel;
+  //! The programmed feed x Rel_Speed (not a machine limit): after an override decrease it may be
+  //! crossed faster rather than exceeding an acceleration limit.
+  bool soft = false;
 };
 
 double norm_angle_deg(double rad) {
@@ -609,7 +613,7 @@ struct Interpolator::Impl {
             const Rec& m = R(dq_wg.front());
             c[k++] = {r.s0 - here, m.wg, A, J, m.wg_reason, false};
           } else if (fam == 1 && !dq_wf.empty()) {
-            c[k++] = {r.s0 - here, R(dq_wf.front()).wf * rel, A, J, LimitFactor::kFeed, false};
+            c[k++] = {r.s0 - here, R(dq_wf.front()).wf * rel, A, J, LimitFactor::kFeed, false, true};
           } else if (fam == 2) {
             c[k++] = {r.s0 - here, Aw, A, J, LimitFactor::kAccelJerk, true};
           }
@@ -619,7 +623,7 @@ struct Interpolator::Impl {
           LimitFactor why = fam == 0 ? r.wg_reason
                                      : (fam == 2 ? LimitFactor::kAccelJerk
                                                  : (rel == 1.0 ? LimitFactor::kFeed : LimitFactor::kOverride));
-          c[k++] = {r.s0 - here, w, A, J, why, fam == 2};
+          c[k++] = {r.s0 - here, w, A, J, why, fam == 2, fam == 1};
           ++hops;
         }
         if (r.link[f].nse == kNoQ) break;
@@ -665,9 +669,43 @@ struct Interpolator::Impl {
     }
   }
 
+  // Limits on the deceleration from the records ahead (inside the window). Entering record q,
+  // |a| must be within its tangential limit: a deceleration above it has to be taken back on the
+  // way, at 90 % of the lowest jerk limit before q (what the braking plans use), so each such q
+  // becomes an acceleration point for negative x (collected in `dec`, at most kMaxDecelLimits,
+  // from at most kMaxExtendPerStep records). hi is the highest end-of-step acceleration allowed.
+  int decel_limits(double v, double a, double J, double A, double hi, Constraint* dec) const {
+    const Rec& rc = R(cur);
+    const double here = rc.s0 + st.s;
+    const double ds_max = dt * (v + dt * (a / 3.0 + hi / 6.0));
+    const double v_end = v + 0.5 * (a + hi) * dt;
+    if (!(v_end > 0.0)) return 0;
+    const double a_max = std::max(std::fabs(a), A) + J * dt;  // largest |x| this step can have
+    double j_before = rc.jt;  // lowest jerk limit over [cur, q)
+    int n_dec = 0;
+    int scanned = 0;
+    for (std::uint64_t q = cur + 1; q < win_end && q < tail && scanned < kMaxExtendPerStep; ++q, ++scanned) {
+      const Rec& r = R(q);
+      if (r.kind == RecKind::kStop) break;
+      if (r.kind != RecKind::kMotion) continue;
+      const double d = r.s0 - here;
+      // Farther than the distance the largest deceleration needs to be taken back completely.
+      if (d > ds_max + v_end * a_max / (kPlanMarginJ * j_before)) break;
+      if (r.at < a_max) {
+        dec[n_dec++] = {d, r.at, r.at, j_before, LimitFactor::kAccelJerk, true};
+        if (n_dec == kMaxDecelLimits) break;
+      }
+      j_before = std::min(j_before, r.jt);
+    }
+    return n_dec;
+  }
+
   // Next non-pass record after `q` is a stop, or the buffer ends there.
+  // Bounded work: beyond kMaxExtendPerStep pass records it answers true (a standstill at the
+  // record's end then counts as an arrival; only reached with that many messages / continuous M
+  // in a row).
   bool stop_follows(std::uint64_t q) const {
-    for (std::uint64_t k = q + 1; k < tail; ++k) {
+    for (std::uint64_t k = q + 1; k < tail && k <= q + kMaxExtendPerStep; ++k) {
       const Rec& r = R(k);
       if (r.kind == RecKind::kMotion) return false;
       if (r.kind == RecKind::kStop) return true;
@@ -933,8 +971,40 @@ struct Interpolator::Impl {
         if (a > A) hi = lo = std::max(a - J * dt, -A);
         else lo = hi = std::min(a + J * dt, A);
       }
+      Constraint dec[kMaxDecelLimits];
+      const int n_dec = decel_limits(v, a, J, A, hi, dec);
       lo = std::max(lo, std::min(jerk::floor_acceleration(v, a, kFloorMarginJ * J, dt), hi));
-      const double xd = std::clamp(jerk::track_velocity(v, a, vt, A, J, dt), lo, hi);
+      double xd = std::clamp(jerk::track_velocity(v, a, vt, A, J, dt), lo, hi);
+      // Lowest x from which every deceleration above a record's limit ahead can still be taken
+      // back before the record (monotone in x while the motion does not reverse). Tracking the
+      // target (an override decrease, a lower feed) never goes below it; braking for a limit
+      // ahead does only when that limit cannot be kept otherwise.
+      double lo_dec = lo;
+      if (n_dec > 0) {
+        auto dec_ok = [&](double xx) {
+          const jerk::State ns = jerk::advance(before, xx, dt);
+          const double ds = ns.s - before.s;
+          for (int i = 0; i < n_dec; ++i) {
+            const Constraint& ck = dec[i];
+            if (ns.a >= -ck.w || ck.d - ds <= 0.0) continue;  // within, or entered in this step
+            if (accel_distance(std::max(ns.v, 0.0), ns.a, ck.w, kPlanMarginJ * ck.J) > ck.d - ds) return false;
+          }
+          return true;
+        };
+        if (!dec_ok(lo)) {
+          if (!dec_ok(hi)) {
+            lo_dec = hi;  // as much easing as the jerk allows
+          } else {
+            double xf = lo, xp = hi;
+            for (int it = 0; it < 10; ++it) {
+              const double mid = 0.5 * (xf + xp);
+              if (dec_ok(mid)) xp = mid; else xf = mid;
+            }
+            lo_dec = xp;
+          }
+        }
+        xd = std::max(xd, lo_dec);
+      }
 
       const Constraint* c = cons.data();
       const int nc = ncons;
@@ -1011,8 +1081,23 @@ struct Interpolator::Impl {
           }
           return true;
         };
-        double xs = lo, xu = xd;
-        if (!ok(xs)) {
+        auto ok_hard = [&](double xx) {
+          for (int i = 0; i < nv; ++i) {
+            if (!c[viol[i]].soft && excess(xx, viol[i]) > 1e-12) return false;
+          }
+          return true;
+        };
+        double xs = lo_dec > lo && ok(lo_dec) ? lo_dec : lo, xu = xd;
+        if (xs == lo && lo_dec > lo && ok_hard(lo_dec)) {
+          // Only the feed x Rel_Speed cannot be kept within the acceleration limits ahead (an
+          // override decrease): keep the machine limits, cross the feed limit faster.
+          xs = lo_dec;
+          for (int it = 0; it < 10; ++it) {
+            const double mid = 0.5 * (xs + xu);
+            if (ok_hard(mid) && ok(mid)) xs = mid; else xu = mid;
+          }
+          x = xs;
+        } else if (!ok(xs)) {
           x = xs;  // best effort: as much braking as the limits allow
         } else {
           for (int it = 0; it < 10; ++it) {
@@ -1510,6 +1595,8 @@ StepResult Interpolator::advance(std::uint64_t max_cycles, std::uint64_t* advanc
   }
   return m.result();
 }
+
+void Interpolator::copy_state_from(const Interpolator& other) { *impl_ = *other.impl_; }
 
 const Registers& Interpolator::registers() const { return impl_->reg; }
 
