@@ -196,12 +196,14 @@ int main(int argc, char** argv) {
   for (const auto& h : port->handshakes()) rt_ns.push_back(h.round_trip_ns);
   std::printf(
       "tgm-service: stopping (%s) after %llu cycles: lateness p50 %.1f us, p99 %.1f us, p99.9 %.1f us,"
-      " max %.1f us, missed %llu; %llu requests (%llu refused), %llu chunks, %llu segments,"
+      " max %.1f us, missed %llu; cycle work p99.9 %.1f us, max %.1f us; %llu requests (%llu refused), %llu chunks, %llu segments,"
       " %llu states, %llu setpoints published\n",
       sig > 0 ? strsignal(sig) : "time is up", static_cast<unsigned long long>(st.cycles),
       static_cast<double>(hist.quantile_ns(0.5)) / 1e3, static_cast<double>(hist.quantile_ns(0.99)) / 1e3,
       static_cast<double>(hist.quantile_ns(0.999)) / 1e3, static_cast<double>(hist.max_ns()) / 1e3,
-      static_cast<unsigned long long>(st.missed_cycles), static_cast<unsigned long long>(c.requests),
+      static_cast<unsigned long long>(st.missed_cycles),
+      static_cast<double>(loop.work_histogram().quantile_ns(0.999)) / 1e3,
+      static_cast<double>(loop.work_histogram().max_ns()) / 1e3, static_cast<unsigned long long>(c.requests),
       static_cast<unsigned long long>(c.refused_requests), static_cast<unsigned long long>(c.chunks),
       static_cast<unsigned long long>(c.segments),
       static_cast<unsigned long long>(port->states_published()),
@@ -212,6 +214,7 @@ int main(int argc, char** argv) {
                    "{\"cycles\": %llu, \"cycle_time_us\": %d, \"interpolators\": %d,\n"
                    " \"lateness_ns\": {\"p50\": %lld, \"p99\": %lld, \"p999\": %lld, \"max\": %lld},\n"
                    " \"missed_cycles\": %llu,\n"
+                   " \"cycle_work_ns\": {\"p50\": %lld, \"p999\": %lld, \"max\": %lld},\n"
                    " \"handshake_ns\": {\"count\": %zu, \"min\": %lld, \"p50\": %lld, \"p99\": %lld, \"max\": %lld},\n"
                    " \"requests\": %llu, \"chunks\": %llu, \"segments\": %llu, \"duplicate_chunks\": %llu,"
                    " \"refused_chunks\": %llu, \"lost_replies\": %llu, \"lost_messages\": %llu,\n"
@@ -219,7 +222,10 @@ int main(int argc, char** argv) {
                    static_cast<unsigned long long>(st.cycles), config.machine.cycle_time_us, engine->count(),
                    static_cast<long long>(hist.quantile_ns(0.5)), static_cast<long long>(hist.quantile_ns(0.99)),
                    static_cast<long long>(hist.quantile_ns(0.999)), static_cast<long long>(hist.max_ns()),
-                   static_cast<unsigned long long>(st.missed_cycles), rt_ns.size(),
+                   static_cast<unsigned long long>(st.missed_cycles),
+                   static_cast<long long>(loop.work_histogram().quantile_ns(0.5)),
+                   static_cast<long long>(loop.work_histogram().quantile_ns(0.999)),
+                   static_cast<long long>(loop.work_histogram().max_ns()), rt_ns.size(),
                    static_cast<long long>(percentile(rt_ns, 0.0)), static_cast<long long>(percentile(rt_ns, 0.5)),
                    static_cast<long long>(percentile(rt_ns, 0.99)), static_cast<long long>(percentile(rt_ns, 1.0)),
                    static_cast<unsigned long long>(c.requests), static_cast<unsigned long long>(c.chunks),

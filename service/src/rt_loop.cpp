@@ -54,7 +54,8 @@ void RtLoop::run(const std::atomic<bool>& stop) {
     const timespec ts = to_timespec(deadline);
     while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr) == EINTR) {
     }
-    const std::int64_t late = now_ns() - deadline;
+    const std::int64_t woke = now_ns();
+    const std::int64_t late = woke - deadline;
     hist_.record(late);
     stats_.last_ns = late;
     stats_.max_ns = hist_.max_ns();
@@ -67,6 +68,7 @@ void RtLoop::run(const std::atomic<bool>& stop) {
     // The percentile walks the histogram: every 64 cycles is plenty for a published value.
     if ((stats_.cycles & 63u) == 1u) stats_.p999_ns = hist_.quantile_ns(0.999);
     engine_.cycle(port_, stats_);
+    work_.record(now_ns() - woke);
     deadline += period_ns_;
   }
   stats_.p999_ns = hist_.quantile_ns(0.999);

@@ -33,6 +33,8 @@ class RtLoop {
   void run(const std::atomic<bool>& stop);
   //! Valid after run() returned.
   const LatenessHistogram& histogram() const { return hist_; }
+  //! Time the engine's cycle() took (the work of a cycle, without the wake-up) [ns].
+  const LatenessHistogram& work_histogram() const { return work_; }
   const LatenessStats& stats() const { return stats_; }
 
  private:
@@ -40,6 +42,7 @@ class RtLoop {
   CyclePort& port_;
   std::int64_t period_ns_;
   LatenessHistogram hist_;
+  LatenessHistogram work_;
   LatenessStats stats_;
 };
 

@@ -1,0 +1,81 @@
+#!/usr/bin/env bash
+# Process-level benchmarks of tgm-service (BENCHMARKS.md, section "Service"):
+#   1. M-function handshake round trip (service sets M_Func, tgm-plc acks, service takes the ack)
+#      against a raw Fast DDS ping-pong of the same samples (InterpolatorState -> Request) in the
+#      same run;
+#   2. program streaming rate into a running service;
+#   3. cycle lateness at the config's cycle time with three interpolators running programs and
+#      an HMI subscribed (tgm-hmi watch).
+# usage: tests/bench/service_bench.sh BUILD_DIR [SECONDS_FOR_3 (default 30)]
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+build=${1:?usage: service_bench.sh BUILD_DIR [SECONDS]}
+seconds=${2:-30}
+m_count=${M_COUNT:-2000}
+domain=${DOMAIN:-91}
+tmp=$(mktemp -d)
+pids=()
+cleanup() {
+  for p in "${pids[@]}"; do kill -INT "$p" 2>/dev/null || true; done
+  wait 2>/dev/null || true
+  rm -rf "$tmp"
+}
+trap cleanup EXIT
+
+# The default machine with an absolute profiles path, this benchmark's domain and a 100,000-record
+# buffer on interpolator 0 (the streaming run needs the whole program in the buffer).
+sed -e "s#profiles_file: fastdds_profiles.xml#profiles_file: $PWD/config/fastdds_profiles.xml#" \
+    -e "s#domain_id: 0#domain_id: $domain#" \
+    -e "0,/buffer_size: 10000/s//buffer_size: 100000/" config/default.yaml > "$tmp/config.yaml"
+cfg=(--config "$tmp/config.yaml")
+svc=$build/service/tgm-service
+plc=$build/client/tgm-plc
+hmi=$build/client/tgm-hmi
+
+stop_all() {
+  for p in "${pids[@]}"; do kill -INT "$p" 2>/dev/null || true; done
+  for p in "${pids[@]}"; do wait "$p" 2>/dev/null || true; done
+  pids=()
+}
+json() { python3 -c "import json,sys; d=json.load(open('$1')); print($2)"; }
+
+echo "== 1. M-function handshake: $m_count x (G1 X0.01, M51), tgm-plc acknowledges at once"
+for ((i = 0; i < m_count; ++i)); do printf 'G1 X0.01\nM51\n'; done > "$tmp/m.ngc"
+echo "M2" >> "$tmp/m.ngc"
+"$svc" "${cfg[@]}" --stats "$tmp/hs.json" > "$tmp/svc1.log" 2>&1 & pids+=($!)
+"$plc" "${cfg[@]}" --ack-delay 0 --quiet --no-basic-params > "$tmp/plc1.log" 2>&1 & pids+=($!)
+"$hmi" run "$tmp/m.ngc" "${cfg[@]}" --quiet > "$tmp/hmi1.log"
+stop_all
+tail -n 3 "$tmp/hmi1.log"
+json "$tmp/hs.json" "'service handshake (state write with new M_Func -> ack taken): n %d, min %.1f us, median %.1f us, p99 %.1f us, max %.1f us' % (d['handshake_ns']['count'], d['handshake_ns']['min']/1e3, d['handshake_ns']['p50']/1e3, d['handshake_ns']['p99']/1e3, d['handshake_ns']['max']/1e3)"
+"$build/tests/bench/service/tgm_bench_state_pingpong" --count 5000 --domain $((domain + 1)) \
+  --profiles "$PWD/config/fastdds_profiles.xml"
+
+echo "== 2. program streaming rate (100,000 G1 records, 5 runs)"
+"$svc" "${cfg[@]}" > "$tmp/svc2.log" 2>&1 & pids+=($!)
+"$build/tests/bench/service/tgm_bench_stream" "${cfg[@]}" --records 100000 --runs 5
+stop_all
+
+echo "== 3. cycle lateness, ${seconds} s: three interpolators running, tgm-hmi watch subscribed"
+# A closed contour of short lines and arcs, repeated: keeps an interpolator moving.
+{
+  echo "F3000"
+  for ((i = 0; i < 400; ++i)); do
+    printf 'G1 X10\nG3 X5 Y5 I0 J5\nG1 Y10\nG3 X-5 Y5 I-5 J0\nG1 X-10\nG3 X-5 Y-5 I0 J-5\nG1 Y-10\nG3 X5 Y-5 I5 J0\n'
+  done
+  echo "M2"
+} > "$tmp/loop.ngc"
+"$svc" "${cfg[@]}" --stats "$tmp/lat.json" --duration "$seconds" > "$tmp/svc3.log" 2>&1 & svc_pid=$!
+sleep 0.5
+grep -h "SCHED\|realtime" "$tmp/svc3.log" || true
+"$plc" "${cfg[@]}" --quiet > "$tmp/plc3.log" 2>&1 & pids+=($!)
+sleep 1
+"$hmi" watch "${cfg[@]}" --interval 0.2 > /dev/null 2>&1 & pids+=($!)
+for ip in 0 1 2; do
+  "$hmi" run "$tmp/loop.ngc" "${cfg[@]}" --interpolator $ip --quiet --timeout "$((seconds - 3))" \
+    > "$tmp/hmi3_$ip.log" 2>&1 & pids+=($!)
+done
+wait "$svc_pid" || true
+stop_all
+grep -h "stopping" "$tmp/svc3.log" || true
+json "$tmp/lat.json" "'lateness over %d cycles of %d us: p50 %.1f us, p99 %.1f us, p99.9 %.1f us, max %.1f us, missed cycles %d; cycle work p50 %.1f us, p99.9 %.1f us, max %.1f us' % (d['cycles'], d['cycle_time_us'], d['lateness_ns']['p50']/1e3, d['lateness_ns']['p99']/1e3, d['lateness_ns']['p999']/1e3, d['lateness_ns']['max']/1e3, d['missed_cycles'], d['cycle_work_ns']['p50']/1e3, d['cycle_work_ns']['p999']/1e3, d['cycle_work_ns']['max']/1e3)"
