@@ -4,9 +4,10 @@
 // this test creates; it removes them even when it fails. Needs root and `ip netns`: skipped
 // otherwise.
 //
-// Transport: Fast DDS shared memory cannot cross namespaces that way reliably, so the processes
-// use a UDPv4-only copy of config/fastdds_profiles.xml with the three addresses as initial peers
-// (unicast discovery: no dependence on multicast routing across the bridge).
+// Transport: Fast DDS shared memory does not connect processes in different network namespaces
+// (as in containers), so the processes use a UDPv4-only copy of config/fastdds_profiles.xml with
+// the three addresses as initial peers (docker/make_udp_profiles.sh; unicast discovery, no
+// dependence on multicast routing across the bridge).
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -85,26 +86,14 @@ class Namespaces {
 };
 
 // config/fastdds_profiles.xml with the tgm_participant on UDPv4 only and the three namespace
-// addresses as initial peers.
+// addresses as initial peers: made by docker/make_udp_profiles.sh, the same script that makes the
+// profiles of docker/compose.yaml.
 std::string udp_profiles(const std::string& dir) {
-  std::string xml = test::read_text(TGM_SOURCE_DIR "/config/fastdds_profiles.xml");
-  std::string peers;
-  for (std::size_t i = 0; i < 3; ++i) {
-    peers += "<locator><udpv4><address>" + Namespaces::address(i) + "</address></udpv4></locator>";
-  }
-  const std::string transports =
-      "<transport_descriptors><transport_descriptor><transport_id>tgm_udp</transport_id><type>UDPv4</type>"
-      "</transport_descriptor></transport_descriptors>";
-  EXPECT_TRUE(test::replace_first(xml, "  <profiles>\n", "  <profiles>\n" + transports + "\n"));
-  EXPECT_TRUE(test::replace_first(xml, "      <rtps>\n        <name>tgm</name>\n",
-                                  "      <rtps>\n        <name>tgm</name>\n"
-                                  "        <userTransports><transport_id>tgm_udp</transport_id></userTransports>\n"
-                                  "        <useBuiltinTransports>false</useBuiltinTransports>\n"));
-  EXPECT_TRUE(test::replace_first(xml, "          <discovery_config>\n",
-                                  "          <initialPeersList>" + peers + "</initialPeersList>\n"
-                                  "          <discovery_config>\n"));
   const std::string path = dir + "/fastdds_profiles_udp.xml";
-  std::ofstream(path) << xml;
+  std::string cmd = "bash " TGM_SOURCE_DIR "/docker/make_udp_profiles.sh";
+  for (std::size_t i = 0; i < 3; ++i) cmd += " " + Namespaces::address(i);
+  EXPECT_EQ(std::system((cmd + " > " + path).c_str()), 0) << cmd;
+  EXPECT_NE(test::read_text(path).find("<useBuiltinTransports>false</useBuiltinTransports>"), std::string::npos);
   return path;
 }
 
