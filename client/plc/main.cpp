@@ -224,6 +224,7 @@ int main(int argc, char** argv) {
   }
   tgm::AppConfig config = *load.config;
   overrides.apply(config.dds);
+  if (std::string why = tgm::dds_profiles_problem(config.dds); !why.empty()) return usage_error(why);
   const int count = static_cast<int>(config.machine.interpolators.size());
   if (only >= count) return usage_error("--interpolator " + std::to_string(only) + ": the config has " + std::to_string(count));
   for (const auto& s : script) {

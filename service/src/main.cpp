@@ -134,6 +134,7 @@ int main(int argc, char** argv) {
   }
   tgm::AppConfig config = *load.config;
   overrides.apply(config.dds);
+  if (std::string why = tgm::dds_profiles_problem(config.dds); !why.empty()) return usage_error(why);
 
   std::string error;
   auto engine = tgm::service::Engine::create(config.machine, engine_options, &error);

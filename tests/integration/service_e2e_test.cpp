@@ -271,6 +271,11 @@ TEST(ServiceProcesses, ServiceStopsCleanlyOnSigtermAndRejectsBadFlags) {
   test::Child bad_config;
   ASSERT_TRUE(bad_config.start({TGM_PLC_BIN, "--config", env.path("missing.yaml")}, env.path("bad_config.log")));
   EXPECT_EQ(bad_config.wait(kHang), 2);
+  test::Child no_profiles;
+  ASSERT_TRUE(no_profiles.start({TGM_HMI_BIN, "status", "--config", env.config(), "--profiles", env.path("none.xml")},
+                                env.path("no_profiles.log")));
+  EXPECT_EQ(no_profiles.wait(kHang), 2);
+  EXPECT_NE(no_profiles.log().find("does not exist"), std::string::npos) << no_profiles.log();
   test::Child help;
   ASSERT_TRUE(help.start({TGM_PLC_BIN, "--help"}, env.path("help.log")));
   EXPECT_EQ(help.wait(kHang), 0);

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdlib>
+#include <filesystem>
 #include <string>
 #include <string_view>
 
@@ -55,5 +56,13 @@ struct DdsOverrides {
     if (!participant_prefix.empty()) c.participant_prefix = participant_prefix;
   }
 };
+
+//! Empty when the profiles file of `c` exists (or none is set), else a reason (a config error:
+//! the binaries exit with 2 instead of failing later in Fast DDS).
+inline std::string dds_profiles_problem(const DdsConfig& c) {
+  std::error_code ec;
+  if (c.profiles_file.empty() || std::filesystem::is_regular_file(c.profiles_file, ec)) return {};
+  return "the DDS profiles file '" + c.profiles_file + "' does not exist (dds.profiles_file or --profiles)";
+}
 
 }  // namespace tgm
