@@ -1,4 +1,5 @@
 #include "tgm/config.hpp"
+#include "tgm/smoothing.hpp"
 
 #include <algorithm>
 #include <cstdio>
@@ -141,6 +142,21 @@ std::vector<std::string> MachineConfig::validate() const {
   if (s.iir_q_e6 <= 0) e.push_back("smoothing.iir_q_e6: must be > 0");
   if (s.iir_f_e6 <= 0) e.push_back("smoothing.iir_f_e6: must be > 0");
   if (s.iir_axis_mask > 0x3FFu) e.push_back("smoothing.iir_axis_mask: only 10 bits (0..1023)");
+  // The checks of Command -1 / -2 (core/SMOOTHING.md), so a bad default is reported at load.
+  if (s.iir_axis_mask != 0 && s.iir_p_e6 > 0 && s.iir_q_e6 > 0 && s.iir_f_e6 > 0) {
+    if (const RequestResult r = IirFilter::check(s.iir_p_e6, s.iir_q_e6, s.iir_f_e6); !r.ok()) {
+      e.push_back("smoothing.iir: " + r.reason);
+    }
+  }
+  if (s.spline_points >= 50 && s.spline_points <= 500 && finite_positive(s.spline_jerk_mm_s3)) {
+    if (s.spline_jerk_mm_s3 > 9.2e18) {
+      e.push_back("smoothing.spline_jerk_mm_s3: must be < 9.2e18, not " + num(s.spline_jerk_mm_s3));
+    } else if (const RequestResult r =
+                   SplineSmoother::check(s.spline_points, std::llround(s.spline_jerk_mm_s3));
+               !r.ok()) {
+      e.push_back("smoothing.spline: " + r.reason);
+    }
+  }
   return e;
 }
 

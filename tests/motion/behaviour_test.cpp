@@ -327,8 +327,8 @@ TEST(LookAhead, EntriesShowTheNextSections) {
   EXPECT_EQ(la[2].movement_code, 6);
   EXPECT_EQ(la[2].all_params[static_cast<std::size_t>('S' - 'A')], 1200.0);
   EXPECT_EQ(la[3].movement_code, 1);
-  EXPECT_EQ(la[4].movement_code, 2);
-  EXPECT_EQ(la[5].movement_type, 0);
+  // M2 is not a section (manual: G0..G3 or M3..M999): fewer than 8 sections remain.
+  for (std::size_t e = 4; e < la.size(); ++e) EXPECT_EQ(la[e].movement_type, 0) << e;
   EXPECT_TRUE(is_not_set(la[0].start_angle_deg));
 }
 

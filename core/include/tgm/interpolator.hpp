@@ -22,6 +22,9 @@
 
 namespace tgm {
 
+class SmoothingStage;
+class OutputStage;
+
 //! Result of one step() (STYLE.md: Working = 0, Finished = 1, errors negative).
 enum class StepResult : std::int8_t {
   kWorking = 0,   //!< moving, dwelling or about to continue on its own
@@ -133,13 +136,37 @@ class Interpolator {
   //! Drops every record not yet executed; only while standing. Status becomes 0.
   RequestResult clear();
   //! Command register: 4 / 5 emergency stop on / off trajectory, 8 / 9 normal stop on / off
-  //! trajectory. Other commands belong to the command stage (smoothing, ratio, position).
+  //! trajectory. Other codes are refused with kUnsupported here: they take parameters (below).
   RequestResult command(std::int32_t code);
+  //! Command with its Command_Parameter[0..11] (manual "Command Structure"): 1024 Ratio (axis,
+  //! numerator [inc], denominator [mm]); 2048 / 2049 set the position [inc per axis] on / off
+  //! the trajectory; -1 IIR (p, q, f x 1e6, axis mask); -2 Spline (points, jerk [mm/s^3]);
+  //! 4 / 5 / 8 / 9 as command(code). The parameters are copied to Command_Parameter.
+  //! Command_Status: 1 while executing, 0 done (Command back to 0), -1 error (Command back to
+  //! 0, the reason returned and kept in command_error()). A valid command whose only obstacle
+  //! is motion still inside the smoothing (1024 / 2048 / 2049 wait for the spline and IIR to
+  //! settle, -2 for the spline to drain, -1 for an axis leaving the mask to settle) is accepted
+  //! and stays at Command_Status 1 until step() executes it; meanwhile other stage commands
+  //! are refused (kWrongState) and 4 / 5 / 8 / 9 cancel it (Command_Status -1).
+  RequestResult command(std::int32_t code, const std::array<std::int32_t, kCommandParameters>& parameter);
+  //! Reason of the last Command that ended with Command_Status -1 ("" after a success).
+  const std::string& command_error() const;
+  //! Ratio register write [inc/mm]: axis 0..Number_Axes-1, |ratio| 1e-6..1e9, only while the
+  //! path stands and the smoothing has settled (PositionInc jumps by Position x dRatio).
+  RequestResult write_ratio(int axis, double ratio_inc_per_mm);
+  //! Offset register write [inc]: axis 0..Number_Axes-1, |offset| <= 1e15, any time (added as
+  //! is: a change is a step of the setpoint).
+  RequestResult write_offset(int axis, std::int64_t offset_inc);
+  //! Number_Axes write: 1..10, at most the configured axes, only while no program executes
+  //! (Status 0, 3, 4, 7, 8 and standing). Programs must then be compiled for that many axes;
+  //! the registers of the axes above keep their last values.
+  RequestResult write_number_axes(int number_axes);
   //! PLC write of M_Func; only 0 (acknowledge) is accepted.
   RequestResult write_m_func(std::int32_t value);
   //! Rel_Speed 0.01..2; takes effect in the next calculation step through the jerk-limited ramp.
   RequestResult set_rel_speed(double rel_speed);
-  //! Sets Orig_Position while standing (Command 2048/2049 will use it); drops the program.
+  //! Sets Orig_Position = Position [mm] while standing with the smoothing settled; drops the
+  //! program. (Command 2048 / 2049 set it in increments through the output stage.)
   RequestResult set_position(const std::array<double, kMaxAxes>& position_mm);
 
   // ---- Read access for the service, the simulator and the checker ----
@@ -160,6 +187,11 @@ class Interpolator {
   double calc_step_s() const;
   //! The axis group's config.
   const InterpolatorConfig& config() const;
+  //! Spline -> IIR stage between Orig_Position and Position (include tgm/smoothing.hpp):
+  //! configuration, contour deviation statistics (spline().stats()), settled().
+  const SmoothingStage& smoothing() const;
+  //! Ratio / Offset / backlash stage (include tgm/output_stage.hpp).
+  const OutputStage& output() const;
 
  private:
   struct Impl;

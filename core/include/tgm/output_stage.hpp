@@ -60,6 +60,14 @@ class OutputStage {
   //! Last detected direction of motion: +1, -1, 0 (none yet).
   int direction(int axis) const { return dir_[static_cast<std::size_t>(axis)]; }
   std::int64_t position_inc(int axis) const;
+  //! Configured backlash of the axis [mm].
+  double backlash_mm(int axis) const { return 2.0 * half_backlash_[static_cast<std::size_t>(axis)]; }
+  //! True when the compensation of the axis rests on its target (no ramp in progress), so
+  //! update() with a position that keeps the detected direction changes nothing.
+  bool ramp_settled(int axis) const {
+    const auto ui = static_cast<std::size_t>(axis);
+    return comp_[ui] == dir_[ui] * half_backlash_[ui] && comp_v_[ui] == 0.0;
+  }
 
  private:
   int axes_ = 0;

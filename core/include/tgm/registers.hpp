@@ -85,10 +85,12 @@ const char* limit_factor_name(LimitFactor f);
 struct LookAheadEntry {
   //! AllParams: M-function addresses A..Z of the section; kNotSet where not given [any unit].
   std::array<double, kParamLetters> all_params{};
-  //! Tangent of motion in the XY plane [deg, 0..360); current one for entry 0 on an arc,
-  //! initial one otherwise; kNotSet when the section has no XY motion.
+  //! Tangent of motion in the XY plane [deg, 0..360): the direction of the XY velocity,
+  //! atan2(dY, dX), counterclockwise from +X (0 = moving in +X, 90 = +Y). For entry 0 on an
+  //! arc the current one (updated every cycle), otherwise the initial one of the section;
+  //! kNotSet (> 1e38) when the section has no XY motion (M-functions, pure Z moves).
   double tangent_deg = kNotSet;
-  //! 0 = invalid (fewer sections left), 1 = motion (G0..G3, and G4), 2 = M-function.
+  //! 0 = invalid (fewer sections left), 1 = motion (G0..G3), 2 = normal M-function (M3..M999).
   std::int32_t movement_type = 0;
   //! G number or M number.
   std::int32_t movement_code = 0;
@@ -156,6 +158,9 @@ struct Registers {
   double act_acceleration_mm_s2 = 0.0;
   //! What limits the path speed right now.
   LimitFactor limit_factor = LimitFactor::kNone;
+  //! Spline contour deviation [mm]: largest Euclidean |smoothed - delayed| of the pass in
+  //! progress, else of the last completed pass (0 while the spline is off or never engaged).
+  double spline_deviation_mm = 0.0;
 };
 
 }  // namespace tgm

@@ -72,6 +72,9 @@ class IirFilter {
   //! < 1e-6 mm/s).
   bool settled(int axis) const;
   bool settled() const;
+  //! True when every filtered axis is exactly on its input (lag 0, velocity 0): a step with
+  //! the same input changes nothing, bit for bit (what Interpolator::advance needs to skip).
+  bool at_rest() const;
 
   const IirParams& params() const { return params_; }
   std::uint32_t mask() const { return mask_; }  //!< the used bits (axes < configured axes)
@@ -224,6 +227,9 @@ class SmoothingStage {
   //! pop_event() after the step whose output is that sample (N steps later; at once when the
   //! spline is off). False when the queue is full (never with fewer than 256 events in N steps).
   bool push_event(const SmoothingEvent& e);
+  //! Same, for an event that belongs to the input sample of the *next* step() (raised while
+  //! that sample is being computed): released after the step whose output is that sample.
+  bool push_event_next(const SmoothingEvent& e);
   //! Next released event, oldest first; false when none is due.
   bool pop_event(SmoothingEvent* e);
   std::size_t pending_events() const { return ev_count_; }
@@ -234,6 +240,14 @@ class SmoothingStage {
   const std::array<double, kMaxAxes>& speed() const { return speed_; }
   //! True when the spline is drained, every filtered axis is on its input, no event pending.
   bool settled() const;
+  //! settled(), and every filtered axis exactly at rest (IirFilter::at_rest): `steps` steps
+  //! with a standing input can be replaced by skip().
+  bool at_rest() const;
+  //! Offline fast path (Interpolator::advance): the effect of `steps` (>= 2) step() calls whose
+  //! last two inputs are `before_last_mm` and `last_mm`, bit for bit, provided either at_rest()
+  //! and the input stands (both equal the current input), or the spline is off and every
+  //! filtered axis is at rest and stands during the steps (the other axes pass through).
+  void skip(std::uint64_t steps, const double* before_last_mm, const double* last_mm);
 
   const SplineSmoother& spline() const { return spline_; }
   const IirFilter& iir() const { return iir_; }

@@ -15,7 +15,10 @@
 #include <vector>
 
 #include "path_geometry.hpp"
+#include "tgm/command_stage.hpp"
 #include "tgm/jerk_profile.hpp"
+#include "tgm/output_stage.hpp"
+#include "tgm/smoothing.hpp"
 
 namespace tgm {
 
@@ -134,6 +137,11 @@ class QDeque {
 
 enum class Mode : std::uint8_t { kIdle, kMoving, kStopping, kEmergency, kWaitM, kDwell };
 
+// Kinds of the events that leave the smoothing with the motion (SmoothingEvent::kind).
+constexpr std::int32_t kEvNormalM = 1;
+constexpr std::int32_t kEvContinuousM = 2;
+constexpr std::int32_t kEvMessage = 3;
+
 // One limit ahead at distance d [mm]: the path velocity must be at most w [mm/s] there
 // (accel = false), or |a| at most w [mm/s^2] (accel = true); A and J are the tangential limits of
 // the records before it (what a braking curve to it may use).
@@ -234,6 +242,20 @@ struct Interpolator::Impl {
   std::size_t n_events = 0;
   std::vector<BlockReport> blocks;
   std::size_t n_blocks = 0;
+
+  // ---- smoothing and output (core/SMOOTHING.md, "Wiring") ----
+  std::optional<SmoothingStage> smooth;
+  std::optional<OutputStage> ostage;
+  bool m_pending = false;    // a normal M is inside the spline: the wait starts when it leaves
+  bool end_pending = false;  // the program ended; Status 3 once the smoothing has settled
+  // M parameters of the events in the smoothing (the ring slot may be reused meanwhile).
+  std::array<MParams, SmoothingStage::kEventCapacity> ev_par{};
+  std::size_t ev_par_next = 0;
+  // Command accepted and waiting for the smoothing (Command_Status 1); 0 = none.
+  std::int32_t pend_code = 0;
+  std::array<std::int32_t, kCommandParameters> pend_par{};
+  std::string cmd_error;
+  double cruise_prev_s = 0.0;  // skip_cruise: path position one calculation step before the end
 
   Rec& R(std::uint64_t q) { return rec[static_cast<std::size_t>(q % cap)]; }
   const Rec& R(std::uint64_t q) const { return rec[static_cast<std::size_t>(q % cap)]; }
@@ -737,21 +759,18 @@ struct Interpolator::Impl {
   void execute_pass(std::uint64_t q) {
     const Segment& sg = S(q);
     if (sg.type == SegmentType::kMFunction) {
-      reg.m_func = sg.m;
-      reg.act_m_func = sg.m;
-      reg.last_cont_m_func = sg.m;
-      copy_params(q);
+      emit(kEvContinuousM, sg.m, q);
     } else if (sg.type == SegmentType::kMessage) {
-      reg.message_count += 1;
-      reg.message_slot = R(q).msg_slot;
+      emit(kEvMessage, R(q).msg_slot, q);
     } else if (sg.is_motion()) {
       reg.act_g_func = static_cast<std::int32_t>(sg.type);
     }
     reg.tool_number = sg.tool;
   }
 
-  void copy_params(std::uint64_t q) {
-    const MParams& p = par[static_cast<std::size_t>(q % cap)];
+  void copy_params(std::uint64_t q) { copy_params_from(par[static_cast<std::size_t>(q % cap)]); }
+
+  void copy_params_from(const MParams& p) {
     for (int i = 0; i < kMFunctionParameters; ++i) {
       reg.m_function_parameter[static_cast<std::size_t>(i)] =
           i < kParamLetters ? p[static_cast<std::size_t>(i)] : kNotSet;
@@ -793,31 +812,203 @@ struct Interpolator::Impl {
         reg.status = static_cast<std::int32_t>(InterpolatorStatus::kRunning);
         return;
       }
-      reg.act_m_func = sg.m;
-      copy_params(cur);
       if (sg.m_kind == MKind::kProgramEnd) {
+        reg.act_m_func = sg.m;
+        copy_params(cur);
         mode = Mode::kIdle;
         ++cur;  // the end record is executed
-        reg.status = static_cast<std::int32_t>(InterpolatorStatus::kEnded);
+        end_program();
         return;
       }
       if (sg.m_kind == MKind::kProgramStop) {
+        reg.act_m_func = sg.m;
+        copy_params(cur);
         mode = Mode::kIdle;
         paused_m0 = true;
         reg.status = static_cast<std::int32_t>(InterpolatorStatus::kReady);
         return;
       }
+      // Normal M: handed to the PLC (M_Func, Act_M_Func, parameters, Run_Flag WAIT_MFUNC) when
+      // it leaves the spline with the motion; the wait for M_Func = 0 starts then.
       mode = Mode::kWaitM;
-      wait_m_first = true;
-      reg.m_func = sg.m;
+      m_pending = true;
+      emit(kEvNormalM, sg.m, cur);
       reg.status = static_cast<std::int32_t>(InterpolatorStatus::kRunning);
       return;
     }
     // Buffer exhausted.
     on_path = false;
     mode = Mode::kIdle;
-    reg.status = static_cast<std::int32_t>(complete ? InterpolatorStatus::kEnded
-                                                    : InterpolatorStatus::kUnderrun);
+    if (complete) {
+      end_program();
+    } else {
+      reg.status = static_cast<std::int32_t>(InterpolatorStatus::kUnderrun);
+    }
+  }
+
+  // Status 3 only once every axis, delayed or filtered, stands where the program ends.
+  void end_program() {
+    if (smooth->settled()) {
+      reg.status = static_cast<std::int32_t>(InterpolatorStatus::kEnded);
+    } else {
+      end_pending = true;
+    }
+  }
+
+  // Queues an event for the input sample the current calculation step is computing.
+  void emit(std::int32_t kind, std::int32_t value, std::uint64_t q) {
+    SmoothingEvent e{kind, value, 0};
+    if (kind != kEvMessage) {
+      e.tag = ev_par_next;
+      ev_par[ev_par_next] = par[static_cast<std::size_t>(q % cap)];
+      ev_par_next = (ev_par_next + 1) % ev_par.size();
+    }
+    if (!smooth->push_event_next(e)) apply_event(e);  // 256 events inside the spline: at once
+  }
+
+  // An event leaves the smoothing: the register writes of the hand-over.
+  void apply_event(const SmoothingEvent& e) {
+    switch (e.kind) {
+      case kEvNormalM:
+        if (!m_pending) break;  // the program was cleared meanwhile
+        reg.m_func = e.value;
+        reg.act_m_func = e.value;
+        copy_params_from(ev_par[static_cast<std::size_t>(e.tag)]);
+        m_pending = false;
+        wait_m_first = mode == Mode::kWaitM;
+        break;
+      case kEvContinuousM:
+        reg.m_func = e.value;
+        reg.act_m_func = e.value;
+        reg.last_cont_m_func = e.value;
+        copy_params_from(ev_par[static_cast<std::size_t>(e.tag)]);
+        break;
+      case kEvMessage:
+        reg.message_count += 1;
+        reg.message_slot = e.value;
+        break;
+      default:
+        break;
+    }
+  }
+
+  // After a calculation step of the path: Orig_Position through the smoothing, events out.
+  void smooth_step() {
+    double p[kMaxAxes];
+    for (int i = 0; i < kMaxAxes; ++i) p[i] = rest[static_cast<std::size_t>(i)];
+    current_position(p);
+    smooth->step(p);
+    SmoothingEvent e;
+    while (smooth->pop_event(&e)) apply_event(e);
+    if (end_pending && smooth->settled()) {
+      end_pending = false;
+      reg.status = static_cast<std::int32_t>(InterpolatorStatus::kEnded);
+    }
+  }
+
+  // ================= commands =================
+
+  bool standing() const { return mode != Mode::kMoving && mode != Mode::kStopping && mode != Mode::kEmergency; }
+
+  CommandContext command_context() const {
+    CommandContext c;
+    c.standing = standing();
+    const auto s = static_cast<InterpolatorStatus>(reg.status);
+    c.idle = mode == Mode::kIdle && !end_pending &&
+             (s == InterpolatorStatus::kEmpty || s == InterpolatorStatus::kEnded ||
+              s == InterpolatorStatus::kReady || s == InterpolatorStatus::kEmergencyStopped ||
+              s == InterpolatorStatus::kUnderrun);
+    c.number_axes = reg.number_axes;
+    c.configured_axes = static_cast<int>(cfg.axes.size());
+    return c;
+  }
+
+  // The smoothing lets the (valid) command execute now; otherwise it waits at Command_Status 1.
+  bool stage_ready(std::int32_t code, const std::array<std::int32_t, kCommandParameters>& p) const {
+    switch (code) {
+      case kCommandSetRatio:
+      case kCommandSetPositionOn:
+      case kCommandSetPositionOff:
+        return smooth->settled() && !end_pending;
+      case kCommandSpline:
+        return smooth->spline().settled() && smooth->pending_events() == 0;
+      case kCommandIir: {
+        const std::uint32_t now = smooth->iir().mask(), want = static_cast<std::uint32_t>(p[3]);
+        for (int i = 0; i < smooth->axes(); ++i) {
+          const std::uint32_t bit = 1u << i;
+          if ((now & bit) && !(want & bit) && !smooth->iir().settled(i)) return false;
+        }
+        return true;
+      }
+      default:
+        return true;
+    }
+  }
+
+  RequestResult finish_command(const RequestResult& r) {
+    command_end(reg, r);
+    if (r.ok()) cmd_error.clear();
+    else cmd_error = r.reason;
+    fill_registers();
+    return r;
+  }
+
+  RequestResult run_command(std::int32_t code, const std::array<std::int32_t, kCommandParameters>& p) {
+    std::array<double, kMaxAxes> pos{};
+    const RequestResult r = execute_command(code, p, command_context(), *smooth, *ostage, &pos);
+    if (r.ok() && (code == kCommandSetPositionOn || code == kCommandSetPositionOff)) {
+      place(pos);
+      reg.off_trajectory = code == kCommandSetPositionOff ? 1 : 0;
+    }
+    return finish_command(r);
+  }
+
+  // A command waiting at Command_Status 1: executes when the smoothing lets it, ends with -1
+  // when the state no longer allows it (e.g. a program was started meanwhile).
+  void poll_pending_command() {
+    if (pend_code == 0) return;
+    const std::int32_t code = pend_code;
+    const RequestResult c = check_command(code, pend_par, command_context());
+    if (!c.ok()) {
+      pend_code = 0;
+      finish_command(c);
+    } else if (stage_ready(code, pend_par)) {
+      pend_code = 0;
+      run_command(code, pend_par);
+    }
+  }
+
+  void cancel_pending_command(std::int32_t by) {
+    if (pend_code == 0) return;
+    const std::int32_t code = pend_code;
+    pend_code = 0;
+    command_end(reg, {RequestCode::kWrongState,
+                      "Command " + std::to_string(code) + ": cancelled by Command " + std::to_string(by)});
+    cmd_error = "Command " + std::to_string(code) + ": cancelled by Command " + std::to_string(by);
+  }
+
+  // New position of a standing interpolator without a program (set_position, 2048 / 2049).
+  void place(const std::array<double, kMaxAxes>& position_mm) {
+    on_path = false;
+    paused_m0 = false;
+    resume_wait_m = false;
+    resumable_estop = false;
+    m_pending = false;
+    end_pending = false;
+    tail = cur;
+    base = cur;
+    complete = false;
+    for (int i = 0; i < n; ++i) rest[static_cast<std::size_t>(i)] = position_mm[static_cast<std::size_t>(i)];
+    st = jerk::State{};
+    reset_plan_tail();
+    double p[kMaxAxes];
+    for (int i = 0; i < kMaxAxes; ++i) p[i] = rest[static_cast<std::size_t>(i)];
+    smooth->reset(p);
+    ostage->reset(p);
+    ostage->update(p, 0.0);
+    reg.off_trajectory = 0;
+    reg.status = static_cast<std::int32_t>(InterpolatorStatus::kEmpty);
+    lookahead_dirty = true;
   }
 
   // Solves s(tau) = dist inside a calculation step for the crossing time.
@@ -1211,7 +1402,7 @@ struct Interpolator::Impl {
         }
         break;
       case Mode::kWaitM:
-        if (reg.m_func == 0) {
+        if (!m_pending && reg.m_func == 0) {
           ++cur;
           process_records();
         }
@@ -1238,6 +1429,17 @@ struct Interpolator::Impl {
   // exactly the arithmetic step() uses and returns their count; 0 = nothing to skip, step().
   std::uint64_t skip_cycles(std::uint64_t max) {
     max = std::min<std::uint64_t>(max, kMaxSkipCycles);
+    if (pend_code != 0 || end_pending || m_pending) return 0;
+    if (mode != Mode::kMoving) {
+      // Standing: the smoothing must rest exactly and the backlash ramps be done, so the
+      // skipped calculation steps change nothing there.
+      if (!smooth->at_rest()) return 0;
+      for (int i = 0; i < ostage->axes(); ++i) {
+        if (!ostage->ramp_settled(i)) return 0;
+      }
+    } else if (!cruise_stages_pass()) {
+      return 0;
+    }
     switch (mode) {
       case Mode::kDwell: {
         // Each calculation step decrements dwell_left; the dwell ends when it reaches 0.
@@ -1248,7 +1450,7 @@ struct Interpolator::Impl {
         return k;
       }
       case Mode::kWaitM:
-        if (reg.m_func == 0 || wait_m_first) return 0;
+        if (m_pending || reg.m_func == 0 || wait_m_first) return 0;
         pass_time(max);
         return max;
       case Mode::kIdle:
@@ -1265,6 +1467,29 @@ struct Interpolator::Impl {
         break;
     }
     return 0;
+  }
+
+  // During a cruise the smoothing and output stages may be skipped when they pass the motion
+  // through unchanged: spline off, every filtered axis at rest and not moved by the record, and
+  // each axis with backlash either standing or moving on in its detected direction with its
+  // ramp done (an arc may reverse its plane axes: not with backlash there).
+  bool cruise_stages_pass() const {
+    if (!on_path || cur >= tail) return false;
+    if (smooth->spline().delay_steps() != 0 || !smooth->iir().at_rest() || smooth->pending_events() != 0) {
+      return false;
+    }
+    const Geometry& g = R(cur).g;
+    const std::uint32_t mask = smooth->iir().mask();
+    for (int i = 0; i < n; ++i) {
+      const bool plane = g.arc && (i == g.first || i == g.second);
+      const double c = plane ? 1.0 : g.dir[static_cast<std::size_t>(i)];
+      if ((mask & (1u << i)) && c != 0.0) return false;
+      if (i >= ostage->axes() || ostage->backlash_mm(i) == 0.0) continue;
+      if (!ostage->ramp_settled(i)) return false;
+      if (plane) return false;
+      if (c != 0.0 && ostage->direction(i) != (c > 0.0 ? 1 : -1)) return false;
+    }
+    return true;
   }
 
   // Cruise: a = 0 at exactly the record's target speed. motion_step then chooses x = 0 in every
@@ -1314,8 +1539,10 @@ struct Interpolator::Impl {
       if (!(next_s0 > rc.s0 + s.s + hz)) break;
       jerk::State c = s;
       double dc = dist, tc = t;
+      double prev_s = c.s;
       bool ok = true;
       for (int i = 0; i < kCalcSteps; ++i) {
+        prev_s = c.s;
         const jerk::State ns = jerk::advance(c, 0.0, dt);
         const double ds = std::max(0.0, ns.s - c.s);
         const double s_next = c.s + ds;
@@ -1334,6 +1561,7 @@ struct Interpolator::Impl {
       s = c;
       dist = dc;
       t = tc;
+      cruise_prev_s = prev_s;
       ++k;
     }
     if (k == 0) return 0;
@@ -1386,20 +1614,38 @@ struct Interpolator::Impl {
     return norm_angle_deg(std::atan2(t[1], t[0]));
   }
 
+  // A section of the LookAheadBuffer (manual: a G0..G3 motion or an M-function M3..M999):
+  // motions and normal M-functions; not dwells, messages, continuous M, M0, M2 / M30.
+  bool is_section(const Segment& sg) const {
+    if (sg.is_motion()) return true;
+    return sg.type == SegmentType::kMFunction && sg.m_kind == MKind::kNormal;
+  }
+
   void fill_lookahead() {
     int e = 0;
     double pending_m = kNotSet;
     std::uint64_t q = cur;
+    // A continuous M belongs to the section after it: when that section executes, the M
+    // record is just behind `cur`.
+    for (std::uint64_t b = cur; b > base && cur - b < 64 && tail - (b - 1) <= cap;) {
+      --b;
+      const Segment& sb = S(b);
+      if (sb.type == SegmentType::kMFunction && sb.m_kind == MKind::kContinuous) {
+        pending_m = sb.m;
+        break;
+      }
+      if (is_section(sb) || sb.type == SegmentType::kMFunction || sb.type == SegmentType::kDwell) break;
+    }
     int scanned = 0;
     while (e < kLookAheadEntries && q < tail && scanned < 256) {
       const Segment& sg = S(q);
       ++scanned;
-      if (sg.type == SegmentType::kMessage) {
+      if (sg.type == SegmentType::kMFunction && sg.m_kind == MKind::kContinuous) {
+        pending_m = sg.m;
         ++q;
         continue;
       }
-      if (sg.type == SegmentType::kMFunction && sg.m_kind == MKind::kContinuous) {
-        pending_m = sg.m;
+      if (!is_section(sg)) {
         ++q;
         continue;
       }
@@ -1414,16 +1660,17 @@ struct Interpolator::Impl {
   void fill_registers() {
     double p[kMaxAxes] = {};
     current_position(p);
-    double t[kMaxAxes] = {};
-    if (on_path) motion::geometry_tangent(R(cur).g, n, st.s, t);
+    const auto& pos = smooth->position();
+    const auto& vel = smooth->speed();
     for (int i = 0; i < n; ++i) {
       const auto ui = static_cast<std::size_t>(i);
       reg.orig_position[ui] = p[i];
-      reg.position[ui] = p[i];
-      reg.speed[ui] = st.v * t[i];
-      reg.position_inc[ui] =
-          static_cast<std::int64_t>(std::llround(p[i] * reg.ratio[ui])) + reg.offset[ui] + reg.backlash[ui];
+      reg.position[ui] = pos[ui];
+      reg.speed[ui] = vel[ui];
     }
+    ostage->fill(reg);
+    const SplineStats& ss = smooth->spline().stats();
+    reg.spline_deviation_mm = ss.current_pass_mm > 0.0 ? ss.current_pass_mm : ss.last_pass_mm;
     reg.act_speed = st.v * 60.0;
     reg.act_acceleration_mm_s2 = st.a;
     reg.rel_speed = rel;
@@ -1444,8 +1691,10 @@ struct Interpolator::Impl {
         sec = SectionState::kRun;
         break;
       case Mode::kWaitM:
-        sec = wait_m_first ? SectionState::kWaitMFunc : SectionState::kWaitMFuncEnd;
-        wait_m_first = false;
+        // While the M-function is still inside the spline the section is still executing.
+        sec = m_pending ? SectionState::kRun
+                        : (wait_m_first ? SectionState::kWaitMFunc : SectionState::kWaitMFuncEnd);
+        if (!m_pending) wait_m_first = false;
         break;
       case Mode::kIdle:
         break;
@@ -1479,6 +1728,7 @@ struct Interpolator::Impl {
   }
 
   StepResult result() const {
+    if (end_pending || pend_code != 0) return StepResult::kWorking;
     switch (mode) {
       case Mode::kMoving:
       case Mode::kStopping:
@@ -1531,8 +1781,20 @@ std::optional<Interpolator> Interpolator::create(const MachineConfig& machine, i
     m.rapid[ui] = a.rapid_velocity_mm_s;
     m.tol[ui] = a.corner_velocity_tolerance_mm_s;
     m.rho = std::min(m.rho, a.emergency_deceleration_mm_s2 / a.max_acceleration_mm_s2);
-    m.reg.ratio[ui] = a.ratio_inc_per_mm;
   }
+  // Smoothing and output stages (allocate here only), started from the config's defaults.
+  m.smooth.emplace(m.n, machine.cycle_time_us);
+  m.ostage.emplace(m.cfg);
+  {
+    const SmoothingConfig& sc = machine.smoothing;
+    RequestResult r = m.smooth->configure_spline(sc.spline_points, std::llround(sc.spline_jerk_mm_s3));
+    if (!r.ok()) return fail("smoothing.spline: " + r.reason);
+    r = m.smooth->configure_iir({sc.iir_p_e6, sc.iir_q_e6, sc.iir_f_e6, sc.iir_axis_mask});
+    if (!r.ok()) return fail("smoothing.iir: " + r.reason);
+    m.smooth->reset(m.rest.data());
+    m.ostage->reset(m.rest.data());
+  }
+  m.cmd_error.reserve(256);
   m.rho = std::max(m.rho, 1.0);
   m.seg.resize(m.cap);
   m.rec.resize(m.cap);
@@ -1568,7 +1830,12 @@ StepResult Interpolator::step() {
   m.n_events = 0;
   m.n_blocks = 0;
   m.reg.cycle += 1;
-  for (int k = 0; k < kCalcSteps; ++k) m.calc_step(k);
+  for (int k = 0; k < kCalcSteps; ++k) {
+    m.calc_step(k);
+    m.smooth_step();
+  }
+  m.ostage->update(m.smooth->position().data(), m.T);
+  m.poll_pending_command();
   m.fill_registers();
   for (int i = 0; i < m.n; ++i) {
     if (!std::isfinite(m.reg.orig_position[static_cast<std::size_t>(i)])) return StepResult::kErrorInternal;
@@ -1588,6 +1855,20 @@ StepResult Interpolator::advance(std::uint64_t max_cycles, std::uint64_t* advanc
   m.n_events = 0;
   m.n_blocks = 0;
   m.reg.cycle += k;
+  {
+    // The smoothing and output stages over the skipped calculation steps (they rest, or pass
+    // the cruise through: skip_cycles checked it).
+    double last[kMaxAxes], before[kMaxAxes];
+    for (int i = 0; i < kMaxAxes; ++i) last[i] = before[i] = m.rest[static_cast<std::size_t>(i)];
+    m.current_position(last);
+    if (m.on_path) {
+      motion::geometry_position(m.R(m.cur).g, m.n, m.cruise_prev_s, before);
+    } else {
+      for (int i = 0; i < kMaxAxes; ++i) before[i] = last[i];
+    }
+    m.smooth->skip(k * kCalcSteps, before, last);
+    m.ostage->update(m.smooth->position().data(), m.T);
+  }
   m.fill_registers();
   if (advanced) *advanced = k;
   for (int i = 0; i < m.n; ++i) {
@@ -1706,6 +1987,8 @@ RequestResult Interpolator::clear() {
   m.paused_m0 = false;
   m.resume_wait_m = false;
   m.resumable_estop = false;
+  m.m_pending = false;
+  m.end_pending = false;
   m.tail = m.cur;
   m.base = m.cur;
   m.complete = false;
@@ -1726,6 +2009,7 @@ RequestResult Interpolator::command(std::int32_t code) {
     case 9:
     case 4:
     case 5: {
+      m.cancel_pending_command(code);
       const bool emergency = code == 4 || code == 5;
       const bool off = code == 5 || code == 9;
       m.reg.command = code;
@@ -1791,18 +2075,84 @@ RequestResult Interpolator::set_position(const std::array<double, kMaxAxes>& pos
       return refuse(RequestCode::kInvalid, "position is not finite");
     }
   }
-  m.on_path = false;
-  m.paused_m0 = false;
-  m.resume_wait_m = false;
-  m.resumable_estop = false;
+  if (!m.smooth->settled()) {
+    return refuse(RequestCode::kWrongState, "set position: the axes are still moving behind the spline / IIR filter");
+  }
+  m.place(position_mm);
+  m.fill_registers();
+  return {};
+}
+
+RequestResult Interpolator::command(std::int32_t code,
+                                    const std::array<std::int32_t, kCommandParameters>& parameter) {
+  Impl& m = *impl_;
+  if (code == 4 || code == 5 || code == 8 || code == 9) {
+    m.reg.command_parameter = parameter;
+    return command(code);
+  }
+  if (m.pend_code != 0) {
+    return refuse(RequestCode::kWrongState, "Command " + std::to_string(m.pend_code) +
+                                                " is still executing (Command_Status 1): wait until it is done");
+  }
+  m.reg.command_parameter = parameter;
+  command_begin(m.reg, code);
+  const RequestResult c = check_command(code, parameter, m.command_context());
+  if (!c.ok()) return m.finish_command(c);
+  if (!m.stage_ready(code, parameter)) {
+    // Valid, but motion is still inside the smoothing: Command_Status stays 1, step() executes it.
+    m.pend_code = code;
+    m.pend_par = parameter;
+    return {};
+  }
+  return m.run_command(code, parameter);
+}
+
+const std::string& Interpolator::command_error() const { return impl_->cmd_error; }
+
+RequestResult Interpolator::write_ratio(int axis, double ratio_inc_per_mm) {
+  Impl& m = *impl_;
+  if (axis < 0 || axis >= m.reg.number_axes) {
+    return refuse(RequestCode::kOutOfRange, "Ratio: axis " + std::to_string(axis) + " is not 0.." +
+                                                std::to_string(m.reg.number_axes - 1));
+  }
+  if (!m.standing()) return refuse(RequestCode::kWrongState, "Ratio can only be written while standing");
+  if (!m.smooth->settled()) {
+    return refuse(RequestCode::kWrongState, "Ratio: the axes are still moving behind the spline / IIR filter");
+  }
+  RequestResult r = m.ostage->write_ratio(axis, ratio_inc_per_mm);
+  if (r.ok()) m.fill_registers();
+  return r;
+}
+
+RequestResult Interpolator::write_offset(int axis, std::int64_t offset_inc) {
+  Impl& m = *impl_;
+  if (axis < 0 || axis >= m.reg.number_axes) {
+    return refuse(RequestCode::kOutOfRange, "Offset: axis " + std::to_string(axis) + " is not 0.." +
+                                                std::to_string(m.reg.number_axes - 1));
+  }
+  RequestResult r = m.ostage->write_offset(axis, offset_inc);
+  if (r.ok()) m.fill_registers();
+  return r;
+}
+
+RequestResult Interpolator::write_number_axes(int number_axes) {
+  Impl& m = *impl_;
+  RequestResult r = check_number_axes(number_axes, m.command_context());
+  if (!r.ok()) return r;
+  if (number_axes == m.n) return {};
+  m.n = number_axes;
+  m.reg.number_axes = number_axes;
+  // Records planned for the old axis count are dropped (only the idle states get here).
   m.tail = m.cur;
   m.base = m.cur;
   m.complete = false;
-  for (int i = 0; i < m.n; ++i) m.rest[static_cast<std::size_t>(i)] = position_mm[static_cast<std::size_t>(i)];
-  m.st = jerk::State{};
+  m.paused_m0 = false;
+  m.resume_wait_m = false;
+  m.resumable_estop = false;
   m.reset_plan_tail();
-  m.reg.off_trajectory = 0;
-  m.reg.status = static_cast<std::int32_t>(InterpolatorStatus::kEmpty);
+  if (m.reg.status != static_cast<std::int32_t>(InterpolatorStatus::kEmergencyStopped)) {
+    m.reg.status = static_cast<std::int32_t>(InterpolatorStatus::kEmpty);
+  }
   m.lookahead_dirty = true;
   m.fill_registers();
   return {};
@@ -1827,5 +2177,7 @@ std::uint64_t Interpolator::hard_stops() const { return impl_->hard_stop_count; 
 double Interpolator::cycle_time_s() const { return impl_->T; }
 double Interpolator::calc_step_s() const { return impl_->dt; }
 const InterpolatorConfig& Interpolator::config() const { return impl_->cfg; }
+const SmoothingStage& Interpolator::smoothing() const { return *impl_->smooth; }
+const OutputStage& Interpolator::output() const { return *impl_->ostage; }
 
 }  // namespace tgm

@@ -187,4 +187,12 @@ bool IirFilter::settled() const {
   return true;
 }
 
+bool IirFilter::at_rest() const {
+  for (int i = 0; i < axes_; ++i) {
+    const auto ui = static_cast<std::size_t>(i);
+    if ((mask_ & (1u << i)) && (y_[ui] != u_[ui] || v_[ui] != 0.0)) return false;
+  }
+  return true;
+}
+
 }  // namespace tgm

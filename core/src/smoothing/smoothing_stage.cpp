@@ -66,6 +66,15 @@ bool SmoothingStage::push_event(const SmoothingEvent& e) {
   return true;
 }
 
+bool SmoothingStage::push_event_next(const SmoothingEvent& e) {
+  if (ev_count_ == kEventCapacity) return false;
+  Slot& s = ev_[(ev_head_ + ev_count_) % kEventCapacity];
+  s.release = steps_ + 1 + static_cast<std::uint64_t>(spline_.delay_steps());
+  s.e = e;
+  ++ev_count_;
+  return true;
+}
+
 bool SmoothingStage::pop_event(SmoothingEvent* e) {
   if (ev_count_ == 0 || ev_[ev_head_].release > steps_) return false;
   *e = ev_[ev_head_].e;
@@ -76,6 +85,29 @@ bool SmoothingStage::pop_event(SmoothingEvent* e) {
 
 bool SmoothingStage::settled() const {
   return spline_.settled() && iir_.settled() && ev_count_ == 0;
+}
+
+bool SmoothingStage::at_rest() const { return settled() && iir_.at_rest(); }
+
+void SmoothingStage::skip(std::uint64_t steps, const double* before_last_mm, const double* last_mm) {
+  // A drained spline with a standing input: its output is the input, and restarting the buffer
+  // there changes no later output (the correction of the old excesses is an exact integer 0
+  // once the kernel's reach lies behind them, SMOOTHING.md "Exact O(axes) computation").
+  const bool spline_on = spline_.delay_steps() > 0;
+  if (spline_on) spline_.reset(last_mm);
+  const double inv = 1.0 / dt_;
+  double out[kMaxAxes];
+  for (int k = 0; k < 2; ++k) {
+    const double* in = (k == 0 && !spline_on) ? before_last_mm : last_mm;
+    for (int i = 0; i < axes_; ++i) mid_[static_cast<std::size_t>(i)] = in[i];
+    iir_.step(mid_.data(), out);
+    for (int i = 0; i < axes_; ++i) {
+      const auto ui = static_cast<std::size_t>(i);
+      speed_[ui] = (out[i] - pos_[ui]) * inv;
+      pos_[ui] = out[i];
+    }
+  }
+  steps_ += steps;
 }
 
 }  // namespace tgm
