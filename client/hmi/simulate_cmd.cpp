@@ -1,6 +1,9 @@
 // tgm-hmi simulate: runs a G-code program through the interpolator core offline (no DDS, as fast
 // as the machine allows), writes the registers per cycle as CSV and prints a summary.
+#include <array>
 #include <cerrno>
+#include <climits>
+#include <cstdint>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -14,6 +17,7 @@
 #include "commands.hpp"
 #include "tgm/gcode.hpp"
 #include "tgm/simulation.hpp"
+#include "tgm/smoothing.hpp"
 
 namespace tgm::hmi {
 
@@ -22,12 +26,21 @@ namespace {
 constexpr const char* kUsage =
     "usage: tgm-hmi simulate FILE [--config YAML] [--interpolator N] [--csv OUT]\n"
     "                             [--rel-speed R] [--check-limits] [--m-ack S] [--blocks OUT]\n"
+    "                             [--spline POINTS,JERK] [--iir P,Q,F,MASK] [--lookahead OUT]\n"
     "\n"
     "Compiles FILE and runs it through interpolator N (default 0) offline, cycle by cycle,\n"
     "acknowledging every M-function like the PLC emulator would (plc.default_m_delay_s and\n"
     "plc.m_delay_s of the config, or --m-ack S for all) and restarting after M0 at once.\n"
     "  --csv OUT        one row per cycle: time_s, line, act_part, status, run_flag, m_func,\n"
-    "                   act_speed_mm_min, move_distance_mm, orig_<axis>, speed_<axis>, limit_factor\n"
+    "                   act_speed_mm_min, move_distance_mm, orig_<axis> (Orig_Position),\n"
+    "                   pos_<axis> (Position, after spline / IIR), inc_<axis> (PositionInc),\n"
+    "                   speed_<axis> (after smoothing), limit_factor\n"
+    "  --spline POINTS,JERK  Command -2 before the start: points 50..500 (0 = off), jerk limit\n"
+    "                   [mm/s^3] (integers, as Command_Parameter[0..1])\n"
+    "  --iir P,Q,F,MASK Command -1 before the start: p, q, f x 1e6 (f in ms) and the axis bit\n"
+    "                   mask (integers, as Command_Parameter[0..3]), e.g. 2000000,1000000,6000000,7\n"
+    "  --lookahead OUT  JSON lines: the LookAheadBuffer each time it shifts (cycle, time_s,\n"
+    "                   act_part and the 8 entries; kNotSet values as null)\n"
     "  --blocks OUT     one row per executed motion block: line, length, programmed and peak\n"
     "                   speed, duration and the factor that limited its speed\n"
     "  --rel-speed R    feed override 0.01..2 (default 1)\n"
@@ -35,6 +48,7 @@ constexpr const char* kUsage =
     "                   acceleration, jerk or corner-step excess (listed with cycle and line)\n"
     "  --m-ack S        time the emulated PLC takes per normal M-function [s]\n"
     "\n"
+    "The run ends when every axis, delayed or filtered, stands where the program ends.\n"
     "Prints program time, distance, per-axis peaks against the limits, violations and the time\n"
     "spent per limit factor. Exit code: 0 finished, 1 did not finish or limits were exceeded,\n"
     "2 bad input (usage, config, G-code errors as FILE:LINE:COL: error: reason).\n";
@@ -56,13 +70,16 @@ File open_out(const std::string& path) {
 
 int run_simulate(int argc, char** argv) {
   Args args(argc, argv, "simulate", kUsage);
-  std::string file, csv_path, blocks_path, rel_text, m_ack_text;
+  std::string file, csv_path, blocks_path, rel_text, m_ack_text, spline_text, iir_text, la_path;
   bool check_limits = false;
   while (args.more()) {
     if (args.flag("--csv", csv_path)) continue;
     if (args.flag("--blocks", blocks_path)) continue;
     if (args.flag("--rel-speed", rel_text)) continue;
     if (args.flag("--m-ack", m_ack_text)) continue;
+    if (args.flag("--spline", spline_text)) continue;
+    if (args.flag("--iir", iir_text)) continue;
+    if (args.flag("--lookahead", la_path)) continue;
     if (args.boolean("--check-limits", check_limits)) continue;
     if (args.common()) continue;
     if (args.positional(file)) continue;
@@ -78,6 +95,37 @@ int run_simulate(int argc, char** argv) {
   double m_ack = -1.0;
   if (!m_ack_text.empty() && (!parse_double(m_ack_text, m_ack) || m_ack < 0.0 || m_ack > 3600.0)) {
     return args.usage_error("--m-ack takes seconds 0..3600, not '" + m_ack_text + "'");
+  }
+  // Integer lists for the Command_Parameter registers.
+  auto int_list = [](const std::string& text, std::size_t count, std::array<std::int32_t, kCommandParameters>& out) {
+    std::size_t at = 0;
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::size_t comma = text.find(',', at);
+      if ((k + 1 < count) != (comma != std::string::npos)) return false;
+      long long v = 0;
+      if (!parse_int(text.substr(at, comma == std::string::npos ? std::string::npos : comma - at), INT32_MIN,
+                     INT32_MAX, v)) {
+        return false;
+      }
+      out[k] = static_cast<std::int32_t>(v);
+      at = comma + 1;
+    }
+    return true;
+  };
+  std::vector<std::pair<std::int32_t, std::array<std::int32_t, kCommandParameters>>> commands;
+  if (!spline_text.empty()) {
+    std::array<std::int32_t, kCommandParameters> p{};
+    if (!int_list(spline_text, 2, p)) {
+      return args.usage_error("--spline takes POINTS,JERK (integers), not '" + spline_text + "'");
+    }
+    commands.push_back({-2, p});
+  }
+  if (!iir_text.empty()) {
+    std::array<std::int32_t, kCommandParameters> p{};
+    if (!int_list(iir_text, 4, p)) {
+      return args.usage_error("--iir takes P,Q,F,MASK (integers, P Q F x 1e6), not '" + iir_text + "'");
+    }
+    commands.push_back({-1, p});
   }
   const auto app = args.load_app();
   if (!app) return 2;
@@ -105,6 +153,7 @@ int run_simulate(int argc, char** argv) {
   // The checker needs every cycle, so it runs only when asked (as does the CSV); otherwise the
   // run skips through cruise, dwells and M waits (Interpolator::advance, same trajectory).
   so.check_limits = check_limits;
+  so.commands = commands;
   std::string err;
   auto sim = Simulation::create(machine, so, &err);
   if (!sim) {
@@ -114,14 +163,17 @@ int run_simulate(int argc, char** argv) {
   const std::string letters = machine.axis_letters(ip_index);
   const int n = static_cast<int>(letters.size());
 
-  File csv, blocks;
+  File csv, blocks, la;
   if (!csv_path.empty() && !(csv = open_out(csv_path))) return 1;
+  if (!la_path.empty() && !(la = open_out(la_path))) return 1;
   if (!blocks_path.empty() && !(blocks = open_out(blocks_path))) return 1;
   std::vector<char> csv_buf(1 << 20), blk_buf(1 << 16);
   if (csv) {
     std::setvbuf(csv.get(), csv_buf.data(), _IOFBF, csv_buf.size());
     std::fputs("time_s,line,act_part,status,run_flag,m_func,act_speed_mm_min,move_distance_mm", csv.get());
     for (char l : letters) std::fprintf(csv.get(), ",orig_%c", l);
+    for (char l : letters) std::fprintf(csv.get(), ",pos_%c", l);
+    for (char l : letters) std::fprintf(csv.get(), ",inc_%c", l);
     for (char l : letters) std::fprintf(csv.get(), ",speed_%c", l);
     std::fputs(",limit_factor\n", csv.get());
   }
@@ -133,12 +185,69 @@ int run_simulate(int argc, char** argv) {
   double peak_speed = 0.0;
   const auto wall0 = std::chrono::steady_clock::now();
   std::function<void(const Registers&)> on_cycle;
-  if (csv) {
+  std::array<LookAheadEntry, kLookAheadEntries> la_last{};
+  bool la_first = true;
+  // The table shifted (or first appeared): compared without the Tangent, which moves on arcs.
+  auto la_changed = [&](const Registers& r) {
+    if (la_first) return true;
+    for (std::size_t e = 0; e < la_last.size(); ++e) {
+      const LookAheadEntry& a = la_last[e];
+      const LookAheadEntry& b = r.lookahead[e];
+      if (a.movement_type != b.movement_type || a.movement_code != b.movement_code || a.line != b.line ||
+          a.end_pos_mm != b.end_pos_mm || a.all_params != b.all_params) {
+        return true;
+      }
+    }
+    return false;
+  };
+  auto json_num = [](std::FILE* f, double v) {
+    if (is_not_set(v) || !std::isfinite(v)) std::fputs("null", f);
+    else std::fprintf(f, "%.9g", v);
+  };
+  auto write_lookahead = [&](const Registers& r) {
+    std::FILE* f = la.get();
+    std::fprintf(f, "{\"cycle\":%llu,\"time_s\":%.6f,\"act_part\":%d,\"act_line\":%d,\"entries\":[",
+                 static_cast<unsigned long long>(r.cycle), static_cast<double>(r.cycle) * T, r.act_part, r.act_line);
+    for (std::size_t e = 0; e < r.lookahead.size(); ++e) {
+      const LookAheadEntry& x = r.lookahead[e];
+      std::fprintf(f, "%s{\"movement_type\":%d,\"movement_code\":%d,\"line\":%d,\"plane\":%d,\"tool\":%d,",
+                   e ? "," : "", x.movement_type, x.movement_code, x.line, x.plane, x.tool);
+      std::fputs("\"tangent_deg\":", f);
+      json_num(f, x.tangent_deg);
+      std::fputs(",\"start_angle_deg\":", f);
+      json_num(f, x.start_angle_deg);
+      std::fputs(",\"end_angle_deg\":", f);
+      json_num(f, x.end_angle_deg);
+      std::fprintf(f, ",\"radius_mm\":%.9g,\"end_pos_mm\":[", x.radius_mm);
+      for (int i = 0; i < n; ++i) {
+        std::fprintf(f, "%s%.9g", i ? "," : "", x.end_pos_mm[static_cast<std::size_t>(i)]);
+      }
+      std::fputs("],\"all_params\":{", f);
+      bool first = true;
+      for (int k = 0; k < kParamLetters; ++k) {
+        const double v = x.all_params[static_cast<std::size_t>(k)];
+        if (is_not_set(v)) continue;
+        std::fprintf(f, "%s\"%c\":%.9g", first ? "" : ",", static_cast<char>('A' + k), v);
+        first = false;
+      }
+      std::fputs("}}", f);
+    }
+    std::fputs("]}\n", f);
+    la_last = r.lookahead;
+    la_first = false;
+  };
+  if (csv || la) {
     on_cycle = [&](const Registers& r) {
+      if (la && la_changed(r)) write_lookahead(r);
+      if (!csv) return;
       std::FILE* f = csv.get();
       std::fprintf(f, "%.6f,%d,%d,%d,%u,%d,%.6f,%.9f", static_cast<double>(r.cycle) * T, r.act_line, r.act_part,
                    r.status, r.run_flag, r.m_func, r.act_speed, r.move_distance);
       for (int i = 0; i < n; ++i) std::fprintf(f, ",%.9f", r.orig_position[static_cast<std::size_t>(i)]);
+      for (int i = 0; i < n; ++i) std::fprintf(f, ",%.9f", r.position[static_cast<std::size_t>(i)]);
+      for (int i = 0; i < n; ++i) {
+        std::fprintf(f, ",%lld", static_cast<long long>(r.position_inc[static_cast<std::size_t>(i)]));
+      }
       for (int i = 0; i < n; ++i) std::fprintf(f, ",%.6f", r.speed[static_cast<std::size_t>(i)]);
       std::fprintf(f, ",%s\n", limit_factor_name(r.limit_factor));
     };
@@ -151,7 +260,7 @@ int run_simulate(int argc, char** argv) {
   });
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   bool io_ok = true;
-  for (File* f : {&csv, &blocks}) {
+  for (File* f : {&csv, &blocks, &la}) {
     if (*f && (std::fflush(f->get()) != 0 || std::ferror(f->get()))) io_ok = false;
   }
 
@@ -167,7 +276,26 @@ int run_simulate(int argc, char** argv) {
               sum.distance_mm, peak_speed, static_cast<unsigned long long>(sum.m_functions));
   std::printf("end:      ");
   for (int i = 0; i < n; ++i) std::printf(" %c=%.6f", letters[static_cast<std::size_t>(i)], sum.end_position[static_cast<std::size_t>(i)]);
-  std::printf("\n");
+  std::printf("  (Position after smoothing:");
+  for (int i = 0; i < n; ++i) {
+    std::printf(" %c=%.6f", letters[static_cast<std::size_t>(i)], sum.end_position_smoothed[static_cast<std::size_t>(i)]);
+  }
+  std::printf(")\n");
+  {
+    const SmoothingStage& sm = sim->interpolator().smoothing();
+    const SplineStats& ss = sm.spline().stats();
+    if (sm.spline().delay_steps() > 0) {
+      std::printf("spline:    %d points (%.1f ms delay), jerk limit %.0f mm/s^3, %llu flagged steps, %llu passes, "
+                  "contour deviation max %.6f mm\n",
+                  sm.spline().delay_steps(), sm.spline().delay_steps() * sm.calc_step_s() * 1e3,
+                  sm.spline().jerk_limit_mm_s3(), static_cast<unsigned long long>(ss.flagged_steps),
+                  static_cast<unsigned long long>(ss.passes), ss.max_mm);
+    }
+    if (sm.iir().mask() != 0) {
+      std::printf("iir:       p %.6g q %.6g f %.6g ms, zeta %.3f, axis mask 0x%x\n", static_cast<double>(sm.iir().params().p_e6) * 1e-6,
+                  static_cast<double>(sm.iir().params().q_e6) * 1e-6, static_cast<double>(sm.iir().params().f_e6) * 1e-6, sm.iir().zeta(), sm.iir().mask());
+    }
+  }
   const auto& axes = machine.interpolators[static_cast<std::size_t>(ip_index)].axes;
   if (!check_limits) {
     std::printf("axis peaks and violations: not checked (--check-limits differentiates every cycle)\n");

@@ -42,6 +42,10 @@ struct SimulationOptions {
   //! M waits and standstill with Interpolator::advance (same registers, far fewer evaluations).
   //! false = step() every cycle (what the equivalence tests compare against).
   bool fast_forward = true;
+  //! Commands given before the program starts, in order, with their Command_Parameter (e.g.
+  //! {-2, {200, 1000000}} for the spline, {-1, {p, q, f, mask}} for the IIR filter); a refusal
+  //! makes create() fail with the reason.
+  std::vector<std::pair<std::int32_t, std::array<std::int32_t, kCommandParameters>>> commands;
 };
 
 //! Outcome of a run.
@@ -51,7 +55,13 @@ struct SimulationSummary {
   std::uint64_t cycles = 0;
   double program_time_s = 0.0;  //!< until Status 3
   double distance_mm = 0.0;     //!< Move_Distance at the end
+  //! Orig_Position at the end (before smoothing) [mm].
   std::array<double, kMaxAxes> end_position{};
+  //! Position at the end (after spline / IIR) [mm]; the run ends (Status 3) only once every
+  //! axis stands there, so it equals end_position unless the program was not finished.
+  std::array<double, kMaxAxes> end_position_smoothed{};
+  //! Largest spline contour deviation [mm] (SplineStats::max_mm; 0 with the spline off).
+  double spline_deviation_mm = 0.0;
   bool nan = false;             //!< a NaN / inf appeared in a register
   std::uint64_t hard_stops = 0;
   std::uint64_t m_functions = 0;  //!< normal M-functions acknowledged

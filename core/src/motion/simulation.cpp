@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "tgm/smoothing.hpp"
+
 namespace tgm {
 
 std::optional<Simulation> Simulation::create(const MachineConfig& machine, const SimulationOptions& options,
@@ -22,6 +24,17 @@ std::optional<Simulation> Simulation::create(const MachineConfig& machine, const
   if (!r.ok()) {
     if (error) *error = "rel speed: " + r.reason;
     return std::nullopt;
+  }
+  for (const auto& [code, parameter] : options.commands) {
+    const auto c = ip->command(code, parameter);
+    if (!c.ok()) {
+      if (error) *error = "Command " + std::to_string(code) + ": " + c.reason;
+      return std::nullopt;
+    }
+    if (ip->registers().command_status != 0) {
+      if (error) *error = "Command " + std::to_string(code) + " did not complete before the start";
+      return std::nullopt;
+    }
   }
   s.ip_ = std::move(ip);
   return s;
@@ -189,6 +202,8 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
   sum.program_time_s = static_cast<double>(cycle) * T;
   sum.distance_mm = reg.move_distance;
   sum.end_position = reg.orig_position;
+  sum.end_position_smoothed = reg.position;
+  sum.spline_deviation_mm = ip.smoothing().spline().stats().max_mm;
   sum.hard_stops = ip.hard_stops();
   if (checker_) {
     sum.peaks = checker_->peaks();
