@@ -44,9 +44,18 @@ for ((i = 0; i < m_count; ++i)); do printf 'G1 X0.01\nM51\n'; done > "$tmp/m.ngc
 echo "M2" >> "$tmp/m.ngc"
 "$svc" "${cfg[@]}" --stats "$tmp/hs.json" > "$tmp/svc1.log" 2>&1 & pids+=($!)
 "$plc" "${cfg[@]}" --ack-delay 0 --quiet --no-basic-params > "$tmp/plc1.log" 2>&1 & pids+=($!)
+# The raw ping-pong runs twice: once while the handshake program runs (same load on the
+# machine: the service's cycle and publisher threads, the HMI, the PLC) and once alone after it.
+"$build/tests/bench/service/tgm_bench_state_pingpong" --count 30000 --domain $((domain + 2)) \
+  --profiles "$PWD/config/fastdds_profiles.xml" > "$tmp/raw_during.log" 2>&1 &
+raw_pid=$!
 "$hmi" run "$tmp/m.ngc" "${cfg[@]}" --quiet > "$tmp/hmi1.log"
+wait "$raw_pid" || true
 stop_all
 tail -n 3 "$tmp/hmi1.log"
+echo "raw ping-pong while the handshake program ran:"
+cat "$tmp/raw_during.log"
+echo "raw ping-pong alone:"
 json "$tmp/hs.json" "'service handshake (state write with new M_Func -> ack taken): n %d, min %.1f us, median %.1f us, p99 %.1f us, max %.1f us' % (d['handshake_ns']['count'], d['handshake_ns']['min']/1e3, d['handshake_ns']['p50']/1e3, d['handshake_ns']['p99']/1e3, d['handshake_ns']['max']/1e3)"
 "$build/tests/bench/service/tgm_bench_state_pingpong" --count 5000 --domain $((domain + 1)) \
   --profiles "$PWD/config/fastdds_profiles.xml"
