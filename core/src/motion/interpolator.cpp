@@ -846,9 +846,10 @@ struct Interpolator::Impl {
     }
   }
 
-  // Status 3 only once every axis, delayed or filtered, stands where the program ends.
+  // Status 3 only once every axis, delayed or filtered, stands exactly where the program ends
+  // (the IIR filter snaps onto its input once the lag is below 1e-12 mm).
   void end_program() {
-    if (smooth->settled()) {
+    if (smooth->at_rest()) {
       reg.status = static_cast<std::int32_t>(InterpolatorStatus::kEnded);
     } else {
       end_pending = true;
@@ -900,7 +901,7 @@ struct Interpolator::Impl {
     smooth->step(p);
     SmoothingEvent e;
     while (smooth->pop_event(&e)) apply_event(e);
-    if (end_pending && smooth->settled()) {
+    if (end_pending && smooth->at_rest()) {
       end_pending = false;
       reg.status = static_cast<std::int32_t>(InterpolatorStatus::kEnded);
     }

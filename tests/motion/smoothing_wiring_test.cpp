@@ -1,0 +1,524 @@
+// Issue 4 end to end through tgm::Interpolator: spline delay and M-functions leaving the spline
+// with the motion, jerk reduction at velocity jumps with the contour deviation reported, the IIR
+// filter on masked axes only with M-functions at the interpolator's standstill, Commands with
+// valid and invalid parameters and the Command_Status sequence, Ratio / Offset / backlash in
+// PositionInc, Number_Axes, and the LookAheadBuffer at chosen points of a program.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "program_builder.hpp"
+#include "tgm/command_stage.hpp"
+#include "tgm/interpolator.hpp"
+#include "tgm/output_stage.hpp"
+#include "tgm/simulation.hpp"
+#include "tgm/smoothing.hpp"
+
+namespace tgm {
+namespace {
+
+using test::ProgramBuilder;
+using Params = std::array<std::int32_t, kCommandParameters>;
+constexpr double kPi = 3.14159265358979323846;
+
+Interpolator make(const MachineConfig& m) {
+  auto ip = Interpolator::create(m, 0);
+  EXPECT_TRUE(ip.has_value());
+  return std::move(*ip);
+}
+
+// Runs a loaded and started interpolator to Status 3, acknowledging every normal M-function
+// `ack_cycles` cycles after it was handed over; returns the registers of every cycle.
+std::vector<Registers> run(Interpolator& ip, int ack_cycles = 20, int max_cycles = 400000) {
+  std::vector<Registers> out;
+  int ack_at = -1;
+  for (int c = 0; c < max_cycles; ++c) {
+    const StepResult r = ip.step();
+    const Registers& g = ip.registers();
+    out.push_back(g);
+    if (r == StepResult::kFinished || r == StepResult::kErrorInternal || r == StepResult::kIdle) break;
+    const SectionState sec = run_flag_section(g.run_flag);
+    if (sec == SectionState::kWaitMFunc) ack_at = c + ack_cycles;
+    if (g.m_func != 0 && g.last_cont_m_func == g.m_func && sec != SectionState::kWaitMFunc &&
+        sec != SectionState::kWaitMFuncEnd) {
+      ip.write_m_func(0);
+    }
+    if (ack_at >= 0 && c >= ack_at) {
+      ip.write_m_func(0);
+      ack_at = -1;
+    }
+  }
+  return out;
+}
+
+int first_cycle(const std::vector<Registers>& rs, bool (*pred)(const Registers&)) {
+  for (std::size_t i = 0; i < rs.size(); ++i) {
+    if (pred(rs[i])) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+Params spline(int points, int jerk) {
+  Params p{};
+  p[0] = points;
+  p[1] = jerk;
+  return p;
+}
+
+// ---------------- Spline ----------------
+
+// Smooth motion (jerk far below the limit): Position is Orig_Position exactly N calculation
+// steps (N / 5 cycles) earlier, bit for bit; M_Func is raised exactly N steps later than
+// without the spline, and the run ends (Status 3) only when Position stands at the end.
+TEST(Wiring, SplineDelaysPositionAndMFunctionsByExactlyNSteps) {
+  MachineConfig m = MachineConfig::default_machine();
+  ProgramBuilder b;
+  b.line({10.0, 5.0, 0.0}, 3000.0).m(8, MKind::kNormal).line({20.0, 0.0, 1.0}, 6000.0).end();
+  int m_cycle[2] = {-1, -1};
+  std::size_t cycles[2] = {0, 0};
+  for (int points : {0, 200, 50}) {
+    Interpolator ip = make(m);
+    ASSERT_TRUE(ip.command(kCommandSpline, spline(points, 1'000'000)).ok());
+    ASSERT_EQ(ip.smoothing().spline().delay_steps(), points);
+    ASSERT_TRUE(ip.load(b.program()).ok());
+    ASSERT_TRUE(ip.start().ok());
+    const auto rs = run(ip);
+    ASSERT_EQ(rs.back().status, static_cast<std::int32_t>(InterpolatorStatus::kEnded)) << points;
+    const int d = points / 5;  // cycles
+    // Exact delay, every axis, every cycle.
+    for (std::size_t c = static_cast<std::size_t>(d); c < rs.size(); ++c) {
+      ASSERT_EQ(rs[c].position, rs[c - static_cast<std::size_t>(d)].orig_position) << points << " cycle " << c;
+    }
+    EXPECT_EQ(rs.back().position, rs.back().orig_position);
+    EXPECT_EQ(rs.back().spline_deviation_mm, 0.0);  // no jerk excess: the spline only delays
+    const int mc = first_cycle(rs, [](const Registers& r) { return r.m_func == 8; });
+    ASSERT_GE(mc, 0);
+    // Handed over in the cycle Position arrives where the path stopped for it.
+    EXPECT_EQ(run_flag_section(rs[static_cast<std::size_t>(mc)].run_flag), SectionState::kWaitMFunc);
+    EXPECT_NEAR(rs[static_cast<std::size_t>(mc)].position[0], 10.0, 1e-12);
+    if (points == 0) {
+      m_cycle[0] = mc;
+      cycles[0] = rs.size();
+    } else if (points == 200) {
+      m_cycle[1] = mc;
+      cycles[1] = rs.size();
+      // Before the hand-over the section still runs (M inside the spline), M_Func still 0.
+      EXPECT_EQ(rs[static_cast<std::size_t>(mc - 1)].m_func, 0);
+      EXPECT_EQ(run_flag_section(rs[static_cast<std::size_t>(mc - 1)].run_flag), SectionState::kRun);
+    }
+  }
+  EXPECT_EQ(m_cycle[1], m_cycle[0] + 40);  // 200 points = 20 ms = 40 cycles at 500 us
+  // The whole run is longer by the delay twice (before the M and at the end) plus the drain
+  // the settled test waits for (N + 4 steps after Position stands, rounded up to cycles).
+  EXPECT_GE(cycles[1], cycles[0] + 80);
+  EXPECT_LE(cycles[1], cycles[0] + 80 + 42);
+}
+
+// A square run without corner slow-down (tolerance above the feed): velocity jumps of 100 mm/s
+// per axis at every corner. After the spline (N = 200) the per-axis jerk is below the raw one
+// by the factor the kernel allows, the contour deviation is reported, and the end is exact.
+TEST(Wiring, SplineSmoothsVelocityJumpsOfASquare) {
+  MachineConfig m = MachineConfig::default_machine();
+  for (auto& a : m.interpolators[0].axes) a.corner_velocity_tolerance_mm_s = 1000.0;
+  ProgramBuilder b;
+  b.line({20.0, 0.0, 0.0}, 6000.0).line({20.0, 20.0, 0.0}, 6000.0).line({0.0, 20.0, 0.0}, 6000.0)
+      .line({0.0, 0.0, 0.0}, 6000.0).end();
+  Interpolator ip = make(m);
+  ASSERT_TRUE(ip.command(kCommandSpline, spline(200, 1'000'000)).ok());
+  ASSERT_TRUE(ip.load(b.program()).ok());
+  ASSERT_TRUE(ip.start().ok());
+  const auto rs = run(ip);
+  ASSERT_EQ(rs.back().status, static_cast<std::int32_t>(InterpolatorStatus::kEnded));
+  const double T = ip.cycle_time_s(), dt = ip.calc_step_s();
+  double raw = 0.0, smooth = 0.0, dev = 0.0;
+  for (std::size_t c = 3; c < rs.size(); ++c) {
+    for (std::size_t i = 0; i < 2; ++i) {
+      auto j3 = [&](auto get) {
+        return std::fabs(get(rs[c]) - 3.0 * get(rs[c - 1]) + 3.0 * get(rs[c - 2]) - get(rs[c - 3])) / (T * T * T);
+      };
+      raw = std::max(raw, j3([&](const Registers& r) { return r.orig_position[i]; }));
+      smooth = std::max(smooth, j3([&](const Registers& r) { return r.position[i]; }));
+    }
+    dev = std::max(dev, rs[c].spline_deviation_mm);
+  }
+  const SplineSmoother& sp = ip.smoothing().spline();
+  // Predicted bound: a velocity jump dv leaves with jerk dv * g / dt^2, plus the machine's own
+  // jerk (below the limit, not flagged); dv <= 100 mm/s per axis.
+  const double predicted = 100.0 * sp.velocity_jump_jerk_gain() / (dt * dt) + 30000.0;
+  RecordProperty("raw_jerk_mm_s3", std::to_string(raw));
+  RecordProperty("smoothed_jerk_mm_s3", std::to_string(smooth));
+  RecordProperty("contour_deviation_mm", std::to_string(sp.stats().max_mm));
+  EXPECT_GT(raw, 1e8);                  // ~ dv / T^2 at cycle sampling
+  EXPECT_LT(smooth, 1.05 * predicted);  // ~ 1.3e6 mm/s^3
+  EXPECT_GT(raw / smooth, 100.0);
+  EXPECT_GT(sp.stats().flagged_steps, 0u);
+  EXPECT_GE(sp.stats().passes, 3u);     // the three corners (start and end are jerk-limited)
+  EXPECT_GT(sp.stats().max_mm, 0.01);   // the corners are cut, and it is reported
+  EXPECT_LT(sp.stats().max_mm, 0.5);
+  EXPECT_GT(dev, 0.01);                 // also in the register
+  EXPECT_EQ(rs.back().position, rs.back().orig_position);
+}
+
+// ---------------- IIR ----------------
+
+// IIR (critically damped, f = 6 ms) on axis 0 only: axis 1 passes unchanged, axis 0 lags while
+// moving; the M-function is signalled when the interpolator stands (same cycle as without the
+// filter) while axis 0 still moves; Status 3 only once axis 0 has settled on the end.
+TEST(Wiring, IirFiltersOnlyMaskedAxesAndMFunctionsSignalAtStandstill) {
+  MachineConfig m = MachineConfig::default_machine();
+  ProgramBuilder b;
+  b.line({10.0, 10.0, 0.0}, 6000.0).m(8, MKind::kNormal).line({0.0, 0.0, 0.0}, 6000.0).end();
+  int m_cycle[2] = {-1, -1};
+  for (int with : {0, 1}) {
+    Interpolator ip = make(m);
+    Params p{};
+    p[0] = 2'000'000;
+    p[1] = 1'000'000;
+    p[2] = 6'000'000;
+    p[3] = with ? 0b1 : 0;
+    ASSERT_TRUE(ip.command(kCommandIir, p).ok()) << ip.command_error();
+    ASSERT_TRUE(ip.load(b.program()).ok());
+    ASSERT_TRUE(ip.start().ok());
+    const auto rs = run(ip, 100);
+    ASSERT_EQ(rs.back().status, static_cast<std::int32_t>(InterpolatorStatus::kEnded));
+    const int mc = first_cycle(rs, [](const Registers& r) { return r.m_func == 8; });
+    ASSERT_GE(mc, 0);
+    m_cycle[with] = mc;
+    if (!with) continue;
+    double lag = 0.0;
+    for (const Registers& r : rs) {
+      ASSERT_EQ(r.position[1], r.orig_position[1]);  // not in the mask: unfiltered, bit for bit
+      lag = std::max(lag, std::fabs(r.position[0] - r.orig_position[0]));
+    }
+    EXPECT_GT(lag, 0.01);
+    const Registers& at_m = rs[static_cast<std::size_t>(mc)];
+    EXPECT_EQ(at_m.orig_position[0], 10.0);
+    EXPECT_GT(std::fabs(at_m.position[0] - 10.0), 1e-6);  // still moving behind the filter
+    EXPECT_GT(std::fabs(at_m.speed[0]), 1e-3);
+    // At the end it stands exactly (the filter snaps onto its input) and Status says so.
+    EXPECT_EQ(rs.back().position[0], 0.0);
+    // Settled within f (6 ms = 12 cycles) of the interpolator's stop, to 2 % of the move...
+    // and Status 3 not before the axis settled.
+    const int end_orig = first_cycle(rs, [](const Registers& r) {
+      return r.orig_position[0] == 0.0 && r.orig_position[1] == 0.0 && r.act_speed == 0.0 && r.m_func == 0 &&
+             r.act_part == 3;
+    });
+    ASSERT_GE(end_orig, 0);
+    const auto e = static_cast<std::size_t>(end_orig);
+    EXPECT_LT(std::fabs(rs[e + 12].position[0]), 0.02 * 10.0);
+    for (std::size_t c = e; c + 1 < rs.size(); ++c) {
+      EXPECT_NE(rs[c].status, static_cast<std::int32_t>(InterpolatorStatus::kEnded)) << c;
+    }
+  }
+  EXPECT_EQ(m_cycle[0], m_cycle[1]);  // the IIR filter does not delay M-functions
+}
+
+// ---------------- Commands ----------------
+
+TEST(Wiring, CommandsWithValidAndInvalidParametersAndStatusSequence) {
+  MachineConfig m = MachineConfig::default_machine();
+  m.interpolators[0].axes[0].backlash_mm = 0.02;
+  Interpolator ip = make(m);
+  const Registers& r = ip.registers();
+  // Ratio: 4096 inc per 2 mm on axis 0.
+  Params p{};
+  p[0] = 0;
+  p[1] = 4096;
+  p[2] = 2;
+  RequestResult res = ip.command(kCommandSetRatio, p);
+  ASSERT_TRUE(res.ok()) << res.reason;
+  EXPECT_EQ(r.command, 0);
+  EXPECT_EQ(r.command_status, 0);
+  EXPECT_EQ(r.ratio[0], 2048.0);
+  EXPECT_EQ(r.command_parameter, p);
+  // Invalid: axis out of range, zero numerator, denominator <= 0, unknown code.
+  p[0] = 3;
+  res = ip.command(kCommandSetRatio, p);
+  EXPECT_EQ(res.code, RequestCode::kOutOfRange);
+  EXPECT_EQ(res.reason, "Command 1024: axis (Command_Parameter[0]) must be 0..2, not 3");
+  EXPECT_EQ(r.command_status, -1);
+  EXPECT_EQ(r.command, 0);
+  EXPECT_EQ(ip.command_error(), res.reason);
+  p[0] = 1;
+  p[1] = 0;
+  EXPECT_EQ(ip.command(kCommandSetRatio, p).code, RequestCode::kOutOfRange);
+  p[1] = 10;
+  p[2] = 0;
+  EXPECT_EQ(ip.command(kCommandSetRatio, p).code, RequestCode::kOutOfRange);
+  res = ip.command(7, p);
+  EXPECT_EQ(res.code, RequestCode::kOutOfRange);
+  EXPECT_EQ(res.reason, "unknown Command 7 (valid: 4, 5, 8, 9, 1024, 2048, 2049, -1, -2)");
+  EXPECT_EQ(ip.command(1024).code, RequestCode::kUnsupported);  // needs its parameters
+  // IIR and spline parameter ranges.
+  Params iir{};
+  iir[0] = 100;  // p 0.0001
+  iir[1] = 1'000'000;
+  iir[2] = 6'000'000;
+  iir[3] = 1;
+  res = ip.command(kCommandIir, iir);
+  EXPECT_EQ(res.code, RequestCode::kOutOfRange);
+  EXPECT_NE(res.reason.find("p"), std::string::npos);
+  EXPECT_EQ(r.command_status, -1);
+  res = ip.command(kCommandSpline, spline(20, 1'000'000));
+  EXPECT_EQ(res.reason, "Spline points (Command_Parameter[0]) must be 0 (off) or 50..500, not 20");
+  ASSERT_TRUE(ip.command(kCommandSpline, spline(100, 1'000'000)).ok());
+  EXPECT_EQ(r.command_status, 0);
+  EXPECT_TRUE(ip.command_error().empty());
+  // Offset and Number_Axes writes.
+  EXPECT_TRUE(ip.write_offset(1, 500).ok());
+  EXPECT_EQ(r.offset[1], 500);
+  EXPECT_EQ(r.position_inc[1], 500);
+  EXPECT_EQ(ip.write_offset(3, 1).code, RequestCode::kOutOfRange);
+  EXPECT_EQ(ip.write_offset(0, 2'000'000'000'000'000).code, RequestCode::kOutOfRange);
+  EXPECT_EQ(ip.write_ratio(0, 0.0).code, RequestCode::kOutOfRange);
+  EXPECT_EQ(ip.write_number_axes(0).reason, "Number_Axes must be 1..10, not 0");
+  EXPECT_EQ(ip.write_number_axes(11).code, RequestCode::kOutOfRange);
+  EXPECT_EQ(ip.write_number_axes(4).reason, "Number_Axes 4: only 3 axes are configured");
+
+  // A program: X +5 then back to 1 (a reversal for the backlash), with Y and Z.
+  ProgramBuilder b;
+  b.line({5.0, 2.0, 0.0}, 3000.0).line({1.0, 2.0, 1.0}, 3000.0).end();
+  ASSERT_TRUE(ip.load(b.program()).ok());
+  ASSERT_TRUE(ip.start().ok());
+  for (int c = 0; c < 50; ++c) ip.step();
+  // Wrong state while moving, with the reason.
+  Params pos{};
+  res = ip.command(kCommandSetPositionOn, pos);
+  EXPECT_EQ(res.code, RequestCode::kWrongState);
+  EXPECT_EQ(res.reason, "Command 2048: the position can only be set while no program is executing");
+  EXPECT_EQ(r.command_status, -1);
+  EXPECT_EQ(ip.command(kCommandSpline, spline(200, 1'000'000)).code, RequestCode::kWrongState);
+  EXPECT_EQ(ip.write_number_axes(2).code, RequestCode::kWrongState);
+  EXPECT_EQ(ip.write_ratio(0, 1000.0).code, RequestCode::kWrongState);
+  // PositionInc identity and the backlash ramp: every cycle, no step larger than the ramp.
+  const double half = 0.01 * 2048.0;  // compensation 0.01 mm in inc
+  double prev_bl = static_cast<double>(r.backlash[0]);
+  double bl_max = 0.0, bl_min = 0.0, max_bl_step = 0.0;
+  for (int c = 0; c < 20000; ++c) {
+    const StepResult s = ip.step();
+    for (std::size_t i = 0; i < 3; ++i) {
+      ASSERT_EQ(r.position_inc[i],
+                static_cast<std::int64_t>(std::llround(r.position[i] * r.ratio[i])) + r.offset[i] + r.backlash[i])
+          << c;
+    }
+    const double bl = static_cast<double>(r.backlash[0]);
+    max_bl_step = std::max(max_bl_step, std::fabs(bl - prev_bl));
+    bl_max = std::max(bl_max, bl);
+    bl_min = std::min(bl_min, bl);
+    prev_bl = bl;
+    if (s == StepResult::kFinished) break;
+  }
+  ASSERT_EQ(r.status, static_cast<std::int32_t>(InterpolatorStatus::kEnded));
+  EXPECT_NEAR(bl_max, half, 0.5);   // +backlash/2 while moving in +X
+  EXPECT_NEAR(bl_min, -half, 0.5);  // -backlash/2 after the reversal
+  EXPECT_EQ(r.backlash[0], std::llround(-half));
+  // Ramp velocity <= 10 % of 250 mm/s: at most 0.0125 mm = 25.6 inc per cycle.
+  EXPECT_LE(max_bl_step, 0.1 * 250.0 * 0.0005 * 2048.0 + 1.0);
+  EXPECT_GT(max_bl_step, 0.0);
+
+  // Position set (2048) when ended: Position = (inc - Offset - Backlash) / Ratio, PositionInc = inc.
+  pos[0] = 10'000;
+  pos[1] = 3'000;
+  pos[2] = -500;
+  res = ip.command(kCommandSetPositionOn, pos);
+  ASSERT_TRUE(res.ok()) << res.reason;
+  EXPECT_EQ(r.command_status, 0);
+  EXPECT_EQ(r.command, 0);
+  EXPECT_EQ(r.position_inc[0], 10'000);
+  EXPECT_EQ(r.position_inc[1], 3'000);
+  EXPECT_EQ(r.position_inc[2], -500);
+  EXPECT_DOUBLE_EQ(r.position[0], (10'000.0 - std::llround(-half)) / 2048.0);
+  EXPECT_DOUBLE_EQ(r.orig_position[1], (3'000.0 - 500.0) / 1000.0);
+  EXPECT_EQ(r.off_trajectory, 0);
+  ASSERT_TRUE(ip.command(kCommandSetPositionOff, pos).ok());
+  EXPECT_EQ(r.off_trajectory, 1);
+  // Number_Axes while idle.
+  ASSERT_TRUE(ip.write_number_axes(2).ok());
+  EXPECT_EQ(r.number_axes, 2);
+  EXPECT_EQ(ip.write_offset(2, 1).code, RequestCode::kOutOfRange);
+  ASSERT_TRUE(ip.write_number_axes(3).ok());
+}
+
+// Command_Status 1 while a command waits for the smoothing: a spline change and a position set
+// after a stop, executed when the spline has drained; a stop cancels a waiting command.
+TEST(Wiring, CommandStatusOneWhileWaitingForTheSmoothing) {
+  MachineConfig m = MachineConfig::default_machine();
+  Interpolator ip = make(m);
+  const Registers& r = ip.registers();
+  ASSERT_TRUE(ip.command(kCommandSpline, spline(200, 1'000'000)).ok());
+  ProgramBuilder b;
+  b.line({30.0, 0.0, 0.0}, 6000.0).end();
+  ASSERT_TRUE(ip.load(b.program()).ok());
+  ASSERT_TRUE(ip.start().ok());
+  for (int c = 0; c < 100; ++c) ip.step();
+  ASSERT_TRUE(ip.command(8).ok());  // stop on the trajectory
+  int c = 0;
+  while (r.status != static_cast<std::int32_t>(InterpolatorStatus::kReady) && c < 10000) {
+    ip.step();
+    ++c;
+  }
+  ASSERT_EQ(r.command_status, 0);
+  // The path stands, the spline still holds motion: Command -2 waits at Command_Status 1.
+  ASSERT_FALSE(ip.smoothing().spline().settled());
+  ASSERT_TRUE(ip.command(kCommandSpline, spline(300, 2'000'000)).ok());
+  EXPECT_EQ(r.command, kCommandSpline);
+  EXPECT_EQ(r.command_status, 1);
+  EXPECT_EQ(ip.command(kCommandSpline, spline(100, 1'000'000)).code, RequestCode::kWrongState);
+  std::vector<std::int32_t> seq;
+  int waited = 0;
+  while (r.command_status == 1 && waited < 1000) {
+    ip.step();
+    ++waited;
+    seq.push_back(r.command_status);
+  }
+  EXPECT_EQ(r.command_status, 0);
+  EXPECT_EQ(r.command, 0);
+  EXPECT_EQ(ip.smoothing().spline().delay_steps(), 300);
+  // It took about the drain: 2N + 4 = 404 steps after the path stood, in cycles.
+  EXPECT_GT(waited, 20);
+  EXPECT_LE(waited, 82);
+  EXPECT_EQ(r.position, r.orig_position);
+  // Resume, stop again, and a position set waits for the new 300-point buffer.
+  ASSERT_TRUE(ip.start().ok());
+  for (int k = 0; k < 30; ++k) ip.step();
+  ASSERT_TRUE(ip.command(9).ok());  // stop off the trajectory: the program is dropped
+  while (r.command_status != 0) ip.step();
+  Params pos{};
+  pos[0] = 1234;
+  ASSERT_TRUE(ip.command(kCommandSetPositionOn, pos).ok());
+  EXPECT_EQ(r.command_status, 1);
+  EXPECT_EQ(r.command, kCommandSetPositionOn);
+  // A stop command cancels it, with the reason kept.
+  ASSERT_TRUE(ip.command(8).ok());
+  EXPECT_EQ(ip.command_error(), "Command 2048: cancelled by Command 8");
+  ASSERT_TRUE(ip.command(kCommandSetPositionOn, pos).ok());
+  while (r.command_status == 1) ip.step();
+  EXPECT_EQ(r.command_status, 0);
+  EXPECT_EQ(r.position_inc[0], 1234);
+  EXPECT_EQ(r.orig_position[0], 1.234);
+}
+
+// ---------------- LookAheadBuffer ----------------
+
+TEST(Wiring, LookAheadBufferThroughAProgram) {
+  MachineConfig m = MachineConfig::default_machine();
+  Interpolator ip = make(m);
+  const Registers& r = ip.registers();
+  MParams p = unset_params();
+  p[static_cast<std::size_t>('S' - 'A')] = 800.0;
+  ProgramBuilder b;
+  b.line({10.0, 0.0, 0.0}, 6000.0)              // line 1
+      .m(1003, MKind::kContinuous)               // 2: belongs to the arc
+      .arc(true, {10.0, 20.0, 0.0}, {10.0, 10.0}, 3000.0)  // 3: half circle CCW, r 10, 270 -> 90
+      .dwell(0.01)                               // 4: not a section
+      .m(6, MKind::kNormal, &p)                  // 5
+      .message("hello")                          // 6: not a section
+      .line({0.0, 20.0, 0.0}, 6000.0)            // 7
+      .line({0.0, 20.0, 5.0}, 6000.0)            // 8: pure Z, no XY tangent
+      .m(7, MKind::kNormal)                      // 9
+      .line({0.0, 0.0, 5.0}, 6000.0)             // 10
+      .line({5.0, 0.0, 5.0}, 6000.0)             // 11
+      .end();                                    // 12: M2, not a section
+  ASSERT_TRUE(ip.load(b.program()).ok());
+  ASSERT_TRUE(ip.start().ok());
+  ip.step();
+  auto la = r.lookahead;
+  const int lines0[8] = {1, 3, 5, 7, 8, 9, 10, 11};
+  for (std::size_t e = 0; e < 8; ++e) EXPECT_EQ(la[e].line, lines0[e]) << e;
+  EXPECT_EQ(la[0].movement_type, 1);
+  EXPECT_EQ(la[0].movement_code, 1);
+  EXPECT_EQ(la[0].tangent_deg, 0.0);
+  EXPECT_TRUE(is_not_set(la[0].start_angle_deg));
+  EXPECT_EQ(la[0].radius_mm, 0.0);
+  EXPECT_EQ(la[1].movement_code, 3);
+  EXPECT_EQ(la[1].all_params[static_cast<std::size_t>('M' - 'A')], 1003.0);  // continuous M
+  EXPECT_NEAR(la[1].start_angle_deg, 270.0, 1e-9);
+  EXPECT_NEAR(la[1].end_angle_deg, 90.0, 1e-9);
+  EXPECT_NEAR(la[1].radius_mm, 10.0, 1e-12);
+  EXPECT_NEAR(la[1].tangent_deg, 0.0, 1e-9);  // initial tangent of the arc: +X
+  EXPECT_EQ(la[2].movement_type, 2);
+  EXPECT_EQ(la[2].movement_code, 6);
+  EXPECT_EQ(la[2].all_params[static_cast<std::size_t>('S' - 'A')], 800.0);
+  EXPECT_NEAR(la[3].tangent_deg, 180.0, 1e-9);
+  EXPECT_TRUE(is_not_set(la[4].tangent_deg));  // pure Z
+  EXPECT_EQ(la[4].end_pos_mm[2], 5.0);
+  EXPECT_EQ(la[5].movement_code, 7);
+  for (const auto& e : la) EXPECT_EQ(e.plane, 17);
+  // On the arc: entry 0 is the arc with its M letter; the tangent follows the motion.
+  int c = 0;
+  while (r.lookahead[0].line != 3 && c++ < 100000) ip.step();
+  ASSERT_EQ(r.lookahead[0].line, 3);
+  EXPECT_EQ(r.lookahead[0].all_params[static_cast<std::size_t>('M' - 'A')], 1003.0);
+  EXPECT_EQ(r.lookahead[7].movement_type, 0);  // 7 sections left: the arc and 6 more
+  EXPECT_EQ(r.lookahead[6].line, 11);
+  double last_t = -1.0;
+  int changes = 0;
+  while (r.lookahead[0].line == 3) {
+    const double t = r.lookahead[0].tangent_deg;
+    // Tangent of a CCW arc = polar angle of the point + 90 degrees.
+    const double ang = std::atan2(r.orig_position[1] - 10.0, r.orig_position[0] - 10.0) * 180.0 / kPi;
+    double expect = std::fmod(ang + 90.0 + 720.0, 360.0);
+    double diff = std::fabs(t - expect);
+    diff = std::min(diff, 360.0 - diff);
+    EXPECT_LT(diff, 1e-6) << t << " vs " << expect;
+    if (last_t >= 0.0 && t != last_t) ++changes;
+    last_t = t;
+    ip.step();
+  }
+  EXPECT_GT(changes, 50);
+  // Shifts down to the end: with k sections left, entries k..7 are invalid.
+  const int lines_left[] = {5, 7, 8, 9, 10, 11};
+  for (int k = 0; k < 6; ++k) {
+    int guard = 0;
+    while (r.lookahead[0].line != lines_left[k] && guard++ < 100000) {
+      ip.step();
+      if (run_flag_section(r.run_flag) == SectionState::kWaitMFunc) ip.write_m_func(0);
+    }
+    ASSERT_EQ(r.lookahead[0].line, lines_left[k]) << k;
+    const int left = 6 - k;
+    for (int e = 0; e < 8; ++e) {
+      EXPECT_EQ(r.lookahead[static_cast<std::size_t>(e)].movement_type == 0, e >= left) << k << " " << e;
+    }
+  }
+}
+
+// ---------------- Simulation ----------------
+
+// The offline run with spline and IIR ends where the program ends, on every axis, and the
+// fast path gives the same summary as stepping.
+TEST(Wiring, SimulationEndsWhenEveryAxisArrived) {
+  MachineConfig m = MachineConfig::default_machine();
+  ProgramBuilder b;
+  b.line({10.0, 5.0, 0.0}, 6000.0).m(8, MKind::kNormal).dwell(0.2).line({-3.0, 1.0, 2.0}, 6000.0).end();
+  SimulationOptions o;
+  o.commands.push_back({kCommandSpline, spline(500, 1'000'000)});
+  Params iir{};
+  iir[0] = 1'414'214;
+  iir[1] = 2'000'000;
+  iir[2] = 20'000'000;
+  iir[3] = 0b101;
+  o.commands.push_back({kCommandIir, iir});
+  SimulationSummary s[2];
+  for (int fast = 0; fast < 2; ++fast) {
+    o.fast_forward = fast == 1;
+    auto sim = Simulation::create(m, o);
+    ASSERT_TRUE(sim);
+    s[fast] = sim->run(b.program());
+    ASSERT_EQ(s[fast].result, StepResult::kFinished) << s[fast].error;
+    EXPECT_EQ(s[fast].end_position_smoothed[0], -3.0);
+    EXPECT_EQ(s[fast].end_position_smoothed[1], 1.0);
+    EXPECT_EQ(s[fast].end_position_smoothed[2], 2.0);
+  }
+  EXPECT_EQ(s[0].cycles, s[1].cycles);
+  EXPECT_EQ(s[0].m_functions, s[1].m_functions);
+  // A refused command makes create() fail with the reason.
+  o.commands = {{kCommandSpline, spline(5000, 1)}};
+  std::string err;
+  EXPECT_FALSE(Simulation::create(m, o, &err));
+  EXPECT_NE(err.find("50..500"), std::string::npos) << err;
+}
+
+}  // namespace
+}  // namespace tgm
