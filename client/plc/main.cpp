@@ -3,8 +3,13 @@
 // config, notes continuous ones, logs every M-function and every acknowledgement, and can be
 // told (flags or a small YAML script) to change Rel_Speed, issue stops or refuse to acknowledge.
 // It cannot start the interpolator: the service refuses (--try-start shows it).
+#include <pthread.h>
+#include <sched.h>
 #include <signal.h>
 
+#include <cstring>
+
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstdio>
@@ -52,6 +57,8 @@ constexpr const char* kUsage =
     "  --no-basic-params    do not send the basic parameters at start\n"
     "  --duration S         stop by itself after S seconds\n"
     "  --quiet              log only M-functions, acknowledgements and errors\n"
+    "  --rt-priority N      run the emulator (all its threads) SCHED_FIFO at N, 1..98, when\n"
+    "                       permitted (a real PLC task is real-time; default: normal)\n"
     "  --help               this text\n";
 
 std::atomic<bool> g_stop{false};
@@ -155,6 +162,7 @@ int main(int argc, char** argv) {
   bool basic = true;
   bool quiet = false;
   double duration_s = 0.0;
+  int rt_priority = 0;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "--help" || arg == "-h") {
@@ -207,6 +215,11 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "tgm-plc: %s\n", error.c_str());
         return 2;
       }
+    } else if (flag == "--rt-priority") {
+      rt_priority = static_cast<int>(std::strtol(value.c_str(), &end, 10));
+      if (value.empty() || *end != '\0' || rt_priority < 1 || rt_priority > 98) {
+        return usage_error("--rt-priority must be 1..98");
+      }
     } else if (flag == "--duration") {
       duration_s = std::strtod(value.c_str(), &end);
       if (value.empty() || *end != '\0' || !(duration_s > 0.0)) return usage_error("--duration must be > 0 s");
@@ -239,6 +252,15 @@ int main(int argc, char** argv) {
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
 
+  std::string rt_log;
+  if (rt_priority > 0) {
+    // Before the participant exists, so that Fast DDS's threads inherit the policy too.
+    sched_param p{};
+    p.sched_priority = rt_priority;
+    const int rc = pthread_setschedparam(pthread_self(), SCHED_FIFO, &p);
+    rt_log = rc == 0 ? "SCHED_FIFO priority " + std::to_string(rt_priority)
+                     : std::string("SCHED_FIFO not permitted (") + std::strerror(rc) + "), normal priority";
+  }
   std::optional<tgm::client::Client> plc;
   try {
     plc.emplace(config.dds, tgm::client::Role::kPlc);
@@ -248,11 +270,21 @@ int main(int argc, char** argv) {
   }
   const auto t_start = Clock::now();
   auto stamp = [&] { return std::chrono::duration<double>(Clock::now() - t_start).count(); };
+  // Log lines are collected and written once per loop iteration, after the acknowledgements of
+  // that iteration went out: a write to a pipe or file must not delay the handshake.
+  std::string pending_log;
   auto log = [&](const char* fmt, auto... args) {
-    std::printf("tgm-plc [%8.3f s] ", stamp());
-    std::printf(fmt, args...);
-    std::printf("\n");
+    char line[1024];
+    int n = std::snprintf(line, sizeof line, "tgm-plc [%8.3f s] ", stamp());
+    n += std::snprintf(line + n, sizeof line - static_cast<std::size_t>(n), fmt, args...);
+    pending_log.append(line, static_cast<std::size_t>(std::min<int>(n, static_cast<int>(sizeof line) - 1)));
+    pending_log += '\n';
+  };
+  auto flush_log = [&] {
+    if (pending_log.empty()) return;
+    std::fwrite(pending_log.data(), 1, pending_log.size(), stdout);
     std::fflush(stdout);
+    pending_log.clear();
   };
   auto delay_for = [&](int m) {
     if (ack_delay) return *ack_delay;
@@ -266,10 +298,13 @@ int main(int argc, char** argv) {
   }
   log("PLC emulator on DDS domain %d as '%s', serving %zu interpolator%s", config.dds.domain_id,
       plc->name().c_str(), served.size(), served.size() == 1 ? "" : "s");
+  if (!rt_log.empty()) log("%s", rt_log.c_str());
 
   std::optional<Clock::time_point> found_at;
   auto last_wait_log = Clock::now();
+  flush_log();
   while (!g_stop) {
+    flush_log();
     if (duration_s > 0.0 && stamp() >= duration_s) break;
     plc->poll(5ms);
     const auto now = Clock::now();
@@ -379,5 +414,6 @@ int main(int argc, char** argv) {
     }
   }
   log("stopping");
+  flush_log();
   return 0;
 }

@@ -34,6 +34,8 @@ constexpr const char* kUsage =
     "%s"
     "  --no-realtime          do not try SCHED_FIFO / mlockall\n"
     "  --rt-priority N        SCHED_FIFO priority of the cycle thread, 1..99 (default 80)\n"
+    "  --dds-priority N       SCHED_FIFO priority of every DDS thread (Fast DDS's, receiver,\n"
+    "                         publisher), 1..98 and below --rt-priority; default 0 = normal\n"
     "  --chunk-budget N       program records appended per interpolator per cycle (default 1024)\n"
     "  --state-period-ms N    publish each state at least every N ms (default 20, 1..50)\n"
     "  --setpoint-decimation N  publish setpoints every Nth cycle (default 1)\n"
@@ -72,6 +74,7 @@ int main(int argc, char** argv) {
   tgm::service::EngineOptions engine_options;
   tgm::service::DdsPortOptions port_options;
   double duration_s = 0.0;
+  int dds_priority = 0;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "--help" || arg == "-h") {
@@ -104,6 +107,9 @@ int main(int argc, char** argv) {
     } else if (flag == "--rt-priority") {
       if (!parse_long(value, 1, 99, n)) return usage_error("--rt-priority must be 1..99");
       rt.priority = static_cast<int>(n);
+    } else if (flag == "--dds-priority") {
+      if (!parse_long(value, 0, 98, n)) return usage_error("--dds-priority must be 0..98");
+      dds_priority = static_cast<int>(n);
     } else if (flag == "--chunk-budget") {
       if (!parse_long(value, 1, 1'000'000, n)) return usage_error("--chunk-budget must be 1..1000000");
       engine_options.max_segments_per_cycle = static_cast<std::size_t>(n);
@@ -152,6 +158,18 @@ int main(int argc, char** argv) {
   sigaddset(&signals, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
+  if (dds_priority >= rt.priority) return usage_error("--dds-priority must be below --rt-priority");
+  if (dds_priority > 0 && rt.realtime) {
+    // Threads inherit the policy of their creator: set it here, before the participant and the
+    // port's threads exist, so Fast DDS's receive / event threads and ours run at it.
+    sched_param p{};
+    p.sched_priority = dds_priority;
+    if (const int rc = pthread_setschedparam(pthread_self(), SCHED_FIFO, &p); rc == 0) {
+      std::printf("tgm-service: DDS threads SCHED_FIFO priority %d\n", dds_priority);
+    } else {
+      std::printf("tgm-service: DDS threads: SCHED_FIFO not permitted (%s), normal priority\n", std::strerror(rc));
+    }
+  }
   std::unique_ptr<tgm::service::DdsPort> port;
   try {
     port = std::make_unique<tgm::service::DdsPort>(config.dds, port_options);

@@ -12,6 +12,10 @@ cd "$(dirname "$0")/../.."
 build=${1:?usage: service_bench.sh BUILD_DIR [SECONDS]}
 seconds=${2:-30}
 m_count=${M_COUNT:-2000}
+# DDS_PRIO=N: run the service's DDS threads and the PLC emulator SCHED_FIFO at N (0 = normal).
+dds_prio=${DDS_PRIO:-0}
+svc_prio=(); plc_prio=()
+if ((dds_prio > 0)); then svc_prio=(--dds-priority "$dds_prio"); plc_prio=(--rt-priority "$dds_prio"); fi
 domain=${DOMAIN:-91}
 tmp=$(mktemp -d)
 pids=()
@@ -42,8 +46,8 @@ json() { python3 -c "import json,sys; d=json.load(open('$1')); print($2)"; }
 echo "== 1. M-function handshake: $m_count x (G1 X0.01, M51), tgm-plc acknowledges at once"
 for ((i = 0; i < m_count; ++i)); do printf 'G1 X0.01\nM51\n'; done > "$tmp/m.ngc"
 echo "M2" >> "$tmp/m.ngc"
-"$svc" "${cfg[@]}" --stats "$tmp/hs.json" > "$tmp/svc1.log" 2>&1 & pids+=($!)
-"$plc" "${cfg[@]}" --ack-delay 0 --quiet --no-basic-params > "$tmp/plc1.log" 2>&1 & pids+=($!)
+"$svc" "${cfg[@]}" "${svc_prio[@]}" --stats "$tmp/hs.json" > "$tmp/svc1.log" 2>&1 & pids+=($!)
+"$plc" "${cfg[@]}" "${plc_prio[@]}" --ack-delay 0 --quiet --no-basic-params > "$tmp/plc1.log" 2>&1 & pids+=($!)
 # The raw ping-pong runs twice: once while the handshake program runs (same load on the
 # machine: the service's cycle and publisher threads, the HMI, the PLC) and once alone after it.
 "$build/tests/bench/service/tgm_bench_state_pingpong" --count 30000 --domain $((domain + 2)) \
@@ -60,6 +64,7 @@ json "$tmp/hs.json" "'service handshake (state write with new M_Func -> ack take
 "$build/tests/bench/service/tgm_bench_state_pingpong" --count 5000 --domain $((domain + 1)) \
   --profiles "$PWD/config/fastdds_profiles.xml"
 
+[[ -n ${ONLY_HANDSHAKE:-} ]] && exit 0
 echo "== 2. program streaming rate (100,000 G1 records, 5 runs)"
 "$svc" "${cfg[@]}" > "$tmp/svc2.log" 2>&1 & pids+=($!)
 "$build/tests/bench/service/tgm_bench_stream" "${cfg[@]}" --records 100000 --runs 5
