@@ -240,9 +240,10 @@ void DdsPort::publish_state(int i, const InterpolatorSnapshot& s, const Snapshot
   Published& p = published_[static_cast<std::size_t>(i)];
   const bool new_m = s.reg.m_func != 0 && (!p.any || p.reg.m_func != s.reg.m_func ||
                                            p.reg.act_part != s.reg.act_part);
+  // The handshake clock starts before write(), as in the raw ping-pong it is compared with.
+  if (new_m) m_written_ns_[static_cast<std::size_t>(i)]->store(steady_ns());
   state_writer_.write(&state_sample_);
   ++states_published_;
-  if (new_m) m_written_ns_[static_cast<std::size_t>(i)]->store(steady_ns());
   p.any = true;
   p.reg = s.reg;
   p.program_id = s.program_id;

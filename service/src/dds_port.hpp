@@ -34,8 +34,8 @@ struct DdsPortOptions {
   int setpoint_decimation = 1;
 };
 
-//! M-function handshake measurement: from the write of the state sample that shows a new
-//! M_Func until the acknowledging request is taken by the receiver thread [ns].
+//! M-function handshake measurement: from just before the write() of the state sample that shows
+//! a new M_Func until the acknowledging request is taken by the receiver thread [ns].
 struct HandshakeSample {
   int interpolator;
   std::int64_t round_trip_ns;

@@ -384,7 +384,7 @@ int run_run(int argc, char** argv) {
     }
     std::printf(
         "done: %llu records, %d lines in %.3f s (%llu cycles), distance %.3f mm, %llu M-function wait%s "
-        "(%.3f s), %zu message%s\n  end position%s\n  service cycle lateness: max %.1f us, p99.9 %.1f us, "
+        "(%.3f s) seen in the state, %zu message%s\n  end position%s\n  service cycle lateness: max %.1f us, p99.9 %.1f us, "
         "missed cycles %llu\n",
         static_cast<unsigned long long>(sender.total()), last_line, program_s,
         static_cast<unsigned long long>(st->cycle_counter() - start_cycle), st->move_distance(),
