@@ -335,7 +335,8 @@ int main(int argc, char** argv) {
             // Ratio as counter [inc] / denominator [mm] with 1e-3 mm resolution.
             const std::int32_t ratio[] = {static_cast<std::int32_t>(a),
                                           static_cast<std::int32_t>(axes[a].ratio_inc_per_mm * 1000.0 + 0.5), 1000};
-            r1024 = plc->command(sv.number, 1024, ratio);
+            const auto r = plc->command(sv.number, 1024, ratio);
+            if (a == 0 || (r1024.accepted && !r.accepted)) r1024 = r;  // report the first refusal
           }
           if (!quiet) {
             log("interpolator %d: basic parameters: Command -2 (spline %d points): %s", sv.number, sm.spline_points,

@@ -16,8 +16,12 @@ const char* role_name(Role r) { return r == Role::kPlc ? "PLC" : "HMI"; }
 
 using Handler = RequestResult (*)(Interpolator&, const RequestIn&);
 
-RequestResult unsupported(std::string what) {
-  return {RequestCode::kUnsupported, what + " is not supported by the motion core yet"};
+RequestResult whole(double v, double lo, double hi, const char* name, std::int64_t& out) {
+  if (!std::isfinite(v) || v != std::floor(v) || v < lo || v > hi) {
+    return {RequestCode::kOutOfRange, std::string(name) + " must be a whole number"};
+  }
+  out = static_cast<std::int64_t>(v);
+  return {};
 }
 
 // ---- The request table (DESIGN.md section 1). A new register write or command is one line. ----
@@ -33,19 +37,28 @@ const KindRule kKinds[] = {
     {RequestKind::kCommand, kBoth, "Command", nullptr},
     {RequestKind::kWriteMFunc, kPlc, "M_Func write",
      [](Interpolator& ip, const RequestIn& r) {
-       if (r.value != std::floor(r.value) || std::abs(r.value) > 2e9) {
-         return RequestResult{RequestCode::kOutOfRange, "M_Func must be a whole number"};
-       }
-       return ip.write_m_func(static_cast<std::int32_t>(r.value));
+       std::int64_t v = 0;
+       if (auto bad = whole(r.value, -2e9, 2e9, "M_Func", v); !bad.ok()) return bad;
+       return ip.write_m_func(static_cast<std::int32_t>(v));
      }},
     {RequestKind::kWriteRelSpeed, kPlc, "Rel_Speed write",
      [](Interpolator& ip, const RequestIn& r) { return ip.set_rel_speed(r.value); }},
     {RequestKind::kWriteOffset, kPlc, "Offset write",
-     [](Interpolator&, const RequestIn&) { return unsupported("writing Offset"); }},
+     [](Interpolator& ip, const RequestIn& r) {
+       // Offset is whole increments: the IDL says the value is rounded.
+       if (!std::isfinite(r.value) || std::abs(r.value) > 1e15) {
+         return RequestResult{RequestCode::kOutOfRange, "Offset must be finite, |Offset| <= 1e15 inc"};
+       }
+       return ip.write_offset(r.axis, std::llround(r.value));
+     }},
     {RequestKind::kWriteRatio, kPlc, "Ratio write",
-     [](Interpolator&, const RequestIn&) { return unsupported("writing Ratio"); }},
+     [](Interpolator& ip, const RequestIn& r) { return ip.write_ratio(r.axis, r.value); }},
     {RequestKind::kWriteNumberAxes, kPlc, "Number_Axes write",
-     [](Interpolator&, const RequestIn&) { return unsupported("writing Number_Axes"); }},
+     [](Interpolator& ip, const RequestIn& r) {
+       std::int64_t v = 0;
+       if (auto bad = whole(r.value, 1, kMaxAxes, "Number_Axes", v); !bad.ok()) return bad;
+       return ip.write_number_axes(static_cast<int>(v));
+     }},
     {RequestKind::kStart, kHmi, "start", [](Interpolator& ip, const RequestIn&) { return ip.start(); }},
     {RequestKind::kStop, kBoth, "stop", [](Interpolator& ip, const RequestIn&) { return ip.command(8); }},
     {RequestKind::kClear, kHmi, "clear", [](Interpolator& ip, const RequestIn&) { return ip.clear(); }},
@@ -57,8 +70,8 @@ struct CommandRule {
   const char* name;
 };
 
-// Every Command goes to core's command(); core answers kUnsupported for those it does not
-// implement yet (1024, 2048, 2049, -1, -2), which becomes REPLY_CODE_UNSUPPORTED.
+// Every Command goes to core's command(code, Command_Parameter); a code core does not implement
+// comes back as kUnsupported, which becomes REPLY_CODE_UNSUPPORTED.
 const CommandRule kCommands[] = {
     {4, kBoth, "emergency stop on trajectory"},
     {5, kBoth, "emergency stop off trajectory"},
@@ -176,7 +189,8 @@ ReplyOut Engine::apply(const RequestIn& r) {
     return refuse(ReplyCode::kWrongRole, why);
   }
   Interpolator& ip = ips_[static_cast<std::size_t>(r.interpolator)].ip;
-  const RequestResult res = k->handler != nullptr ? k->handler(ip, r) : ip.command(r.command);
+  const RequestResult res =
+      k->handler != nullptr ? k->handler(ip, r) : ip.command(r.command, r.command_parameter);
   if (!res.ok()) return refuse(to_reply(res.code), res.reason);
   if (r.kind == RequestKind::kClear) {
     Slot& s = ips_[static_cast<std::size_t>(r.interpolator)];

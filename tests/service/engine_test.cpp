@@ -83,20 +83,35 @@ TEST(Engine, RepliesSayWhy) {
   port.add_request(Role::kHmi, RequestKind::kStart);  // nothing loaded
   port.add_request(Role::kPlc, RequestKind::kWriteRelSpeed).value = 5.0;
   port.add_request(Role::kPlc, RequestKind::kWriteRelSpeed).value = 0.5;
-  port.add_request(Role::kPlc, RequestKind::kCommand).command = 1024;
+  {
+    RequestIn& ratio = port.add_request(Role::kPlc, RequestKind::kCommand);
+    ratio.command = 1024;  // axis 1: 2000 inc / 1 mm
+    ratio.command_parameter[0] = 1;
+    ratio.command_parameter[1] = 2000;
+    ratio.command_parameter[2] = 1;
+  }
   port.add_request(Role::kPlc, RequestKind::kCommand).command = 3;
-  port.add_request(Role::kPlc, RequestKind::kWriteOffset);
+  {
+    RequestIn& offset = port.add_request(Role::kPlc, RequestKind::kWriteOffset);
+    offset.axis = 2;
+    offset.value = 1234.4;  // rounded to whole increments
+  }
   port.add_request(Role::kHmi, RequestKind::kClear, 7);
+  port.add_request(Role::kPlc, RequestKind::kWriteNumberAxes).value = 2.5;
   e.cycle(port, {});
-  ASSERT_EQ(port.replies.size(), 8u);
+  ASSERT_EQ(port.replies.size(), 9u);
   EXPECT_EQ(port.replies[0].code, ReplyCode::kWrongRole);
   EXPECT_EQ(port.replies[1].code, ReplyCode::kWrongState);
   EXPECT_EQ(port.replies[2].code, ReplyCode::kOutOfRange);
   EXPECT_EQ(port.replies[3].code, ReplyCode::kAccepted);
-  EXPECT_EQ(port.replies[4].code, ReplyCode::kUnsupported) << port.replies[4].reason.view();
+  EXPECT_EQ(port.replies[4].code, ReplyCode::kAccepted) << port.replies[4].reason.view();
   EXPECT_EQ(port.replies[5].code, ReplyCode::kBadRequest);
-  EXPECT_EQ(port.replies[6].code, ReplyCode::kUnsupported);
+  EXPECT_EQ(port.replies[6].code, ReplyCode::kAccepted) << port.replies[6].reason.view();
   EXPECT_EQ(port.replies[7].code, ReplyCode::kBadRequest);
+  EXPECT_EQ(port.replies[8].code, ReplyCode::kOutOfRange);
+  for (int c = 0; c < 5; ++c) e.cycle(port, {});  // a stage command may finish in step()
+  EXPECT_DOUBLE_EQ(port.last.ip[0].reg.ratio[1], 2000.0);
+  EXPECT_EQ(port.last.ip[0].reg.offset[2], 1234);
   for (const auto& r : port.replies) {
     if (r.code != ReplyCode::kAccepted) {
       EXPECT_FALSE(r.reason.view().empty());
