@@ -1123,7 +1123,27 @@ struct Interpolator::Impl {
           }
           x = xs;
         } else if (!ok(xs)) {
-          x = xs;  // best effort: as much braking as the limits allow
+          // Best effort. A limit that even the hardest braking cannot keep (with the lowest
+          // limits of its whole stretch, which is conservative) gets the hardest braking the
+          // deceleration limits ahead allow (lo_dec); the limits lo can still keep get what they
+          // need. Braking below lo_dec for a hopeless limit only exceeds an acceleration limit
+          // at the next junction (e.g. TGM_SEED=1 program 723).
+          int nf = 0;
+          for (int i = 0; i < nv; ++i) {
+            if (excess(lo, viol[i]) <= 1e-12) viol[nf++] = viol[i];
+          }
+          nv = nf;
+          xs = lo;
+          xu = xd;
+          if (nv > 0) {
+            for (int it = 0; it < 10; ++it) {
+              const double mid = 0.5 * (xs + xu);
+              if (ok(mid)) xs = mid; else xu = mid;
+            }
+          } else {
+            xs = xd;
+          }
+          x = std::min(lo_dec, xs);
         } else {
           for (int it = 0; it < 10; ++it) {
             const double mid = 0.5 * (xs + xu);
