@@ -155,6 +155,12 @@ struct Constraint {
   //! The programmed feed x Rel_Speed (not a machine limit): after an override decrease it may be
   //! crossed faster rather than exceeding an acceleration limit.
   bool soft = false;
+  //! Speed limits: the lowest jerk limit of the records after the limit up to the next smaller
+  //! one of its chain. A speed limit may be crossed still accelerating (v + a^2/2J <= w); the
+  //! acceleration is then taken back after the junction, at this jerk. The chain hides the
+  //! larger limits in that range because this ramp keeps them; with a lower jerk there than
+  //! before the junction it would overshoot them (TGM_SEED=6 program 835, a corner step).
+  double Jx = kInf;
 };
 
 double norm_angle_deg(double rad) {
@@ -645,7 +651,15 @@ struct Interpolator::Impl {
           LimitFactor why = fam == 0 ? r.wg_reason
                                      : (fam == 2 ? LimitFactor::kAccelJerk
                                                  : (rel == 1.0 ? LimitFactor::kFeed : LimitFactor::kOverride));
-          c[k++] = {r.s0 - here, w, A, J, why, fam == 2, fam == 1};
+          Constraint& ck = c[k++];
+          ck = {r.s0 - here, w, A, J, why, fam == 2, fam == 1};
+          if (fam != 2) {
+            // Jerk limit over the records up to the next smaller limit of the chain (the window
+            // minimum when that is beyond the window): where an acceleration still positive at
+            // this limit is taken back (see Constraint::Jx).
+            const std::uint64_t nse = r.link[f].nse;
+            ck.Jx = std::min(J, nse != kNoQ && nse < win_end ? r.link[f].jmin : Jw);
+          }
           ++hops;
         }
         if (r.link[f].nse == kNoQ) break;
@@ -1217,6 +1231,17 @@ struct Interpolator::Impl {
           if (ns.a <= ck.w) return -1.0;
           return accel_distance(std::max(ns.v, 0.0), ns.a, ck.w, kPlanMarginJ * ck.J) - remain;
         }
+        if (ns.a > 0.0 && ck.Jx < ck.J) {
+          // Still accelerating with no braking needed before the limit (v + a^2/2J <= w): the
+          // part of a not taken back before the junction is taken back after it at Jx. With a'
+          // left at the junction the speed ends at vz + a'^2 (1/2Jx - 1/2J) <= w.
+          const double jp = kPlanMarginJ * ck.J, jx = kPlanMarginJ * ck.Jx;
+          const double vz = ns.v + ns.a * ns.a / (2.0 * jp);
+          if (vz <= ck.w) {
+            const double a_ok = std::sqrt((ck.w - vz) / (0.5 / jx - 0.5 / jp));
+            return ns.a <= a_ok ? -1.0 : accel_distance(ns.v, ns.a, a_ok, jp) - remain;
+          }
+        }
         return jerk::braking_distance_from(std::max(ns.v, 0.0), ns.a, ck.w, kPlanMargin * ck.A,
                                            kPlanMarginJ * ck.J, kPlanMarginJ * J) -
                remain;
@@ -1290,7 +1315,27 @@ struct Interpolator::Impl {
           }
           x = xs;
         } else if (!ok(xs)) {
-          x = xs;  // best effort: as much braking as the limits allow
+          // Best effort. A limit that even the hardest braking cannot keep (with the lowest
+          // limits of its whole stretch, which is conservative) gets the hardest braking the
+          // deceleration limits ahead allow (lo_dec); the limits lo can still keep get what they
+          // need. Braking below lo_dec for a hopeless limit only exceeds an acceleration limit
+          // at the next junction (e.g. TGM_SEED=1 program 723).
+          int nf = 0;
+          for (int i = 0; i < nv; ++i) {
+            if (excess(lo, viol[i]) <= 1e-12) viol[nf++] = viol[i];
+          }
+          nv = nf;
+          xs = lo;
+          xu = xd;
+          if (nv > 0) {
+            for (int it = 0; it < 10; ++it) {
+              const double mid = 0.5 * (xs + xu);
+              if (ok(mid)) xs = mid; else xu = mid;
+            }
+          } else {
+            xs = xd;
+          }
+          x = std::min(lo_dec, xs);
         } else {
           for (int it = 0; it < 10; ++it) {
             const double mid = 0.5 * (xs + xu);
