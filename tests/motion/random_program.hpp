@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <string>
 #include <utility>
@@ -109,6 +110,83 @@ inline Generated random_program(std::mt19937_64& rng, int axes, int blocks) {
   const int changes = static_cast<int>(uni(0, 4));
   for (int i = 0; i < changes; ++i) g.overrides.push_back({uni(0.0, 5.0), uni(0.01, 2.0)});
   return g;
+}
+
+// Lower bound [s] of the time the motion of `program` needs on `machine` with Rel_Speed
+// `rel0` changed at the given times: every record at its speed cap min(F x Rel_Speed, axis
+// velocity limits projected on a line) the whole way, no acceleration, no corners, no arc
+// limits, no waits. Integrated in time, so the override schedule applies where the motion is
+// at that time. The real path position never gets ahead of this one (it is never faster at the
+// same place and time), so the real program cannot end earlier.
+inline double motion_time_lower_bound(const Program& program, const MachineConfig& machine,
+                                      std::vector<std::pair<double, double>> changes,
+                                      double rel0 = 1.0) {
+  const InterpolatorConfig& ip = machine.interpolators[0];
+  const int n = program.number_axes;
+  std::sort(changes.begin(), changes.end());
+  std::size_t next = 0;
+  double rel = rel0;
+  double t = 0.0;
+  std::array<double, kMaxAxes> pos{};
+  for (const Segment& sg : program.segments) {
+    if (!sg.is_motion()) continue;
+    double length = 0.0;
+    double cap = std::numeric_limits<double>::infinity();     // axis velocity limits
+    double feed = sg.feed_mm_per_min / 60.0;
+    if (!sg.is_arc()) {
+      double l2 = 0.0;
+      for (int i = 0; i < n; ++i) l2 += (sg.end[i] - pos[i]) * (sg.end[i] - pos[i]);
+      length = std::sqrt(l2);
+      double rapid = std::numeric_limits<double>::infinity();
+      for (int i = 0; i < n && length > 0.0; ++i) {
+        const double c = std::fabs(sg.end[i] - pos[i]) / length;
+        if (c < 1e-12) continue;
+        const AxisConfig& ax = ip.axes[static_cast<std::size_t>(i)];
+        cap = std::min(cap, ax.max_velocity_mm_s / c);
+        rapid = std::min(rapid, ax.rapid_velocity_mm_s / c);
+      }
+      if (sg.type == SegmentType::kRapid) feed = rapid;
+    } else {
+      const PlaneAxes pa = plane_axes(sg.plane);
+      const auto f = static_cast<std::size_t>(pa.first), s = static_cast<std::size_t>(pa.second);
+      const double sx = pos[f] - sg.center[0], sy = pos[s] - sg.center[1];
+      const double ex = sg.end[f] - sg.center[0], ey = sg.end[s] - sg.center[1];
+      const double r0 = std::hypot(sx, sy), r1 = std::hypot(ex, ey);
+      const double th0 = std::atan2(sy, sx), th1 = std::atan2(ey, ex);
+      const bool full = std::hypot(ex - sx, ey - sy) <= 1e-9 * std::max(1.0, r0);
+      double sweep = full ? 2.0 * kSweepPi
+                          : std::fmod((sg.type == SegmentType::kArcCcw ? th1 - th0 : th0 - th1) + 4.0 * kSweepPi,
+                                      2.0 * kSweepPi);
+      if (sweep <= 0.0) sweep += 2.0 * kSweepPi;
+      sweep += 2.0 * kSweepPi * std::max(0, sg.turns);
+      const double plane_len = sweep * 0.5 * (r0 + r1);
+      double lin2 = 0.0;
+      for (int i = 0; i < n; ++i) {
+        if (i != pa.first && i != pa.second) lin2 += (sg.end[i] - pos[i]) * (sg.end[i] - pos[i]);
+      }
+      length = std::sqrt(plane_len * plane_len + lin2);
+      for (int i = 0; i < n && length > 0.0; ++i) {
+        if (i == pa.first || i == pa.second) continue;
+        const double c = std::fabs(sg.end[i] - pos[i]) / length;
+        if (c > 1e-12) cap = std::min(cap, ip.axes[static_cast<std::size_t>(i)].max_velocity_mm_s / c);
+      }
+    }
+    for (int i = 0; i < n; ++i) pos[i] = sg.end[i];
+    double left = length;
+    while (left > 0.0) {
+      while (next < changes.size() && changes[next].first <= t) rel = changes[next++].second;
+      const double v = std::min(feed * rel, cap);
+      const double t_change = next < changes.size() ? changes[next].first : std::numeric_limits<double>::infinity();
+      if (t + left / v <= t_change) {
+        t += left / v;
+        left = 0.0;
+      } else {
+        left -= v * (t_change - t);
+        t = t_change;
+      }
+    }
+  }
+  return t;
 }
 
 inline MachineConfig random_machine(std::mt19937_64& rng, int axes) {

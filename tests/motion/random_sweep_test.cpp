@@ -2,9 +2,16 @@
 // M-functions, dwells and override changes must finish at the programmed end point, never give
 // NaN, and the limit checker must find no excess on Orig_Position differentiated per cycle.
 //
-// TGM_SEED (default 1), TGM_SWEEP_COUNT (default 200) and TGM_SWEEP_FIRST (default 0) choose the
-// sweep; a long run:
-//   TGM_SEED=7 TGM_SWEEP_COUNT=5000 build/tests/motion/tgm_motion_tests --gtest_filter='RandomSweep.*'
+// The sweep is chosen on the command line of the test binary (--seed=N --count=N --first=N,
+// after the gtest flags) or by TGM_SEED (default 1), TGM_SWEEP_COUNT (default 200) and
+// TGM_SWEEP_FIRST (default 0); the command line wins. A long run:
+//   build/tests/motion/tgm_motion_tests --gtest_filter='RandomSweep.*' --seed=7 --count=5000
+//
+// Time limit per program: 4 x the feed-limited lower bound of its motion (every record at
+// min(F x Rel_Speed, axis velocity limits) with the override schedule, see
+// motion_time_lower_bound) + 60 s for accelerations, corners, arcs, dwells and M waits. A
+// program that crawls or stalls below its target hits it; a program that is merely long (an
+// override of 0.02 makes some take two hours) does not.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -28,10 +35,19 @@ std::uint64_t env_u64(const char* name, std::uint64_t fallback) {
   return std::strtoull(v, nullptr, 10);
 }
 
+// --name=N among the arguments gtest left (it removes its own flags), else TGM_<env>.
+std::uint64_t arg_u64(const std::string& name, const char* env, std::uint64_t fallback) {
+  const std::string prefix = "--" + name + "=";
+  for (const std::string& a : ::testing::internal::GetArgvs()) {
+    if (a.rfind(prefix, 0) == 0) return std::strtoull(a.c_str() + prefix.size(), nullptr, 10);
+  }
+  return env_u64(env, fallback);
+}
+
 TEST(RandomSweep, ProgramsFinishAtTheirEndWithinLimits) {
-  const std::uint64_t seed = env_u64("TGM_SEED", 1);
-  const std::uint64_t count = env_u64("TGM_SWEEP_COUNT", 200);
-  const std::uint64_t first = env_u64("TGM_SWEEP_FIRST", 0);  // to rerun one program
+  const std::uint64_t seed = arg_u64("seed", "TGM_SEED", 1);
+  const std::uint64_t count = arg_u64("count", "TGM_SWEEP_COUNT", 200);
+  const std::uint64_t first = arg_u64("first", "TGM_SWEEP_FIRST", 0);  // to rerun one program
   std::uint64_t total_cycles = 0;
   for (std::uint64_t k = first; k < first + count; ++k) {
     std::mt19937_64 rng(seed * 1000003ull + k);
@@ -43,13 +59,15 @@ TEST(RandomSweep, ProgramsFinishAtTheirEndWithinLimits) {
     o.check_limits = true;
     o.m_ack_s = 0.01;
     o.rel_speed_changes = g.overrides;
-    o.max_time_s = 3600.0;
+    const double bound_s = test::motion_time_lower_bound(g.program, m, g.overrides);
+    o.max_time_s = 4.0 * bound_s + 60.0;
     auto sim = Simulation::create(m, o);
     ASSERT_TRUE(sim);
     const auto s = sim->run(g.program);
     total_cycles += s.cycles;
     const std::string ctx = "seed " + std::to_string(seed) + " program " + std::to_string(k) + " axes " +
-                            std::to_string(axes) + " cycle " + std::to_string(m.cycle_time_us) + " us";
+                            std::to_string(axes) + " cycle " + std::to_string(m.cycle_time_us) + " us, lower bound " +
+                            std::to_string(bound_s) + " s";
     ASSERT_EQ(s.result, StepResult::kFinished) << ctx << ": " << s.error;
     EXPECT_FALSE(s.nan) << ctx;
     EXPECT_EQ(s.hard_stops, 0u) << ctx;
