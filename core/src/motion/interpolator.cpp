@@ -687,6 +687,24 @@ struct Interpolator::Impl {
     return std::max(0.0, t * (v + t * (0.5 * a + t * jj / 6.0)));
   }
 
+  // Braking distance [mm] of a plan from (v, a) to w, plus what the generator can lose
+  // following it. The plan (jerk::braking_distance_from) switches jerk at any instant; the
+  // generator holds one jerk per calculation step. A step across a switch of the plan (onset ->
+  // peak -> release, onset -> hold at A, hold -> release) that ends at the plan's acceleration
+  // is slower than the plan by Jp tau (dt - tau) <= Jp dt^2 / 4 (tau: the switch inside the
+  // step), and a larger deceleration to make up for it is only possible up to the no-reversal
+  // floor, which lies within a few percent of the plan's release curve. That velocity excess is
+  // then carried through the release, which lasts ap / Jp: the distance lost is at most
+  // ap dt^2 / 4 (ap: the plan's peak deceleration). Without this allowance a short braking
+  // from a crawl (a few calculation steps, the peak inside a step) reached the stop point still
+  // moving (TGM_SEED=4 program 97: 0.09 mm/s, override 0.0187, stop 3.5e-7 mm too short).
+  double plan_braking(double v, double a, double w, double A, double J, double J_now) const {
+    const double d = jerk::braking_distance_from(v, a, w, A, J, J_now);
+    if (!(d > 0.0) || !(d < kInf)) return d;
+    const double ap = std::max(-a, std::min(A, std::sqrt(J * std::max(v - w, 0.0) + 0.5 * a * a)));
+    return d + 0.25 * ap * dt * dt;
+  }
+
   // Tangential limits for this calculation step: the records it can reach.
   void step_limits(double& A, double& J) const {
     const Rec& rc = R(cur);
@@ -1242,8 +1260,8 @@ struct Interpolator::Impl {
             return ns.a <= a_ok ? -1.0 : accel_distance(ns.v, ns.a, a_ok, jp) - remain;
           }
         }
-        return jerk::braking_distance_from(std::max(ns.v, 0.0), ns.a, ck.w, kPlanMargin * ck.A,
-                                           kPlanMarginJ * ck.J, kPlanMarginJ * J) -
+        return plan_braking(std::max(ns.v, 0.0), ns.a, ck.w, kPlanMargin * ck.A, kPlanMarginJ * ck.J,
+                            kPlanMarginJ * J) -
                remain;
       };
       if (a == 0.0 && xd == 0.0) {
@@ -1251,8 +1269,8 @@ struct Interpolator::Impl {
           double m = kInf;
           for (int k = 0; k < nc; ++k) {
             if (c[k].accel || c[k].d - moved < 0.0) continue;
-            m = std::min(m, c[k].d - jerk::braking_distance_from(v, 0.0, c[k].w, kPlanMargin * c[k].A,
-                                                                  kPlanMarginJ * c[k].J, kPlanMarginJ * J));
+            m = std::min(m, c[k].d - plan_braking(v, 0.0, c[k].w, kPlanMargin * c[k].A,
+                                                   kPlanMarginJ * c[k].J, kPlanMarginJ * J));
           }
           cruise_margin = m;
           cruise_v = v;
@@ -1267,8 +1285,8 @@ struct Interpolator::Impl {
       // One stopping distance with the window's lowest limits bounds every braking distance
       // and acceleration change: constraints farther than that need no evaluation.
       const jerk::State nd = jerk::advance(before, xd, dt);
-      const double bound = jerk::braking_distance_from(std::max(nd.v, 0.0), nd.a, 0.0, kPlanMargin * Aw,
-                                                       kPlanMarginJ * Jw, kPlanMarginJ * J) +
+      const double bound = plan_braking(std::max(nd.v, 0.0), nd.a, 0.0, kPlanMargin * Aw,
+                                        kPlanMarginJ * Jw, kPlanMarginJ * J) +
                            (nd.s - before.s);
       for (int k = 0; k < nc; ++k) {
         const double dk = c[k].d - moved;
@@ -1566,8 +1584,8 @@ struct Interpolator::Impl {
     for (int k = 0; k < na; ++k) {
       const Constraint& ck = all[static_cast<std::size_t>(k)];
       if (ck.accel) continue;  // |a| = 0 is within every acceleration limit
-      slack = std::min(slack, ck.d - jerk::braking_distance_from(v, 0.0, ck.w, kPlanMargin * ck.A,
-                                                                  kPlanMarginJ * ck.J, kPlanMarginJ * rc.jt));
+      slack = std::min(slack, ck.d - plan_braking(v, 0.0, ck.w, kPlanMargin * ck.A,
+                                                   kPlanMarginJ * ck.J, kPlanMarginJ * rc.jt));
     }
     const double s_start = st.s;
     const double safety = 1e-6 + 1e-12 * (std::fabs(rc.s0) + rc.g.length);
