@@ -35,10 +35,28 @@ struct DdsPortOptions {
 };
 
 //! M-function handshake measurement: from just before the write() of the state sample that shows
-//! a new M_Func until the acknowledging request is taken by the receiver thread [ns].
+//! a new M_Func until the acknowledging request is taken by the receiver thread [ns]
+//! (round_trip_ns), with the time stamps of every step on the service's side (steady clock, ns):
+//! hand-off of the cycle's snapshot that first shows the M_Func, publisher wake-up, state write()
+//! begin / end, ack taken by the receiver thread, ack applied by a cycle (0 until it is).
 struct HandshakeSample {
-  int interpolator;
-  std::int64_t round_trip_ns;
+  int interpolator = 0;
+  std::int64_t round_trip_ns = 0;
+  std::int32_t act_part = 0;
+  std::int64_t handoff_ns = 0;
+  std::int64_t publisher_woke_ns = 0;
+  std::int64_t write_begin_ns = 0;
+  std::int64_t write_end_ns = 0;
+  std::int64_t taken_ns = 0;
+  std::int64_t applied_ns = 0;
+};
+
+//! Service-side stamps of one state write that showed a new M_Func (publisher -> receiver).
+struct MWritten {
+  std::int32_t act_part = 0;
+  std::int64_t handoff_ns = 0;
+  std::int64_t publisher_woke_ns = 0;
+  std::int64_t write_begin_ns = 0;
 };
 
 //! A futex-backed doorbell: ring() never blocks; wait() sleeps until rung or timeout.
@@ -69,8 +87,8 @@ class DdsPort final : public CyclePort {
   bool message(const MessageOut& m) override;
   void publish(const Snapshot& s) override;
 
-  //! Valid after stop().
-  const std::vector<HandshakeSample>& handshakes() const { return handshakes_; }
+  //! Valid after stop(); applied_ns filled in from the cycle thread's stamps.
+  const std::vector<HandshakeSample>& handshakes();
   std::uint64_t states_published() const { return states_published_; }
   std::uint64_t setpoints_published() const { return setpoints_published_; }
   const std::string& participant_name() const { return participant_.name(); }
@@ -109,8 +127,16 @@ class DdsPort final : public CyclePort {
   std::vector<HandshakeSample> handshakes_;
   ChunkIn* spare_ = nullptr;
   tgm::msg::ProgramChunk chunk_sample_;
-  // publisher -> receiver: when the state with a new M_Func was written [steady ns], 0 = none
+  // publisher -> receiver: when the state with a new M_Func was written [steady ns], 0 = none;
+  // the other stamps of that write are in m_written_ (guarded by the atomic: written before the
+  // release store, read after the acquire exchange).
   std::vector<std::unique_ptr<std::atomic<std::int64_t>>> m_written_ns_;
+  std::vector<MWritten> m_written_;
+  std::vector<std::unique_ptr<std::atomic<std::int64_t>>> m_write_end_ns_;
+  // cycle thread only: (taken_ns, applied_ns) of M_Func writes, preallocated (no allocation in
+  // the cycle; stamps beyond the capacity are dropped).
+  std::vector<std::pair<std::int64_t, std::int64_t>> m_applied_;
+  std::int64_t publisher_woke_ns_ = 0;  // publisher thread only
 
   // publisher thread only
   struct Published {
