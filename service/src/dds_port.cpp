@@ -88,7 +88,7 @@ DdsPort::DdsPort(const DdsConfig& config, const DdsPortOptions& options)
       message_writer_(participant_.writer<msg::MessagePubSubType>(dds::kMessageTopic)),
       request_reader_(participant_.reader<msg::RequestPubSubType>(dds::kRequestTopic)),
       program_reader_(participant_.reader<msg::ProgramChunkPubSubType>(dds::kProgramTopic)),
-      waiter_({&request_reader_, &program_reader_}),
+      waiter_({&program_reader_}),
       free_chunks_(static_cast<std::size_t>(options.interpolators) * 4 * dds::kProgramChunksInFlight) {
   const auto n = static_cast<std::size_t>(opt_.interpolators);
   for (std::size_t i = 0; i < n; ++i) {
@@ -113,11 +113,14 @@ DdsPort::~DdsPort() { stop(); }
 
 void DdsPort::start() {
   receiver_ = std::thread([this] { receive_loop(); });
+  request_reader_.set_listener(&request_listener_, fdds::StatusMask::data_available());
   publisher_ = std::thread([this] { publish_loop(); });
 }
 
 void DdsPort::stop() {
   stopping_ = true;
+  request_reader_.set_listener(nullptr);
+  { const std::lock_guard lock(request_mutex_); }  // a callback in progress has finished
   waiter_.wake();
   doorbell_.ring();
   if (receiver_.joinable()) receiver_.join();
@@ -171,7 +174,13 @@ void DdsPort::publish(const Snapshot& s) {
 // ---- receiver thread ----
 
 void DdsPort::take_requests() {
-  msg::Request r;
+  const std::lock_guard lock(request_mutex_);
+  if (stopping_) return;
+  take_requests_locked();
+}
+
+void DdsPort::take_requests_locked() {
+  msg::Request& r = request_sample_;
   while (!requests_.full() && dds::take_next(request_reader_, r)) {
     RequestIn in;
     in.request_id = r.request_id();

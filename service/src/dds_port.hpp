@@ -1,7 +1,10 @@
 // The DDS side of tgm-service: implements CyclePort with lock-free queues and a latest-value
 // buffer, and owns the two DDS threads (STYLE.md "DDS application shape", DESIGN.md section 3):
-// - the receiver thread waits on the request and program readers (WaitSet), converts samples to
-//   plain structs and queues them for the cycle thread;
+// - requests (small: commands, register writes such as the PLC's M_Func = 0) are taken by a light
+//   DataReaderListener in Fast DDS's receive thread, converted and queued at once: one thread
+//   wake-up less on the M-function handshake than a WaitSet thread (BENCHMARKS.md "Service");
+// - the receiver thread waits on the program reader (WaitSet), converts chunks to plain structs
+//   and queues them for the cycle thread; it also retries requests when their queue was full;
 // - the publisher thread wakes after each cycle, writes replies and messages, and publishes the
 //   state (on change, at most every `progress_period` for progress-only changes, at least every
 //   `state_period`) and the setpoints (every cycle it sees).
@@ -14,6 +17,8 @@
 #include <deque>
 #include <memory>
 #include <mutex>
+
+#include <fastdds/dds/subscriber/DataReaderListener.hpp>
 #include <string>
 #include <thread>
 #include <vector>
@@ -96,7 +101,18 @@ class DdsPort final : public CyclePort {
  private:
   void receive_loop();
   void publish_loop();
+  //! Takes every request sample the queue has room for (any thread; serialized by a mutex).
   void take_requests();
+  void take_requests_locked();
+
+  class RequestListener final : public eprosima::fastdds::dds::DataReaderListener {
+   public:
+    explicit RequestListener(DdsPort& port) : port_(port) {}
+    void on_data_available(eprosima::fastdds::dds::DataReader*) override { port_.take_requests(); }
+
+   private:
+    DdsPort& port_;
+  };
   void take_chunks();
   void publish_state(int i, const InterpolatorSnapshot& s, const Snapshot& all);
 
@@ -122,9 +138,14 @@ class DdsPort final : public CyclePort {
   LatestValue<Snapshot> latest_;
   Doorbell doorbell_;
 
+  // request taking (listener or receiver thread), under request_mutex_: the producer side of
+  // requests_ and the handshake records
+  std::mutex request_mutex_;
+  RequestListener request_listener_{*this};
+  std::vector<HandshakeSample> handshakes_;
+  msg::Request request_sample_;
   // receiver thread only
   std::vector<std::deque<ChunkIn*>> backlog_;
-  std::vector<HandshakeSample> handshakes_;
   ChunkIn* spare_ = nullptr;
   tgm::msg::ProgramChunk chunk_sample_;
   // publisher -> receiver: when the state with a new M_Func was written [steady ns], 0 = none;

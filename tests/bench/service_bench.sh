@@ -70,6 +70,9 @@ echo "raw ping-pong alone:"
 json "$tmp/hs.json" "'service handshake (state write with new M_Func -> ack taken): n %d, min %.1f us, median %.1f us, p99 %.1f us, max %.1f us' % (d['handshake_ns']['count'], d['handshake_ns']['min']/1e3, d['handshake_ns']['p50']/1e3, d['handshake_ns']['p99']/1e3, d['handshake_ns']['max']/1e3)"
 "$build/tests/bench/service/tgm_bench_state_pingpong" --count 5000 --domain $((domain + 1)) \
   --profiles "$PWD/config/fastdds_profiles.xml"
+echo "raw ping-pong alone with a second state reader (as tgm-hmi next to tgm-plc):"
+"$build/tests/bench/service/tgm_bench_state_pingpong" --count 5000 --domain $((domain + 1)) --sinks 1 \
+  --profiles "$PWD/config/fastdds_profiles.xml"
 
 [[ -n ${ONLY_HANDSHAKE:-} ]] && exit 0
 echo "== 2. program streaming rate (100,000 G1 records, 5 runs)"
