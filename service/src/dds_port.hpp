@@ -105,6 +105,9 @@ class DdsPort final : public CyclePort {
   void take_requests();
   void take_requests_locked();
 
+  void take_chunks();
+  void publish_state(int i, const InterpolatorSnapshot& s, const Snapshot& all);
+
   class RequestListener final : public eprosima::fastdds::dds::DataReaderListener {
    public:
     explicit RequestListener(DdsPort& port) : port_(port) {}
@@ -113,8 +116,8 @@ class DdsPort final : public CyclePort {
    private:
     DdsPort& port_;
   };
-  void take_chunks();
-  void publish_state(int i, const InterpolatorSnapshot& s, const Snapshot& all);
+  // Declared before the participant so it outlives the participant's receive threads.
+  RequestListener request_listener_{*this};
 
   DdsPortOptions opt_;
   dds::Participant participant_;
@@ -141,7 +144,6 @@ class DdsPort final : public CyclePort {
   // request taking (listener or receiver thread), under request_mutex_: the producer side of
   // requests_ and the handshake records
   std::mutex request_mutex_;
-  RequestListener request_listener_{*this};
   std::vector<HandshakeSample> handshakes_;
   msg::Request request_sample_;
   // receiver thread only
