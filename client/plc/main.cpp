@@ -57,6 +57,7 @@ constexpr const char* kUsage =
     "  --no-basic-params    do not send the basic parameters at start\n"
     "  --duration S         stop by itself after S seconds\n"
     "  --quiet              log only M-functions, acknowledgements and errors\n"
+    "  --handshake-trace F  write the time stamps of every acknowledgement as CSV to F at exit\n"
     "  --rt-priority N      run the emulator (all its threads) SCHED_FIFO at N, 1..98, when\n"
     "                       permitted (a real PLC task is real-time; default: normal)\n"
     "  --help               this text\n";
@@ -119,10 +120,11 @@ bool load_script(const std::string& path, std::vector<ScriptStep>& steps, std::s
   return true;
 }
 
-std::string params_text(const tgm::msg::InterpolatorState& s) {
+template <class Params>
+std::string params_text(const Params& params) {
   std::string out;
   for (std::size_t k = 0; k < tgm::kParamLetters; ++k) {
-    const double v = s.m_function_parameter()[k];
+    const double v = params[k];
     if (tgm::is_not_set(v)) continue;
     char buf[48];
     std::snprintf(buf, sizeof buf, "%s%c%g", out.empty() ? "" : " ", static_cast<char>('A' + k), v);
@@ -145,6 +147,14 @@ struct Served {
   std::int32_t ack_m = 0;
   Clock::time_point ack_at{};
   Clock::time_point seen_at{};
+  Clock::time_point woke_at{};
+};
+
+// One acknowledgement's time stamps for --handshake-trace (steady clock).
+struct AckTrace {
+  int interpolator;
+  std::int32_t act_part;
+  Clock::time_point woke, seen, ack_call, ack_written, reply;
 };
 
 }  // namespace
@@ -157,6 +167,7 @@ int main(int argc, char** argv) {
   std::set<int> refuse;
   std::vector<ScriptStep> script;
   std::string script_path;
+  std::string trace_path;
   int only = -1;
   bool try_start = false;
   bool basic = true;
@@ -209,6 +220,8 @@ int main(int argc, char** argv) {
         refuse.insert(static_cast<int>(v));
         p = q + 1;
       }
+    } else if (flag == "--handshake-trace") {
+      trace_path = value;
     } else if (flag == "--script") {
       script_path = value;
       if (!load_script(value, script, error)) {
@@ -300,6 +313,8 @@ int main(int argc, char** argv) {
       plc->name().c_str(), served.size(), served.size() == 1 ? "" : "s");
   if (!rt_log.empty()) log("%s", rt_log.c_str());
 
+  std::vector<AckTrace> traces;
+  if (!trace_path.empty()) traces.reserve(100'000);
   std::optional<Clock::time_point> found_at;
   auto last_wait_log = Clock::now();
   flush_log();
@@ -354,6 +369,18 @@ int main(int argc, char** argv) {
         if (!found_at) found_at = Clock::now();
       }
       // A new M-function: M_Func set at a record (program, Act_Part) not handled yet.
+      // (ack_m_func() polls, so *s may be newer afterwards: the line logs a copy of the fields.)
+      bool seen_new = false;
+      bool seen_normal = false;
+      std::int32_t seen_m = 0, seen_line = 0, seen_part = 0;
+      auto seen_params = s->m_function_parameter();
+      auto log_seen = [&] {
+        if (!seen_new) return;
+        seen_new = false;
+        log("interpolator %d: M%d %s (line %d, part %d), parameters: %s", sv.number, seen_m,
+            seen_normal ? "normal: the interpolator waits" : "continuous: motion goes on", seen_line,
+            seen_part, params_text(seen_params).c_str());
+      };
       const auto section = static_cast<tgm::SectionState>(static_cast<std::uint32_t>(s->run_flag()) & 0xFFFFu);
       const bool normal = section == tgm::SectionState::kWaitMFunc || section == tgm::SectionState::kWaitMFuncEnd;
       if (s->m_func() != sv.cont_noted) sv.cont_noted = 0;
@@ -363,14 +390,21 @@ int main(int argc, char** argv) {
         sv.m_part = s->act_part();
         sv.m_func = s->m_func();
         if (!normal) sv.cont_noted = s->m_func();
-        log("interpolator %d: M%d %s (line %d, part %d), parameters: %s", sv.number, s->m_func(),
-            normal ? "normal: the interpolator waits" : "continuous: motion goes on", s->act_line(),
-            s->act_part(), params_text(*s).c_str());
+        // An acknowledgement due at once goes out before this line is formatted (below).
+        seen_new = true;
+        seen_normal = normal;
+        seen_m = s->m_func();
+        seen_line = s->act_line();
+        seen_part = s->act_part();
+        seen_params = s->m_function_parameter();
         sv.seen_at = now;
+        sv.woke_at = plc->last_wake();
         if (!normal) {
+          log_seen();
           log("interpolator %d: M%d noted: %s", sv.number, s->m_func(),
               tgm::client::describe(plc->ack_m_func(sv.number)).c_str());
         } else if (refuse.count(s->m_func()) != 0) {
+          log_seen();
           log("interpolator %d: M%d: refusing to acknowledge (--refuse-ack / script)", sv.number, s->m_func());
         } else {
           sv.ack_m = s->m_func();
@@ -380,11 +414,17 @@ int main(int argc, char** argv) {
       if (sv.ack_m != 0 && now >= sv.ack_at) {
         const int m = sv.ack_m;
         sv.ack_m = 0;
+        const auto ack_call = Clock::now();
         const auto r = plc->ack_m_func(sv.number);
+        if (!trace_path.empty() && traces.size() < 1'000'000) {
+          traces.push_back({sv.number, sv.m_part, sv.woke_at, sv.seen_at, ack_call, plc->last_request_written(), Clock::now()});
+        }
+        log_seen();
         log("interpolator %d: M%d acknowledged after %.3f s: %s (cycle %llu)", sv.number, m,
             std::chrono::duration<double>(Clock::now() - sv.seen_at).count(), tgm::client::describe(r).c_str(),
             static_cast<unsigned long long>(r.cycle));
       }
+      log_seen();
     }
     if (!found_at && now - last_wait_log > 5s) {
       last_wait_log = now;
@@ -416,5 +456,20 @@ int main(int argc, char** argv) {
   }
   log("stopping");
   flush_log();
+  if (!trace_path.empty()) {
+    if (std::FILE* f = std::fopen(trace_path.c_str(), "w")) {
+      auto ns = [](Clock::time_point t) {
+        return static_cast<long long>(std::chrono::duration_cast<std::chrono::nanoseconds>(t.time_since_epoch()).count());
+      };
+      std::fprintf(f, "interpolator,act_part,woke_ns,seen_ns,ack_call_ns,ack_written_ns,reply_ns\n");
+      for (const AckTrace& t : traces) {
+        std::fprintf(f, "%d,%d,%lld,%lld,%lld,%lld,%lld\n", t.interpolator, t.act_part, ns(t.woke), ns(t.seen),
+                     ns(t.ack_call), ns(t.ack_written), ns(t.reply));
+      }
+      std::fclose(f);
+    } else {
+      std::fprintf(stderr, "tgm-plc: cannot write %s\n", trace_path.c_str());
+    }
+  }
   return 0;
 }

@@ -88,13 +88,16 @@ DdsPort::DdsPort(const DdsConfig& config, const DdsPortOptions& options)
       message_writer_(participant_.writer<msg::MessagePubSubType>(dds::kMessageTopic)),
       request_reader_(participant_.reader<msg::RequestPubSubType>(dds::kRequestTopic)),
       program_reader_(participant_.reader<msg::ProgramChunkPubSubType>(dds::kProgramTopic)),
-      waiter_({&request_reader_, &program_reader_}),
+      waiter_({&program_reader_}),
       free_chunks_(static_cast<std::size_t>(options.interpolators) * 4 * dds::kProgramChunksInFlight) {
   const auto n = static_cast<std::size_t>(opt_.interpolators);
   for (std::size_t i = 0; i < n; ++i) {
     chunks_.push_back(std::make_unique<SpscQueue<ChunkIn*>>(2 * dds::kProgramChunksInFlight));
     m_written_ns_.push_back(std::make_unique<std::atomic<std::int64_t>>(0));
+    m_write_end_ns_.push_back(std::make_unique<std::atomic<std::int64_t>>(0));
   }
+  m_written_.resize(n);
+  m_applied_.reserve(100'000);
   backlog_.resize(n);
   published_.resize(n);
   published_setpoints_.resize(n);
@@ -110,11 +113,14 @@ DdsPort::~DdsPort() { stop(); }
 
 void DdsPort::start() {
   receiver_ = std::thread([this] { receive_loop(); });
+  request_reader_.set_listener(&request_listener_, fdds::StatusMask::data_available());
   publisher_ = std::thread([this] { publish_loop(); });
 }
 
 void DdsPort::stop() {
   stopping_ = true;
+  request_reader_.set_listener(nullptr);
+  { const std::lock_guard lock(request_mutex_); }  // a callback in progress has finished
   waiter_.wake();
   doorbell_.ring();
   if (receiver_.joinable()) receiver_.join();
@@ -123,7 +129,22 @@ void DdsPort::stop() {
 
 // ---- cycle thread ----
 
-bool DdsPort::next_request(RequestIn& out) { return requests_.pop(out); }
+bool DdsPort::next_request(RequestIn& out) {
+  if (!requests_.pop(out)) return false;
+  if (out.kind == RequestKind::kWriteMFunc && out.taken_ns != 0 && m_applied_.size() < m_applied_.capacity()) {
+    m_applied_.emplace_back(out.taken_ns, steady_ns());
+  }
+  return true;
+}
+
+const std::vector<HandshakeSample>& DdsPort::handshakes() {
+  std::size_t k = 0;
+  for (auto& h : handshakes_) {
+    while (k < m_applied_.size() && m_applied_[k].first < h.taken_ns) ++k;
+    if (k < m_applied_.size() && m_applied_[k].first == h.taken_ns) h.applied_ns = m_applied_[k].second;
+  }
+  return handshakes_;
+}
 
 ChunkIn* DdsPort::front_chunk(int i) {
   ChunkIn** c = chunks_[static_cast<std::size_t>(i)]->front();
@@ -143,7 +164,9 @@ bool DdsPort::reply(const ReplyOut& r) { return replies_.push(r); }
 bool DdsPort::message(const MessageOut& m) { return messages_.push(m); }
 
 void DdsPort::publish(const Snapshot& s) {
-  latest_.write_slot() = s;
+  Snapshot& slot = latest_.write_slot();
+  slot = s;
+  slot.handoff_ns = steady_ns();
   latest_.publish();
   doorbell_.ring();
 }
@@ -151,7 +174,13 @@ void DdsPort::publish(const Snapshot& s) {
 // ---- receiver thread ----
 
 void DdsPort::take_requests() {
-  msg::Request r;
+  const std::lock_guard lock(request_mutex_);
+  if (stopping_) return;
+  take_requests_locked();
+}
+
+void DdsPort::take_requests_locked() {
+  msg::Request& r = request_sample_;
   while (!requests_.full() && dds::take_next(request_reader_, r)) {
     RequestIn in;
     in.request_id = r.request_id();
@@ -167,10 +196,22 @@ void DdsPort::take_requests() {
     in.value = r.value();
     if (in.kind == RequestKind::kWriteMFunc && in.interpolator >= 0 &&
         in.interpolator < opt_.interpolators) {
+      in.taken_ns = steady_ns();
       auto& written = *m_written_ns_[static_cast<std::size_t>(in.interpolator)];
-      const std::int64_t t0 = written.exchange(0);
+      const std::int64_t t0 = written.exchange(0, std::memory_order_acq_rel);
       if (t0 != 0 && handshakes_.size() < 1'000'000) {
-        handshakes_.push_back({in.interpolator, steady_ns() - t0});
+        const MWritten& w = m_written_[static_cast<std::size_t>(in.interpolator)];
+        HandshakeSample h;
+        h.interpolator = in.interpolator;
+        h.round_trip_ns = in.taken_ns - t0;
+        h.act_part = w.act_part;
+        h.handoff_ns = w.handoff_ns;
+        h.publisher_woke_ns = w.publisher_woke_ns;
+        h.write_begin_ns = w.write_begin_ns;
+        // 0 when the ack was taken before write() returned (it writes to every reader in turn).
+        h.write_end_ns = m_write_end_ns_[static_cast<std::size_t>(in.interpolator)]->load(std::memory_order_acquire);
+        h.taken_ns = in.taken_ns;
+        handshakes_.push_back(h);
       }
     }
     requests_.push(in);
@@ -241,8 +282,21 @@ void DdsPort::publish_state(int i, const InterpolatorSnapshot& s, const Snapshot
   const bool new_m = s.reg.m_func != 0 && (!p.any || p.reg.m_func != s.reg.m_func ||
                                            p.reg.act_part != s.reg.act_part);
   // The handshake clock starts before write(), as in the raw ping-pong it is compared with.
-  if (new_m) m_written_ns_[static_cast<std::size_t>(i)]->store(steady_ns());
+  auto& written = *m_written_ns_[static_cast<std::size_t>(i)];
+  auto& write_end = *m_write_end_ns_[static_cast<std::size_t>(i)];
+  if (new_m) {
+    // The receiver reads m_written_ only after exchanging a non-zero stamp (acquire).
+    written.store(0, std::memory_order_relaxed);
+    write_end.store(0, std::memory_order_relaxed);
+    MWritten& w = m_written_[static_cast<std::size_t>(i)];
+    w.act_part = s.reg.act_part;
+    w.handoff_ns = all.handoff_ns;
+    w.publisher_woke_ns = publisher_woke_ns_;
+    w.write_begin_ns = steady_ns();
+    written.store(w.write_begin_ns, std::memory_order_release);
+  }
   state_writer_.write(&state_sample_);
+  if (new_m) write_end.store(steady_ns(), std::memory_order_release);
   ++states_published_;
   p.any = true;
   p.reg = s.reg;
@@ -257,6 +311,7 @@ void DdsPort::publish_loop() {
   std::uint32_t seen = doorbell_.value();
   while (true) {
     doorbell_.wait(seen, std::chrono::milliseconds(10));
+    publisher_woke_ns_ = steady_ns();
     seen = doorbell_.value();
     ReplyOut r;
     msg::Reply reply;

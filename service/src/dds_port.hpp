@@ -1,7 +1,10 @@
 // The DDS side of tgm-service: implements CyclePort with lock-free queues and a latest-value
 // buffer, and owns the two DDS threads (STYLE.md "DDS application shape", DESIGN.md section 3):
-// - the receiver thread waits on the request and program readers (WaitSet), converts samples to
-//   plain structs and queues them for the cycle thread;
+// - requests (small: commands, register writes such as the PLC's M_Func = 0) are taken by a light
+//   DataReaderListener in Fast DDS's receive thread, converted and queued at once: one thread
+//   wake-up less on the M-function handshake than a WaitSet thread (BENCHMARKS.md "Service");
+// - the receiver thread waits on the program reader (WaitSet), converts chunks to plain structs
+//   and queues them for the cycle thread; it also retries requests when their queue was full;
 // - the publisher thread wakes after each cycle, writes replies and messages, and publishes the
 //   state (on change, at most every `progress_period` for progress-only changes, at least every
 //   `state_period`) and the setpoints (every cycle it sees).
@@ -14,6 +17,8 @@
 #include <deque>
 #include <memory>
 #include <mutex>
+
+#include <fastdds/dds/subscriber/DataReaderListener.hpp>
 #include <string>
 #include <thread>
 #include <vector>
@@ -35,10 +40,28 @@ struct DdsPortOptions {
 };
 
 //! M-function handshake measurement: from just before the write() of the state sample that shows
-//! a new M_Func until the acknowledging request is taken by the receiver thread [ns].
+//! a new M_Func until the acknowledging request is taken by the receiver thread [ns]
+//! (round_trip_ns), with the time stamps of every step on the service's side (steady clock, ns):
+//! hand-off of the cycle's snapshot that first shows the M_Func, publisher wake-up, state write()
+//! begin / end, ack taken by the receiver thread, ack applied by a cycle (0 until it is).
 struct HandshakeSample {
-  int interpolator;
-  std::int64_t round_trip_ns;
+  int interpolator = 0;
+  std::int64_t round_trip_ns = 0;
+  std::int32_t act_part = 0;
+  std::int64_t handoff_ns = 0;
+  std::int64_t publisher_woke_ns = 0;
+  std::int64_t write_begin_ns = 0;
+  std::int64_t write_end_ns = 0;
+  std::int64_t taken_ns = 0;
+  std::int64_t applied_ns = 0;
+};
+
+//! Service-side stamps of one state write that showed a new M_Func (publisher -> receiver).
+struct MWritten {
+  std::int32_t act_part = 0;
+  std::int64_t handoff_ns = 0;
+  std::int64_t publisher_woke_ns = 0;
+  std::int64_t write_begin_ns = 0;
 };
 
 //! A futex-backed doorbell: ring() never blocks; wait() sleeps until rung or timeout.
@@ -69,8 +92,8 @@ class DdsPort final : public CyclePort {
   bool message(const MessageOut& m) override;
   void publish(const Snapshot& s) override;
 
-  //! Valid after stop().
-  const std::vector<HandshakeSample>& handshakes() const { return handshakes_; }
+  //! Valid after stop(); applied_ns filled in from the cycle thread's stamps.
+  const std::vector<HandshakeSample>& handshakes();
   std::uint64_t states_published() const { return states_published_; }
   std::uint64_t setpoints_published() const { return setpoints_published_; }
   const std::string& participant_name() const { return participant_.name(); }
@@ -78,9 +101,23 @@ class DdsPort final : public CyclePort {
  private:
   void receive_loop();
   void publish_loop();
+  //! Takes every request sample the queue has room for (any thread; serialized by a mutex).
   void take_requests();
+  void take_requests_locked();
+
   void take_chunks();
   void publish_state(int i, const InterpolatorSnapshot& s, const Snapshot& all);
+
+  class RequestListener final : public eprosima::fastdds::dds::DataReaderListener {
+   public:
+    explicit RequestListener(DdsPort& port) : port_(port) {}
+    void on_data_available(eprosima::fastdds::dds::DataReader*) override { port_.take_requests(); }
+
+   private:
+    DdsPort& port_;
+  };
+  // Declared before the participant so it outlives the participant's receive threads.
+  RequestListener request_listener_{*this};
 
   DdsPortOptions opt_;
   dds::Participant participant_;
@@ -104,13 +141,25 @@ class DdsPort final : public CyclePort {
   LatestValue<Snapshot> latest_;
   Doorbell doorbell_;
 
+  // request taking (listener or receiver thread), under request_mutex_: the producer side of
+  // requests_ and the handshake records
+  std::mutex request_mutex_;
+  std::vector<HandshakeSample> handshakes_;
+  msg::Request request_sample_;
   // receiver thread only
   std::vector<std::deque<ChunkIn*>> backlog_;
-  std::vector<HandshakeSample> handshakes_;
   ChunkIn* spare_ = nullptr;
   tgm::msg::ProgramChunk chunk_sample_;
-  // publisher -> receiver: when the state with a new M_Func was written [steady ns], 0 = none
+  // publisher -> receiver: when the state with a new M_Func was written [steady ns], 0 = none;
+  // the other stamps of that write are in m_written_ (guarded by the atomic: written before the
+  // release store, read after the acquire exchange).
   std::vector<std::unique_ptr<std::atomic<std::int64_t>>> m_written_ns_;
+  std::vector<MWritten> m_written_;
+  std::vector<std::unique_ptr<std::atomic<std::int64_t>>> m_write_end_ns_;
+  // cycle thread only: (taken_ns, applied_ns) of M_Func writes, preallocated (no allocation in
+  // the cycle; stamps beyond the capacity are dropped).
+  std::vector<std::pair<std::int64_t, std::int64_t>> m_applied_;
+  std::int64_t publisher_woke_ns_ = 0;  // publisher thread only
 
   // publisher thread only
   struct Published {

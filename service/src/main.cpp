@@ -34,6 +34,7 @@ constexpr const char* kUsage =
     "%s"
     "  --no-realtime          do not try SCHED_FIFO / mlockall\n"
     "  --rt-priority N        SCHED_FIFO priority of the cycle thread, 1..99 (default 80)\n"
+    "  --cpu N                pin the cycle thread to CPU N (default: not pinned)\n"
     "  --dds-priority N       SCHED_FIFO priority of every DDS thread (Fast DDS's, receiver,\n"
     "                         publisher), 1..98 and below --rt-priority; default 0 = normal\n"
     "  --chunk-budget N       program records appended per interpolator per cycle (default 1024)\n"
@@ -41,6 +42,7 @@ constexpr const char* kUsage =
     "  --setpoint-decimation N  publish setpoints every Nth cycle (default 1)\n"
     "  --duration S           stop by itself after S seconds\n"
     "  --stats FILE           write lateness, handshake and counter figures as JSON at exit\n"
+    "  --handshake-trace FILE write the time stamps of every M-function handshake as CSV at exit\n"
     "  --help                 this text\n";
 
 int usage_error(const std::string& why) {
@@ -69,6 +71,7 @@ std::int64_t percentile(std::vector<std::int64_t> v, double q) {
 int main(int argc, char** argv) {
   std::string config_path;
   std::string stats_path;
+  std::string trace_path;
   tgm::DdsOverrides overrides;
   tgm::service::RtOptions rt;
   tgm::service::EngineOptions engine_options;
@@ -104,6 +107,11 @@ int main(int argc, char** argv) {
       config_path = value;
     } else if (flag == "--stats") {
       stats_path = value;
+    } else if (flag == "--handshake-trace") {
+      trace_path = value;
+    } else if (flag == "--cpu") {
+      if (!parse_long(value, 0, 1023, n)) return usage_error("--cpu must be 0..1023");
+      rt.cpu = static_cast<int>(n);
     } else if (flag == "--rt-priority") {
       if (!parse_long(value, 1, 99, n)) return usage_error("--rt-priority must be 1..99");
       rt.priority = static_cast<int>(n);
@@ -256,6 +264,20 @@ int main(int argc, char** argv) {
       std::fclose(f);
     } else {
       std::fprintf(stderr, "tgm-service: cannot write %s: %s\n", stats_path.c_str(), std::strerror(errno));
+    }
+  }
+  if (!trace_path.empty()) {
+    if (std::FILE* f = std::fopen(trace_path.c_str(), "w")) {
+      std::fprintf(f, "interpolator,act_part,handoff_ns,publisher_woke_ns,write_begin_ns,write_end_ns,taken_ns,applied_ns\n");
+      for (const auto& h : port->handshakes()) {
+        std::fprintf(f, "%d,%d,%lld,%lld,%lld,%lld,%lld,%lld\n", h.interpolator, h.act_part,
+                     static_cast<long long>(h.handoff_ns), static_cast<long long>(h.publisher_woke_ns),
+                     static_cast<long long>(h.write_begin_ns), static_cast<long long>(h.write_end_ns),
+                     static_cast<long long>(h.taken_ns), static_cast<long long>(h.applied_ns));
+      }
+      std::fclose(f);
+    } else {
+      std::fprintf(stderr, "tgm-service: cannot write %s: %s\n", trace_path.c_str(), std::strerror(errno));
     }
   }
   port.reset();

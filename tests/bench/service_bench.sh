@@ -43,11 +43,16 @@ stop_all() {
 }
 json() { python3 -c "import json,sys; d=json.load(open('$1')); print($2)"; }
 
+# ONLY_LATENESS=1: part 3 only. SVC_CPU=N: pin the service's cycle thread to CPU N (--cpu).
+svc_cpu=(); [[ -n ${SVC_CPU:-} ]] && svc_cpu=(--cpu "$SVC_CPU")
+if [[ -z ${ONLY_LATENESS:-} ]]; then
 echo "== 1. M-function handshake: $m_count x (G1 X0.01, M51), tgm-plc acknowledges at once"
 for ((i = 0; i < m_count; ++i)); do printf 'G1 X0.01\nM51\n'; done > "$tmp/m.ngc"
 echo "M2" >> "$tmp/m.ngc"
-"$svc" "${cfg[@]}" "${svc_prio[@]}" --stats "$tmp/hs.json" > "$tmp/svc1.log" 2>&1 & pids+=($!)
-"$plc" "${cfg[@]}" "${plc_prio[@]}" --ack-delay 0 --quiet --no-basic-params > "$tmp/plc1.log" 2>&1 & pids+=($!)
+"$svc" "${cfg[@]}" "${svc_prio[@]}" --stats "$tmp/hs.json" --handshake-trace "$tmp/hs_svc.csv" \
+  > "$tmp/svc1.log" 2>&1 & pids+=($!)
+"$plc" "${cfg[@]}" "${plc_prio[@]}" --ack-delay 0 --quiet --no-basic-params --handshake-trace "$tmp/hs_plc.csv" \
+  > "$tmp/plc1.log" 2>&1 & pids+=($!)
 # The raw ping-pong runs twice: once while the handshake program runs (same load on the
 # machine: the service's cycle and publisher threads, the HMI, the PLC) and once alone after it.
 "$build/tests/bench/service/tgm_bench_state_pingpong" --count 30000 --domain $((domain + 2)) \
@@ -57,11 +62,16 @@ raw_pid=$!
 wait "$raw_pid" || true
 stop_all
 tail -n 3 "$tmp/hmi1.log"
+echo "time stamps of every handshake (service and PLC, same clock):"
+python3 tests/bench/service/handshake_trace.py "$tmp/hs_svc.csv" "$tmp/hs_plc.csv"
 echo "raw ping-pong while the handshake program ran:"
 cat "$tmp/raw_during.log"
 echo "raw ping-pong alone:"
 json "$tmp/hs.json" "'service handshake (state write with new M_Func -> ack taken): n %d, min %.1f us, median %.1f us, p99 %.1f us, max %.1f us' % (d['handshake_ns']['count'], d['handshake_ns']['min']/1e3, d['handshake_ns']['p50']/1e3, d['handshake_ns']['p99']/1e3, d['handshake_ns']['max']/1e3)"
 "$build/tests/bench/service/tgm_bench_state_pingpong" --count 5000 --domain $((domain + 1)) \
+  --profiles "$PWD/config/fastdds_profiles.xml"
+echo "raw ping-pong alone with a second state reader (as tgm-hmi next to tgm-plc):"
+"$build/tests/bench/service/tgm_bench_state_pingpong" --count 5000 --domain $((domain + 1)) --sinks 1 \
   --profiles "$PWD/config/fastdds_profiles.xml"
 
 [[ -n ${ONLY_HANDSHAKE:-} ]] && exit 0
@@ -69,6 +79,7 @@ echo "== 2. program streaming rate (100,000 G1 records, 5 runs)"
 "$svc" "${cfg[@]}" > "$tmp/svc2.log" 2>&1 & pids+=($!)
 "$build/tests/bench/service/tgm_bench_stream" "${cfg[@]}" --records 100000 --runs 5
 stop_all
+fi
 
 echo "== 3. cycle lateness, ${seconds} s: three interpolators running, tgm-hmi watch subscribed"
 # A closed contour of short lines and arcs, repeated: keeps an interpolator moving.
@@ -79,7 +90,7 @@ echo "== 3. cycle lateness, ${seconds} s: three interpolators running, tgm-hmi w
   done
   echo "M2"
 } > "$tmp/loop.ngc"
-"$svc" "${cfg[@]}" --stats "$tmp/lat.json" --duration "$seconds" > "$tmp/svc3.log" 2>&1 & svc_pid=$!
+"$svc" "${cfg[@]}" "${svc_cpu[@]}" --stats "$tmp/lat.json" --duration "$seconds" > "$tmp/svc3.log" 2>&1 & svc_pid=$!
 sleep 0.5
 grep -h "SCHED\|realtime" "$tmp/svc3.log" || true
 "$plc" "${cfg[@]}" --quiet > "$tmp/plc3.log" 2>&1 & pids+=($!)

@@ -67,7 +67,10 @@ Client::Client(const DdsConfig& config, Role role, const ClientOptions& options)
 }
 
 void Client::poll(std::chrono::nanoseconds timeout) {
-  if (timeout.count() > 0) waiter_->wait(timeout);
+  if (timeout.count() > 0) {
+    waiter_->wait(timeout);
+    last_wake_ = Clock::now();
+  }
   while (dds::take_next(state_reader_, state_scratch_)) {
     const std::size_t i = state_scratch_.interpolator();
     if (i >= states_.size()) continue;
@@ -139,6 +142,7 @@ Reply Client::request(msg::Request r, std::chrono::milliseconds timeout) {
     out.timed_out = true;
     return out;
   }
+  last_written_ = Clock::now();
   while (true) {
     poll(std::chrono::nanoseconds(0));
     for (auto it = replies_.begin(); it != replies_.end(); ++it) {

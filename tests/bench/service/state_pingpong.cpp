@@ -3,8 +3,11 @@
 // QoS profile; the pong side answers each with a tgm::msg::Request (the PLC's M_Func = 0) with the
 // request profile. Same types, sizes and QoS as the real handshake, without the service's cycle.
 //
-//   tgm_bench_state_pingpong [--role both|ping|pong] [--count N] [--warmup N] [--domain D]
-//                            [--profiles FILE]
+//   tgm_bench_state_pingpong [--role both|ping|pong|sink] [--count N] [--warmup N] [--domain D]
+//                            [--profiles FILE] [--sinks N]
+//
+// --sinks N starts N more processes that only read the states (like tgm-hmi next to tgm-plc): the
+// ping side then writes every state to N + 1 readers.
 #include <spawn.h>
 #include <sys/wait.h>
 
@@ -30,6 +33,7 @@ struct Options {
   int count = 5000;
   int warmup = 500;
   int domain = 78;
+  int sinks = 0;
   std::string profiles = TGM_SOURCE_DIR "/config/fastdds_profiles.xml";
 };
 
@@ -73,11 +77,26 @@ int run_pong(const Options& o) {
   return 0;
 }
 
+int run_sink(const Options& o) {
+  tgm::dds::Participant p(config(o), "sink");
+  auto& states = p.reader<tgm::msg::InterpolatorStatePubSubType>(state_topic());
+  tgm::dds::DataWaiter waiter({&states});
+  tgm::msg::InterpolatorState s;
+  const auto give_up = Clock::now() + 600s;
+  while (Clock::now() < give_up) {
+    waiter.wait(500ms);
+    while (tgm::dds::take_next(states, s)) {
+      if (s.m_func() < 0) return 0;  // quit
+    }
+  }
+  return 0;
+}
+
 int run_ping(const Options& o) {
   tgm::dds::Participant p(config(o), "ping");
   auto& states = p.writer<tgm::msg::InterpolatorStatePubSubType>(state_topic());
   auto& acks = p.reader<tgm::msg::RequestPubSubType>(ack_topic());
-  if (!tgm::dds::wait_for_match(states, 1, 30s) || !tgm::dds::wait_for_match(acks, 1, 30s)) {
+  if (!tgm::dds::wait_for_match(states, 1 + o.sinks, 30s) || !tgm::dds::wait_for_match(acks, 1, 30s)) {
     std::fprintf(stderr, "tgm_bench_state_pingpong: no pong on domain %d\n", o.domain);
     return 1;
   }
@@ -114,7 +133,8 @@ int run_ping(const Options& o) {
   tgm::msg::RequestPubSubType rt;
   std::printf("raw state->request ping-pong (InterpolatorState %u B -> Request %u B serialized, domain %d)\n",
               st.getSerializedSizeProvider(&s)(), rt.getSerializedSizeProvider(&r)(), o.domain);
-  std::printf("round trips %zu (warm-up %d, timeouts %d)\n", us.size(), o.warmup, timeouts);
+  std::printf("round trips %zu (warm-up %d, timeouts %d), state readers %d\n", us.size(), o.warmup, timeouts,
+              1 + o.sinks);
   std::printf("min %.1f us  median %.1f us  p99 %.1f us  p99.9 %.1f us  max %.1f us\n", us.front(), pct(0.5),
               pct(0.99), pct(0.999), us.back());
   return timeouts == 0 ? 0 : 1;
@@ -127,7 +147,7 @@ int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (i + 1 >= argc) {
-      std::fprintf(stderr, "usage: %s [--role both|ping|pong] [--count N] [--warmup N] [--domain D] [--profiles F]\n",
+      std::fprintf(stderr, "usage: %s [--role both|ping|pong|sink] [--count N] [--warmup N] [--domain D] [--profiles F] [--sinks N]\n",
                    argv[0]);
       return 2;
     }
@@ -136,21 +156,30 @@ int main(int argc, char** argv) {
     else if (a == "--warmup") o.warmup = std::atoi(argv[++i]);
     else if (a == "--domain") o.domain = std::atoi(argv[++i]);
     else if (a == "--profiles") o.profiles = argv[++i];
+    else if (a == "--sinks") o.sinks = std::atoi(argv[++i]);
     else return 2;
   }
   try {
     if (o.role == "pong") return run_pong(o);
     if (o.role == "ping") return run_ping(o);
+    if (o.role == "sink") return run_sink(o);
     const std::string dom = std::to_string(o.domain);
-    std::vector<std::string> args{argv[0], "--role", "pong", "--domain", dom, "--profiles", o.profiles};
-    std::vector<char*> cargs;
-    for (auto& s : args) cargs.push_back(s.data());
-    cargs.push_back(nullptr);
-    pid_t pid = 0;
-    if (posix_spawn(&pid, argv[0], nullptr, nullptr, cargs.data(), environ) != 0) return 1;
+    std::vector<pid_t> pids;
+    for (int k = 0; k <= o.sinks; ++k) {
+      std::vector<std::string> args{argv[0], "--role", k == 0 ? "pong" : "sink", "--domain", dom, "--profiles",
+                                    o.profiles};
+      std::vector<char*> cargs;
+      for (auto& s : args) cargs.push_back(s.data());
+      cargs.push_back(nullptr);
+      pid_t pid = 0;
+      if (posix_spawn(&pid, argv[0], nullptr, nullptr, cargs.data(), environ) != 0) return 1;
+      pids.push_back(pid);
+    }
     const int rc = run_ping(o);
-    int st = 0;
-    waitpid(pid, &st, 0);
+    for (pid_t pid : pids) {
+      int st = 0;
+      waitpid(pid, &st, 0);
+    }
     return rc;
   } catch (const tgm::dds::SetupError& e) {
     std::fprintf(stderr, "tgm_bench_state_pingpong: %s\n", e.what());

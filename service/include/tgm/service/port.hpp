@@ -65,6 +65,8 @@ struct RequestIn {
   std::array<std::int32_t, kCommandParameters> command_parameter{};
   int axis = 0;
   double value = 0.0;
+  //! When the receiver thread took the sample (steady clock) [ns]; for the handshake trace.
+  std::int64_t taken_ns = 0;
 };
 
 //! The answer to one request.
@@ -119,6 +121,8 @@ struct Snapshot {
   int count = 0;
   std::array<InterpolatorSnapshot, kMaxInterpolators> ip{};
   LatenessStats lateness;
+  //! When the cycle thread handed this snapshot over (steady clock) [ns]; set by the port.
+  std::int64_t handoff_ns = 0;
 };
 
 //! The cycle loop's window to the world. Called only from the cycle thread; no call may block,

@@ -68,6 +68,10 @@ class Client {
 
   //! Takes every sample that arrived; waits up to `timeout` when nothing has.
   void poll(std::chrono::nanoseconds timeout);
+  //! When the last poll() with a timeout returned from its wait (before taking anything).
+  std::chrono::steady_clock::time_point last_wake() const { return last_wake_; }
+  //! When the last request() returned from the write() of its request.
+  std::chrono::steady_clock::time_point last_request_written() const { return last_written_; }
   //! Polls until the state of `interpolator` is known; false on timeout.
   bool wait_for_state(int interpolator, std::chrono::milliseconds timeout);
   //! Polls until `pred(state)` holds for the state of `interpolator`; false on timeout.
@@ -110,6 +114,8 @@ class Client {
   eprosima::fastdds::dds::DataReader* setpoint_reader_ = nullptr;
   eprosima::fastdds::dds::DataWriter& request_writer_;
   eprosima::fastdds::dds::DataWriter& program_writer_;
+  std::chrono::steady_clock::time_point last_wake_{};
+  std::chrono::steady_clock::time_point last_written_{};
   std::optional<dds::DataWaiter> waiter_;
   std::vector<std::optional<msg::InterpolatorState>> states_;
   std::vector<std::uint64_t> state_samples_;
