@@ -3,6 +3,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstring>
+#include <limits>
 
 namespace tgm {
 
@@ -146,7 +147,9 @@ void IntercodeEncoder::add(const Segment& s) {
   if (modes != prev_modes_) flags |= kHasModes;
   if (s.tool != prev_tool_) flags |= kHasTool;
   if (s.is_motion() && !same_bits(s.feed_mm_per_min, prev_feed_)) flags |= kHasFeed;
-  if (s.line != prev_line_ + 1) flags |= kHasLine;
+  if (static_cast<std::int64_t>(s.line) != static_cast<std::int64_t>(prev_line_) + 1) {
+    flags |= kHasLine;
+  }
   if (s.compensation != Compensation::kOff && !same_bits(s.compensation_radius_mm, prev_comp_radius_)) {
     flags |= kHasCompRadius;
   }
@@ -257,8 +260,13 @@ bool decode_intercode(std::string_view bytes, Program& out, std::string& error) 
     s.m_kind = static_cast<MKind>(mkind);
     s.tool = prev.tool;
     if ((flags & kHasTool) && !in.get(s.tool)) return fail("truncated " + rec);
-    s.line = prev.line + 1;
-    if ((flags & kHasLine) && !in.get(s.line)) return fail("truncated " + rec);
+    if (flags & kHasLine) {
+      if (!in.get(s.line)) return fail("truncated " + rec);
+    } else if (prev.line == std::numeric_limits<std::int32_t>::max()) {
+      return fail("line number overflows in " + rec);
+    } else {
+      s.line = prev.line + 1;
+    }
     s.end = prev.end;
     for (int i = 0; i < n; ++i) {
       if (!(mask & (1u << i))) continue;

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 #include "tgm/gcode.hpp"
@@ -511,6 +512,27 @@ TEST(Intercode, RecordsStoreOnlyWhatChanged) {
   std::string bytes;
   encode_intercode(p, bytes);
   EXPECT_EQ(bytes.size(), 25u + 24u + 12u + 12u + 8u);
+}
+
+TEST(Intercode, LineNumberOverflowIsAnErrorNotUndefinedBehaviour) {
+  // Found by libFuzzer: a record without its own line after one at INT32_MAX.
+  Program p;
+  p.number_axes = 3;
+  p.axis_letters = "XYZ";
+  Segment s;
+  s.line = std::numeric_limits<std::int32_t>::max();
+  p.segments = {s, s};
+  std::string bytes;
+  encode_intercode(p, bytes);
+  ASSERT_EQ(bytes.size(), 25u + 8u + 8u + 8u);  // each record: type, flags, mask, line
+  Program q;
+  std::string err;
+  ASSERT_TRUE(decode_intercode(bytes, q, err)) << err;
+  EXPECT_EQ(q.segments[1].line, std::numeric_limits<std::int32_t>::max());
+  bytes[34] = static_cast<char>(bytes[34] & ~0x08);  // second record: "line = previous + 1"
+  bytes.erase(37, 4);
+  EXPECT_FALSE(decode_intercode(bytes, q, err));
+  EXPECT_NE(err.find("line number overflows in record 1"), std::string::npos) << err;
 }
 
 TEST(Intercode, DecodeRejectsEveryTruncation) {
