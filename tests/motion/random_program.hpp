@@ -189,6 +189,29 @@ inline double motion_time_lower_bound(const Program& program, const MachineConfi
   return t;
 }
 
+// Time limit [s] of a sweep program: the time of a reference motion that runs every record at
+// 1/`slowdown` of its cap min(F x Rel_Speed, axis velocity limits), with Rel_Speed changed at the
+// given times, plus `slack_s` for accelerations, corners, arcs, dwells and M waits. A program
+// that takes longer runs, on average, more than `slowdown` times below its caps: a crawl or a
+// stall.
+//
+// The override schedule must apply at the reference's own times. `slowdown` x the lower bound
+// with the changes at their real times (the earlier limit) does not do that: it places each
+// change where the lower-bound motion is at that time, which can be past the program's end. A
+// program that runs legitimately slower than its caps (corner-limited CAM chords at ~20 % of F)
+// is then still in the middle of its path when Rel_Speed drops (e.g. to 0.0156 at 4.2 s) and
+// runs the rest 64 x slower, which no limit computed without that drop allows for (seed 3
+// program 465: lower bound 2.42 s, earlier limit 69.7 s; the program takes 103.5 s, at its
+// corner limits before the drop and at F x Rel_Speed after it). Slowing the reference by `slowdown` with the changes at their
+// real times is the same as the lower bound with the change times divided by `slowdown`,
+// multiplied by `slowdown`. Without override changes the limit is slowdown x bound + slack.
+inline double motion_time_limit(const Program& program, const MachineConfig& machine,
+                                std::vector<std::pair<double, double>> changes, double slowdown = 4.0,
+                                double slack_s = 60.0, double rel0 = 1.0) {
+  for (auto& c : changes) c.first /= slowdown;
+  return slowdown * motion_time_lower_bound(program, machine, std::move(changes), rel0) + slack_s;
+}
+
 inline MachineConfig random_machine(std::mt19937_64& rng, int axes) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   MachineConfig m = MachineConfig::default_machine();

@@ -7,11 +7,11 @@
 // TGM_SWEEP_FIRST (default 0); the command line wins. A long run:
 //   build/tests/motion/tgm_motion_tests --gtest_filter='RandomSweep.*' --seed=7 --count=5000
 //
-// Time limit per program: 4 x the feed-limited lower bound of its motion (every record at
-// min(F x Rel_Speed, axis velocity limits) with the override schedule, see
-// motion_time_lower_bound) + 60 s for accelerations, corners, arcs, dwells and M waits. A
-// program that crawls or stalls below its target hits it; a program that is merely long (an
-// override of 0.02 makes some take two hours) does not.
+// Time limit per program (test::motion_time_limit): the time of a reference motion at a quarter
+// of every record's cap min(F x Rel_Speed, axis velocity limits), with the override schedule at
+// its real times, + 60 s for accelerations, corners, arcs, dwells and M waits. A program that
+// crawls or stalls below its target hits it; a program that is merely long (an override of 0.02
+// makes some take two hours), or slow before an override drop, does not.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -44,30 +44,55 @@ std::uint64_t arg_u64(const std::string& name, const char* env, std::uint64_t fa
   return env_u64(env, fallback);
 }
 
+// Sweep program k of `seed`: machine, program, override schedule, lower bound and time limit.
+struct SweepCase {
+  int axes = 0;
+  MachineConfig machine;
+  Generated generated;
+  double bound_s = 0.0;
+  double limit_s = 0.0;
+};
+
+SweepCase sweep_case(std::uint64_t seed, std::uint64_t k) {
+  std::mt19937_64 rng(seed * 1000003ull + k);
+  std::uniform_int_distribution<int> axes_d(1, 10);
+  SweepCase c;
+  c.axes = k % 5 == 0 ? 3 : axes_d(rng);
+  c.machine = random_machine(rng, c.axes);
+  c.generated = random_program(rng, c.axes, 12);
+  c.bound_s = test::motion_time_lower_bound(c.generated.program, c.machine, c.generated.overrides);
+  c.limit_s = test::motion_time_limit(c.generated.program, c.machine, c.generated.overrides);
+  return c;
+}
+
+SimulationOptions sweep_options(const SweepCase& c) {
+  SimulationOptions o;
+  o.check_limits = true;
+  o.m_ack_s = 0.01;
+  o.rel_speed_changes = c.generated.overrides;
+  o.max_time_s = c.limit_s;
+  return o;
+}
+
 TEST(RandomSweep, ProgramsFinishAtTheirEndWithinLimits) {
   const std::uint64_t seed = arg_u64("seed", "TGM_SEED", 1);
   const std::uint64_t count = arg_u64("count", "TGM_SWEEP_COUNT", 200);
   const std::uint64_t first = arg_u64("first", "TGM_SWEEP_FIRST", 0);  // to rerun one program
   std::uint64_t total_cycles = 0;
   for (std::uint64_t k = first; k < first + count; ++k) {
-    std::mt19937_64 rng(seed * 1000003ull + k);
-    std::uniform_int_distribution<int> axes_d(1, 10);
-    const int axes = k % 5 == 0 ? 3 : axes_d(rng);
-    const MachineConfig m = random_machine(rng, axes);
-    Generated g = random_program(rng, axes, 12);
-    SimulationOptions o;
-    o.check_limits = true;
-    o.m_ack_s = 0.01;
-    o.rel_speed_changes = g.overrides;
-    const double bound_s = test::motion_time_lower_bound(g.program, m, g.overrides);
-    o.max_time_s = 4.0 * bound_s + 60.0;
+    const SweepCase c = sweep_case(seed, k);
+    const int axes = c.axes;
+    const MachineConfig& m = c.machine;
+    const Generated& g = c.generated;
+    const SimulationOptions o = sweep_options(c);
+    const double bound_s = c.bound_s;
     auto sim = Simulation::create(m, o);
     ASSERT_TRUE(sim);
     const auto s = sim->run(g.program);
     total_cycles += s.cycles;
     const std::string ctx = "seed " + std::to_string(seed) + " program " + std::to_string(k) + " axes " +
                             std::to_string(axes) + " cycle " + std::to_string(m.cycle_time_us) + " us, lower bound " +
-                            std::to_string(bound_s) + " s";
+                            std::to_string(bound_s) + " s, limit " + std::to_string(o.max_time_s) + " s";
     ASSERT_EQ(s.result, StepResult::kFinished) << ctx << ": " << s.error;
     EXPECT_FALSE(s.nan) << ctx;
     EXPECT_EQ(s.hard_stops, 0u) << ctx;
@@ -85,6 +110,47 @@ TEST(RandomSweep, ProgramsFinishAtTheirEndWithinLimits) {
     if (::testing::Test::HasFailure()) break;
   }
   RecordProperty("cycles", std::to_string(total_cycles));
+}
+
+// Without override changes the limit is the earlier one, 4 x the lower bound + 60 s.
+TEST(SweepTimeLimit, WithoutOverrideChangesIsFourTimesTheLowerBoundPlusSlack) {
+  for (std::uint64_t k = 0; k < 50; ++k) {
+    const SweepCase c = sweep_case(3, k);
+    const double bound = test::motion_time_lower_bound(c.generated.program, c.machine, {});
+    EXPECT_DOUBLE_EQ(test::motion_time_limit(c.generated.program, c.machine, {}), 4.0 * bound + 60.0) << k;
+  }
+}
+
+// Seed 3 program 465 (3 axes, 500 us): corner-limited CAM chords (the Y axis' 0.5 mm/s corner
+// tolerance holds them at 1500..1800 mm/min of F 8588 / 5026) are still running when Rel_Speed
+// drops to 0.0156 at 4.16 s, long after the lower bound's motion (2.42 s) has ended. The rest of
+// the path then runs at F x 0.0156 and the program takes 103.5 s, at its targets throughout: no
+// stall, but over the earlier limit 4 x 2.42 + 60 = 69.7 s, which placed the override drop after
+// the program's end. The limit with the schedule at the reference's own times admits it.
+TEST(SweepTimeLimit, Seed3Program465SlowBeforeAnOverrideDropIsNotAStall) {
+  const SweepCase c = sweep_case(3, 465);
+  ASSERT_EQ(c.axes, 3);
+  ASSERT_EQ(c.generated.overrides.size(), 1u);
+  const double drop_s = c.generated.overrides[0].first;
+  EXPECT_LT(c.generated.overrides[0].second, 0.02);
+  EXPECT_GT(drop_s, c.bound_s);  // the lower bound never sees the drop
+  const double earlier_limit_s = 4.0 * c.bound_s + 60.0;
+  auto sim = Simulation::create(c.machine, sweep_options(c));
+  ASSERT_TRUE(sim);
+  const auto s = sim->run(c.generated.program);
+  ASSERT_EQ(s.result, StepResult::kFinished) << s.error << " limit " << c.limit_s;
+  EXPECT_GT(s.program_time_s, earlier_limit_s);  // what the sweep reported as a stall
+  EXPECT_LT(s.program_time_s, c.limit_s);
+  EXPECT_GE(s.program_time_s, c.bound_s);
+  EXPECT_FALSE(s.nan);
+  EXPECT_EQ(s.hard_stops, 0u);
+  EXPECT_EQ(s.violation_count, 0u);
+  for (int i = 0; i < c.axes; ++i) {
+    EXPECT_NEAR(s.end_position[static_cast<std::size_t>(i)], c.generated.end[static_cast<std::size_t>(i)], 1e-9) << i;
+  }
+  // Most of the program runs at the override target after the drop, none of it stalled.
+  const double override_s = s.factor_time_s[static_cast<std::size_t>(LimitFactor::kOverride)];
+  EXPECT_GT(override_s, 0.9 * (s.program_time_s - drop_s));
 }
 
 }  // namespace
