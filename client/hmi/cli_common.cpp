@@ -83,15 +83,10 @@ int Args::usage_error(const std::string& reason) const {
 }
 
 std::optional<AppConfig> Args::load_app() {
-  const std::string path = config_path_.empty() ? default_config_path() : config_path_;
-  ConfigLoad load = load_config_file(path);
-  if (!load.config) {
-    for (const auto& e : load.errors) std::fprintf(stderr, "%s\n", e.c_str());
-    std::fprintf(stderr, "tgm-hmi %s: the config has %zu problem%s\n", command_, load.errors.size(),
-                 load.errors.size() == 1 ? "" : "s");
-    return std::nullopt;
-  }
-  const int count = static_cast<int>(load.config->machine.interpolators.size());
+  std::optional<AppConfig> config =
+      load_config_or_report(config_path_, std::string("tgm-hmi ") + command_);
+  if (!config) return std::nullopt;
+  const int count = static_cast<int>(config->machine.interpolators.size());
   if (!interpolator_text_.empty()) {
     long long n = 0;
     if (!parse_int(interpolator_text_, 0, count - 1, n)) {
@@ -101,7 +96,7 @@ std::optional<AppConfig> Args::load_app() {
     }
     interpolator_ = static_cast<int>(n);
   }
-  return load.config;
+  return config;
 }
 
 std::optional<MachineConfig> Args::load_machine() {

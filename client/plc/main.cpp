@@ -240,15 +240,9 @@ int main(int argc, char** argv) {
       return usage_error("unknown option '" + flag + "'");
     }
   }
-  if (config_path.empty()) config_path = tgm::default_config_path();
-  tgm::ConfigLoad load = tgm::load_config_file(config_path);
-  if (!load.config) {
-    for (const auto& e : load.errors) std::fprintf(stderr, "%s\n", e.c_str());
-    std::fprintf(stderr, "tgm-plc: the config %s has %zu problem%s\n", config_path.c_str(),
-                 load.errors.size(), load.errors.size() == 1 ? "" : "s");
-    return 2;
-  }
-  tgm::AppConfig config = *load.config;
+  const std::optional<tgm::AppConfig> loaded = tgm::load_config_or_report(config_path, "tgm-plc");
+  if (!loaded) return 2;
+  tgm::AppConfig config = *loaded;
   overrides.apply(config.dds);
   if (std::string why = tgm::dds_profiles_problem(config.dds); !why.empty()) return usage_error(why);
   const int count = static_cast<int>(config.machine.interpolators.size());

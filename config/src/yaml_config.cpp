@@ -3,6 +3,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -358,6 +359,18 @@ ConfigLoad load_config_file(const std::string& path) {
   std::ostringstream ss;
   ss << in.rdbuf();
   return load_config_text(ss.str(), path);
+}
+
+std::optional<AppConfig> load_config_or_report(const std::string& path,
+                                               const std::string& program) {
+  const std::string file = path.empty() ? default_config_path() : path;
+  ConfigLoad load = load_config_file(file);
+  if (!load.config) {
+    for (const auto& e : load.errors) std::fprintf(stderr, "%s\n", e.c_str());
+    std::fprintf(stderr, "%s: the config %s has %zu problem%s\n", program.c_str(), file.c_str(),
+                 load.errors.size(), load.errors.size() == 1 ? "" : "s");
+  }
+  return std::move(load.config);
 }
 
 std::string default_config_path() {

@@ -49,6 +49,10 @@ ConfigLoad load_config_text(const std::string& text, const std::string& path);
 //! Reads and parses a file.
 ConfigLoad load_config_file(const std::string& path);
 
+//! Loads `path` (default_config_path() when empty) for a command-line program: on failure prints
+//! every problem and "<program>: the config <path> has N problems" to stderr, returns nullopt.
+std::optional<AppConfig> load_config_or_report(const std::string& path, const std::string& program);
+
 //! The config file used when none is given: $TGM_CONFIG, then the installed
 //! <prefix>/share/tgm/default.yaml, then config/default.yaml of the source tree.
 std::string default_config_path();
