@@ -90,7 +90,6 @@ struct Block {
   std::int32_t line = 0;
   std::uint32_t begin = 0;
   std::uint32_t end = 0;
-  std::uint32_t first_word = 0;
   std::uint16_t word_count = 0;
   bool valid = true;  //!< false when pass 1 found an error: pass 2 skips it
   //! First comment of the line (M29 text, G29 note), as offset/length into the source.
@@ -160,10 +159,8 @@ class Compiler {
   bool in_order_ = true;   //!< still executing each line as it is lexed
   std::size_t resume_ = 0;  //!< first block execute() runs
   std::uint64_t max_executed_ = 0;
-  // Comment of the line lexed last (lex_line keeps it for in-order execution).
-  bool cur_has_comment_ = false;
-  std::uint32_t cur_comment_offset_ = 0;
-  std::uint32_t cur_comment_length_ = 0;
+  //! The line lexed last, whose words are still in words_ (for in-order execution).
+  Block cur_block_;
   std::vector<Word> words_;  //!< words of the line being looked at
   std::vector<LineRef> blocks_;
   std::unordered_map<long long, std::size_t> labels_;  // label -> block index
@@ -324,16 +321,13 @@ void Compiler::lex_line(std::size_t begin, std::size_t end, std::int32_t line) {
   if (b.word_count == 0 && !b.has_comment && valid) return;  // empty line: no block
   check_block_static(b);
   blocks_.push_back({b.begin, b.end, b.line, b.valid});
-  cur_has_comment_ = b.has_comment;
-  cur_comment_offset_ = b.comment_offset;
-  cur_comment_length_ = b.comment_length;
+  cur_block_ = b;
 }
 
 bool Compiler::lex_words(Block& b) {
   const std::size_t begin = b.begin, end = b.end;
   const std::int32_t line = b.line;
   words_.clear();
-  b.first_word = 0;
   b.has_comment = false;
   std::uint32_t seen = 0;  // letters already on this line (G excluded)
   std::size_t i = begin;
@@ -444,13 +438,12 @@ bool Compiler::lex_words(Block& b) {
     if (L != 'G') seen |= bit(L);
     words_.push_back({L, col(wstart), v});
   }
-  const std::size_t count = words_.size() - b.first_word;
-  if (count > 0xFFFF) {
+  if (words_.size() > 0xFFFF) {
     error(line, 1, "more than 65535 words on one line");
-    words_.resize(b.first_word);
+    words_.clear();
     b.valid = false;
   }
-  b.word_count = static_cast<std::uint16_t>(words_.size() - b.first_word);
+  b.word_count = static_cast<std::uint16_t>(words_.size());
   b.letters = seen & ~(bit('G') | bit('M'));
   return b.valid;
 }
@@ -463,7 +456,7 @@ double norm2(double x, double y) { return std::sqrt(x * x + y * y); }
 
 // Checks that need no modal state; records labels.
 void Compiler::check_block_static(Block& b) {
-  const Word* w = words_.data() + b.first_word;
+  const Word* w = words_.data();
   const Word* we = w + b.word_count;
   const Word* g_of[7] = {};  // per GGroup: the G word of that group on this line
   const Word* m_word = nullptr;
@@ -718,21 +711,17 @@ std::size_t Compiler::execute_block(std::size_t index, bool relex) {
   const LineRef& ref = blocks_[index];
   if (!ref.valid) return next;
   Block b;
-  b.line = ref.line;
-  b.begin = ref.begin;
-  b.end = ref.end;
   if (relex) {
+    b.line = ref.line;
+    b.begin = ref.begin;
+    b.end = ref.end;
     reporting_ = false;  // pass 1 reported this line's lexical errors already
     lex_words(b);
     reporting_ = true;
   } else {
-    // words_ still holds this line; only the comment is needed again.
-    b.word_count = static_cast<std::uint16_t>(words_.size());
-    b.has_comment = cur_has_comment_;
-    b.comment_offset = cur_comment_offset_;
-    b.comment_length = cur_comment_length_;
+    b = cur_block_;  // lexed just now: words_ still holds its words
   }
-  const Word* w = words_.data() + b.first_word;
+  const Word* w = words_.data();
   const Word* we = w + b.word_count;
   const Word* by_letter[26] = {};
   int g_motion = -1, g_plane = -1, g_dist = -1, g_comp = -1, g_nonmodal = -1;
