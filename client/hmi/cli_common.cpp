@@ -132,25 +132,8 @@ bool read_file(const std::string& path, std::string& out, std::string& error) {
 }
 
 bool write_file_atomic(const std::string& path, const std::string& bytes, std::string& error) {
-  const std::string tmp = path + ".tmp";
-  std::FILE* f = std::fopen(tmp.c_str(), "wb");
-  if (!f) {
-    error = std::string("cannot create: ") + std::strerror(errno);
-    return false;
-  }
-  const bool ok = std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
-  const int close_rc = std::fclose(f);
-  if (!ok || close_rc != 0) {
-    error = std::string("cannot write: ") + std::strerror(errno);
-    std::remove(tmp.c_str());
-    return false;
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    error = std::string("cannot rename into place: ") + std::strerror(errno);
-    std::remove(tmp.c_str());
-    return false;
-  }
-  return true;
+  AtomicFile f;  // removes the temporary file on every early return
+  return f.open(path, error) && f.write(bytes.data(), bytes.size(), error) && f.commit(error);
 }
 
 AtomicFile::~AtomicFile() {
