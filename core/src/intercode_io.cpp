@@ -71,6 +71,22 @@ void json_string(std::string& out, std::string_view s) {
   out.push_back('"');
 }
 
+// Side-table lookups of the dumps, safe for any record.
+char axis_letter(const Program& p, int i) {
+  return i < static_cast<int>(p.axis_letters.size()) ? p.axis_letters[static_cast<std::size_t>(i)]
+                                                     : '?';
+}
+const MParams* params_of(const Program& p, const Segment& s) {
+  return s.aux >= 0 && s.aux < static_cast<int>(p.params.size())
+             ? &p.params[static_cast<std::size_t>(s.aux)]
+             : nullptr;
+}
+std::string_view message_of(const Program& p, const Segment& s) {
+  return s.aux >= 0 && s.aux < static_cast<int>(p.messages.size())
+             ? std::string_view(p.messages[static_cast<std::size_t>(s.aux)])
+             : std::string_view();
+}
+
 std::string_view m_kind_name(MKind k) {
   switch (k) {
     case MKind::kNormal: return "normal";
@@ -326,10 +342,7 @@ bool decode_intercode(std::string_view bytes, Program& out, std::string& error) 
 
 void dump_jsonl(const Program& p, std::string& out) {
   const int n = p.number_axes;
-  auto letter = [&](int i) {
-    return i < static_cast<int>(p.axis_letters.size()) ? p.axis_letters[static_cast<std::size_t>(i)]
-                                                       : '?';
-  };
+  auto letter = [&](int i) { return axis_letter(p, i); };
   for (const Segment& s : p.segments) {
     out += "{\"line\":";
     out += std::to_string(s.line);
@@ -381,9 +394,9 @@ void dump_jsonl(const Program& p, std::string& out) {
       out += ",\"kind\":\"";
       out += m_kind_name(s.m_kind);
       out += "\",\"params\":{";
-      if (s.aux >= 0 && s.aux < static_cast<int>(p.params.size())) {
+      if (const MParams* params = params_of(p, s)) {
         bool first = true;
-        const MParams& mp = p.params[static_cast<std::size_t>(s.aux)];
+        const MParams& mp = *params;
         for (int k = 0; k < kParamLetters; ++k) {
           if (is_not_set(mp[static_cast<std::size_t>(k)])) continue;
           if (!first) out.push_back(',');
@@ -398,9 +411,7 @@ void dump_jsonl(const Program& p, std::string& out) {
     }
     if (s.type == SegmentType::kMessage) {
       out += ",\"text\":";
-      json_string(out, s.aux >= 0 && s.aux < static_cast<int>(p.messages.size())
-                           ? std::string_view(p.messages[static_cast<std::size_t>(s.aux)])
-                           : std::string_view());
+      json_string(out, message_of(p, s));
     }
     out += ",\"tool\":";
     out += std::to_string(s.tool);
@@ -423,8 +434,8 @@ void dump_text(const Program& p, std::string& out) {
     if (s.type == SegmentType::kMFunction) {
       std::snprintf(buf, sizeof buf, " M%d (%s)", s.m, std::string(m_kind_name(s.m_kind)).c_str());
       out += buf;
-      if (s.aux >= 0 && s.aux < static_cast<int>(p.params.size())) {
-        const MParams& mp = p.params[static_cast<std::size_t>(s.aux)];
+      if (const MParams* params = params_of(p, s)) {
+        const MParams& mp = *params;
         for (int k = 0; k < kParamLetters; ++k) {
           if (is_not_set(mp[static_cast<std::size_t>(k)])) continue;
           std::snprintf(buf, sizeof buf, " %c%.6g", 'A' + k, mp[static_cast<std::size_t>(k)]);
@@ -433,19 +444,15 @@ void dump_text(const Program& p, std::string& out) {
       }
     } else if (s.type == SegmentType::kMessage) {
       out += " \"";
-      if (s.aux >= 0 && s.aux < static_cast<int>(p.messages.size())) {
-        out += p.messages[static_cast<std::size_t>(s.aux)];
-      }
+      out += message_of(p, s);
       out += '"';
     } else if (s.type == SegmentType::kDwell) {
       std::snprintf(buf, sizeof buf, " %.6g s", s.dwell_s);
       out += buf;
     } else {
       for (int i = 0; i < n; ++i) {
-        const char L = i < static_cast<int>(p.axis_letters.size())
-                           ? p.axis_letters[static_cast<std::size_t>(i)]
-                           : '?';
-        std::snprintf(buf, sizeof buf, " %c%.4f", L, s.end[static_cast<std::size_t>(i)]);
+        std::snprintf(buf, sizeof buf, " %c%.4f", axis_letter(p, i),
+                      s.end[static_cast<std::size_t>(i)]);
         out += buf;
       }
       if (s.is_arc()) {
