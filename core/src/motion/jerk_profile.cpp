@@ -10,8 +10,10 @@ double braking_distance(double v, double a, double w, double A, double J) {
   if (w < 0.0) w = 0.0;
   // No clamp of a to [-A, A]: the planner may check with limits slightly below those the
   // generator uses, and an acceleration above A must be ramped down, not assumed away.
+  // One division for 1/J instead of five by J: this runs several times per calculation step.
+  const double iJ = 1.0 / J;
   // Velocity once the acceleration is brought to zero along the shortest ramp.
-  const double vz = v + a * std::fabs(a) / (2.0 * J);
+  const double vz = v + 0.5 * a * std::fabs(a) * iJ;
   if (v <= w && (a <= 0.0 || vz <= w)) return 0.0;
   // Braking so hard that even ramping the acceleration back at +J ends below standstill: the
   // motion would have to reverse. No distance makes that state acceptable.
@@ -19,8 +21,8 @@ double braking_distance(double v, double a, double w, double A, double J) {
   if (vz <= w) {
     // Case 2: a < 0 and v > w; ramp a up at +J, v reaches w before a reaches 0.
     const double disc = std::max(0.0, a * a - 2.0 * J * (v - w));
-    const double t = (-a - std::sqrt(disc)) / J;
-    return t * (v + t * (0.5 * a + t * J / 6.0));
+    const double t = (-a - std::sqrt(disc)) * iJ;
+    return t * (v + t * (0.5 * a + t * J * (1.0 / 6.0)));
   }
   // Case 3: S-curve from (v, a) to (w, 0).
   double ap = std::sqrt(J * (v - w) + 0.5 * a * a);  // peak deceleration without a hold phase
@@ -28,16 +30,16 @@ double braking_distance(double v, double a, double w, double A, double J) {
   const double cap = std::max(A, -a);  // already braking harder than A: hold that
   if (ap > cap) {
     ap = cap;
-    t2 = (v + (a * a - 2.0 * ap * ap) / (2.0 * J) - w) / ap;
+    t2 = (v + 0.5 * (a * a - 2.0 * ap * ap) * iJ - w) / ap;
     if (t2 < 0.0) t2 = 0.0;
   }
-  const double t1 = (a + ap) / J;  // jerk -J from a to -ap
-  const double d1 = t1 * (v + t1 * (0.5 * a - t1 * J / 6.0));
+  const double t1 = (a + ap) * iJ;  // jerk -J from a to -ap
+  const double d1 = t1 * (v + t1 * (0.5 * a - t1 * J * (1.0 / 6.0)));
   const double v1 = v + t1 * (a - 0.5 * J * t1);
   const double d2 = t2 * (v1 - 0.5 * ap * t2);
   const double v2 = v1 - ap * t2;
-  const double t3 = ap / J;  // jerk +J from -ap to 0
-  const double d3 = t3 * (v2 + t3 * (-0.5 * ap + t3 * J / 6.0));
+  const double t3 = ap * iJ;  // jerk +J from -ap to 0
+  const double d3 = t3 * (v2 + t3 * (-0.5 * ap + t3 * J * (1.0 / 6.0)));
   return d1 + d2 + d3;
 }
 
@@ -88,7 +90,7 @@ double braking_distance_from(double v, double a, double w, double A, double J, d
     if (target >= floor_a) break;
     target = floor_a * 0.999;
   }
-  const double d0 = t * (v + t * (0.5 * a + t * J_now / 6.0));
+  const double d0 = t * (v + t * (0.5 * a + t * J_now * (1.0 / 6.0)));
   return d0 + braking_distance(v0, target, w, A, J);
 }
 
