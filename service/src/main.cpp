@@ -1,6 +1,7 @@
 // tgm-service: hosts the configured interpolators, runs the interpolation cycle in real time and
 // serves them over DDS (DESIGN.md sections 1, 3, 6). SIGINT / SIGTERM stop it cleanly.
 #include <pthread.h>
+#include <sched.h>
 #include <signal.h>
 
 #include <algorithm>
@@ -35,6 +36,7 @@ constexpr const char* kUsage =
     "  --no-realtime          do not try SCHED_FIFO / mlockall\n"
     "  --rt-priority N        SCHED_FIFO priority of the cycle thread, 1..99 (default 80)\n"
     "  --cpu N                pin the cycle thread to CPU N (default: not pinned)\n"
+
     "  --dds-priority N       SCHED_FIFO priority of every DDS thread (Fast DDS's, receiver,\n"
     "                         publisher), 1..98 and below --rt-priority; default 0 = normal\n"
     "  --chunk-budget N       program records appended per interpolator per cycle (default 1024)\n"
@@ -170,6 +172,19 @@ int main(int argc, char** argv) {
       std::printf("tgm-service: DDS threads SCHED_FIFO priority %d\n", dds_priority);
     } else {
       std::printf("tgm-service: DDS threads: SCHED_FIFO not permitted (%s), normal priority\n", std::strerror(rc));
+    }
+  }
+  if (rt.cpu >= 0) {
+    // The cycle thread gets CPU rt.cpu; the threads created from here on (Fast DDS's, the
+    // port's) inherit the other CPUs, so a spinning cycle thread never starves them.
+    cpu_set_t others;
+    CPU_ZERO(&others);
+    if (sched_getaffinity(0, sizeof others, &others) == 0 && CPU_ISSET(rt.cpu, &others) &&
+        CPU_COUNT(&others) > 1) {
+      CPU_CLR(rt.cpu, &others);
+      if (pthread_setaffinity_np(pthread_self(), sizeof others, &others) == 0) {
+        std::printf("tgm-service: DDS threads kept off CPU %d\n", rt.cpu);
+      }
     }
   }
   std::unique_ptr<tgm::service::DdsPort> port;
