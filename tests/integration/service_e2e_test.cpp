@@ -6,9 +6,11 @@
 
 #include <chrono>
 #include <cmath>
+#include <mutex>
 #include <optional>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include "service_test_env.hpp"
 #include "tgm/client/client.hpp"
@@ -151,6 +153,61 @@ TEST(ServiceProcesses, MFunctionWaitsUntilThePlcAcksAndNotLonger) {
   std::printf("M51: waited %llu cycles, acknowledged in cycle %llu, first state after it: cycle %llu\n",
               static_cast<unsigned long long>(ack.cycle - m_cycle), static_cast<unsigned long long>(ack.cycle),
               static_cast<unsigned long long>(s.cycle_counter()));
+}
+
+// The event topic: the PLC gets the M-function in a small event sample, in Fast DDS's receive
+// thread, and can acknowledge it right there; the reply is taken later by the polling thread.
+TEST(ServiceProcesses, EventCallbackSeesTheMFunctionAndCanAcknowledgeIt) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  client::Client plc(env.dds(), client::Role::kPlc);
+  std::mutex mutex;
+  std::vector<msg::InterpolatorEvent> m_events;  // events with M_Func set, as the callback saw them
+  std::vector<std::uint64_t> ack_ids;
+  std::uint64_t last_counter = 0;
+  bool counters_contiguous = true;
+  plc.on_event([&](const client::Event& e) {
+    if (e.sample.interpolator() != 0) return;
+    const std::lock_guard lock(mutex);
+    if (last_counter != 0 && e.sample.event_counter() != last_counter + 1) counters_contiguous = false;
+    last_counter = e.sample.event_counter();
+    if (e.sample.m_func() == 0 || (!m_events.empty() && m_events.back().act_part() == e.sample.act_part())) return;
+    m_events.push_back(e.sample);
+    ack_ids.push_back(plc.send_ack_m_func(0));
+  });
+  ASSERT_THROW(plc.on_event([](const client::Event&) {}), dds::SetupError);
+  ASSERT_TRUE(plc.wait_for_state(0, kHang));
+  std::ofstream(env.path("m51.ngc")) << "G1 X5\nM51 A7\nG1 X5\nM2\n";
+  test::Child hmi;
+  ASSERT_TRUE(hmi.start({TGM_HMI_BIN, "run", env.path("m51.ngc"), "--config", env.config()}, env.path("hmi.log")));
+  EXPECT_EQ(hmi.wait(kHang), 0) << hmi.log();
+  EXPECT_NE(hmi.log().find("done: 4 records"), std::string::npos) << hmi.log();
+  EXPECT_NE(hmi.log().find("1 M-function wait"), std::string::npos) << hmi.log();
+
+  const std::lock_guard lock(mutex);
+  ASSERT_EQ(m_events.size(), 1u);
+  const msg::InterpolatorEvent& e = m_events[0];
+  EXPECT_EQ(e.m_func(), 51);
+  EXPECT_EQ(e.act_line(), 2);
+  EXPECT_DOUBLE_EQ(e.m_function_parameter()[0], 7.0);
+  EXPECT_TRUE(is_not_set(e.m_function_parameter()[1]));
+  const auto sec = static_cast<SectionState>(static_cast<std::uint32_t>(e.run_flag()) & 0xFFFFu);
+  EXPECT_TRUE(sec == SectionState::kWaitMFunc || sec == SectionState::kWaitMFuncEnd) << e.run_flag();
+  EXPECT_NE(e.program_id(), 0u);
+  EXPECT_GT(e.cycle_counter(), 0u);
+  EXPECT_TRUE(counters_contiguous);
+  EXPECT_EQ(plc.events_lost(), 0u);
+  EXPECT_GE(plc.events_received(), 3u);  // at least: program loaded, running, M51, ended
+  ASSERT_EQ(ack_ids.size(), 1u);
+  ASSERT_NE(ack_ids[0], 0u) << "the ack could not be written from the callback";
+  std::optional<client::Reply> reply;
+  for (int i = 0; i < 100 && !reply; ++i) {
+    plc.poll(20ms);
+    reply = plc.take_reply(ack_ids[0]);
+  }
+  ASSERT_TRUE(reply.has_value());
+  EXPECT_TRUE(reply->accepted) << client::describe(*reply);
+  EXPECT_GE(reply->cycle, e.cycle_counter());
 }
 
 TEST(ServiceProcesses, LateJoiningHmiSeesTheCurrentStateAtOnce) {
