@@ -210,6 +210,30 @@ TEST(ServiceProcesses, EventCallbackSeesTheMFunctionAndCanAcknowledgeIt) {
   EXPECT_GE(reply->cycle, e.cycle_counter());
 }
 
+// tgm-plc with an acknowledgement delay of 0 acknowledges from the event callback; it sees every
+// M-function on both topics (event and state) and still logs each, and each acknowledgement, once.
+TEST(ServiceProcesses, PlcAcknowledgesFromTheEventAndLogsEachMFunctionOnce) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  test::Child plc;
+  ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.config(), "--ack-delay", "0"}, env.path("plc.log")));
+  test::Child hmi;
+  ASSERT_TRUE(hmi.start({TGM_HMI_BIN, "run", TGM_SOURCE_DIR "/tests/programs/manual_example.ngc", "--config",
+                         env.config()},
+                        env.path("hmi.log")));
+  EXPECT_EQ(hmi.wait(kHang), 0) << hmi.log() << "\n--- plc:\n" << plc.log();
+  EXPECT_EQ(plc.interrupt(), 0);
+  EXPECT_NE(hmi.log().find("3 M-function waits"), std::string::npos) << hmi.log();
+  const std::string log = plc.log();
+  EXPECT_EQ(test::count_of(log, "M51 normal"), 2) << log;
+  EXPECT_EQ(test::count_of(log, "M50 normal"), 1) << log;
+  EXPECT_EQ(test::count_of(log, "M51 acknowledged from the event"), 2) << log;
+  EXPECT_EQ(test::count_of(log, "M50 acknowledged from the event"), 1) << log;
+  EXPECT_EQ(test::count_of(log, "acknowledged"), 3) << log;
+  EXPECT_EQ(test::count_of(log, ": accepted (cycle"), 3) << log;
+  EXPECT_EQ(test::count_of(log, " 0 lost"), 1) << log;
+}
+
 TEST(ServiceProcesses, LateJoiningHmiSeesTheCurrentStateAtOnce) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());
