@@ -197,10 +197,21 @@ void DdsPort::publish(const Snapshot& s) {
 
 // ---- receiver thread ----
 
+// Two threads take requests: the reader's listener (a Fast DDS receive thread, which calls it
+// while holding the reader's internal mutex) and the receiver thread (retrying after a full
+// queue). Blocking on request_mutex_ in the listener would be lock-order inversion: the receiver
+// holds request_mutex_ and then needs the reader's mutex inside take(). So nobody blocks: a
+// caller announces itself in requests_pending_ and tries the lock; the holder re-checks the flag
+// after unlocking and takes again, so no sample is left behind when a try fails.
 void DdsPort::take_requests() {
-  const std::lock_guard lock(request_mutex_);
-  if (stopping_) return;
-  take_requests_locked();
+  requests_pending_.store(true, std::memory_order_seq_cst);
+  while (requests_pending_.load(std::memory_order_seq_cst)) {
+    std::unique_lock lock(request_mutex_, std::try_to_lock);
+    if (!lock.owns_lock()) return;  // the holder sees the flag after it unlocks
+    requests_pending_.store(false, std::memory_order_seq_cst);
+    if (stopping_) return;
+    take_requests_locked();
+  }
 }
 
 void DdsPort::take_requests_locked() {

@@ -112,7 +112,7 @@ class DdsPort final : public CyclePort {
  private:
   void receive_loop();
   void publish_loop();
-  //! Takes every request sample the queue has room for (any thread; serialized by a mutex).
+  //! Takes every request sample the queue has room for (any thread; never blocks: see .cpp).
   void take_requests();
   void take_requests_locked();
 
@@ -157,6 +157,7 @@ class DdsPort final : public CyclePort {
   // request taking (listener or receiver thread), under request_mutex_: the producer side of
   // requests_ and the handshake records
   std::mutex request_mutex_;
+  std::atomic<bool> requests_pending_{false};
   std::vector<HandshakeSample> handshakes_;
   msg::Request request_sample_;
   // receiver thread only

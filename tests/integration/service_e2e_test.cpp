@@ -344,6 +344,43 @@ TEST(ServiceProcesses, HundredThousandRecordsStreamIntoAThousandRecordBufferWhil
               static_cast<unsigned long long>(underruns));
 }
 
+// Requests are taken by two threads of the service (the reader's listener in a Fast DDS receive
+// thread, and the receiver thread when the request queue was full). A flood that keeps the queue
+// full makes both take at once, over and over; the service must keep answering and stop cleanly
+// (it used to deadlock: the listener holds the reader's lock and waited for the service's, the
+// receiver thread the other way round).
+TEST(ServiceProcesses, RequestFloodNeverStallsTheService) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  client::Client plc(env.dds(), client::Role::kPlc);
+  ASSERT_TRUE(plc.wait_for_state(0, kHang));
+  ASSERT_TRUE(plc.set_rel_speed(0, 1.0).accepted);  // matched both ways
+  const auto until = std::chrono::steady_clock::now() + 3s;
+  std::uint64_t sent = 0;
+  while (std::chrono::steady_clock::now() < until) {
+    for (int k = 0; k < 200; ++k) {
+      msg::Request r;
+      r.interpolator(static_cast<std::uint16_t>(k % 3));
+      r.kind(msg::REQUEST_KIND_WRITE_REL_SPEED);
+      r.value(0.5 + 0.001 * (k % 100));
+      if (plc.send(r) != 0) ++sent;
+    }
+    plc.poll(std::chrono::nanoseconds(0));
+  }
+  EXPECT_GT(sent, 1000u);
+  // Still answering (each interpolator), and a clean stop (a stuck DDS thread never joins).
+  for (int i = 0; i < 3; ++i) {
+    msg::Request q;
+    q.interpolator(static_cast<std::uint16_t>(i));
+    q.kind(msg::REQUEST_KIND_WRITE_REL_SPEED);
+    q.value(0.75);
+    const auto r = plc.request(q, 10s);
+    EXPECT_TRUE(r.accepted) << "interpolator " << i << ": " << client::describe(r);
+  }
+  EXPECT_EQ(env.service.interrupt(20s), 0) << env.service.log();
+  std::printf("%llu requests sent in 3 s\n", static_cast<unsigned long long>(sent));
+}
+
 TEST(ServiceProcesses, ServiceStopsCleanlyOnSigtermAndRejectsBadFlags) {
   ServiceEnv env;
   test::Child bad;
