@@ -16,6 +16,9 @@ m_count=${M_COUNT:-2000}
 dds_prio=${DDS_PRIO:-0}
 svc_prio=(); plc_prio=()
 if ((dds_prio > 0)); then svc_prio=(--dds-priority "$dds_prio"); plc_prio=(--rt-priority "$dds_prio"); fi
+# SVC_ARGS / PLC_ARGS: extra options for tgm-service / tgm-plc in part 1 (word-split).
+read -r -a svc_extra <<< "${SVC_ARGS:-}"
+read -r -a plc_extra <<< "${PLC_ARGS:-}"
 domain=${DOMAIN:-91}
 tmp=$(mktemp -d)
 pids=()
@@ -50,19 +53,25 @@ echo "== 1. M-function handshake: $m_count x (G1 X0.01, M51), tgm-plc acknowledg
 echo "load average before: $(cut -d' ' -f1-3 /proc/loadavg)"
 for ((i = 0; i < m_count; ++i)); do printf 'G1 X0.01\nM51\n'; done > "$tmp/m.ngc"
 echo "M2" >> "$tmp/m.ngc"
-"$svc" "${cfg[@]}" "${svc_prio[@]}" --stats "$tmp/hs.json" --handshake-trace "$tmp/hs_svc.csv" \
+"$svc" "${cfg[@]}" "${svc_prio[@]}" "${svc_extra[@]}" --stats "$tmp/hs.json" --handshake-trace "$tmp/hs_svc.csv" \
   > "$tmp/svc1.log" 2>&1 & pids+=($!)
-"$plc" "${cfg[@]}" "${plc_prio[@]}" --ack-delay 0 --quiet --no-basic-params --handshake-trace "$tmp/hs_plc.csv" \
+"$plc" "${cfg[@]}" "${plc_prio[@]}" "${plc_extra[@]}" --ack-delay 0 --quiet --no-basic-params --handshake-trace "$tmp/hs_plc.csv" \
   > "$tmp/plc1.log" 2>&1 & pids+=($!)
 # The raw ping-pong (the event sample with the event QoS, answered by the Request with the request
 # QoS; WaitSet and listener mode alternating in blocks of 500) runs while the handshake program
 # runs (same load on the machine: the service's cycle and publisher threads, the HMI, the PLC),
 # and alone after it. The goal compares with the faster mode of the concurrent run.
-"$build/tests/bench/service/tgm_bench_state_pingpong" --sample event --mode both --count 30000 \
-  --domain $((domain + 2)) --profiles "$PWD/config/fastdds_profiles.xml" > "$tmp/raw_during.log" 2>&1 &
-raw_pid=$!
-"$hmi" run "$tmp/m.ngc" "${cfg[@]}" --quiet > "$tmp/hmi1.log"
-wait "$raw_pid" || true
+# RAW_DURING=0 (diagnosis only): no concurrent ping-pong, to see how much it slows the handshake.
+raw_pid=
+if [[ ${RAW_DURING:-1} != 0 ]]; then
+  "$build/tests/bench/service/tgm_bench_state_pingpong" --sample event --mode both --count 30000 \
+    --domain $((domain + 2)) --profiles "$PWD/config/fastdds_profiles.xml" > "$tmp/raw_during.log" 2>&1 &
+  raw_pid=$!
+else
+  echo "(no concurrent raw ping-pong: RAW_DURING=0)" > "$tmp/raw_during.log"
+fi
+"$hmi" run "$tmp/m.ngc" "${cfg[@]}" --quiet --timeout 600 > "$tmp/hmi1.log" || echo "tgm-hmi run failed (exit $?)"
+[[ -n $raw_pid ]] && { wait "$raw_pid" || true; }
 stop_all
 echo "load average after: $(cut -d' ' -f1-3 /proc/loadavg)"
 tail -n 3 "$tmp/hmi1.log"
@@ -74,6 +83,11 @@ cat "$tmp/raw_during.log"
 echo "raw ping-pong alone (event -> request, both modes):"
 "$build/tests/bench/service/tgm_bench_state_pingpong" --sample event --mode both --count 10000 \
   --domain $((domain + 1)) --profiles "$PWD/config/fastdds_profiles.xml"
+# The handshake is sporadic (one M-function every ~23 ms here), the ping-pong back to back; on a
+# VM whose idle vCPUs halt, a sporadic exchange pays the wake-ups. Context, not the goal:
+echo "raw ping-pong alone, paced like the handshake (one round trip every 20 ms; context only):"
+"$build/tests/bench/service/tgm_bench_state_pingpong" --sample event --mode both --count 400 --block 50 \
+  --warmup 20 --interval-us 20000 --domain $((domain + 1)) --profiles "$PWD/config/fastdds_profiles.xml"
 echo "raw ping-pong alone, the former reference (state -> request, WaitSet; 1 and 2 state readers):"
 "$build/tests/bench/service/tgm_bench_state_pingpong" --count 5000 --domain $((domain + 1)) \
   --profiles "$PWD/config/fastdds_profiles.xml"

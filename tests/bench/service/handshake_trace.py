@@ -98,8 +98,10 @@ def main():
     results = raw_results(raw)
     if results and dds:
         for path, f in results:
+            back = f", return hop (pong write() begins -> taken) median {float(f['return_median_us']):.1f} us" \
+                if "return_median_us" in f else ""
             print(f"raw reference {f.get('sample', '?')}/{f.get('mode', '?')} ({path.split('/')[-1]}): "
-                  f"median {float(f['median_us']):.1f} us, p99 {float(f['p99_us']):.1f} us (n {f['n']})")
+                  f"median {float(f['median_us']):.1f} us, p99 {float(f['p99_us']):.1f} us (n {f['n']}){back}")
         path, best = min(results, key=lambda pf: float(pf[1]["median_us"]))
         ratio = pct(dds, .5) / float(best["median_us"])
         print(f"goal: DDS part median {pct(dds, .5):.1f} us / fastest raw median {float(best['median_us']):.1f} us "

@@ -5,7 +5,7 @@
 //
 //   tgm_bench_state_pingpong [--role both|ping|pong|sink] [--sample state|event]
 //                            [--mode waitset|listener|both] [--count N] [--warmup N] [--block N]
-//                            [--domain D] [--profiles FILE] [--sinks N]
+//                            [--domain D] [--profiles FILE] [--sinks N] [--interval-us N]
 //
 // --sample state: tgm::msg::InterpolatorState with the tgm_state profiles (3,812 B, the sample
 //   the service wrote first before the event topic existed); event: tgm::msg::InterpolatorEvent
@@ -18,9 +18,13 @@
 // --mode both: the two modes on separate topics, alternating in blocks of --block round trips,
 //   so that both see the same load over the run; each mode is reported on its own.
 // The clock starts just before write() and stops when the Request is taken, as the service's
-// "DDS part" of the handshake does.
+// "DDS part" of the handshake does. The pong puts the time it began its write() into
+// Request.value (same clock, same host), so the return hop (pong write() begins -> Request
+// taken) is reported too: it compares with the handshake's "ack request call -> service took it".
 // --sinks N starts N more processes that only read the pinged samples (like tgm-hmi next to
 // tgm-plc on the state): the ping side then writes every sample to N + 1 readers.
+// --interval-us N pauses N us between round trips (not timed), as sporadic as the handshake
+// (one M-function every few cycles); 0 = back to back.
 //
 // Output: one line per mode beginning with "RESULT" (parsed by handshake_trace.py --raw).
 #include <spawn.h>
@@ -61,6 +65,7 @@ struct Options {
   int block = 500;
   int domain = 78;
   int sinks = 0;
+  int interval_us = 0;
   std::string profiles = TGM_SOURCE_DIR "/config/fastdds_profiles.xml";
 };
 
@@ -88,6 +93,8 @@ tgm::DdsConfig config(const Options& o) {
 }
 bool uses(const Options& o, int mode) { return o.mode == "both" || o.mode == mode_name(mode); }
 
+double now_ns() { return static_cast<double>(Clock::now().time_since_epoch().count()); }
+
 // Pong side of the listener mode: answers every sample from Fast DDS's receive thread.
 template <class Sample>
 class PongListener final : public fdds::DataReaderListener {
@@ -106,6 +113,7 @@ class PongListener final : public fdds::DataReaderListener {
         continue;
       }
       r_.request_id(s_.cycle_counter());
+      r_.value(now_ns());
       acks_.write(&r_);
     }
   }
@@ -133,6 +141,7 @@ class AckListener final : public fdds::DataReaderListener {
     while (tgm::dds::take_next(*reader, r_)) {
       if (r_.request_id() == expected_) {
         taken_ = Clock::now();
+        pong_write_ns_ = r_.value();
         got_ = true;
         cv_.notify_one();
       }
@@ -144,10 +153,11 @@ class AckListener final : public fdds::DataReaderListener {
     got_ = false;
   }
   //! Time the expected Request was taken; false on timeout.
-  bool wait(Clock::time_point& taken, std::chrono::milliseconds timeout) {
+  bool wait(Clock::time_point& taken, double& pong_write_ns, std::chrono::milliseconds timeout) {
     std::unique_lock lock(mutex_);
     if (!cv_.wait_for(lock, timeout, [&] { return got_; })) return false;
     taken = taken_;
+    pong_write_ns = pong_write_ns_;
     return true;
   }
   void detach() {
@@ -162,6 +172,7 @@ class AckListener final : public fdds::DataReaderListener {
   bool got_ = false;
   std::uint64_t expected_ = 0;
   Clock::time_point taken_{};
+  double pong_write_ns_ = 0;
   tgm::msg::Request r_;
 };
 
@@ -200,6 +211,7 @@ int run_pong(const Options& o) {
           continue;
         }
         r.request_id(s.cycle_counter());
+        r.value(now_ns());
         ws_acks->write(&r);
       }
     } else {
@@ -249,6 +261,7 @@ int run_ping(const Options& o) {
     fdds::DataWriter* writer = nullptr;
     fdds::DataReader* acks = nullptr;
     std::vector<double> us;
+    std::vector<double> back_us;  // pong write() begins -> Request taken
     int timeouts = 0;
   };
   Side side[2];
@@ -282,15 +295,20 @@ int run_ping(const Options& o) {
     s.cycle_counter(static_cast<std::uint64_t>(i) + 1);
     bool got = false;
     Clock::time_point t1{};
+    double pong_write_ns = 0;
     if (m == kListener) ack_listener.expect(s.cycle_counter());
     const auto t0 = Clock::now();
     sd.writer->write(&s);
     if (m == kListener) {
-      got = ack_listener.wait(t1, 2000ms);
+      got = ack_listener.wait(t1, pong_write_ns, 2000ms);
     } else {
       while (!got) {
         if (!waiter->wait(2s)) break;
-        while (tgm::dds::take_next(*sd.acks, r)) got = got || r.request_id() == s.cycle_counter();
+        while (tgm::dds::take_next(*sd.acks, r)) {
+          if (r.request_id() != s.cycle_counter()) continue;
+          got = true;
+          pong_write_ns = r.value();
+        }
       }
       t1 = Clock::now();
     }
@@ -298,7 +316,11 @@ int run_ping(const Options& o) {
       ++sd.timeouts;
       continue;
     }
-    if (!warm) sd.us.push_back(std::chrono::duration<double, std::micro>(t1 - t0).count());
+    if (!warm) {
+      sd.us.push_back(std::chrono::duration<double, std::micro>(t1 - t0).count());
+      sd.back_us.push_back((static_cast<double>(t1.time_since_epoch().count()) - pong_write_ns) / 1e3);
+    }
+    if (o.interval_us > 0) std::this_thread::sleep_for(std::chrono::microseconds(o.interval_us));
   }
   s.m_func(-1);
   for (Side& sd : side) {
@@ -327,10 +349,11 @@ int run_ping(const Options& o) {
       continue;
     }
     std::sort(sd.us.begin(), sd.us.end());
-    std::printf("RESULT sample=%s mode=%s n=%zu timeouts=%d min_us=%.1f median_us=%.1f p99_us=%.1f p999_us=%.1f "
-                "max_us=%.1f\n",
-                o.sample.c_str(), mode_name(m), sd.us.size(), sd.timeouts, sd.us.front(), pct(sd.us, 0.5),
-                pct(sd.us, 0.99), pct(sd.us, 0.999), sd.us.back());
+    std::sort(sd.back_us.begin(), sd.back_us.end());
+    std::printf("RESULT sample=%s mode=%s interval_us=%d n=%zu timeouts=%d min_us=%.1f median_us=%.1f p99_us=%.1f p999_us=%.1f "
+                "max_us=%.1f return_median_us=%.1f\n",
+                o.sample.c_str(), mode_name(m), o.interval_us, sd.us.size(), sd.timeouts, sd.us.front(), pct(sd.us, 0.5),
+                pct(sd.us, 0.99), pct(sd.us, 0.999), sd.us.back(), pct(sd.back_us, 0.5));
   }
   return rc;
 }
@@ -366,7 +389,8 @@ int main(int argc, char** argv) {
   Options o;
   constexpr const char* kUsage =
       "usage: %s [--role both|ping|pong|sink] [--sample state|event] [--mode waitset|listener|both]\n"
-      "          [--count N] [--warmup N] [--block N] [--domain D] [--profiles F] [--sinks N]\n";
+      "          [--count N] [--warmup N] [--block N] [--domain D] [--profiles F] [--sinks N]\n"
+      "          [--interval-us N]\n";
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (i + 1 >= argc) {
@@ -382,6 +406,7 @@ int main(int argc, char** argv) {
     else if (a == "--domain") o.domain = std::atoi(argv[++i]);
     else if (a == "--profiles") o.profiles = argv[++i];
     else if (a == "--sinks") o.sinks = std::atoi(argv[++i]);
+    else if (a == "--interval-us") o.interval_us = std::atoi(argv[++i]);
     else {
       std::fprintf(stderr, kUsage, argv[0]);
       return 2;
