@@ -151,13 +151,14 @@ class MTracker {
  public:
   //! True when the sample of `interpolator` at `cycle` shows an M-function nobody claimed yet;
   //! it is then claimed. Samples older than the newest one seen (on either topic) say nothing.
-  bool claim(int interpolator, std::uint64_t cycle, std::uint32_t program, std::int32_t part, std::int32_t m,
-             bool normal) {
+  bool claim(int interpolator, std::uint64_t cycle, std::uint32_t program, std::int32_t part,
+             std::int32_t m, bool normal) {
     Seen& d = seen_[static_cast<std::size_t>(interpolator)];
     if (cycle < d.cycle) return false;
     d.cycle = cycle;
     if (m != d.cont_noted) d.cont_noted = 0;
-    if (m == 0 || (program == d.program && part == d.part) || (!normal && m == d.cont_noted)) return false;
+    if (m == 0 || (program == d.program && part == d.part) || (!normal && m == d.cont_noted))
+      return false;
     d.program = program;
     d.part = part;
     if (!normal) d.cont_noted = m;
@@ -176,7 +177,8 @@ class MTracker {
 };
 
 bool waits_for_ack(std::int32_t run_flag) {
-  const auto section = static_cast<tgm::SectionState>(static_cast<std::uint32_t>(run_flag) & 0xFFFFu);
+  const auto section =
+      static_cast<tgm::SectionState>(static_cast<std::uint32_t>(run_flag) & 0xFFFFu);
   return section == tgm::SectionState::kWaitMFunc || section == tgm::SectionState::kWaitMFuncEnd;
 }
 
@@ -405,7 +407,8 @@ int main(int argc, char** argv) {
       {
         // Every sample goes through claim(), also with M_Func = 0: that ends a noted continuous M.
         const std::lock_guard lock(shared_mutex);
-        if (!tracker.claim(i, e.cycle_counter(), e.program_id(), e.act_part(), rec.m, rec.normal)) return;
+        if (!tracker.claim(i, e.cycle_counter(), e.program_id(), e.act_part(), rec.m, rec.normal))
+          return;
         refused = rec.normal && refuse.count(rec.m) != 0;
       }
       if (!refused && (!rec.normal || delay_for(rec.m) <= 0.0)) {
@@ -431,7 +434,8 @@ int main(int argc, char** argv) {
       return 1;
     }
   }
-  auto log_m = [&](int i, std::int32_t m, bool normal, std::int32_t line, std::int32_t part, const MParams& params) {
+  auto log_m = [&](int i, std::int32_t m, bool normal, std::int32_t line, std::int32_t part,
+                   const MParams& params) {
     log("interpolator %d: M%d %s (line %d, part %d), parameters: %s", i, m,
         normal ? "normal: the interpolator waits" : "continuous: motion goes on", line, part,
         params_text(params).c_str());
@@ -452,7 +456,8 @@ int main(int argc, char** argv) {
       if (rec.action == EventSeen::Action::kAcked) {
         acked.push_back(rec);
       } else if (rec.action == EventSeen::Action::kRefused) {
-        log("interpolator %d: M%d: refusing to acknowledge (--refuse-ack / script)", rec.interpolator, rec.m);
+        log("interpolator %d: M%d: refusing to acknowledge (--refuse-ack / script)",
+            rec.interpolator, rec.m);
       } else if (!rec.normal) {  // continuous, and the callback could not write the note
         log("interpolator %d: M%d noted: %s", rec.interpolator, rec.m,
             tgm::client::describe(plc->ack_m_func(rec.interpolator)).c_str());
@@ -461,7 +466,8 @@ int main(int argc, char** argv) {
         sv->ack_m = rec.m;
         sv->seen_at = rec.seen;
         sv->woke_at = rec.woke;
-        sv->ack_at = rec.seen + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(delay_for(rec.m)));
+        sv->ack_at = rec.seen + std::chrono::duration_cast<Clock::duration>(
+                                    std::chrono::duration<double>(delay_for(rec.m)));
       }
     }
     drained.clear();
@@ -479,11 +485,12 @@ int main(int argc, char** argv) {
         r.emplace();
         r->timed_out = true;
       }
-      trace({it->interpolator, it->part, it->woke, it->seen, it->ack_call, it->ack_written, t, "event"});
+      trace({it->interpolator, it->part, it->woke, it->seen, it->ack_call, it->ack_written, t,
+             "event"});
       if (it->normal) {
-        log("interpolator %d: M%d acknowledged from the event after %.3f s: %s (cycle %llu)", it->interpolator, it->m,
-            std::chrono::duration<double>(t - it->seen).count(), tgm::client::describe(*r).c_str(),
-            static_cast<unsigned long long>(r->cycle));
+        log("interpolator %d: M%d acknowledged from the event after %.3f s: %s (cycle %llu)",
+            it->interpolator, it->m, std::chrono::duration<double>(t - it->seen).count(),
+            tgm::client::describe(*r).c_str(), static_cast<unsigned long long>(r->cycle));
       } else {
         log("interpolator %d: M%d noted from the event: %s", it->interpolator, it->m,
             tgm::client::describe(*r).c_str());
@@ -564,7 +571,8 @@ int main(int argc, char** argv) {
       bool refused = false;
       {
         const std::lock_guard lock(shared_mutex);
-        claimed = tracker.claim(sv.number, s->cycle_counter(), s->program_id(), s->act_part(), s->m_func(), normal);
+        claimed = tracker.claim(sv.number, s->cycle_counter(), s->program_id(), s->act_part(),
+                                s->m_func(), normal);
         refused = claimed && normal && refuse.count(s->m_func()) != 0;
       }
       if (claimed) {
@@ -595,7 +603,8 @@ int main(int argc, char** argv) {
         sv.ack_m = 0;
         const auto ack_call = Clock::now();
         const auto r = plc->ack_m_func(sv.number);
-        trace({sv.number, sv.m_part, sv.woke_at, sv.seen_at, ack_call, plc->last_request_written(), Clock::now(), "loop"});
+        trace({sv.number, sv.m_part, sv.woke_at, sv.seen_at, ack_call, plc->last_request_written(),
+               Clock::now(), "loop"});
         log_seen();
         log("interpolator %d: M%d acknowledged after %.3f s: %s (cycle %llu)", sv.number, m,
             std::chrono::duration<double>(Clock::now() - sv.seen_at).count(), tgm::client::describe(r).c_str(),
@@ -649,10 +658,12 @@ int main(int argc, char** argv) {
       auto ns = [](Clock::time_point t) {
         return static_cast<long long>(std::chrono::duration_cast<std::chrono::nanoseconds>(t.time_since_epoch()).count());
       };
-      std::fprintf(f, "interpolator,act_part,woke_ns,seen_ns,ack_call_ns,ack_written_ns,reply_ns,path\n");
+      std::fprintf(
+          f, "interpolator,act_part,woke_ns,seen_ns,ack_call_ns,ack_written_ns,reply_ns,path\n");
       for (const AckTrace& t : traces) {
-        std::fprintf(f, "%d,%d,%lld,%lld,%lld,%lld,%lld,%s\n", t.interpolator, t.act_part, ns(t.woke), ns(t.seen),
-                     ns(t.ack_call), ns(t.ack_written), ns(t.reply), t.path);
+        std::fprintf(f, "%d,%d,%lld,%lld,%lld,%lld,%lld,%s\n", t.interpolator, t.act_part,
+                     ns(t.woke), ns(t.seen), ns(t.ack_call), ns(t.ack_written), ns(t.reply),
+                     t.path);
       }
       std::fclose(f);
     } else {

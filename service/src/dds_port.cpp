@@ -100,7 +100,8 @@ DdsPort::DdsPort(const DdsConfig& config, const DdsPortOptions& options)
       request_reader_(participant_.reader<msg::RequestPubSubType>(dds::kRequestTopic)),
       program_reader_(participant_.reader<msg::ProgramChunkPubSubType>(dds::kProgramTopic)),
       waiter_({&program_reader_}),
-      free_chunks_(static_cast<std::size_t>(options.interpolators) * 4 * dds::kProgramChunksInFlight) {
+      free_chunks_(static_cast<std::size_t>(options.interpolators) * 4 *
+                   dds::kProgramChunksInFlight) {
   const auto n = static_cast<std::size_t>(opt_.interpolators);
   for (std::size_t i = 0; i < n; ++i) {
     chunks_.push_back(std::make_unique<SpscQueue<ChunkIn*>>(2 * dds::kProgramChunksInFlight));
@@ -306,8 +307,8 @@ void DdsPort::publish_event(int i, const InterpolatorSnapshot& s, const Snapshot
   event_sample_.program_id(s.program_id);
   event_sample_.event_counter(++event_counter_[n]);
   Published& e = published_events_[n];
-  const bool new_m = s.reg.m_func != 0 && (!e.any || e.reg.m_func != s.reg.m_func ||
-                                           e.reg.act_part != s.reg.act_part);
+  const bool new_m = s.reg.m_func != 0 &&
+                     (!e.any || e.reg.m_func != s.reg.m_func || e.reg.act_part != s.reg.act_part);
   // The handshake clock starts before write(), as in the raw ping-pong it is compared with.
   auto& written = *m_written_ns_[n];
   MWritten* rec = nullptr;
@@ -350,7 +351,8 @@ void DdsPort::publish_state(int i, const InterpolatorSnapshot& s, const Snapshot
   state_sample_.missed_cycles(all.lateness.missed_cycles);
   Published& p = published_[static_cast<std::size_t>(i)];
   std::ptrdiff_t& pending = m_pending_[static_cast<std::size_t>(i)];
-  if (pending >= 0) m_published_[static_cast<std::size_t>(pending)].state_write_begin_ns = steady_ns();
+  if (pending >= 0)
+    m_published_[static_cast<std::size_t>(pending)].state_write_begin_ns = steady_ns();
   state_writer_.write(&state_sample_);
   if (pending >= 0) {
     m_published_[static_cast<std::size_t>(pending)].state_write_end_ns = steady_ns();

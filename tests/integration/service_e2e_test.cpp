@@ -6,9 +6,9 @@
 
 #include <chrono>
 #include <cmath>
+#include <fstream>
 #include <mutex>
 #include <optional>
-#include <fstream>
 #include <string>
 #include <vector>
 
@@ -169,9 +169,12 @@ TEST(ServiceProcesses, EventCallbackSeesTheMFunctionAndCanAcknowledgeIt) {
   plc.on_event([&](const client::Event& e) {
     if (e.sample.interpolator() != 0) return;
     const std::lock_guard lock(mutex);
-    if (last_counter != 0 && e.sample.event_counter() != last_counter + 1) counters_contiguous = false;
+    if (last_counter != 0 && e.sample.event_counter() != last_counter + 1)
+      counters_contiguous = false;
     last_counter = e.sample.event_counter();
-    if (e.sample.m_func() == 0 || (!m_events.empty() && m_events.back().act_part() == e.sample.act_part())) return;
+    if (e.sample.m_func() == 0 ||
+        (!m_events.empty() && m_events.back().act_part() == e.sample.act_part()))
+      return;
     m_events.push_back(e.sample);
     ack_ids.push_back(plc.send_ack_m_func(0));
   });
@@ -179,7 +182,8 @@ TEST(ServiceProcesses, EventCallbackSeesTheMFunctionAndCanAcknowledgeIt) {
   ASSERT_TRUE(plc.wait_for_state(0, kHang));
   std::ofstream(env.path("m51.ngc")) << "G1 X5\nM51 A7\nG1 X5\nM2\n";
   test::Child hmi;
-  ASSERT_TRUE(hmi.start({TGM_HMI_BIN, "run", env.path("m51.ngc"), "--config", env.config()}, env.path("hmi.log")));
+  ASSERT_TRUE(hmi.start({TGM_HMI_BIN, "run", env.path("m51.ngc"), "--config", env.config()},
+                        env.path("hmi.log")));
   EXPECT_EQ(hmi.wait(kHang), 0) << hmi.log();
   EXPECT_NE(hmi.log().find("done: 4 records"), std::string::npos) << hmi.log();
   EXPECT_NE(hmi.log().find("1 M-function wait"), std::string::npos) << hmi.log();
@@ -192,7 +196,8 @@ TEST(ServiceProcesses, EventCallbackSeesTheMFunctionAndCanAcknowledgeIt) {
   EXPECT_DOUBLE_EQ(e.m_function_parameter()[0], 7.0);
   EXPECT_TRUE(is_not_set(e.m_function_parameter()[1]));
   const auto sec = static_cast<SectionState>(static_cast<std::uint32_t>(e.run_flag()) & 0xFFFFu);
-  EXPECT_TRUE(sec == SectionState::kWaitMFunc || sec == SectionState::kWaitMFuncEnd) << e.run_flag();
+  EXPECT_TRUE(sec == SectionState::kWaitMFunc || sec == SectionState::kWaitMFuncEnd)
+      << e.run_flag();
   EXPECT_NE(e.program_id(), 0u);
   EXPECT_GT(e.cycle_counter(), 0u);
   EXPECT_TRUE(counters_contiguous);
@@ -216,10 +221,11 @@ TEST(ServiceProcesses, PlcAcknowledgesFromTheEventAndLogsEachMFunctionOnce) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());
   test::Child plc;
-  ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.config(), "--ack-delay", "0"}, env.path("plc.log")));
+  ASSERT_TRUE(
+      plc.start({TGM_PLC_BIN, "--config", env.config(), "--ack-delay", "0"}, env.path("plc.log")));
   test::Child hmi;
-  ASSERT_TRUE(hmi.start({TGM_HMI_BIN, "run", TGM_SOURCE_DIR "/tests/programs/manual_example.ngc", "--config",
-                         env.config()},
+  ASSERT_TRUE(hmi.start({TGM_HMI_BIN, "run", TGM_SOURCE_DIR "/tests/programs/manual_example.ngc",
+                         "--config", env.config()},
                         env.path("hmi.log")));
   EXPECT_EQ(hmi.wait(kHang), 0) << hmi.log() << "\n--- plc:\n" << plc.log();
   EXPECT_EQ(plc.interrupt(), 0);

@@ -99,7 +99,8 @@ void Client::EventListener::detach() {
 }
 
 void Client::on_event(EventHandler handler) {
-  if (event_listener_) throw dds::SetupError("tgm::client::Client::on_event: a handler is already set");
+  if (event_listener_)
+    throw dds::SetupError("tgm::client::Client::on_event: a handler is already set");
   if (!handler) throw dds::SetupError("tgm::client::Client::on_event: empty handler");
   event_reader_ = &participant_.reader<msg::InterpolatorEventPubSubType>(dds::kEventTopic);
   event_listener_ = std::make_unique<EventListener>(*this, std::move(handler));
@@ -218,7 +219,8 @@ void Client::fill(msg::Request& r) {
 std::uint64_t Client::send(msg::Request r) {
   // The request topic is VOLATILE: written before the service's reader matched, it is lost.
   fdds::PublicationMatchedStatus matched;
-  if (request_writer_.get_publication_matched_status(matched) != eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK ||
+  if (request_writer_.get_publication_matched_status(matched) !=
+          eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK ||
       matched.current_count < 1) {
     return 0;
   }

@@ -70,7 +70,9 @@ struct Options {
 };
 
 enum Mode { kWaitSet = 0, kListener = 1 };
-const char* mode_name(int m) { return m == kWaitSet ? "waitset" : "listener"; }
+const char* mode_name(int m) {
+  return m == kWaitSet ? "waitset" : "listener";
+}
 
 // The pinged topic of a mode: the sample's own profiles under a bench name.
 tgm::dds::TopicSpec ping_topic(const Options& o, int mode) {
@@ -91,9 +93,13 @@ tgm::DdsConfig config(const Options& o) {
   c.participant_prefix = "tgm-bench";
   return c;
 }
-bool uses(const Options& o, int mode) { return o.mode == "both" || o.mode == mode_name(mode); }
+bool uses(const Options& o, int mode) {
+  return o.mode == "both" || o.mode == mode_name(mode);
+}
 
-double now_ns() { return static_cast<double>(Clock::now().time_since_epoch().count()); }
+double now_ns() {
+  return static_cast<double>(Clock::now().time_since_epoch().count());
+}
 
 // Pong side of the listener mode: answers every sample from Fast DDS's receive thread.
 template <class Sample>
@@ -232,8 +238,9 @@ int run_sink(const Options& o) {
   for (int m : {kWaitSet, kListener}) {
     if (uses(o, m)) readers.push_back(&p.reader<SampleType>(ping_topic(o, m)));
   }
-  tgm::dds::DataWaiter waiter(readers.size() == 2 ? std::initializer_list<fdds::DataReader*>{readers[0], readers[1]}
-                                                  : std::initializer_list<fdds::DataReader*>{readers[0]});
+  tgm::dds::DataWaiter waiter(readers.size() == 2
+                                  ? std::initializer_list<fdds::DataReader*>{readers[0], readers[1]}
+                                  : std::initializer_list<fdds::DataReader*>{readers[0]});
   Sample s;
   int quits = 0;
   const auto give_up = Clock::now() + 600s;
@@ -249,7 +256,8 @@ int run_sink(const Options& o) {
 }
 
 double pct(const std::vector<double>& us, double q) {
-  return us[std::min(us.size() - 1, static_cast<std::size_t>(q * static_cast<double>(us.size() - 1) + 0.5))];
+  return us[std::min(us.size() - 1,
+                     static_cast<std::size_t>(q * static_cast<double>(us.size() - 1) + 0.5))];
 }
 
 template <class Sample, class SampleType>
@@ -270,16 +278,20 @@ int run_ping(const Options& o) {
     side[m].on = true;
     side[m].writer = &p.writer<SampleType>(ping_topic(o, m));
     side[m].acks = &p.reader<tgm::msg::RequestPubSubType>(ack_topic(m));
-    if (!tgm::dds::wait_for_match(*side[m].writer, 1 + o.sinks, 30s) || !tgm::dds::wait_for_match(*side[m].acks, 1, 30s)) {
-      std::fprintf(stderr, "tgm_bench_state_pingpong: no pong on domain %d (%s)\n", o.domain, mode_name(m));
+    if (!tgm::dds::wait_for_match(*side[m].writer, 1 + o.sinks, 30s) ||
+        !tgm::dds::wait_for_match(*side[m].acks, 1, 30s)) {
+      std::fprintf(stderr, "tgm_bench_state_pingpong: no pong on domain %d (%s)\n", o.domain,
+                   mode_name(m));
       return 1;
     }
   }
-  if (side[kListener].on) side[kListener].acks->set_listener(&ack_listener, fdds::StatusMask::data_available());
+  if (side[kListener].on)
+    side[kListener].acks->set_listener(&ack_listener, fdds::StatusMask::data_available());
   // The pong attaches its listener just after its reader exists: give it that moment.
   std::this_thread::sleep_for(200ms);
   std::optional<tgm::dds::DataWaiter> waiter;
-  if (side[kWaitSet].on) waiter.emplace(std::initializer_list<fdds::DataReader*>{side[kWaitSet].acks});
+  if (side[kWaitSet].on)
+    waiter.emplace(std::initializer_list<fdds::DataReader*>{side[kWaitSet].acks});
   Sample s;
   s.m_func(51);
   tgm::msg::Request r;
@@ -318,7 +330,8 @@ int run_ping(const Options& o) {
     }
     if (!warm) {
       sd.us.push_back(std::chrono::duration<double, std::micro>(t1 - t0).count());
-      sd.back_us.push_back((static_cast<double>(t1.time_since_epoch().count()) - pong_write_ns) / 1e3);
+      sd.back_us.push_back((static_cast<double>(t1.time_since_epoch().count()) - pong_write_ns) /
+                           1e3);
     }
     if (o.interval_us > 0) std::this_thread::sleep_for(std::chrono::microseconds(o.interval_us));
   }
@@ -335,25 +348,30 @@ int run_ping(const Options& o) {
   SampleType st;
   tgm::msg::RequestPubSubType rt;
   r.client_name(p.name());  // as the pong's (and about as long as tgm-plc's "tgm-plc-PID")
-  std::printf("raw %s->request ping-pong (%s %u B -> Request %u B serialized, %s QoS, domain %d), sample readers %d\n",
-              o.sample.c_str(), o.sample == "event" ? "InterpolatorEvent" : "InterpolatorState",
-              st.getSerializedSizeProvider(&s)(), rt.getSerializedSizeProvider(&r)(),
-              std::string(ping_topic(o, first).writer_profile).c_str(), o.domain, 1 + o.sinks);
+  std::printf(
+      "raw %s->request ping-pong (%s %u B -> Request %u B serialized, %s QoS, domain %d), sample "
+      "readers %d\n",
+      o.sample.c_str(), o.sample == "event" ? "InterpolatorEvent" : "InterpolatorState",
+      st.getSerializedSizeProvider(&s)(), rt.getSerializedSizeProvider(&r)(),
+      std::string(ping_topic(o, first).writer_profile).c_str(), o.domain, 1 + o.sinks);
   int rc = 0;
   for (int m : {kWaitSet, kListener}) {
     Side& sd = side[m];
     if (!sd.on) continue;
     if (sd.us.empty() || sd.timeouts != 0) rc = 1;
     if (sd.us.empty()) {
-      std::printf("RESULT sample=%s mode=%s n=0 timeouts=%d\n", o.sample.c_str(), mode_name(m), sd.timeouts);
+      std::printf("RESULT sample=%s mode=%s n=0 timeouts=%d\n", o.sample.c_str(), mode_name(m),
+                  sd.timeouts);
       continue;
     }
     std::sort(sd.us.begin(), sd.us.end());
     std::sort(sd.back_us.begin(), sd.back_us.end());
-    std::printf("RESULT sample=%s mode=%s interval_us=%d n=%zu timeouts=%d min_us=%.1f median_us=%.1f p99_us=%.1f p999_us=%.1f "
-                "max_us=%.1f return_median_us=%.1f\n",
-                o.sample.c_str(), mode_name(m), o.interval_us, sd.us.size(), sd.timeouts, sd.us.front(), pct(sd.us, 0.5),
-                pct(sd.us, 0.99), pct(sd.us, 0.999), sd.us.back(), pct(sd.back_us, 0.5));
+    std::printf(
+        "RESULT sample=%s mode=%s interval_us=%d n=%zu timeouts=%d min_us=%.1f median_us=%.1f "
+        "p99_us=%.1f p999_us=%.1f "
+        "max_us=%.1f return_median_us=%.1f\n",
+        o.sample.c_str(), mode_name(m), o.interval_us, sd.us.size(), sd.timeouts, sd.us.front(),
+        pct(sd.us, 0.5), pct(sd.us, 0.99), pct(sd.us, 0.999), sd.us.back(), pct(sd.back_us, 0.5));
   }
   return rc;
 }
@@ -366,8 +384,10 @@ int run(const Options& o, char** argv) {
   const std::string dom = std::to_string(o.domain);
   std::vector<pid_t> pids;
   for (int k = 0; k <= o.sinks; ++k) {
-    std::vector<std::string> args{argv[0], "--role", k == 0 ? "pong" : "sink", "--domain", dom, "--profiles",
-                                  o.profiles, "--sample", o.sample, "--mode", o.mode};
+    std::vector<std::string> args{argv[0],    "--role",   k == 0 ? "pong" : "sink",
+                                  "--domain", dom,        "--profiles",
+                                  o.profiles, "--sample", o.sample,
+                                  "--mode",   o.mode};
     std::vector<char*> cargs;
     for (auto& s : args) cargs.push_back(s.data());
     cargs.push_back(nullptr);
@@ -388,7 +408,8 @@ int run(const Options& o, char** argv) {
 int main(int argc, char** argv) {
   Options o;
   constexpr const char* kUsage =
-      "usage: %s [--role both|ping|pong|sink] [--sample state|event] [--mode waitset|listener|both]\n"
+      "usage: %s [--role both|ping|pong|sink] [--sample state|event] [--mode "
+      "waitset|listener|both]\n"
       "          [--count N] [--warmup N] [--block N] [--domain D] [--profiles F] [--sinks N]\n"
       "          [--interval-us N]\n";
   for (int i = 1; i < argc; ++i) {
@@ -398,27 +419,33 @@ int main(int argc, char** argv) {
       return 2;
     }
     if (a == "--role") o.role = argv[++i];
-    else if (a == "--sample") o.sample = argv[++i];
-    else if (a == "--mode") o.mode = argv[++i];
+    else if (a == "--sample")
+      o.sample = argv[++i];
+    else if (a == "--mode")
+      o.mode = argv[++i];
     else if (a == "--count") o.count = std::atoi(argv[++i]);
     else if (a == "--warmup") o.warmup = std::atoi(argv[++i]);
-    else if (a == "--block") o.block = std::atoi(argv[++i]);
+    else if (a == "--block")
+      o.block = std::atoi(argv[++i]);
     else if (a == "--domain") o.domain = std::atoi(argv[++i]);
     else if (a == "--profiles") o.profiles = argv[++i];
     else if (a == "--sinks") o.sinks = std::atoi(argv[++i]);
-    else if (a == "--interval-us") o.interval_us = std::atoi(argv[++i]);
+    else if (a == "--interval-us")
+      o.interval_us = std::atoi(argv[++i]);
     else {
       std::fprintf(stderr, kUsage, argv[0]);
       return 2;
     }
   }
   if ((o.sample != "state" && o.sample != "event") ||
-      (o.mode != "waitset" && o.mode != "listener" && o.mode != "both") || o.count < 1 || o.block < 1) {
+      (o.mode != "waitset" && o.mode != "listener" && o.mode != "both") || o.count < 1 ||
+      o.block < 1) {
     std::fprintf(stderr, kUsage, argv[0]);
     return 2;
   }
   try {
-    if (o.sample == "event") return run<tgm::msg::InterpolatorEvent, tgm::msg::InterpolatorEventPubSubType>(o, argv);
+    if (o.sample == "event")
+      return run<tgm::msg::InterpolatorEvent, tgm::msg::InterpolatorEventPubSubType>(o, argv);
     return run<tgm::msg::InterpolatorState, tgm::msg::InterpolatorStatePubSubType>(o, argv);
   } catch (const tgm::dds::SetupError& e) {
     std::fprintf(stderr, "tgm_bench_state_pingpong: %s\n", e.what());

@@ -45,8 +45,7 @@ inline constexpr TopicSpec kMessageTopic{"tgm_message", "tgm_message_writer",
                                          "tgm_message_reader"};
 
 //! Every topic of tgm.
-inline constexpr std::array kAllTopics{kStateTopic,   kEventTopic,   kSetpointsTopic,
-                                       kRequestTopic, kReplyTopic,   kProgramTopic,
-                                       kMessageTopic};
+inline constexpr std::array kAllTopics{kStateTopic, kEventTopic,   kSetpointsTopic, kRequestTopic,
+                                       kReplyTopic, kProgramTopic, kMessageTopic};
 
 }  // namespace tgm::dds

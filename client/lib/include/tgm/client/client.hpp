@@ -171,7 +171,8 @@ class Client {
   // Takes event samples in the receive thread and calls the handler (under `mutex`).
   class EventListener final : public eprosima::fastdds::dds::DataReaderListener {
    public:
-    EventListener(Client& client, EventHandler handler) : client_(client), handler_(std::move(handler)) {}
+    EventListener(Client& client, EventHandler handler)
+        : client_(client), handler_(std::move(handler)) {}
     void on_data_available(eprosima::fastdds::dds::DataReader* reader) override;
     //! Waits for a running call and makes later calls return at once.
     void detach();
