@@ -3,6 +3,12 @@
 // config, notes continuous ones, logs every M-function and every acknowledgement, and can be
 // told (flags or a small YAML script) to change Rel_Speed, issue stops or refuse to acknowledge.
 // It cannot start the interpolator: the service refuses (--try-start shows it).
+//
+// Two threads see M-functions: the event callback (tgm_event, in Fast DDS's receive thread)
+// and the main loop (tgm_state). Whichever sees an M-function first claims it (MTracker, under
+// one mutex), so each is handled and logged once. An acknowledgement due at once (delay 0,
+// continuous M-functions, not refused) is written from the callback itself; everything else
+// (delayed acknowledgements, refusals, every log line) happens in the main loop.
 #include <pthread.h>
 #include <sched.h>
 #include <signal.h>
@@ -15,6 +21,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <map>
+#include <mutex>
 #include <optional>
 #include <set>
 #include <string>
@@ -37,6 +44,8 @@ constexpr const char* kUsage =
     "\n"
     "PLC emulator: sets the basic parameters, acknowledges normal M-functions after the delay\n"
     "of plc.m_delay_s (or plc.default_m_delay_s), notes continuous M-functions, logs both.\n"
+    "It sees M-functions on the small event topic first: an acknowledgement due at once\n"
+    "(delay 0, continuous) is written from the event callback, the rest from the main loop.\n"
     "Stops cleanly on SIGINT / SIGTERM.\n"
     "\n"
     "  --config YAML        machine config (default: $TGM_CONFIG, the installed or the in-tree\n"
@@ -57,6 +66,8 @@ constexpr const char* kUsage =
     "  --no-basic-params    do not send the basic parameters at start\n"
     "  --duration S         stop by itself after S seconds\n"
     "  --quiet              log only M-functions, acknowledgements and errors\n"
+    "  --no-events          do not subscribe to tgm_event: see M-functions on the state only\n"
+    "                       (the main loop acknowledges them all)\n"
     "  --handshake-trace F  write the time stamps of every acknowledgement as CSV to F at exit\n"
     "  --rt-priority N      run the emulator (all its threads) SCHED_FIFO at N, 1..98, when\n"
     "                       permitted (a real PLC task is real-time; default: normal)\n"
@@ -133,16 +144,65 @@ std::string params_text(const Params& params) {
   return out.empty() ? "none" : out;
 }
 
-// One interpolator as the PLC sees it.
+// Which M-functions have been handled, for the two threads that see them (event callback and
+// main loop; the caller holds the mutex). An M-function is (interpolator, program, Act_Part):
+// a repeated M number at another record is new.
+class MTracker {
+ public:
+  //! True when the sample of `interpolator` at `cycle` shows an M-function nobody claimed yet;
+  //! it is then claimed. Samples older than the newest one seen (on either topic) say nothing.
+  bool claim(int interpolator, std::uint64_t cycle, std::uint32_t program, std::int32_t part,
+             std::int32_t m, bool normal) {
+    Seen& d = seen_[static_cast<std::size_t>(interpolator)];
+    if (cycle < d.cycle) return false;
+    d.cycle = cycle;
+    if (m != d.cont_noted) d.cont_noted = 0;
+    if (m == 0 || (program == d.program && part == d.part) || (!normal && m == d.cont_noted))
+      return false;
+    d.program = program;
+    d.part = part;
+    if (!normal) d.cont_noted = m;
+    return true;
+  }
+
+ private:
+  struct Seen {
+    std::uint64_t cycle = 0;
+    std::uint32_t program = 0;
+    std::int32_t part = -1;
+    // Continuous M-function noted and not yet seen cleared (M_Func stays set while motion goes on).
+    std::int32_t cont_noted = 0;
+  };
+  std::array<Seen, tgm::kMaxInterpolators> seen_{};
+};
+
+bool waits_for_ack(std::int32_t run_flag) {
+  const auto section =
+      static_cast<tgm::SectionState>(static_cast<std::uint32_t>(run_flag) & 0xFFFFu);
+  return section == tgm::SectionState::kWaitMFunc || section == tgm::SectionState::kWaitMFuncEnd;
+}
+
+using MParams = std::array<double, TGM_M_FUNCTION_PARAMETERS>;
+
+// An M-function the event callback claimed, for the main loop to log and, unless it was
+// acknowledged from the callback, to acknowledge or refuse.
+struct EventSeen {
+  enum class Action { kAcked, kRefused, kScheduled };
+  int interpolator = 0;
+  std::int32_t m = 0, line = 0, part = 0;
+  bool normal = false;
+  MParams params{};
+  Action action = Action::kScheduled;
+  //! kAcked: the request id of the acknowledgement written from the callback.
+  std::uint64_t request_id = 0;
+  Clock::time_point woke{}, seen{}, ack_call{}, ack_written{};
+};
+
+// One interpolator as the PLC sees it (main loop only).
 struct Served {
   int number = 0;
   bool found = false;
-  // (program_id, Act_Part) of the last M-function handled, so a repeated M number is new.
-  std::uint32_t m_program = 0;
   std::int32_t m_part = -1;
-  std::int32_t m_func = 0;
-  // Continuous M-function noted and not yet seen cleared (M_Func stays set while motion goes on).
-  std::int32_t cont_noted = 0;
   // A pending acknowledgement.
   std::int32_t ack_m = 0;
   Clock::time_point ack_at{};
@@ -150,11 +210,13 @@ struct Served {
   Clock::time_point woke_at{};
 };
 
-// One acknowledgement's time stamps for --handshake-trace (steady clock).
+// One acknowledgement's time stamps for --handshake-trace (steady clock). `path`: "event" when
+// written from the event callback, "loop" when from the main loop.
 struct AckTrace {
   int interpolator;
   std::int32_t act_part;
   Clock::time_point woke, seen, ack_call, ack_written, reply;
+  const char* path;
 };
 
 }  // namespace
@@ -172,6 +234,7 @@ int main(int argc, char** argv) {
   bool try_start = false;
   bool basic = true;
   bool quiet = false;
+  bool events = true;
   double duration_s = 0.0;
   int rt_priority = 0;
   for (int i = 1; i < argc; ++i) {
@@ -183,6 +246,7 @@ int main(int argc, char** argv) {
     if (arg == "--try-start") { try_start = true; continue; }
     if (arg == "--no-basic-params") { basic = false; continue; }
     if (arg == "--quiet") { quiet = true; continue; }
+    if (arg == "--no-events") { events = false; continue; }
     if (arg.rfind("--", 0) != 0) return usage_error("unexpected argument '" + arg + "'");
     std::string flag = arg;
     std::string value;
@@ -309,6 +373,132 @@ int main(int argc, char** argv) {
 
   std::vector<AckTrace> traces;
   if (!trace_path.empty()) traces.reserve(100'000);
+  auto trace = [&](const AckTrace& t) {
+    if (!trace_path.empty() && traces.size() < 1'000'000) traces.push_back(t);
+  };
+  auto find_served = [&](int i) -> Served* {
+    for (Served& sv : served) {
+      if (sv.number == i) return &sv;
+    }
+    return nullptr;
+  };
+
+  // Shared by the event callback and the main loop, under `shared_mutex`.
+  std::mutex shared_mutex;
+  MTracker tracker;
+  std::vector<EventSeen> event_seen;
+  event_seen.reserve(256);
+  if (events) {
+    std::array<bool, tgm::kMaxInterpolators> serves{};
+    for (const Served& sv : served) serves[static_cast<std::size_t>(sv.number)] = true;
+    // Fast DDS receive thread: claim, acknowledge at once when due, hand the rest to the main
+    // loop. No logging here (the main loop formats and writes every line).
+    tgm::client::Client* client = &*plc;
+    auto on_event = [&, serves, client](const tgm::client::Event& ev) {
+      const tgm::msg::InterpolatorEvent& e = ev.sample;
+      const auto seen = Clock::now();
+      const int i = e.interpolator();
+      if (i >= tgm::kMaxInterpolators || !serves[static_cast<std::size_t>(i)]) return;
+      EventSeen rec;
+      rec.interpolator = i;
+      rec.m = e.m_func();
+      rec.normal = waits_for_ack(e.run_flag());
+      bool refused = false;
+      {
+        // Every sample goes through claim(), also with M_Func = 0: that ends a noted continuous M.
+        const std::lock_guard lock(shared_mutex);
+        if (!tracker.claim(i, e.cycle_counter(), e.program_id(), e.act_part(), rec.m, rec.normal))
+          return;
+        refused = rec.normal && refuse.count(rec.m) != 0;
+      }
+      if (!refused && (!rec.normal || delay_for(rec.m) <= 0.0)) {
+        rec.ack_call = Clock::now();
+        rec.request_id = client->send_ack_m_func(i);
+        rec.ack_written = Clock::now();
+      }
+      rec.action = rec.request_id != 0 ? EventSeen::Action::kAcked
+                   : refused           ? EventSeen::Action::kRefused
+                                       : EventSeen::Action::kScheduled;
+      rec.line = e.act_line();
+      rec.part = e.act_part();
+      rec.params = e.m_function_parameter();
+      rec.woke = ev.received;
+      rec.seen = seen;
+      const std::lock_guard lock(shared_mutex);
+      event_seen.push_back(rec);
+    };
+    try {
+      plc->on_event(on_event);
+    } catch (const tgm::dds::SetupError& e) {
+      std::fprintf(stderr, "tgm-plc: %s\n", e.what());
+      return 1;
+    }
+  }
+  auto log_m = [&](int i, std::int32_t m, bool normal, std::int32_t line, std::int32_t part,
+                   const MParams& params) {
+    log("interpolator %d: M%d %s (line %d, part %d), parameters: %s", i, m,
+        normal ? "normal: the interpolator waits" : "continuous: motion goes on", line, part,
+        params_text(params).c_str());
+  };
+  // Acknowledgements written from the event callback whose reply the main loop still waits for.
+  std::vector<EventSeen> acked;
+  std::vector<EventSeen> drained;
+  drained.reserve(256);
+  // Logs what the event callback handed over; returns after scheduling delayed acknowledgements.
+  auto take_event_seen = [&] {
+    {
+      const std::lock_guard lock(shared_mutex);
+      drained.swap(event_seen);
+    }
+    for (const EventSeen& rec : drained) {
+      log_m(rec.interpolator, rec.m, rec.normal, rec.line, rec.part, rec.params);
+      Served* sv = find_served(rec.interpolator);
+      if (rec.action == EventSeen::Action::kAcked) {
+        acked.push_back(rec);
+      } else if (rec.action == EventSeen::Action::kRefused) {
+        log("interpolator %d: M%d: refusing to acknowledge (--refuse-ack / script)",
+            rec.interpolator, rec.m);
+      } else if (!rec.normal) {  // continuous, and the callback could not write the note
+        log("interpolator %d: M%d noted: %s", rec.interpolator, rec.m,
+            tgm::client::describe(plc->ack_m_func(rec.interpolator)).c_str());
+      } else if (sv != nullptr) {
+        sv->m_part = rec.part;
+        sv->ack_m = rec.m;
+        sv->seen_at = rec.seen;
+        sv->woke_at = rec.woke;
+        sv->ack_at = rec.seen + std::chrono::duration_cast<Clock::duration>(
+                                    std::chrono::duration<double>(delay_for(rec.m)));
+      }
+    }
+    drained.clear();
+  };
+  // Logs the replies to acknowledgements written from the event callback (or that none came).
+  auto take_acked_replies = [&](bool at_stop) {
+    for (auto it = acked.begin(); it != acked.end();) {
+      std::optional<tgm::client::Reply> r = plc->take_reply(it->request_id);
+      const auto t = Clock::now();
+      if (!r && !at_stop && t - it->ack_written < 3s) {
+        ++it;
+        continue;
+      }
+      if (!r) {
+        r.emplace();
+        r->timed_out = true;
+      }
+      trace({it->interpolator, it->part, it->woke, it->seen, it->ack_call, it->ack_written, t,
+             "event"});
+      if (it->normal) {
+        log("interpolator %d: M%d acknowledged from the event after %.3f s: %s (cycle %llu)",
+            it->interpolator, it->m, std::chrono::duration<double>(t - it->seen).count(),
+            tgm::client::describe(*r).c_str(), static_cast<unsigned long long>(r->cycle));
+      } else {
+        log("interpolator %d: M%d noted from the event: %s", it->interpolator, it->m,
+            tgm::client::describe(*r).c_str());
+      }
+      it = acked.erase(it);
+    }
+  };
+
   std::optional<Clock::time_point> found_at;
   auto last_wait_log = Clock::now();
   flush_log();
@@ -316,6 +506,8 @@ int main(int argc, char** argv) {
     flush_log();
     if (duration_s > 0.0 && stamp() >= duration_s) break;
     plc->poll(5ms);
+    take_event_seen();
+    take_acked_replies(false);
     const auto now = Clock::now();
     for (Served& sv : served) {
       const tgm::msg::InterpolatorState* s = plc->state(sv.number);
@@ -362,7 +554,8 @@ int main(int argc, char** argv) {
         }
         if (!found_at) found_at = Clock::now();
       }
-      // A new M-function: M_Func set at a record (program, Act_Part) not handled yet.
+      // A new M-function: M_Func set at a record (program, Act_Part) that neither this loop nor
+      // the event callback has claimed (with events, the callback usually sees it first).
       // (ack_m_func() polls, so *s may be newer afterwards: the line logs a copy of the fields.)
       bool seen_new = false;
       bool seen_normal = false;
@@ -371,19 +564,19 @@ int main(int argc, char** argv) {
       auto log_seen = [&] {
         if (!seen_new) return;
         seen_new = false;
-        log("interpolator %d: M%d %s (line %d, part %d), parameters: %s", sv.number, seen_m,
-            seen_normal ? "normal: the interpolator waits" : "continuous: motion goes on", seen_line,
-            seen_part, params_text(seen_params).c_str());
+        log_m(sv.number, seen_m, seen_normal, seen_line, seen_part, seen_params);
       };
-      const auto section = static_cast<tgm::SectionState>(static_cast<std::uint32_t>(s->run_flag()) & 0xFFFFu);
-      const bool normal = section == tgm::SectionState::kWaitMFunc || section == tgm::SectionState::kWaitMFuncEnd;
-      if (s->m_func() != sv.cont_noted) sv.cont_noted = 0;
-      if (s->m_func() != 0 && (s->program_id() != sv.m_program || s->act_part() != sv.m_part) &&
-          (normal || s->m_func() != sv.cont_noted)) {
-        sv.m_program = s->program_id();
+      const bool normal = waits_for_ack(s->run_flag());
+      bool claimed = false;
+      bool refused = false;
+      {
+        const std::lock_guard lock(shared_mutex);
+        claimed = tracker.claim(sv.number, s->cycle_counter(), s->program_id(), s->act_part(),
+                                s->m_func(), normal);
+        refused = claimed && normal && refuse.count(s->m_func()) != 0;
+      }
+      if (claimed) {
         sv.m_part = s->act_part();
-        sv.m_func = s->m_func();
-        if (!normal) sv.cont_noted = s->m_func();
         // An acknowledgement due at once goes out before this line is formatted (below).
         seen_new = true;
         seen_normal = normal;
@@ -397,7 +590,7 @@ int main(int argc, char** argv) {
           log_seen();
           log("interpolator %d: M%d noted: %s", sv.number, s->m_func(),
               tgm::client::describe(plc->ack_m_func(sv.number)).c_str());
-        } else if (refuse.count(s->m_func()) != 0) {
+        } else if (refused) {
           log_seen();
           log("interpolator %d: M%d: refusing to acknowledge (--refuse-ack / script)", sv.number, s->m_func());
         } else {
@@ -410,9 +603,8 @@ int main(int argc, char** argv) {
         sv.ack_m = 0;
         const auto ack_call = Clock::now();
         const auto r = plc->ack_m_func(sv.number);
-        if (!trace_path.empty() && traces.size() < 1'000'000) {
-          traces.push_back({sv.number, sv.m_part, sv.woke_at, sv.seen_at, ack_call, plc->last_request_written(), Clock::now()});
-        }
+        trace({sv.number, sv.m_part, sv.woke_at, sv.seen_at, ack_call, plc->last_request_written(),
+               Clock::now(), "loop"});
         log_seen();
         log("interpolator %d: M%d acknowledged after %.3f s: %s (cycle %llu)", sv.number, m,
             std::chrono::duration<double>(Clock::now() - sv.seen_at).count(), tgm::client::describe(r).c_str(),
@@ -442,11 +634,22 @@ int main(int argc, char** argv) {
               tgm::client::describe(plc->start(st.interpolator)).c_str());
         }
         for (int m : st.refuse_ack) {
-          refuse.insert(m);
+          {
+            const std::lock_guard lock(shared_mutex);
+            refuse.insert(m);
+          }
           log("script: from now on M%d is not acknowledged", m);
         }
       }
     }
+  }
+  // Every M-function seen and every acknowledgement is logged, even when the stop came first.
+  plc->poll(std::chrono::nanoseconds(0));
+  take_event_seen();
+  take_acked_replies(true);
+  if (events) {
+    log("events: %llu received, %llu lost", static_cast<unsigned long long>(plc->events_received()),
+        static_cast<unsigned long long>(plc->events_lost()));
   }
   log("stopping");
   flush_log();
@@ -455,15 +658,19 @@ int main(int argc, char** argv) {
       auto ns = [](Clock::time_point t) {
         return static_cast<long long>(std::chrono::duration_cast<std::chrono::nanoseconds>(t.time_since_epoch()).count());
       };
-      std::fprintf(f, "interpolator,act_part,woke_ns,seen_ns,ack_call_ns,ack_written_ns,reply_ns\n");
+      std::fprintf(
+          f, "interpolator,act_part,woke_ns,seen_ns,ack_call_ns,ack_written_ns,reply_ns,path\n");
       for (const AckTrace& t : traces) {
-        std::fprintf(f, "%d,%d,%lld,%lld,%lld,%lld,%lld\n", t.interpolator, t.act_part, ns(t.woke), ns(t.seen),
-                     ns(t.ack_call), ns(t.ack_written), ns(t.reply));
+        std::fprintf(f, "%d,%d,%lld,%lld,%lld,%lld,%lld,%s\n", t.interpolator, t.act_part,
+                     ns(t.woke), ns(t.seen), ns(t.ack_call), ns(t.ack_written), ns(t.reply),
+                     t.path);
       }
       std::fclose(f);
     } else {
       std::fprintf(stderr, "tgm-plc: cannot write %s\n", trace_path.c_str());
     }
   }
+  // Before the locals the event callback uses go out of scope: ~Client detaches the callback.
+  plc.reset();
   return 0;
 }

@@ -4,8 +4,11 @@
 #include <sys/syscall.h>
 #include <unistd.h>
 
+#include <array>
 #include <climits>
 #include <cstdio>
+#include <map>
+#include <utility>
 
 #include "tgm/dds/topics.hpp"
 #include "tgm/idl_mapping.hpp"
@@ -58,6 +61,13 @@ bool event_changed(const Registers& a, const Registers& b) {
          a.tool_number != b.tool_number || a.number_axes != b.number_axes;
 }
 
+// An event sample is due (and the state with it): an event register changed, a new program was
+// loaded, or the M-function moved to another record with the same M_Func still set.
+bool event_due(const InterpolatorSnapshot& s, const Registers& p_reg, std::uint32_t p_program) {
+  return event_changed(s.reg, p_reg) || s.program_id != p_program ||
+         (s.reg.m_func != 0 && s.reg.act_part != p_reg.act_part);
+}
+
 bool progress_changed(const Registers& a, const Registers& b) {
   return a.act_part != b.act_part || a.free_slots != b.free_slots || a.act_speed != b.act_speed ||
          a.orig_position != b.orig_position || a.position != b.position;
@@ -83,21 +93,26 @@ DdsPort::DdsPort(const DdsConfig& config, const DdsPortOptions& options)
     : opt_(options),
       participant_(config, "service"),
       state_writer_(participant_.writer<msg::InterpolatorStatePubSubType>(dds::kStateTopic)),
+      event_writer_(participant_.writer<msg::InterpolatorEventPubSubType>(dds::kEventTopic)),
       setpoint_writer_(participant_.writer<msg::SetpointsPubSubType>(dds::kSetpointsTopic)),
       reply_writer_(participant_.writer<msg::ReplyPubSubType>(dds::kReplyTopic)),
       message_writer_(participant_.writer<msg::MessagePubSubType>(dds::kMessageTopic)),
       request_reader_(participant_.reader<msg::RequestPubSubType>(dds::kRequestTopic)),
       program_reader_(participant_.reader<msg::ProgramChunkPubSubType>(dds::kProgramTopic)),
       waiter_({&program_reader_}),
-      free_chunks_(static_cast<std::size_t>(options.interpolators) * 4 * dds::kProgramChunksInFlight) {
+      free_chunks_(static_cast<std::size_t>(options.interpolators) * 4 *
+                   dds::kProgramChunksInFlight) {
   const auto n = static_cast<std::size_t>(opt_.interpolators);
   for (std::size_t i = 0; i < n; ++i) {
     chunks_.push_back(std::make_unique<SpscQueue<ChunkIn*>>(2 * dds::kProgramChunksInFlight));
     m_written_ns_.push_back(std::make_unique<std::atomic<std::int64_t>>(0));
-    m_write_end_ns_.push_back(std::make_unique<std::atomic<std::int64_t>>(0));
   }
   m_written_.resize(n);
   m_applied_.reserve(100'000);
+  m_published_.reserve(100'000);
+  m_pending_.assign(n, -1);
+  published_events_.resize(n);
+  event_counter_.assign(n, 0);
   backlog_.resize(n);
   published_.resize(n);
   published_setpoints_.resize(n);
@@ -143,6 +158,16 @@ const std::vector<HandshakeSample>& DdsPort::handshakes() {
     while (k < m_applied_.size() && m_applied_[k].first < h.taken_ns) ++k;
     if (k < m_applied_.size() && m_applied_[k].first == h.taken_ns) h.applied_ns = m_applied_[k].second;
   }
+  // The publisher's records, in the order it wrote them, by (interpolator, event write begin).
+  std::map<std::pair<int, std::int64_t>, const MWritten*> by_write;
+  for (const MWritten& w : m_published_) by_write[{w.interpolator, w.event_write_begin_ns}] = &w;
+  for (auto& h : handshakes_) {
+    const auto it = by_write.find({h.interpolator, h.event_write_begin_ns});
+    if (it == by_write.end()) continue;
+    h.event_write_end_ns = it->second->event_write_end_ns;
+    h.state_write_begin_ns = it->second->state_write_begin_ns;
+    h.state_write_end_ns = it->second->state_write_end_ns;
+  }
   return handshakes_;
 }
 
@@ -173,10 +198,21 @@ void DdsPort::publish(const Snapshot& s) {
 
 // ---- receiver thread ----
 
+// Two threads take requests: the reader's listener (a Fast DDS receive thread, which calls it
+// while holding the reader's internal mutex) and the receiver thread (retrying after a full
+// queue). Blocking on request_mutex_ in the listener would be lock-order inversion: the receiver
+// holds request_mutex_ and then needs the reader's mutex inside take(). So nobody blocks: a
+// caller announces itself in requests_pending_ and tries the lock; the holder re-checks the flag
+// after unlocking and takes again, so no sample is left behind when a try fails.
 void DdsPort::take_requests() {
-  const std::lock_guard lock(request_mutex_);
-  if (stopping_) return;
-  take_requests_locked();
+  requests_pending_.store(true, std::memory_order_seq_cst);
+  while (requests_pending_.load(std::memory_order_seq_cst)) {
+    std::unique_lock lock(request_mutex_, std::try_to_lock);
+    if (!lock.owns_lock()) return;  // the holder sees the flag after it unlocks
+    requests_pending_.store(false, std::memory_order_seq_cst);
+    if (stopping_) return;
+    take_requests_locked();
+  }
 }
 
 void DdsPort::take_requests_locked() {
@@ -207,9 +243,7 @@ void DdsPort::take_requests_locked() {
         h.act_part = w.act_part;
         h.handoff_ns = w.handoff_ns;
         h.publisher_woke_ns = w.publisher_woke_ns;
-        h.write_begin_ns = w.write_begin_ns;
-        // 0 when the ack was taken before write() returned (it writes to every reader in turn).
-        h.write_end_ns = m_write_end_ns_[static_cast<std::size_t>(in.interpolator)]->load(std::memory_order_acquire);
+        h.event_write_begin_ns = w.event_write_begin_ns;
         h.taken_ns = in.taken_ns;
         handshakes_.push_back(h);
       }
@@ -266,6 +300,43 @@ void DdsPort::receive_loop() {
 
 // ---- publisher thread ----
 
+void DdsPort::publish_event(int i, const InterpolatorSnapshot& s, const Snapshot& all) {
+  const auto n = static_cast<std::size_t>(i);
+  mapping::to_event(s.reg, static_cast<std::uint16_t>(i), event_sample_);
+  event_sample_.cycle_counter(all.cycle);
+  event_sample_.program_id(s.program_id);
+  event_sample_.event_counter(++event_counter_[n]);
+  Published& e = published_events_[n];
+  const bool new_m = s.reg.m_func != 0 &&
+                     (!e.any || e.reg.m_func != s.reg.m_func || e.reg.act_part != s.reg.act_part);
+  // The handshake clock starts before write(), as in the raw ping-pong it is compared with.
+  auto& written = *m_written_ns_[n];
+  MWritten* rec = nullptr;
+  if (new_m) {
+    // The receiver reads m_written_ only after exchanging a non-zero stamp (acquire).
+    written.store(0, std::memory_order_relaxed);
+    MWritten& w = m_written_[n];
+    w.interpolator = i;
+    w.act_part = s.reg.act_part;
+    w.handoff_ns = all.handoff_ns;
+    w.publisher_woke_ns = publisher_woke_ns_;
+    w.event_write_begin_ns = steady_ns();
+    if (m_published_.size() < m_published_.capacity()) {
+      m_pending_[n] = static_cast<std::ptrdiff_t>(m_published_.size());
+      m_published_.push_back(w);
+      rec = &m_published_.back();
+    }
+    written.store(w.event_write_begin_ns, std::memory_order_release);
+  }
+  event_writer_.write(&event_sample_);
+  if (rec != nullptr) rec->event_write_end_ns = steady_ns();
+  ++events_published_;
+  e.any = true;
+  e.reg = s.reg;
+  e.program_id = s.program_id;
+  e.at = Clock::now();
+}
+
 void DdsPort::publish_state(int i, const InterpolatorSnapshot& s, const Snapshot& all) {
   mapping::to_idl(s.reg, static_cast<std::uint16_t>(i), state_sample_);
   state_sample_.program_id(s.program_id);
@@ -279,24 +350,14 @@ void DdsPort::publish_state(int i, const InterpolatorSnapshot& s, const Snapshot
   state_sample_.lateness_p999_ns(all.lateness.p999_ns);
   state_sample_.missed_cycles(all.lateness.missed_cycles);
   Published& p = published_[static_cast<std::size_t>(i)];
-  const bool new_m = s.reg.m_func != 0 && (!p.any || p.reg.m_func != s.reg.m_func ||
-                                           p.reg.act_part != s.reg.act_part);
-  // The handshake clock starts before write(), as in the raw ping-pong it is compared with.
-  auto& written = *m_written_ns_[static_cast<std::size_t>(i)];
-  auto& write_end = *m_write_end_ns_[static_cast<std::size_t>(i)];
-  if (new_m) {
-    // The receiver reads m_written_ only after exchanging a non-zero stamp (acquire).
-    written.store(0, std::memory_order_relaxed);
-    write_end.store(0, std::memory_order_relaxed);
-    MWritten& w = m_written_[static_cast<std::size_t>(i)];
-    w.act_part = s.reg.act_part;
-    w.handoff_ns = all.handoff_ns;
-    w.publisher_woke_ns = publisher_woke_ns_;
-    w.write_begin_ns = steady_ns();
-    written.store(w.write_begin_ns, std::memory_order_release);
-  }
+  std::ptrdiff_t& pending = m_pending_[static_cast<std::size_t>(i)];
+  if (pending >= 0)
+    m_published_[static_cast<std::size_t>(pending)].state_write_begin_ns = steady_ns();
   state_writer_.write(&state_sample_);
-  if (new_m) write_end.store(steady_ns(), std::memory_order_release);
+  if (pending >= 0) {
+    m_published_[static_cast<std::size_t>(pending)].state_write_end_ns = steady_ns();
+    pending = -1;
+  }
   ++states_published_;
   p.any = true;
   p.reg = s.reg;
@@ -341,13 +402,23 @@ void DdsPort::publish_loop() {
     if (snap == nullptr) continue;
     const auto now = Clock::now();
     if (fresh) ++snapshots_seen_;
+    // Events first, for every interpolator: they are small and the PLC acts on them (M-function
+    // handshake); each is followed by the state below, which stays the source of truth.
+    std::array<bool, kMaxInterpolators> evented{};
+    for (int i = 0; i < snap->count; ++i) {
+      const InterpolatorSnapshot& s = snap->ip[static_cast<std::size_t>(i)];
+      const Published& e = published_events_[static_cast<std::size_t>(i)];
+      if (!e.any || (fresh && event_due(s, e.reg, e.program_id))) {
+        publish_event(i, s, *snap);
+        evented[static_cast<std::size_t>(i)] = true;
+      }
+    }
     for (int i = 0; i < snap->count; ++i) {
       const InterpolatorSnapshot& s = snap->ip[static_cast<std::size_t>(i)];
       const Published& p = published_[static_cast<std::size_t>(i)];
-      bool send = !p.any || now - p.at >= opt_.state_period;
+      bool send = !p.any || now - p.at >= opt_.state_period || evented[static_cast<std::size_t>(i)];
       if (!send && fresh) {
-        send = event_changed(s.reg, p.reg) || s.program_id != p.program_id ||
-               s.message_counter != p.message_counter ||
+        send = event_due(s, p.reg, p.program_id) || s.message_counter != p.message_counter ||
                ((s.next_sequence != p.next_sequence || progress_changed(s.reg, p.reg)) &&
                 now - p.at >= opt_.progress_period);
       }

@@ -5,9 +5,10 @@
 //   wake-up less on the M-function handshake than a WaitSet thread (BENCHMARKS.md "Service");
 // - the receiver thread waits on the program reader (WaitSet), converts chunks to plain structs
 //   and queues them for the cycle thread; it also retries requests when their queue was full;
-// - the publisher thread wakes after each cycle, writes replies and messages, and publishes the
-//   state (on change, at most every `progress_period` for progress-only changes, at least every
-//   `state_period`) and the setpoints (every cycle it sees).
+// - the publisher thread wakes after each cycle, writes replies and messages, then the event
+//   sample of every interpolator whose event registers changed (small, first: the PLC reacts to
+//   it), then the state (on such a change, at most every `progress_period` for progress-only
+//   changes, at least every `state_period`) and the setpoints (every cycle it sees).
 // The cycle thread only touches the queues and the latest-value buffer.
 #pragma once
 
@@ -39,29 +40,38 @@ struct DdsPortOptions {
   int setpoint_decimation = 1;
 };
 
-//! M-function handshake measurement: from just before the write() of the state sample that shows
-//! a new M_Func until the acknowledging request is taken by the receiver thread [ns]
-//! (round_trip_ns), with the time stamps of every step on the service's side (steady clock, ns):
-//! hand-off of the cycle's snapshot that first shows the M_Func, publisher wake-up, state write()
-//! begin / end, ack taken by the receiver thread, ack applied by a cycle (0 until it is).
+//! M-function handshake measurement: from just before the write() of the event sample that shows
+//! a new M_Func until the acknowledging request is taken (request listener) [ns] (round_trip_ns),
+//! with the time stamps of every step on the service's side (steady clock, ns): hand-off of the
+//! cycle's snapshot that first shows the M_Func, publisher wake-up, event write() begin / end,
+//! state write() begin / end (the state follows the event), ack taken, ack applied by a cycle.
+//! A stamp is 0 when that step did not happen (e.g. no cycle applied the ack before the stop).
 struct HandshakeSample {
   int interpolator = 0;
   std::int64_t round_trip_ns = 0;
   std::int32_t act_part = 0;
   std::int64_t handoff_ns = 0;
   std::int64_t publisher_woke_ns = 0;
-  std::int64_t write_begin_ns = 0;
-  std::int64_t write_end_ns = 0;
+  std::int64_t event_write_begin_ns = 0;
+  std::int64_t event_write_end_ns = 0;
+  std::int64_t state_write_begin_ns = 0;
+  std::int64_t state_write_end_ns = 0;
   std::int64_t taken_ns = 0;
   std::int64_t applied_ns = 0;
 };
 
-//! Service-side stamps of one state write that showed a new M_Func (publisher -> receiver).
+//! Publisher-side stamps of one event write that showed a new M_Func (and of the state write
+//! after it). The receiver sees act_part and the stamps up to event_write_begin_ns (published by
+//! an atomic); the rest is joined in after stop().
 struct MWritten {
+  int interpolator = 0;
   std::int32_t act_part = 0;
   std::int64_t handoff_ns = 0;
   std::int64_t publisher_woke_ns = 0;
-  std::int64_t write_begin_ns = 0;
+  std::int64_t event_write_begin_ns = 0;
+  std::int64_t event_write_end_ns = 0;
+  std::int64_t state_write_begin_ns = 0;
+  std::int64_t state_write_end_ns = 0;
 };
 
 //! A futex-backed doorbell: ring() never blocks; wait() sleeps until rung or timeout.
@@ -95,17 +105,19 @@ class DdsPort final : public CyclePort {
   //! Valid after stop(); applied_ns filled in from the cycle thread's stamps.
   const std::vector<HandshakeSample>& handshakes();
   std::uint64_t states_published() const { return states_published_; }
+  std::uint64_t events_published() const { return events_published_; }
   std::uint64_t setpoints_published() const { return setpoints_published_; }
   const std::string& participant_name() const { return participant_.name(); }
 
  private:
   void receive_loop();
   void publish_loop();
-  //! Takes every request sample the queue has room for (any thread; serialized by a mutex).
+  //! Takes every request sample the queue has room for (any thread; never blocks: see .cpp).
   void take_requests();
   void take_requests_locked();
 
   void take_chunks();
+  void publish_event(int i, const InterpolatorSnapshot& s, const Snapshot& all);
   void publish_state(int i, const InterpolatorSnapshot& s, const Snapshot& all);
 
   class RequestListener final : public eprosima::fastdds::dds::DataReaderListener {
@@ -122,6 +134,7 @@ class DdsPort final : public CyclePort {
   DdsPortOptions opt_;
   dds::Participant participant_;
   eprosima::fastdds::dds::DataWriter& state_writer_;
+  eprosima::fastdds::dds::DataWriter& event_writer_;
   eprosima::fastdds::dds::DataWriter& setpoint_writer_;
   eprosima::fastdds::dds::DataWriter& reply_writer_;
   eprosima::fastdds::dds::DataWriter& message_writer_;
@@ -144,18 +157,18 @@ class DdsPort final : public CyclePort {
   // request taking (listener or receiver thread), under request_mutex_: the producer side of
   // requests_ and the handshake records
   std::mutex request_mutex_;
+  std::atomic<bool> requests_pending_{false};
   std::vector<HandshakeSample> handshakes_;
   msg::Request request_sample_;
   // receiver thread only
   std::vector<std::deque<ChunkIn*>> backlog_;
   ChunkIn* spare_ = nullptr;
   tgm::msg::ProgramChunk chunk_sample_;
-  // publisher -> receiver: when the state with a new M_Func was written [steady ns], 0 = none;
+  // publisher -> receiver: when the event with a new M_Func was written [steady ns], 0 = none;
   // the other stamps of that write are in m_written_ (guarded by the atomic: written before the
   // release store, read after the acquire exchange).
   std::vector<std::unique_ptr<std::atomic<std::int64_t>>> m_written_ns_;
   std::vector<MWritten> m_written_;
-  std::vector<std::unique_ptr<std::atomic<std::int64_t>>> m_write_end_ns_;
   // cycle thread only: (taken_ns, applied_ns) of M_Func writes, preallocated (no allocation in
   // the cycle; stamps beyond the capacity are dropped).
   std::vector<std::pair<std::int64_t, std::int64_t>> m_applied_;
@@ -171,10 +184,19 @@ class DdsPort final : public CyclePort {
     std::chrono::steady_clock::time_point at{};
   };
   std::vector<Published> published_;
+  std::vector<Published> published_events_;
   std::vector<Published> published_setpoints_;
+  std::vector<std::uint64_t> event_counter_;
+  // Every new-M_Func event write with the stamps of the state write after it (preallocated;
+  // joined into handshakes_ after stop()). m_pending_[i]: index of the record of interpolator i
+  // whose state write is still to come, -1 = none.
+  std::vector<MWritten> m_published_;
+  std::vector<std::ptrdiff_t> m_pending_;
+  tgm::msg::InterpolatorEvent event_sample_;
   tgm::msg::InterpolatorState state_sample_;
   tgm::msg::Setpoints setpoint_sample_;
   std::uint64_t states_published_ = 0;
+  std::uint64_t events_published_ = 0;
   std::uint64_t setpoints_published_ = 0;
   std::uint64_t snapshots_seen_ = 0;
 

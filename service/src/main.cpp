@@ -233,7 +233,7 @@ int main(int argc, char** argv) {
   std::printf(
       "tgm-service: stopping (%s) after %llu cycles: lateness p50 %.1f us, p99 %.1f us, p99.9 %.1f us,"
       " max %.1f us, missed %llu; cycle work p99.9 %.1f us, max %.1f us; %llu requests (%llu refused), %llu chunks, %llu segments,"
-      " %llu states, %llu setpoints published\n",
+      " %llu events, %llu states, %llu setpoints published\n",
       sig > 0 ? strsignal(sig) : "time is up", static_cast<unsigned long long>(st.cycles),
       static_cast<double>(hist.quantile_ns(0.5)) / 1e3, static_cast<double>(hist.quantile_ns(0.99)) / 1e3,
       static_cast<double>(hist.quantile_ns(0.999)) / 1e3, static_cast<double>(hist.max_ns()) / 1e3,
@@ -242,6 +242,7 @@ int main(int argc, char** argv) {
       static_cast<double>(loop.work_histogram().max_ns()) / 1e3, static_cast<unsigned long long>(c.requests),
       static_cast<unsigned long long>(c.refused_requests), static_cast<unsigned long long>(c.chunks),
       static_cast<unsigned long long>(c.segments),
+      static_cast<unsigned long long>(port->events_published()),
       static_cast<unsigned long long>(port->states_published()),
       static_cast<unsigned long long>(port->setpoints_published()));
   if (!stats_path.empty()) {
@@ -254,7 +255,7 @@ int main(int argc, char** argv) {
                    " \"handshake_ns\": {\"count\": %zu, \"min\": %lld, \"p50\": %lld, \"p99\": %lld, \"max\": %lld},\n"
                    " \"requests\": %llu, \"chunks\": %llu, \"segments\": %llu, \"duplicate_chunks\": %llu,"
                    " \"refused_chunks\": %llu, \"lost_replies\": %llu, \"lost_messages\": %llu,\n"
-                   " \"states_published\": %llu, \"setpoints_published\": %llu}\n",
+                   " \"events_published\": %llu, \"states_published\": %llu, \"setpoints_published\": %llu}\n",
                    static_cast<unsigned long long>(st.cycles), config.machine.cycle_time_us, engine->count(),
                    static_cast<long long>(hist.quantile_ns(0.5)), static_cast<long long>(hist.quantile_ns(0.99)),
                    static_cast<long long>(hist.quantile_ns(0.999)), static_cast<long long>(hist.max_ns()),
@@ -268,6 +269,7 @@ int main(int argc, char** argv) {
                    static_cast<unsigned long long>(c.segments), static_cast<unsigned long long>(c.duplicate_chunks),
                    static_cast<unsigned long long>(c.refused_chunks), static_cast<unsigned long long>(c.lost_replies),
                    static_cast<unsigned long long>(c.lost_messages),
+                   static_cast<unsigned long long>(port->events_published()),
                    static_cast<unsigned long long>(port->states_published()),
                    static_cast<unsigned long long>(port->setpoints_published()));
       std::fclose(f);
@@ -277,11 +279,14 @@ int main(int argc, char** argv) {
   }
   if (!trace_path.empty()) {
     if (std::FILE* f = std::fopen(trace_path.c_str(), "w")) {
-      std::fprintf(f, "interpolator,act_part,handoff_ns,publisher_woke_ns,write_begin_ns,write_end_ns,taken_ns,applied_ns\n");
+      std::fprintf(f,
+                   "interpolator,act_part,handoff_ns,publisher_woke_ns,event_write_begin_ns,event_write_end_ns,"
+                   "state_write_begin_ns,state_write_end_ns,taken_ns,applied_ns\n");
       for (const auto& h : port->handshakes()) {
-        std::fprintf(f, "%d,%d,%lld,%lld,%lld,%lld,%lld,%lld\n", h.interpolator, h.act_part,
+        std::fprintf(f, "%d,%d,%lld,%lld,%lld,%lld,%lld,%lld,%lld,%lld\n", h.interpolator, h.act_part,
                      static_cast<long long>(h.handoff_ns), static_cast<long long>(h.publisher_woke_ns),
-                     static_cast<long long>(h.write_begin_ns), static_cast<long long>(h.write_end_ns),
+                     static_cast<long long>(h.event_write_begin_ns), static_cast<long long>(h.event_write_end_ns),
+                     static_cast<long long>(h.state_write_begin_ns), static_cast<long long>(h.state_write_end_ns),
                      static_cast<long long>(h.taken_ns), static_cast<long long>(h.applied_ns));
       }
       std::fclose(f);

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Process-level benchmarks of tgm-service (BENCHMARKS.md, section "Service"):
-#   1. M-function handshake round trip (service sets M_Func, tgm-plc acks, service takes the ack)
-#      against a raw Fast DDS ping-pong of the same samples (InterpolatorState -> Request) in the
-#      same run;
+#   1. M-function handshake round trip (service writes the event with M_Func, tgm-plc acks, service
+#      takes the ack) against a raw Fast DDS ping-pong of the same samples and QoS
+#      (InterpolatorEvent -> Request; WaitSet and listener mode) in the same run;
 #   2. program streaming rate into a running service;
 #   3. cycle lateness at the config's cycle time with three interpolators running programs and
 #      an HMI subscribed (tgm-hmi watch).
@@ -16,6 +16,9 @@ m_count=${M_COUNT:-2000}
 dds_prio=${DDS_PRIO:-0}
 svc_prio=(); plc_prio=()
 if ((dds_prio > 0)); then svc_prio=(--dds-priority "$dds_prio"); plc_prio=(--rt-priority "$dds_prio"); fi
+# SVC_ARGS / PLC_ARGS: extra options for tgm-service / tgm-plc in part 1 (word-split).
+read -r -a svc_extra <<< "${SVC_ARGS:-}"
+read -r -a plc_extra <<< "${PLC_ARGS:-}"
 domain=${DOMAIN:-91}
 tmp=$(mktemp -d)
 pids=()
@@ -47,30 +50,47 @@ json() { python3 -c "import json,sys; d=json.load(open('$1')); print($2)"; }
 svc_cpu=(); [[ -n ${SVC_CPU:-} ]] && svc_cpu=(--cpu "$SVC_CPU")
 if [[ -z ${ONLY_LATENESS:-} ]]; then
 echo "== 1. M-function handshake: $m_count x (G1 X0.01, M51), tgm-plc acknowledges at once"
+echo "load average before: $(cut -d' ' -f1-3 /proc/loadavg)"
 for ((i = 0; i < m_count; ++i)); do printf 'G1 X0.01\nM51\n'; done > "$tmp/m.ngc"
 echo "M2" >> "$tmp/m.ngc"
-"$svc" "${cfg[@]}" "${svc_prio[@]}" --stats "$tmp/hs.json" --handshake-trace "$tmp/hs_svc.csv" \
+"$svc" "${cfg[@]}" "${svc_prio[@]}" "${svc_extra[@]}" --stats "$tmp/hs.json" --handshake-trace "$tmp/hs_svc.csv" \
   > "$tmp/svc1.log" 2>&1 & pids+=($!)
-"$plc" "${cfg[@]}" "${plc_prio[@]}" --ack-delay 0 --quiet --no-basic-params --handshake-trace "$tmp/hs_plc.csv" \
+"$plc" "${cfg[@]}" "${plc_prio[@]}" "${plc_extra[@]}" --ack-delay 0 --quiet --no-basic-params --handshake-trace "$tmp/hs_plc.csv" \
   > "$tmp/plc1.log" 2>&1 & pids+=($!)
-# The raw ping-pong runs twice: once while the handshake program runs (same load on the
-# machine: the service's cycle and publisher threads, the HMI, the PLC) and once alone after it.
-"$build/tests/bench/service/tgm_bench_state_pingpong" --count 30000 --domain $((domain + 2)) \
-  --profiles "$PWD/config/fastdds_profiles.xml" > "$tmp/raw_during.log" 2>&1 &
-raw_pid=$!
-"$hmi" run "$tmp/m.ngc" "${cfg[@]}" --quiet > "$tmp/hmi1.log"
-wait "$raw_pid" || true
+# The raw ping-pong (the event sample with the event QoS, answered by the Request with the request
+# QoS; WaitSet and listener mode alternating in blocks of 500) runs while the handshake program
+# runs (same load on the machine: the service's cycle and publisher threads, the HMI, the PLC),
+# and alone after it. The goal compares with the faster mode of the concurrent run.
+# RAW_DURING=0 (diagnosis only): no concurrent ping-pong, to see how much it slows the handshake.
+raw_pid=
+if [[ ${RAW_DURING:-1} != 0 ]]; then
+  "$build/tests/bench/service/tgm_bench_state_pingpong" --sample event --mode both --count 30000 \
+    --domain $((domain + 2)) --profiles "$PWD/config/fastdds_profiles.xml" > "$tmp/raw_during.log" 2>&1 &
+  raw_pid=$!
+else
+  echo "(no concurrent raw ping-pong: RAW_DURING=0)" > "$tmp/raw_during.log"
+fi
+"$hmi" run "$tmp/m.ngc" "${cfg[@]}" --quiet --timeout 600 > "$tmp/hmi1.log" || echo "tgm-hmi run failed (exit $?)"
+[[ -n $raw_pid ]] && { wait "$raw_pid" || true; }
 stop_all
+echo "load average after: $(cut -d' ' -f1-3 /proc/loadavg)"
 tail -n 3 "$tmp/hmi1.log"
 echo "time stamps of every handshake (service and PLC, same clock):"
-python3 tests/bench/service/handshake_trace.py "$tmp/hs_svc.csv" "$tmp/hs_plc.csv"
+python3 tests/bench/service/handshake_trace.py "$tmp/hs_svc.csv" "$tmp/hs_plc.csv" --raw "$tmp/raw_during.log"
+json "$tmp/hs.json" "'service handshake (event write with new M_Func -> ack taken): n %d, min %.1f us, median %.1f us, p99 %.1f us, max %.1f us' % (d['handshake_ns']['count'], d['handshake_ns']['min']/1e3, d['handshake_ns']['p50']/1e3, d['handshake_ns']['p99']/1e3, d['handshake_ns']['max']/1e3)"
 echo "raw ping-pong while the handshake program ran:"
 cat "$tmp/raw_during.log"
-echo "raw ping-pong alone:"
-json "$tmp/hs.json" "'service handshake (state write with new M_Func -> ack taken): n %d, min %.1f us, median %.1f us, p99 %.1f us, max %.1f us' % (d['handshake_ns']['count'], d['handshake_ns']['min']/1e3, d['handshake_ns']['p50']/1e3, d['handshake_ns']['p99']/1e3, d['handshake_ns']['max']/1e3)"
+echo "raw ping-pong alone (event -> request, both modes):"
+"$build/tests/bench/service/tgm_bench_state_pingpong" --sample event --mode both --count 10000 \
+  --domain $((domain + 1)) --profiles "$PWD/config/fastdds_profiles.xml"
+# The handshake is sporadic (one M-function every ~23 ms here), the ping-pong back to back; on a
+# VM whose idle vCPUs halt, a sporadic exchange pays the wake-ups. Context, not the goal:
+echo "raw ping-pong alone, paced like the handshake (one round trip every 20 ms; context only):"
+"$build/tests/bench/service/tgm_bench_state_pingpong" --sample event --mode both --count 400 --block 50 \
+  --warmup 20 --interval-us 20000 --domain $((domain + 1)) --profiles "$PWD/config/fastdds_profiles.xml"
+echo "raw ping-pong alone, the former reference (state -> request, WaitSet; 1 and 2 state readers):"
 "$build/tests/bench/service/tgm_bench_state_pingpong" --count 5000 --domain $((domain + 1)) \
   --profiles "$PWD/config/fastdds_profiles.xml"
-echo "raw ping-pong alone with a second state reader (as tgm-hmi next to tgm-plc):"
 "$build/tests/bench/service/tgm_bench_state_pingpong" --count 5000 --domain $((domain + 1)) --sinks 1 \
   --profiles "$PWD/config/fastdds_profiles.xml"
 

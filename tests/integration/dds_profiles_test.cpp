@@ -53,6 +53,8 @@ TEST(DdsProfiles, EveryTopicHasTheDesignedQos) {
   const Expected expected[] = {
       {dds::kStateTopic, fdds::RELIABLE_RELIABILITY_QOS, fdds::TRANSIENT_LOCAL_DURABILITY_QOS,
        fdds::KEEP_LAST_HISTORY_QOS, 1},
+      {dds::kEventTopic, fdds::RELIABLE_RELIABILITY_QOS, fdds::VOLATILE_DURABILITY_QOS,
+       fdds::KEEP_LAST_HISTORY_QOS, 100},
       {dds::kSetpointsTopic, fdds::BEST_EFFORT_RELIABILITY_QOS, fdds::VOLATILE_DURABILITY_QOS,
        fdds::KEEP_LAST_HISTORY_QOS, 1},
       {dds::kRequestTopic, fdds::RELIABLE_RELIABILITY_QOS, fdds::VOLATILE_DURABILITY_QOS,
@@ -109,6 +111,7 @@ TEST(DdsProfiles, WriterAndReaderOfEveryTopicMatch) {
     EXPECT_TRUE(dds::wait_for_match(r, 1, std::chrono::seconds(10))) << spec.name;
   };
   check(dds::kStateTopic, static_cast<msg::InterpolatorStatePubSubType*>(nullptr));
+  check(dds::kEventTopic, static_cast<msg::InterpolatorEventPubSubType*>(nullptr));
   check(dds::kSetpointsTopic, static_cast<msg::SetpointsPubSubType*>(nullptr));
   check(dds::kRequestTopic, static_cast<msg::RequestPubSubType*>(nullptr));
   check(dds::kReplyTopic, static_cast<msg::ReplyPubSubType*>(nullptr));

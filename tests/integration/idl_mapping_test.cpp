@@ -522,5 +522,68 @@ TEST(IdlMapping, RegistersRoundTripThroughCdr) {
   }
 }
 
+// The event sample carries the event registers of the state, nothing else: the same registers
+// through the event and through the state give the same values (the state is the reference), and
+// applying an event to registers changes only the event registers.
+TEST(IdlMapping, EventCarriesTheEventRegistersOfTheState) {
+  for (std::uint32_t seed = 1; seed <= 10; ++seed) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    const Registers r = random_registers(seed);
+    msg::InterpolatorEvent event;
+    event.event_counter(77);  // service fields: the mapping leaves them alone
+    event.program_id(5);
+    mapping::to_event(r, 2, event);
+    EXPECT_EQ(event.interpolator(), 2);
+    EXPECT_EQ(event.event_counter(), 77u);
+    EXPECT_EQ(event.program_id(), 5u);
+
+    msg::InterpolatorEventPubSubType type;
+    const std::uint32_t size = type.getSerializedSizeProvider(&event)();
+    eprosima::fastrtps::rtps::SerializedPayload_t payload(size);
+    ASSERT_TRUE(type.serialize(&event, &payload));
+    // Small on purpose: a tenth of the state (BENCHMARKS.md "Service").
+    EXPECT_LE(payload.length, 400u);
+    msg::InterpolatorEvent wire;
+    ASSERT_TRUE(type.deserialize(&payload, &wire));
+
+    msg::InterpolatorState state;
+    mapping::to_idl(r, 2, state);
+    EXPECT_EQ(wire.interpolator(), state.interpolator());
+    EXPECT_EQ(wire.cycle_counter(), state.cycle_counter());
+    EXPECT_EQ(wire.status(), state.status());
+    EXPECT_EQ(wire.run_flag(), state.run_flag());
+    EXPECT_EQ(wire.act_part(), state.act_part());
+    EXPECT_EQ(wire.act_line(), state.act_line());
+    EXPECT_EQ(wire.m_func(), state.m_func());
+    EXPECT_EQ(wire.act_m_func(), state.act_m_func());
+    EXPECT_EQ(wire.last_cont_m_func(), state.last_cont_m_func());
+    EXPECT_EQ(wire.command(), state.command());
+    EXPECT_EQ(wire.command_status(), state.command_status());
+    EXPECT_EQ(wire.m_function_parameter(), state.m_function_parameter());
+    EXPECT_TRUE(is_not_set(wire.m_function_parameter()[3]));
+
+    // Applied to other registers: the event registers become r's, the rest stays.
+    Registers other = random_registers(seed + 100);
+    other.status = 1;  // random_registers fixes these: make them differ from r's
+    other.run_flag = make_run_flag(SectionState::kRun, SpeedState::kConstant);
+    other.command_status = 0;
+    Registers applied = other;
+    mapping::from_event(wire, applied);
+    Registers expected = other;
+    expected.cycle = r.cycle;
+    expected.status = r.status;
+    expected.run_flag = r.run_flag;
+    expected.act_part = r.act_part;
+    expected.act_line = r.act_line;
+    expected.m_func = r.m_func;
+    expected.act_m_func = r.act_m_func;
+    expected.last_cont_m_func = r.last_cont_m_func;
+    expected.command = r.command;
+    expected.command_status = r.command_status;
+    expected.m_function_parameter = r.m_function_parameter;
+    expect_same_registers(expected, applied);
+  }
+}
+
 }  // namespace
 }  // namespace tgm

@@ -6,9 +6,11 @@
 
 #include <chrono>
 #include <cmath>
-#include <optional>
 #include <fstream>
+#include <mutex>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include "service_test_env.hpp"
 #include "tgm/client/client.hpp"
@@ -153,6 +155,91 @@ TEST(ServiceProcesses, MFunctionWaitsUntilThePlcAcksAndNotLonger) {
               static_cast<unsigned long long>(s.cycle_counter()));
 }
 
+// The event topic: the PLC gets the M-function in a small event sample, in Fast DDS's receive
+// thread, and can acknowledge it right there; the reply is taken later by the polling thread.
+TEST(ServiceProcesses, EventCallbackSeesTheMFunctionAndCanAcknowledgeIt) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  client::Client plc(env.dds(), client::Role::kPlc);
+  std::mutex mutex;
+  std::vector<msg::InterpolatorEvent> m_events;  // events with M_Func set, as the callback saw them
+  std::vector<std::uint64_t> ack_ids;
+  std::uint64_t last_counter = 0;
+  bool counters_contiguous = true;
+  plc.on_event([&](const client::Event& e) {
+    if (e.sample.interpolator() != 0) return;
+    const std::lock_guard lock(mutex);
+    if (last_counter != 0 && e.sample.event_counter() != last_counter + 1)
+      counters_contiguous = false;
+    last_counter = e.sample.event_counter();
+    if (e.sample.m_func() == 0 ||
+        (!m_events.empty() && m_events.back().act_part() == e.sample.act_part()))
+      return;
+    m_events.push_back(e.sample);
+    ack_ids.push_back(plc.send_ack_m_func(0));
+  });
+  ASSERT_THROW(plc.on_event([](const client::Event&) {}), dds::SetupError);
+  ASSERT_TRUE(plc.wait_for_state(0, kHang));
+  std::ofstream(env.path("m51.ngc")) << "G1 X5\nM51 A7\nG1 X5\nM2\n";
+  test::Child hmi;
+  ASSERT_TRUE(hmi.start({TGM_HMI_BIN, "run", env.path("m51.ngc"), "--config", env.config()},
+                        env.path("hmi.log")));
+  EXPECT_EQ(hmi.wait(kHang), 0) << hmi.log();
+  EXPECT_NE(hmi.log().find("done: 4 records"), std::string::npos) << hmi.log();
+  EXPECT_NE(hmi.log().find("1 M-function wait"), std::string::npos) << hmi.log();
+
+  const std::lock_guard lock(mutex);
+  ASSERT_EQ(m_events.size(), 1u);
+  const msg::InterpolatorEvent& e = m_events[0];
+  EXPECT_EQ(e.m_func(), 51);
+  EXPECT_EQ(e.act_line(), 2);
+  EXPECT_DOUBLE_EQ(e.m_function_parameter()[0], 7.0);
+  EXPECT_TRUE(is_not_set(e.m_function_parameter()[1]));
+  const auto sec = static_cast<SectionState>(static_cast<std::uint32_t>(e.run_flag()) & 0xFFFFu);
+  EXPECT_TRUE(sec == SectionState::kWaitMFunc || sec == SectionState::kWaitMFuncEnd)
+      << e.run_flag();
+  EXPECT_NE(e.program_id(), 0u);
+  EXPECT_GT(e.cycle_counter(), 0u);
+  EXPECT_TRUE(counters_contiguous);
+  EXPECT_EQ(plc.events_lost(), 0u);
+  EXPECT_GE(plc.events_received(), 3u);  // at least: program loaded, running, M51, ended
+  ASSERT_EQ(ack_ids.size(), 1u);
+  ASSERT_NE(ack_ids[0], 0u) << "the ack could not be written from the callback";
+  std::optional<client::Reply> reply;
+  for (int i = 0; i < 100 && !reply; ++i) {
+    plc.poll(20ms);
+    reply = plc.take_reply(ack_ids[0]);
+  }
+  ASSERT_TRUE(reply.has_value());
+  EXPECT_TRUE(reply->accepted) << client::describe(*reply);
+  EXPECT_GE(reply->cycle, e.cycle_counter());
+}
+
+// tgm-plc with an acknowledgement delay of 0 acknowledges from the event callback; it sees every
+// M-function on both topics (event and state) and still logs each, and each acknowledgement, once.
+TEST(ServiceProcesses, PlcAcknowledgesFromTheEventAndLogsEachMFunctionOnce) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  test::Child plc;
+  ASSERT_TRUE(
+      plc.start({TGM_PLC_BIN, "--config", env.config(), "--ack-delay", "0"}, env.path("plc.log")));
+  test::Child hmi;
+  ASSERT_TRUE(hmi.start({TGM_HMI_BIN, "run", TGM_SOURCE_DIR "/tests/programs/manual_example.ngc",
+                         "--config", env.config()},
+                        env.path("hmi.log")));
+  EXPECT_EQ(hmi.wait(kHang), 0) << hmi.log() << "\n--- plc:\n" << plc.log();
+  EXPECT_EQ(plc.interrupt(), 0);
+  EXPECT_NE(hmi.log().find("3 M-function waits"), std::string::npos) << hmi.log();
+  const std::string log = plc.log();
+  EXPECT_EQ(test::count_of(log, "M51 normal"), 2) << log;
+  EXPECT_EQ(test::count_of(log, "M50 normal"), 1) << log;
+  EXPECT_EQ(test::count_of(log, "M51 acknowledged from the event"), 2) << log;
+  EXPECT_EQ(test::count_of(log, "M50 acknowledged from the event"), 1) << log;
+  EXPECT_EQ(test::count_of(log, "acknowledged"), 3) << log;
+  EXPECT_EQ(test::count_of(log, ": accepted (cycle"), 3) << log;
+  EXPECT_EQ(test::count_of(log, " 0 lost"), 1) << log;
+}
+
 TEST(ServiceProcesses, LateJoiningHmiSeesTheCurrentStateAtOnce) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());
@@ -261,6 +348,43 @@ TEST(ServiceProcesses, HundredThousandRecordsStreamIntoAThousandRecordBufferWhil
   EXPECT_NE(stats.find("\"refused_chunks\": 0,"), std::string::npos) << stats;
   std::printf("streamed %zu records through a 1000-record buffer, %llu underrun restarts\n", kRecords + 1,
               static_cast<unsigned long long>(underruns));
+}
+
+// Requests are taken by two threads of the service (the reader's listener in a Fast DDS receive
+// thread, and the receiver thread when the request queue was full). A flood that keeps the queue
+// full makes both take at once, over and over; the service must keep answering and stop cleanly
+// (it used to deadlock: the listener holds the reader's lock and waited for the service's, the
+// receiver thread the other way round).
+TEST(ServiceProcesses, RequestFloodNeverStallsTheService) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  client::Client plc(env.dds(), client::Role::kPlc);
+  ASSERT_TRUE(plc.wait_for_state(0, kHang));
+  ASSERT_TRUE(plc.set_rel_speed(0, 1.0).accepted);  // matched both ways
+  const auto until = std::chrono::steady_clock::now() + 3s;
+  std::uint64_t sent = 0;
+  while (std::chrono::steady_clock::now() < until) {
+    for (int k = 0; k < 200; ++k) {
+      msg::Request r;
+      r.interpolator(static_cast<std::uint16_t>(k % 3));
+      r.kind(msg::REQUEST_KIND_WRITE_REL_SPEED);
+      r.value(0.5 + 0.001 * (k % 100));
+      if (plc.send(r) != 0) ++sent;
+    }
+    plc.poll(std::chrono::nanoseconds(0));
+  }
+  EXPECT_GT(sent, 1000u);
+  // Still answering (each interpolator), and a clean stop (a stuck DDS thread never joins).
+  for (int i = 0; i < 3; ++i) {
+    msg::Request q;
+    q.interpolator(static_cast<std::uint16_t>(i));
+    q.kind(msg::REQUEST_KIND_WRITE_REL_SPEED);
+    q.value(0.75);
+    const auto r = plc.request(q, 10s);
+    EXPECT_TRUE(r.accepted) << "interpolator " << i << ": " << client::describe(r);
+  }
+  EXPECT_EQ(env.service.interrupt(20s), 0) << env.service.log();
+  std::printf("%llu requests sent in 3 s\n", static_cast<unsigned long long>(sent));
 }
 
 TEST(ServiceProcesses, ServiceStopsCleanlyOnSigtermAndRejectsBadFlags) {

@@ -66,6 +66,51 @@ Client::Client(const DdsConfig& config, Role role, const ClientOptions& options)
   state_samples_.resize(kMaxInterpolators, 0);
 }
 
+Client::~Client() {
+  if (event_listener_) {
+    event_reader_->set_listener(nullptr);
+    event_listener_->detach();
+  }
+}
+
+void Client::EventListener::on_data_available(fdds::DataReader* reader) {
+  const auto received = Clock::now();
+  const std::lock_guard lock(mutex_);
+  if (detached_) return;
+  while (dds::take_next(*reader, event_.sample)) {
+    event_.received = received;
+    const std::size_t i = event_.sample.interpolator();
+    if (i < last_counter_.size()) {
+      const std::uint64_t c = event_.sample.event_counter();
+      // A counter that goes back is a restarted service, not a loss.
+      if (last_counter_[i] != 0 && c > last_counter_[i] + 1) {
+        client_.events_lost_.fetch_add(c - last_counter_[i] - 1, std::memory_order_relaxed);
+      }
+      last_counter_[i] = c;
+    }
+    client_.events_received_.fetch_add(1, std::memory_order_relaxed);
+    handler_(event_);
+  }
+}
+
+void Client::EventListener::detach() {
+  const std::lock_guard lock(mutex_);
+  detached_ = true;
+}
+
+void Client::on_event(EventHandler handler) {
+  if (event_listener_)
+    throw dds::SetupError("tgm::client::Client::on_event: a handler is already set");
+  if (!handler) throw dds::SetupError("tgm::client::Client::on_event: empty handler");
+  event_reader_ = &participant_.reader<msg::InterpolatorEventPubSubType>(dds::kEventTopic);
+  event_listener_ = std::make_unique<EventListener>(*this, std::move(handler));
+  if (event_reader_->set_listener(event_listener_.get(), fdds::StatusMask::data_available()) !=
+      eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
+    throw dds::SetupError("tgm::client::Client::on_event: cannot attach the listener to the " +
+                          std::string(dds::kEventTopic.name) + " reader");
+  }
+}
+
 void Client::poll(std::chrono::nanoseconds timeout) {
   if (timeout.count() > 0) {
     waiter_->wait(timeout);
@@ -81,6 +126,9 @@ void Client::poll(std::chrono::nanoseconds timeout) {
   msg::Reply reply;
   while (dds::take_next(reply_reader_, reply)) {
     if (reply.client_name() == name_) replies_.push_back(reply);
+  }
+  if (replies_.size() > kMaxKeptReplies) {
+    replies_.erase(replies_.begin(), replies_.end() - static_cast<std::ptrdiff_t>(kMaxKeptReplies));
   }
   msg::Message m;
   while (dds::take_next(message_reader_, m)) messages_.push_back(m);
@@ -135,9 +183,7 @@ Reply Client::request(msg::Request r, std::chrono::milliseconds timeout) {
     out.timed_out = true;
     return out;
   }
-  r.request_id(next_request_id_++);
-  r.role(role_ == Role::kPlc ? msg::CLIENT_ROLE_PLC : msg::CLIENT_ROLE_HMI);
-  r.client_name(name_);
+  fill(r);
   if (!request_writer_.write(&r)) {
     out.timed_out = true;
     return out;
@@ -162,6 +208,38 @@ Reply Client::request(msg::Request r, std::chrono::milliseconds timeout) {
     }
     poll(std::min<std::chrono::nanoseconds>(deadline - now, 20ms));
   }
+}
+
+void Client::fill(msg::Request& r) {
+  r.request_id(next_request_id_.fetch_add(1, std::memory_order_relaxed));
+  r.role(role_ == Role::kPlc ? msg::CLIENT_ROLE_PLC : msg::CLIENT_ROLE_HMI);
+  r.client_name(name_);
+}
+
+std::uint64_t Client::send(msg::Request r) {
+  // The request topic is VOLATILE: written before the service's reader matched, it is lost.
+  fdds::PublicationMatchedStatus matched;
+  if (request_writer_.get_publication_matched_status(matched) !=
+          eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK ||
+      matched.current_count < 1) {
+    return 0;
+  }
+  fill(r);
+  return request_writer_.write(&r) ? r.request_id() : 0;
+}
+
+std::optional<Reply> Client::take_reply(std::uint64_t request_id) {
+  for (auto it = replies_.begin(); it != replies_.end(); ++it) {
+    if (it->request_id() != request_id) continue;
+    Reply out;
+    out.accepted = it->accepted();
+    out.code = it->code();
+    out.reason = it->reason();
+    out.cycle = it->cycle_counter();
+    replies_.erase(it);
+    return out;
+  }
+  return std::nullopt;
 }
 
 namespace {
@@ -190,6 +268,12 @@ Reply Client::ack_m_func(int i) {
   msg::Request r = make(i, msg::REQUEST_KIND_WRITE_M_FUNC);
   r.value(0.0);
   return request(r);
+}
+
+std::uint64_t Client::send_ack_m_func(int i) {
+  msg::Request r = make(i, msg::REQUEST_KIND_WRITE_M_FUNC);
+  r.value(0.0);
+  return send(r);
 }
 
 Reply Client::set_rel_speed(int i, double rel_speed) {

@@ -351,6 +351,35 @@ void from_idl(const msg::InterpolatorState& in, Registers& out) {
   out.message_count = in.message_counter();
 }
 
+void to_event(const Registers& r, std::uint16_t interpolator, msg::InterpolatorEvent& out) {
+  out.interpolator(interpolator);
+  out.cycle_counter(r.cycle);
+  out.status(r.status);
+  out.run_flag(static_cast<std::int32_t>(r.run_flag));
+  out.act_part(r.act_part);
+  out.act_line(r.act_line);
+  out.m_func(r.m_func);
+  out.act_m_func(r.act_m_func);
+  out.last_cont_m_func(r.last_cont_m_func);
+  out.command(r.command);
+  out.command_status(r.command_status);
+  out.m_function_parameter() = r.m_function_parameter;
+}
+
+void from_event(const msg::InterpolatorEvent& in, Registers& out) {
+  out.cycle = in.cycle_counter();
+  out.status = in.status();
+  out.run_flag = static_cast<std::uint32_t>(in.run_flag());
+  out.act_part = in.act_part();
+  out.act_line = in.act_line();
+  out.m_func = in.m_func();
+  out.act_m_func = in.act_m_func();
+  out.last_cont_m_func = in.last_cont_m_func();
+  out.command = in.command();
+  out.command_status = in.command_status();
+  out.m_function_parameter = in.m_function_parameter();
+}
+
 void to_setpoints(const Registers& r, std::uint16_t interpolator, msg::Setpoints& out) {
   out.interpolator(interpolator);
   out.cycle_counter(r.cycle);

@@ -1,22 +1,49 @@
 // tgm_bench_state_pingpong: the raw Fast DDS reference for the M-function handshake. The ping
-// side writes a tgm::msg::InterpolatorState (the sample that carries a new M_Func) with the state
-// QoS profile; the pong side answers each with a tgm::msg::Request (the PLC's M_Func = 0) with the
-// request profile. Same types, sizes and QoS as the real handshake, without the service's cycle.
+// side writes the sample that carries a new M_Func with its topic's QoS profile; the pong side
+// answers each with a tgm::msg::Request (the PLC's M_Func = 0) with the request profile. Same
+// types, sizes and QoS as the real handshake, without the service's cycle.
 //
-//   tgm_bench_state_pingpong [--role both|ping|pong|sink] [--count N] [--warmup N] [--domain D]
-//                            [--profiles FILE] [--sinks N]
+//   tgm_bench_state_pingpong [--role both|ping|pong|sink] [--sample state|event]
+//                            [--mode waitset|listener|both] [--count N] [--warmup N] [--block N]
+//                            [--domain D] [--profiles FILE] [--sinks N] [--interval-us N]
 //
-// --sinks N starts N more processes that only read the states (like tgm-hmi next to tgm-plc): the
-// ping side then writes every state to N + 1 readers.
+// --sample state: tgm::msg::InterpolatorState with the tgm_state profiles (3,812 B, the sample
+//   the service wrote first before the event topic existed); event: tgm::msg::InterpolatorEvent
+//   with the tgm_event profiles (what the service writes first now).
+// --mode waitset: the pong waits on a WaitSet in its main thread, takes, writes the Request; the
+//   ping waits on a WaitSet for it and stops the clock after the take.
+// --mode listener: the pong answers from its DataReaderListener (Fast DDS's receive thread), as
+//   tgm-plc does from its event callback; the ping takes the Request in a listener and stops the
+//   clock there, as tgm-service does (its request listener).
+// --mode both: the two modes on separate topics, alternating in blocks of --block round trips,
+//   so that both see the same load over the run; each mode is reported on its own.
+// The clock starts just before write() and stops when the Request is taken, as the service's
+// "DDS part" of the handshake does. The pong puts the time it began its write() into
+// Request.value (same clock, same host), so the return hop (pong write() begins -> Request
+// taken) is reported too: it compares with the handshake's "ack request call -> service took it".
+// --sinks N starts N more processes that only read the pinged samples (like tgm-hmi next to
+// tgm-plc on the state): the ping side then writes every sample to N + 1 readers.
+// --interval-us N pauses N us between round trips (not timed), as sporadic as the handshake
+// (one M-function every few cycles); 0 = back to back.
+//
+// Output: one line per mode beginning with "RESULT" (parsed by handshake_trace.py --raw).
 #include <spawn.h>
 #include <sys/wait.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
+#include <memory>
+#include <mutex>
+#include <optional>
 #include <string>
+#include <thread>
 #include <vector>
+
+#include <fastdds/dds/subscriber/DataReaderListener.hpp>
 
 #include "tgm/dds/participant.hpp"
 #include "tgm/msg/tgmPubSubTypes.h"
@@ -27,24 +54,36 @@ namespace {
 
 using namespace std::chrono_literals;
 using Clock = std::chrono::steady_clock;
+namespace fdds = eprosima::fastdds::dds;
 
 struct Options {
   std::string role = "both";
+  std::string sample = "state";
+  std::string mode = "waitset";
   int count = 5000;
   int warmup = 500;
+  int block = 500;
   int domain = 78;
   int sinks = 0;
+  int interval_us = 0;
   std::string profiles = TGM_SOURCE_DIR "/config/fastdds_profiles.xml";
 };
 
-tgm::dds::TopicSpec state_topic() {
-  tgm::dds::TopicSpec s = tgm::dds::kStateTopic;
-  s.name = "tgm_bench_state";
+enum Mode { kWaitSet = 0, kListener = 1 };
+const char* mode_name(int m) {
+  return m == kWaitSet ? "waitset" : "listener";
+}
+
+// The pinged topic of a mode: the sample's own profiles under a bench name.
+tgm::dds::TopicSpec ping_topic(const Options& o, int mode) {
+  tgm::dds::TopicSpec s = o.sample == "event" ? tgm::dds::kEventTopic : tgm::dds::kStateTopic;
+  s.name = mode == kWaitSet ? (o.sample == "event" ? "tgm_bench_event_w" : "tgm_bench_state")
+                            : (o.sample == "event" ? "tgm_bench_event_l" : "tgm_bench_state_l");
   return s;
 }
-tgm::dds::TopicSpec ack_topic() {
+tgm::dds::TopicSpec ack_topic(int mode) {
   tgm::dds::TopicSpec s = tgm::dds::kRequestTopic;
-  s.name = "tgm_bench_ack";
+  s.name = mode == kWaitSet ? "tgm_bench_ack" : "tgm_bench_ack_l";
   return s;
 }
 tgm::DdsConfig config(const Options& o) {
@@ -54,133 +93,360 @@ tgm::DdsConfig config(const Options& o) {
   c.participant_prefix = "tgm-bench";
   return c;
 }
+bool uses(const Options& o, int mode) {
+  return o.mode == "both" || o.mode == mode_name(mode);
+}
 
+double now_ns() {
+  return static_cast<double>(Clock::now().time_since_epoch().count());
+}
+
+// Pong side of the listener mode: answers every sample from Fast DDS's receive thread.
+template <class Sample>
+class PongListener final : public fdds::DataReaderListener {
+ public:
+  PongListener(fdds::DataWriter& acks, const std::string& name) : acks_(acks) {
+    r_.role(tgm::msg::CLIENT_ROLE_PLC);
+    r_.kind(tgm::msg::REQUEST_KIND_WRITE_M_FUNC);
+    r_.client_name(name);
+  }
+  void on_data_available(fdds::DataReader* reader) override {
+    const std::lock_guard lock(mutex_);
+    if (detached_) return;
+    while (tgm::dds::take_next(*reader, s_)) {
+      if (s_.m_func() < 0) {
+        quit = true;
+        continue;
+      }
+      r_.request_id(s_.cycle_counter());
+      r_.value(now_ns());
+      acks_.write(&r_);
+    }
+  }
+  void detach() {
+    const std::lock_guard lock(mutex_);
+    detached_ = true;
+  }
+  std::atomic<bool> quit{false};
+
+ private:
+  fdds::DataWriter& acks_;
+  std::mutex mutex_;
+  bool detached_ = false;
+  Sample s_;
+  tgm::msg::Request r_;
+};
+
+// Ping side of the listener mode: takes the Request in Fast DDS's receive thread, stops the
+// clock there and tells the ping thread.
+class AckListener final : public fdds::DataReaderListener {
+ public:
+  void on_data_available(fdds::DataReader* reader) override {
+    const std::lock_guard lock(mutex_);
+    if (detached_) return;
+    while (tgm::dds::take_next(*reader, r_)) {
+      if (r_.request_id() == expected_) {
+        taken_ = Clock::now();
+        pong_write_ns_ = r_.value();
+        got_ = true;
+        cv_.notify_one();
+      }
+    }
+  }
+  void expect(std::uint64_t id) {
+    const std::lock_guard lock(mutex_);
+    expected_ = id;
+    got_ = false;
+  }
+  //! Time the expected Request was taken; false on timeout.
+  bool wait(Clock::time_point& taken, double& pong_write_ns, std::chrono::milliseconds timeout) {
+    std::unique_lock lock(mutex_);
+    if (!cv_.wait_for(lock, timeout, [&] { return got_; })) return false;
+    taken = taken_;
+    pong_write_ns = pong_write_ns_;
+    return true;
+  }
+  void detach() {
+    const std::lock_guard lock(mutex_);
+    detached_ = true;
+  }
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  bool detached_ = false;
+  bool got_ = false;
+  std::uint64_t expected_ = 0;
+  Clock::time_point taken_{};
+  double pong_write_ns_ = 0;
+  tgm::msg::Request r_;
+};
+
+template <class Sample, class SampleType>
 int run_pong(const Options& o) {
+  std::unique_ptr<PongListener<Sample>> listener;  // outlives the participant's threads
   tgm::dds::Participant p(config(o), "pong");
-  auto& states = p.reader<tgm::msg::InterpolatorStatePubSubType>(state_topic());
-  auto& acks = p.writer<tgm::msg::RequestPubSubType>(ack_topic());
-  tgm::dds::DataWaiter waiter({&states});
-  tgm::msg::InterpolatorState s;
+  fdds::DataReader* ws_reader = nullptr;
+  fdds::DataWriter* ws_acks = nullptr;
+  fdds::DataReader* l_reader = nullptr;
+  if (uses(o, kWaitSet)) {
+    ws_reader = &p.reader<SampleType>(ping_topic(o, kWaitSet));
+    ws_acks = &p.writer<tgm::msg::RequestPubSubType>(ack_topic(kWaitSet));
+  }
+  if (uses(o, kListener)) {
+    l_reader = &p.reader<SampleType>(ping_topic(o, kListener));
+    auto& acks = p.writer<tgm::msg::RequestPubSubType>(ack_topic(kListener));
+    listener = std::make_unique<PongListener<Sample>>(acks, p.name());
+    l_reader->set_listener(listener.get(), fdds::StatusMask::data_available());
+  }
+  std::optional<tgm::dds::DataWaiter> waiter;
+  if (ws_reader != nullptr) waiter.emplace(std::initializer_list<fdds::DataReader*>{ws_reader});
+  Sample s;
   tgm::msg::Request r;
   r.role(tgm::msg::CLIENT_ROLE_PLC);
   r.kind(tgm::msg::REQUEST_KIND_WRITE_M_FUNC);
   r.client_name(p.name());
   const auto give_up = Clock::now() + 600s;
-  while (Clock::now() < give_up) {
-    waiter.wait(500ms);
-    while (tgm::dds::take_next(states, s)) {
-      if (s.m_func() < 0) return 0;  // quit
-      r.request_id(s.cycle_counter());
-      acks.write(&r);
+  bool ws_quit = ws_reader == nullptr;
+  while (Clock::now() < give_up && !(ws_quit && (!listener || listener->quit))) {
+    if (waiter) {
+      waiter->wait(100ms);
+      while (tgm::dds::take_next(*ws_reader, s)) {
+        if (s.m_func() < 0) {
+          ws_quit = true;
+          continue;
+        }
+        r.request_id(s.cycle_counter());
+        r.value(now_ns());
+        ws_acks->write(&r);
+      }
+    } else {
+      std::this_thread::sleep_for(10ms);
     }
+  }
+  if (listener) {
+    l_reader->set_listener(nullptr);
+    listener->detach();
   }
   return 0;
 }
 
+template <class Sample, class SampleType>
 int run_sink(const Options& o) {
   tgm::dds::Participant p(config(o), "sink");
-  auto& states = p.reader<tgm::msg::InterpolatorStatePubSubType>(state_topic());
-  tgm::dds::DataWaiter waiter({&states});
-  tgm::msg::InterpolatorState s;
+  std::vector<fdds::DataReader*> readers;
+  for (int m : {kWaitSet, kListener}) {
+    if (uses(o, m)) readers.push_back(&p.reader<SampleType>(ping_topic(o, m)));
+  }
+  tgm::dds::DataWaiter waiter(readers.size() == 2
+                                  ? std::initializer_list<fdds::DataReader*>{readers[0], readers[1]}
+                                  : std::initializer_list<fdds::DataReader*>{readers[0]});
+  Sample s;
+  int quits = 0;
   const auto give_up = Clock::now() + 600s;
-  while (Clock::now() < give_up) {
+  while (Clock::now() < give_up && quits < static_cast<int>(readers.size())) {
     waiter.wait(500ms);
-    while (tgm::dds::take_next(states, s)) {
-      if (s.m_func() < 0) return 0;  // quit
+    for (auto* r : readers) {
+      while (tgm::dds::take_next(*r, s)) {
+        if (s.m_func() < 0) ++quits;
+      }
     }
   }
   return 0;
 }
 
+double pct(const std::vector<double>& us, double q) {
+  return us[std::min(us.size() - 1,
+                     static_cast<std::size_t>(q * static_cast<double>(us.size() - 1) + 0.5))];
+}
+
+template <class Sample, class SampleType>
 int run_ping(const Options& o) {
+  AckListener ack_listener;  // outlives the participant's threads
   tgm::dds::Participant p(config(o), "ping");
-  auto& states = p.writer<tgm::msg::InterpolatorStatePubSubType>(state_topic());
-  auto& acks = p.reader<tgm::msg::RequestPubSubType>(ack_topic());
-  if (!tgm::dds::wait_for_match(states, 1 + o.sinks, 30s) || !tgm::dds::wait_for_match(acks, 1, 30s)) {
-    std::fprintf(stderr, "tgm_bench_state_pingpong: no pong on domain %d\n", o.domain);
-    return 1;
-  }
-  tgm::dds::DataWaiter waiter({&acks});
-  tgm::msg::InterpolatorState s;
-  s.m_func(51);
-  s.message_text("");
-  tgm::msg::Request r;
-  std::vector<double> us;
-  int timeouts = 0;
-  for (int i = 0; i < o.warmup + o.count; ++i) {
-    s.cycle_counter(static_cast<std::uint64_t>(i) + 1);
-    const auto t0 = Clock::now();
-    states.write(&s);
-    bool got = false;
-    while (!got) {
-      if (!waiter.wait(2s)) break;
-      while (tgm::dds::take_next(acks, r)) got = got || r.request_id() == s.cycle_counter();
+  struct Side {
+    bool on = false;
+    fdds::DataWriter* writer = nullptr;
+    fdds::DataReader* acks = nullptr;
+    std::vector<double> us;
+    std::vector<double> back_us;  // pong write() begins -> Request taken
+    int timeouts = 0;
+  };
+  Side side[2];
+  for (int m : {kWaitSet, kListener}) {
+    if (!uses(o, m)) continue;
+    side[m].on = true;
+    side[m].writer = &p.writer<SampleType>(ping_topic(o, m));
+    side[m].acks = &p.reader<tgm::msg::RequestPubSubType>(ack_topic(m));
+    if (!tgm::dds::wait_for_match(*side[m].writer, 1 + o.sinks, 30s) ||
+        !tgm::dds::wait_for_match(*side[m].acks, 1, 30s)) {
+      std::fprintf(stderr, "tgm_bench_state_pingpong: no pong on domain %d (%s)\n", o.domain,
+                   mode_name(m));
+      return 1;
     }
-    const auto t1 = Clock::now();
+  }
+  if (side[kListener].on)
+    side[kListener].acks->set_listener(&ack_listener, fdds::StatusMask::data_available());
+  // The pong attaches its listener just after its reader exists: give it that moment.
+  std::this_thread::sleep_for(200ms);
+  std::optional<tgm::dds::DataWaiter> waiter;
+  if (side[kWaitSet].on)
+    waiter.emplace(std::initializer_list<fdds::DataReader*>{side[kWaitSet].acks});
+  Sample s;
+  s.m_func(51);
+  tgm::msg::Request r;
+  const int modes = side[0].on && side[1].on ? 2 : 1;
+  const int first = side[0].on ? 0 : 1;
+  // Warm-up rounds of every mode first, then the measured ones in alternating blocks.
+  const int total = modes * o.warmup + o.count;
+  for (int i = 0; i < total; ++i) {
+    const bool warm = i < modes * o.warmup;
+    const int k = warm ? i / std::max(1, o.warmup) : (i - modes * o.warmup) / std::max(1, o.block);
+    const int m = modes == 1 ? first : k % 2;
+    Side& sd = side[m];
+    s.cycle_counter(static_cast<std::uint64_t>(i) + 1);
+    bool got = false;
+    Clock::time_point t1{};
+    double pong_write_ns = 0;
+    if (m == kListener) ack_listener.expect(s.cycle_counter());
+    const auto t0 = Clock::now();
+    sd.writer->write(&s);
+    if (m == kListener) {
+      got = ack_listener.wait(t1, pong_write_ns, 2000ms);
+    } else {
+      while (!got) {
+        if (!waiter->wait(2s)) break;
+        while (tgm::dds::take_next(*sd.acks, r)) {
+          if (r.request_id() != s.cycle_counter()) continue;
+          got = true;
+          pong_write_ns = r.value();
+        }
+      }
+      t1 = Clock::now();
+    }
     if (!got) {
-      ++timeouts;
+      ++sd.timeouts;
       continue;
     }
-    if (i >= o.warmup) us.push_back(std::chrono::duration<double, std::micro>(t1 - t0).count());
+    if (!warm) {
+      sd.us.push_back(std::chrono::duration<double, std::micro>(t1 - t0).count());
+      sd.back_us.push_back((static_cast<double>(t1.time_since_epoch().count()) - pong_write_ns) /
+                           1e3);
+    }
+    if (o.interval_us > 0) std::this_thread::sleep_for(std::chrono::microseconds(o.interval_us));
   }
   s.m_func(-1);
-  states.write(&s);
-  states.wait_for_acknowledgments(eprosima::fastrtps::Duration_t(2, 0));
-  if (us.empty()) return 1;
-  std::sort(us.begin(), us.end());
-  auto pct = [&](double q) { return us[std::min(us.size() - 1, static_cast<std::size_t>(q * static_cast<double>(us.size() - 1) + 0.5))]; };
-  tgm::msg::InterpolatorStatePubSubType st;
+  for (Side& sd : side) {
+    if (!sd.on) continue;
+    sd.writer->write(&s);
+    sd.writer->wait_for_acknowledgments(eprosima::fastrtps::Duration_t(2, 0));
+  }
+  if (side[kListener].on) {
+    side[kListener].acks->set_listener(nullptr);
+    ack_listener.detach();
+  }
+  SampleType st;
   tgm::msg::RequestPubSubType rt;
-  std::printf("raw state->request ping-pong (InterpolatorState %u B -> Request %u B serialized, domain %d)\n",
-              st.getSerializedSizeProvider(&s)(), rt.getSerializedSizeProvider(&r)(), o.domain);
-  std::printf("round trips %zu (warm-up %d, timeouts %d), state readers %d\n", us.size(), o.warmup, timeouts,
-              1 + o.sinks);
-  std::printf("min %.1f us  median %.1f us  p99 %.1f us  p99.9 %.1f us  max %.1f us\n", us.front(), pct(0.5),
-              pct(0.99), pct(0.999), us.back());
-  return timeouts == 0 ? 0 : 1;
+  r.client_name(p.name());  // as the pong's (and about as long as tgm-plc's "tgm-plc-PID")
+  std::printf(
+      "raw %s->request ping-pong (%s %u B -> Request %u B serialized, %s QoS, domain %d), sample "
+      "readers %d\n",
+      o.sample.c_str(), o.sample == "event" ? "InterpolatorEvent" : "InterpolatorState",
+      st.getSerializedSizeProvider(&s)(), rt.getSerializedSizeProvider(&r)(),
+      std::string(ping_topic(o, first).writer_profile).c_str(), o.domain, 1 + o.sinks);
+  int rc = 0;
+  for (int m : {kWaitSet, kListener}) {
+    Side& sd = side[m];
+    if (!sd.on) continue;
+    if (sd.us.empty() || sd.timeouts != 0) rc = 1;
+    if (sd.us.empty()) {
+      std::printf("RESULT sample=%s mode=%s n=0 timeouts=%d\n", o.sample.c_str(), mode_name(m),
+                  sd.timeouts);
+      continue;
+    }
+    std::sort(sd.us.begin(), sd.us.end());
+    std::sort(sd.back_us.begin(), sd.back_us.end());
+    std::printf(
+        "RESULT sample=%s mode=%s interval_us=%d n=%zu timeouts=%d min_us=%.1f median_us=%.1f "
+        "p99_us=%.1f p999_us=%.1f "
+        "max_us=%.1f return_median_us=%.1f\n",
+        o.sample.c_str(), mode_name(m), o.interval_us, sd.us.size(), sd.timeouts, sd.us.front(),
+        pct(sd.us, 0.5), pct(sd.us, 0.99), pct(sd.us, 0.999), sd.us.back(), pct(sd.back_us, 0.5));
+  }
+  return rc;
+}
+
+template <class Sample, class SampleType>
+int run(const Options& o, char** argv) {
+  if (o.role == "pong") return run_pong<Sample, SampleType>(o);
+  if (o.role == "ping") return run_ping<Sample, SampleType>(o);
+  if (o.role == "sink") return run_sink<Sample, SampleType>(o);
+  const std::string dom = std::to_string(o.domain);
+  std::vector<pid_t> pids;
+  for (int k = 0; k <= o.sinks; ++k) {
+    std::vector<std::string> args{argv[0],    "--role",   k == 0 ? "pong" : "sink",
+                                  "--domain", dom,        "--profiles",
+                                  o.profiles, "--sample", o.sample,
+                                  "--mode",   o.mode};
+    std::vector<char*> cargs;
+    for (auto& s : args) cargs.push_back(s.data());
+    cargs.push_back(nullptr);
+    pid_t pid = 0;
+    if (posix_spawn(&pid, argv[0], nullptr, nullptr, cargs.data(), environ) != 0) return 1;
+    pids.push_back(pid);
+  }
+  const int rc = run_ping<Sample, SampleType>(o);
+  for (pid_t pid : pids) {
+    int st = 0;
+    waitpid(pid, &st, 0);
+  }
+  return rc;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
   Options o;
+  constexpr const char* kUsage =
+      "usage: %s [--role both|ping|pong|sink] [--sample state|event] [--mode "
+      "waitset|listener|both]\n"
+      "          [--count N] [--warmup N] [--block N] [--domain D] [--profiles F] [--sinks N]\n"
+      "          [--interval-us N]\n";
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (i + 1 >= argc) {
-      std::fprintf(stderr, "usage: %s [--role both|ping|pong|sink] [--count N] [--warmup N] [--domain D] [--profiles F] [--sinks N]\n",
-                   argv[0]);
+      std::fprintf(stderr, kUsage, argv[0]);
       return 2;
     }
     if (a == "--role") o.role = argv[++i];
+    else if (a == "--sample")
+      o.sample = argv[++i];
+    else if (a == "--mode")
+      o.mode = argv[++i];
     else if (a == "--count") o.count = std::atoi(argv[++i]);
     else if (a == "--warmup") o.warmup = std::atoi(argv[++i]);
+    else if (a == "--block")
+      o.block = std::atoi(argv[++i]);
     else if (a == "--domain") o.domain = std::atoi(argv[++i]);
     else if (a == "--profiles") o.profiles = argv[++i];
     else if (a == "--sinks") o.sinks = std::atoi(argv[++i]);
-    else return 2;
+    else if (a == "--interval-us")
+      o.interval_us = std::atoi(argv[++i]);
+    else {
+      std::fprintf(stderr, kUsage, argv[0]);
+      return 2;
+    }
+  }
+  if ((o.sample != "state" && o.sample != "event") ||
+      (o.mode != "waitset" && o.mode != "listener" && o.mode != "both") || o.count < 1 ||
+      o.block < 1) {
+    std::fprintf(stderr, kUsage, argv[0]);
+    return 2;
   }
   try {
-    if (o.role == "pong") return run_pong(o);
-    if (o.role == "ping") return run_ping(o);
-    if (o.role == "sink") return run_sink(o);
-    const std::string dom = std::to_string(o.domain);
-    std::vector<pid_t> pids;
-    for (int k = 0; k <= o.sinks; ++k) {
-      std::vector<std::string> args{argv[0], "--role", k == 0 ? "pong" : "sink", "--domain", dom, "--profiles",
-                                    o.profiles};
-      std::vector<char*> cargs;
-      for (auto& s : args) cargs.push_back(s.data());
-      cargs.push_back(nullptr);
-      pid_t pid = 0;
-      if (posix_spawn(&pid, argv[0], nullptr, nullptr, cargs.data(), environ) != 0) return 1;
-      pids.push_back(pid);
-    }
-    const int rc = run_ping(o);
-    for (pid_t pid : pids) {
-      int st = 0;
-      waitpid(pid, &st, 0);
-    }
-    return rc;
+    if (o.sample == "event")
+      return run<tgm::msg::InterpolatorEvent, tgm::msg::InterpolatorEventPubSubType>(o, argv);
+    return run<tgm::msg::InterpolatorState, tgm::msg::InterpolatorStatePubSubType>(o, argv);
   } catch (const tgm::dds::SetupError& e) {
     std::fprintf(stderr, "tgm_bench_state_pingpong: %s\n", e.what());
     return 1;

@@ -108,6 +108,16 @@ void to_idl(const Registers& r, std::uint16_t interpolator, msg::InterpolatorSta
 //! is not on the wire and is left as it is.
 void from_idl(const msg::InterpolatorState& in, Registers& out);
 
+//! Core registers -> event sample (the event registers of the state: Status, Run_Flag, Act_Part,
+//! Act_Line, M_Func, Act_M_Func, Last_Cont_M_Func, Command, Command_Status,
+//! M_Function_Parameter); `cycle_counter` = r.cycle. The service's own fields (event_counter,
+//! program_id) are left as they are in `out`.
+void to_event(const Registers& r, std::uint16_t interpolator, msg::InterpolatorEvent& out);
+
+//! Event sample -> the event registers of `out` (what to_event writes); every other register is
+//! left as it is, so a client can apply an event to the registers of the last state it has.
+void from_event(const msg::InterpolatorEvent& in, Registers& out);
+
 //! Core registers -> the cycle's setpoints (Position, PositionInc).
 void to_setpoints(const Registers& r, std::uint16_t interpolator, msg::Setpoints& out);
 

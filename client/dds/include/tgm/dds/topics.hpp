@@ -19,6 +19,10 @@ struct TopicSpec {
 
 //! tgm::msg::InterpolatorState: every register, keyed per interpolator (service -> all).
 inline constexpr TopicSpec kStateTopic{"tgm_state", "tgm_state_writer", "tgm_state_reader"};
+//! tgm::msg::InterpolatorEvent: the event registers (M_Func, Status, Run_Flag, ...) in a small
+//! sample, written just before the state when one of them changes (service -> PLC). VOLATILE:
+//! late joiners read the state.
+inline constexpr TopicSpec kEventTopic{"tgm_event", "tgm_event_writer", "tgm_event_reader"};
 //! tgm::msg::Setpoints: Position / PositionInc per cycle (service -> drives).
 inline constexpr TopicSpec kSetpointsTopic{"tgm_setpoints", "tgm_setpoints_writer",
                                            "tgm_setpoints_reader"};
@@ -41,7 +45,7 @@ inline constexpr TopicSpec kMessageTopic{"tgm_message", "tgm_message_writer",
                                          "tgm_message_reader"};
 
 //! Every topic of tgm.
-inline constexpr std::array kAllTopics{kStateTopic,   kSetpointsTopic, kRequestTopic,
-                                       kReplyTopic,   kProgramTopic,   kMessageTopic};
+inline constexpr std::array kAllTopics{kStateTopic, kEventTopic,   kSetpointsTopic, kRequestTopic,
+                                       kReplyTopic, kProgramTopic, kMessageTopic};
 
 }  // namespace tgm::dds

@@ -1,10 +1,13 @@
 // libtgm-client: what a PLC or an HMI needs to talk to tgm-service over DDS (DESIGN.md
 // section 2). tgm-plc and tgm-hmi are built on it; a third-party HMI or PLC can be too.
 //
-// The client is single-threaded and polled: poll() takes whatever arrived (state, replies,
-// messages, optionally setpoints) and keeps the newest state of every interpolator; request()
-// sends one request and polls until its reply arrives. Construction throws dds::SetupError;
-// nothing else throws.
+// The client is polled from one application thread: poll() takes whatever arrived (state,
+// replies, messages, optionally setpoints) and keeps the newest state of every interpolator;
+// request() sends one request and polls until its reply arrives. The one exception is on_event():
+// event samples (the M-function handshake registers, tgm_event) are handed to a callback in
+// Fast DDS's receive thread as they arrive, so a PLC can acknowledge an M-function without
+// waiting for its own thread to wake (see on_event() for what the callback may do).
+// Construction and on_event() throw dds::SetupError; nothing else throws.
 //
 //   tgm::client::Client plc(config.dds, tgm::client::Role::kPlc);
 //   plc.wait_for_state(0, 5s);
@@ -13,16 +16,28 @@
 //     const auto* s = plc.state(0);
 //     if (s && s->m_func() != 0) plc.ack_m_func(0);
 //   }
+//
+// or, acknowledging in the receive thread (the reply is taken later by the polling thread):
+//
+//   plc.on_event([&](const tgm::client::Event& e) {
+//     if (e.sample.m_func() != 0 && is_new(e.sample)) plc.send_ack_m_func(e.sample.interpolator());
+//   });
 #pragma once
 
+#include <array>
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <functional>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <span>
 #include <string>
 #include <string_view>
 #include <vector>
+
+#include <fastdds/dds/subscriber/DataReaderListener.hpp>
 
 #include "tgm/dds/participant.hpp"
 #include "tgm/intercode.hpp"
@@ -55,6 +70,17 @@ std::string describe(const Reply& r);
 //! "empty", "running", "ended", "ready", "emergency ramp", "emergency stopped", "underrun".
 std::string_view status_name(std::int32_t status);
 
+//! One event sample as the event callback gets it.
+struct Event {
+  msg::InterpolatorEvent sample;
+  //! When Fast DDS called the listener that took it (steady clock): the wake-up of the receive
+  //! thread, before the sample was taken and copied.
+  std::chrono::steady_clock::time_point received{};
+};
+
+//! Callback for event samples; see Client::on_event() for its threading contract.
+using EventHandler = std::function<void(const Event&)>;
+
 struct ClientOptions {
   //! Also take the setpoints topic (every cycle; only for plotting or drives).
   bool setpoints = false;
@@ -63,6 +89,9 @@ struct ClientOptions {
 class Client {
  public:
   Client(const DdsConfig& config, Role role, const ClientOptions& options = {});
+  //! Detaches the event callback first: it waits for a running call to return, and no call
+  //! starts afterwards.
+  ~Client();
   Client(const Client&) = delete;
   Client& operator=(const Client&) = delete;
 
@@ -88,6 +117,40 @@ class Client {
   std::function<void(const msg::InterpolatorState&)> on_state;
   std::function<void(const msg::Setpoints&)> on_setpoints;
 
+  //! Subscribes to the event topic (tgm_event) and calls `handler` for every event sample, in the
+  //! order the service wrote them per interpolator. Call once, after construction; throws
+  //! dds::SetupError when the reader cannot be created or a handler is already set.
+  //!
+  //! Threading contract:
+  //! - `handler` runs in a Fast DDS receive thread (a DataReaderListener), concurrently with the
+  //!   thread that calls poll() / request(). Calls are serialized: never two at once.
+  //! - In `handler`, call only send() / send_ack_m_func() (thread-safe, they write at once and do
+  //!   not wait for the reply) and your own synchronized code. Never poll(), request() and its
+  //!   shorthands, wait_*(), state(), take_*(): they are not thread-safe, and request() would
+  //!   block the receive thread that has to deliver its reply.
+  //! - Keep it short and never block: other samples for this process wait behind it. Format and
+  //!   write log lines elsewhere (hand them to your polling thread).
+  //! - Everything `handler` uses must live until this Client is destroyed (~Client() detaches it).
+  //! Events are VOLATILE: those written before the subscription matched are not replayed; the
+  //! state (poll(), state()) is the source of truth for a late joiner.
+  void on_event(EventHandler handler);
+  //! Event samples handed to the callback so far, and events the service wrote that this
+  //! client never got (gaps in InterpolatorEvent.event_counter). Thread-safe.
+  std::uint64_t events_received() const { return events_received_.load(std::memory_order_relaxed); }
+  std::uint64_t events_lost() const { return events_lost_.load(std::memory_order_relaxed); }
+
+  //! Writes `r` at once (request_id, role and client_name are filled in) without waiting for the
+  //! reply; returns its request_id, 0 when it could not be written (no service matched, or the
+  //! write failed). Thread-safe: callable from the event callback. The polling thread gets the
+  //! reply with take_reply().
+  std::uint64_t send(msg::Request r);
+  //! send() of M_Func = 0 (acknowledge the pending M-function of `interpolator`).
+  std::uint64_t send_ack_m_func(int interpolator);
+  //! The reply to a send() if it has arrived (taken by poll()); polling thread only. Replies
+  //! nobody takes are dropped after the newest kMaxKeptReplies.
+  std::optional<Reply> take_reply(std::uint64_t request_id);
+  static constexpr std::size_t kMaxKeptReplies = 1000;
+
   //! Sends `r` (request_id, role and client_name are filled in) and polls until its reply.
   Reply request(msg::Request r, std::chrono::milliseconds timeout = 3s);
   Reply start(int interpolator);
@@ -105,6 +168,27 @@ class Client {
   eprosima::fastdds::dds::DataWriter& program_writer() { return program_writer_; }
 
  private:
+  // Takes event samples in the receive thread and calls the handler (under `mutex`).
+  class EventListener final : public eprosima::fastdds::dds::DataReaderListener {
+   public:
+    EventListener(Client& client, EventHandler handler)
+        : client_(client), handler_(std::move(handler)) {}
+    void on_data_available(eprosima::fastdds::dds::DataReader* reader) override;
+    //! Waits for a running call and makes later calls return at once.
+    void detach();
+
+   private:
+    Client& client_;
+    EventHandler handler_;
+    std::mutex mutex_;
+    bool detached_ = false;
+    Event event_;
+    std::array<std::uint64_t, kMaxInterpolators> last_counter_{};
+  };
+  void fill(msg::Request& r);
+
+  // Declared before the participant so that it outlives the participant's receive threads.
+  std::unique_ptr<EventListener> event_listener_;
   Role role_;
   dds::Participant participant_;
   std::string name_;
@@ -112,6 +196,7 @@ class Client {
   eprosima::fastdds::dds::DataReader& reply_reader_;
   eprosima::fastdds::dds::DataReader& message_reader_;
   eprosima::fastdds::dds::DataReader* setpoint_reader_ = nullptr;
+  eprosima::fastdds::dds::DataReader* event_reader_ = nullptr;
   eprosima::fastdds::dds::DataWriter& request_writer_;
   eprosima::fastdds::dds::DataWriter& program_writer_;
   std::chrono::steady_clock::time_point last_wake_{};
@@ -121,7 +206,9 @@ class Client {
   std::vector<std::uint64_t> state_samples_;
   std::vector<msg::Message> messages_;
   std::vector<msg::Reply> replies_;
-  std::uint64_t next_request_id_ = 1;
+  std::atomic<std::uint64_t> next_request_id_{1};
+  std::atomic<std::uint64_t> events_received_{0};
+  std::atomic<std::uint64_t> events_lost_{0};
   msg::InterpolatorState state_scratch_;
   msg::Setpoints setpoints_scratch_;
 };
