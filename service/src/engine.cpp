@@ -212,9 +212,8 @@ void Engine::refuse_chunk(CyclePort& port, int i, const ChunkIn& c, std::string_
   if (!port.message(m)) ++counters_.lost_messages;
 }
 
-void Engine::apply_chunks(CyclePort& port, int i) {
+void Engine::apply_chunks(CyclePort& port, int i, std::size_t& budget) {
   Slot& s = ips_[static_cast<std::size_t>(i)];
-  std::size_t budget = opt_.max_segments_per_cycle;
   while (budget > 0) {
     ChunkIn* c = port.front_chunk(i);
     if (c == nullptr) return;
@@ -283,7 +282,9 @@ void Engine::cycle(CyclePort& port, const LatenessStats& lateness) {
     if (!port.next_request(r)) break;
     if (!port.reply(apply(r))) ++counters_.lost_replies;
   }
-  for (int i = 0; i < count(); ++i) apply_chunks(port, i);
+  std::size_t budget = opt_.max_segments_per_cycle;
+  const int first = static_cast<int>(cycles_ % static_cast<std::uint64_t>(count()));
+  for (int k = 0; k < count() && budget > 0; ++k) apply_chunks(port, (first + k) % count(), budget);
   ++cycles_;
   snapshot_.cycle = cycles_;
   snapshot_.count = count();

@@ -39,7 +39,8 @@ constexpr const char* kUsage =
 
     "  --dds-priority N       SCHED_FIFO priority of every DDS thread (Fast DDS's, receiver,\n"
     "                         publisher), 1..98 and below --rt-priority; default 0 = normal\n"
-    "  --chunk-budget N       program records appended per interpolator per cycle (default 1024)\n"
+    "  --chunk-budget N       program records appended per cycle, all interpolators together\n"
+    "                         (default 1024)\n"
     "  --state-period-ms N    publish each state at least every N ms (default 20, 1..50)\n"
     "  --setpoint-decimation N  publish setpoints every Nth cycle (default 1)\n"
     "  --duration S           stop by itself after S seconds\n"

@@ -2,6 +2,8 @@
 // pieces, sequence checks, the M-function handshake and M29 messages, all without a network.
 #include <gtest/gtest.h>
 
+#include <array>
+
 #include "mock_port.hpp"
 #include "tgm/config.hpp"
 #include "tgm/service/engine.hpp"
@@ -156,6 +158,36 @@ TEST(Engine, ChunksAreAppliedInBoundedPiecesAndInOrder) {
   EXPECT_TRUE(port.chunks[0].empty());
   EXPECT_TRUE(port.messages.empty());
   EXPECT_EQ(e.counters().segments, 100u);
+}
+
+// The budget bounds the appends of a cycle over all interpolators (the cycle thread plans each
+// record), and the interpolator served first rotates, so none starves while others stream.
+TEST(Engine, ChunkBudgetIsSharedByAllInterpolatorsAndRotates) {
+  EngineOptions o;
+  o.max_segments_per_cycle = 10;
+  Engine e = make_engine(o);
+  ASSERT_EQ(e.count(), 3);
+  MockPort port;
+  const Program p = line_program(59);  // 60 records
+  for (int i = 0; i < 3; ++i) port.add_chunk(i, p, 0, 60, 7 + i, true);
+  std::array<std::uint64_t, 3> last{};
+  std::array<int, 3> served_first{};
+  for (int c = 0; c < 18; ++c) {
+    e.cycle(port, {});
+    std::uint64_t sum = 0;
+    for (int i = 0; i < 3; ++i) {
+      const std::uint64_t now = port.last.ip[static_cast<std::size_t>(i)].next_sequence;
+      sum += now - last[static_cast<std::size_t>(i)];
+      if (now - last[static_cast<std::size_t>(i)] == 10) ++served_first[static_cast<std::size_t>(i)];
+      last[static_cast<std::size_t>(i)] = now;
+    }
+    EXPECT_EQ(sum, 10u) << "cycle " << c;  // the whole budget, never more
+  }
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(last[static_cast<std::size_t>(i)], 60u) << "interpolator " << i;
+    EXPECT_EQ(served_first[static_cast<std::size_t>(i)], 6) << "interpolator " << i;
+  }
+  EXPECT_EQ(e.counters().segments, 180u);
 }
 
 TEST(Engine, DuplicatesAreDroppedGapsAndForeignProgramsRefused) {

@@ -19,8 +19,10 @@ namespace tgm::service {
 struct EngineOptions {
   //! Requests applied per cycle at most; the rest wait for the next cycle.
   int max_requests_per_cycle = 32;
-  //! Program records appended per interpolator per cycle at most (a 128-record chunk may take
-  //! several cycles when the budget is small).
+  //! Program records appended per cycle at most, all interpolators together (a 128-record
+  //! chunk may take several cycles when the budget is small). Appending plans each record on
+  //! the cycle thread (about 0.2 us a record), so this bounds that work however many
+  //! interpolators stream at once; the interpolator served first rotates every cycle.
   std::size_t max_segments_per_cycle = 1024;
   //! Options for every interpolator.
   InterpolatorOptions interpolator;
@@ -68,7 +70,8 @@ class Engine {
   };
   Engine(std::vector<Slot> ips, const EngineOptions& o) : ips_(std::move(ips)), opt_(o) {}
   ReplyOut apply(const RequestIn& r);
-  void apply_chunks(CyclePort& port, int i);
+  //! Appends what interpolator i's queued chunks allow within `budget`, which it lowers.
+  void apply_chunks(CyclePort& port, int i, std::size_t& budget);
   void refuse_chunk(CyclePort& port, int i, const ChunkIn& c, std::string_view why);
 
   std::vector<Slot> ips_;
