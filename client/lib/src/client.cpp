@@ -191,16 +191,7 @@ Reply Client::request(msg::Request r, std::chrono::milliseconds timeout) {
   last_written_ = Clock::now();
   while (true) {
     poll(std::chrono::nanoseconds(0));
-    for (auto it = replies_.begin(); it != replies_.end(); ++it) {
-      if (it->request_id() == r.request_id()) {
-        out.accepted = it->accepted();
-        out.code = it->code();
-        out.reason = it->reason();
-        out.cycle = it->cycle_counter();
-        replies_.erase(it);
-        return out;
-      }
-    }
+    if (std::optional<Reply> reply = take_reply(r.request_id())) return *reply;
     const auto now = Clock::now();
     if (now >= deadline) {
       out.timed_out = true;
