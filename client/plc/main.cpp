@@ -539,11 +539,17 @@ int main(int argc, char** argv) {
             const auto r = plc->command(sv.number, 1024, ratio);
             if (a == 0 || (r1024.accepted && !r.accepted)) r1024 = r;  // report the first refusal
           }
-          if (!quiet) {
+          // --quiet still logs a refusal: it is an error (e.g. the interpolator was already
+          // running a program when the PLC came up).
+          if (!quiet || !r2.accepted) {
             log("interpolator %d: basic parameters: Command -2 (spline %d points): %s", sv.number, sm.spline_points,
                 tgm::client::describe(r2).c_str());
+          }
+          if (!quiet || !r1.accepted) {
             log("interpolator %d: basic parameters: Command -1 (IIR mask 0x%x): %s", sv.number, sm.iir_axis_mask,
                 tgm::client::describe(r1).c_str());
+          }
+          if (!quiet || !r1024.accepted) {
             log("interpolator %d: basic parameters: Command 1024 (gear ratio, %zu axes): %s", sv.number, axes.size(),
                 tgm::client::describe(r1024).c_str());
           }
