@@ -162,11 +162,8 @@ const std::vector<HandshakeSample>& DdsPort::handshakes() {
   std::map<std::pair<int, std::int64_t>, const MWritten*> by_write;
   for (const MWritten& w : m_published_) by_write[{w.interpolator, w.event_write_begin_ns}] = &w;
   for (auto& h : handshakes_) {
-    const auto it = by_write.find({h.interpolator, h.event_write_begin_ns});
-    if (it == by_write.end()) continue;
-    h.event_write_end_ns = it->second->event_write_end_ns;
-    h.state_write_begin_ns = it->second->state_write_begin_ns;
-    h.state_write_end_ns = it->second->state_write_end_ns;
+    const auto it = by_write.find({h.written.interpolator, h.written.event_write_begin_ns});
+    if (it != by_write.end()) h.written = *it->second;
   }
   return handshakes_;
 }
@@ -237,13 +234,14 @@ void DdsPort::take_requests_locked() {
       const std::int64_t t0 = written.exchange(0, std::memory_order_acq_rel);
       if (t0 != 0 && handshakes_.size() < 1'000'000) {
         const MWritten& w = m_written_[static_cast<std::size_t>(in.interpolator)];
+        // Only the stamps the atomic published: the publisher may still be writing the rest.
         HandshakeSample h;
-        h.interpolator = in.interpolator;
+        h.written.interpolator = in.interpolator;
+        h.written.act_part = w.act_part;
+        h.written.handoff_ns = w.handoff_ns;
+        h.written.publisher_woke_ns = w.publisher_woke_ns;
+        h.written.event_write_begin_ns = w.event_write_begin_ns;
         h.round_trip_ns = in.taken_ns - t0;
-        h.act_part = w.act_part;
-        h.handoff_ns = w.handoff_ns;
-        h.publisher_woke_ns = w.publisher_woke_ns;
-        h.event_write_begin_ns = w.event_write_begin_ns;
         h.taken_ns = in.taken_ns;
         handshakes_.push_back(h);
       }

@@ -40,29 +40,11 @@ struct DdsPortOptions {
   int setpoint_decimation = 1;
 };
 
-//! M-function handshake measurement: from just before the write() of the event sample that shows
-//! a new M_Func until the acknowledging request is taken (request listener) [ns] (round_trip_ns),
-//! with the time stamps of every step on the service's side (steady clock, ns): hand-off of the
-//! cycle's snapshot that first shows the M_Func, publisher wake-up, event write() begin / end,
-//! state write() begin / end (the state follows the event), ack taken, ack applied by a cycle.
-//! A stamp is 0 when that step did not happen (e.g. no cycle applied the ack before the stop).
-struct HandshakeSample {
-  int interpolator = 0;
-  std::int64_t round_trip_ns = 0;
-  std::int32_t act_part = 0;
-  std::int64_t handoff_ns = 0;
-  std::int64_t publisher_woke_ns = 0;
-  std::int64_t event_write_begin_ns = 0;
-  std::int64_t event_write_end_ns = 0;
-  std::int64_t state_write_begin_ns = 0;
-  std::int64_t state_write_end_ns = 0;
-  std::int64_t taken_ns = 0;
-  std::int64_t applied_ns = 0;
-};
-
 //! Publisher-side stamps of one event write that showed a new M_Func (and of the state write
-//! after it). The receiver sees act_part and the stamps up to event_write_begin_ns (published by
-//! an atomic); the rest is joined in after stop().
+//! after it), steady clock [ns]: hand-off of the cycle's snapshot that first shows the M_Func,
+//! publisher wake-up, event write() begin / end, state write() begin / end. The receiver sees
+//! act_part and the stamps up to event_write_begin_ns (published by an atomic); the rest is
+//! joined in after stop(). A stamp is 0 when that step did not happen.
 struct MWritten {
   int interpolator = 0;
   std::int32_t act_part = 0;
@@ -72,6 +54,18 @@ struct MWritten {
   std::int64_t event_write_end_ns = 0;
   std::int64_t state_write_begin_ns = 0;
   std::int64_t state_write_end_ns = 0;
+};
+
+//! M-function handshake measurement: from just before the write() of the event sample that shows
+//! a new M_Func until the acknowledging request is taken (request listener) [ns] (round_trip_ns),
+//! with the publisher's stamps of that write, the ack taken and the ack applied by a cycle
+//! (steady clock, ns; 0 when that step did not happen, e.g. no cycle applied the ack before the
+//! stop).
+struct HandshakeSample {
+  MWritten written;
+  std::int64_t round_trip_ns = 0;
+  std::int64_t taken_ns = 0;
+  std::int64_t applied_ns = 0;
 };
 
 //! A futex-backed doorbell: ring() never blocks; wait() sleeps until rung or timeout.

@@ -284,10 +284,11 @@ int main(int argc, char** argv) {
                    "interpolator,act_part,handoff_ns,publisher_woke_ns,event_write_begin_ns,event_write_end_ns,"
                    "state_write_begin_ns,state_write_end_ns,taken_ns,applied_ns\n");
       for (const auto& h : port->handshakes()) {
-        std::fprintf(f, "%d,%d,%lld,%lld,%lld,%lld,%lld,%lld,%lld,%lld\n", h.interpolator, h.act_part,
-                     static_cast<long long>(h.handoff_ns), static_cast<long long>(h.publisher_woke_ns),
-                     static_cast<long long>(h.event_write_begin_ns), static_cast<long long>(h.event_write_end_ns),
-                     static_cast<long long>(h.state_write_begin_ns), static_cast<long long>(h.state_write_end_ns),
+        const auto& w = h.written;
+        std::fprintf(f, "%d,%d,%lld,%lld,%lld,%lld,%lld,%lld,%lld,%lld\n", w.interpolator, w.act_part,
+                     static_cast<long long>(w.handoff_ns), static_cast<long long>(w.publisher_woke_ns),
+                     static_cast<long long>(w.event_write_begin_ns), static_cast<long long>(w.event_write_end_ns),
+                     static_cast<long long>(w.state_write_begin_ns), static_cast<long long>(w.state_write_end_ns),
                      static_cast<long long>(h.taken_ns), static_cast<long long>(h.applied_ns));
       }
       std::fclose(f);
