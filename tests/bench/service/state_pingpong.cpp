@@ -101,27 +101,41 @@ double now_ns() {
   return static_cast<double>(Clock::now().time_since_epoch().count());
 }
 
+// The pong's answer: an M_Func = 0 request as tgm-plc writes it.
+tgm::msg::Request pong_ack(const std::string& name) {
+  tgm::msg::Request r;
+  r.role(tgm::msg::CLIENT_ROLE_PLC);
+  r.kind(tgm::msg::REQUEST_KIND_WRITE_M_FUNC);
+  r.client_name(name);
+  return r;
+}
+
+// Answers every sample waiting in `reader` with `ack` (id: the sample's cycle counter, value:
+// the time it was written); true when the quit sample (M_Func < 0) was among them.
+template <class Sample>
+bool answer_all(fdds::DataReader& reader, Sample& s, tgm::msg::Request& ack, fdds::DataWriter& acks) {
+  bool quit = false;
+  while (tgm::dds::take_next(reader, s)) {
+    if (s.m_func() < 0) {
+      quit = true;
+      continue;
+    }
+    ack.request_id(s.cycle_counter());
+    ack.value(now_ns());
+    acks.write(&ack);
+  }
+  return quit;
+}
+
 // Pong side of the listener mode: answers every sample from Fast DDS's receive thread.
 template <class Sample>
 class PongListener final : public fdds::DataReaderListener {
  public:
-  PongListener(fdds::DataWriter& acks, const std::string& name) : acks_(acks) {
-    r_.role(tgm::msg::CLIENT_ROLE_PLC);
-    r_.kind(tgm::msg::REQUEST_KIND_WRITE_M_FUNC);
-    r_.client_name(name);
-  }
+  PongListener(fdds::DataWriter& acks, const std::string& name) : acks_(acks), r_(pong_ack(name)) {}
   void on_data_available(fdds::DataReader* reader) override {
     const std::lock_guard lock(mutex_);
     if (detached_) return;
-    while (tgm::dds::take_next(*reader, s_)) {
-      if (s_.m_func() < 0) {
-        quit = true;
-        continue;
-      }
-      r_.request_id(s_.cycle_counter());
-      r_.value(now_ns());
-      acks_.write(&r_);
-    }
+    if (answer_all(*reader, s_, r_, acks_)) quit = true;
   }
   void detach() {
     const std::lock_guard lock(mutex_);
@@ -202,24 +216,13 @@ int run_pong(const Options& o) {
   std::optional<tgm::dds::DataWaiter> waiter;
   if (ws_reader != nullptr) waiter.emplace(std::initializer_list<fdds::DataReader*>{ws_reader});
   Sample s;
-  tgm::msg::Request r;
-  r.role(tgm::msg::CLIENT_ROLE_PLC);
-  r.kind(tgm::msg::REQUEST_KIND_WRITE_M_FUNC);
-  r.client_name(p.name());
+  tgm::msg::Request r = pong_ack(p.name());
   const auto give_up = Clock::now() + 600s;
   bool ws_quit = ws_reader == nullptr;
   while (Clock::now() < give_up && !(ws_quit && (!listener || listener->quit))) {
     if (waiter) {
       waiter->wait(100ms);
-      while (tgm::dds::take_next(*ws_reader, s)) {
-        if (s.m_func() < 0) {
-          ws_quit = true;
-          continue;
-        }
-        r.request_id(s.cycle_counter());
-        r.value(now_ns());
-        ws_acks->write(&r);
-      }
+      if (answer_all(*ws_reader, s, r, *ws_acks)) ws_quit = true;
     } else {
       std::this_thread::sleep_for(10ms);
     }
