@@ -34,9 +34,21 @@ inline State advance(const State& st, double x, double dt) {
 //! time-optimal S-curve to (w, 0): jerk -J to a peak deceleration <= A, hold, jerk +J to zero.
 double braking_distance(double v, double a, double w, double A, double J);
 
+//! A braking plan's distance [mm] and peak deceleration [mm/s^2] (0 when no braking is needed).
+struct Braking {
+  double distance = 0.0;
+  double peak = 0.0;
+};
+
+//! braking_distance with the plan's peak deceleration (one evaluation for both).
+Braking braking_plan(double v, double a, double w, double A, double J);
+
 //! braking_distance with limits (A, J) that hold from here on, when the current deceleration may
 //! exceed what they allow: the deceleration is first eased at the current jerk limit J_now.
 double braking_distance_from(double v, double a, double w, double A, double J, double J_now);
+
+//! braking_distance_from with the plan's peak deceleration.
+Braking braking_plan_from(double v, double a, double w, double A, double J, double J_now);
 
 //! End-of-step acceleration that tracks the target velocity `vt` time-optimally without
 //! overshoot (the velocity after bringing a to zero at full jerk equals vt), clipped to the

@@ -73,6 +73,10 @@ constexpr double kPlanMarginJ = 0.9;
 constexpr double kFloorMarginJ = 0.92;
 constexpr double kArriveD = 1e-9;         // [mm]
 constexpr double kArriveV = 1e-3;         // [mm/s]
+// A motion that comes to rest this close before its stop point has arrived there (the last
+// calculation steps of a braking work at the resolution of the plans, ~1e-9 mm; creeping the
+// rest in another cycle would show a standstill before the stop).
+constexpr double kRestD = 1e-8;           // [mm]
 
 enum class RecKind : std::uint8_t { kMotion, kStop, kPass };
 
@@ -162,6 +166,10 @@ struct Constraint {
   //! larger limits in that range because this ramp keeps them; with a lower jerk there than
   //! before the junction it would overshoot them (TGM_SEED=6 program 835, a corner step).
   double Jx = kInf;
+  //! How much farther than a stopping distance (with the window's limits) the limit can still
+  //! bind: landing on w > 0 with zero acceleration can take longer than stopping, by less than
+  //! w times the final jerk phase (A/J); twice that as margin. Set by gather().
+  double beyond_stop = 0.0;
 };
 
 double norm_angle_deg(double rad) {
@@ -182,6 +190,7 @@ struct Interpolator::Impl {
   std::size_t cap = 0;     // ring capacity
   double T = 0.0;          // cycle [s]
   double dt = 0.0;         // calculation step [s]
+  double quarter_dt2 = 0.0;  // dt^2 / 4: the quantised jerk allowance per unit of peak deceleration
   std::array<double, kMaxAxes> vmax{}, amax{}, jmax{}, rapid{}, tol{};
   double rho = 1.0;        // emergency / normal deceleration ratio (min over axes, >= 1)
 
@@ -237,6 +246,9 @@ struct Interpolator::Impl {
   double cruise_v = 0.0;
   double cruise_margin = 0.0;
   std::uint64_t lookahead_cur = kNoQ;
+  // Jerk of the last calculation step when it rode a braking limit (largest_passing), else kInf:
+  // the next step's first guess.
+  double ride_jerk = kInf;
 
   // block statistics of the current motion
   double blk_peak = 0.0;
@@ -677,6 +689,7 @@ struct Interpolator::Impl {
       c[k++] = {r.s0 - here, 0.0, Aw, Jw,
                 r.kind == RecKind::kStop ? LimitFactor::kMStop : LimitFactor::kLookAhead, false};
     }
+    for (int i = 0; i < k; ++i) c[i].beyond_stop = 2.0 * c[i].w * c[i].A / (kPlanMarginJ * c[i].J);
     return k;
   }
 
@@ -700,10 +713,8 @@ struct Interpolator::Impl {
   // from a crawl (a few calculation steps, the peak inside a step) reached the stop point still
   // moving (TGM_SEED=4 program 97: 0.09 mm/s, override 0.0187, stop 3.5e-7 mm too short).
   double plan_braking(double v, double a, double w, double A, double J, double J_now) const {
-    const double d = jerk::braking_distance_from(v, a, w, A, J, J_now);
-    if (!(d > 0.0) || !(d < kInf)) return d;
-    const double ap = std::max(-a, std::min(A, std::sqrt(J * std::max(v - w, 0.0) + 0.5 * a * a)));
-    return d + 0.25 * ap * dt * dt;
+    const jerk::Braking b = jerk::braking_plan_from(v, a, w, A, J, J_now);
+    return b.distance + quarter_dt2 * b.peak;
   }
 
   // Tangential limits for this calculation step: the records it can reach.
@@ -1151,42 +1162,105 @@ struct Interpolator::Impl {
     s_tail = 0.0;
   }
 
+  // Bracket [xs, xu] of a limit's largest passing x: g(xs) <= 0 (when have_gs), g(xu) > 0,
+  // with g = excess - kExcessTol.
+  struct Bracket {
+    double xs, xu, gs, gu;
+    bool have_gs;
+  };
+
+  // Evaluates g at x inside b and moves the end on x's side there.
+  template <class G>
+  static void narrow(Bracket& b, double x, const G& g) {
+    const double gx = g(x);
+    if (gx <= 0.0) {
+      b.xs = x;
+      b.gs = gx;
+      b.have_gs = true;
+    } else {
+      b.xu = x;
+      b.gu = gx;
+    }
+  }
+
+  // A guess of the root: g at the guess, then at `step` beside it towards the other end. When
+  // the root lies within `step` of the guess, that leaves a bracket of width `step`.
+  template <class G>
+  static void try_guess(Bracket& b, double guess, double step, const G& g) {
+    if (!(guess > b.xs + 0.5 * step && guess < b.xu - 0.5 * step)) return;
+    narrow(b, guess, g);
+    const double other = b.xs == guess ? guess + step : guess - step;
+    if (other > b.xs && other < b.xu) narrow(b, other, g);
+  }
+
   // The largest end-of-step acceleration in [xs, xu] that every violated limit accepts, to the
   // resolution of ten bisection steps ((xu - xs) / 1024), given that xs passes and xu fails.
-  // One limit almost always binds alone: a regula falsi (Illinois) on its excess reaches that
-  // resolution in 3-5 evaluations instead of ten per limit. Start with the limit that failed
-  // worst at xu (excess e_u); when another limit rejects the result, that one binds below it:
-  // solve for it inside [xs, result] and check again. Each limit's excess is monotone in x, so
-  // no passing x above the result is missed; after `rounds` limits, bisection on all decides.
-  template <class Excess, class Fails>
-  static double largest_passing(double xs, double xu, const Excess& excess, int k, double e_u,
-                                const Fails& first_failing, int rounds) {
+  // One limit almost always binds alone. Start with the limit that failed worst at xu (k,
+  // excess e_u); when another limit rejects the result, that one binds below it: solve for it
+  // inside [xs, result] and check again. Each limit's excess is monotone in x, so no passing x
+  // above the result is missed; after `rounds` limits, bisection on all decides. On return k is
+  // the limit that binds at the result.
+  //
+  // Per limit, guesses before a regula falsi (Anderson-Bjorck): `boundary(k, out)` (up to two),
+  // the x whose end-of-step state just needs no braking for k any more (the velocity after
+  // taking the acceleration back equals the limit), and `ride`, the x of the previous step's
+  // jerk. Near
+  // that boundary the excess is not smooth: a step when accelerating towards the limit (no
+  // braking needed below it, a whole ramp-down above), a square-root cliff at the end of a
+  // braking (the plan turns into a pure release); no secant method converges there, and a
+  // dozen evaluations per step were common. The first guess brackets those roots in two
+  // evaluations, the second one a steady ride's.
+  template <class Excess, class Fails, class Boundary>
+  static double largest_passing(double xs, double xu, const Excess& excess, int& k, double e_u,
+                                const Fails& first_failing, int rounds, const Boundary& boundary,
+                                double ride) {
     const double lo = xs, hi = xu;
     const double tol = (xu - xs) / 1024.0;
     for (int round = 0; round < rounds; ++round) {
-      double gs = excess(xs, k) - kExcessTol;
-      double gu = e_u - kExcessTol;
+      const auto g = [&](double x) { return excess(x, k) - kExcessTol; };
+      Bracket b{xs, xu, 0.0, e_u - kExcessTol, false};
+      double guess[2];
+      const int n_guess = boundary(k, guess);
+      for (int i = 0; i < n_guess && b.xu - b.xs > tol; ++i) try_guess(b, guess[i], 0.5 * tol, g);
+      if (round == 0 && b.xu - b.xs > tol) try_guess(b, ride, 2.0 * tol, g);
+      if (!b.have_gs) b.gs = g(b.xs);
       int side = 0;  // the side moved last: -1 passing end, +1 failing end
-      for (int it = 0; it < 12 && xu - xs > tol; ++it) {
-        double xn = 0.5 * (xs + xu);
-        if (std::isfinite(gs) && std::isfinite(gu) && gu > gs) xn = xs + (xu - xs) * (-gs / (gu - gs));
-        xn = std::clamp(xn, xs + 0.5 * tol, xu - 0.5 * tol);
-        const double gn = excess(xn, k) - kExcessTol;
+      bool bisect = false;
+      for (int it = 0; it < 12 && b.xu - b.xs > tol; ++it) {
+        double xn = 0.5 * (b.xs + b.xu);
+        if (!bisect && std::isfinite(b.gs) && std::isfinite(b.gu) && b.gu > b.gs) {
+          xn = b.xs + (b.xu - b.xs) * (-b.gs / (b.gu - b.gs));
+        }
+        xn = std::clamp(xn, b.xs + 0.5 * tol, b.xu - 0.5 * tol);
+        const double gn = g(xn);
+        // Anderson-Bjorck: when the same end moves twice in a row, the other end's value is
+        // scaled by 1 - g_new / g_old (Illinois' fixed 1/2 when that is not positive). A
+        // passing end on a plateau (no braking needed: -remain, nearly constant) carries no
+        // slope: bisect.
+        bisect = false;
         if (gn <= 0.0) {
-          xs = xn;
-          gs = gn;
-          if (side == -1) gu *= 0.5;
+          if (side == -1) {
+            const double m = 1.0 - gn / b.gs;
+            if (m < 1e-3) bisect = true;
+            b.gu *= m > 0.0 ? m : 0.5;
+          }
+          b.xs = xn;
+          b.gs = gn;
           side = -1;
         } else {
-          xu = xn;
-          gu = gn;
-          if (side == +1) gs *= 0.5;
+          if (side == +1) {
+            const double m = 1.0 - gn / b.gu;
+            b.gs *= m > 0.0 ? m : 0.5;
+          }
+          b.xu = xn;
+          b.gu = gn;
           side = +1;
         }
       }
+      xs = b.xs;
       double e = 0.0;
       const int f = first_failing(xs, k, &e);
-      if (f < 0) return xs;
+      if (f < 0) return xs;  // k binds
       // Limit f fails at xs: its largest passing x is below xs.
       k = f;
       xu = xs;
@@ -1197,7 +1271,13 @@ struct Interpolator::Impl {
     xu = hi;
     for (int it = 0; it < 10; ++it) {
       const double mid = 0.5 * (xs + xu);
-      if (first_failing(mid, -1, nullptr) < 0) xs = mid; else xu = mid;
+      const int f = first_failing(mid, -1, nullptr);
+      if (f < 0) {
+        xs = mid;
+      } else {
+        xu = mid;
+        k = f;
+      }
     }
     return xs;
   }
@@ -1217,6 +1297,8 @@ struct Interpolator::Impl {
     const jerk::State before = st;
     const double v = st.v, a = st.a;
     double x = 0.0;
+    const bool was_braking_to_stop = braking_to_stop;
+    bool riding = false;  // x from largest_passing (ride_jerk stays valid)
     braking_to_stop = false;
     double vt = 0.0;
     if (mode == Mode::kEmergency || mode == Mode::kStopping) {
@@ -1290,7 +1372,8 @@ struct Interpolator::Impl {
       double worst = 0.0;
       int worst_k = -1;
       // Excess [mm] of limit k's braking (or acceleration change) over its room from the
-      // end-of-step state ns; > kExcessTol fails.
+      // end-of-step state ns; > kExcessTol fails. Continuous in x where it can be (no distance
+      // needed: -remain), so that largest_passing's secant steps find the root.
       auto excess_from = [&](const jerk::State& ns, int k) {
         const double ds = ns.s - before.s;
         const Constraint& ck = c[k];
@@ -1299,7 +1382,7 @@ struct Interpolator::Impl {
           return ck.accel ? ns.a - ck.w : ns.v - ck.w;
         }
         if (ck.accel) {
-          if (ns.a <= ck.w) return -1.0;
+          if (ns.a <= ck.w) return -remain;
           return accel_distance(std::max(ns.v, 0.0), ns.a, ck.w, kPlanMarginJ * ck.J) - remain;
         }
         if (ns.a > 0.0 && ck.Jx < ck.J) {
@@ -1310,7 +1393,7 @@ struct Interpolator::Impl {
           const double vz = ns.v + ns.a * ns.a / (2.0 * jp);
           if (vz <= ck.w) {
             const double a_ok = std::sqrt((ck.w - vz) / (0.5 / jx - 0.5 / jp));
-            return ns.a <= a_ok ? -1.0 : accel_distance(ns.v, ns.a, a_ok, jp) - remain;
+            return ns.a <= a_ok ? -remain : accel_distance(ns.v, ns.a, a_ok, jp) - remain;
           }
         }
         return plan_braking(std::max(ns.v, 0.0), ns.a, ck.w, kPlanMargin * ck.A, kPlanMarginJ * ck.J,
@@ -1345,9 +1428,7 @@ struct Interpolator::Impl {
       for (int k = 0; k < nc; ++k) {
         const double dk = c[k].d - moved;
         if (dk < 0.0) continue;  // passed in an earlier calculation step
-        // Landing on w > 0 with zero acceleration can take longer than stopping, by less than
-        // w times the final jerk phase (A/J); twice that as margin.
-        if (dk > bound + 2.0 * c[k].w * c[k].A / (kPlanMarginJ * c[k].J)) continue;
+        if (dk > bound + c[k].beyond_stop) continue;
         const double e = excess_from(nd, k);
         if (e > kExcessTol) {
           viol[nv++] = k;
@@ -1360,9 +1441,18 @@ struct Interpolator::Impl {
       if (nv == 0) {
         x = xd;
         const double vn = v + 0.5 * (a + x) * dt;
-        if (vn >= vt * (1.0 - 1e-3) - 1e-9) factor = target_reason;
-        else if (vn < vt) factor = LimitFactor::kAccelJerk;
-        else factor = target_reason;
+        if (x < 0.0 && vn < vt * (1.0 - 1e-3) - 1e-9) {
+          // Still decelerating below the target: the end of the braking that limited the speed
+          // so far (the jerk limit or the no-reversal floor takes the deceleration back), which
+          // keeps its factor.
+          braking_to_stop = was_braking_to_stop;
+        } else if (vn >= vt * (1.0 - 1e-3) - 1e-9) {
+          factor = target_reason;
+        } else if (vn < vt) {
+          factor = LimitFactor::kAccelJerk;
+        } else {
+          factor = target_reason;
+        }
       } else {
         auto ok = [&](double xx) {
           for (int i = 0; i < nv; ++i) {
@@ -1423,13 +1513,35 @@ struct Interpolator::Impl {
             }
             return -1;
           };
-          x = largest_passing(xs, xu, excess, worst_k, worst, first_failing, 3);
+          // The limit that binds at x reports the factor (not the one that failed worst at xd).
+          // x at which limit k's end-of-step state needs no braking any more:
+          // v + (a + x) dt / 2 + x |x| / (2 j) = w (increasing in x), with the plan's jerk and,
+          // when the acceleration is taken back after the junction at a lower jerk (excess_from,
+          // Jx), with that one (x > 0 only).
+          auto boundary = [&](int k, double* out) {
+            const Constraint& ck = c[k];
+            if (ck.accel) return 0;
+            const double cc = v + 0.5 * a * dt - ck.w;
+            const auto solve = [&](double j) {
+              return cc <= 0.0 ? j * (-0.5 * dt + std::sqrt(0.25 * dt * dt - 2.0 * cc / j))
+                               : j * (0.5 * dt - std::sqrt(0.25 * dt * dt + 2.0 * cc / j));
+            };
+            int n_out = 0;
+            out[n_out++] = solve(kPlanMarginJ * ck.J);
+            if (ck.Jx < ck.J && cc < 0.0) out[n_out++] = solve(kPlanMarginJ * ck.Jx);
+            return n_out;
+          };
+          x = largest_passing(xs, xu, excess, worst_k, worst, first_failing, 3, boundary,
+                              ride_jerk < kInf ? a + ride_jerk * dt : kInf);
+          ride_jerk = (x - a) / dt;
+          riding = true;
         }
         factor = c[worst_k].reason;
         braking_to_stop = c[worst_k].w == 0.0;
       }
     }
   integrate:
+    if (!riding) ride_jerk = kInf;
     last_vt = vt;
     jerk::State ns = jerk::advance(before, x, dt);
     // Landed on the target speed (within 1e-12 of it, acceleration negligible): hold exactly
@@ -1457,7 +1569,9 @@ struct Interpolator::Impl {
       const double L = R(q).g.length;
       const double room = L - s_local;
       const bool stop_next = stop_follows(q);
-      if (remaining < room && !(stop_next && room - remaining <= kArriveD && ns.v <= kArriveV)) {
+      if (remaining < room &&
+          !(stop_next && ((room - remaining <= kArriveD && ns.v <= kArriveV) ||
+                          (room - remaining <= kRestD && ns.v <= kStandstillV)))) {
         s_local += remaining;
         traveled += remaining;
         break;
@@ -1899,6 +2013,7 @@ std::optional<Interpolator> Interpolator::create(const MachineConfig& machine, i
   m.cap = static_cast<std::size_t>(m.cfg.buffer_size);
   m.T = machine.cycle_time_us * 1e-6;
   m.dt = m.T / kCalcSteps;
+  m.quarter_dt2 = 0.25 * m.dt * m.dt;
   m.rho = kInf;
   for (int i = 0; i < m.n; ++i) {
     const AxisConfig& a = m.cfg.axes[static_cast<std::size_t>(i)];

@@ -6,7 +6,7 @@
 
 namespace tgm::jerk {
 
-double braking_distance(double v, double a, double w, double A, double J) {
+Braking braking_plan(double v, double a, double w, double A, double J) {
   if (w < 0.0) w = 0.0;
   // No clamp of a to [-A, A]: the planner may check with limits slightly below those the
   // generator uses, and an acceleration above A must be ramped down, not assumed away.
@@ -14,15 +14,15 @@ double braking_distance(double v, double a, double w, double A, double J) {
   const double iJ = 1.0 / J;
   // Velocity once the acceleration is brought to zero along the shortest ramp.
   const double vz = v + 0.5 * a * std::fabs(a) * iJ;
-  if (v <= w && (a <= 0.0 || vz <= w)) return 0.0;
+  if (v <= w && (a <= 0.0 || vz <= w)) return {0.0, 0.0};
   // Braking so hard that even ramping the acceleration back at +J ends below standstill: the
   // motion would have to reverse. No distance makes that state acceptable.
-  if (vz < 0.0) return std::numeric_limits<double>::infinity();
+  if (vz < 0.0) return {std::numeric_limits<double>::infinity(), -a};
   if (vz <= w) {
     // Case 2: a < 0 and v > w; ramp a up at +J, v reaches w before a reaches 0.
     const double disc = std::max(0.0, a * a - 2.0 * J * (v - w));
     const double t = (-a - std::sqrt(disc)) * iJ;
-    return t * (v + t * (0.5 * a + t * J * (1.0 / 6.0)));
+    return {t * (v + t * (0.5 * a + t * J * (1.0 / 6.0))), -a};
   }
   // Case 3: S-curve from (v, a) to (w, 0).
   double ap = std::sqrt(J * (v - w) + 0.5 * a * a);  // peak deceleration without a hold phase
@@ -40,7 +40,11 @@ double braking_distance(double v, double a, double w, double A, double J) {
   const double v2 = v1 - ap * t2;
   const double t3 = ap * iJ;  // jerk +J from -ap to 0
   const double d3 = t3 * (v2 + t3 * (-0.5 * ap + t3 * J * (1.0 / 6.0)));
-  return d1 + d2 + d3;
+  return {d1 + d2 + d3, ap};
+}
+
+double braking_distance(double v, double a, double w, double A, double J) {
+  return braking_plan(v, a, w, A, J).distance;
 }
 
 double track_velocity(double v, double a, double vt, double A, double J, double dt) {
@@ -74,9 +78,9 @@ double floor_acceleration(double v, double a, double J, double dt) {
 
 namespace tgm::jerk {
 
-double braking_distance_from(double v, double a, double w, double A, double J, double J_now) {
+Braking braking_plan_from(double v, double a, double w, double A, double J, double J_now) {
   if (a >= 0.0 || J_now <= J) {
-    if (a >= -A && v - a * a / (2.0 * J) >= 0.0) return braking_distance(v, a, w, A, J);
+    if (a >= -A && v - a * a / (2.0 * J) >= 0.0) return braking_plan(v, a, w, A, J);
   }
   // Decelerating harder than the limits ahead allow (|a| > A, or too hard for jerk J to take back
   // before standstill): first ease the deceleration at the current jerk J_now.
@@ -85,13 +89,18 @@ double braking_distance_from(double v, double a, double w, double A, double J, d
   for (int it = 0; it < 3; ++it) {
     t = std::max(0.0, (target - a) / J_now);
     v0 = v + t * (a + 0.5 * J_now * t);
-    if (v0 <= 0.0) return std::numeric_limits<double>::infinity();
+    if (v0 <= 0.0) return {std::numeric_limits<double>::infinity(), -a};
     const double floor_a = -std::sqrt(2.0 * J * v0);
     if (target >= floor_a) break;
     target = floor_a * 0.999;
   }
   const double d0 = t * (v + t * (0.5 * a + t * J_now * (1.0 / 6.0)));
-  return d0 + braking_distance(v0, target, w, A, J);
+  const Braking rest = braking_plan(v0, target, w, A, J);
+  return {d0 + rest.distance, std::max(-a, rest.peak)};
+}
+
+double braking_distance_from(double v, double a, double w, double A, double J, double J_now) {
+  return braking_plan_from(v, a, w, A, J, J_now).distance;
 }
 
 }  // namespace tgm::jerk
