@@ -1429,6 +1429,7 @@ struct Interpolator::Impl {
         const double dk = c[k].d - moved;
         if (dk < 0.0) continue;  // passed in an earlier calculation step
         if (dk > bound + c[k].beyond_stop) continue;
+        if (c[k].accel && nd.a <= c[k].w) continue;  // within that limit already: passes
         const double e = excess_from(nd, k);
         if (e > kExcessTol) {
           viol[nv++] = k;

@@ -8,6 +8,7 @@ namespace tgm::jerk {
 
 Braking braking_plan(double v, double a, double w, double A, double J) {
   if (w < 0.0) w = 0.0;
+  if (v <= w && a <= 0.0) return {0.0, 0.0};  // the common case of a far or high limit, cheaply
   // No clamp of a to [-A, A]: the planner may check with limits slightly below those the
   // generator uses, and an acceleration above A must be ramped down, not assumed away.
   // One division for 1/J instead of five by J: this runs several times per calculation step.
@@ -80,7 +81,7 @@ namespace tgm::jerk {
 
 Braking braking_plan_from(double v, double a, double w, double A, double J, double J_now) {
   if (a >= 0.0 || J_now <= J) {
-    if (a >= -A && v - a * a / (2.0 * J) >= 0.0) return braking_plan(v, a, w, A, J);
+    if (a >= -A && 2.0 * J * v >= a * a) return braking_plan(v, a, w, A, J);
   }
   // Decelerating harder than the limits ahead allow (|a| > A, or too hard for jerk J to take back
   // before standstill): first ease the deceleration at the current jerk J_now.
