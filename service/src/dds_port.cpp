@@ -47,6 +47,7 @@ msg::ReplyCode to_msg(ReplyCode c) {
     case ReplyCode::kWrongState: return msg::REPLY_CODE_WRONG_STATE;
     case ReplyCode::kBadRequest: return msg::REPLY_CODE_BAD_REQUEST;
     case ReplyCode::kUnsupported: return msg::REPLY_CODE_UNSUPPORTED;
+    case ReplyCode::kBusy: return msg::REPLY_CODE_BUSY;
   }
   return msg::REPLY_CODE_BAD_REQUEST;
 }
@@ -214,7 +215,23 @@ void DdsPort::take_requests() {
 
 void DdsPort::take_requests_locked() {
   msg::Request& r = request_sample_;
-  while (!requests_.full() && dds::take_next(request_reader_, r)) {
+  while (dds::take_next(request_reader_, r)) {
+    if (requests_.full()) {
+      // A client sends faster than the cycles take requests. Leaving the sample in the reader
+      // would lose it unseen (the reader's history is KEEP_LAST: newer requests push it out;
+      // Fast DDS 2.9 also drops samples a full KEEP_ALL reader rejects): answer it instead.
+      busy_reply_.request_id(r.request_id());
+      busy_reply_.client_name(r.client_name());
+      busy_reply_.interpolator(r.interpolator());
+      busy_reply_.accepted(false);
+      busy_reply_.code(msg::REPLY_CODE_BUSY);
+      busy_reply_.reason("service busy: the request queue is full (a client sends faster than the "
+                         "interpolation cycles take requests); not executed, send it again");
+      busy_reply_.cycle_counter(0);
+      reply_writer_.write(&busy_reply_);
+      ++busy_requests_;
+      continue;
+    }
     RequestIn in;
     in.request_id = r.request_id();
     in.role = r.role() == msg::CLIENT_ROLE_PLC ? Role::kPlc : Role::kHmi;

@@ -101,12 +101,15 @@ class DdsPort final : public CyclePort {
   std::uint64_t states_published() const { return states_published_; }
   std::uint64_t events_published() const { return events_published_; }
   std::uint64_t setpoints_published() const { return setpoints_published_; }
+  //! Requests answered REPLY_CODE_BUSY because the request queue was full (valid after stop()).
+  std::uint64_t busy_requests() const { return busy_requests_; }
   const std::string& participant_name() const { return participant_.name(); }
 
  private:
   void receive_loop();
   void publish_loop();
-  //! Takes every request sample the queue has room for (any thread; never blocks: see .cpp).
+  //! Takes every request sample: into the queue, or answered busy when it is full (any thread;
+  //! never blocks: see .cpp).
   void take_requests();
   void take_requests_locked();
 
@@ -143,7 +146,9 @@ class DdsPort final : public CyclePort {
   SpscQueue<ChunkIn*> free_chunks_;
   std::vector<std::unique_ptr<ChunkIn>> chunk_pool_;
   // cycle -> publisher
-  SpscQueue<ReplyOut> replies_{256};
+  // 32 cycles of the engine's largest request batch: a publisher woken late (the VM stalls
+  // threads for milliseconds) must not make the cycle thread drop answers.
+  SpscQueue<ReplyOut> replies_{1024};
   SpscQueue<MessageOut> messages_{256};
   LatestValue<Snapshot> latest_;
   Doorbell doorbell_;
@@ -154,6 +159,8 @@ class DdsPort final : public CyclePort {
   std::atomic<bool> requests_pending_{false};
   std::vector<HandshakeSample> handshakes_;
   msg::Request request_sample_;
+  msg::Reply busy_reply_;
+  std::uint64_t busy_requests_ = 0;
   // receiver thread only
   std::vector<std::deque<ChunkIn*>> backlog_;
   ChunkIn* spare_ = nullptr;

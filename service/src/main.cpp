@@ -233,7 +233,7 @@ int main(int argc, char** argv) {
   for (const auto& h : port->handshakes()) rt_ns.push_back(h.round_trip_ns);
   std::printf(
       "tgm-service: stopping (%s) after %llu cycles: lateness p50 %.1f us, p99 %.1f us, p99.9 %.1f us,"
-      " max %.1f us, missed %llu; cycle work p99.9 %.1f us, max %.1f us; %llu requests (%llu refused), %llu chunks, %llu segments,"
+      " max %.1f us, missed %llu; cycle work p99.9 %.1f us, max %.1f us; %llu requests (%llu refused, %llu busy), %llu chunks, %llu segments,"
       " %llu events, %llu states, %llu setpoints published\n",
       sig > 0 ? strsignal(sig) : "time is up", static_cast<unsigned long long>(st.cycles),
       static_cast<double>(hist.quantile_ns(0.5)) / 1e3, static_cast<double>(hist.quantile_ns(0.99)) / 1e3,
@@ -241,8 +241,8 @@ int main(int argc, char** argv) {
       static_cast<unsigned long long>(st.missed_cycles),
       static_cast<double>(loop.work_histogram().quantile_ns(0.999)) / 1e3,
       static_cast<double>(loop.work_histogram().max_ns()) / 1e3, static_cast<unsigned long long>(c.requests),
-      static_cast<unsigned long long>(c.refused_requests), static_cast<unsigned long long>(c.chunks),
-      static_cast<unsigned long long>(c.segments),
+      static_cast<unsigned long long>(c.refused_requests), static_cast<unsigned long long>(port->busy_requests()),
+      static_cast<unsigned long long>(c.chunks), static_cast<unsigned long long>(c.segments),
       static_cast<unsigned long long>(port->events_published()),
       static_cast<unsigned long long>(port->states_published()),
       static_cast<unsigned long long>(port->setpoints_published()));
@@ -254,7 +254,7 @@ int main(int argc, char** argv) {
                    " \"missed_cycles\": %llu,\n"
                    " \"cycle_work_ns\": {\"p50\": %lld, \"p999\": %lld, \"max\": %lld},\n"
                    " \"handshake_ns\": {\"count\": %zu, \"min\": %lld, \"p50\": %lld, \"p99\": %lld, \"max\": %lld},\n"
-                   " \"requests\": %llu, \"chunks\": %llu, \"segments\": %llu, \"duplicate_chunks\": %llu,"
+                   " \"requests\": %llu, \"busy_requests\": %llu, \"chunks\": %llu, \"segments\": %llu, \"duplicate_chunks\": %llu,"
                    " \"refused_chunks\": %llu, \"lost_replies\": %llu, \"lost_messages\": %llu,\n"
                    " \"events_published\": %llu, \"states_published\": %llu, \"setpoints_published\": %llu}\n",
                    static_cast<unsigned long long>(st.cycles), config.machine.cycle_time_us, engine->count(),
@@ -266,7 +266,8 @@ int main(int argc, char** argv) {
                    static_cast<long long>(loop.work_histogram().max_ns()), rt_ns.size(),
                    static_cast<long long>(percentile(rt_ns, 0.0)), static_cast<long long>(percentile(rt_ns, 0.5)),
                    static_cast<long long>(percentile(rt_ns, 0.99)), static_cast<long long>(percentile(rt_ns, 1.0)),
-                   static_cast<unsigned long long>(c.requests), static_cast<unsigned long long>(c.chunks),
+                   static_cast<unsigned long long>(c.requests), static_cast<unsigned long long>(port->busy_requests()),
+                   static_cast<unsigned long long>(c.chunks),
                    static_cast<unsigned long long>(c.segments), static_cast<unsigned long long>(c.duplicate_chunks),
                    static_cast<unsigned long long>(c.refused_chunks), static_cast<unsigned long long>(c.lost_replies),
                    static_cast<unsigned long long>(c.lost_messages),

@@ -22,6 +22,7 @@ std::string_view reply_code_name(msg::ReplyCode c) {
     case msg::REPLY_CODE_WRONG_STATE: return "wrong state";
     case msg::REPLY_CODE_BAD_REQUEST: return "bad request";
     case msg::REPLY_CODE_UNSUPPORTED: return "unsupported";
+    case msg::REPLY_CODE_BUSY: return "busy";
   }
   return "unknown reply code";
 }
@@ -125,7 +126,10 @@ void Client::poll(std::chrono::nanoseconds timeout) {
   }
   msg::Reply reply;
   while (dds::take_next(reply_reader_, reply)) {
-    if (reply.client_name() == name_) replies_.push_back(reply);
+    if (reply.client_name() != name_) continue;
+    replies_.push_back(reply);
+    free_slot();
+    window_progress_ns_.store(Clock::now().time_since_epoch().count(), std::memory_order_relaxed);
   }
   if (replies_.size() > kMaxKeptReplies) {
     replies_.erase(replies_.begin(), replies_.end() - static_cast<std::ptrdiff_t>(kMaxKeptReplies));
@@ -183,8 +187,18 @@ Reply Client::request(msg::Request r, std::chrono::milliseconds timeout) {
     out.timed_out = true;
     return out;
   }
+  // A free place in the window (kRequestsInFlight), waiting for replies to earlier send()s.
+  while (!take_slot()) {
+    const auto now = Clock::now();
+    if (now >= deadline) {
+      out.timed_out = true;
+      return out;
+    }
+    poll(std::min<std::chrono::nanoseconds>(deadline - now, 20ms));
+  }
   fill(r);
   if (!request_writer_.write(&r)) {
+    free_slot();
     out.timed_out = true;
     return out;
   }
@@ -198,6 +212,31 @@ Reply Client::request(msg::Request r, std::chrono::milliseconds timeout) {
       return out;
     }
     poll(std::min<std::chrono::nanoseconds>(deadline - now, 20ms));
+  }
+}
+
+bool Client::take_slot() {
+  int n = in_flight_.load(std::memory_order_relaxed);
+  while (true) {
+    const std::int64_t now = Clock::now().time_since_epoch().count();
+    if (n >= kRequestsInFlight) {
+      const std::int64_t since = now - window_progress_ns_.load(std::memory_order_relaxed);
+      if (since < std::chrono::nanoseconds(1s).count()) return false;
+      // No reply for a second with the window full: those replies are lost (the service
+      // restarted, or this client stopped polling). Start a new window.
+      in_flight_.store(0, std::memory_order_relaxed);
+      n = 0;
+    }
+    if (in_flight_.compare_exchange_weak(n, n + 1, std::memory_order_relaxed)) {
+      if (n == 0) window_progress_ns_.store(now, std::memory_order_relaxed);
+      return true;
+    }
+  }
+}
+
+void Client::free_slot() {
+  int n = in_flight_.load(std::memory_order_relaxed);
+  while (n > 0 && !in_flight_.compare_exchange_weak(n, n - 1, std::memory_order_relaxed)) {
   }
 }
 
@@ -215,8 +254,11 @@ std::uint64_t Client::send(msg::Request r) {
       matched.current_count < 1) {
     return 0;
   }
+  if (!take_slot()) return 0;
   fill(r);
-  return request_writer_.write(&r) ? r.request_id() : 0;
+  if (request_writer_.write(&r)) return r.request_id();
+  free_slot();
+  return 0;
 }
 
 std::optional<Reply> Client::take_reply(std::uint64_t request_id) {

@@ -40,6 +40,7 @@ enum class ReplyCode : std::uint8_t {
   kWrongState = 3,
   kBadRequest = 4,
   kUnsupported = 5,
+  kBusy = 6,
 };
 
 //! A fixed-capacity, always NUL-terminated text.

@@ -140,10 +140,17 @@ class Client {
   std::uint64_t events_lost() const { return events_lost_.load(std::memory_order_relaxed); }
 
   //! Writes `r` at once (request_id, role and client_name are filled in) without waiting for the
-  //! reply; returns its request_id, 0 when it could not be written (no service matched, or the
-  //! write failed). Thread-safe: callable from the event callback. The polling thread gets the
-  //! reply with take_reply().
+  //! reply; returns its request_id, 0 when it could not be written (no service matched, the
+  //! write failed, or kRequestsInFlight requests still wait for their replies). Thread-safe:
+  //! callable from the event callback. The polling thread gets the reply with take_reply().
   std::uint64_t send(msg::Request r);
+  //! Requests written and not answered yet that send() allows. The request topic's histories
+  //! hold 100 samples; a client that wrote faster than the service takes them lost requests
+  //! without any answer (Fast DDS drops what a full history cannot keep). Within this window
+  //! every request is answered (executed, refused, or busy). Replies that do not come for a
+  //! second while the window is full (a service restarted meanwhile) free it again.
+  static constexpr int kRequestsInFlight = 64;
+  int requests_in_flight() const { return in_flight_.load(std::memory_order_relaxed); }
   //! send() of M_Func = 0 (acknowledge the pending M-function of `interpolator`).
   std::uint64_t send_ack_m_func(int interpolator);
   //! The reply to a send() if it has arrived (taken by poll()); polling thread only. Replies
@@ -207,6 +214,11 @@ class Client {
   std::vector<msg::Message> messages_;
   std::vector<msg::Reply> replies_;
   std::atomic<std::uint64_t> next_request_id_{1};
+  // send() / request() take a slot, poll() frees one per reply to this client.
+  std::atomic<int> in_flight_{0};
+  std::atomic<std::int64_t> window_progress_ns_{0};  // last reply taken, or the window's first send
+  bool take_slot();
+  void free_slot();
   std::atomic<std::uint64_t> events_received_{0};
   std::atomic<std::uint64_t> events_lost_{0};
   msg::InterpolatorState state_scratch_;
