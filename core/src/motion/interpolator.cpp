@@ -87,9 +87,10 @@ struct Link {
 };
 
 // Planning data of one ring slot.
+// The fields the per-step scans read (kind, s0, at, jt) share the first cache line; the
+// geometry (over 300 bytes) comes last.
 struct Rec {
   RecKind kind = RecKind::kPass;
-  Geometry g;
   double s0 = 0.0;  // cumulative path position of the record's start [mm]
   double f = 0.0;   // feed cap [mm/s] (x Rel_Speed)
   double m = 0.0;   // machine cap [mm/s]
@@ -103,6 +104,7 @@ struct Rec {
   std::array<Link, 3> link{};
   std::int32_t msg_slot = -1;
   double tan0_deg = kNotSet;  // XY tangent at the start [deg] (LookAheadBuffer)
+  Geometry g;
 };
 
 // Fixed-capacity deque of sequence numbers (no allocation after init).
@@ -276,6 +278,7 @@ struct Interpolator::Impl {
   std::string cmd_error;
   double cruise_prev_s = 0.0;  // skip_cruise: path position one calculation step before the end
 
+  std::size_t ring_index(std::uint64_t q) const { return static_cast<std::size_t>(q % cap); }
   Rec& R(std::uint64_t q) { return rec[static_cast<std::size_t>(q % cap)]; }
   const Rec& R(std::uint64_t q) const { return rec[static_cast<std::size_t>(q % cap)]; }
   Segment& S(std::uint64_t q) { return seg[static_cast<std::size_t>(q % cap)]; }
@@ -725,8 +728,10 @@ struct Interpolator::Impl {
     const double reach = st.v * dt + 0.5 * rc.at * dt * dt + rc.jt * dt * dt * dt / 6.0 + 1e-9;
     const double limit = rc.s0 + st.s + reach;
     int scanned = 0;
+    std::size_t idx = ring_index(cur + 1);
     for (std::uint64_t q = cur + 1; q < tail && scanned < kMaxExtendPerStep; ++q, ++scanned) {
-      const Rec& r = R(q);
+      const Rec& r = rec[idx];
+      if (++idx == cap) idx = 0;
       if (r.s0 > limit || r.kind == RecKind::kStop) return;
       if (r.kind == RecKind::kMotion) {
         A = std::min(A, r.at);
@@ -748,20 +753,26 @@ struct Interpolator::Impl {
     if (!(v_end > 0.0)) return 0;
     const double a_max = std::max(std::fabs(a), A) + J * dt;  // largest |x| this step can have
     double j_before = rc.jt;  // lowest jerk limit over [cur, q)
+    // Farther than this the largest deceleration is taken back completely (changes with j_before).
+    double reach = ds_max + v_end * a_max / (kPlanMarginJ * j_before);
     int n_dec = 0;
     int scanned = 0;
+    std::size_t idx = ring_index(cur + 1);
     for (std::uint64_t q = cur + 1; q < win_end && q < tail && scanned < kMaxExtendPerStep; ++q, ++scanned) {
-      const Rec& r = R(q);
+      const Rec& r = rec[idx];
+      if (++idx == cap) idx = 0;
       if (r.kind == RecKind::kStop) break;
       if (r.kind != RecKind::kMotion) continue;
       const double d = r.s0 - here;
-      // Farther than the distance the largest deceleration needs to be taken back completely.
-      if (d > ds_max + v_end * a_max / (kPlanMarginJ * j_before)) break;
+      if (d > reach) break;
       if (r.at < a_max) {
         dec[n_dec++] = {d, r.at, r.at, j_before, LimitFactor::kAccelJerk, true};
         if (n_dec == kMaxDecelLimits) break;
       }
-      j_before = std::min(j_before, r.jt);
+      if (r.jt < j_before) {
+        j_before = r.jt;
+        reach = ds_max + v_end * a_max / (kPlanMarginJ * j_before);
+      }
     }
     return n_dec;
   }
