@@ -396,6 +396,33 @@ TEST(ServiceProcesses, RequestFloodNeverStallsTheService) {
   std::printf("%llu requests sent in 3 s\n", static_cast<unsigned long long>(sent));
 }
 
+// The client's window of unanswered requests: send() refuses the 65th while no reply has been
+// taken, request() makes room by polling, and a window without any reply for a second is freed.
+TEST(ServiceProcesses, ClientKeepsAtMost64RequestsUnanswered) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  client::Client plc(env.dds(), client::Role::kPlc);
+  ASSERT_TRUE(plc.wait_for_state(0, kHang));
+  ASSERT_TRUE(plc.set_rel_speed(0, 1.0).accepted);  // matched both ways
+  EXPECT_EQ(plc.requests_in_flight(), 0);
+  msg::Request r;
+  r.interpolator(0);
+  r.kind(msg::REQUEST_KIND_WRITE_REL_SPEED);
+  r.value(0.9);
+  for (int k = 0; k < client::Client::kRequestsInFlight; ++k) ASSERT_NE(plc.send(r), 0u) << k;
+  EXPECT_EQ(plc.send(r), 0u);  // no poll() has taken a reply yet
+  EXPECT_EQ(plc.requests_in_flight(), client::Client::kRequestsInFlight);
+  // request() waits for room: its polls take the 64 replies.
+  EXPECT_TRUE(plc.set_rel_speed(0, 0.8).accepted);
+  EXPECT_EQ(plc.requests_in_flight(), 0);
+  // Replies never taken (this client stops polling): the full window is freed after a second.
+  for (int k = 0; k < client::Client::kRequestsInFlight; ++k) ASSERT_NE(plc.send(r), 0u) << k;
+  EXPECT_EQ(plc.send(r), 0u);
+  std::this_thread::sleep_for(1100ms);
+  EXPECT_NE(plc.send(r), 0u);
+  EXPECT_EQ(env.service.interrupt(20s), 0) << env.service.log();
+}
+
 TEST(ServiceProcesses, ServiceStopsCleanlyOnSigtermAndRejectsBadFlags) {
   ServiceEnv env;
   test::Child bad;
