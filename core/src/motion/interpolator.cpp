@@ -1215,12 +1215,11 @@ struct Interpolator::Impl {
   // Per limit, guesses before a regula falsi (Anderson-Bjorck): `boundary(k, out)` (up to two),
   // the x whose end-of-step state just needs no braking for k any more (the velocity after
   // taking the acceleration back equals the limit), and `ride`, the x of the previous step's
-  // jerk. Near
-  // that boundary the excess is not smooth: a step when accelerating towards the limit (no
-  // braking needed below it, a whole ramp-down above), a square-root cliff at the end of a
-  // braking (the plan turns into a pure release); no secant method converges there, and a
-  // dozen evaluations per step were common. The first guess brackets those roots in two
-  // evaluations, the second one a steady ride's.
+  // jerk. Near that boundary the excess is not smooth: a step when accelerating towards the
+  // limit (no braking needed below it, a whole ramp-down above), a square-root cliff at the end
+  // of a braking (the plan turns into a pure release); no secant method converges there, and a
+  // dozen evaluations per step were common. The boundary guess brackets those roots in two
+  // evaluations, the ride guess a steady ride's.
   template <class Excess, class Fails, class Boundary>
   static double largest_passing(double xs, double xu, const Excess& excess, int& k, double e_u,
                                 const Fails& first_failing, int rounds, const Boundary& boundary,
@@ -1525,7 +1524,6 @@ struct Interpolator::Impl {
             }
             return -1;
           };
-          // The limit that binds at x reports the factor (not the one that failed worst at xd).
           // x at which limit k's end-of-step state needs no braking any more:
           // v + (a + x) dt / 2 + x |x| / (2 j) = w (increasing in x), with the plan's jerk and,
           // when the acceleration is taken back after the junction at a lower jerk (excess_from,
@@ -1543,6 +1541,7 @@ struct Interpolator::Impl {
             if (ck.Jx < ck.J && cc < 0.0) out[n_out++] = solve(kPlanMarginJ * ck.Jx);
             return n_out;
           };
+          // On return worst_k is the limit that binds at x: it reports the factor below.
           x = largest_passing(xs, xu, excess, worst_k, worst, first_failing, 3, boundary,
                               ride_jerk < kInf ? a + ride_jerk * dt : kInf);
           ride_jerk = (x - a) / dt;
