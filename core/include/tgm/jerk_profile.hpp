@@ -50,6 +50,10 @@ double braking_distance_from(double v, double a, double w, double A, double J, d
 //! braking_distance_from with the plan's peak deceleration.
 Braking braking_plan_from(double v, double a, double w, double A, double J, double J_now);
 
+//! End-of-step acceleration x whose state, after bringing the acceleration back to zero at
+//! jerk J, has velocity vt: v + (a + x) dt / 2 + x |x| / (2J) = vt (unclipped; increasing in x).
+double landing_acceleration(double v, double a, double vt, double J, double dt);
+
 //! End-of-step acceleration that tracks the target velocity `vt` time-optimally without
 //! overshoot (the velocity after bringing a to zero at full jerk equals vt), clipped to the
 //! jerk limit (|x - a| <= J dt) and to |x| <= A.

@@ -279,10 +279,10 @@ struct Interpolator::Impl {
   double cruise_prev_s = 0.0;  // skip_cruise: path position one calculation step before the end
 
   std::size_t ring_index(std::uint64_t q) const { return static_cast<std::size_t>(q % cap); }
-  Rec& R(std::uint64_t q) { return rec[static_cast<std::size_t>(q % cap)]; }
-  const Rec& R(std::uint64_t q) const { return rec[static_cast<std::size_t>(q % cap)]; }
-  Segment& S(std::uint64_t q) { return seg[static_cast<std::size_t>(q % cap)]; }
-  const Segment& S(std::uint64_t q) const { return seg[static_cast<std::size_t>(q % cap)]; }
+  Rec& R(std::uint64_t q) { return rec[ring_index(q)]; }
+  const Rec& R(std::uint64_t q) const { return rec[ring_index(q)]; }
+  Segment& S(std::uint64_t q) { return seg[ring_index(q)]; }
+  const Segment& S(std::uint64_t q) const { return seg[ring_index(q)]; }
 
   // ================= planning =================
 
@@ -1308,7 +1308,8 @@ struct Interpolator::Impl {
     const double v = st.v, a = st.a;
     double x = 0.0;
     const bool was_braking_to_stop = braking_to_stop;
-    bool riding = false;  // x from largest_passing (ride_jerk stays valid)
+    const double ride_before = ride_jerk;  // stays kInf unless this step rides a limit again
+    ride_jerk = kInf;
     braking_to_stop = false;
     double vt = 0.0;
     if (mode == Mode::kEmergency || mode == Mode::kStopping) {
@@ -1465,12 +1466,21 @@ struct Interpolator::Impl {
           factor = target_reason;
         }
       } else {
-        auto ok = [&](double xx) {
+        // Index into c of a violated limit that fails at xx (skipping `known`, which passes
+        // there by construction), with its excess; -1 when all pass.
+        auto first_failing = [&](double xx, int known, double* e_out) {
+          const jerk::State ns = jerk::advance(before, xx, dt);
           for (int i = 0; i < nv; ++i) {
-            if (excess(xx, viol[i]) > kExcessTol) return false;
+            if (viol[i] == known) continue;
+            const double e = excess_from(ns, viol[i]);
+            if (e > kExcessTol) {
+              if (e_out) *e_out = e;
+              return viol[i];
+            }
           }
-          return true;
+          return -1;
         };
+        auto ok = [&](double xx) { return first_failing(xx, -1, nullptr) < 0; };
         auto ok_hard = [&](double xx) {
           for (int i = 0; i < nv; ++i) {
             if (!c[viol[i]].soft && excess(xx, viol[i]) > kExcessTol) return false;
@@ -1510,20 +1520,6 @@ struct Interpolator::Impl {
           }
           x = std::min(lo_dec, xs);
         } else {
-          // Index into c of a violated limit that fails at xx (skipping `known`, which passes
-          // there by construction), with its excess; -1 when all pass.
-          auto first_failing = [&](double xx, int known, double* e_out) {
-            const jerk::State ns = jerk::advance(before, xx, dt);
-            for (int i = 0; i < nv; ++i) {
-              if (viol[i] == known) continue;
-              const double e = excess_from(ns, viol[i]);
-              if (e > kExcessTol) {
-                if (e_out) *e_out = e;
-                return viol[i];
-              }
-            }
-            return -1;
-          };
           // x at which limit k's end-of-step state needs no braking any more:
           // v + (a + x) dt / 2 + x |x| / (2 j) = w (increasing in x), with the plan's jerk and,
           // when the acceleration is taken back after the junction at a lower jerk (excess_from,
@@ -1531,28 +1527,23 @@ struct Interpolator::Impl {
           auto boundary = [&](int k, double* out) {
             const Constraint& ck = c[k];
             if (ck.accel) return 0;
-            const double cc = v + 0.5 * a * dt - ck.w;
-            const auto solve = [&](double j) {
-              return cc <= 0.0 ? j * (-0.5 * dt + std::sqrt(0.25 * dt * dt - 2.0 * cc / j))
-                               : j * (0.5 * dt - std::sqrt(0.25 * dt * dt + 2.0 * cc / j));
-            };
             int n_out = 0;
-            out[n_out++] = solve(kPlanMarginJ * ck.J);
-            if (ck.Jx < ck.J && cc < 0.0) out[n_out++] = solve(kPlanMarginJ * ck.Jx);
+            out[n_out++] = jerk::landing_acceleration(v, a, ck.w, kPlanMarginJ * ck.J, dt);
+            if (ck.Jx < ck.J && v + 0.5 * a * dt < ck.w) {
+              out[n_out++] = jerk::landing_acceleration(v, a, ck.w, kPlanMarginJ * ck.Jx, dt);
+            }
             return n_out;
           };
           // On return worst_k is the limit that binds at x: it reports the factor below.
           x = largest_passing(xs, xu, excess, worst_k, worst, first_failing, 3, boundary,
-                              ride_jerk < kInf ? a + ride_jerk * dt : kInf);
+                              ride_before < kInf ? a + ride_before * dt : kInf);
           ride_jerk = (x - a) / dt;
-          riding = true;
         }
         factor = c[worst_k].reason;
         braking_to_stop = c[worst_k].w == 0.0;
       }
     }
   integrate:
-    if (!riding) ride_jerk = kInf;
     last_vt = vt;
     jerk::State ns = jerk::advance(before, x, dt);
     // Landed on the target speed (within 1e-12 of it, acceleration negligible): hold exactly

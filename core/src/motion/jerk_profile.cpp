@@ -15,7 +15,7 @@ Braking braking_plan(double v, double a, double w, double A, double J) {
   const double iJ = 1.0 / J;
   // Velocity once the acceleration is brought to zero along the shortest ramp.
   const double vz = v + 0.5 * a * std::fabs(a) * iJ;
-  if (v <= w && (a <= 0.0 || vz <= w)) return {0.0, 0.0};
+  if (v <= w && vz <= w) return {0.0, 0.0};
   // Braking so hard that even ramping the acceleration back at +J ends below standstill: the
   // motion would have to reverse. No distance makes that state acceptable.
   if (vz < 0.0) return {std::numeric_limits<double>::infinity(), -a};
@@ -48,20 +48,20 @@ double braking_distance(double v, double a, double w, double A, double J) {
   return braking_plan(v, a, w, A, J).distance;
 }
 
-double track_velocity(double v, double a, double vt, double A, double J, double dt) {
+double landing_acceleration(double v, double a, double vt, double J, double dt) {
   // With end acceleration x the velocity after the step is v + (a + x) dt / 2, and bringing x to
   // zero at full jerk then adds x|x| / (2J). Solve v + (a + x) dt / 2 + x|x| / (2J) = vt.
   const double c = v + 0.5 * a * dt - vt;
+  return c <= 0.0 ? J * (-0.5 * dt + std::sqrt(0.25 * dt * dt - 2.0 * c / J))
+                  : J * (0.5 * dt - std::sqrt(0.25 * dt * dt + 2.0 * c / J));
+}
+
+double track_velocity(double v, double a, double vt, double A, double J, double dt) {
   // Close to the target: two steps, this one to x and the next one back to zero acceleration,
-  // land exactly on vt (dead-beat; the one-step formula below would oscillate around vt).
-  const double x2 = -c / dt;
+  // land exactly on vt (dead-beat; the one-step landing below would oscillate around vt).
+  const double x2 = -(v + 0.5 * a * dt - vt) / dt;
   if (std::fabs(x2) <= J * dt && std::fabs(x2 - a) <= J * dt && std::fabs(x2) <= A) return x2;
-  double x;
-  if (c <= 0.0) {
-    x = J * (-0.5 * dt + std::sqrt(0.25 * dt * dt - 2.0 * c / J));
-  } else {
-    x = J * (0.5 * dt - std::sqrt(0.25 * dt * dt + 2.0 * c / J));
-  }
+  const double x = landing_acceleration(v, a, vt, J, dt);
   const double lo = std::max(a - J * dt, -A);
   const double hi = std::min(a + J * dt, A);
   if (lo > hi) return a > A ? std::max(a - J * dt, -A) : std::min(a + J * dt, A);
