@@ -110,6 +110,10 @@ DdsPort::DdsPort(const DdsConfig& config, const DdsPortOptions& options)
   }
   m_written_.resize(n);
   m_applied_.reserve(100'000);
+  busy_reply_.accepted(false);
+  busy_reply_.code(msg::REPLY_CODE_BUSY);
+  busy_reply_.reason("service busy: the request queue is full (a client sends faster than the "
+                     "interpolation cycles take requests); not executed, send it again");
   m_published_.reserve(100'000);
   m_pending_.assign(n, -1);
   published_events_.resize(n);
@@ -219,15 +223,11 @@ void DdsPort::take_requests_locked() {
     if (requests_.full()) {
       // A client sends faster than the cycles take requests. Leaving the sample in the reader
       // would lose it unseen (the reader's history is KEEP_LAST: newer requests push it out;
-      // Fast DDS 2.9 also drops samples a full KEEP_ALL reader rejects): answer it instead.
+      // Fast DDS 2.9 also drops samples a full KEEP_ALL reader rejects): answer it instead
+      // (busy_reply_ holds the code and the reason from the constructor on).
       busy_reply_.request_id(r.request_id());
       busy_reply_.client_name(r.client_name());
       busy_reply_.interpolator(r.interpolator());
-      busy_reply_.accepted(false);
-      busy_reply_.code(msg::REPLY_CODE_BUSY);
-      busy_reply_.reason("service busy: the request queue is full (a client sends faster than the "
-                         "interpolation cycles take requests); not executed, send it again");
-      busy_reply_.cycle_counter(0);
       reply_writer_.write(&busy_reply_);
       ++busy_requests_;
       continue;

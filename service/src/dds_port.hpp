@@ -159,7 +159,7 @@ class DdsPort final : public CyclePort {
   std::atomic<bool> requests_pending_{false};
   std::vector<HandshakeSample> handshakes_;
   msg::Request request_sample_;
-  msg::Reply busy_reply_;
+  msg::Reply busy_reply_;  // REPLY_CODE_BUSY with its reason; request fields set per answer
   std::uint64_t busy_requests_ = 0;
   // receiver thread only
   std::vector<std::deque<ChunkIn*>> backlog_;
