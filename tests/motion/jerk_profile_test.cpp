@@ -91,5 +91,35 @@ TEST(JerkProfile, RandomStatesAreConsistent) {
   }
 }
 
+// Seeded sweep of what the interpolator's per-cycle skip relies on (Interpolator cycle_bound):
+// from a state that is regular for (A, J) (a >= -A and a^2 <= 2 J v: braking_plan_from plans no
+// easing), braking_plan_from needs no more distance than braking_plan from any state (vc, ac)
+// with vc >= v and ac >= max(a, 0), and its peak deceleration is at most A. (States too hard to
+// take back are not monotone: they may need an infinite distance; the interpolator checks them
+// in full.)
+TEST(JerkProfile, BrakingFromRegularStatesGrowsWithSpeedAndAcceleration) {
+  std::mt19937_64 rng(12);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  int regular = 0;
+  for (int i = 0; i < 400000; ++i) {
+    const double A = 100.0 + 5000.0 * u(rng), J = 1000.0 + 2e5 * u(rng);
+    const double w = u(rng) < 0.2 ? 0.0 : 200.0 * u(rng);
+    const double vc = 300.0 * u(rng), ac = u(rng) < 0.3 ? 0.0 : 1.2 * A * u(rng);
+    const double v = u(rng) < 0.2 ? vc : vc * u(rng);
+    double a = u(rng) < 0.2 ? ac : -A + (ac + A) * u(rng);
+    if (u(rng) < 0.05) a = -A;
+    if (a < 0.0 && 2.0 * J * v < a * a * (1.0 + 1e-6)) continue;
+    ++regular;
+    const double Jn = J * (0.5 + u(rng));
+    const Braking b = braking_plan_from(v, a, w, A, J, Jn);
+    const double hi = braking_distance(vc, ac, w, A, J);
+    ASSERT_LE(b.distance, hi + 1e-12 * (1.0 + hi)) << "A " << A << " J " << J << " w " << w
+                                                  << " (" << vc << ", " << ac << ") > (" << v
+                                                  << ", " << a << ")";
+    ASSERT_LE(b.peak, A * (1.0 + 1e-12));
+  }
+  EXPECT_GT(regular, 300000);  // the sweep covers the region it claims
+}
+
 }  // namespace
 }  // namespace tgm::jerk

@@ -172,6 +172,11 @@ struct Constraint {
   //! bind: landing on w > 0 with zero acceleration can take longer than stopping, by less than
   //! w times the final jerk phase (A/J); twice that as margin. Set by gather().
   double beyond_stop = 0.0;
+  //! Cumulative path position up to which no end-of-step state of this cycle fails this limit:
+  //! d minus its braking distance (or acceleration change) from the cycle's fastest state, which
+  //! bounds those from every state the cycle's calculation steps evaluate (cycle_bound).
+  //! -infinity until the scan first needs it.
+  double safe = -kInf;
 };
 
 double norm_angle_deg(double rad) {
@@ -240,6 +245,9 @@ struct Interpolator::Impl {
   int ncons = 0;
   double cons_here = 0.0;
   double cons_Aw = 0.0, cons_Jw = 0.0;
+  // The fastest state (velocity, acceleration) an end of a calculation step can reach in the
+  // rest of the cycle the constraints were gathered in (Constraint::safe).
+  double cons_vc = 0.0, cons_ac = 0.0;
   bool cons_valid = false;
   double horizon = 0.0;
   // Cruise shortcut: at constant speed the smallest slack over the gathered limits only
@@ -718,6 +726,30 @@ struct Interpolator::Impl {
   double plan_braking(double v, double a, double w, double A, double J, double J_now) const {
     const jerk::Braking b = jerk::braking_plan_from(v, a, w, A, J, J_now);
     return b.distance + quarter_dt2 * b.peak;
+  }
+
+  // True when excess_from judges `ns` against limit `ck` by a plain braking plan (no easing of a
+  // deceleration too hard for the limit's A or J; jerk::braking_plan_from's first test).
+  static bool regular_for(const jerk::State& ns, const Constraint& ck) {
+    if (ns.a >= 0.0) return true;
+    const double A = kPlanMargin * ck.A, J = kPlanMarginJ * ck.J;
+    // With a margin: braking_plan_from's easing test compares a with -sqrt(2 J v).
+    return ns.a >= -A && 2.0 * J * std::max(ns.v, 0.0) >= ns.a * ns.a * (1.0 + 1e-6);
+  }
+
+  // An upper bound of what excess_from adds to its room for limit ck, over every end-of-step
+  // state (v, a) this cycle can evaluate that is regular_for it: v <= cons_vc, a <= cons_ac. The
+  // braking distance of a regular state grows with v and with a (jerk::braking_plan; pinned by
+  // a seeded sweep in jerk_profile_test), its peak deceleration is at most A; taking the
+  // acceleration back (the Jx case, acceleration limits) needs at most what taking all of
+  // cons_ac back to w (or to 0) at the same jerk needs.
+  double cycle_bound(const Constraint& ck) const {
+    const double J = kPlanMarginJ * ck.J;
+    if (ck.accel) return accel_distance(cons_vc, cons_ac, ck.w, J);
+    const double A = kPlanMargin * ck.A;
+    double d = jerk::braking_plan(cons_vc, cons_ac, ck.w, A, J).distance + quarter_dt2 * A;
+    if (ck.Jx < ck.J) d = std::max(d, accel_distance(cons_vc, cons_ac, 0.0, J));
+    return d;
   }
 
   // Tangential limits for this calculation step: the records it can reach.
@@ -1300,6 +1332,14 @@ struct Interpolator::Impl {
       cons_here = R(cur).s0 + st.s;
       cons_valid = true;
       cruise_valid = false;
+      // Until the next gather `cur` stays (crossing a junction gathers again), so its jerk
+      // limit bounds every step's (step_limits), and no step ends above max(a, its tangential
+      // limit) or gains more than J dt of acceleration. The velocity bound ignores the cap.
+      const Rec& rc = R(cur);
+      const double tr = (kCalcSteps - calc_index) * dt;
+      const double ap = std::max(st.a, 0.0);
+      cons_ac = std::min(ap + rc.jt * tr, std::max(ap, rc.at));
+      cons_vc = (st.v + tr * (ap + 0.5 * rc.jt * tr)) * (1.0 + 1e-12) + 1e-12;
     }
     const double Aw = cons_Aw, Jw = cons_Jw;
     double A = 0.0, J = 0.0;
@@ -1375,7 +1415,7 @@ struct Interpolator::Impl {
         xd = std::max(xd, lo_dec);
       }
 
-      const Constraint* c = cons.data();
+      Constraint* c = cons.data();
       const int nc = ncons;
       const double moved = rc.s0 + before.s - cons_here;  // since the constraints were gathered
       int viol[3 * kChainMax + 4];
@@ -1441,6 +1481,10 @@ struct Interpolator::Impl {
         if (dk < 0.0) continue;  // passed in an earlier calculation step
         if (dk > bound + c[k].beyond_stop) continue;
         if (c[k].accel && nd.a <= c[k].w) continue;  // within that limit already: passes
+        if (regular_for(nd, c[k])) {
+          if (c[k].safe == -kInf) c[k].safe = c[k].d - cycle_bound(c[k]);
+          if (moved + (nd.s - before.s) <= c[k].safe) continue;  // passes (see cycle_bound)
+        }
         const double e = excess_from(nd, k);
         if (e > kExcessTol) {
           viol[nv++] = k;
