@@ -2,7 +2,9 @@
 // limit factors, LookAheadBuffer, refused requests, and a limit checker that can fail.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <random>
 #include <vector>
 
 #include "program_builder.hpp"
@@ -330,6 +332,91 @@ TEST(LookAhead, EntriesShowTheNextSections) {
   // M2 is not a section (manual: G0..G3 or M3..M999): fewer than 8 sections remain.
   for (std::size_t e = 4; e < la.size(); ++e) EXPECT_EQ(la[e].movement_type, 0) << e;
   EXPECT_TRUE(is_not_set(la[0].start_angle_deg));
+}
+
+// The table is updated as `cur` moves on and records arrive; a full rebuild from the ring every
+// cycle (InterpolatorOptions::full_lookahead_fill) is the reference. A long program of short
+// moves and arcs with continuous and normal M-functions, parameters and dwells streams through
+// a 1000-slot ring (records behind `cur` are overwritten, the table is full most of the time);
+// every entry must agree in every cycle.
+TEST(LookAhead, UpdatedTableEqualsARebuildInEveryCycle) {
+  MachineConfig m = machine();
+  m.interpolators[0].buffer_size = 1000;
+  InterpolatorOptions reference;
+  reference.full_lookahead_fill = true;
+  auto inc = Interpolator::create(m, 0);
+  auto ref = Interpolator::create(m, 0, reference);
+  ASSERT_TRUE(inc && ref);
+  std::mt19937_64 rng(21);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  ProgramBuilder b;
+  double x = 0.0, y = 0.0;
+  for (int i = 0; i < 3000; ++i) {
+    const double r = u(rng);
+    if (r < 0.06) b.m(1001 + static_cast<int>(u(rng) * 50), MKind::kContinuous);
+    if (r > 0.03 && r < 0.05) b.m(1001 + static_cast<int>(u(rng) * 50), MKind::kContinuous);
+    if (r > 0.05 && r < 0.06) b.dwell(0.0005);
+    if (r > 0.06 && r < 0.065) {
+      MParams p = unset_params();
+      p[static_cast<std::size_t>('S' - 'A')] = static_cast<double>(i);
+      b.m(3 + static_cast<int>(u(rng) * 20), MKind::kNormal, &p);
+    }
+    if (r > 0.9) {
+      b.arc(true, {x, y + 0.4, 0.0}, {x, y + 0.2}, 2000.0);
+      y += 0.4;
+    } else {
+      x += 0.02 + 0.3 * u(rng);
+      y += 0.1 * (u(rng) - 0.5);
+      b.line({x, y, 0.0}, 3000.0);
+    }
+  }
+  b.end();
+  const Program& prog = b.program();
+  std::size_t next_inc = 0, next_ref = 0;
+  auto feed = [&](Interpolator& ip, std::size_t& next) {
+    std::size_t took = 0;
+    ip.append(prog, next, std::min<std::size_t>(prog.segments.size() - next, 7), true, &took);
+    next += took;
+  };
+  feed(*inc, next_inc);
+  feed(*ref, next_ref);
+  ASSERT_TRUE(inc->start().ok());
+  ASSERT_TRUE(ref->start().ok());
+  int cycles = 0, full_tables = 0, m_waits = 0;
+  for (; cycles < 1000000; ++cycles) {
+    feed(*inc, next_inc);
+    feed(*ref, next_ref);
+    const StepResult ri = inc->step(), rr = ref->step();
+    ASSERT_EQ(ri, rr);
+    const Registers& gi = inc->registers();
+    const Registers& gr = ref->registers();
+    ASSERT_EQ(gi.act_part, gr.act_part);
+    for (std::size_t e = 0; e < gi.lookahead.size(); ++e) {
+      const LookAheadEntry& a = gi.lookahead[e];
+      const LookAheadEntry& c = gr.lookahead[e];
+      ASSERT_EQ(a.all_params, c.all_params) << "cycle " << cycles << " entry " << e;
+      ASSERT_EQ(a.tangent_deg, c.tangent_deg) << "cycle " << cycles << " entry " << e;
+      ASSERT_EQ(a.movement_type, c.movement_type) << "cycle " << cycles << " entry " << e;
+      ASSERT_EQ(a.movement_code, c.movement_code) << "cycle " << cycles << " entry " << e;
+      ASSERT_EQ(a.plane, c.plane);
+      ASSERT_EQ(a.tool, c.tool);
+      ASSERT_EQ(a.end_pos_mm, c.end_pos_mm) << "cycle " << cycles << " entry " << e;
+      ASSERT_EQ(a.start_angle_deg, c.start_angle_deg);
+      ASSERT_EQ(a.end_angle_deg, c.end_angle_deg);
+      ASSERT_EQ(a.radius_mm, c.radius_mm);
+      ASSERT_EQ(a.line, c.line) << "cycle " << cycles << " entry " << e;
+    }
+    if (gi.lookahead.back().movement_type != 0) ++full_tables;
+    if (gi.m_func != 0) {
+      ++m_waits;
+      inc->write_m_func(0);
+      ref->write_m_func(0);
+    }
+    if (ri == StepResult::kFinished) break;
+  }
+  EXPECT_EQ(inc->registers().status, 3) << cycles << " cycles, " << next_inc << " records fed, part " << inc->registers().act_part << ", m_waits " << m_waits;
+  EXPECT_GT(full_tables, cycles / 2);  // the update path is what ran
+  EXPECT_GT(m_waits, 10);
 }
 
 TEST(Requests, RefusedWithReasons) {

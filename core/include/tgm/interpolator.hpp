@@ -87,6 +87,9 @@ struct InterpolatorOptions {
   //! After an underrun stop (Status 8), continue by itself when segments arrive instead of
   //! waiting for start (DESIGN section 5 asks for start; the option is for streaming tests).
   bool resume_after_underrun = false;
+  //! Rebuild the LookAheadBuffer table from the ring in every cycle instead of updating it as
+  //! `cur` moves on and records arrive (the reference the tests compare the update with).
+  bool full_lookahead_fill = false;
 };
 
 //! One interpolator (axis group). Movable, not copyable.

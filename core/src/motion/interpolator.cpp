@@ -248,6 +248,7 @@ struct Interpolator::Impl {
   // The fastest state (velocity, acceleration) an end of a calculation step can reach in the
   // rest of the cycle the constraints were gathered in (Constraint::safe).
   double cons_vc = 0.0, cons_ac = 0.0;
+  bool cons_bounds = false;  // gathered before the cycle's last step: later steps use the bounds
   bool cons_valid = false;
   double horizon = 0.0;
   // Cruise shortcut: at constant speed the smallest slack over the gathered limits only
@@ -256,6 +257,11 @@ struct Interpolator::Impl {
   double cruise_v = 0.0;
   double cruise_margin = 0.0;
   std::uint64_t lookahead_cur = kNoQ;
+  // Record of each LookAheadBuffer entry, and whether the last fill found all kLookAheadEntries
+  // (then records appended later cannot change the table, and a move of `cur` only shifts it).
+  std::array<std::uint64_t, kLookAheadEntries> lookahead_q{};
+  bool lookahead_full = false;
+  bool lookahead_appended = false;  // records appended since the last fill
   // Jerk of the last calculation step when it rode a braking limit (largest_passing), else kInf:
   // the next step's first guess.
   double ride_jerk = kInf;
@@ -1340,6 +1346,7 @@ struct Interpolator::Impl {
       const double ap = std::max(st.a, 0.0);
       cons_ac = std::min(ap + rc.jt * tr, std::max(ap, rc.at));
       cons_vc = (st.v + tr * (ap + 0.5 * rc.jt * tr)) * (1.0 + 1e-12) + 1e-12;
+      cons_bounds = calc_index < kCalcSteps - 1;
     }
     const double Aw = cons_Aw, Jw = cons_Jw;
     double A = 0.0, J = 0.0;
@@ -1481,7 +1488,7 @@ struct Interpolator::Impl {
         if (dk < 0.0) continue;  // passed in an earlier calculation step
         if (dk > bound + c[k].beyond_stop) continue;
         if (c[k].accel && nd.a <= c[k].w) continue;  // within that limit already: passes
-        if (regular_for(nd, c[k])) {
+        if (cons_bounds && regular_for(nd, c[k])) {
           if (c[k].safe == -kInf) c[k].safe = c[k].d - cycle_bound(c[k]);
           if (moved + (nd.s - before.s) <= c[k].safe) continue;  // passes (see cycle_bound)
         }
@@ -1909,12 +1916,11 @@ struct Interpolator::Impl {
     return sg.type == SegmentType::kMFunction && sg.m_kind == MKind::kNormal;
   }
 
-  void fill_lookahead() {
-    int e = 0;
+  // The M-function address of the first section at or after `cur` (q0) when it is written
+  // afresh: a continuous M just behind `cur` (a continuous M belongs to the section after it:
+  // when that section executes, the M record is just behind `cur`), or the last one in [cur, q0).
+  double first_pending_m(std::uint64_t q0) const {
     double pending_m = kNotSet;
-    std::uint64_t q = cur;
-    // A continuous M belongs to the section after it: when that section executes, the M
-    // record is just behind `cur`.
     for (std::uint64_t b = cur; b > base && cur - b < 64 && tail - (b - 1) <= cap;) {
       --b;
       const Segment& sb = S(b);
@@ -1924,10 +1930,17 @@ struct Interpolator::Impl {
       }
       if (is_section(sb) || sb.type == SegmentType::kMFunction || sb.type == SegmentType::kDwell) break;
     }
-    int scanned = 0;
-    while (e < kLookAheadEntries && q < tail && scanned < 256) {
+    for (std::uint64_t q = cur; q < q0; ++q) {
       const Segment& sg = S(q);
-      ++scanned;
+      if (sg.type == SegmentType::kMFunction && sg.m_kind == MKind::kContinuous) pending_m = sg.m;
+    }
+    return pending_m;
+  }
+
+  // Fills entries e.. from record q on (pending_m: a continuous M seen before q).
+  void fill_lookahead_from(int e, std::uint64_t q, double pending_m) {
+    while (e < kLookAheadEntries && q < tail && q - cur < 256) {
+      const Segment& sg = S(q);
       if (sg.type == SegmentType::kMFunction && sg.m_kind == MKind::kContinuous) {
         pending_m = sg.m;
         ++q;
@@ -1937,12 +1950,61 @@ struct Interpolator::Impl {
         ++q;
         continue;
       }
-      fill_entry(reg.lookahead[static_cast<std::size_t>(e)], q, pending_m, e == 0 && on_path && q == cur);
+      const auto ue = static_cast<std::size_t>(e);
+      fill_entry(reg.lookahead[ue], q, pending_m, e == 0 && on_path && q == cur);
+      lookahead_q[ue] = q;
       pending_m = kNotSet;
       ++e;
       ++q;
     }
+    lookahead_full = e == kLookAheadEntries;
     for (; e < kLookAheadEntries; ++e) reg.lookahead[static_cast<std::size_t>(e)] = LookAheadEntry{};
+  }
+
+  void fill_lookahead() {
+    std::uint64_t q0 = cur;
+    while (q0 < tail && q0 - cur < 256 && !is_section(S(q0))) ++q0;
+    fill_lookahead_from(0, cur, first_pending_m(q0));
+  }
+
+  // `cur` moved on from lookahead_cur or records were appended, and nothing else changed
+  // (lookahead_dirty clear): the sections passed leave the table, the rest move up, new ones are
+  // filled in behind them. The
+  // result equals fill_lookahead's (the first entry's M address and current tangent are
+  // written afresh), at a fraction of its cost on short segments, where `cur` moves on in most
+  // cycles. Falls back to a full fill when the old table was not full or its records may have
+  // been overwritten in the ring.
+  void shift_lookahead() {
+    if (!lookahead_full || lookahead_cur > cur) {
+      fill_lookahead();
+      return;
+    }
+    int p = 0;
+    while (p < kLookAheadEntries && lookahead_q[static_cast<std::size_t>(p)] < cur) ++p;
+    if (p == kLookAheadEntries) {
+      fill_lookahead();
+      return;
+    }
+    const std::uint64_t last = lookahead_q[kLookAheadEntries - 1];
+    for (int e = p; e < kLookAheadEntries; ++e) {
+      const auto ue = static_cast<std::size_t>(e), ud = static_cast<std::size_t>(e - p);
+      reg.lookahead[ud] = reg.lookahead[ue];
+      lookahead_q[ud] = lookahead_q[ue];
+    }
+    // The new first entry: its M address and, when it is the current arc, its tangent.
+    const std::uint64_t q0 = lookahead_q[0];
+    const Segment& s0 = S(q0);
+    const double pending_m = first_pending_m(q0);
+    LookAheadEntry& e0 = reg.lookahead[0];
+    const auto m_slot = static_cast<std::size_t>('M' - 'A');
+    e0.all_params[m_slot] = !is_not_set(pending_m) ? pending_m
+                            : s0.type == SegmentType::kMFunction ? par[ring_index(q0)][m_slot]
+                                                                 : kNotSet;
+    const Rec& r0 = R(q0);
+    if (r0.kind == RecKind::kMotion && s0.type != SegmentType::kMFunction) {
+      e0.tangent_deg = on_path && q0 == cur && r0.g.arc ? tangent_deg(r0.g, st.s) : r0.tan0_deg;
+    }
+    fill_lookahead_from(kLookAheadEntries - p, last + 1, kNotSet);
   }
 
   void fill_registers() {
@@ -2006,9 +2068,14 @@ struct Interpolator::Impl {
     reg.limit_factor = (mode == Mode::kMoving || mode == Mode::kStopping || mode == Mode::kEmergency)
                            ? factor
                            : LimitFactor::kNone;
-    if (lookahead_dirty || lookahead_cur != cur) {
-      fill_lookahead();
+    if (lookahead_dirty || lookahead_cur != cur || lookahead_appended || opt.full_lookahead_fill) {
+      if (lookahead_dirty || opt.full_lookahead_fill) {
+        fill_lookahead();
+      } else {
+        shift_lookahead();
+      }
       lookahead_dirty = false;
+      lookahead_appended = false;
       lookahead_cur = cur;
     } else if (on_path && R(cur).g.arc) {
       reg.lookahead[0].tangent_deg = tangent_deg(R(cur).g, st.s);
@@ -2205,7 +2272,13 @@ RequestResult Interpolator::append(const Program& program, std::size_t first, st
   m.drop_stale();
   for (std::size_t i = first; i < first + take; ++i) m.store(program, i);
   if (take == count) m.complete = program_complete;
-  m.lookahead_dirty = true;
+  // Records appended behind a full LookAheadBuffer table do not enter it (but may overwrite the
+  // ring slots behind `cur` its first entry's M address was read from: shift_lookahead).
+  if (m.lookahead_full) {
+    m.lookahead_appended = true;
+  } else {
+    m.lookahead_dirty = true;
+  }
   if (fresh && take > 0) {
     m.reg.status = static_cast<std::int32_t>(InterpolatorStatus::kReady);
     m.reg.off_trajectory = 0;
