@@ -66,6 +66,30 @@ TEST(ShortSegments, CircleOfChordsRunsAtFeed) {
   RecordProperty("fraction_at_feed", std::to_string(fraction));
 }
 
+TEST(ShortSegments, FeedIsNotExceededWhileTheJerkLimitFallsAhead) {
+  // 0.05 mm chords whose direction turns towards +Y (heading 1.1 rad, +0.01 rad per chord):
+  // each chord's tangential jerk limit is a little lower than the one before, so a landing on
+  // the feed planned with this step's jerk limit overshoots it (by 1.6 mm/min before the
+  // landing took the records ahead into account).
+  const double feed = 3000.0;
+  ProgramBuilder b;
+  std::array<double, kMaxAxes> p{};
+  for (int i = 1; i < 400; ++i) {
+    const double h = 1.1 + 0.01 * i;
+    p[0] += 0.05 * std::cos(h);
+    p[1] += 0.05 * std::sin(h);
+    b.line_to(p, feed);
+  }
+  b.end();
+  auto sim = Simulation::create(machine(), {});
+  ASSERT_TRUE(sim);
+  double peak = 0.0;
+  const auto s = sim->run(b.program(), [&](const Registers& g) { peak = std::max(peak, g.act_speed); });
+  ASSERT_EQ(s.result, StepResult::kFinished) << s.error;
+  EXPECT_GT(peak, feed * (1.0 - 1e-9));  // it reaches the feed
+  EXPECT_LE(peak, feed * (1.0 + 1e-9));
+}
+
 TEST(Override, ActsWithinOneCycleThroughAJerkLimitedRamp) {
   ProgramBuilder b;
   b.line({300.0, 0.0, 0.0}, 6000.0).end();

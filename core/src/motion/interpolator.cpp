@@ -758,6 +758,24 @@ struct Interpolator::Impl {
     return d;
   }
 
+  // Lowest jerk limit, at most J, of the motion records that taking acceleration ap back on the
+  // way up to vt crosses (within vt ap / Jw of here, Jw the window's lowest: an upper bound of
+  // that distance); Jw when they lie beyond the scan budget.
+  double landing_jerk(double ap, double vt, double J, double Jw) const {
+    const Rec& rc = R(cur);
+    const double limit = rc.s0 + st.s + vt * (ap / Jw + dt);
+    std::size_t idx = ring_index(cur + 1);
+    int scanned = 0;
+    for (std::uint64_t q = cur + 1; q < tail; ++q) {
+      if (++scanned > kMaxExtendPerStep) return std::min(J, Jw);
+      const Rec& r = rec[idx];
+      if (++idx == cap) idx = 0;
+      if (r.s0 > limit || r.kind == RecKind::kStop) break;
+      if (r.kind == RecKind::kMotion) J = std::min(J, r.jt);
+    }
+    return J;
+  }
+
   // Tangential limits for this calculation step: the records it can reach.
   void step_limits(double& A, double& J) const {
     const Rec& rc = R(cur);
@@ -1391,6 +1409,16 @@ struct Interpolator::Impl {
       const int n_dec = decel_limits(v, a, J, A, hi, dec);
       lo = std::max(lo, std::min(jerk::floor_acceleration(v, a, kFloorMarginJ * J, dt), hi));
       double xd = std::clamp(jerk::track_velocity(v, a, vt, A, J, dt), lo, hi);
+      if (xd > 0.0 && v < vt) {
+        // Landing on vt takes the acceleration back over the records ahead: with a lower jerk
+        // limit there than this step's, a landing planned at J overshoots vt (by up to 0.06 %
+        // of the feed on chords whose direction turns towards an axis).
+        const double Jl = landing_jerk(std::max(a, xd), vt, J, Jw);
+        // Never above the landing at J: this step may still take acceleration back at J.
+        if (Jl < J && jerk::landing_acceleration(v, a, vt, Jl, dt) < xd) {
+          xd = std::min(xd, std::clamp(jerk::track_velocity(v, a, vt, A, Jl, dt), lo, hi));
+        }
+      }
       // Lowest x from which every deceleration above a record's limit ahead can still be taken
       // back before the record (monotone in x while the motion does not reverse). Tracking the
       // target (an override decrease, a lower feed) never goes below it; braking for a limit
