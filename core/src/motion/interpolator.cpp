@@ -142,6 +142,49 @@ class QDeque {
   std::size_t size_ = 0;
 };
 
+// Sliding-window minimum of one field over records (a monotone deque of (record, value) with the
+// values increasing from front to back; no allocation after init). The values are copied in:
+// a record's limits do not change once it is stored, and the pushes compare without reading
+// the ring.
+class MinWindow {
+ public:
+  void init(std::size_t cap) {
+    buf_.assign(cap, Entry{});
+    clear();
+  }
+  void clear() {
+    head_ = 0;
+    size_ = 0;
+  }
+  bool empty() const { return size_ == 0; }
+  std::uint64_t front() const { return buf_[head_].q; }
+  //! The window's minimum (the front's value).
+  double min() const { return buf_[head_].v; }
+  void push(std::uint64_t q, double v) {
+    while (size_ > 0 && buf_[idx(size_ - 1)].v >= v) --size_;
+    if (size_ == buf_.size()) pop_front();  // cannot happen with cap >= ring size; stay safe
+    buf_[idx(size_)] = Entry{q, v};
+    ++size_;
+  }
+  void pop_front() {
+    head_ = idx(1);
+    --size_;
+  }
+
+ private:
+  struct Entry {
+    std::uint64_t q = 0;
+    double v = 0.0;
+  };
+  std::size_t idx(std::size_t k) const {
+    std::size_t i = head_ + k;
+    return i >= buf_.size() ? i - buf_.size() : i;
+  }
+  std::vector<Entry> buf_;
+  std::size_t head_ = 0;
+  std::size_t size_ = 0;
+};
+
 enum class Mode : std::uint8_t { kIdle, kMoving, kStopping, kEmergency, kWaitM, kDwell };
 
 // Kinds of the events that leave the smoothing with the motion (SmoothingEvent::kind).
@@ -212,7 +255,8 @@ struct Interpolator::Impl {
   std::uint64_t base = 0;     // q of the program's first record (Act_Part = q - base + 1)
   std::uint64_t win_end = 0;  // first record not in the look-ahead window
   bool complete = false;
-  QDeque dq_a, dq_j, dq_wg, dq_wf, st_g, st_f, st_a;
+  MinWindow dq_a, dq_j, dq_wg, dq_wf;
+  QDeque st_g, st_f, st_a;
 
   // ---- planning tail (where the next appended motion starts) ----
   std::array<double, kMaxAxes> pt_end{};
@@ -575,22 +619,6 @@ struct Interpolator::Impl {
     win_end = cur;
   }
 
-  // Sliding-window minimum of one field (0: at, 1: jt, 2: wg, 3: wf).
-  double field(std::uint64_t q, int which) const {
-    const Rec& r = R(q);
-    switch (which) {
-      case 0: return r.at;
-      case 1: return r.jt;
-      case 2: return r.wg;
-      default: return r.wf;
-    }
-  }
-  void push_min(QDeque& dq, std::uint64_t q, int which) {
-    const double v = field(q, which);
-    while (!dq.empty() && field(dq.back(), which) >= v) dq.pop_back();
-    dq.push_back(q);
-  }
-
   // Look-ahead horizon [mm] from (v, a) with the current record's jerk limit jc and the window
   // minima a0, j0: the stopping distance from the fastest state the cycle can reach (full jerk
   // from here), the distance to take back the acceleration, and one more cycle of travel.
@@ -619,34 +647,36 @@ struct Interpolator::Impl {
     // Extend until the window covers the horizon computed with the window's own minima (new
     // records may lower them and so lengthen the horizon).
     for (int pass = 0; pass < 3; ++pass) {
-      const double a0 = dq_a.empty() ? rc.at : R(dq_a.front()).at;
-      const double j0 = dq_j.empty() ? rc.jt : R(dq_j.front()).jt;
+      const double a0 = dq_a.empty() ? rc.at : dq_a.min();
+      const double j0 = dq_j.empty() ? rc.jt : dq_j.min();
       // The window and the chains are gathered once per cycle: take the fastest state the
       // cycle can reach (full jerk from here) and one more cycle of travel as margin.
       horizon = horizon_for(v, a, rc.jt, a0, j0);
       const double limit = rc.s0 + st.s + horizon;
       const int before = added;
+      std::size_t idx = ring_index(win_end);
       while (win_end < tail && added < kMaxExtendPerCycle) {
-        const Rec& r = R(win_end);
+        const Rec& r = rec[idx];
+        if (++idx == cap) idx = 0;
         if (win_end > cur) {
           if (r.kind == RecKind::kStop) break;
           if (r.s0 > limit) break;
         }
         if (r.kind == RecKind::kMotion) {
-          push_min(dq_a, win_end, 0);
-          push_min(dq_j, win_end, 1);
+          dq_a.push(win_end, r.at);
+          dq_j.push(win_end, r.jt);
         }
         if (win_end > cur) {
-          push_min(dq_wg, win_end, 2);
-          push_min(dq_wf, win_end, 3);
+          dq_wg.push(win_end, r.wg);
+          dq_wf.push(win_end, r.wf);
         }
         ++win_end;
         ++added;
       }
       if (added == before) break;
     }
-    A = dq_a.empty() ? rc.at : R(dq_a.front()).at;
-    J = dq_j.empty() ? rc.jt : R(dq_j.front()).jt;
+    A = dq_a.empty() ? rc.at : dq_a.min();
+    J = dq_j.empty() ? rc.jt : dq_j.min();
   }
 
   // Collects the limits ahead into `c`; returns their count. Window minima Aw, Jw apply to the
@@ -671,7 +701,7 @@ struct Interpolator::Impl {
             const Rec& m = R(dq_wg.front());
             c[k++] = {r.s0 - here, m.wg, A, J, m.wg_reason, false};
           } else if (fam == 1 && !dq_wf.empty()) {
-            c[k++] = {r.s0 - here, R(dq_wf.front()).wf * rel, A, J, LimitFactor::kFeed, false, true};
+            c[k++] = {r.s0 - here, dq_wf.min() * rel, A, J, LimitFactor::kFeed, false, true};
           } else if (fam == 2) {
             c[k++] = {r.s0 - here, Aw, A, J, LimitFactor::kAccelJerk, true};
           }
@@ -1832,8 +1862,8 @@ struct Interpolator::Impl {
         (!dq_wg.empty() && dq_wg.front() <= cur) || (!dq_wf.empty() && dq_wf.front() <= cur)) {
       return 0;
     }
-    const double a0 = dq_a.empty() ? rc.at : R(dq_a.front()).at;
-    const double j0 = dq_j.empty() ? rc.jt : R(dq_j.front()).jt;
+    const double a0 = dq_a.empty() ? rc.at : dq_a.min();
+    const double j0 = dq_j.empty() ? rc.jt : dq_j.min();
     const double hz = horizon_for(v, 0.0, rc.jt, a0, j0);
     // (1) Every limit of the window's chains (no horizon cut), the truncation stand-ins and
     // the window end, judged from the cruise state.
