@@ -309,6 +309,10 @@ struct Interpolator::Impl {
   // Jerk of the last calculation step when it rode a braking limit (largest_passing), else kInf:
   // the next step's first guess.
   double ride_jerk = kInf;
+  // The limit that step rode (path position and value): when it is violated again, the root
+  // finder starts with it (in a steady ride the same limit binds, not always the one that
+  // fails worst at the wanted x).
+  double ride_pos = 0.0, ride_w = 0.0;
 
   // block statistics of the current motion
   double blk_peak = 0.0;
@@ -1292,11 +1296,12 @@ struct Interpolator::Impl {
 
   // The largest end-of-step acceleration in [xs, xu] that every violated limit accepts, to the
   // resolution of ten bisection steps ((xu - xs) / 1024), given that xs passes and xu fails.
-  // One limit almost always binds alone. Start with the limit that failed worst at xu (k,
-  // excess e_u); when another limit rejects the result, that one binds below it: solve for it
-  // inside [xs, result] and check again. Each limit's excess is monotone in x, so no passing x
-  // above the result is missed; after `rounds` limits, bisection on all decides. On return k is
-  // the limit that binds at the result.
+  // One limit almost always binds alone. Start with limit k (excess e_u at xu: the one the
+  // previous step rode when it fails again, else the one that failed worst); when another
+  // limit rejects the result, that one binds below it: solve for it inside [xs, result] and
+  // check again. Each limit's excess is monotone in x, so no passing x above the result is
+  // missed; after `rounds` limits, bisection on all decides. On return k is the limit that
+  // binds at the result.
   //
   // Per limit, guesses before a regula falsi (Anderson-Bjorck): `boundary(k, out)` (up to two),
   // the x whose end-of-step state just needs no braking for k any more (the velocity after
@@ -1485,6 +1490,8 @@ struct Interpolator::Impl {
       const double moved = rc.s0 + before.s - cons_here;  // since the constraints were gathered
       int viol[3 * kChainMax + 4];
       int nv = 0;
+      int ride_k = -1;  // the limit the last step rode, when violated again
+      double ride_e = 0.0;
       double worst = 0.0;
       int worst_k = -1;
       // Excess [mm] of limit k's braking (or acceleration change) over its room from the
@@ -1556,6 +1563,11 @@ struct Interpolator::Impl {
           if (worst_k < 0 || e > worst) {
             worst = e;
             worst_k = k;
+          }
+          if (ride_before < kInf && c[k].w == ride_w &&
+              std::fabs(cons_here + c[k].d - ride_pos) <= 1e-9) {
+            ride_k = k;
+            ride_e = e;
           }
         }
       }
@@ -1644,9 +1656,15 @@ struct Interpolator::Impl {
             return n_out;
           };
           // On return worst_k is the limit that binds at x: it reports the factor below.
+          if (ride_k >= 0) {
+            worst_k = ride_k;
+            worst = ride_e;
+          }
           x = largest_passing(xs, xu, excess, worst_k, worst, first_failing, 3, boundary,
                               ride_before < kInf ? a + ride_before * dt : kInf);
           ride_jerk = (x - a) / dt;
+          ride_pos = cons_here + c[worst_k].d;
+          ride_w = c[worst_k].w;
         }
         factor = c[worst_k].reason;
         braking_to_stop = c[worst_k].w == 0.0;
