@@ -1444,10 +1444,11 @@ struct Interpolator::Impl {
       const int n_dec = decel_limits(v, a, J, A, hi, dec);
       lo = std::max(lo, std::min(jerk::floor_acceleration(v, a, kFloorMarginJ * J, dt), hi));
       double xd = std::clamp(jerk::track_velocity(v, a, vt, A, J, dt), lo, hi);
-      if (xd > 0.0 && v < vt) {
-        // Landing on vt takes the acceleration back over the records ahead: with a lower jerk
-        // limit there than this step's, a landing planned at J overshoots vt (by up to 0.06 %
-        // of the feed on chords whose direction turns towards an axis).
+      // Landing on vt takes the acceleration back over the records ahead: with a lower jerk
+      // limit there than this step's, a landing planned at J overshoots vt (by up to 0.06 % of
+      // the feed on chords whose direction turns towards an axis). Not while even a landing at
+      // the window's lowest jerk limit would not bind yet (most of an acceleration).
+      if (xd > 0.0 && v < vt && Jw < J && jerk::landing_acceleration(v, a, vt, Jw, dt) < xd) {
         const double Jl = landing_jerk(std::max(a, xd), vt, J, Jw);
         // Never above the landing at J: this step may still take acceleration back at J.
         if (Jl < J && jerk::landing_acceleration(v, a, vt, Jl, dt) < xd) {
