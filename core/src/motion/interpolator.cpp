@@ -2046,11 +2046,10 @@ struct Interpolator::Impl {
 
   // `cur` moved on from lookahead_cur or records were appended, and nothing else changed
   // (lookahead_dirty clear): the sections passed leave the table, the rest move up, new ones are
-  // filled in behind them. The
-  // result equals fill_lookahead's (the first entry's M address and current tangent are
-  // written afresh), at a fraction of its cost on short segments, where `cur` moves on in most
-  // cycles. Falls back to a full fill when the old table was not full or its records may have
-  // been overwritten in the ring.
+  // filled in behind them. The result equals fill_lookahead's (the first entry's M address and
+  // current tangent are written afresh; the kept entries' records are at or after `cur`, so
+  // still in the ring), at a fraction of its cost on short segments, where `cur` moves on in
+  // most cycles. A table that was not full is filled afresh.
   void shift_lookahead() {
     if (!lookahead_full || lookahead_cur > cur) {
       fill_lookahead();
