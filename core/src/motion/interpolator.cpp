@@ -1993,25 +1993,16 @@ struct Interpolator::Impl {
     return sg.type == SegmentType::kMFunction && sg.m_kind == MKind::kNormal;
   }
 
-  // The M-function address of the first section at or after `cur` (q0) when it is written
-  // afresh: a continuous M just behind `cur` (a continuous M belongs to the section after it:
-  // when that section executes, the M record is just behind `cur`), or the last one in [cur, q0).
-  double first_pending_m(std::uint64_t q0) const {
-    double pending_m = kNotSet;
+  // A continuous M just behind `cur`, else kNotSet. A continuous M belongs to the section
+  // after it: when that section executes, the M record is just behind `cur`.
+  double pending_m_behind_cur() const {
     for (std::uint64_t b = cur; b > base && cur - b < 64 && tail - (b - 1) <= cap;) {
       --b;
       const Segment& sb = S(b);
-      if (sb.type == SegmentType::kMFunction && sb.m_kind == MKind::kContinuous) {
-        pending_m = sb.m;
-        break;
-      }
+      if (sb.type == SegmentType::kMFunction && sb.m_kind == MKind::kContinuous) return sb.m;
       if (is_section(sb) || sb.type == SegmentType::kMFunction || sb.type == SegmentType::kDwell) break;
     }
-    for (std::uint64_t q = cur; q < q0; ++q) {
-      const Segment& sg = S(q);
-      if (sg.type == SegmentType::kMFunction && sg.m_kind == MKind::kContinuous) pending_m = sg.m;
-    }
-    return pending_m;
+    return kNotSet;
   }
 
   // Fills entries e.. from record q on (pending_m: a continuous M seen before q).
@@ -2038,11 +2029,7 @@ struct Interpolator::Impl {
     for (; e < kLookAheadEntries; ++e) reg.lookahead[static_cast<std::size_t>(e)] = LookAheadEntry{};
   }
 
-  void fill_lookahead() {
-    std::uint64_t q0 = cur;
-    while (q0 < tail && q0 - cur < 256 && !is_section(S(q0))) ++q0;
-    fill_lookahead_from(0, cur, first_pending_m(q0));
-  }
+  void fill_lookahead() { fill_lookahead_from(0, cur, pending_m_behind_cur()); }
 
   // `cur` moved on from lookahead_cur or records were appended, and nothing else changed
   // (lookahead_dirty clear): the sections passed leave the table, the rest move up, new ones are
@@ -2067,10 +2054,15 @@ struct Interpolator::Impl {
       reg.lookahead[ud] = reg.lookahead[ue];
       lookahead_q[ud] = lookahead_q[ue];
     }
-    // The new first entry: its M address and, when it is the current arc, its tangent.
+    // The new first entry: its M address (as fill_lookahead_from would find it from `cur`) and,
+    // when it is the current arc, its tangent.
     const std::uint64_t q0 = lookahead_q[0];
     const Segment& s0 = S(q0);
-    const double pending_m = first_pending_m(q0);
+    double pending_m = pending_m_behind_cur();
+    for (std::uint64_t q = cur; q < q0; ++q) {
+      const Segment& sg = S(q);
+      if (sg.type == SegmentType::kMFunction && sg.m_kind == MKind::kContinuous) pending_m = sg.m;
+    }
     LookAheadEntry& e0 = reg.lookahead[0];
     const auto m_slot = static_cast<std::size_t>('M' - 'A');
     e0.all_params[m_slot] = !is_not_set(pending_m) ? pending_m
