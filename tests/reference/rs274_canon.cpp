@@ -1,5 +1,7 @@
 #include "rs274_canon.hpp"
 
+#include <fcntl.h>
+#include <sys/file.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -159,6 +161,17 @@ std::string find_rs274() {
 
 Rs274Run run_rs274(const std::string& rs274, const std::string& file) {
   Rs274Run r;
+  // rs274 instances running at the same time crash now and then ("Bus error", exit 135: about
+  // one pair in five here, they share LinuxCNC state), and ctest -j runs several reference
+  // tests at once: one rs274 at a time on this machine, whichever process runs it.
+  const int lock_fd = ::open("/tmp/tgm-rs274.lock", O_RDWR | O_CREAT | O_CLOEXEC, 0666);
+  if (lock_fd >= 0) ::flock(lock_fd, LOCK_EX);
+  struct Unlock {
+    int fd;
+    ~Unlock() {
+      if (fd >= 0) ::close(fd);  // releases the lock
+    }
+  } unlock{lock_fd};
   const std::string err_file = file + ".rs274.err";
   // Paths come from the test itself (build tree); single quotes keep spaces safe.
   const std::string cmd = "'" + rs274 + "' -g '" + file + "' 2>'" + err_file + "'";
