@@ -137,13 +137,20 @@ void DdsPort::start() {
   publisher_ = std::thread([this] { publish_loop(); });
 }
 
-void DdsPort::stop() {
+void DdsPort::stop(std::atomic<const char*>* stage) {
+  const auto at = [stage](const char* what) {
+    if (stage != nullptr) stage->store(what, std::memory_order_release);
+  };
   stopping_ = true;
+  at("removing the DDS request listener");
   request_reader_.set_listener(nullptr);
+  at("waiting for a DDS request callback in progress");
   { const std::lock_guard lock(request_mutex_); }  // a callback in progress has finished
   waiter_.wake();
   doorbell_.ring();
+  at("joining the DDS receive thread");
   if (receiver_.joinable()) receiver_.join();
+  at("joining the DDS publisher thread");
   if (publisher_.joinable()) publisher_.join();
 }
 
@@ -219,7 +226,9 @@ void DdsPort::take_requests() {
 
 void DdsPort::take_requests_locked() {
   msg::Request& r = request_sample_;
-  while (dds::take_next(request_reader_, r)) {
+  // Stopping: what is still in the reader is neither executed nor answered (the service is
+  // going away); a flood must not keep a callback, and so stop(), busy here.
+  while (!stopping_.load(std::memory_order_relaxed) && dds::take_next(request_reader_, r)) {
     if (requests_.full()) {
       // A client sends faster than the cycles take requests. Leaving the sample in the reader
       // would lose it unseen (the reader's history is KEEP_LAST: newer requests push it out;

@@ -86,8 +86,9 @@ class DdsPort final : public CyclePort {
 
   //! Starts the receiver and publisher threads.
   void start();
-  //! Stops and joins them (idempotent).
-  void stop();
+  //! Stops and joins them (idempotent). `stage`, when given, is told what it is doing at each
+  //! point where it can wait (for a watchdog that reports a slow stop).
+  void stop(std::atomic<const char*>* stage = nullptr);
 
   bool next_request(RequestIn& out) override;
   ChunkIn* front_chunk(int interpolator) override;

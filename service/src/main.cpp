@@ -9,6 +9,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
+#include <chrono>
 #include <cstring>
 #include <ctime>
 #include <string>
@@ -28,7 +29,8 @@ constexpr const char* kUsage =
     "\n"
     "Hosts the configured interpolators (1..3), runs their cycle every cycle_time_us with\n"
     "absolute deadlines and serves state, setpoints, requests and the program stream over DDS.\n"
-    "Stops cleanly on SIGINT / SIGTERM (exit code 0).\n"
+    "Stops cleanly on SIGINT / SIGTERM (exit code 0); a stop that takes longer than 5 s says\n"
+    "what it waits for, and a second SIGINT / SIGTERM while stopping exits at once (code 1).\n"
     "\n"
     "  --config YAML          machine config (default: $TGM_CONFIG, the installed or the\n"
     "                         in-tree config/default.yaml)\n"
@@ -222,9 +224,37 @@ int main(int argc, char** argv) {
     while (sigwait(&signals, &sig) != 0) {
     }
   }
+  // The stop can wait on other threads (the cycle, Fast DDS callbacks, the participant's
+  // shutdown). A watchdog says where it is when that takes long, and a second signal ends the
+  // process at once: an operator is never left with a service that ignores Ctrl-C.
+  std::atomic<const char*> stage{"joining the cycle thread"};
+  std::atomic<bool> stopped{false};
+  std::thread watchdog([&] {
+    const auto begin = std::chrono::steady_clock::now();
+    auto report = begin + std::chrono::seconds(5);
+    while (!stopped.load(std::memory_order_acquire)) {
+      timespec slice{};
+      slice.tv_nsec = 50'000'000;
+      const int again = sigtimedwait(&signals, nullptr, &slice);
+      if (again > 0) {
+        std::fprintf(stderr, "tgm-service: %s while stopping (%s): exiting at once\n", strsignal(again),
+                     stage.load(std::memory_order_acquire));
+        std::fflush(stderr);
+        std::_Exit(1);
+      }
+      if (std::chrono::steady_clock::now() >= report) {
+        const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count();
+        std::fprintf(stderr, "tgm-service: still stopping after %.0f s: %s (send the signal again to exit at once)\n",
+                     s, stage.load(std::memory_order_acquire));
+        std::fflush(stderr);
+        report += std::chrono::seconds(5);
+      }
+    }
+  });
   stop = true;
   cycle_thread.join();
-  port->stop();
+  port->stop(&stage);
+  stage.store("writing the statistics", std::memory_order_release);
 
   const auto& st = loop.stats();
   const auto& hist = loop.histogram();
@@ -297,6 +327,9 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "tgm-service: cannot write %s: %s\n", trace_path.c_str(), std::strerror(errno));
     }
   }
+  stage.store("closing the DDS participant", std::memory_order_release);
   port.reset();
+  stopped.store(true, std::memory_order_release);
+  watchdog.join();
   return 0;
 }
