@@ -248,5 +248,45 @@ TEST(Advance, SimulationSummaryEqualsStepping) {
   }
 }
 
+// The progress hook: called while the run goes on with cycles, program time and Act_Part
+// growing, both when stepping and when advancing; returning false ends the run right there.
+TEST(Simulation, ProgressIsReportedAndCanEndTheRun) {
+  std::mt19937_64 rng(11);
+  const MachineConfig m = random_machine(rng, 3);
+  const test::Generated g = random_program(rng, 3, 16);
+  for (const bool fast : {false, true}) {
+    SimulationOptions o;
+    o.fast_forward = fast;
+    std::vector<SimulationProgress> seen;
+    o.on_progress = [&](const SimulationProgress& p) {
+      seen.push_back(p);
+      return true;
+    };
+    auto sim = Simulation::create(m, o);
+    ASSERT_TRUE(sim);
+    const SimulationSummary whole = sim->run(g.program);
+    ASSERT_EQ(whole.result, StepResult::kFinished) << whole.error;
+    ASSERT_GE(seen.size(), 2u) << "fast_forward " << fast;
+    for (std::size_t i = 1; i < seen.size(); ++i) {
+      EXPECT_GT(seen[i].cycles, seen[i - 1].cycles);
+      EXPECT_GE(seen[i].act_part, seen[i - 1].act_part);
+      EXPECT_DOUBLE_EQ(seen[i].program_time_s, static_cast<double>(seen[i].cycles) * m.cycle_time_us * 1e-6);
+      EXPECT_EQ(seen[i].records, g.program.segments.size());
+    }
+    EXPECT_LT(seen.back().cycles, whole.cycles);
+
+    // Ended at the second report: the summary is where the run was then.
+    int calls = 0;
+    o.on_progress = [&](const SimulationProgress&) { return ++calls < 2; };
+    auto cut = Simulation::create(m, o);
+    ASSERT_TRUE(cut);
+    const SimulationSummary part = cut->run(g.program);
+    EXPECT_EQ(calls, 2);
+    EXPECT_EQ(part.result, StepResult::kWorking);
+    EXPECT_EQ(part.error, "interrupted");
+    EXPECT_EQ(part.cycles, seen[1].cycles);
+  }
+}
+
 }  // namespace
 }  // namespace tgm

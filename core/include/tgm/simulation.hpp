@@ -22,6 +22,15 @@
 
 namespace tgm {
 
+//! Where a run is, for a progress display.
+struct SimulationProgress {
+  std::uint64_t cycles = 0;     //!< cycles run so far
+  double program_time_s = 0.0;  //!< cycles x Cycle_Time
+  std::int32_t act_part = 0;    //!< Act_Part: 1-based ordinal of the executing record
+  std::int32_t act_line = 0;    //!< its source line
+  std::size_t records = 0;      //!< records in the program
+};
+
 //! How the offline run behaves.
 struct SimulationOptions {
   int interpolator = 0;
@@ -46,6 +55,11 @@ struct SimulationOptions {
   //! {-2, {200, 1000000}} for the spline, {-1, {p, q, f, mask}} for the IIR filter); a refusal
   //! makes create() fail with the reason.
   std::vector<std::pair<std::int32_t, std::array<std::int32_t, kCommandParameters>>> commands;
+  //! Called every kProgressPasses passes of the run loop (each one step() or one advance()),
+  //! i.e. every few milliseconds of wall time; returning false ends the run there (result
+  //! kWorking, error "interrupted"). Core reads no clock: the caller decides what to show when.
+  std::function<bool(const SimulationProgress&)> on_progress;
+  static constexpr std::uint64_t kProgressPasses = 1024;
 };
 
 //! Outcome of a run.

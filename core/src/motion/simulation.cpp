@@ -89,7 +89,7 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
   const std::uint64_t max_cycles = static_cast<std::uint64_t>(opt_.max_time_s / T) + 1;
   const bool batch = opt_.fast_forward && !on_cycle && !checker_;
   std::array<std::uint64_t, 11> factor_cycles{};
-  std::uint64_t cycle = 0;
+  std::uint64_t cycle = 0, passes = 0;
   while (true) {
     const double t = static_cast<double>(cycle) * T;
     while (change < changes.size() && changes[change].first <= t) {
@@ -192,6 +192,19 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
       sum.result = StepResult::kWorking;
       sum.error = "time limit reached";
       break;
+    }
+    if (opt_.on_progress && ++passes % SimulationOptions::kProgressPasses == 0) {
+      SimulationProgress p;
+      p.cycles = cycle;
+      p.program_time_s = static_cast<double>(cycle) * T;
+      p.act_part = reg.act_part;
+      p.act_line = reg.act_line;
+      p.records = total;
+      if (!opt_.on_progress(p)) {
+        sum.result = StepResult::kWorking;
+        sum.error = "interrupted";
+        break;
+      }
     }
   }
   for (std::size_t k = 0; k < factor_cycles.size(); ++k) {
