@@ -1,7 +1,11 @@
 // tgm-hmi simulate: runs a G-code program through the interpolator core offline (no DDS, as fast
 // as the machine allows), writes the registers per cycle as CSV and prints a summary.
+#include <signal.h>
+#include <unistd.h>
+
 #include <array>
 #include <cerrno>
+#include <csignal>
 #include <climits>
 #include <cstdint>
 #include <chrono>
@@ -47,11 +51,42 @@ constexpr const char* kUsage =
     "  --check-limits   differentiate Orig_Position per cycle and fail on any per-axis velocity,\n"
     "                   acceleration, jerk or corner-step excess (listed with cycle and line)\n"
     "  --m-ack S        time the emulated PLC takes per normal M-function [s]\n"
+    "  --progress-interval S  when standard error is not a terminal, a progress line there\n"
+    "                   every S seconds (default 10); on a terminal the line is redrawn\n"
+    "  --quiet          no progress display\n"
     "\n"
     "The run ends when every axis, delayed or filtered, stands where the program ends.\n"
     "Prints program time, distance, per-axis peaks against the limits, violations and the time\n"
-    "spent per limit factor. Exit code: 0 finished, 1 did not finish or limits were exceeded,\n"
-    "2 bad input (usage, config, G-code errors as FILE:LINE:COL: error: reason).\n";
+    "spent per limit factor. Ctrl-C (SIGINT) or SIGTERM ends the run where it is: the output\n"
+    "files hold every cycle up to there, the summary says so, exit code 128 + the signal.\n"
+    "Exit code otherwise: 0 finished, 1 did not finish or limits were exceeded, 2 bad input\n"
+    "(usage, config, G-code errors as FILE:LINE:COL: error: reason).\n";
+
+volatile std::sig_atomic_t g_signal = 0;
+extern "C" void take_signal(int sig) { g_signal = sig; }
+
+// SIGINT / SIGTERM only set a flag while the run is on (the run loop asks for it every few
+// milliseconds); the previous handlers come back afterwards.
+class SignalFlag {
+ public:
+  SignalFlag() {
+    struct sigaction sa {};
+    sa.sa_handler = take_signal;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, &old_int_);
+    sigaction(SIGTERM, &sa, &old_term_);
+  }
+  ~SignalFlag() {
+    sigaction(SIGINT, &old_int_, nullptr);
+    sigaction(SIGTERM, &old_term_, nullptr);
+  }
+  SignalFlag(const SignalFlag&) = delete;
+  SignalFlag& operator=(const SignalFlag&) = delete;
+
+ private:
+  struct sigaction old_int_ {};
+  struct sigaction old_term_ {};
+};
 
 struct CloseFile {
   void operator()(std::FILE* f) const {
@@ -70,8 +105,8 @@ File open_out(const std::string& path) {
 
 int run_simulate(int argc, char** argv) {
   Args args(argc, argv, "simulate", kUsage);
-  std::string file, csv_path, blocks_path, rel_text, m_ack_text, spline_text, iir_text, la_path;
-  bool check_limits = false;
+  std::string file, csv_path, blocks_path, rel_text, m_ack_text, spline_text, iir_text, la_path, interval_text;
+  bool check_limits = false, quiet = false;
   while (args.more()) {
     if (args.flag("--csv", csv_path)) continue;
     if (args.flag("--blocks", blocks_path)) continue;
@@ -80,7 +115,9 @@ int run_simulate(int argc, char** argv) {
     if (args.flag("--spline", spline_text)) continue;
     if (args.flag("--iir", iir_text)) continue;
     if (args.flag("--lookahead", la_path)) continue;
+    if (args.flag("--progress-interval", interval_text)) continue;
     if (args.boolean("--check-limits", check_limits)) continue;
+    if (args.boolean("--quiet", quiet)) continue;
     if (args.common()) continue;
     if (args.positional(file)) continue;
     return args.fail();
@@ -95,6 +132,10 @@ int run_simulate(int argc, char** argv) {
   double m_ack = -1.0;
   if (!m_ack_text.empty() && (!parse_double(m_ack_text, m_ack) || m_ack < 0.0 || m_ack > 3600.0)) {
     return args.usage_error("--m-ack takes seconds 0..3600, not '" + m_ack_text + "'");
+  }
+  double interval_s = 10.0;
+  if (!interval_text.empty() && (!parse_double(interval_text, interval_s) || !(interval_s > 0.0) || interval_s > 86400.0)) {
+    return args.usage_error("--progress-interval takes seconds > 0, not '" + interval_text + "'");
   }
   // Integer lists for the Command_Parameter registers.
   auto int_list = [](const std::string& text, std::size_t count, std::array<std::int32_t, kCommandParameters>& out) {
@@ -154,6 +195,33 @@ int run_simulate(int argc, char** argv) {
   // run skips through cruise, dwells and M waits (Interpolator::advance, same trajectory).
   so.check_limits = check_limits;
   so.commands = commands;
+  const auto wall0 = std::chrono::steady_clock::now();
+  // Progress on standard error (standard output is the summary): redrawn on a terminal from
+  // half a second on, a plain line every interval_s otherwise.
+  const bool tty = ::isatty(2) != 0;
+  bool progress_shown = false;
+  auto next_progress = wall0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                   std::chrono::duration<double>(tty ? 0.5 : interval_s));
+  const SignalFlag signal_flag;
+  g_signal = 0;
+  so.on_progress = [&](const SimulationProgress& p) {
+    if (g_signal != 0) return false;
+    if (quiet) return true;
+    const auto now = std::chrono::steady_clock::now();
+    if (now < next_progress) return true;
+    next_progress = now + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                              std::chrono::duration<double>(tty ? 0.1 : interval_s));
+    const double elapsed = std::chrono::duration<double>(now - wall0).count();
+    const double done = p.records > 0 ? static_cast<double>(std::max(p.act_part, 0)) / static_cast<double>(p.records) : 0.0;
+    char eta[48] = "";
+    if (done > 0.01) std::snprintf(eta, sizeof eta, ", about %.0f s left", elapsed * (1.0 - done) / done);
+    std::fprintf(stderr, "%ssimulate: %5.1f %% of the records, line %d, program time %.1f s (%.0fx real time)%s%s",
+                 tty ? "\r\033[K" : "", 100.0 * done, p.act_line, p.program_time_s,
+                 elapsed > 0.0 ? p.program_time_s / elapsed : 0.0, eta, tty ? "" : "\n");
+    std::fflush(stderr);
+    progress_shown = tty;
+    return true;
+  };
   std::string err;
   auto sim = Simulation::create(machine, so, &err);
   if (!sim) {
@@ -183,7 +251,6 @@ int run_simulate(int argc, char** argv) {
   }
   const double T = machine.cycle_time_us * 1e-6;
   double peak_speed = 0.0;
-  const auto wall0 = std::chrono::steady_clock::now();
   std::function<void(const Registers&)> on_cycle;
   std::array<LookAheadEntry, kLookAheadEntries> la_last{};
   bool la_first = true;
@@ -259,6 +326,8 @@ int run_simulate(int argc, char** argv) {
                  b.programmed_mm_min, b.peak_mm_min, b.duration_s, limit_factor_name(b.factor));
   });
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  if (progress_shown) std::fputs("\r\033[K", stderr);
+  const int interrupted = sum.result == StepResult::kFinished ? 0 : static_cast<int>(g_signal);
   bool io_ok = true;
   for (File* f : {&csv, &blocks, &la}) {
     if (*f && (std::fflush(f->get()) != 0 || std::ferror(f->get()))) io_ok = false;
@@ -267,8 +336,10 @@ int run_simulate(int argc, char** argv) {
   const bool finished = sum.result == StepResult::kFinished;
   std::printf("program:   %s (%zu records, interpolator %d, %d us cycle)\n", file.c_str(),
               compiled.program.segments.size(), ip_index, machine.cycle_time_us);
-  std::printf("result:    %s%s%s\n", finished ? "finished" : "NOT finished", sum.error.empty() ? "" : ": ",
-              sum.error.c_str());
+  const std::string why = interrupted != 0 ? std::string("interrupted by ") + (interrupted == SIGINT ? "SIGINT" : "SIGTERM") +
+                                                  " (the output files hold every cycle up to here)"
+                                            : sum.error;
+  std::printf("result:    %s%s%s\n", finished ? "finished" : "NOT finished", why.empty() ? "" : ": ", why.c_str());
   std::printf("time:      %.4f s program time, %llu cycles, simulated %.0fx faster than real time\n",
               sum.program_time_s, static_cast<unsigned long long>(sum.cycles),
               wall > 0.0 ? sum.program_time_s / wall : 0.0);
@@ -328,6 +399,7 @@ int run_simulate(int argc, char** argv) {
     std::fprintf(stderr, "tgm-hmi simulate: error writing the output files\n");
     return 1;
   }
+  if (interrupted != 0) return 128 + interrupted;
   if (!finished || sum.nan) return 1;
   if (check_limits && sum.violation_count > 0) return 1;
   return 0;

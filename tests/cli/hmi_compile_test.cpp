@@ -2,13 +2,11 @@
 // the streamed binary output equal to the in-process encoding.
 #include <gtest/gtest.h>
 
-#include <sys/wait.h>
-
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
 #include <string>
+
+#include "cli_fixture.hpp"
 
 #include "tgm/gcode.hpp"
 #include "tgm/intercode_io.hpp"
@@ -17,53 +15,12 @@
 namespace tgm {
 namespace {
 
+using test::ProcessResult;
+using test::slurp;
 namespace fs = std::filesystem;
+using HmiCompile = test::CliTest;
 
-struct ProcessResult {
-  int exit_code = -1;
-  std::string out;
-  std::string err;
-};
-
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-class HmiCompile : public ::testing::Test {
- protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("tgm_cli_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-
-  fs::path write(const std::string& name, const std::string& text) {
-    const fs::path p = dir_ / name;
-    std::ofstream(p, std::ios::binary) << text;
-    return p;
-  }
-
-  ProcessResult run(const std::string& args) {
-    const fs::path out = dir_ / "stdout", err = dir_ / "stderr";
-    const std::string cmd = std::string(TGM_HMI) + " " + args + " >" + out.string() + " 2>" +
-                            err.string() + " </dev/null";
-    const int status = std::system(cmd.c_str());
-    ProcessResult r;
-    r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    r.out = slurp(out);
-    r.err = slurp(err);
-    return r;
-  }
-
-  fs::path dir_;
-};
-
-const char* kConfig = TGM_SOURCE_DIR "/config/default.yaml";
+const char* const kConfig = test::kDefaultConfig;
 
 TEST_F(HmiCompile, ExampleProgramWritesIntercodeEqualToTheInProcessEncoding) {
   const fs::path prog = TGM_SOURCE_DIR "/tests/programs/manual_example.ngc";

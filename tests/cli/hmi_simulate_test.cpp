@@ -1,0 +1,213 @@
+// tgm-hmi simulate as a user runs it (issue 3, "Command line"): the CSV's columns and rows, the
+// summary, the exit codes for bad input, the override, the progress display, and Ctrl-C in the
+// middle of a long run keeping every cycle written so far.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <set>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "cli_fixture.hpp"
+#include "tgm/registers.hpp"
+
+namespace tgm {
+namespace {
+
+using test::ProcessResult;
+using test::slurp;
+namespace fs = std::filesystem;
+using HmiSimulate = test::CliTest;
+using namespace std::chrono_literals;
+
+const std::string kConfig = test::kDefaultConfig;
+const std::string kExample = TGM_SOURCE_DIR "/tests/programs/manual_example.ngc";
+
+std::vector<std::string> split(const std::string& line, char sep) {
+  std::vector<std::string> out;
+  std::stringstream ss(line);
+  for (std::string f; std::getline(ss, f, sep);) out.push_back(f);
+  return out;
+}
+
+std::vector<std::string> lines(const std::string& text) { return split(text, '\n'); }
+
+// "NAME: ... <number> WORD" from the summary, e.g. number_before(out, " s program time").
+double number_before(const std::string& text, const std::string& word) {
+  const std::size_t at = text.find(word);
+  if (at == std::string::npos) return NAN;
+  std::size_t b = at;
+  while (b > 0 && (std::isdigit(static_cast<unsigned char>(text[b - 1])) || text[b - 1] == '.')) --b;
+  return std::atof(text.substr(b, at - b).c_str());
+}
+
+TEST_F(HmiSimulate, ManualExampleWritesEveryColumnAndEndsCleanUnderTheChecker) {
+  const fs::path csv = dir_ / "run.csv", blocks = dir_ / "blocks.csv";
+  const ProcessResult r = run("simulate " + kExample + " --config " + kConfig + " --check-limits --csv " +
+                              csv.string() + " --blocks " + blocks.string());
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("result:    finished\n"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("violations: 0\n"), std::string::npos) << r.out;
+  for (const char* axis : {"\nX ", "\nY ", "\nZ "}) EXPECT_NE(r.out.find(axis), std::string::npos) << axis;
+
+  const auto rows = lines(slurp(csv));
+  ASSERT_GT(rows.size(), 100u);
+  EXPECT_EQ(rows[0],
+            "time_s,line,act_part,status,run_flag,m_func,act_speed_mm_min,move_distance_mm,"
+            "orig_X,orig_Y,orig_Z,pos_X,pos_Y,pos_Z,inc_X,inc_Y,inc_Z,speed_X,speed_Y,speed_Z,limit_factor");
+  // One row per cycle, every column filled, factors by name, the last row where the program ends.
+  const double cycles = number_before(r.out, " cycles");
+  EXPECT_EQ(static_cast<double>(rows.size() - 1), cycles);
+  std::set<std::string> names;
+  for (int f = 0; f <= static_cast<int>(LimitFactor::kStopCommand); ++f) {
+    names.insert(limit_factor_name(static_cast<LimitFactor>(f)));
+  }
+  double last_t = 0.0;
+  for (std::size_t i = 1; i < rows.size(); ++i) {
+    const auto f = split(rows[i], ',');
+    ASSERT_EQ(f.size(), 21u) << rows[i];
+    const double t = std::atof(f[0].c_str());
+    ASSERT_NEAR(t - last_t, 0.0005, 1e-9) << "row " << i;
+    last_t = t;
+    ASSERT_TRUE(names.count(f[20])) << f[20];
+  }
+  const auto last = split(rows.back(), ',');
+  EXPECT_EQ(last[3], "3");  // Status: ended
+  const std::size_t end_at = r.out.find("end:");
+  ASSERT_NE(end_at, std::string::npos);
+  for (int i = 0; i < 3; ++i) {
+    const std::string key = std::string(1, "XYZ"[i]) + "=";
+    const double summary = std::atof(r.out.c_str() + r.out.find(key, end_at) + 2);
+    EXPECT_NEAR(std::atof(last[8 + i].c_str()), summary, 1e-6) << key;
+  }
+  EXPECT_NEAR(std::atof(last[0].c_str()), number_before(r.out, " s program time"), 1e-4);
+
+  const auto brows = lines(slurp(blocks));
+  ASSERT_GT(brows.size(), 1u);
+  EXPECT_EQ(brows[0], "line,act_part,g,length_mm,programmed_mm_min,peak_mm_min,duration_s,limit_factor");
+  for (std::size_t i = 1; i < brows.size(); ++i) {
+    const auto f = split(brows[i], ',');
+    ASSERT_EQ(f.size(), 8u) << brows[i];
+    EXPECT_TRUE(names.count(f[7])) << brows[i];
+  }
+}
+
+TEST_F(HmiSimulate, OverrideStretchesAFeedLimitedLine) {
+  // 100 mm at F600: 10 s plus the S-curve's ramps; at Rel_Speed 0.5 twice the cruise.
+  const fs::path prog = write("line.ngc", "G90 G1 X100 F600\nM2\n");
+  const ProcessResult full = run("simulate " + prog.string() + " --config " + kConfig);
+  const ProcessResult half = run("simulate " + prog.string() + " --config " + kConfig + " --rel-speed 0.5");
+  ASSERT_EQ(full.exit_code, 0) << full.out << full.err;
+  ASSERT_EQ(half.exit_code, 0) << half.out << half.err;
+  const double t1 = number_before(full.out, " s program time");
+  const double t2 = number_before(half.out, " s program time");
+  EXPECT_GT(t1, 10.0);
+  EXPECT_LT(t1, 10.1);
+  EXPECT_GT(t2, 20.0);
+  EXPECT_LT(t2, 20.1);
+  EXPECT_NE(full.out.find("X=100.000000 Y=0.000000 Z=0.000000"), std::string::npos) << full.out;
+  EXPECT_NE(full.out.find("distance:  100.0000 mm"), std::string::npos) << full.out;
+}
+
+TEST_F(HmiSimulate, BadInputIsAUsageErrorAndWritesNothing) {
+  const fs::path bad = write("bad.ngc", "G90\nG1 X1 Q2\n");
+  const fs::path csv = dir_ / "out.csv";
+  ProcessResult r = run("simulate " + bad.string() + " --config " + kConfig + " --csv " + csv.string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find(bad.string() + ":2:7: error: unknown word 'Q2'"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(csv));
+  const std::string ok = kExample + " --config " + kConfig;
+  const std::pair<std::string, std::string> cases[] = {
+      {"simulate", "a G-code FILE is required"},
+      {"simulate " + ok + " --rel-speed 3", "--rel-speed takes a number 0.01..2, not '3'"},
+      {"simulate " + ok + " --m-ack -1", "--m-ack takes seconds 0..3600, not '-1'"},
+      {"simulate " + ok + " --spline 1,2,3", "--spline takes POINTS,JERK (integers), not '1,2,3'"},
+      {"simulate " + ok + " --iir 1,2", "--iir takes P,Q,F,MASK"},
+      {"simulate " + ok + " --progress-interval 0", "--progress-interval takes seconds > 0, not '0'"},
+      {"simulate " + ok + " --interpolator 3", "--interpolator must be 0..2"},
+      {"simulate " + ok + " --frobnicate", "unknown option '--frobnicate'"},
+      {"simulate /nonexistent.ngc --config " + kConfig, "/nonexistent.ngc: error: cannot open"},
+  };
+  for (const auto& [args, message] : cases) {
+    r = run(args);
+    EXPECT_EQ(r.exit_code, 2) << args;
+    EXPECT_NE(r.err.find(message), std::string::npos) << args << "\n" << r.err;
+    EXPECT_TRUE(r.out.empty()) << args;
+  }
+  r = run("simulate --help");
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_NE(r.out.find("usage: tgm-hmi simulate FILE"), std::string::npos);
+}
+
+TEST_F(HmiSimulate, ProgressGoesToStandardErrorUnlessQuiet) {
+  // 20,000 cycles with the CSV (every cycle stepped): some progress lines at a tiny interval.
+  const fs::path prog = write("line.ngc", "G90 G1 X100 F600\nM2\n");
+  const std::string args = "simulate " + prog.string() + " --config " + kConfig + " --csv " +
+                           (dir_ / "o.csv").string() + " --progress-interval 0.000001";
+  ProcessResult r = run(args);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto progress = lines(r.err);
+  ASSERT_GE(progress.size(), 2u) << r.err;
+  for (const auto& l : progress) EXPECT_EQ(l.rfind("simulate: ", 0), 0u) << l;
+  EXPECT_NE(r.err.find("% of the records, line 1, program time"), std::string::npos) << r.err;
+  EXPECT_EQ(r.out.find("simulate: "), std::string::npos);  // the summary stays clean
+  r = run(args + " --quiet");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err, "");
+}
+
+TEST_F(HmiSimulate, InterruptKeepsEveryCycleWrittenAndSaysSo) {
+  // 6,000 s of program time stepped cycle by cycle into a CSV: far longer than the test waits.
+  const fs::path prog = write("long.ngc", "G90 G1 X1000 F10\nM2\n");
+  const fs::path csv = dir_ / "long.csv", out = dir_ / "stdout", err = dir_ / "stderr";
+  const std::string hmi = TGM_HMI, config = kConfig, p = prog.string(), c = csv.string();
+  const pid_t pid = ::fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    std::freopen(out.c_str(), "w", stdout);
+    std::freopen(err.c_str(), "w", stderr);
+    ::execl(hmi.c_str(), hmi.c_str(), "simulate", p.c_str(), "--config", config.c_str(), "--csv", c.c_str(),
+            "--progress-interval", "0.05", static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  // Interrupt once it is well under way (it says so on standard error).
+  const auto give_up = std::chrono::steady_clock::now() + 60s;
+  while (slurp(err).find("simulate: ") == std::string::npos && std::chrono::steady_clock::now() < give_up) {
+    std::this_thread::sleep_for(20ms);
+  }
+  ::kill(pid, SIGINT);
+  int status = 0;
+  pid_t done = 0;
+  while ((done = ::waitpid(pid, &status, WNOHANG)) == 0 && std::chrono::steady_clock::now() < give_up + 30s) {
+    std::this_thread::sleep_for(20ms);
+  }
+  if (done == 0) {
+    ::kill(pid, SIGKILL);
+    ::waitpid(pid, &status, 0);
+    FAIL() << "tgm-hmi simulate did not stop on SIGINT";
+  }
+  ASSERT_TRUE(WIFEXITED(status)) << "killed by signal " << (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
+  EXPECT_EQ(WEXITSTATUS(status), 130);
+  const std::string summary = slurp(out);
+  EXPECT_NE(summary.find("result:    NOT finished: interrupted by SIGINT"), std::string::npos) << summary;
+  const std::string text = slurp(csv);
+  ASSERT_FALSE(text.empty());
+  EXPECT_EQ(text.back(), '\n');
+  const auto rows = lines(text);
+  const double cycles = number_before(summary, " cycles");
+  EXPECT_GT(cycles, 0.0);
+  EXPECT_LT(cycles, 12e6);  // stopped long before the end
+  EXPECT_EQ(static_cast<double>(rows.size() - 1), cycles);
+  EXPECT_NEAR(std::atof(rows.back().c_str()), cycles * 0.0005, 1e-6);
+}
+
+}  // namespace
+}  // namespace tgm
