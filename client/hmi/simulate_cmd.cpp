@@ -8,12 +8,14 @@
 #include <csignal>
 #include <climits>
 #include <cstdint>
+#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <cstring>
 #include <cstdio>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -94,6 +96,47 @@ struct CloseFile {
   }
 };
 using File = std::unique_ptr<std::FILE, CloseFile>;
+
+// CSV text formatted with std::to_chars, which gives exactly what printf's %.Nf and %d give
+// (the standard defines it so) at a fraction of the cost, and written in large pieces: the CSV
+// of a long program has millions of rows, and printf took 2 us of every row's 2.8 us.
+class CsvWriter {
+ public:
+  explicit CsvWriter(std::FILE* f) : f_(f) {}
+  CsvWriter(const CsvWriter&) = delete;
+  CsvWriter& operator=(const CsvWriter&) = delete;
+  ~CsvWriter() { flush(); }
+
+  void fixed(double v, int precision) {
+    room();
+    p_ = std::to_chars(p_, buf_.data() + buf_.size(), v, std::chars_format::fixed, precision).ptr;
+  }
+  void integer(long long v) {
+    room();
+    p_ = std::to_chars(p_, buf_.data() + buf_.size(), v).ptr;
+  }
+  void text(const char* t) {
+    for (; *t != '\0'; ++t) put(*t);
+  }
+  void put(char c) {
+    room();
+    *p_++ = c;
+  }
+  //! Writes what is buffered (also done when full and at destruction).
+  void flush() {
+    if (p_ != buf_.data()) std::fwrite(buf_.data(), 1, static_cast<std::size_t>(p_ - buf_.data()), f_);
+    p_ = buf_.data();
+  }
+
+ private:
+  // The longest field, a double of 1e308 in %.9f, takes 320 characters.
+  void room() {
+    if (buf_.data() + buf_.size() - p_ < 400) flush();
+  }
+  std::FILE* f_;
+  std::array<char, 1 << 16> buf_{};
+  char* p_ = buf_.data();
+};
 
 File open_out(const std::string& path) {
   File f(std::fopen(path.c_str(), "w"));
@@ -245,6 +288,8 @@ int run_simulate(int argc, char** argv) {
     for (char l : letters) std::fprintf(csv.get(), ",speed_%c", l);
     std::fputs(",limit_factor\n", csv.get());
   }
+  std::optional<CsvWriter> csv_out;
+  if (csv) csv_out.emplace(csv.get());
   if (blocks) {
     std::setvbuf(blocks.get(), blk_buf.data(), _IOFBF, blk_buf.size());
     std::fputs("line,act_part,g,length_mm,programmed_mm_min,peak_mm_min,duration_s,limit_factor\n", blocks.get());
@@ -307,16 +352,37 @@ int run_simulate(int argc, char** argv) {
     on_cycle = [&](const Registers& r) {
       if (la && la_changed(r)) write_lookahead(r);
       if (!csv) return;
-      std::FILE* f = csv.get();
-      std::fprintf(f, "%.6f,%d,%d,%d,%u,%d,%.6f,%.9f", static_cast<double>(r.cycle) * T, r.act_line, r.act_part,
-                   r.status, r.run_flag, r.m_func, r.act_speed, r.move_distance);
-      for (int i = 0; i < n; ++i) std::fprintf(f, ",%.9f", r.orig_position[static_cast<std::size_t>(i)]);
-      for (int i = 0; i < n; ++i) std::fprintf(f, ",%.9f", r.position[static_cast<std::size_t>(i)]);
-      for (int i = 0; i < n; ++i) {
-        std::fprintf(f, ",%lld", static_cast<long long>(r.position_inc[static_cast<std::size_t>(i)]));
+      CsvWriter& w = *csv_out;
+      w.fixed(static_cast<double>(r.cycle) * T, 6);
+      for (const long long v : {static_cast<long long>(r.act_line), static_cast<long long>(r.act_part),
+                                static_cast<long long>(r.status), static_cast<long long>(r.run_flag),
+                                static_cast<long long>(r.m_func)}) {
+        w.put(',');
+        w.integer(v);
       }
-      for (int i = 0; i < n; ++i) std::fprintf(f, ",%.6f", r.speed[static_cast<std::size_t>(i)]);
-      std::fprintf(f, ",%s\n", limit_factor_name(r.limit_factor));
+      w.put(',');
+      w.fixed(r.act_speed, 6);
+      w.put(',');
+      w.fixed(r.move_distance, 9);
+      for (int i = 0; i < n; ++i) {
+        w.put(',');
+        w.fixed(r.orig_position[static_cast<std::size_t>(i)], 9);
+      }
+      for (int i = 0; i < n; ++i) {
+        w.put(',');
+        w.fixed(r.position[static_cast<std::size_t>(i)], 9);
+      }
+      for (int i = 0; i < n; ++i) {
+        w.put(',');
+        w.integer(static_cast<long long>(r.position_inc[static_cast<std::size_t>(i)]));
+      }
+      for (int i = 0; i < n; ++i) {
+        w.put(',');
+        w.fixed(r.speed[static_cast<std::size_t>(i)], 6);
+      }
+      w.put(',');
+      w.text(limit_factor_name(r.limit_factor));
+      w.put('\n');
     };
   }
   const SimulationSummary sum = sim->run(compiled.program, on_cycle, [&](const BlockReport& b) {
@@ -328,6 +394,7 @@ int run_simulate(int argc, char** argv) {
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   if (progress_shown) std::fputs("\r\033[K", stderr);
   const int interrupted = sum.result == StepResult::kFinished ? 0 : static_cast<int>(g_signal);
+  if (csv_out) csv_out->flush();
   bool io_ok = true;
   for (File* f : {&csv, &blocks, &la}) {
     if (*f && (std::fflush(f->get()) != 0 || std::ferror(f->get()))) io_ok = false;

@@ -8,6 +8,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <set>
@@ -74,6 +75,18 @@ TEST_F(HmiSimulate, ManualExampleWritesEveryColumnAndEndsCleanUnderTheChecker) {
   for (std::size_t i = 1; i < rows.size(); ++i) {
     const auto f = split(rows[i], ',');
     ASSERT_EQ(f.size(), 21u) << rows[i];
+    // Each number as printf's %.6f / %d / %.9f writes it (the writer formats with to_chars).
+    for (std::size_t k = 0; k < 20; ++k) {
+      const bool integer = (k >= 1 && k <= 5) || (k >= 14 && k <= 16);
+      const int decimals = (k == 0 || k == 6 || k >= 17) ? 6 : 9;
+      char expect[64];
+      if (integer) {
+        std::snprintf(expect, sizeof expect, "%lld", std::atoll(f[k].c_str()));
+      } else {
+        std::snprintf(expect, sizeof expect, "%.*f", decimals, std::atof(f[k].c_str()));
+      }
+      ASSERT_EQ(f[k], expect) << "row " << i << " column " << k;
+    }
     const double t = std::atof(f[0].c_str());
     ASSERT_NEAR(t - last_t, 0.0005, 1e-9) << "row " << i;
     last_t = t;
