@@ -44,6 +44,24 @@ std::string fmt_num(double v) {
   return buf;
 }
 
+//! Source text quoted in a message: bytes outside printable ASCII as \xNN, so a binary or
+//! mis-encoded file cannot put control codes or broken UTF-8 into the terminal or the log.
+std::string quoted_source(std::string_view text) {
+  std::string out;
+  out.reserve(text.size());
+  for (const char c : text) {
+    const auto uc = static_cast<unsigned char>(c);
+    if (uc >= 0x20 && uc < 0x7f) {
+      out += c;
+    } else {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\x%02X", uc);
+      out += buf;
+    }
+  }
+  return out;
+}
+
 std::string fmt_mm(double v) {
   char buf[40];
   std::snprintf(buf, sizeof buf, "%.4f", v);
@@ -409,7 +427,7 @@ bool Compiler::lex_words(Block& b) {
       if (i < end && src_[i] != '(' && src_[i] != ';') {
         std::size_t j = i;
         while (j < end && !is_space(src_[j]) && j - i < 16) ++j;
-        reason += ", not '" + std::string(src_.substr(i, j - i)) + "'";
+        reason += ", not '" + quoted_source(src_.substr(i, j - i)) + "'";
       }
       error(line, col(wstart), reason);
       b.valid = false;
@@ -426,7 +444,7 @@ bool Compiler::lex_words(Block& b) {
     if (!std::isfinite(v) || std::fabs(v) > kMaxValue) {
       error(line, col(wstart),
             std::string("value of ") + L + " is out of range (|value| <= 1e9): '" +
-                std::string(src_.substr(wstart, i - wstart)) + "'");
+                quoted_source(src_.substr(wstart, i - wstart)) + "'");
       b.valid = false;
       continue;
     }

@@ -341,6 +341,10 @@ TEST(GcodeErrors, UnknownGAndMNumbers) {
 TEST(GcodeErrors, NumbersMissingNotFiniteOrOutOfRange) {
   EXPECT_THAT(errors_of("G1 XNAN\n"), ElementsAre("1:4: word X needs a number, not 'NAN'"));
   EXPECT_THAT(errors_of("G1 X\n"), ElementsAre("1:4: word X needs a number"));
+  // Quoted source text never carries control codes or stray UTF-8 bytes into a terminal.
+  EXPECT_THAT(errors_of("G1 X\x1b[2J\xe2\x80\n"),
+              ElementsAre("1:4: word X needs a number, not '\\x1B[2J\\xE2\\x80'",
+                          "1:9: unexpected byte 0xE2"));
   EXPECT_THAT(errors_of("G1 X1" + std::string(400, '0') + "\n"),
               ElementsAre(::testing::StartsWith("1:4: value of X is out of range (|value| <= 1e9)")));
   EXPECT_THAT(errors_of("G1 X2000000000\n"),
