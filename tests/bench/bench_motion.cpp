@@ -5,14 +5,18 @@
 //                           per-step distribution (counters p50_ns, p99_ns, p999_ns, max_ns)
 //   BM_SimulationSpeed      whole offline run (Simulation, limit checker off): program time
 //                           over wall time (counter x_realtime)
+//   BM_SimulationRegimes    the same program by advance(): skipped share, and per limit factor
+//                           the share of wall time and ns per stepped cycle
 //   BM_ShortSegmentRatio    circle r = 50 mm of 0.05 mm chords at F6000, default machine:
 //                           program time over the feed-limited lower bound (counter ratio)
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <random>
+#include <string>
 #include <tuple>
 #include <vector>
 
@@ -266,6 +270,67 @@ void BM_SimulationSpeed(benchmark::State& state) {
   state.counters["program_s"] = program_s / static_cast<double>(state.iterations());
 }
 BENCHMARK(BM_SimulationSpeed)->Iterations(3)->Unit(benchmark::kMillisecond);
+
+// Where BM_SimulationSpeed's time goes: the same program driven by Interpolator::advance as
+// Simulation does, each call timed and filed under the limit factor of the cycle it ended in.
+// Counters: the share of cycles skipped (cruise, dwell, waits), and per factor the share of
+// the wall time and the cost of one stepped cycle. 5,000 x real time at 500 us cycles leaves
+// 100 ns per cycle on average: the stepped factors show what would have to be skipped.
+void BM_SimulationRegimes(benchmark::State& state) {
+  const MachineConfig m = machine_with_axes(3);
+  const Program prog = cam_program(3, 50000, 7);
+  constexpr std::size_t kFactors = 11;
+  std::array<double, kFactors> step_ns{}, stepped{};
+  double skip_ns = 0.0, skipped = 0.0;
+  for (auto _ : state) {
+    auto ip = tgm::Interpolator::create(m, 0);
+    std::size_t next = 0;
+    ip->set_position({});
+    while (true) {
+      if (next < prog.segments.size() && ip->free_slots() > 0) {
+        std::size_t took = 0;
+        const std::size_t c = std::min(prog.segments.size() - next, ip->free_slots());
+        ip->append(prog, next, c, next + c == prog.segments.size(), &took);
+        next += took;
+      }
+      const auto& r = ip->registers();
+      if (r.m_func != 0) ip->write_m_func(0);
+      if (r.status == 4 || r.status == 8) ip->start();
+      std::uint64_t done = 0;
+      const auto t0 = std::chrono::steady_clock::now();
+      const tgm::StepResult res = ip->advance(1'000'000, &done);
+      const double ns = std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - t0).count();
+      const auto f = std::min<std::size_t>(static_cast<std::size_t>(r.limit_factor), kFactors - 1);
+      if (done > 1) {
+        skip_ns += ns;
+        skipped += static_cast<double>(done);
+      } else {
+        step_ns[f] += ns;
+        stepped[f] += 1.0;
+      }
+      if (res == tgm::StepResult::kFinished) break;
+      if (static_cast<int>(res) < 0) {
+        state.SkipWithError("interpolator error");
+        break;
+      }
+    }
+  }
+  double total_ns = skip_ns, cycles = skipped;
+  for (std::size_t f = 0; f < kFactors; ++f) {
+    total_ns += step_ns[f];
+    cycles += stepped[f];
+  }
+  state.counters["skipped_cycles_share"] = cycles > 0.0 ? skipped / cycles : 0.0;
+  state.counters["skip_time_share"] = total_ns > 0.0 ? skip_ns / total_ns : 0.0;
+  state.counters["ns_per_cycle"] = cycles > 0.0 ? total_ns / cycles : 0.0;
+  for (std::size_t f = 1; f < kFactors; ++f) {
+    if (stepped[f] < 1000.0) continue;
+    const std::string name = tgm::limit_factor_name(static_cast<tgm::LimitFactor>(f));
+    state.counters[name + "_time_share"] = step_ns[f] / total_ns;
+    state.counters[name + "_ns_per_step"] = step_ns[f] / stepped[f];
+  }
+}
+BENCHMARK(BM_SimulationRegimes)->Iterations(1)->Unit(benchmark::kMillisecond);
 
 void BM_ShortSegmentRatio(benchmark::State& state) {
   const double r = 50.0, chord = 0.05, feed = 6000.0;
