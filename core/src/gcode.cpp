@@ -24,9 +24,9 @@ namespace {
 
 constexpr std::size_t kMaxErrors = 10000;
 //! Largest magnitude of any number in a program.
-constexpr double kMaxValue = 1.0e9;
+constexpr double kMaxValue = kMaxCoordinateMm;
 //! Largest feed [mm/min].
-constexpr double kMaxFeed = 1.0e6;
+constexpr double kMaxFeed = kMaxFeedMmPerMin;
 //! Largest dwell [s].
 constexpr double kMaxDwell = 1.0e5;
 //! Largest M-number.
@@ -1044,6 +1044,21 @@ std::size_t Compiler::execute_block(std::size_t index, bool relex) {
           s.radius = radius;
           s.turns = 0;
         }
+      }
+      // Incremental moves, offsets and G92 can carry a point beyond what any word may say;
+      // the interpolator refuses such a record, so say it here, at its block.
+      for (int a = 0; ok && a < n_axes_; ++a) {
+        if (std::fabs(target[static_cast<std::size_t>(a)]) <= kMaxValue) continue;
+        const char L = opt_.axis_letters[static_cast<std::size_t>(a)];
+        const Word* at = word(L) ? word(L) : (motion_word ? motion_word : w);
+        error(b.line, at->column,
+              std::string("end point ") + L + fmt_num(target[static_cast<std::size_t>(a)]) +
+                  " is beyond +-1e9 mm (after incremental moves and offsets)");
+        ok = false;
+      }
+      if (ok && s.is_arc() && !(std::fabs(s.center[0]) <= kMaxValue && std::fabs(s.center[1]) <= kMaxValue)) {
+        error(b.line, motion_word ? motion_word->column : w->column, "arc centre is beyond +-1e9 mm");
+        ok = false;
       }
       if (ok) {
         emit(s);

@@ -460,6 +460,18 @@ TEST(Requests, RefusedWithReasons) {
   ProgramBuilder d;
   d.line({std::nan(""), 0.0, 0.0}, 100.0);
   EXPECT_EQ(ip.load(d.program()).code, RequestCode::kInvalid);
+  // Finite but beyond any machine: the path length of a rapid to 1e300 overflowed to inf and
+  // Act_Speed became NaN in the first cycle (found by HostileRecords).
+  ProgramBuilder far;
+  far.line({1e300, 0.0, 0.0}, 100.0);
+  const auto rf = ip.load(far.program());
+  EXPECT_EQ(rf.code, RequestCode::kInvalid);
+  EXPECT_NE(rf.reason.find("record 0 (line 1): end point of axis 0 is not a number within +-1e9 mm"),
+            std::string::npos)
+      << rf.reason;
+  ProgramBuilder fast;
+  fast.line({1.0, 0.0, 0.0}, 1e300);
+  EXPECT_EQ(ip.load(fast.program()).code, RequestCode::kInvalid);
   ProgramBuilder e;
   e.line({100.0, 0.0, 0.0}, 3000.0).end();
   ASSERT_TRUE(ip.load(e.program()).ok());

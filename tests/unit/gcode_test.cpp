@@ -349,6 +349,9 @@ TEST(GcodeErrors, NumbersMissingNotFiniteOrOutOfRange) {
               ElementsAre(::testing::StartsWith("1:4: value of X is out of range (|value| <= 1e9)")));
   EXPECT_THAT(errors_of("G1 X2000000000\n"),
               ElementsAre("1:4: value of X is out of range (|value| <= 1e9): 'X2000000000'"));
+  // Each word within range, the point they add up to not (the interpolator would refuse it).
+  EXPECT_THAT(errors_of("G91 G1 X900000000 F1000\nX900000000\n"),
+              ElementsAre("2:1: end point X1800000000 is beyond +-1e9 mm (after incremental moves and offsets)"));
   EXPECT_THAT(errors_of("G1 X1 F0\n"),
               ElementsAre("1:7: feed F must be > 0 and <= 1000000 mm/min, not 0"));
   EXPECT_THAT(errors_of("G4 P-1\n"), ElementsAre("1:4: dwell P must be 0..100000 s, not -1"));

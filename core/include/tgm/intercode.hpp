@@ -19,6 +19,11 @@ inline constexpr int kMaxAxes = 10;
 inline constexpr int kMaxInterpolators = 3;
 //! M-function parameter letters A..Z (manual: M_Function_Parameter, AllParams).
 inline constexpr int kParamLetters = 26;
+//! Largest |coordinate| of an end point or arc centre [mm] (1000 km), and the largest feed
+//! [mm/min]: the compiler's bounds for a word, which the interpolator also holds a record to,
+//! so lengths, squares and products of any accepted record stay finite.
+inline constexpr double kMaxCoordinateMm = 1.0e9;
+inline constexpr double kMaxFeedMmPerMin = 1.0e6;
 //! Value of a register or parameter that does not apply ("greater than 10^38" in the manual).
 inline constexpr double kNotSet = 1.0e39;
 

@@ -499,11 +499,13 @@ struct Interpolator::Impl {
     const std::string where = "record " + std::to_string(i) + " (line " + std::to_string(sg.line) + "): ";
     if (static_cast<int>(sg.type) > 6) return where + "unknown record type";
     for (int a = 0; a < n; ++a) {
-      if (!std::isfinite(sg.end[a])) return where + "end point is not a finite number";
+      if (!(std::fabs(sg.end[a]) <= kMaxCoordinateMm)) {
+        return where + "end point of axis " + std::to_string(a) + " is not a number within +-1e9 mm";
+      }
     }
     if (sg.type == SegmentType::kLinear || sg.is_arc()) {
-      if (!std::isfinite(sg.feed_mm_per_min) || sg.feed_mm_per_min <= 0.0) {
-        return where + "feed must be > 0 mm/min";
+      if (!(sg.feed_mm_per_min > 0.0 && sg.feed_mm_per_min <= kMaxFeedMmPerMin)) {
+        return where + "feed must be > 0 and <= 1000000 mm/min";
       }
     }
     if (sg.is_arc()) {
@@ -512,9 +514,10 @@ struct Interpolator::Impl {
         return where + "arc plane G" + std::to_string(static_cast<int>(sg.plane)) +
                " needs axes that are not configured";
       }
-      if (!std::isfinite(sg.center[0]) || !std::isfinite(sg.center[1]) || sg.turns < 0) {
-        return where + "arc centre is not finite or turns < 0";
+      if (!(std::fabs(sg.center[0]) <= kMaxCoordinateMm && std::fabs(sg.center[1]) <= kMaxCoordinateMm)) {
+        return where + "arc centre is not a point within +-1e9 mm";
       }
+      if (sg.turns < 0) return where + "arc turns < 0";
     }
     if (sg.type == SegmentType::kDwell && (!std::isfinite(sg.dwell_s) || sg.dwell_s < 0.0 || sg.dwell_s > 1e6)) {
       return where + "dwell must be 0..1e6 s";
