@@ -3,6 +3,11 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <random>
+#include <string>
 
 #include "mock_port.hpp"
 #include "tgm/config.hpp"
@@ -246,6 +251,71 @@ TEST(Engine, NormalMFunctionWaitsForTheAckAndResumesInTheSameCycle) {
   EXPECT_TRUE(found);
   EXPECT_EQ(port.last.ip[0].message_text.view(), "hello from M29");
   EXPECT_EQ(port.last.ip[0].message_counter, 1u);
+}
+
+// Whatever a client sends (any kind, role, interpolator, Command code, parameter, axis and
+// value, NaN and infinities included), in the middle of a running program: every request is
+// answered exactly once, a refusal says why, and the registers stay finite. Seeded sweep.
+TEST(Engine, RandomRequestsAreEachAnsweredOnceAndNeverBreakTheCycle) {
+  Engine e = make_engine();
+  MockPort port;
+  std::mt19937_64 rng(20261121);
+  auto any = [&](int n) { return std::uniform_int_distribution<int>(0, n - 1)(rng); };
+  const Program p = line_program(400, true, true);
+  port.add_chunk(0, p, 0, p.segments.size(), 1, true);
+  port.add_request(Role::kHmi, RequestKind::kStart);
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const double values[] = {std::nan(""), kInf, -kInf, 0.0, 1.0, 0.5, 2.5, -1.0, 1e300, -1e300, 1e-300, 1234.4};
+  const std::int32_t codes[] = {4, 5, 8, 9, 1024, 2048, 2049, -1, -2, 0, 3, 7, 1025, -3, 4096,
+                                std::numeric_limits<std::int32_t>::min(), std::numeric_limits<std::int32_t>::max()};
+  const std::int32_t params[] = {0, 1, -1, 2, 3, 50, 500, 1000000, std::numeric_limits<std::int32_t>::min(),
+                                 std::numeric_limits<std::int32_t>::max()};
+  const int interpolators[] = {0, 0, 0, 1, 2, 3, -1, 1000};
+  const RequestKind kinds[] = {RequestKind::kCommand,       RequestKind::kWriteMFunc,  RequestKind::kWriteRelSpeed,
+                               RequestKind::kWriteOffset,   RequestKind::kWriteRatio,  RequestKind::kWriteNumberAxes,
+                               RequestKind::kStart,         RequestKind::kStop,        RequestKind::kClear,
+                               RequestKind::kUnknown};
+  std::uint64_t sent = 1;
+  for (int c = 0; c < 3000; ++c) {
+    const int n = any(4);
+    for (int k = 0; k < n; ++k) {
+      RequestIn& r = port.add_request(any(2) ? Role::kPlc : Role::kHmi, kinds[any(10)], interpolators[any(8)]);
+      r.command = codes[any(17)];
+      for (auto& q : r.command_parameter) q = params[any(10)];
+      r.axis = any(14) - 2;
+      r.value = values[any(12)];
+      ++sent;
+    }
+    e.cycle(port, {});
+    for (int i = 0; i < e.count(); ++i) {
+      const Registers& reg = port.last.ip[static_cast<std::size_t>(i)].reg;
+      for (int a = 0; a < reg.number_axes; ++a) {
+        ASSERT_TRUE(std::isfinite(reg.orig_position[static_cast<std::size_t>(a)])) << "cycle " << c;
+        ASSERT_TRUE(std::isfinite(reg.position[static_cast<std::size_t>(a)])) << "cycle " << c;
+      }
+      ASSERT_TRUE(std::isfinite(reg.act_speed)) << "cycle " << c;
+      ASSERT_TRUE(std::isfinite(reg.rel_speed) && reg.rel_speed > 0.0 && reg.rel_speed <= 2.0) << "cycle " << c;
+    }
+  }
+  for (int c = 0; c < 100 && !port.requests.empty(); ++c) e.cycle(port, {});
+  ASSERT_TRUE(port.requests.empty());
+  ASSERT_EQ(port.replies.size(), sent);
+  std::map<std::uint64_t, int> answered;
+  std::map<ReplyCode, int> by_code;
+  for (const ReplyOut& r : port.replies) {
+    ++answered[r.request_id];
+    ++by_code[r.code];
+    EXPECT_LE(static_cast<int>(r.code), static_cast<int>(ReplyCode::kBusy));
+    if (r.code != ReplyCode::kAccepted) {
+      EXPECT_FALSE(r.reason.view().empty()) << r.request_id;
+    }
+  }
+  EXPECT_EQ(answered.size(), sent);
+  for (const auto& [id, times] : answered) EXPECT_EQ(times, 1) << "request " << id;
+  // The sweep reached acceptance and the refusals (not only one kind of answer).
+  EXPECT_GT(by_code[ReplyCode::kAccepted], 100);
+  EXPECT_GT(by_code[ReplyCode::kWrongRole], 100);
+  EXPECT_GT(by_code[ReplyCode::kOutOfRange] + by_code[ReplyCode::kBadRequest], 100);
 }
 
 }  // namespace
