@@ -2204,7 +2204,12 @@ std::optional<Interpolator> Interpolator::create(const MachineConfig& machine, i
     const auto ui = static_cast<std::size_t>(i);
     m.vmax[ui] = a.max_velocity_mm_s;
     m.amax[ui] = a.max_acceleration_mm_s2;
-    m.jmax[ui] = a.max_jerk_mm_s3;
+    // The generator holds one jerk per calculation step and its braking plans assume it can
+    // follow a bang-bang jerk profile; with J dt far above A (J >= 1e8 mm/s^3 at 100 us) a plan's
+    // ramps are shorter than a step and corners were crossed up to 30 % too fast. Full
+    // acceleration is reached in four steps at the least (a few hundred us, which no machine's
+    // cycle time notices; at J = A / (2 dt) the stop at a program's end still clamped).
+    m.jmax[ui] = std::min(a.max_jerk_mm_s3, a.max_acceleration_mm_s2 / (4.0 * m.dt));
     m.rapid[ui] = a.rapid_velocity_mm_s;
     m.tol[ui] = a.corner_velocity_tolerance_mm_s;
     m.rho = std::min(m.rho, a.emergency_deceleration_mm_s2 / a.max_acceleration_mm_s2);
