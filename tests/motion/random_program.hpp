@@ -233,5 +233,26 @@ inline MachineConfig random_machine(std::mt19937_64& rng, int axes) {
   return m;
 }
 
+// A machine from a much wider envelope than random_machine's (which the CTest sweeps use): per
+// axis, log-uniform velocity 1..1e4 mm/s, acceleration 10..1e5 mm/s^2, jerk 100..1e8 mm/s^3 and
+// corner tolerance 0.01..100 mm/s, held to realistic relations (v / A 5 ms..5 s, A / J
+// 2 ms..0.5 s), and axes that differ from each other by orders of magnitude. Not in CTest:
+// `--machines=wide` on the sweep's command line (core/MOTION.md, "Known gaps").
+inline MachineConfig wide_machine(std::mt19937_64& rng, int axes) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  auto log_uniform = [&](double lo, double hi) { return std::exp(std::log(lo) + (std::log(hi) - std::log(lo)) * u(rng)); };
+  MachineConfig m = random_machine(rng, axes);
+  for (AxisConfig& a : m.interpolators[0].axes) {
+    a.max_velocity_mm_s = log_uniform(1.0, 1e4);
+    a.rapid_velocity_mm_s = a.max_velocity_mm_s * (0.5 + 0.5 * u(rng));
+    a.max_acceleration_mm_s2 =
+        std::clamp(log_uniform(10.0, 1e5), a.max_velocity_mm_s / 5.0, a.max_velocity_mm_s / 0.005);
+    a.max_jerk_mm_s3 =
+        std::clamp(log_uniform(100.0, 1e8), a.max_acceleration_mm_s2 / 0.5, a.max_acceleration_mm_s2 / 0.002);
+    a.emergency_deceleration_mm_s2 = a.max_acceleration_mm_s2 * (1.0 + 2.0 * u(rng));
+    a.corner_velocity_tolerance_mm_s = log_uniform(0.01, 100.0);
+  }
+  return m;
+}
 
 }  // namespace tgm::test
