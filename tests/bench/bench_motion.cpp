@@ -93,6 +93,21 @@ Program cam_program(int axes, int records, unsigned seed) {
   return b.program();
 }
 
+// Between two cycles, as the PLC and the operator would: stream what fits of `prog` from
+// record `next` on, acknowledge an M-function, start again after M0 or an underrun.
+const tgm::Registers& play_between_cycles(tgm::Interpolator& ip, const Program& prog, std::size_t& next) {
+  if (next < prog.segments.size() && ip.free_slots() > 0) {
+    std::size_t took = 0;
+    const std::size_t c = std::min(prog.segments.size() - next, ip.free_slots());
+    ip.append(prog, next, c, next + c == prog.segments.size(), &took);
+    next += took;
+  }
+  const auto& r = ip.registers();
+  if (r.m_func != 0) ip.write_m_func(0);
+  if (r.status == 4 || r.status == 8) ip.start();
+  return r;
+}
+
 void BM_Step(benchmark::State& state) {
   const int axes = static_cast<int>(state.range(0));
   const MachineConfig m = machine_with_axes(axes);
@@ -175,15 +190,7 @@ void BM_StepReplay(benchmark::State& state) {
   auto by_time = [](const auto& x, const auto& y) { return std::get<0>(x) > std::get<0>(y); };
   ip->set_position({});
   for (auto _ : state) {
-    if (next < prog.segments.size() && ip->free_slots() > 0) {
-      std::size_t took = 0;
-      const std::size_t c = std::min(prog.segments.size() - next, ip->free_slots());
-      ip->append(prog, next, c, next + c == prog.segments.size(), &took);
-      next += took;
-    }
-    const auto& r = ip->registers();
-    if (r.m_func != 0) ip->write_m_func(0);
-    if (r.status == 4) ip->start();
+    const auto& r = play_between_cycles(*ip, prog, next);
     if (r.status == 3) {
       ip->clear();
       ip->set_position({});
@@ -287,15 +294,7 @@ void BM_SimulationRegimes(benchmark::State& state) {
     std::size_t next = 0;
     ip->set_position({});
     while (true) {
-      if (next < prog.segments.size() && ip->free_slots() > 0) {
-        std::size_t took = 0;
-        const std::size_t c = std::min(prog.segments.size() - next, ip->free_slots());
-        ip->append(prog, next, c, next + c == prog.segments.size(), &took);
-        next += took;
-      }
-      const auto& r = ip->registers();
-      if (r.m_func != 0) ip->write_m_func(0);
-      if (r.status == 4 || r.status == 8) ip->start();
+      const auto& r = play_between_cycles(*ip, prog, next);
       std::uint64_t done = 0;
       const auto t0 = std::chrono::steady_clock::now();
       const tgm::StepResult res = ip->advance(1'000'000, &done);
