@@ -118,6 +118,15 @@ class CsvWriter {
   void text(const char* t) {
     for (; *t != '\0'; ++t) put(*t);
   }
+  //! The next column of a row: the separator, then the value.
+  void col(double v, int precision) {
+    put(',');
+    fixed(v, precision);
+  }
+  void col(long long v) {
+    put(',');
+    integer(v);
+  }
   void put(char c) {
     room();
     *p_++ = c;
@@ -243,8 +252,10 @@ int run_simulate(int argc, char** argv) {
   // half a second on, a plain line every interval_s otherwise.
   const bool tty = ::isatty(2) != 0;
   bool progress_shown = false;
-  auto next_progress = wall0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                                   std::chrono::duration<double>(tty ? 0.5 : interval_s));
+  auto after = [](std::chrono::steady_clock::time_point t, double s) {
+    return t + std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(s));
+  };
+  auto next_progress = after(wall0, tty ? 0.5 : interval_s);
   const SignalFlag signal_flag;
   g_signal = 0;
   so.on_progress = [&](const SimulationProgress& p) {
@@ -252,8 +263,7 @@ int run_simulate(int argc, char** argv) {
     if (quiet) return true;
     const auto now = std::chrono::steady_clock::now();
     if (now < next_progress) return true;
-    next_progress = now + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                              std::chrono::duration<double>(tty ? 0.1 : interval_s));
+    next_progress = after(now, tty ? 0.1 : interval_s);
     const double elapsed = std::chrono::duration<double>(now - wall0).count();
     const double done = p.records > 0 ? static_cast<double>(std::max(p.act_part, 0)) / static_cast<double>(p.records) : 0.0;
     char eta[48] = "";
@@ -357,29 +367,14 @@ int run_simulate(int argc, char** argv) {
       for (const long long v : {static_cast<long long>(r.act_line), static_cast<long long>(r.act_part),
                                 static_cast<long long>(r.status), static_cast<long long>(r.run_flag),
                                 static_cast<long long>(r.m_func)}) {
-        w.put(',');
-        w.integer(v);
+        w.col(v);
       }
-      w.put(',');
-      w.fixed(r.act_speed, 6);
-      w.put(',');
-      w.fixed(r.move_distance, 9);
-      for (int i = 0; i < n; ++i) {
-        w.put(',');
-        w.fixed(r.orig_position[static_cast<std::size_t>(i)], 9);
-      }
-      for (int i = 0; i < n; ++i) {
-        w.put(',');
-        w.fixed(r.position[static_cast<std::size_t>(i)], 9);
-      }
-      for (int i = 0; i < n; ++i) {
-        w.put(',');
-        w.integer(static_cast<long long>(r.position_inc[static_cast<std::size_t>(i)]));
-      }
-      for (int i = 0; i < n; ++i) {
-        w.put(',');
-        w.fixed(r.speed[static_cast<std::size_t>(i)], 6);
-      }
+      w.col(r.act_speed, 6);
+      w.col(r.move_distance, 9);
+      for (int i = 0; i < n; ++i) w.col(r.orig_position[static_cast<std::size_t>(i)], 9);
+      for (int i = 0; i < n; ++i) w.col(r.position[static_cast<std::size_t>(i)], 9);
+      for (int i = 0; i < n; ++i) w.col(static_cast<long long>(r.position_inc[static_cast<std::size_t>(i)]));
+      for (int i = 0; i < n; ++i) w.col(r.speed[static_cast<std::size_t>(i)], 6);
       w.put(',');
       w.text(limit_factor_name(r.limit_factor));
       w.put('\n');
