@@ -242,4 +242,15 @@ bool parse_double(const std::string& text, double& out) {
   return true;
 }
 
+bool parse_progress_interval(const Args& args, const std::string& text, double& out) {
+  double v = 0.0;
+  if (text.empty()) return true;
+  if (!parse_double(text, v) || !(v > 0.0) || v > 86400.0) {
+    args.usage_error("--progress-interval takes seconds > 0, not '" + text + "'");
+    return false;
+  }
+  out = v;
+  return true;
+}
+
 }  // namespace tgm::hmi

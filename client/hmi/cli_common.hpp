@@ -102,5 +102,8 @@ class FileView {
 bool parse_int(const std::string& text, long long lo, long long hi, long long& out);
 //! Parses a finite number; false when `text` is not one.
 bool parse_double(const std::string& text, double& out);
+//! The --progress-interval value of `run` and `simulate` into `out` when `text` is not empty:
+//! seconds > 0, at most a day. False after reporting a usage error through `args`.
+bool parse_progress_interval(const Args& args, const std::string& text, double& out);
 
 }  // namespace tgm::hmi

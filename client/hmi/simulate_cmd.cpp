@@ -186,9 +186,7 @@ int run_simulate(int argc, char** argv) {
     return args.usage_error("--m-ack takes seconds 0..3600, not '" + m_ack_text + "'");
   }
   double interval_s = 10.0;
-  if (!interval_text.empty() && (!parse_double(interval_text, interval_s) || !(interval_s > 0.0) || interval_s > 86400.0)) {
-    return args.usage_error("--progress-interval takes seconds > 0, not '" + interval_text + "'");
-  }
+  if (!parse_progress_interval(args, interval_text, interval_s)) return 2;
   // Integer lists for the Command_Parameter registers.
   auto int_list = [](const std::string& text, std::size_t count, std::array<std::int32_t, kCommandParameters>& out) {
     std::size_t at = 0;

@@ -124,9 +124,7 @@ int run_run(int argc, char** argv) {
   if (!error.empty()) return args.usage_error(error);
   if (file.empty()) return args.usage_error("a program FILE is required");
   double interval_s = 1.0, m0_s = -1.0, timeout_s = 0.0;
-  if (!interval_text.empty() && (!parse_double(interval_text, interval_s) || interval_s <= 0)) {
-    return args.usage_error("--progress-interval must be a positive number of seconds");
-  }
+  if (!parse_progress_interval(args, interval_text, interval_s)) return 2;
   if (!m0_text.empty() && (!parse_double(m0_text, m0_s) || m0_s < 0)) {
     return args.usage_error("--m0-continue must be >= 0 seconds");
   }
