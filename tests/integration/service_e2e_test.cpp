@@ -34,6 +34,16 @@ Program compile(const std::string& gcode, const std::string& config_path) {
   return r.program;
 }
 
+// Starts the service and a PLC client whose request and reply topics have matched both ways
+// (one request answered), for tests that then write requests without waiting for each reply.
+::testing::AssertionResult start_with_matched_plc(ServiceEnv& env, std::optional<client::Client>& plc) {
+  if (!env.start_service()) return ::testing::AssertionFailure() << "the service did not start";
+  plc.emplace(env.dds(), client::Role::kPlc);
+  if (!plc->wait_for_state(0, kHang)) return ::testing::AssertionFailure() << "no state from the service";
+  if (!plc->set_rel_speed(0, 1.0).accepted) return ::testing::AssertionFailure() << "the first request was refused";
+  return ::testing::AssertionSuccess();
+}
+
 // Streams and starts `program` on interpolator 0 and runs until Status 3 (restarting after an
 // underrun, as tgm-hmi run does). Returns false on a hang or an error message.
 bool run_program(client::Client& hmi, const Program& program, std::string& why,
@@ -357,10 +367,9 @@ TEST(ServiceProcesses, HundredThousandRecordsStreamIntoAThousandRecordBufferWhil
 // receiver thread the other way round).
 TEST(ServiceProcesses, RequestFloodNeverStallsTheService) {
   ServiceEnv env;
-  ASSERT_TRUE(env.start_service());
-  client::Client plc(env.dds(), client::Role::kPlc);
-  ASSERT_TRUE(plc.wait_for_state(0, kHang));
-  ASSERT_TRUE(plc.set_rel_speed(0, 1.0).accepted);  // matched both ways
+  std::optional<client::Client> plc_slot;
+  ASSERT_TRUE(start_with_matched_plc(env, plc_slot));
+  client::Client& plc = *plc_slot;
   const auto until = std::chrono::steady_clock::now() + 3s;
   std::uint64_t sent = 0;
   while (std::chrono::steady_clock::now() < until) {
@@ -400,10 +409,9 @@ TEST(ServiceProcesses, RequestFloodNeverStallsTheService) {
 // taken, request() makes room by polling, and a window without any reply for a second is freed.
 TEST(ServiceProcesses, ClientKeepsAtMost64RequestsUnanswered) {
   ServiceEnv env;
-  ASSERT_TRUE(env.start_service());
-  client::Client plc(env.dds(), client::Role::kPlc);
-  ASSERT_TRUE(plc.wait_for_state(0, kHang));
-  ASSERT_TRUE(plc.set_rel_speed(0, 1.0).accepted);  // matched both ways
+  std::optional<client::Client> plc_slot;
+  ASSERT_TRUE(start_with_matched_plc(env, plc_slot));
+  client::Client& plc = *plc_slot;
   EXPECT_EQ(plc.requests_in_flight(), 0);
   msg::Request r;
   r.interpolator(0);
