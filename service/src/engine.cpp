@@ -2,7 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <string>
+
+#include "tgm/command_stage.hpp"
 
 namespace tgm::service {
 
@@ -142,14 +145,24 @@ std::string role_violation(Role role, RequestKind kind, std::int32_t command) {
 std::optional<Engine> Engine::create(const MachineConfig& machine, const EngineOptions& options,
                                      std::string* error) {
   std::vector<Slot> ips;
+  InterpolatorOptions io = options.interpolator;
+  if (options.check_limits) io.record_corner_events = true;  // the checker removes the corners
   for (int i = 0; i < static_cast<int>(machine.interpolators.size()); ++i) {
     std::string why;
-    auto ip = Interpolator::create(machine, i, options.interpolator, &why);
+    auto ip = Interpolator::create(machine, i, io, &why);
     if (!ip) {
       if (error) *error = "interpolator " + std::to_string(i) + ": " + why;
       return std::nullopt;
     }
-    Slot slot{std::move(*ip), 0, 0, 0, 0, 0, {}};
+    Slot slot(std::move(*ip));
+    if (options.check_limits) {
+      slot.checker = LimitChecker::create(machine.interpolators[static_cast<std::size_t>(i)],
+                                          machine.cycle_time_us, &why);
+      if (!slot.checker) {
+        if (error) *error = "interpolator " + std::to_string(i) + ": limit checker: " + why;
+        return std::nullopt;
+      }
+    }
     ips.push_back(std::move(slot));
   }
   if (ips.empty() || ips.size() > static_cast<std::size_t>(kMaxInterpolators)) {
@@ -239,6 +252,7 @@ void Engine::apply_chunks(CyclePort& port, int i, std::size_t& budget) {
       s.program_id = c->program_id;
       s.next_sequence = 0;
       s.refused_program = 0;
+      s.limit_messages = 0;
     }
     const std::size_t total = c->program.segments.size();
     const std::uint64_t at = c->sequence_number + c->applied;
@@ -276,6 +290,51 @@ void Engine::apply_chunks(CyclePort& port, int i, std::size_t& budget) {
   }
 }
 
+void Engine::check_limits(CyclePort& port, int i) {
+  Slot& s = ips_[static_cast<std::size_t>(i)];
+  const Registers& reg = s.ip.registers();
+  // A position set (Command 2048 / 2049, executed in the cycle after it was pending) moves
+  // Orig_Position by design: the differences across it are no motion.
+  const auto sets_position = [](std::int32_t c) { return c == kCommandSetPositionOn || c == kCommandSetPositionOff; };
+  if (sets_position(s.last_command) || sets_position(reg.command)) s.checker->reset();
+  s.last_command = reg.command;
+  const std::size_t stored_before = s.checker->violations().size();
+  s.checker->add_cycle(reg, s.ip.corner_events());
+  const std::uint64_t found = s.checker->violation_count() - s.limits_counted;
+  if (found == 0) return;
+  s.limits_counted = s.checker->violation_count();
+  counters_.limit_violations += found;
+  const auto& stored = s.checker->violations();  // the first LimitChecker::kMaxStored in detail
+  const std::size_t detailed = stored.size() - stored_before;
+  const InterpolatorConfig& cfg = s.ip.config();
+  auto send = [&](std::string_view text, std::int32_t line) {
+    MessageOut m;
+    m.interpolator = i;
+    m.severity = MessageOut::Severity::kWarning;
+    m.text.set(text);
+    m.source_line = line;
+    if (!port.message(m)) ++counters_.lost_messages;
+  };
+  char text[200];
+  for (std::uint64_t k = 0; k < found && s.limit_messages <= opt_.max_limit_messages; ++k) {
+    if (s.limit_messages == opt_.max_limit_messages || k >= detailed) {
+      std::snprintf(text, sizeof text,
+                    "limit excess: more in this program are counted, not reported (tgm-service --stats)");
+      send(text, reg.act_line);
+      s.limit_messages = opt_.max_limit_messages + 1;
+      break;
+    }
+    const LimitViolation& v = stored[stored_before + k];
+    static constexpr const char* kUnit[] = {"mm/s", "mm/s^2", "mm/s^3", "mm/s"};
+    const auto q = static_cast<std::size_t>(v.quantity);
+    std::snprintf(text, sizeof text, "limit excess: axis %c %s %.6g > %.6g %s (cycle %llu)",
+                  cfg.axes[static_cast<std::size_t>(v.axis)].letter, limit_quantity_name(v.quantity), v.value,
+                  v.limit, q < 4 ? kUnit[q] : "", static_cast<unsigned long long>(v.cycle));
+    send(text, v.line);
+    ++s.limit_messages;
+  }
+}
+
 void Engine::cycle(CyclePort& port, const LatenessStats& lateness) {
   for (int n = 0; n < opt_.max_requests_per_cycle; ++n) {
     RequestIn r;
@@ -292,6 +351,7 @@ void Engine::cycle(CyclePort& port, const LatenessStats& lateness) {
   for (int i = 0; i < count(); ++i) {
     Slot& s = ips_[static_cast<std::size_t>(i)];
     s.ip.step();
+    if (s.checker) check_limits(port, i);
     const Registers& reg = s.ip.registers();
     if (reg.message_count != s.message_seen) {
       s.message_seen = reg.message_count;

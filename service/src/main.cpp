@@ -45,6 +45,9 @@ constexpr const char* kUsage =
     "                         (default 1024)\n"
     "  --state-period-ms N    publish each state at least every N ms (default 20, 1..50)\n"
     "  --setpoint-decimation N  publish setpoints every Nth cycle (default 1)\n"
+    "  --check-limits         check every axis' velocity, acceleration, jerk and corner steps\n"
+    "                         on the interpolated positions each cycle; each excess goes to\n"
+    "                         the HMI as a warning (axis, size, limit, line, cycle)\n"
     "  --duration S           stop by itself after S seconds\n"
     "  --stats FILE           write lateness, handshake and counter figures as JSON at exit\n"
     "  --handshake-trace FILE write the time stamps of every M-function handshake as CSV at exit\n"
@@ -91,6 +94,10 @@ int main(int argc, char** argv) {
     }
     if (arg == "--no-realtime") {
       rt.realtime = false;
+      continue;
+    }
+    if (arg == "--check-limits") {
+      engine_options.check_limits = true;
       continue;
     }
     std::string flag = arg;
@@ -264,7 +271,7 @@ int main(int argc, char** argv) {
   std::printf(
       "tgm-service: stopping (%s) after %llu cycles: lateness p50 %.1f us, p99 %.1f us, p99.9 %.1f us,"
       " max %.1f us, missed %llu; cycle work p99.9 %.1f us, max %.1f us; %llu requests (%llu refused, %llu busy), %llu chunks, %llu segments,"
-      " %llu events, %llu states, %llu setpoints published\n",
+      " %llu events, %llu states, %llu setpoints published%s\n",
       sig > 0 ? strsignal(sig) : "time is up", static_cast<unsigned long long>(st.cycles),
       static_cast<double>(hist.quantile_ns(0.5)) / 1e3, static_cast<double>(hist.quantile_ns(0.99)) / 1e3,
       static_cast<double>(hist.quantile_ns(0.999)) / 1e3, static_cast<double>(hist.max_ns()) / 1e3,
@@ -275,7 +282,10 @@ int main(int argc, char** argv) {
       static_cast<unsigned long long>(c.chunks), static_cast<unsigned long long>(c.segments),
       static_cast<unsigned long long>(port->events_published()),
       static_cast<unsigned long long>(port->states_published()),
-      static_cast<unsigned long long>(port->setpoints_published()));
+      static_cast<unsigned long long>(port->setpoints_published()),
+      engine_options.check_limits
+          ? ("; limit excesses " + std::to_string(c.limit_violations)).c_str()
+          : "");
   if (!stats_path.empty()) {
     if (std::FILE* f = std::fopen(stats_path.c_str(), "w")) {
       std::fprintf(f,
@@ -286,7 +296,8 @@ int main(int argc, char** argv) {
                    " \"handshake_ns\": {\"count\": %zu, \"min\": %lld, \"p50\": %lld, \"p99\": %lld, \"max\": %lld},\n"
                    " \"requests\": %llu, \"busy_requests\": %llu, \"chunks\": %llu, \"segments\": %llu, \"duplicate_chunks\": %llu,"
                    " \"refused_chunks\": %llu, \"lost_replies\": %llu, \"lost_messages\": %llu,\n"
-                   " \"events_published\": %llu, \"states_published\": %llu, \"setpoints_published\": %llu}\n",
+                   " \"events_published\": %llu, \"states_published\": %llu, \"setpoints_published\": %llu,\n"
+                   " \"limits_checked\": %s, \"limit_violations\": %llu}\n",
                    static_cast<unsigned long long>(st.cycles), config.machine.cycle_time_us, engine->count(),
                    static_cast<long long>(hist.quantile_ns(0.5)), static_cast<long long>(hist.quantile_ns(0.99)),
                    static_cast<long long>(hist.quantile_ns(0.999)), static_cast<long long>(hist.max_ns()),
@@ -303,7 +314,9 @@ int main(int argc, char** argv) {
                    static_cast<unsigned long long>(c.lost_messages),
                    static_cast<unsigned long long>(port->events_published()),
                    static_cast<unsigned long long>(port->states_published()),
-                   static_cast<unsigned long long>(port->setpoints_published()));
+                   static_cast<unsigned long long>(port->setpoints_published()),
+                   engine_options.check_limits ? "true" : "false",
+                   static_cast<unsigned long long>(c.limit_violations));
       std::fclose(f);
     } else {
       std::fprintf(stderr, "tgm-service: cannot write %s: %s\n", stats_path.c_str(), std::strerror(errno));

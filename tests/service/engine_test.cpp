@@ -12,6 +12,7 @@
 #include "mock_port.hpp"
 #include "tgm/config.hpp"
 #include "tgm/service/engine.hpp"
+#include "tgm/simulation.hpp"
 
 namespace tgm::service {
 namespace {
@@ -251,6 +252,112 @@ TEST(Engine, NormalMFunctionWaitsForTheAckAndResumesInTheSameCycle) {
   EXPECT_TRUE(found);
   EXPECT_EQ(port.last.ip[0].message_text.view(), "hello from M29");
   EXPECT_EQ(port.last.ip[0].message_counter, 1u);
+}
+
+// A two-axis machine whose Y jerk limit is 700 x below X's, and three moves that make the
+// planner exceed it (core/MOTION.md "Known gaps", Machines.DISABLED_Corner... in the motion
+// tests): the one way to get a real excess out of the interpolator for the live checker to find.
+MachineConfig soft_y_machine() {
+  MachineConfig m = MachineConfig::default_machine();
+  m.cycle_time_us = 250;
+  auto& axes = m.interpolators[0].axes;
+  axes.resize(2);
+  const double lim[2][4] = {{61.7, 8333.0, 2.408e5, 7.822}, {40.0, 173.7, 347.4, 0.127}};
+  for (std::size_t i = 0; i < 2; ++i) {
+    axes[i].letter = i == 0 ? 'X' : 'Y';
+    axes[i].max_velocity_mm_s = axes[i].rapid_velocity_mm_s = lim[i][0];
+    axes[i].max_acceleration_mm_s2 = lim[i][1];
+    axes[i].emergency_deceleration_mm_s2 = 2.0 * lim[i][1];
+    axes[i].max_jerk_mm_s3 = lim[i][2];
+    axes[i].corner_velocity_tolerance_mm_s = lim[i][3];
+  }
+  return m;
+}
+
+Program soft_y_program() {
+  Program p;
+  p.number_axes = 2;
+  p.axis_letters = "XY";
+  const double moves[3][3] = {{0.9459, 0.0, 211.0}, {2.3396, 2.2001, 81.4}, {4.4766, -2.0658, 81.4}};
+  for (int i = 0; i < 3; ++i) {
+    Segment s;
+    s.type = SegmentType::kLinear;
+    s.line = 10 * (i + 1);
+    s.end[0] = moves[i][0];
+    s.end[1] = moves[i][1];
+    s.feed_mm_per_min = moves[i][2];
+    p.segments.push_back(s);
+  }
+  Segment end;
+  end.type = SegmentType::kMFunction;
+  end.m_kind = MKind::kProgramEnd;
+  end.m = 2;
+  end.line = 40;
+  end.end = p.segments.back().end;
+  p.segments.push_back(end);
+  return p;
+}
+
+// tgm-service --check-limits: the live checker reports, as HMI warnings, exactly the excesses
+// the offline simulation's checker finds in the same program (axis, quantity, size, limit,
+// line), and counts them.
+TEST(Engine, CheckLimitsReportsWhatTheOfflineCheckerFinds) {
+  const MachineConfig m = soft_y_machine();
+  const Program p = soft_y_program();
+  SimulationOptions so;
+  so.check_limits = true;
+  auto sim = Simulation::create(m, so);
+  ASSERT_TRUE(sim);
+  const SimulationSummary offline = sim->run(p);
+  ASSERT_EQ(offline.result, StepResult::kFinished);
+  // This machine exceeds Y's jerk today; once the planner keeps it, pick another oracle case.
+  ASSERT_GT(offline.violation_count, 0u);
+  ASSERT_LE(offline.violation_count, static_cast<std::uint64_t>(EngineOptions{}.max_limit_messages));
+  ASSERT_GE(offline.violation_count, 2u);  // for the cap below
+
+  // Without the checker, with it, and with it capped at one message per program.
+  for (const int mode : {0, 1, 2}) {
+    const bool check = mode != 0;
+    EngineOptions o;
+    o.check_limits = check;
+    if (mode == 2) o.max_limit_messages = 1;
+    auto e = Engine::create(m, o);
+    ASSERT_TRUE(e);
+    MockPort port;
+    port.add_chunk(0, p, 0, p.segments.size(), 3, true);
+    e->cycle(port, {});
+    port.add_request(Role::kHmi, RequestKind::kStart);
+    int cycles = 0;
+    while (port.last.ip[0].reg.status != 3 && cycles++ < 400000) e->cycle(port, {});
+    ASSERT_EQ(port.last.ip[0].reg.status, 3);
+    std::vector<MessageOut> warnings;
+    for (const auto& msg : port.messages) {
+      if (msg.severity == MessageOut::Severity::kWarning) warnings.push_back(msg);
+    }
+    if (!check) {
+      EXPECT_TRUE(warnings.empty());
+      EXPECT_EQ(e->counters().limit_violations, 0u);
+      continue;
+    }
+    EXPECT_EQ(e->counters().limit_violations, offline.violation_count);
+    if (mode == 2) {
+      ASSERT_EQ(warnings.size(), 2u);
+      EXPECT_NE(std::string(warnings[1].text.view()).find("more in this program are counted, not reported"),
+                std::string::npos);
+      warnings.pop_back();
+    } else {
+      ASSERT_EQ(warnings.size(), offline.violations.size());
+    }
+    for (std::size_t k = 0; k < warnings.size(); ++k) {
+      const LimitViolation& v = offline.violations[k];
+      char expect[160];
+      std::snprintf(expect, sizeof expect, "limit excess: axis %c %s %.6g > %.6g mm/s", v.axis == 0 ? 'X' : 'Y',
+                    limit_quantity_name(v.quantity), v.value, v.limit);
+      EXPECT_EQ(std::string(warnings[k].text.view()).rfind(expect, 0), 0u) << warnings[k].text.view();
+      EXPECT_EQ(warnings[k].source_line, v.line);
+      EXPECT_EQ(warnings[k].interpolator, 0);
+    }
+  }
 }
 
 // Whatever a client sends (any kind, role, interpolator, Command code, parameter, axis and

@@ -36,6 +36,7 @@ std::optional<LimitChecker> LimitChecker::create(const InterpolatorConfig& axes,
     c.ejmax_[i] = a.max_jerk_mm_s3 * ratio;
   }
   c.stored_.reserve(kMaxStored);
+  c.events_.reserve(256);  // corners of the last three cycles: no allocation per cycle in a service
   return c;
 }
 

@@ -7,10 +7,12 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "tgm/config.hpp"
 #include "tgm/interpolator.hpp"
+#include "tgm/limit_checker.hpp"
 #include "tgm/service/port.hpp"
 
 namespace tgm::service {
@@ -26,6 +28,12 @@ struct EngineOptions {
   std::size_t max_segments_per_cycle = 1024;
   //! Options for every interpolator.
   InterpolatorOptions interpolator;
+  //! Runs a limit checker on every interpolator's output (Orig_Position differentiated per
+  //! cycle, core/MOTION.md "Limit checker"; `tgm-service --check-limits`). Each excess goes to
+  //! the HMI as a warning message naming axis, quantity, size, limit, line and cycle: the first
+  //! `max_limit_messages` of each program, then one message that the rest are only counted.
+  bool check_limits = false;
+  int max_limit_messages = 16;
 };
 
 //! What the engine counted (for the log at shutdown and for tests).
@@ -38,6 +46,8 @@ struct EngineCounters {
   std::uint64_t refused_chunks = 0;
   std::uint64_t lost_replies = 0;
   std::uint64_t lost_messages = 0;
+  //! Limit excesses found by the checker (EngineOptions::check_limits), all interpolators.
+  std::uint64_t limit_violations = 0;
 };
 
 //! Role rule of a request (DESIGN.md section 1), exposed for tests and documentation.
@@ -60,7 +70,12 @@ class Engine {
 
  private:
   struct Slot {
+    explicit Slot(Interpolator i) : ip(std::move(i)) {}
     Interpolator ip;
+    std::optional<LimitChecker> checker;  // EngineOptions::check_limits
+    std::uint64_t limits_counted = 0;     // checker->violation_count() already counted
+    int limit_messages = 0;               // excesses reported for the current program
+    std::int32_t last_command = 0;        // Command register after the previous cycle
     std::uint32_t program_id = 0;
     std::uint64_t next_sequence = 0;
     std::uint32_t refused_program = 0;  // last program id a refusal message was sent for
@@ -73,6 +88,8 @@ class Engine {
   //! Appends what interpolator i's queued chunks allow within `budget`, which it lowers.
   void apply_chunks(CyclePort& port, int i, std::size_t& budget);
   void refuse_chunk(CyclePort& port, int i, const ChunkIn& c, std::string_view why);
+  //! Feeds interpolator i's cycle to its limit checker and reports new excesses.
+  void check_limits(CyclePort& port, int i);
 
   std::vector<Slot> ips_;
   EngineOptions opt_;
