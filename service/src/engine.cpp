@@ -299,14 +299,10 @@ void Engine::check_limits(CyclePort& port, int i) {
   if (sets_position(s.last_command) || sets_position(reg.command)) s.checker->reset();
   s.last_command = reg.command;
   const std::size_t stored_before = s.checker->violations().size();
+  const std::uint64_t counted_before = s.checker->violation_count();
   s.checker->add_cycle(reg, s.ip.corner_events());
-  const std::uint64_t found = s.checker->violation_count() - s.limits_counted;
-  if (found == 0) return;
-  s.limits_counted = s.checker->violation_count();
+  const std::uint64_t found = s.checker->violation_count() - counted_before;
   counters_.limit_violations += found;
-  const auto& stored = s.checker->violations();  // the first LimitChecker::kMaxStored in detail
-  const std::size_t detailed = stored.size() - stored_before;
-  const InterpolatorConfig& cfg = s.ip.config();
   auto send = [&](std::string_view text, std::int32_t line) {
     MessageOut m;
     m.interpolator = i;
@@ -315,18 +311,19 @@ void Engine::check_limits(CyclePort& port, int i) {
     m.source_line = line;
     if (!port.message(m)) ++counters_.lost_messages;
   };
-  char text[200];
+  // The checker keeps the first LimitChecker::kMaxStored excesses in detail.
+  const auto& stored = s.checker->violations();
+  const InterpolatorConfig& cfg = s.ip.config();
   for (std::uint64_t k = 0; k < found && s.limit_messages <= opt_.max_limit_messages; ++k) {
-    if (s.limit_messages == opt_.max_limit_messages || k >= detailed) {
-      std::snprintf(text, sizeof text,
-                    "limit excess: more in this program are counted, not reported (tgm-service --stats)");
-      send(text, reg.act_line);
-      s.limit_messages = opt_.max_limit_messages + 1;
+    if (s.limit_messages == opt_.max_limit_messages || stored_before + k >= stored.size()) {
+      send("limit excess: more in this program are counted, not reported (tgm-service --stats)", reg.act_line);
+      s.limit_messages = opt_.max_limit_messages + 1;  // nothing more for this program
       break;
     }
     const LimitViolation& v = stored[stored_before + k];
     static constexpr const char* kUnit[] = {"mm/s", "mm/s^2", "mm/s^3", "mm/s"};
     const auto q = static_cast<std::size_t>(v.quantity);
+    char text[200];
     std::snprintf(text, sizeof text, "limit excess: axis %c %s %.6g > %.6g %s (cycle %llu)",
                   cfg.axes[static_cast<std::size_t>(v.axis)].letter, limit_quantity_name(v.quantity), v.value,
                   v.limit, q < 4 ? kUnit[q] : "", static_cast<unsigned long long>(v.cycle));

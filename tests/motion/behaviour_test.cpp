@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "program_builder.hpp"
+#include "soft_axis_cases.hpp"
 #include "tgm/interpolator.hpp"
 #include "tgm/limit_checker.hpp"
 #include "tgm/simulation.hpp"
@@ -511,60 +512,23 @@ TEST(Machines, JerkFarAboveWhatACalculationStepCanUseKeepsTheCorner) {
   }
 }
 
-// Axes whose jerk limits differ by orders of magnitude (found by the wide-envelope sweep,
-// core/MOTION.md "Known gaps"). Braking for a corner along the stiff axis at its jerk leaves a
-// deceleration at the junction that the next record, led by the soft axis, cannot take back
-// before the motion would reverse: the motion stalls at v = 0 still decelerating and the soft
-// axis' jerk goes to 10..500 x its limit. Each case is two machines' axes and three moves.
+// Axes whose jerk limits differ by orders of magnitude (soft_axis_cases.hpp, core/MOTION.md
+// "Known gaps"). Braking for a corner along the stiff axis at its jerk leaves a deceleration at
+// the junction that the next record, led by the soft axis, cannot take back before the motion
+// would reverse: the motion stalls at v = 0 still decelerating and the soft axis' jerk goes to
+// 10..500 x its limit.
 // DISABLED: this is the open gap, kept as its executable reproduction (both cases fail today;
 // run with --gtest_also_run_disabled_tests). Planning the junction's speed limit at the entered
 // record's jerk makes it pass but breaks a regular sweep program (MOTION.md lists the variants
 // tried); enable it with the fix.
-struct SoftAxisCase {
-  int cycle_us;
-  AxisConfig stiff, soft;
-  std::vector<std::array<double, 3>> moves;  // x, y, F [mm/min]
-};
-
-AxisConfig axis_limits(double v, double a, double j, double tol) {
-  AxisConfig x = MachineConfig::default_machine().interpolators[0].axes[0];
-  x.max_velocity_mm_s = v;
-  x.rapid_velocity_mm_s = v;
-  x.max_acceleration_mm_s2 = a;
-  x.max_jerk_mm_s3 = j;
-  x.emergency_deceleration_mm_s2 = 2.0 * a;
-  x.corner_velocity_tolerance_mm_s = tol;
-  return x;
-}
-
 TEST(Machines, DISABLED_CornerIntoARecordLedByAFarSofterAxisKeepsItsJerk) {
-  const SoftAxisCase cases[] = {
-      // Wide sweep seed 1 program 60: Y jerk 23,000 > 347 at the final stop.
-      {250, axis_limits(61.7, 8333.0, 2.408e5, 7.822), axis_limits(40.0, 173.7, 347.4, 0.127),
-       {{0.9459, 0.0, 211.0}, {2.3396, 2.2001, 81.4}, {4.4766, -2.0658, 81.4}}},
-      // Wide sweep seed 1 program 115: a 0.26 mm/s corner from X onto a Y-led line, stall at v = 0
-      // with -880 mm/s^2, Y jerk 3.9e5 > 823.
-      {500, axis_limits(41.8, 8360.0, 4.18e6, 0.7192), axis_limits(2057.0, 411.3, 822.7, 0.1923),
-       {{-4.66325, 0.01271, 5650.0}, {3.16951, 0.01271, 13050.0}, {7.24153, 4.62242, 13610.0}}},
-  };
-  for (std::size_t k = 0; k < std::size(cases); ++k) {
-    const SoftAxisCase& c = cases[k];
-    MachineConfig m = machine();
-    m.cycle_time_us = c.cycle_us;
-    auto& axes = m.interpolators[0].axes;
-    axes.resize(2);
-    axes[0] = c.stiff;
-    axes[0].letter = 'X';
-    axes[1] = c.soft;
-    axes[1].letter = 'Y';
-    ProgramBuilder b(2);
-    for (const auto& mv : c.moves) b.line({mv[0], mv[1]}, mv[2]);
-    b.end();
+  const auto cases = test::soft_axis_cases();
+  for (std::size_t k = 0; k < cases.size(); ++k) {
     SimulationOptions o;
     o.check_limits = true;
-    auto sim = Simulation::create(m, o);
+    auto sim = Simulation::create(cases[k].machine(), o);
     ASSERT_TRUE(sim) << k;
-    const SimulationSummary s = sim->run(b.program());
+    const SimulationSummary s = sim->run(cases[k].program());
     EXPECT_EQ(s.result, StepResult::kFinished) << k << ": " << s.error;
     EXPECT_EQ(s.violation_count, 0u) << k;
     for (const auto& v : s.violations) {

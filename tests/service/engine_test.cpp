@@ -9,6 +9,7 @@
 #include <random>
 #include <string>
 
+#include "../motion/soft_axis_cases.hpp"
 #include "mock_port.hpp"
 #include "tgm/config.hpp"
 #include "tgm/service/engine.hpp"
@@ -254,56 +255,14 @@ TEST(Engine, NormalMFunctionWaitsForTheAckAndResumesInTheSameCycle) {
   EXPECT_EQ(port.last.ip[0].message_counter, 1u);
 }
 
-// A two-axis machine whose Y jerk limit is 700 x below X's, and three moves that make the
-// planner exceed it (core/MOTION.md "Known gaps", Machines.DISABLED_Corner... in the motion
-// tests): the one way to get a real excess out of the interpolator for the live checker to find.
-MachineConfig soft_y_machine() {
-  MachineConfig m = MachineConfig::default_machine();
-  m.cycle_time_us = 250;
-  auto& axes = m.interpolators[0].axes;
-  axes.resize(2);
-  const double lim[2][4] = {{61.7, 8333.0, 2.408e5, 7.822}, {40.0, 173.7, 347.4, 0.127}};
-  for (std::size_t i = 0; i < 2; ++i) {
-    axes[i].letter = i == 0 ? 'X' : 'Y';
-    axes[i].max_velocity_mm_s = axes[i].rapid_velocity_mm_s = lim[i][0];
-    axes[i].max_acceleration_mm_s2 = lim[i][1];
-    axes[i].emergency_deceleration_mm_s2 = 2.0 * lim[i][1];
-    axes[i].max_jerk_mm_s3 = lim[i][2];
-    axes[i].corner_velocity_tolerance_mm_s = lim[i][3];
-  }
-  return m;
-}
-
-Program soft_y_program() {
-  Program p;
-  p.number_axes = 2;
-  p.axis_letters = "XY";
-  const double moves[3][3] = {{0.9459, 0.0, 211.0}, {2.3396, 2.2001, 81.4}, {4.4766, -2.0658, 81.4}};
-  for (int i = 0; i < 3; ++i) {
-    Segment s;
-    s.type = SegmentType::kLinear;
-    s.line = 10 * (i + 1);
-    s.end[0] = moves[i][0];
-    s.end[1] = moves[i][1];
-    s.feed_mm_per_min = moves[i][2];
-    p.segments.push_back(s);
-  }
-  Segment end;
-  end.type = SegmentType::kMFunction;
-  end.m_kind = MKind::kProgramEnd;
-  end.m = 2;
-  end.line = 40;
-  end.end = p.segments.back().end;
-  p.segments.push_back(end);
-  return p;
-}
-
 // tgm-service --check-limits: the live checker reports, as HMI warnings, exactly the excesses
 // the offline simulation's checker finds in the same program (axis, quantity, size, limit,
 // line), and counts them.
 TEST(Engine, CheckLimitsReportsWhatTheOfflineCheckerFinds) {
-  const MachineConfig m = soft_y_machine();
-  const Program p = soft_y_program();
+  // The gap's first case (soft_axis_cases.hpp): Y's jerk limit 700 x below X's, exceeded today.
+  const tgm::test::SoftAxisCase soft = tgm::test::soft_axis_cases().front();
+  const MachineConfig m = soft.machine();
+  const Program p = soft.program();
   SimulationOptions so;
   so.check_limits = true;
   auto sim = Simulation::create(m, so);

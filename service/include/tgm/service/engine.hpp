@@ -73,7 +73,6 @@ class Engine {
     explicit Slot(Interpolator i) : ip(std::move(i)) {}
     Interpolator ip;
     std::optional<LimitChecker> checker;  // EngineOptions::check_limits
-    std::uint64_t limits_counted = 0;     // checker->violation_count() already counted
     int limit_messages = 0;               // excesses reported for the current program
     std::int32_t last_command = 0;        // Command register after the previous cycle
     std::uint32_t program_id = 0;
