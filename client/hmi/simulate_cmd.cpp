@@ -31,7 +31,7 @@ namespace {
 
 constexpr const char* kUsage =
     "usage: tgm-hmi simulate FILE [--config YAML] [--interpolator N] [--csv OUT]\n"
-    "                             [--rel-speed R] [--check-limits] [--m-ack S] [--blocks OUT]\n"
+    "                             [--rel-speed R] [--check-limits] [--limit-share F] [--m-ack S] [--blocks OUT]\n"
     "                             [--spline POINTS,JERK] [--iir P,Q,F,MASK] [--lookahead OUT]\n"
     "\n"
     "Compiles FILE and runs it through interpolator N (default 0) offline, cycle by cycle,\n"
@@ -52,6 +52,8 @@ constexpr const char* kUsage =
     "  --rel-speed R    feed override 0.01..2 (default 1)\n"
     "  --check-limits   differentiate Orig_Position per cycle and fail on any per-axis velocity,\n"
     "                   acceleration, jerk or corner-step excess (listed with cycle and line)\n"
+    "  --limit-share F  with --check-limits (implied): hold the motion to F (0..1] of each\n"
+    "                   limit, e.g. 0.8 lists where the program uses more than 80 % of one\n"
     "  --m-ack S        time the emulated PLC takes per normal M-function [s]\n"
     "  --progress-interval S  when standard error is not a terminal, a progress line there\n"
     "                   every S seconds (default 10); on a terminal the line is redrawn\n"
@@ -157,7 +159,8 @@ File open_out(const std::string& path) {
 
 int run_simulate(int argc, char** argv) {
   Args args(argc, argv, "simulate", kUsage);
-  std::string file, csv_path, blocks_path, rel_text, m_ack_text, spline_text, iir_text, la_path, interval_text;
+  std::string file, csv_path, blocks_path, rel_text, m_ack_text, spline_text, iir_text, la_path, interval_text,
+      share_text;
   bool check_limits = false, quiet = false;
   while (args.more()) {
     if (args.flag("--csv", csv_path)) continue;
@@ -168,6 +171,7 @@ int run_simulate(int argc, char** argv) {
     if (args.flag("--iir", iir_text)) continue;
     if (args.flag("--lookahead", la_path)) continue;
     if (args.flag("--progress-interval", interval_text)) continue;
+    if (args.flag("--limit-share", share_text)) continue;
     if (args.boolean("--check-limits", check_limits)) continue;
     if (args.boolean("--quiet", quiet)) continue;
     if (args.common()) continue;
@@ -184,6 +188,13 @@ int run_simulate(int argc, char** argv) {
   double m_ack = -1.0;
   if (!m_ack_text.empty() && (!parse_double(m_ack_text, m_ack) || m_ack < 0.0 || m_ack > 3600.0)) {
     return args.usage_error("--m-ack takes seconds 0..3600, not '" + m_ack_text + "'");
+  }
+  double share = 1.0;
+  if (!share_text.empty()) {
+    if (!parse_double(share_text, share) || !(share > 0.0 && share <= 1.0)) {
+      return args.usage_error("--limit-share takes a number in (0, 1], not '" + share_text + "'");
+    }
+    check_limits = true;
   }
   double interval_s = 10.0;
   if (!parse_progress_interval(args, interval_text, interval_s)) return 2;
@@ -244,6 +255,7 @@ int run_simulate(int argc, char** argv) {
   // The checker needs every cycle, so it runs only when asked (as does the CSV); otherwise the
   // run skips through cruise, dwells and M waits (Interpolator::advance, same trajectory).
   so.check_limits = check_limits;
+  so.limit_share = share;
   so.commands = commands;
   const auto wall0 = std::chrono::steady_clock::now();
   // Progress on standard error (standard output is the summary): redrawn on a terminal from
@@ -431,6 +443,7 @@ int run_simulate(int argc, char** argv) {
   if (!check_limits) {
     std::printf("axis peaks and violations: not checked (--check-limits differentiates every cycle)\n");
   } else {
+    if (share < 1.0) std::printf("limits checked at %g x the configured ones (--limit-share)\n", share);
     std::printf("axis   |v| peak / limit [mm/s]   |a| peak / limit [mm/s^2]   |j| peak / limit [mm/s^3]   corner step / tol [mm/s]\n");
     for (int i = 0; i < n; ++i) {
       const auto ui = static_cast<std::size_t>(i);

@@ -157,7 +157,7 @@ std::optional<Engine> Engine::create(const MachineConfig& machine, const EngineO
     Slot slot(std::move(*ip));
     if (options.check_limits) {
       slot.checker = LimitChecker::create(machine.interpolators[static_cast<std::size_t>(i)],
-                                          machine.cycle_time_us, &why);
+                                          machine.cycle_time_us, &why, options.limit_share);
       if (!slot.checker) {
         if (error) *error = "interpolator " + std::to_string(i) + ": limit checker: " + why;
         return std::nullopt;

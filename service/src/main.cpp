@@ -48,6 +48,8 @@ constexpr const char* kUsage =
     "  --check-limits         check every axis' velocity, acceleration, jerk and corner steps\n"
     "                         on the interpolated positions each cycle; each excess goes to\n"
     "                         the HMI as a warning (axis, size, limit, line, cycle)\n"
+    "  --limit-share F        with --check-limits (implied): hold the motion to F (0..1] of\n"
+    "                         each limit, e.g. 0.8 reports where a program uses over 80 %%\n"
     "  --duration S           stop by itself after S seconds\n"
     "  --stats FILE           write lateness, handshake and counter figures as JSON at exit\n"
     "  --handshake-trace FILE write the time stamps of every M-function handshake as CSV at exit\n"
@@ -139,6 +141,14 @@ int main(int argc, char** argv) {
     } else if (flag == "--setpoint-decimation") {
       if (!parse_long(value, 1, 10000, n)) return usage_error("--setpoint-decimation must be 1..10000");
       port_options.setpoint_decimation = static_cast<int>(n);
+    } else if (flag == "--limit-share") {
+      char* end = nullptr;
+      const double share = std::strtod(value.c_str(), &end);
+      if (value.empty() || *end != '\0' || !(share > 0.0 && share <= 1.0)) {
+        return usage_error("--limit-share must be a number in (0, 1], not '" + value + "'");
+      }
+      engine_options.limit_share = share;
+      engine_options.check_limits = true;
     } else if (flag == "--duration") {
       char* end = nullptr;
       duration_s = std::strtod(value.c_str(), &end);

@@ -512,16 +512,12 @@ TEST(Machines, JerkFarAboveWhatACalculationStepCanUseKeepsTheCorner) {
   }
 }
 
-// Axes whose jerk limits differ by orders of magnitude (soft_axis_cases.hpp, core/MOTION.md
-// "Known gaps"). Braking for a corner along the stiff axis at its jerk leaves a deceleration at
-// the junction that the next record, led by the soft axis, cannot take back before the motion
-// would reverse: the motion stalls at v = 0 still decelerating and the soft axis' jerk goes to
-// 10..500 x its limit.
-// DISABLED: this is the open gap, kept as its executable reproduction (both cases fail today;
-// run with --gtest_also_run_disabled_tests). Planning the junction's speed limit at the entered
-// record's jerk makes it pass but breaks a regular sweep program (MOTION.md lists the variants
-// tried); enable it with the fix.
-TEST(Machines, DISABLED_CornerIntoARecordLedByAFarSofterAxisKeepsItsJerk) {
+// Axes whose jerk limits differ by orders of magnitude (soft_axis_cases.hpp, found by the
+// wide-envelope sweep). Braking for a corner along the stiff axis at its jerk used to leave a
+// deceleration at the junction that the next record, led by the soft axis, could not take back
+// before the motion would reverse: the motion stalled at v = 0 still decelerating and the soft
+// axis' jerk went to 10..500 x its limit (core/MOTION.md, "Junctions into a lower jerk").
+TEST(Machines, CornerIntoARecordLedByAFarSofterAxisKeepsItsJerk) {
   const auto cases = test::soft_axis_cases();
   for (std::size_t k = 0; k < cases.size(); ++k) {
     SimulationOptions o;

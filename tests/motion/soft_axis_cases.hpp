@@ -1,7 +1,6 @@
-// Two-axis machines whose jerk limits differ by orders of magnitude, with three moves each that
-// make the planner exceed the soft axis' jerk (core/MOTION.md "Known gaps", found by the
-// wide-envelope sweep). The motion tests keep them as the gap's reproduction; the service tests
-// use them as the one way to get a real excess out of the interpolator for the live checker.
+// Two-axis machines whose jerk limits differ by orders of magnitude, with a few moves each that
+// made the planner exceed the soft axis' jerk (found by the wide-envelope sweep; core/MOTION.md
+// "Junctions into a lower jerk"). The motion tests keep them as regression cases.
 #pragma once
 
 #include <array>
@@ -54,9 +53,15 @@ inline std::vector<SoftAxisCase> soft_axis_cases() {
       {250, {61.7, 8333.0, 2.408e5, 7.822}, {40.0, 173.7, 347.4, 0.127},
        {{0.9459, 0.0, 211.0}, {2.3396, 2.2001, 81.4}, {4.4766, -2.0658, 81.4}}},
       // Wide sweep seed 1 program 115: a 0.26 mm/s corner from X onto a Y-led line, stall at
-      // v = 0 with -880 mm/s^2, Y jerk 3.9e5 > 823.
+      // v = 0 with -880 mm/s^2, Y jerk 3.9e5 > 823. The calculation step that could reach the
+      // junction already had Y's jerk limit: the braking has to be done before it.
       {500, {41.8, 8360.0, 4.18e6, 0.7192}, {2057.0, 411.3, 822.7, 0.1923},
        {{-4.66325, 0.01271, 5650.0}, {3.16951, 0.01271, 13050.0}, {7.24153, 4.62242, 13610.0}}},
+      // The same with two more moves: the corner braking left -134 mm/s^2, and the landing on
+      // the feed behind it limited taking that back to Y's jerk (stall, Y jerk 1.5e5).
+      {500, {41.8, 8360.0, 4.18e6, 0.7192}, {2057.0, 411.3, 822.7, 0.1923},
+       {{-4.66325, 0.01271, 5650.0}, {3.16951, 0.01271, 13050.0}, {7.24153, 4.62242, 13610.0},
+        {3.40833, 6.95940, 13610.0}, {2.56256, 10.70280, 13610.0}}},
   };
 }
 

@@ -61,8 +61,10 @@ class LimitChecker {
   //! Violations kept in detail; all are counted.
   static constexpr std::size_t kMaxStored = 1000;
 
+  //! `share` in (0, 1]: the part of each configured limit (velocity, acceleration, jerk, corner
+  //! tolerance) that counts as the limit; 0.8 reports where a program uses more than 80 % of one.
   static std::optional<LimitChecker> create(const InterpolatorConfig& axes, int cycle_time_us,
-                                            std::string* error = nullptr);
+                                            std::string* error = nullptr, double share = 1.0);
 
   //! Forgets the history (after a position set); the next cycle starts a new series.
   void reset();
@@ -73,7 +75,8 @@ class LimitChecker {
   std::uint64_t violation_count() const { return count_; }
   const std::vector<LimitViolation>& violations() const { return stored_; }
   const std::array<AxisPeaks, kMaxAxes>& peaks() const { return peaks_; }
-  //! Limits used: velocity, acceleration, jerk per axis (normal, not emergency).
+  //! Limits used (the configured ones times the share): velocity, acceleration, jerk per axis
+  //! (normal, not emergency).
   double velocity_limit(int axis) const { return vmax_[static_cast<std::size_t>(axis)]; }
   double acceleration_limit(int axis) const { return amax_[static_cast<std::size_t>(axis)]; }
   double jerk_limit(int axis) const { return jmax_[static_cast<std::size_t>(axis)]; }

@@ -45,6 +45,8 @@ struct SimulationOptions {
   double m0_restart_s = 0.0;
   //! Run the limit checker (records corner events).
   bool check_limits = false;
+  //! The part of each limit the checker holds the motion to (LimitChecker::create).
+  double limit_share = 1.0;
   //! Give up after this much program time [s].
   double max_time_s = 24.0 * 3600.0;
   //! When run() has no per-cycle callback and no limit checker, advance through cruise, dwells,

@@ -220,6 +220,11 @@ struct Constraint {
   //! bounds those from every state the cycle's calculation steps evaluate (cycle_bound).
   //! -infinity until the scan first needs it.
   double safe = -kInf;
+  //! Speed limits at a junction into a record of lower jerk: the braking must be complete this
+  //! far [mm] before it (two calculation steps at w), and the speed stays within w from there on.
+  //! The calculation step that can reach the junction already has that record's jerk limit, and
+  //! the deceleration it carries in cannot be taken back there before the motion stops.
+  double reserve = 0.0;
 };
 
 double norm_angle_deg(double rad) {
@@ -726,6 +731,7 @@ struct Interpolator::Impl {
             // this limit is taken back (see Constraint::Jx).
             const std::uint64_t nse = r.link[f].nse;
             ck.Jx = std::min(J, nse != kNoQ && nse < win_end ? r.link[f].jmin : Jw);
+            if (r.kind == RecKind::kMotion && r.jt < J) ck.reserve = 2.0 * w * dt;
           }
           ++hops;
         }
@@ -818,7 +824,10 @@ struct Interpolator::Impl {
     const Rec& rc = R(cur);
     A = rc.at;
     J = rc.jt;
-    const double reach = st.v * dt + 0.5 * rc.at * dt * dt + rc.jt * dt * dt * dt / 6.0 + 1e-9;
+    // The farthest this step can go: its end acceleration is at most min(a + J dt, A) with the
+    // current record's limits (later records only lower them).
+    const double x_max = std::min(st.a + rc.jt * dt, std::max(rc.at, st.a));
+    const double reach = std::max(0.0, dt * (st.v + dt * (st.a / 3.0 + x_max / 6.0))) + 1e-9;
     const double limit = rc.s0 + st.s + reach;
     int scanned = 0;
     std::size_t idx = ring_index(cur + 1);
@@ -1455,7 +1464,11 @@ struct Interpolator::Impl {
         const double Jl = landing_jerk(std::max(a, xd), vt, J, Jw);
         // Never above the landing at J: this step may still take acceleration back at J.
         if (Jl < J && jerk::landing_acceleration(v, a, vt, Jl, dt) < xd) {
-          xd = std::min(xd, std::clamp(jerk::track_velocity(v, a, vt, A, Jl, dt), lo, hi));
+          double xl = jerk::track_velocity(v, a, vt, A, Jl, dt);
+          // Still decelerating: taking that back is not part of the landing and may use this
+          // step's jerk; only the acceleration built above zero must come back at Jl.
+          if (a < 0.0) xl = std::max(xl, std::min(jerk::landing_acceleration(v, a, vt, Jl, dt), hi));
+          xd = std::min(xd, std::clamp(xl, lo, hi));
         }
       }
       // Lowest x from which every deceleration above a record's limit ahead can still be taken
@@ -1520,12 +1533,12 @@ struct Interpolator::Impl {
           const double vz = ns.v + ns.a * ns.a / (2.0 * jp);
           if (vz <= ck.w) {
             const double a_ok = std::sqrt((ck.w - vz) / (0.5 / jx - 0.5 / jp));
-            return ns.a <= a_ok ? -remain : accel_distance(ns.v, ns.a, a_ok, jp) - remain;
+            return ns.a <= a_ok ? -remain : accel_distance(ns.v, ns.a, a_ok, jp) - std::max(0.0, remain - ck.reserve);
           }
         }
         return plan_braking(std::max(ns.v, 0.0), ns.a, ck.w, kPlanMargin * ck.A, kPlanMarginJ * ck.J,
                             kPlanMarginJ * J) -
-               remain;
+               std::max(0.0, remain - ck.reserve);
       };
       auto excess = [&](double xx, int k) { return excess_from(jerk::advance(before, xx, dt), k); };
       if (a == 0.0 && xd == 0.0) {
@@ -1533,7 +1546,7 @@ struct Interpolator::Impl {
           double m = kInf;
           for (int k = 0; k < nc; ++k) {
             if (c[k].accel || c[k].d - moved < 0.0) continue;
-            m = std::min(m, c[k].d - plan_braking(v, 0.0, c[k].w, kPlanMargin * c[k].A,
+            m = std::min(m, c[k].d - c[k].reserve - plan_braking(v, 0.0, c[k].w, kPlanMargin * c[k].A,
                                                    kPlanMarginJ * c[k].J, kPlanMarginJ * J));
           }
           cruise_margin = m;
@@ -1555,10 +1568,10 @@ struct Interpolator::Impl {
       for (int k = 0; k < nc; ++k) {
         const double dk = c[k].d - moved;
         if (dk < 0.0) continue;  // passed in an earlier calculation step
-        if (dk > bound + c[k].beyond_stop) continue;
+        if (dk - c[k].reserve > bound + c[k].beyond_stop) continue;
         if (c[k].accel && nd.a <= c[k].w) continue;  // within that limit already: passes
         if (cons_bounds && regular_for(nd, c[k])) {
-          if (c[k].safe == -kInf) c[k].safe = c[k].d - cycle_bound(c[k]);
+          if (c[k].safe == -kInf) c[k].safe = c[k].d - c[k].reserve - cycle_bound(c[k]);
           if (moved + (nd.s - before.s) <= c[k].safe) continue;  // passes (see cycle_bound)
         }
         const double e = excess_from(nd, k);
@@ -1895,7 +1908,7 @@ struct Interpolator::Impl {
     for (int k = 0; k < na; ++k) {
       const Constraint& ck = all[static_cast<std::size_t>(k)];
       if (ck.accel) continue;  // |a| = 0 is within every acceleration limit
-      slack = std::min(slack, ck.d - plan_braking(v, 0.0, ck.w, kPlanMargin * ck.A,
+      slack = std::min(slack, ck.d - ck.reserve - plan_braking(v, 0.0, ck.w, kPlanMargin * ck.A,
                                                    kPlanMarginJ * ck.J, kPlanMarginJ * rc.jt));
     }
     const double s_start = st.s;

@@ -15,8 +15,12 @@ const char* limit_quantity_name(LimitQuantity q) {
   return "?";
 }
 
-std::optional<LimitChecker> LimitChecker::create(const InterpolatorConfig& axes, int cycle_time_us,
-                                                 std::string* error) {
+std::optional<LimitChecker> LimitChecker::create(const InterpolatorConfig& axes, int cycle_time_us, std::string* error,
+                                                 double share) {
+  if (!(share > 0.0 && share <= 1.0)) {
+    if (error) *error = "the limit share must be a number in (0, 1]";
+    return std::nullopt;
+  }
   if (axes.axes.empty() || axes.axes.size() > static_cast<std::size_t>(kMaxAxes) || cycle_time_us <= 0) {
     if (error) *error = "limit checker needs 1..10 axes and a positive cycle time";
     return std::nullopt;
@@ -26,14 +30,14 @@ std::optional<LimitChecker> LimitChecker::create(const InterpolatorConfig& axes,
   c.T_ = cycle_time_us * 1e-6;
   for (std::size_t i = 0; i < axes.axes.size(); ++i) {
     const AxisConfig& a = axes.axes[i];
-    c.vmax_[i] = a.max_velocity_mm_s;
-    c.amax_[i] = a.max_acceleration_mm_s2;
-    c.jmax_[i] = a.max_jerk_mm_s3;
-    c.tol_[i] = a.corner_velocity_tolerance_mm_s;
+    c.vmax_[i] = share * a.max_velocity_mm_s;
+    c.amax_[i] = share * a.max_acceleration_mm_s2;
+    c.jmax_[i] = share * a.max_jerk_mm_s3;
+    c.tol_[i] = share * a.corner_velocity_tolerance_mm_s;
     // The emergency ramp may decelerate harder; its jerk scales with the same ratio.
     const double ratio = std::max(1.0, a.emergency_deceleration_mm_s2 / a.max_acceleration_mm_s2);
-    c.emax_[i] = a.max_acceleration_mm_s2 * ratio;
-    c.ejmax_[i] = a.max_jerk_mm_s3 * ratio;
+    c.emax_[i] = c.amax_[i] * ratio;
+    c.ejmax_[i] = c.jmax_[i] * ratio;
   }
   c.stored_.reserve(kMaxStored);
   c.events_.reserve(256);  // corners of the last three cycles: no allocation per cycle in a service

@@ -17,7 +17,7 @@ std::optional<Simulation> Simulation::create(const MachineConfig& machine, const
   s.opt_ = options;
   s.cycle_time_us_ = machine.cycle_time_us;
   if (options.check_limits) {
-    s.checker_ = LimitChecker::create(ip->config(), machine.cycle_time_us, error);
+    s.checker_ = LimitChecker::create(ip->config(), machine.cycle_time_us, error, options.limit_share);
     if (!s.checker_) return std::nullopt;
   }
   const auto r = ip->set_rel_speed(options.rel_speed);
@@ -90,6 +90,9 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
   const bool batch = opt_.fast_forward && !on_cycle && !checker_;
   std::array<std::uint64_t, 11> factor_cycles{};
   std::uint64_t cycle = 0, passes = 0;
+  // The axes stand at the start before the first cycle: the checker differentiates the first
+  // cycles against that, as a live run's checker does with the cycles before the start.
+  if (checker_) checker_->add_cycle(ip.registers(), {});
   while (true) {
     const double t = static_cast<double>(cycle) * T;
     while (change < changes.size() && changes[change].first <= t) {
