@@ -144,9 +144,11 @@ TEST_F(HmiSimulate, BadInputIsAUsageErrorAndWritesNothing) {
       {"simulate " + ok + " --m-ack -1", "--m-ack takes seconds 0..3600, not '-1'"},
       {"simulate " + ok + " --spline 1,2,3", "--spline takes POINTS,JERK (integers), not '1,2,3'"},
       {"simulate " + ok + " --iir 1,2", "--iir takes P,Q,F,MASK"},
-      {"simulate " + ok + " --progress-interval 0", "--progress-interval takes seconds > 0, not '0'"},
+      {"simulate " + ok + " --progress-interval 0",
+       "--progress-interval takes seconds > 0, not '0'"},
       {"simulate " + ok + " --limit-share 0", "--limit-share takes a number in (0, 1], not '0'"},
-      {"simulate " + ok + " --limit-share 1.5", "--limit-share takes a number in (0, 1], not '1.5'"},
+      {"simulate " + ok + " --limit-share 1.5",
+       "--limit-share takes a number in (0, 1], not '1.5'"},
       {"simulate " + ok + " --interpolator 3", "--interpolator must be 0..2"},
       {"simulate " + ok + " --frobnicate", "unknown option '--frobnicate'"},
       {"simulate /nonexistent.ngc --config " + kConfig, "/nonexistent.ngc: error: cannot open"},
@@ -166,12 +168,15 @@ TEST_F(HmiSimulate, BadInputIsAUsageErrorAndWritesNothing) {
 // example keeps the full limits and uses more than half of some, so at 0.5 it fails with the
 // excesses listed against the halved limits.
 TEST_F(HmiSimulate, LimitShareChecksAgainstThatPartOfEachLimit) {
-  const ProcessResult full = run("simulate " + kExample + " --config " + kConfig + " --limit-share 1");
+  const ProcessResult full =
+      run("simulate " + kExample + " --config " + kConfig + " --limit-share 1");
   ASSERT_EQ(full.exit_code, 0) << full.out << full.err;
   EXPECT_NE(full.out.find("violations: 0\n"), std::string::npos) << full.out;
-  const ProcessResult half = run("simulate " + kExample + " --config " + kConfig + " --limit-share 0.5");
+  const ProcessResult half =
+      run("simulate " + kExample + " --config " + kConfig + " --limit-share 0.5");
   EXPECT_EQ(half.exit_code, 1) << half.out << half.err;
-  EXPECT_NE(half.out.find("limits checked at 0.5 x the configured ones"), std::string::npos) << half.out;
+  EXPECT_NE(half.out.find("limits checked at 0.5 x the configured ones"), std::string::npos)
+      << half.out;
   EXPECT_NE(half.out.find("violations: "), std::string::npos) << half.out;
   EXPECT_EQ(half.out.find("violations: 0\n"), std::string::npos) << half.out;
 }

@@ -284,9 +284,10 @@ TEST(Engine, CheckLimitsReportsWhatTheOfflineCheckerFinds) {
     int cap;
     const SimulationSummary* expect;
   };
-  for (const Run& run : {Run{false, 0.99, 16, nullptr}, Run{true, 1.0, 16, &kept}, Run{true, 0.99, 16, &tight},
-                         Run{true, 0.99, 1, &tight}}) {
-    SCOPED_TRACE(::testing::Message() << "check " << run.check << " share " << run.share << " cap " << run.cap);
+  for (const Run& run : {Run{false, 0.99, 16, nullptr}, Run{true, 1.0, 16, &kept},
+                         Run{true, 0.99, 16, &tight}, Run{true, 0.99, 1, &tight}}) {
+    SCOPED_TRACE(::testing::Message()
+                 << "check " << run.check << " share " << run.share << " cap " << run.cap);
     EngineOptions o;
     o.check_limits = run.check;
     o.limit_share = run.share;
@@ -311,18 +312,20 @@ TEST(Engine, CheckLimitsReportsWhatTheOfflineCheckerFinds) {
     }
     const SimulationSummary& expect = *run.expect;
     EXPECT_EQ(e->counters().limit_violations, expect.violation_count);
-    const std::size_t detail = std::min<std::size_t>(expect.violation_count, static_cast<std::size_t>(run.cap));
+    const std::size_t detail =
+        std::min<std::size_t>(expect.violation_count, static_cast<std::size_t>(run.cap));
     const bool more = expect.violation_count > detail;
     ASSERT_EQ(warnings.size(), detail + (more ? 1 : 0));
     if (more) {
-      EXPECT_NE(std::string(warnings.back().text.view()).find("more in this program are counted, not reported"),
+      EXPECT_NE(std::string(warnings.back().text.view())
+                    .find("more in this program are counted, not reported"),
                 std::string::npos);
     }
     for (std::size_t k = 0; k < detail; ++k) {
       const LimitViolation& v = expect.violations[k];
       char text[160];
-      std::snprintf(text, sizeof text, "limit excess: axis %c %s %.6g > %.6g mm/s", v.axis == 0 ? 'X' : 'Y',
-                    limit_quantity_name(v.quantity), v.value, v.limit);
+      std::snprintf(text, sizeof text, "limit excess: axis %c %s %.6g > %.6g mm/s",
+                    v.axis == 0 ? 'X' : 'Y', limit_quantity_name(v.quantity), v.value, v.limit);
       EXPECT_EQ(std::string(warnings[k].text.view()).rfind(text, 0), 0u) << warnings[k].text.view();
       EXPECT_EQ(warnings[k].source_line, v.line);
       EXPECT_EQ(warnings[k].interpolator, 0);

@@ -1467,7 +1467,8 @@ struct Interpolator::Impl {
           double xl = jerk::track_velocity(v, a, vt, A, Jl, dt);
           // Still decelerating: taking that back is not part of the landing and may use this
           // step's jerk; only the acceleration built above zero must come back at Jl.
-          if (a < 0.0) xl = std::max(xl, std::min(jerk::landing_acceleration(v, a, vt, Jl, dt), hi));
+          if (a < 0.0)
+            xl = std::max(xl, std::min(jerk::landing_acceleration(v, a, vt, Jl, dt), hi));
           xd = std::min(xd, std::clamp(xl, lo, hi));
         }
       }
@@ -1533,11 +1534,13 @@ struct Interpolator::Impl {
           const double vz = ns.v + ns.a * ns.a / (2.0 * jp);
           if (vz <= ck.w) {
             const double a_ok = std::sqrt((ck.w - vz) / (0.5 / jx - 0.5 / jp));
-            return ns.a <= a_ok ? -remain : accel_distance(ns.v, ns.a, a_ok, jp) - std::max(0.0, remain - ck.reserve);
+            return ns.a <= a_ok
+                       ? -remain
+                       : accel_distance(ns.v, ns.a, a_ok, jp) - std::max(0.0, remain - ck.reserve);
           }
         }
-        return plan_braking(std::max(ns.v, 0.0), ns.a, ck.w, kPlanMargin * ck.A, kPlanMarginJ * ck.J,
-                            kPlanMarginJ * J) -
+        return plan_braking(std::max(ns.v, 0.0), ns.a, ck.w, kPlanMargin * ck.A,
+                            kPlanMarginJ * ck.J, kPlanMarginJ * J) -
                std::max(0.0, remain - ck.reserve);
       };
       auto excess = [&](double xx, int k) { return excess_from(jerk::advance(before, xx, dt), k); };
@@ -1546,8 +1549,9 @@ struct Interpolator::Impl {
           double m = kInf;
           for (int k = 0; k < nc; ++k) {
             if (c[k].accel || c[k].d - moved < 0.0) continue;
-            m = std::min(m, c[k].d - c[k].reserve - plan_braking(v, 0.0, c[k].w, kPlanMargin * c[k].A,
-                                                   kPlanMarginJ * c[k].J, kPlanMarginJ * J));
+            m = std::min(m, c[k].d - c[k].reserve -
+                                plan_braking(v, 0.0, c[k].w, kPlanMargin * c[k].A,
+                                             kPlanMarginJ * c[k].J, kPlanMarginJ * J));
           }
           cruise_margin = m;
           cruise_v = v;
@@ -1908,8 +1912,9 @@ struct Interpolator::Impl {
     for (int k = 0; k < na; ++k) {
       const Constraint& ck = all[static_cast<std::size_t>(k)];
       if (ck.accel) continue;  // |a| = 0 is within every acceleration limit
-      slack = std::min(slack, ck.d - ck.reserve - plan_braking(v, 0.0, ck.w, kPlanMargin * ck.A,
-                                                   kPlanMarginJ * ck.J, kPlanMarginJ * rc.jt));
+      slack = std::min(slack, ck.d - ck.reserve -
+                                  plan_braking(v, 0.0, ck.w, kPlanMargin * ck.A,
+                                               kPlanMarginJ * ck.J, kPlanMarginJ * rc.jt));
     }
     const double s_start = st.s;
     const double safety = 1e-6 + 1e-12 * (std::fabs(rc.s0) + rc.g.length);

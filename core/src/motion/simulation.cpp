@@ -17,7 +17,8 @@ std::optional<Simulation> Simulation::create(const MachineConfig& machine, const
   s.opt_ = options;
   s.cycle_time_us_ = machine.cycle_time_us;
   if (options.check_limits) {
-    s.checker_ = LimitChecker::create(ip->config(), machine.cycle_time_us, error, options.limit_share);
+    s.checker_ =
+        LimitChecker::create(ip->config(), machine.cycle_time_us, error, options.limit_share);
     if (!s.checker_) return std::nullopt;
   }
   const auto r = ip->set_rel_speed(options.rel_speed);

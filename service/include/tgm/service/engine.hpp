@@ -34,7 +34,8 @@ struct EngineOptions {
   //! `max_limit_messages` of each program, then one message that the rest are only counted.
   bool check_limits = false;
   int max_limit_messages = 16;
-  //! The part of each limit the checker holds the motion to (`--limit-share`, LimitChecker::create).
+  //! The part of each limit the checker holds the motion to (`--limit-share`,
+  //! LimitChecker::create).
   double limit_share = 1.0;
 };
 
