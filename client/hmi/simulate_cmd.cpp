@@ -191,7 +191,7 @@ int run_simulate(int argc, char** argv) {
   }
   double share = 1.0;
   if (!share_text.empty()) {
-    if (!parse_double(share_text, share) || !(share > 0.0 && share <= 1.0)) {
+    if (!parse_double(share_text, share) || !LimitChecker::valid_share(share)) {
       return args.usage_error("--limit-share takes a number in (0, 1], not '" + share_text + "'");
     }
     check_limits = true;

@@ -69,6 +69,15 @@ bool parse_long(const std::string& text, long lo, long hi, long& out) {
   return true;
 }
 
+// The whole of `text` as a number (strtod's syntax).
+bool parse_double(const std::string& text, double& out) {
+  char* end = nullptr;
+  const double v = std::strtod(text.c_str(), &end);
+  if (text.empty() || *end != '\0') return false;
+  out = v;
+  return true;
+}
+
 std::int64_t percentile(std::vector<std::int64_t> v, double q) {
   if (v.empty()) return 0;
   std::sort(v.begin(), v.end());
@@ -142,17 +151,14 @@ int main(int argc, char** argv) {
       if (!parse_long(value, 1, 10000, n)) return usage_error("--setpoint-decimation must be 1..10000");
       port_options.setpoint_decimation = static_cast<int>(n);
     } else if (flag == "--limit-share") {
-      char* end = nullptr;
-      const double share = std::strtod(value.c_str(), &end);
-      if (value.empty() || *end != '\0' || !(share > 0.0 && share <= 1.0)) {
+      double share = 0.0;
+      if (!parse_double(value, share) || !tgm::LimitChecker::valid_share(share)) {
         return usage_error("--limit-share must be a number in (0, 1], not '" + value + "'");
       }
       engine_options.limit_share = share;
       engine_options.check_limits = true;
     } else if (flag == "--duration") {
-      char* end = nullptr;
-      duration_s = std::strtod(value.c_str(), &end);
-      if (value.empty() || *end != '\0' || !(duration_s > 0.0)) {
+      if (!parse_double(value, duration_s) || !(duration_s > 0.0)) {
         return usage_error("--duration must be a positive number of seconds");
       }
     } else {

@@ -61,6 +61,9 @@ class LimitChecker {
   //! Violations kept in detail; all are counted.
   static constexpr std::size_t kMaxStored = 1000;
 
+  //! The shares create() accepts: (0, 1].
+  static bool valid_share(double share) { return share > 0.0 && share <= 1.0; }
+
   //! `share` in (0, 1]: the part of each configured limit (velocity, acceleration, jerk, corner
   //! tolerance) that counts as the limit; 0.8 reports where a program uses more than 80 % of one.
   static std::optional<LimitChecker> create(const InterpolatorConfig& axes, int cycle_time_us,

@@ -17,7 +17,7 @@ const char* limit_quantity_name(LimitQuantity q) {
 
 std::optional<LimitChecker> LimitChecker::create(const InterpolatorConfig& axes, int cycle_time_us,
                                                  std::string* error, double share) {
-  if (!(share > 0.0 && share <= 1.0)) {
+  if (!valid_share(share)) {
     if (error) *error = "the limit share must be a number in (0, 1]";
     return std::nullopt;
   }
