@@ -62,5 +62,6 @@ class CliTest : public ::testing::Test {
 };
 
 inline const char* const kDefaultConfig = TGM_SOURCE_DIR "/config/default.yaml";
+inline const char* const kManualExample = TGM_SOURCE_DIR "/tests/programs/manual_example.ngc";
 
 }  // namespace tgm::test

@@ -23,7 +23,7 @@ using HmiCompile = test::CliTest;
 const char* const kConfig = test::kDefaultConfig;
 
 TEST_F(HmiCompile, ExampleProgramWritesIntercodeEqualToTheInProcessEncoding) {
-  const fs::path prog = TGM_SOURCE_DIR "/tests/programs/manual_example.ngc";
+  const fs::path prog = test::kManualExample;
   const fs::path out = dir_ / "ex.tgmi";
   const ProcessResult r = run("compile " + prog.string() + " --config " + kConfig + " --out " + out.string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -75,8 +75,8 @@ TEST_F(HmiCompile, ErrorsAreAllListedWithFileLineColumnAndNothingIsWritten) {
 }
 
 TEST_F(HmiCompile, DumpJsonlMatchesTheGoldenFile) {
-  const ProcessResult r = run("compile " TGM_SOURCE_DIR "/tests/programs/manual_example.ngc --config " +
-                    std::string(kConfig) + " --dump jsonl");
+  const ProcessResult r = run("compile " + std::string(test::kManualExample) + " --config " + kConfig +
+                              " --dump jsonl");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(r.out, slurp(TGM_SOURCE_DIR "/tests/programs/manual_example.jsonl"));
 }

@@ -30,7 +30,7 @@ using HmiSimulate = test::CliTest;
 using namespace std::chrono_literals;
 
 const std::string kConfig = test::kDefaultConfig;
-const std::string kExample = TGM_SOURCE_DIR "/tests/programs/manual_example.ngc";
+const std::string kExample = test::kManualExample;
 
 std::vector<std::string> split(const std::string& line, char sep) {
   std::vector<std::string> out;
