@@ -9,18 +9,23 @@
 //                           the share of wall time and ns per stepped cycle
 //   BM_ShortSegmentRatio    circle r = 50 mm of 0.05 mm chords at F6000, default machine:
 //                           program time over the feed-limited lower bound (counter ratio)
+//   BM_SimulationSpeedShortSegments  the same circle ten times: x_realtime as BM_SimulationSpeed
+//   BM_SimulationSpeedManualExample  the manual's example program: x_realtime
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <fstream>
 #include <random>
+#include <sstream>
 #include <string>
 #include <tuple>
 #include <vector>
 
 #include "../motion/program_builder.hpp"
+#include "tgm/gcode.hpp"
 #include "tgm/interpolator.hpp"
 #include "tgm/simulation.hpp"
 
@@ -258,15 +263,15 @@ BENCHMARK(BM_StepReplay)
     ->Iterations(200000)
     ->Unit(benchmark::kNanosecond);
 
-void BM_SimulationSpeed(benchmark::State& state) {
-  const int axes = 3;
-  const MachineConfig m = machine_with_axes(axes);
-  const Program prog = cam_program(axes, 50000, 7);
+// Program time over wall time of whole offline runs (counters x_realtime, program_s).
+void measure_simulation_speed(benchmark::State& state, const MachineConfig& m, const Program& prog,
+                              const std::array<double, tgm::kMaxAxes>& start = {}) {
   double program_s = 0.0, wall_s = 0.0;
   for (auto _ : state) {
     tgm::SimulationOptions o;
     o.m_ack_s = 0.0;
     auto sim = tgm::Simulation::create(m, o);
+    sim->interpolator().set_position(start);
     const auto t0 = std::chrono::steady_clock::now();
     const auto s = sim->run(prog);
     wall_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -275,6 +280,11 @@ void BM_SimulationSpeed(benchmark::State& state) {
   }
   state.counters["x_realtime"] = program_s / wall_s;
   state.counters["program_s"] = program_s / static_cast<double>(state.iterations());
+}
+
+void BM_SimulationSpeed(benchmark::State& state) {
+  const int axes = 3;
+  measure_simulation_speed(state, machine_with_axes(axes), cam_program(axes, 50000, 7));
 }
 BENCHMARK(BM_SimulationSpeed)->Iterations(3)->Unit(benchmark::kMillisecond);
 
@@ -331,25 +341,58 @@ void BM_SimulationRegimes(benchmark::State& state) {
 }
 BENCHMARK(BM_SimulationRegimes)->Iterations(1)->Unit(benchmark::kMillisecond);
 
-void BM_ShortSegmentRatio(benchmark::State& state) {
-  const double r = 50.0, chord = 0.05, feed = 6000.0;
-  const int n = static_cast<int>(std::ceil(2 * kPi * r / chord));
-  ProgramBuilder b(3, {r, 0.0, 0.0});
-  for (int i = 1; i <= n; ++i) {
-    const double a = 2 * kPi * i / n;
-    b.line({r * std::cos(a), r * std::sin(a), 0.0}, feed);
+// The short-segment program: `laps` times around a circle r = 50 mm of 0.05 mm chords
+// at F6000, from (50, 0, 0).
+constexpr double kCircleR = 50.0, kCircleFeed = 6000.0;
+Program short_segment_circle(int laps) {
+  const double chord = 0.05;
+  const int n = static_cast<int>(std::ceil(2 * kPi * kCircleR / chord));
+  ProgramBuilder b(3, {kCircleR, 0.0, 0.0});
+  for (int lap = 0; lap < laps; ++lap) {
+    for (int i = 1; i <= n; ++i) {
+      const double a = 2 * kPi * i / n;
+      b.line({kCircleR * std::cos(a), kCircleR * std::sin(a), 0.0}, kCircleFeed);
+    }
   }
   b.end();
+  return b.program();
+}
+
+void BM_ShortSegmentRatio(benchmark::State& state) {
+  const Program prog = short_segment_circle(1);
   double ratio = 0.0;
   for (auto _ : state) {
     auto sim = tgm::Simulation::create(MachineConfig::default_machine(), {});
-    sim->interpolator().set_position({r, 0.0, 0.0});
-    const auto s = sim->run(b.program());
-    ratio = s.program_time_s / (s.distance_mm / (feed / 60.0));
+    sim->interpolator().set_position({kCircleR, 0.0, 0.0});
+    const auto s = sim->run(prog);
+    ratio = s.program_time_s / (s.distance_mm / (kCircleFeed / 60.0));
   }
   state.counters["ratio"] = ratio;
 }
 BENCHMARK(BM_ShortSegmentRatio)->Iterations(1)->Unit(benchmark::kMillisecond);
+
+// Simulation speed on the short-segment program (ten laps, default machine).
+void BM_SimulationSpeedShortSegments(benchmark::State& state) {
+  measure_simulation_speed(state, MachineConfig::default_machine(), short_segment_circle(10),
+                           {kCircleR, 0.0, 0.0});
+}
+BENCHMARK(BM_SimulationSpeedShortSegments)->Iterations(3)->Unit(benchmark::kMillisecond);
+
+// Simulation speed on the manual's example program (tests/programs/manual_example.ngc, default
+// machine, M-functions acknowledged at once): long moves, arcs and M-functions.
+void BM_SimulationSpeedManualExample(benchmark::State& state) {
+  std::ifstream in(TGM_SOURCE_DIR "/tests/programs/manual_example.ngc");
+  std::stringstream text;
+  text << in.rdbuf();
+  const MachineConfig m = MachineConfig::default_machine();
+  const auto compiled = tgm::compile_gcode(text.str(), tgm::CompileOptions::from_machine(m, 0));
+  if (!compiled.ok()) {
+    state.SkipWithError("the manual example does not compile");
+    return;
+  }
+  measure_simulation_speed(state, m, compiled.program);
+}
+BENCHMARK(BM_SimulationSpeedManualExample)->Iterations(20)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 

@@ -108,11 +108,12 @@ class Interpolator {
 
   //! Offline fast path for the simulator (the real-time service calls step()): advances up to
   //! `max_cycles` cycles and returns how many in `advanced`. Either exactly one step(), or a run
-  //! of cycles in which nothing changes qualitatively (constant-speed cruise inside one record,
-  //! dwell, M wait, standing), computed with the same arithmetic as step(): the registers
-  //! afterwards equal those after as many step() calls (the per-cycle registers in between are
-  //! not produced, no block report or corner event happens in a skipped run). Requests between
-  //! calls act as between steps.
+  //! of cycles in which nothing changes qualitatively (constant-speed cruise, also through
+  //! junctions into records of the same target speed; dwell, M wait, standing), computed with
+  //! the same arithmetic as step(): the registers afterwards equal those after as many step()
+  //! calls (the per-cycle registers in between are not produced; block_reports() and
+  //! corner_events() hold those of every junction the run crossed). Requests between calls act
+  //! as between steps.
   StepResult advance(std::uint64_t max_cycles, std::uint64_t* advanced);
 
   //! Makes this interpolator an exact copy of `other` (created from the same config: the ring

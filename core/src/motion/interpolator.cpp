@@ -343,7 +343,9 @@ struct Interpolator::Impl {
   std::int32_t pend_code = 0;
   std::array<std::int32_t, kCommandParameters> pend_par{};
   std::string cmd_error;
-  double cruise_prev_s = 0.0;  // skip_cruise: path position one calculation step before the end
+  // skip_cruise: record and path position one calculation step before the end
+  std::uint64_t cruise_prev_q = 0;
+  double cruise_prev_s = 0.0;
 
   std::size_t ring_index(std::uint64_t q) const { return static_cast<std::size_t>(q % cap); }
   Rec& R(std::uint64_t q) { return rec[ring_index(q)]; }
@@ -635,10 +637,18 @@ struct Interpolator::Impl {
   // minima a0, j0: the stopping distance from the fastest state the cycle can reach (full jerk
   // from here), the distance to take back the acceleration, and one more cycle of travel.
   double horizon_for(double v, double a, double jc, double a0, double j0) const {
+    return horizon_bound(v, a, jc, a0, a0, j0);
+  }
+
+  // horizon_for with the acceleration limit a_lo in the stopping distance and a_hi in the
+  // distance to take the acceleration back. It grows with jc and a_hi and as a_lo and j0 fall:
+  // with the highest jc and a_hi and the lowest a_lo and j0 of a set of records it bounds the
+  // horizon of every window made of them (skip_cruise).
+  double horizon_bound(double v, double a, double jc, double a_lo, double a_hi, double j0) const {
     const double ac = std::max(std::fabs(a) + jc * T, 0.0);
     const double vc = v + std::fabs(a) * T + 0.5 * jc * T * T;
-    return jerk::stopping_distance(vc, ac, kPlanMargin * a0, kPlanMarginJ * j0) +
-           vc * (ac + a0) / (kPlanMarginJ * j0) + 2.0 * vc * T + 1e-6;
+    return jerk::stopping_distance(vc, ac, kPlanMargin * a_lo, kPlanMarginJ * j0) +
+           vc * (ac + a_hi) / (kPlanMarginJ * j0) + 2.0 * vc * T + 1e-6;
   }
 
   void update_window(double& A, double& J) {
@@ -1548,7 +1558,9 @@ struct Interpolator::Impl {
         if (!cruise_valid || cruise_v != v) {
           double m = kInf;
           for (int k = 0; k < nc; ++k) {
-            if (c[k].accel || c[k].d - moved < 0.0) continue;
+            // A speed limit at or above the cruise speed needs no braking: it passes in every
+            // step of the cruise (excess -max(0, room - reserve), or v - w once passed).
+            if (c[k].accel || c[k].d - moved < 0.0 || v <= c[k].w) continue;
             m = std::min(m, c[k].d - c[k].reserve -
                                 plan_braking(v, 0.0, c[k].w, kPlanMargin * c[k].A,
                                              kPlanMarginJ * c[k].J, kPlanMarginJ * J));
@@ -1558,9 +1570,9 @@ struct Interpolator::Impl {
           cruise_valid = true;
         }
         if (cruise_margin - moved - v * dt > 1e-9) {
-          x = 0.0;
           factor = target_reason;
-          goto integrate;
+          integrate_step(before, 0.0, vt, J, calc_index);
+          return;
         }
       }
       // One stopping distance with the window's lowest limits bounds every braking distance
@@ -1691,7 +1703,14 @@ struct Interpolator::Impl {
         braking_to_stop = c[worst_k].w == 0.0;
       }
     }
-  integrate:
+    integrate_step(before, x, vt, J, calc_index);
+  }
+
+  // The end of a calculation step with end acceleration x chosen: integrates the path state
+  // (landing exactly on vt), moves along the path crossing junctions (block reports, corner
+  // events, pass records, arrival at a stop point) and finishes a stop ramp at standstill.
+  // motion_step and the cruise skip (skip_cruise) share it.
+  void integrate_step(const jerk::State& before, double x, double vt, double J, int calc_index) {
     last_vt = vt;
     jerk::State ns = jerk::advance(before, x, dt);
     // Landed on the target speed (within 1e-12 of it, acceleration negligible): hold exactly
@@ -1703,7 +1722,7 @@ struct Interpolator::Impl {
     }
     if (ns.v < 0.0) ns.v = 0.0;
     double ds = std::max(0.0, ns.s - before.s);
-    const double jerk_used = (x - a) / dt;
+    const double jerk_used = (x - before.a) / dt;
     if (ns.v > blk_peak - 1e-12) {
       blk_peak = ns.v;
       blk_factor = factor;
@@ -1718,10 +1737,10 @@ struct Interpolator::Impl {
     while (true) {
       const double L = R(q).g.length;
       const double room = L - s_local;
-      const bool stop_next = stop_follows(q);
-      if (remaining < room &&
-          !(stop_next && ((room - remaining <= kArriveD && ns.v <= kArriveV) ||
-                          (room - remaining <= kRestD && ns.v <= kStandstillV)))) {
+      // Short of the record's end, unless coming to rest just before a stop point (arrival).
+      if (remaining < room && !(((room - remaining <= kArriveD && ns.v <= kArriveV) ||
+                                 (room - remaining <= kRestD && ns.v <= kStandstillV)) &&
+                                stop_follows(q))) {
         s_local += remaining;
         traveled += remaining;
         break;
@@ -1862,15 +1881,20 @@ struct Interpolator::Impl {
   }
 
   // During a cruise the smoothing and output stages may be skipped when they pass the motion
-  // through unchanged: spline off, every filtered axis at rest and not moved by the record, and
-  // each axis with backlash either standing or moving on in its detected direction with its
-  // ramp done (an arc may reverse its plane axes: not with backlash there).
+  // through unchanged: spline off, every filtered axis at rest and not moved by the records the
+  // cruise runs through, and each axis with backlash either standing or moving on in its
+  // detected direction with its ramp done (an arc may reverse its plane axes: not with backlash
+  // there). stage_passes(q) is the per-record part.
   bool cruise_stages_pass() const {
     if (!on_path || cur >= tail) return false;
     if (smooth->spline().delay_steps() != 0 || !smooth->iir().at_rest() || smooth->pending_events() != 0) {
       return false;
     }
-    const Geometry& g = R(cur).g;
+    return stage_passes(cur);
+  }
+
+  bool stage_passes(std::uint64_t q) const {
+    const Geometry& g = R(q).g;
     const std::uint32_t mask = smooth->iir().mask();
     for (int i = 0; i < n; ++i) {
       const bool plane = g.arc && (i == g.first || i == g.second);
@@ -1884,90 +1908,191 @@ struct Interpolator::Impl {
     return true;
   }
 
-  // Cruise: a = 0 at exactly the record's target speed. motion_step then chooses x = 0 in every
-  // calculation step as long as (1) no limit it could gather has less slack than the distance
-  // travelled, (2) the window would not grow (no new record enters the horizon, so the gathered
-  // set stays a subset of the whole window's chains), and (3) the record's end is not reached.
+  // Cruise: a = 0 at exactly the target speed, also across junctions into records with the
+  // same target speed. Each skipped cycle runs what step() runs in it (update_window at the
+  // cycle's start and after each junction, integrate_step with x = 0), leaving out only what
+  // cannot change the outcome: gathering the limits, the deceleration and landing checks, the
+  // smoothing and output stages and the registers. Before a cycle is run, a read-only check
+  // proves that motion_step would take its cruise shortcut in each of the cycle's calculation
+  // steps (x = 0 exactly):
+  //  (1) every record the cycle may enter is a motion record (no pass record, stop or buffer
+  //      end is crossed) with the same target speed, the stages pass it through, and its jerk
+  //      over one calculation step stays within every acceleration limit of the window (so no
+  //      deceleration limit ahead can raise the step's lowest acceleration);
+  //  (2) the window cannot grow in this cycle beyond the records scanned here: the next record
+  //      lies farther than a bound of every horizon update_window may compute (scan minima);
+  //  (3) the slack of every limit gather() could return is larger than the distance travelled,
+  //      judged conservatively: each speed limit below v of the scanned records (at its own
+  //      position, braking with the scan's lowest acceleration and jerk and the largest reserve),
+  //      the chain stand-ins (the scan's lowest limits, at the earliest record a chain can be
+  //      cut), and the window end as it stands before the cycle (the window only grows).
+  // Limits at or above v take no part in the cruise shortcut (motion_step). Returns the number
+  // of cycles run; 0 = step() instead.
   std::uint64_t skip_cruise(std::uint64_t max) {
-    if (!on_path || cur >= tail || win_end <= cur || !cons_valid) return 0;
-    const Rec& rc = R(cur);
+    if (!on_path || cur >= tail || R(cur).kind != RecKind::kMotion) return 0;
     const double v = st.v;
-    if (st.a != 0.0 || !(v > 0.0)) return 0;
-    const double fr = rc.f * rel;
-    const double vt = fr <= rc.m ? fr : rc.m;
-    if (v != vt) return 0;
-    // The window's deques must be current (update_window pops these at the next cycle).
-    if ((!dq_a.empty() && dq_a.front() < cur) || (!dq_j.empty() && dq_j.front() < cur) ||
-        (!dq_wg.empty() && dq_wg.front() <= cur) || (!dq_wf.empty() && dq_wf.front() <= cur)) {
-      return 0;
-    }
-    const double a0 = dq_a.empty() ? rc.at : dq_a.min();
-    const double j0 = dq_j.empty() ? rc.jt : dq_j.min();
-    const double hz = horizon_for(v, 0.0, rc.jt, a0, j0);
-    // (1) Every limit of the window's chains (no horizon cut), the truncation stand-ins and
-    // the window end, judged from the cruise state.
-    std::array<Constraint, 3 * kChainMax + 4> all;
-    const int na = gather(all.data(), a0, j0, kInf);
-    double slack = kInf;
-    for (int k = 0; k < na; ++k) {
-      const Constraint& ck = all[static_cast<std::size_t>(k)];
-      if (ck.accel) continue;  // |a| = 0 is within every acceleration limit
-      slack = std::min(slack, ck.d - ck.reserve -
-                                  plan_braking(v, 0.0, ck.w, kPlanMargin * ck.A,
-                                               kPlanMarginJ * ck.J, kPlanMarginJ * rc.jt));
-    }
-    const double s_start = st.s;
-    const double safety = 1e-6 + 1e-12 * (std::fabs(rc.s0) + rc.g.length);
-    const bool window_can_grow = win_end < tail && R(win_end).kind != RecKind::kStop;
-    const double next_s0 = window_can_grow ? R(win_end).s0 : kInf;
-    const double L = rc.g.length;
-    const LimitFactor target_reason =
-        fr <= rc.m ? (rel == 1.0 ? LimitFactor::kFeed : LimitFactor::kOverride) : rc.m_reason;
+    if (st.a != 0.0 || !(v > kArriveV)) return 0;
+    auto target = [&](const Rec& r) {
+      const double fr = r.f * rel;
+      return fr <= r.m ? fr : r.m;
+    };
+    if (target(R(cur)) != v) return 0;
+    // Speed limits below v among the scanned records (a cruise shortcut sees few of them).
+    constexpr int kMaxSlow = 16;
+    struct Slow {
+      std::uint64_t q;
+      double s0, w;
+    };
+    std::array<Slow, kMaxSlow> slow{};
+    int n_slow = 0, first_slow = 0;
+    // Scanned records [cur0, qf): their lowest and highest tangential limits and lowest junction
+    // limits (the window's minima and every chain's A and J are at least these).
+    std::uint64_t qf = cur + 1;
+    double a_lo = R(cur).at, a_hi = a_lo, j_lo = R(cur).jt, j_hi = j_lo;
+    double wg_min = kInf, wf_min = kInf;
+    bool final = false;  // qf is the buffer's end or a stop: no window reaches past it
+    bool full = false;   // too many slow limits: no further scan
+    bool extremes_changed = true;
+    auto scan_one = [&]() {
+      const Rec& r = R(qf);
+      if (r.kind == RecKind::kStop) {
+        final = true;
+        return;
+      }
+      const double w[2] = {r.wg, r.wf * rel};
+      if ((w[0] < v) + (w[1] < v) > kMaxSlow - n_slow) {
+        full = true;
+        return;
+      }
+      for (double wk : w) {
+        if (wk < v) slow[static_cast<std::size_t>(n_slow++)] = {qf, r.s0, wk};
+      }
+      if (r.kind == RecKind::kMotion &&
+          (r.at < a_lo || r.at > a_hi || r.jt < j_lo || r.jt > j_hi)) {
+        a_lo = std::min(a_lo, r.at);
+        a_hi = std::max(a_hi, r.at);
+        j_lo = std::min(j_lo, r.jt);
+        j_hi = std::max(j_hi, r.jt);
+        extremes_changed = true;
+      }
+      wg_min = std::min(wg_min, r.wg);
+      wf_min = std::min(wf_min, r.wf);
+      if (++qf == tail) final = true;
+    };
+    if (qf == tail) final = true;
+    // Braking distance from the cruise to w bounding every plan_braking of a gathered limit.
+    auto braking = [&](double w) {
+      return jerk::braking_plan(v, 0.0, w, kPlanMargin * a_lo, kPlanMarginJ * j_lo).distance +
+             quarter_dt2 * kPlanMargin * a_hi;
+    };
+    // What a cycle's check computes changes only with the scan's extremes, `cur`, the window end
+    // and the slow limits: kept from cycle to cycle.
+    double h = 0.0;  // horizon_bound for the scan's extremes
+    double slack = 0.0, b_stop = 0.0;
+    std::uint64_t slack_cur = kNoQ, slack_end = kNoQ;
+    int slack_slow = -1;
+    std::uint64_t window_cur = kNoQ;  // `cur` at this skip's last update_window
+    const std::uint64_t cycle0 = reg.cycle;
+    const double travel = kCalcSteps * v * dt;
     std::uint64_t k = 0;
-    jerk::State s = st;
-    double dist = reg.move_distance;
-    double t = time_s;
     while (k < max) {
-      // (2) update_window at the start of this cycle adds nothing.
-      if (!(next_s0 > rc.s0 + s.s + hz)) break;
-      jerk::State c = s;
-      double dc = dist, tc = t;
-      double prev_s = c.s;
+      const double p0 = R(cur).s0 + st.s;
+      const double p1 = p0 + travel;
+      const double safety = 1e-6 + 1e-12 * std::fabs(p1);
+      // (2) Scan the window (made while the motion was faster it may reach farther than this
+      // cruise needs), then until the window cannot pass qf in this cycle.
+      auto window_may_pass = [&] {
+        if (extremes_changed) {
+          h = horizon_bound(v, 0.0, j_hi, a_lo, a_hi, j_lo);
+          slack_slow = -1;  // the braking distances change too
+          extremes_changed = false;
+        }
+        return qf < win_end || R(qf).s0 <= p1 + h + safety;
+      };
+      while (!final && !full && window_may_pass()) scan_one();
+      if (!final && window_may_pass()) break;
+      // (1) The records this cycle may enter.
+      if (j_hi * dt > a_lo) break;
+      std::size_t entered = 0;
       bool ok = true;
-      for (int i = 0; i < kCalcSteps; ++i) {
-        prev_s = c.s;
-        const jerk::State ns = jerk::advance(c, 0.0, dt);
-        const double ds = std::max(0.0, ns.s - c.s);
-        const double s_next = c.s + ds;
-        // (1) and (3), with a margin for the rounding of the cumulative path positions.
-        if (!(slack - (s_next - s_start) > safety) || !(s_next < L - safety) || ns.v != v) {
+      for (std::uint64_t q = cur + 1; q < qf && R(q).s0 <= p1 + safety; ++q) {
+        const Rec& r = R(q);
+        if (r.kind != RecKind::kMotion || target(r) != v || !stage_passes(q)) {
           ok = false;
           break;
         }
-        c.s = s_next;
-        c.v = ns.v;
-        c.a = ns.a;
-        dc += ds;
-        tc += dt;
+        ++entered;
       }
-      if (!ok) break;
-      s = c;
-      dist = dc;
-      t = tc;
-      cruise_prev_s = prev_s;
+      const double scan_end = qf < tail ? R(qf).s0 : s_tail;  // the end of record qf - 1
+      if (!ok || (final && scan_end <= p1 + safety) || n_blocks + entered >= blocks.size() ||
+          (opt.record_corner_events && n_events + entered > events.size())) {
+        break;
+      }
+      // (3) Slack.
+      if (cur != slack_cur || win_end != slack_end || n_slow != slack_slow) {
+        while (first_slow < n_slow && slow[static_cast<std::size_t>(first_slow)].q <= cur)
+          ++first_slow;
+        if (slack_slow < 0) b_stop = braking(0.0);  // after a change of the extremes
+        slack = (win_end < tail ? R(win_end).s0 : s_tail) - b_stop;
+        for (int i = first_slow; i < n_slow; ++i) {
+          const Slow& sl = slow[static_cast<std::size_t>(i)];
+          slack = std::min(slack, sl.s0 - 2.0 * sl.w * dt - braking(sl.w));
+        }
+        if (cur + kChainMax + 1 < qf) {
+          const double w = std::min(wg_min, wf_min * rel);
+          if (w < v) slack = std::min(slack, R(cur + kChainMax + 1).s0 - braking(w));
+        }
+        slack_cur = cur;
+        slack_end = win_end;
+        slack_slow = n_slow;
+      }
+      if (!(slack - p1 > 1e-9 + safety)) break;
+      // Run the cycle as step() would.
+      reg.cycle = cycle0 + k + 1;  // corner events carry their cycle
+      for (int ci = 0; ci < kCalcSteps; ++ci) {
+        if (ci == 0 || !cons_valid) {
+          // Left out when it would add nothing and compute what it did last time (same record,
+          // same cruise state, same window).
+          const bool same =
+              window_cur == cur && (win_end >= tail || R(win_end).kind == RecKind::kStop ||
+                                    R(win_end).s0 > R(cur).s0 + st.s + horizon);
+          if (!same) {
+            update_window(cons_Aw, cons_Jw);
+            window_cur = cur;
+          }
+          cons_valid = true;  // not gathered: the next step() gathers at its first step
+          cruise_valid = false;
+        }
+        const Rec& rc = R(cur);
+        const double fr = rc.f * rel;
+        factor =
+            fr <= rc.m ? (rel == 1.0 ? LimitFactor::kFeed : LimitFactor::kOverride) : rc.m_reason;
+        ride_jerk = kInf;
+        braking_to_stop = false;
+        if (ci == kCalcSteps - 1) {
+          cruise_prev_q = cur;
+          cruise_prev_s = st.s;
+        }
+        if (entered == 0) {
+          // No junction in this cycle (checked above, v > kArriveV): integrate_step's arithmetic
+          // for x = 0 at exactly the target speed, inline (advance_test compares bit for bit).
+          const double ds = std::max(0.0, jerk::advance(st, 0.0, dt).s - st.s);
+          st.s += ds;
+          reg.move_distance += ds;
+          last_vt = v;
+          if (v > blk_peak - 1e-12) {
+            blk_peak = v;
+            blk_factor = factor;
+          }
+        } else {
+          const jerk::State before = st;
+          integrate_step(before, 0.0, v, rc.jt, ci);
+        }
+        time_s += dt;
+      }
       ++k;
     }
-    if (k == 0) return 0;
-    st = s;
-    reg.move_distance = dist;
-    time_s = t;
-    factor = target_reason;
-    last_vt = vt;
-    braking_to_stop = false;
-    if (v > blk_peak - 1e-12) {
-      blk_peak = v;
-      blk_factor = factor;
-    }
+    reg.cycle = cycle0;  // advance() counts the cycles
     return k;
   }
 
@@ -2297,13 +2422,13 @@ StepResult Interpolator::advance(std::uint64_t max_cycles, std::uint64_t* advanc
   Impl& m = *impl_;
   if (advanced) *advanced = 0;
   if (max_cycles == 0) return m.result();
+  m.n_events = 0;  // a cruise skip reports the blocks and corners it runs through
+  m.n_blocks = 0;
   const std::uint64_t k = m.skip_cycles(max_cycles);
   if (k == 0) {
     if (advanced) *advanced = 1;
     return step();
   }
-  m.n_events = 0;
-  m.n_blocks = 0;
   m.reg.cycle += k;
   {
     // The smoothing and output stages over the skipped calculation steps (they rest, or pass
@@ -2312,7 +2437,7 @@ StepResult Interpolator::advance(std::uint64_t max_cycles, std::uint64_t* advanc
     for (int i = 0; i < kMaxAxes; ++i) last[i] = before[i] = m.rest[static_cast<std::size_t>(i)];
     m.current_position(last);
     if (m.on_path) {
-      motion::geometry_position(m.R(m.cur).g, m.n, m.cruise_prev_s, before);
+      motion::geometry_position(m.R(m.cruise_prev_q).g, m.n, m.cruise_prev_s, before);
     } else {
       for (int i = 0; i < kMaxAxes; ++i) before[i] = last[i];
     }
