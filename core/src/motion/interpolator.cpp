@@ -829,6 +829,17 @@ struct Interpolator::Impl {
     return J;
   }
 
+  // Target speed of record r: the feed x Rel_Speed within the machine cap; `why` is what sets it.
+  double target_speed(const Rec& r, LimitFactor& why) const {
+    const double fr = r.f * rel;
+    if (fr <= r.m) {
+      why = rel == 1.0 ? LimitFactor::kFeed : LimitFactor::kOverride;
+      return fr;
+    }
+    why = r.m_reason;
+    return r.m;
+  }
+
   // Tangential limits for this calculation step: the records it can reach.
   void step_limits(double& A, double& J) const {
     const Rec& rc = R(cur);
@@ -1447,15 +1458,8 @@ struct Interpolator::Impl {
       braking_to_stop = true;
     } else {
       step_limits(A, J);
-      const double fr = rc.f * rel;
       LimitFactor target_reason = LimitFactor::kFeed;
-      if (fr <= rc.m) {
-        vt = fr;
-        target_reason = rel == 1.0 ? LimitFactor::kFeed : LimitFactor::kOverride;
-      } else {
-        vt = rc.m;
-        target_reason = rc.m_reason;
-      }
+      vt = target_speed(rc, target_reason);
       double lo = std::max(a - J * dt, -A);
       double hi = std::min(a + J * dt, A);
       if (lo > hi) {  // |a| above a limit that just dropped: recover at full jerk
@@ -1932,11 +1936,8 @@ struct Interpolator::Impl {
     if (!on_path || cur >= tail || R(cur).kind != RecKind::kMotion) return 0;
     const double v = st.v;
     if (st.a != 0.0 || !(v > kArriveV)) return 0;
-    auto target = [&](const Rec& r) {
-      const double fr = r.f * rel;
-      return fr <= r.m ? fr : r.m;
-    };
-    if (target(R(cur)) != v) return 0;
+    LimitFactor why = LimitFactor::kFeed;
+    if (target_speed(R(cur), why) != v) return 0;
     // Speed limits below v among the scanned records (a cruise shortcut sees few of them).
     constexpr int kMaxSlow = 16;
     struct Slow {
@@ -1950,13 +1951,26 @@ struct Interpolator::Impl {
     std::uint64_t qf = cur + 1;
     double a_lo = R(cur).at, a_hi = a_lo, j_lo = R(cur).jt, j_hi = j_lo;
     double wg_min = kInf, wf_min = kInf;
-    bool final = false;  // qf is the buffer's end or a stop: no window reaches past it
-    bool full = false;   // too many slow limits: no further scan
-    bool extremes_changed = true;
+    bool closed = false;  // qf is the buffer's end or a stop: no window reaches past it
+    bool full = false;    // too many slow limits: no further scan
+    // Braking distance from the cruise to w bounding every plan_braking of a gathered limit.
+    auto braking = [&](double w) {
+      return jerk::braking_plan(v, 0.0, w, kPlanMargin * a_lo, kPlanMarginJ * j_lo).distance +
+             quarter_dt2 * kPlanMargin * a_hi;
+    };
+    // What depends on the scan's extremes only: the horizon bound and the braking to a stop.
+    double h = 0.0, b_stop = 0.0;
+    bool slack_stale = true;  // the slack below must be computed again
+    auto extremes_changed = [&] {
+      h = horizon_bound(v, 0.0, j_hi, a_lo, a_hi, j_lo);
+      b_stop = braking(0.0);
+      slack_stale = true;
+    };
+    extremes_changed();
     auto scan_one = [&]() {
       const Rec& r = R(qf);
       if (r.kind == RecKind::kStop) {
-        final = true;
+        closed = true;
         return;
       }
       const double w[2] = {r.wg, r.wf * rel};
@@ -1973,22 +1987,16 @@ struct Interpolator::Impl {
         a_hi = std::max(a_hi, r.at);
         j_lo = std::min(j_lo, r.jt);
         j_hi = std::max(j_hi, r.jt);
-        extremes_changed = true;
+        extremes_changed();
       }
       wg_min = std::min(wg_min, r.wg);
       wf_min = std::min(wf_min, r.wf);
-      if (++qf == tail) final = true;
+      if (++qf == tail) closed = true;
     };
-    if (qf == tail) final = true;
-    // Braking distance from the cruise to w bounding every plan_braking of a gathered limit.
-    auto braking = [&](double w) {
-      return jerk::braking_plan(v, 0.0, w, kPlanMargin * a_lo, kPlanMarginJ * j_lo).distance +
-             quarter_dt2 * kPlanMargin * a_hi;
-    };
-    // What a cycle's check computes changes only with the scan's extremes, `cur`, the window end
-    // and the slow limits: kept from cycle to cycle.
-    double h = 0.0;  // horizon_bound for the scan's extremes
-    double slack = 0.0, b_stop = 0.0;
+    if (qf == tail) closed = true;
+    // The slack changes only with the scan's extremes, `cur`, the window end and the slow
+    // limits: kept from cycle to cycle.
+    double slack = 0.0;
     std::uint64_t slack_cur = kNoQ, slack_end = kNoQ;
     int slack_slow = -1;
     std::uint64_t window_cur = kNoQ;  // `cur` at this skip's last update_window
@@ -2001,38 +2009,30 @@ struct Interpolator::Impl {
       const double safety = 1e-6 + 1e-12 * std::fabs(p1);
       // (2) Scan the window (made while the motion was faster it may reach farther than this
       // cruise needs), then until the window cannot pass qf in this cycle.
-      auto window_may_pass = [&] {
-        if (extremes_changed) {
-          h = horizon_bound(v, 0.0, j_hi, a_lo, a_hi, j_lo);
-          slack_slow = -1;  // the braking distances change too
-          extremes_changed = false;
-        }
-        return qf < win_end || R(qf).s0 <= p1 + h + safety;
-      };
-      while (!final && !full && window_may_pass()) scan_one();
-      if (!final && window_may_pass()) break;
+      auto window_may_pass = [&] { return qf < win_end || R(qf).s0 <= p1 + h + safety; };
+      while (!closed && !full && window_may_pass()) scan_one();
+      if (!closed && window_may_pass()) break;
       // (1) The records this cycle may enter.
       if (j_hi * dt > a_lo) break;
       std::size_t entered = 0;
       bool ok = true;
       for (std::uint64_t q = cur + 1; q < qf && R(q).s0 <= p1 + safety; ++q) {
         const Rec& r = R(q);
-        if (r.kind != RecKind::kMotion || target(r) != v || !stage_passes(q)) {
+        if (r.kind != RecKind::kMotion || target_speed(r, why) != v || !stage_passes(q)) {
           ok = false;
           break;
         }
         ++entered;
       }
       const double scan_end = qf < tail ? R(qf).s0 : s_tail;  // the end of record qf - 1
-      if (!ok || (final && scan_end <= p1 + safety) || n_blocks + entered >= blocks.size() ||
+      if (!ok || (closed && scan_end <= p1 + safety) || n_blocks + entered >= blocks.size() ||
           (opt.record_corner_events && n_events + entered > events.size())) {
         break;
       }
       // (3) Slack.
-      if (cur != slack_cur || win_end != slack_end || n_slow != slack_slow) {
+      if (slack_stale || cur != slack_cur || win_end != slack_end || n_slow != slack_slow) {
         while (first_slow < n_slow && slow[static_cast<std::size_t>(first_slow)].q <= cur)
           ++first_slow;
-        if (slack_slow < 0) b_stop = braking(0.0);  // after a change of the extremes
         slack = (win_end < tail ? R(win_end).s0 : s_tail) - b_stop;
         for (int i = first_slow; i < n_slow; ++i) {
           const Slow& sl = slow[static_cast<std::size_t>(i)];
@@ -2045,6 +2045,7 @@ struct Interpolator::Impl {
         slack_cur = cur;
         slack_end = win_end;
         slack_slow = n_slow;
+        slack_stale = false;
       }
       if (!(slack - p1 > 1e-9 + safety)) break;
       // Run the cycle as step() would.
@@ -2064,9 +2065,7 @@ struct Interpolator::Impl {
           cruise_valid = false;
         }
         const Rec& rc = R(cur);
-        const double fr = rc.f * rel;
-        factor =
-            fr <= rc.m ? (rel == 1.0 ? LimitFactor::kFeed : LimitFactor::kOverride) : rc.m_reason;
+        target_speed(rc, factor);
         ride_jerk = kInf;
         braking_to_stop = false;
         if (ci == kCalcSteps - 1) {
