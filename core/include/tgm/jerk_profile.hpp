@@ -5,6 +5,8 @@
 // is fully described by the acceleration at its end (`x`).
 #pragma once
 
+#include <cmath>
+
 namespace tgm::jerk {
 
 //! Path state.
@@ -33,6 +35,13 @@ inline State advance(const State& st, double x, double dt) {
 //! it back to zero at +J passes below w: the distance until v = w on that ramp; (3) the
 //! time-optimal S-curve to (w, 0): jerk -J to a peak deceleration <= A, hold, jerk +J to zero.
 double braking_distance(double v, double a, double w, double A, double J);
+
+//! Velocity [mm/s] once acceleration a is brought to zero at jerk J along the shortest ramp.
+//! braking_plan needs no braking when both v and this are within w; callers that decide on the
+//! same condition use this function so that both sides round alike.
+inline double settled_velocity(double v, double a, double J) {
+  return v + 0.5 * a * std::fabs(a) * (1.0 / J);
+}
 
 //! A braking plan's distance [mm] and peak deceleration [mm/s^2] (0 when no braking is needed).
 struct Braking {

@@ -221,7 +221,8 @@ struct Constraint {
   //! -infinity until the scan first needs it.
   double safe = -kInf;
   //! Speed limits at a junction into a record of lower jerk: the braking must be complete this
-  //! far [mm] before it (two calculation steps at w), and the speed stays within w from there on.
+  //! far [mm] before it (two calculation steps, junction_reserve), and the speed stays within w
+  //! from there on.
   //! The calculation step that can reach the junction already has that record's jerk limit, and
   //! the deceleration it carries in cannot be taken back there before the motion stops.
   double reserve = 0.0;
@@ -701,6 +702,19 @@ struct Interpolator::Impl {
     J = dq_j.empty() ? rc.jt : dq_j.min();
   }
 
+  // Constraint::reserve of a speed limit w at the junction into record q: two calculation steps
+  // of travel at w plus twice what a step from rest reaches by the jerk of the motion record
+  // before q alone (J dt^3 / 6). A step whose reach (step_limits) includes the junction has q's
+  // lower jerk. After a stiff record (1.7e6 mm/s^3, 1 ms cycles) that jerk term is 2.3e-6 mm per
+  // step, against 2 w dt = 3e-6 mm for w = 0.0075 mm/s: the braking planned at the stiff jerk was
+  // still under way when a step could reach the junction, got the soft jerk and crossed at
+  // 4 x w (wide sweep seed 1 program 281).
+  double junction_reserve(std::uint64_t q, double w) const {
+    std::uint64_t b = q - 1;
+    while (b > cur && R(b).kind != RecKind::kMotion) --b;
+    return 2.0 * (w * dt + R(b).jt * dt * dt * dt / 6.0);
+  }
+
   // Collects the limits ahead into `c`; returns their count. Window minima Aw, Jw apply to the
   // end of the window.
   int gather(Constraint* c, double Aw, double Jw, double reach) const {
@@ -741,7 +755,7 @@ struct Interpolator::Impl {
             // this limit is taken back (see Constraint::Jx).
             const std::uint64_t nse = r.link[f].nse;
             ck.Jx = std::min(J, nse != kNoQ && nse < win_end ? r.link[f].jmin : Jw);
-            if (r.kind == RecKind::kMotion && r.jt < J) ck.reserve = 2.0 * w * dt;
+            if (r.kind == RecKind::kMotion && r.jt < J) ck.reserve = junction_reserve(q, w);
           }
           ++hops;
         }
@@ -1543,9 +1557,12 @@ struct Interpolator::Impl {
         if (ns.a > 0.0 && ck.Jx < ck.J) {
           // Still accelerating with no braking needed before the limit (v + a^2/2J <= w): the
           // part of a not taken back before the junction is taken back after it at Jx. With a'
-          // left at the junction the speed ends at vz + a'^2 (1/2Jx - 1/2J) <= w.
+          // left at the junction the speed ends at vz + a'^2 (1/2Jx - 1/2J) <= w. vz is
+          // computed as braking_plan computes it: just above w it must need braking there too
+          // (rounded differently, braking_plan saw vz <= w and let the acceleration stay,
+          // wide sweep seed 1 program 281).
           const double jp = kPlanMarginJ * ck.J, jx = kPlanMarginJ * ck.Jx;
-          const double vz = ns.v + ns.a * ns.a / (2.0 * jp);
+          const double vz = jerk::settled_velocity(std::max(ns.v, 0.0), ns.a, jp);
           if (vz <= ck.w) {
             const double a_ok = std::sqrt((ck.w - vz) / (0.5 / jx - 0.5 / jp));
             return ns.a <= a_ok

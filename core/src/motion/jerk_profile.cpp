@@ -13,8 +13,7 @@ Braking braking_plan(double v, double a, double w, double A, double J) {
   // generator uses, and an acceleration above A must be ramped down, not assumed away.
   // One division for 1/J instead of five by J: this runs several times per calculation step.
   const double iJ = 1.0 / J;
-  // Velocity once the acceleration is brought to zero along the shortest ramp.
-  const double vz = v + 0.5 * a * std::fabs(a) * iJ;
+  const double vz = settled_velocity(v, a, J);
   if (v <= w && vz <= w) return {0.0, 0.0};
   // Braking so hard that even ramping the acceleration back at +J ends below standstill: the
   // motion would have to reverse. No distance makes that state acceptable.
