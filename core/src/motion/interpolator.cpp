@@ -720,8 +720,10 @@ struct Interpolator::Impl {
   double junction_reserve(std::uint64_t q, double w) const {
     std::uint64_t b = q - 1;
     while (b > cur && R(b).kind != RecKind::kMotion) --b;
-    return 2.0 * (w * dt + R(b).jt * dt * dt * dt / 6.0);
+    return reserve_for(w, R(b).jt);
   }
+  // junction_reserve for jerk J before the junction; grows with J (skip_cruise bounds it).
+  double reserve_for(double w, double J) const { return 2.0 * (w * dt + J * dt * dt * dt / 6.0); }
 
   // Collects the limits ahead into `c`; returns their count. Window minima Aw, Jw apply to the
   // end of the window.
@@ -2061,7 +2063,7 @@ struct Interpolator::Impl {
         slack = (win_end < tail ? R(win_end).s0 : s_tail) - b_stop;
         for (int i = first_slow; i < n_slow; ++i) {
           const Slow& sl = slow[static_cast<std::size_t>(i)];
-          slack = std::min(slack, sl.s0 - 2.0 * sl.w * dt - braking(sl.w));
+          slack = std::min(slack, sl.s0 - reserve_for(sl.w, j_hi) - braking(sl.w));
         }
         if (cur + kChainMax + 1 < qf) {
           const double w = std::min(wg_min, wf_min * rel);
