@@ -85,6 +85,25 @@ SimulationOptions sweep_options(const SweepCase& c) {
   return o;
 }
 
+// What every sweep program must show once it finished: no NaN, no hard stop, the programmed end
+// point, no limit excess (the first one described).
+void expect_clean(const SweepCase& c, const SimulationSummary& s, const std::string& ctx) {
+  EXPECT_FALSE(s.nan) << ctx;
+  EXPECT_EQ(s.hard_stops, 0u) << ctx;
+  for (int i = 0; i < c.axes; ++i) {
+    EXPECT_NEAR(s.end_position[static_cast<std::size_t>(i)],
+                c.generated.end[static_cast<std::size_t>(i)], 1e-9)
+        << ctx << " axis " << i;
+  }
+  EXPECT_EQ(s.violation_count, 0u) << ctx;
+  if (!s.violations.empty()) {
+    const auto& v = s.violations.front();
+    ADD_FAILURE() << ctx << ": first violation cycle " << v.cycle << " line " << v.line << " axis "
+                  << v.axis << " " << limit_quantity_name(v.quantity) << " " << v.value << " > "
+                  << v.limit;
+  }
+}
+
 TEST(RandomSweep, ProgramsFinishAtTheirEndWithinLimits) {
   const std::uint64_t seed = arg_u64("seed", "TGM_SEED", 1);
   const std::uint64_t count = arg_u64("count", "TGM_SWEEP_COUNT", 200);
@@ -105,19 +124,7 @@ TEST(RandomSweep, ProgramsFinishAtTheirEndWithinLimits) {
                             std::to_string(axes) + " cycle " + std::to_string(m.cycle_time_us) + " us, lower bound " +
                             std::to_string(bound_s) + " s, limit " + std::to_string(o.max_time_s) + " s";
     ASSERT_EQ(s.result, StepResult::kFinished) << ctx << ": " << s.error;
-    EXPECT_FALSE(s.nan) << ctx;
-    EXPECT_EQ(s.hard_stops, 0u) << ctx;
-    for (int i = 0; i < axes; ++i) {
-      EXPECT_NEAR(s.end_position[static_cast<std::size_t>(i)], g.end[static_cast<std::size_t>(i)], 1e-9)
-          << ctx << " axis " << i;
-    }
-    EXPECT_EQ(s.violation_count, 0u) << ctx;
-    if (!s.violations.empty()) {
-      const auto& v = s.violations.front();
-      ADD_FAILURE() << ctx << ": first violation cycle " << v.cycle << " line " << v.line << " axis "
-                    << v.axis << " " << limit_quantity_name(v.quantity) << " " << v.value << " > "
-                    << v.limit;
-    }
+    expect_clean(c, s, ctx);
     if (::testing::Test::HasFailure()) break;
   }
   RecordProperty("cycles", std::to_string(total_cycles));
@@ -153,12 +160,7 @@ TEST(SweepTimeLimit, Seed3Program465SlowBeforeAnOverrideDropIsNotAStall) {
   EXPECT_GT(s.program_time_s, earlier_limit_s);  // what the sweep reported as a stall
   EXPECT_LT(s.program_time_s, c.limit_s);
   EXPECT_GE(s.program_time_s, c.bound_s);
-  EXPECT_FALSE(s.nan);
-  EXPECT_EQ(s.hard_stops, 0u);
-  EXPECT_EQ(s.violation_count, 0u);
-  for (int i = 0; i < c.axes; ++i) {
-    EXPECT_NEAR(s.end_position[static_cast<std::size_t>(i)], c.generated.end[static_cast<std::size_t>(i)], 1e-9) << i;
-  }
+  expect_clean(c, s, "seed 3 program 465");
   // Most of the program runs at the override target after the drop, none of it stalled.
   const double override_s = s.factor_time_s[static_cast<std::size_t>(LimitFactor::kOverride)];
   EXPECT_GT(override_s, 0.9 * (s.program_time_s - drop_s));
@@ -176,17 +178,7 @@ TEST(RandomSweep, WideSeed1Program281BrakesForAJunctionIntoAFarSofterRecord) {
   ASSERT_TRUE(sim);
   const auto s = sim->run(c.generated.program);
   ASSERT_EQ(s.result, StepResult::kFinished) << s.error;
-  EXPECT_EQ(s.hard_stops, 0u);
-  EXPECT_EQ(s.violation_count, 0u);
-  for (const auto& v : s.violations) {
-    ADD_FAILURE() << "cycle " << v.cycle << " line " << v.line << " axis " << v.axis << " "
-                  << limit_quantity_name(v.quantity) << " " << v.value << " > " << v.limit;
-  }
-  for (int i = 0; i < c.axes; ++i) {
-    EXPECT_NEAR(s.end_position[static_cast<std::size_t>(i)],
-                c.generated.end[static_cast<std::size_t>(i)], 1e-9)
-        << i;
-  }
+  expect_clean(c, s, "wide seed 1 program 281");
 }
 
 }  // namespace
