@@ -1,7 +1,6 @@
 #include "cli_common.hpp"
 
 #include <cerrno>
-#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -89,7 +88,7 @@ std::optional<AppConfig> Args::load_app() {
   const int count = static_cast<int>(config->machine.interpolators.size());
   if (!interpolator_text_.empty()) {
     long long n = 0;
-    if (!parse_int(interpolator_text_, 0, count - 1, n)) {
+    if (!parse_integer(interpolator_text_, 0, count - 1, n)) {
       usage_error("--interpolator must be 0.." + std::to_string(count - 1) + " (the config has " +
                   std::to_string(count) + "), not '" + interpolator_text_ + "'");
       return std::nullopt;
@@ -223,29 +222,10 @@ bool FileView::open(const std::string& path, std::string& error) {
   return true;
 }
 
-bool parse_int(const std::string& text, long long lo, long long hi, long long& out) {
-  if (text.empty()) return false;
-  char* end = nullptr;
-  errno = 0;
-  const long long v = std::strtoll(text.c_str(), &end, 10);
-  if (errno != 0 || *end != '\0' || v < lo || v > hi) return false;
-  out = v;
-  return true;
-}
-
-bool parse_double(const std::string& text, double& out) {
-  if (text.empty()) return false;
-  char* end = nullptr;
-  const double v = std::strtod(text.c_str(), &end);
-  if (*end != '\0' || !std::isfinite(v)) return false;
-  out = v;
-  return true;
-}
-
 bool parse_progress_interval(const Args& args, const std::string& text, double& out) {
   double v = 0.0;
   if (text.empty()) return true;
-  if (!parse_double(text, v) || !(v > 0.0) || v > 86400.0) {
+  if (!parse_finite(text, v) || !(v > 0.0) || v > 86400.0) {
     args.usage_error("--progress-interval takes seconds > 0, not '" + text + "'");
     return false;
   }

@@ -6,6 +6,7 @@
 #include <string>
 #include <string_view>
 
+#include "tgm/cli_numbers.hpp"
 #include "tgm/config.hpp"
 #include "tgm/yaml_config.hpp"
 
@@ -98,10 +99,6 @@ class FileView {
   std::string copy_;  // for files that cannot be mapped (pipes, empty files)
   std::string_view text_;
 };
-//! Parses a whole number in [lo, hi]; false when `text` is not one.
-bool parse_int(const std::string& text, long long lo, long long hi, long long& out);
-//! Parses a finite number; false when `text` is not one.
-bool parse_double(const std::string& text, double& out);
 //! The --progress-interval value of `run` and `simulate` into `out` when `text` is not empty:
 //! seconds > 0, at most a day. False after reporting a usage error through `args`.
 bool parse_progress_interval(const Args& args, const std::string& text, double& out);

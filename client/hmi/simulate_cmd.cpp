@@ -182,16 +182,16 @@ int run_simulate(int argc, char** argv) {
   if (args.failed()) return 2;
   if (file.empty()) return args.usage_error("a G-code FILE is required");
   double rel = 1.0;
-  if (!rel_text.empty() && (!parse_double(rel_text, rel) || rel < 0.01 || rel > 2.0)) {
+  if (!rel_text.empty() && (!parse_finite(rel_text, rel) || rel < 0.01 || rel > 2.0)) {
     return args.usage_error("--rel-speed takes a number 0.01..2, not '" + rel_text + "'");
   }
   double m_ack = -1.0;
-  if (!m_ack_text.empty() && (!parse_double(m_ack_text, m_ack) || m_ack < 0.0 || m_ack > 3600.0)) {
+  if (!m_ack_text.empty() && (!parse_finite(m_ack_text, m_ack) || m_ack < 0.0 || m_ack > 3600.0)) {
     return args.usage_error("--m-ack takes seconds 0..3600, not '" + m_ack_text + "'");
   }
   double share = 1.0;
   if (!share_text.empty()) {
-    if (!parse_double(share_text, share) || !LimitChecker::valid_share(share)) {
+    if (!parse_finite(share_text, share) || !LimitChecker::valid_share(share)) {
       return args.usage_error("--limit-share takes a number in (0, 1], not '" + share_text + "'");
     }
     check_limits = true;
@@ -205,8 +205,9 @@ int run_simulate(int argc, char** argv) {
       const std::size_t comma = text.find(',', at);
       if ((k + 1 < count) != (comma != std::string::npos)) return false;
       long long v = 0;
-      if (!parse_int(text.substr(at, comma == std::string::npos ? std::string::npos : comma - at), INT32_MIN,
-                     INT32_MAX, v)) {
+      if (!parse_integer(
+              text.substr(at, comma == std::string::npos ? std::string::npos : comma - at),
+              INT32_MIN, INT32_MAX, v)) {
         return false;
       }
       out[k] = static_cast<std::int32_t>(v);

@@ -29,6 +29,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include "tgm/cli_numbers.hpp"
 #include "tgm/client/client.hpp"
 #include "tgm/dds_overrides.hpp"
 #include "tgm/registers.hpp"
@@ -258,30 +259,34 @@ int main(int argc, char** argv) {
       value = argv[++i];
     }
     std::string error;
-    char* end = nullptr;
     if (overrides.take(flag, value, error)) {
       if (!error.empty()) return usage_error(error);
     } else if (flag == "--config") {
       config_path = value;
     } else if (flag == "--interpolator") {
-      only = static_cast<int>(std::strtol(value.c_str(), &end, 10));
-      if (value.empty() || *end != '\0' || only < 0 || only > 2) return usage_error("--interpolator must be 0..2");
+      if (!tgm::parse_integer(value, 0, 2, only))
+        return usage_error("--interpolator must be 0..2, not '" + value + "'");
     } else if (flag == "--rel-speed") {
-      const double v = std::strtod(value.c_str(), &end);
-      if (value.empty() || *end != '\0' || !(v >= 0.01 && v <= 2.0)) return usage_error("--rel-speed must be 0.01..2");
+      double v = 0.0;
+      if (!tgm::parse_finite(value, v) || !(v >= 0.01 && v <= 2.0)) {
+        return usage_error("--rel-speed must be 0.01..2, not '" + value + "'");
+      }
       rel_speed = v;
     } else if (flag == "--ack-delay") {
-      const double v = std::strtod(value.c_str(), &end);
-      if (value.empty() || *end != '\0' || !(v >= 0.0 && v <= 3600.0)) return usage_error("--ack-delay must be 0..3600 s");
+      double v = 0.0;
+      if (!tgm::parse_finite(value, v) || !(v >= 0.0 && v <= 3600.0)) {
+        return usage_error("--ack-delay must be 0..3600 s, not '" + value + "'");
+      }
       ack_delay = v;
     } else if (flag == "--refuse-ack") {
       std::size_t p = 0;
       while (p <= value.size()) {
         const std::size_t q = std::min(value.find(',', p), value.size());
         const std::string m = value.substr(p, q - p);
-        const long v = std::strtol(m.c_str(), &end, 10);
-        if (m.empty() || *end != '\0' || v <= 0) return usage_error("--refuse-ack takes M numbers like 51,50");
-        refuse.insert(static_cast<int>(v));
+        int v = 0;
+        if (!tgm::parse_integer(m, 1, 999999, v))
+          return usage_error("--refuse-ack takes M numbers 1..999999 like 51,50");
+        refuse.insert(v);
         p = q + 1;
       }
     } else if (flag == "--handshake-trace") {
@@ -293,13 +298,13 @@ int main(int argc, char** argv) {
         return 2;
       }
     } else if (flag == "--rt-priority") {
-      rt_priority = static_cast<int>(std::strtol(value.c_str(), &end, 10));
-      if (value.empty() || *end != '\0' || rt_priority < 1 || rt_priority > 98) {
+      if (!tgm::parse_integer(value, 1, 98, rt_priority))
         return usage_error("--rt-priority must be 1..98");
-      }
     } else if (flag == "--duration") {
-      duration_s = std::strtod(value.c_str(), &end);
-      if (value.empty() || *end != '\0' || !(duration_s > 0.0)) return usage_error("--duration must be > 0 s");
+      if (!tgm::parse_finite(value, duration_s) || !(duration_s > 0.0)) {
+        return usage_error("--duration must be a finite number of seconds > 0, not '" + value +
+                           "'");
+      }
     } else {
       return usage_error("unknown option '" + flag + "'");
     }

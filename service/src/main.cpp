@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "dds_port.hpp"
+#include "tgm/cli_numbers.hpp"
 #include "tgm/dds_overrides.hpp"
 #include "tgm/service/engine.hpp"
 #include "tgm/service/rt_loop.hpp"
@@ -58,24 +59,6 @@ constexpr const char* kUsage =
 int usage_error(const std::string& why) {
   std::fprintf(stderr, "tgm-service: %s\n(see tgm-service --help)\n", why.c_str());
   return 2;
-}
-
-bool parse_long(const std::string& text, long lo, long hi, long& out) {
-  char* end = nullptr;
-  errno = 0;
-  const long v = std::strtol(text.c_str(), &end, 10);
-  if (text.empty() || *end != '\0' || errno != 0 || v < lo || v > hi) return false;
-  out = v;
-  return true;
-}
-
-// The whole of `text` as a number (strtod's syntax).
-bool parse_double(const std::string& text, double& out) {
-  char* end = nullptr;
-  const double v = std::strtod(text.c_str(), &end);
-  if (text.empty() || *end != '\0') return false;
-  out = v;
-  return true;
 }
 
 std::int64_t percentile(std::vector<std::int64_t> v, double q) {
@@ -123,7 +106,7 @@ int main(int argc, char** argv) {
       return usage_error("unexpected argument '" + arg + "'");
     }
     std::string error;
-    long n = 0;
+    long long n = 0;
     if (overrides.take(flag, value, error)) {
       if (!error.empty()) return usage_error(error);
     } else if (flag == "--config") {
@@ -133,33 +116,37 @@ int main(int argc, char** argv) {
     } else if (flag == "--handshake-trace") {
       trace_path = value;
     } else if (flag == "--cpu") {
-      if (!parse_long(value, 0, 1023, n)) return usage_error("--cpu must be 0..1023");
+      if (!tgm::parse_integer(value, 0, 1023, n)) return usage_error("--cpu must be 0..1023");
       rt.cpu = static_cast<int>(n);
     } else if (flag == "--rt-priority") {
-      if (!parse_long(value, 1, 99, n)) return usage_error("--rt-priority must be 1..99");
+      if (!tgm::parse_integer(value, 1, 99, n)) return usage_error("--rt-priority must be 1..99");
       rt.priority = static_cast<int>(n);
     } else if (flag == "--dds-priority") {
-      if (!parse_long(value, 0, 98, n)) return usage_error("--dds-priority must be 0..98");
+      if (!tgm::parse_integer(value, 0, 98, n)) return usage_error("--dds-priority must be 0..98");
       dds_priority = static_cast<int>(n);
     } else if (flag == "--chunk-budget") {
-      if (!parse_long(value, 1, 1'000'000, n)) return usage_error("--chunk-budget must be 1..1000000");
+      if (!tgm::parse_integer(value, 1, 1'000'000, n))
+        return usage_error("--chunk-budget must be 1..1000000");
       engine_options.max_segments_per_cycle = static_cast<std::size_t>(n);
     } else if (flag == "--state-period-ms") {
-      if (!parse_long(value, 1, 50, n)) return usage_error("--state-period-ms must be 1..50");
+      if (!tgm::parse_integer(value, 1, 50, n))
+        return usage_error("--state-period-ms must be 1..50");
       port_options.state_period = std::chrono::milliseconds(n);
     } else if (flag == "--setpoint-decimation") {
-      if (!parse_long(value, 1, 10000, n)) return usage_error("--setpoint-decimation must be 1..10000");
+      if (!tgm::parse_integer(value, 1, 10000, n))
+        return usage_error("--setpoint-decimation must be 1..10000");
       port_options.setpoint_decimation = static_cast<int>(n);
     } else if (flag == "--limit-share") {
       double share = 0.0;
-      if (!parse_double(value, share) || !tgm::LimitChecker::valid_share(share)) {
+      if (!tgm::parse_finite(value, share) || !tgm::LimitChecker::valid_share(share)) {
         return usage_error("--limit-share must be a number in (0, 1], not '" + value + "'");
       }
       engine_options.limit_share = share;
       engine_options.check_limits = true;
     } else if (flag == "--duration") {
-      if (!parse_double(value, duration_s) || !(duration_s > 0.0)) {
-        return usage_error("--duration must be a positive number of seconds");
+      if (!tgm::parse_finite(value, duration_s) || !(duration_s > 0.0)) {
+        return usage_error("--duration must be a finite number of seconds > 0, not '" + value +
+                           "'");
       }
     } else {
       return usage_error("unknown option '" + flag + "'");

@@ -437,6 +437,26 @@ TEST(ServiceProcesses, ServiceStopsCleanlyOnSigtermAndRejectsBadFlags) {
   ASSERT_TRUE(bad.start({TGM_SERVICE_BIN, "--config", env.config(), "--bogus", "1"}, env.path("bad.log")));
   EXPECT_EQ(bad.wait(kHang), 2);
   EXPECT_NE(bad.log().find("unknown option '--bogus'"), std::string::npos) << bad.log();
+  // Numbers: the whole text, within range, finite (one reader for every binary, cli_numbers.hpp).
+  // `--duration inf` used to be a run without end; 2^32 used to wrap to interpolator 0.
+  test::Child endless;
+  ASSERT_TRUE(endless.start({TGM_SERVICE_BIN, "--config", env.config(), "--duration", "inf"},
+                            env.path("endless.log")));
+  EXPECT_EQ(endless.wait(kHang), 2);
+  EXPECT_NE(endless.log().find("--duration must be a finite number of seconds > 0, not 'inf'"),
+            std::string::npos)
+      << endless.log();
+  test::Child wrapped;
+  ASSERT_TRUE(wrapped.start({TGM_PLC_BIN, "--config", env.config(), "--interpolator", "4294967296"},
+                            env.path("wrapped.log")));
+  EXPECT_EQ(wrapped.wait(kHang), 2);
+  EXPECT_NE(wrapped.log().find("--interpolator must be 0..2, not '4294967296'"), std::string::npos)
+      << wrapped.log();
+  test::Child plc_endless;
+  ASSERT_TRUE(plc_endless.start({TGM_PLC_BIN, "--config", env.config(), "--duration", "1e999"},
+                                env.path("plc_endless.log")));
+  EXPECT_EQ(plc_endless.wait(kHang), 2);
+  EXPECT_NE(plc_endless.log().find("--duration must be"), std::string::npos) << plc_endless.log();
   test::Child bad_config;
   ASSERT_TRUE(bad_config.start({TGM_PLC_BIN, "--config", env.path("missing.yaml")}, env.path("bad_config.log")));
   EXPECT_EQ(bad_config.wait(kHang), 2);

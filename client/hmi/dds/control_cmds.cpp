@@ -103,10 +103,10 @@ int run_watch(int argc, char** argv) {
   if (args.failed()) return 2;
   double interval = 0.5;
   long long count = 0;
-  if (!interval_text.empty() && (!parse_double(interval_text, interval) || interval <= 0)) {
+  if (!interval_text.empty() && (!parse_finite(interval_text, interval) || interval <= 0)) {
     return args.usage_error("--interval must be a positive number of seconds");
   }
-  if (!count_text.empty() && !parse_int(count_text, 1, 1'000'000'000, count)) {
+  if (!count_text.empty() && !parse_integer(count_text, 1, 1'000'000'000, count)) {
     return args.usage_error("--count must be a positive whole number");
   }
   if (const int rc = connect(args, c); rc != 0) return rc;
@@ -178,12 +178,13 @@ int run_command(int argc, char** argv) {
   if (what == "start" || what == "stop" || what == "clear" || what == "estop" || what == "estop-off" ||
       what == "stop-off") {
     if (words.size() > 1) return args.usage_error("'" + what + "' takes no parameters");
-  } else if (parse_int(what, -1'000'000, 1'000'000, code)) {
+  } else if (parse_integer(what, -1'000'000, 1'000'000, code)) {
     is_code = true;
     if (words.size() > 13) return args.usage_error("at most 12 Command parameters");
     for (std::size_t k = 1; k < words.size(); ++k) {
       long long v = 0;
-      if (!parse_int(words[k], INT32_MIN, INT32_MAX, v)) return args.usage_error("parameter '" + words[k] + "' is not an integer");
+      if (!parse_integer(words[k], INT32_MIN, INT32_MAX, v))
+        return args.usage_error("parameter '" + words[k] + "' is not an integer");
       params.push_back(static_cast<std::int32_t>(v));
     }
   } else {

@@ -125,10 +125,10 @@ int run_run(int argc, char** argv) {
   if (file.empty()) return args.usage_error("a program FILE is required");
   double interval_s = 1.0, m0_s = -1.0, timeout_s = 0.0;
   if (!parse_progress_interval(args, interval_text, interval_s)) return 2;
-  if (!m0_text.empty() && (!parse_double(m0_text, m0_s) || m0_s < 0)) {
+  if (!m0_text.empty() && (!parse_finite(m0_text, m0_s) || m0_s < 0)) {
     return args.usage_error("--m0-continue must be >= 0 seconds");
   }
-  if (!timeout_text.empty() && (!parse_double(timeout_text, timeout_s) || timeout_s <= 0)) {
+  if (!timeout_text.empty() && (!parse_finite(timeout_text, timeout_s) || timeout_s <= 0)) {
     return args.usage_error("--timeout must be a positive number of seconds");
   }
 

@@ -4,11 +4,11 @@
 // everywhere. Header-only: the binaries parse their own arguments and call these.
 #pragma once
 
-#include <cstdlib>
 #include <filesystem>
 #include <string>
 #include <string_view>
 
+#include "tgm/cli_numbers.hpp"
 #include "tgm/yaml_config.hpp"
 
 namespace tgm {
@@ -29,13 +29,8 @@ struct DdsOverrides {
   //! sets `error` (and returns true).
   bool take(std::string_view flag, const std::string& value, std::string& error) {
     if (flag == "--domain") {
-      char* end = nullptr;
-      const long v = std::strtol(value.c_str(), &end, 10);
-      if (value.empty() || *end != '\0' || v < 0 || v > 232) {
+      if (!parse_integer(value, 0, 232, domain_id))
         error = "--domain must be 0..232, not '" + value + "'";
-      } else {
-        domain_id = static_cast<int>(v);
-      }
       return true;
     }
     if (flag == "--profiles") {
