@@ -103,7 +103,10 @@ struct Rec {
   // from here to the linked record passes through.
   std::array<Link, 3> link{};
   std::int32_t msg_slot = -1;
-  double tan0_deg = kNotSet;  // XY tangent at the start [deg] (LookAheadBuffer)
+  // XY tangent at the start [deg] (LookAheadBuffer; kNotSet: none), NaN until first asked for
+  // (start_tangent_deg: an atan2 per record is a twentieth of an offline short-segment run,
+  // and records crossed inside a skipped cruise never enter the table).
+  double tan0_deg = std::numeric_limits<double>::quiet_NaN();
   Geometry g;
 };
 
@@ -557,9 +560,11 @@ struct Interpolator::Impl {
     Rec& r = R(q);
     r = Rec{};
     r.s0 = s_tail;
-    par[static_cast<std::size_t>(q % cap)] =
-        (sg.type == SegmentType::kMFunction && sg.aux >= 0) ? p.params[static_cast<std::size_t>(sg.aux)]
-                                                             : unset_params();
+    // Parameters are read for M records only (execution, events, LookAheadBuffer).
+    if (sg.type == SegmentType::kMFunction) {
+      par[ring_index(q)] =
+          sg.aux >= 0 ? p.params[static_cast<std::size_t>(sg.aux)] : unset_params();
+    }
     if (sg.type == SegmentType::kMessage) {
       msg[msg_next] = p.messages[static_cast<std::size_t>(sg.aux)];
       r.msg_slot = static_cast<std::int32_t>(msg_next);
@@ -593,7 +598,6 @@ struct Interpolator::Impl {
         r.wg_reason = r.m_reason;
         r.wf = r.f;
       }
-      r.tan0_deg = tangent_deg(r.g, 0.0);
       motion::geometry_tangent(r.g, n, r.g.length, pt_tangent.data());
       pt_end = r.g.end;
       pt_have_motion = true;
@@ -970,7 +974,7 @@ struct Interpolator::Impl {
     reg.tool_number = sg.tool;
   }
 
-  void copy_params(std::uint64_t q) { copy_params_from(par[static_cast<std::size_t>(q % cap)]); }
+  void copy_params(std::uint64_t q) { copy_params_from(par[ring_index(q)]); }
 
   void copy_params_from(const MParams& p) {
     for (int i = 0; i < kMFunctionParameters; ++i) {
@@ -1063,7 +1067,7 @@ struct Interpolator::Impl {
     SmoothingEvent e{kind, value, 0};
     if (kind != kEvMessage) {
       e.tag = ev_par_next;
-      ev_par[ev_par_next] = par[static_cast<std::size_t>(q % cap)];
+      ev_par[ev_par_next] = par[ring_index(q)];
       ev_par_next = (ev_par_next + 1) % ev_par.size();
     }
     if (!smooth->push_event_next(e)) apply_event(e);  // 256 events inside the spline: at once
@@ -2128,7 +2132,7 @@ struct Interpolator::Impl {
     const Segment& sg = S(q);
     const Rec& r = R(q);
     e = LookAheadEntry{};
-    e.all_params = sg.type == SegmentType::kMFunction ? par[static_cast<std::size_t>(q % cap)] : unset_params();
+    e.all_params = sg.type == SegmentType::kMFunction ? par[ring_index(q)] : unset_params();
     if (!is_not_set(pending_m)) e.all_params[static_cast<std::size_t>('M' - 'A')] = pending_m;
     e.plane = static_cast<std::int32_t>(sg.plane);
     e.tool = sg.tool;
@@ -2147,7 +2151,13 @@ struct Interpolator::Impl {
       e.start_angle_deg = norm_angle_deg(r.g.th0);
       e.end_angle_deg = norm_angle_deg(r.g.th0 + r.g.phi);
     }
-    e.tangent_deg = current && r.g.arc ? tangent_deg(r.g, st.s) : r.tan0_deg;
+    e.tangent_deg = current && r.g.arc ? tangent_deg(r.g, st.s) : start_tangent_deg(q);
+  }
+
+  double start_tangent_deg(std::uint64_t q) {
+    Rec& r = R(q);
+    if (std::isnan(r.tan0_deg)) r.tan0_deg = tangent_deg(r.g, 0.0);
+    return r.tan0_deg;
   }
 
   double tangent_deg(const Geometry& g, double s) const {
@@ -2242,7 +2252,8 @@ struct Interpolator::Impl {
                                                                  : kNotSet;
     const Rec& r0 = R(q0);
     if (r0.kind == RecKind::kMotion && s0.type != SegmentType::kMFunction) {
-      e0.tangent_deg = on_path && q0 == cur && r0.g.arc ? tangent_deg(r0.g, st.s) : r0.tan0_deg;
+      e0.tangent_deg =
+          on_path && q0 == cur && r0.g.arc ? tangent_deg(r0.g, st.s) : start_tangent_deg(q0);
     }
     fill_lookahead_from(kLookAheadEntries - p, last + 1, kNotSet);
   }
