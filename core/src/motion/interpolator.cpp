@@ -370,19 +370,20 @@ struct Interpolator::Impl {
   }
 
   // Geometry and caps of a motion record starting at `start`; false = not a motion (too short).
+  // r is freshly value-initialised (store): its geometry is all zero.
   bool plan_motion(const Segment& sg, const std::array<double, kMaxAxes>& start, Rec& r) const {
     Geometry& g = r.g;
-    g = Geometry{};
     g.start = start;
     for (int i = 0; i < n; ++i) g.end[i] = sg.end[i];
     if (!sg.is_arc()) {
+      // From the sources, not from g just written (reading it back stalled the loads).
       double l2 = 0.0;
-      for (int i = 0; i < n; ++i) l2 += (g.end[i] - g.start[i]) * (g.end[i] - g.start[i]);
+      for (int i = 0; i < n; ++i) l2 += (sg.end[i] - start[i]) * (sg.end[i] - start[i]);
       g.length = std::sqrt(l2);
       if (g.length < kMinLength) return false;
       double m = kInf, at = kInf, jt = kInf, fr = kInf;
       for (int i = 0; i < n; ++i) {
-        g.dir[i] = (g.end[i] - g.start[i]) / g.length;
+        g.dir[i] = (sg.end[i] - start[i]) / g.length;
         const double c = std::fabs(g.dir[i]);
         if (c < 1e-12) continue;
         m = std::min(m, vmax[i] / c);
@@ -681,9 +682,15 @@ struct Interpolator::Impl {
     int added = 0;
     // Extend until the window covers the horizon computed with the window's own minima (new
     // records may lower them and so lengthen the horizon).
+    double a_prev = -1.0, j_prev = -1.0;
     for (int pass = 0; pass < 3; ++pass) {
       const double a0 = dq_a.empty() ? rc.at : dq_a.min();
       const double j0 = dq_j.empty() ? rc.jt : dq_j.min();
+      // Minima unchanged by the records the last pass added: the same horizon, and the scan
+      // stopped where it would stop again.
+      if (a0 == a_prev && j0 == j_prev) break;
+      a_prev = a0;
+      j_prev = j0;
       // The window and the chains are gathered once per cycle: take the fastest state the
       // cycle can reach (full jerk from here) and one more cycle of travel as margin.
       horizon = horizon_for(v, a, rc.jt, a0, j0);
@@ -2103,10 +2110,10 @@ struct Interpolator::Impl {
           cruise_prev_q = cur;
           cruise_prev_s = st.s;
         }
-        if (entered == 0) {
-          // No junction in this cycle (checked above, v > kArriveV): integrate_step's arithmetic
+        const double ds = std::max(0.0, jerk::advance(st, 0.0, dt).s - st.s);
+        if (ds < rc.g.length - st.s) {
+          // No junction in this step (and v > kArriveV: no arrival): integrate_step's arithmetic
           // for x = 0 at exactly the target speed, inline (advance_test compares bit for bit).
-          const double ds = std::max(0.0, jerk::advance(st, 0.0, dt).s - st.s);
           st.s += ds;
           reg.move_distance += ds;
           last_vt = v;
