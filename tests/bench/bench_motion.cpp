@@ -11,6 +11,9 @@
 //                           program time over the feed-limited lower bound (counter ratio)
 //   BM_SimulationSpeedShortSegments  the same circle ten times: x_realtime as BM_SimulationSpeed
 //   BM_SimulationSpeedManualExample  the manual's example program: x_realtime
+//   BM_LimitChecker/3, /10  cost of LimitChecker::add_cycle (the live check tgm-service runs
+//                           with --limit-share) per cycle of the CAM-like program: mean and max,
+//                           net of the clock read measured around an empty region in the run
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -27,6 +30,7 @@
 #include "../motion/program_builder.hpp"
 #include "tgm/gcode.hpp"
 #include "tgm/interpolator.hpp"
+#include "tgm/limit_checker.hpp"
 #include "tgm/simulation.hpp"
 
 namespace {
@@ -393,6 +397,73 @@ void BM_SimulationSpeedManualExample(benchmark::State& state) {
   measure_simulation_speed(state, m, compiled.program);
 }
 BENCHMARK(BM_SimulationSpeedManualExample)->Iterations(20)->Unit(benchmark::kMillisecond);
+
+// The live limit check's share of a cycle: add_cycle after every step() of the CAM-like
+// program, each call timed, and the same clock pair around nothing after each step as the
+// reference (its mean is subtracted; the maxima are reported raw, both: on a shared VM a max is
+// a preemption as often as not). 0 violations expected, as in the sweeps.
+void BM_LimitChecker(benchmark::State& state) {
+  const int axes = static_cast<int>(state.range(0));
+  const MachineConfig m = machine_with_axes(axes);
+  const Program prog = cam_program(axes, 50000, 11);
+  double check_ns = 0.0, clock_ns = 0.0, check_max = 0.0, clock_max = 0.0, cycles = 0.0;
+  double violations = 0.0;
+  std::vector<double> each;
+  each.reserve(1 << 20);
+  tgm::InterpolatorOptions io;
+  io.record_corner_events = true;  // as tgm-service with --limit-share
+  for (auto _ : state) {
+    auto ip = tgm::Interpolator::create(m, 0, io);
+    std::string error;
+    auto checker = tgm::LimitChecker::create(m.interpolators[0], m.cycle_time_us, &error, 1.0);
+    if (!checker) {
+      state.SkipWithError(error.c_str());
+      return;
+    }
+    std::size_t next = 0;
+    ip->set_position({});
+    checker->add_cycle(ip->registers(), {});
+    while (true) {
+      play_between_cycles(*ip, prog, next);
+      const tgm::StepResult res = ip->step();
+      auto t0 = std::chrono::steady_clock::now();
+      checker->add_cycle(ip->registers(), ip->corner_events());
+      auto t1 = std::chrono::steady_clock::now();
+      const double ns = std::chrono::duration<double, std::nano>(t1 - t0).count();
+      check_ns += ns;
+      check_max = std::max(check_max, ns);
+      each.push_back(ns);
+      t0 = std::chrono::steady_clock::now();
+      benchmark::ClobberMemory();
+      t1 = std::chrono::steady_clock::now();
+      const double empty_ns = std::chrono::duration<double, std::nano>(t1 - t0).count();
+      clock_ns += empty_ns;
+      clock_max = std::max(clock_max, empty_ns);
+      cycles += 1.0;
+      if (res == tgm::StepResult::kFinished) break;
+      if (static_cast<int>(res) < 0) {
+        state.SkipWithError("interpolator error");
+        return;
+      }
+    }
+    violations += static_cast<double>(checker->violation_count());
+  }
+  state.counters["check_mean_ns"] = cycles > 0.0 ? (check_ns - clock_ns) / cycles : 0.0;
+  state.counters["check_max_raw_ns"] = check_max;
+  std::sort(each.begin(), each.end());
+  auto pct = [&](double p) {
+    return each.empty()
+               ? 0.0
+               : each[std::min(each.size() - 1,
+                               static_cast<std::size_t>(p * static_cast<double>(each.size())))];
+  };
+  state.counters["check_p99_raw_ns"] = pct(0.99);
+  state.counters["check_p999_raw_ns"] = pct(0.999);
+  state.counters["clock_ns"] = cycles > 0.0 ? clock_ns / cycles : 0.0;
+  state.counters["clock_max_raw_ns"] = clock_max;  // what the VM's preemption alone shows
+  state.counters["violations"] = violations;
+}
+BENCHMARK(BM_LimitChecker)->Arg(3)->Arg(10)->Iterations(1)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 
