@@ -218,10 +218,17 @@ void Engine::refuse_chunk(CyclePort& port, int i, const ChunkIn& c, std::string_
   ++counters_.refused_chunks;
   if (s.refused_program == c.program_id) return;  // one message per refused program
   s.refused_program = c.program_id;
+  send_message(port, i, MessageOut::Severity::kError,
+               "program " + std::to_string(c.program_id) + " refused: " + std::string(why), 0);
+}
+
+void Engine::send_message(CyclePort& port, int i, MessageOut::Severity severity,
+                          std::string_view text, std::int32_t line) {
   MessageOut m;
   m.interpolator = i;
-  m.severity = MessageOut::Severity::kError;
-  m.text.set("program " + std::to_string(c.program_id) + " refused: " + std::string(why));
+  m.severity = severity;
+  m.text.set(text);
+  m.source_line = line;
   if (!port.message(m)) ++counters_.lost_messages;
 }
 
@@ -304,12 +311,7 @@ void Engine::check_limits(CyclePort& port, int i) {
   const std::uint64_t found = s.checker->violation_count() - counted_before;
   counters_.limit_violations += found;
   auto send = [&](std::string_view text, std::int32_t line) {
-    MessageOut m;
-    m.interpolator = i;
-    m.severity = MessageOut::Severity::kWarning;
-    m.text.set(text);
-    m.source_line = line;
-    if (!port.message(m)) ++counters_.lost_messages;
+    send_message(port, i, MessageOut::Severity::kWarning, text, line);
   };
   // The checker keeps the first LimitChecker::kMaxStored excesses in detail.
   const auto& stored = s.checker->violations();
@@ -355,11 +357,7 @@ void Engine::cycle(CyclePort& port, const LatenessStats& lateness) {
       const std::string_view text = s.ip.message_text(reg.message_slot);
       ++s.message_counter;
       s.message_text.set(text);
-      MessageOut m;
-      m.interpolator = i;
-      m.text.set(text);
-      m.source_line = reg.act_line;
-      if (!port.message(m)) ++counters_.lost_messages;
+      send_message(port, i, MessageOut::Severity::kInfo, text, reg.act_line);
     }
     InterpolatorSnapshot& o = snapshot_.ip[static_cast<std::size_t>(i)];
     o.reg = reg;
