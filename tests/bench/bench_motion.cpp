@@ -40,6 +40,13 @@ using tgm::Program;
 using tgm::test::ProgramBuilder;
 constexpr double kPi = 3.14159265358979323846;
 
+// The p-quantile (0..1) of ascending `sorted` (nearest rank below; 0 when empty).
+double percentile(const std::vector<double>& sorted, double p) {
+  if (sorted.empty()) return 0.0;
+  return sorted[std::min(sorted.size() - 1,
+                         static_cast<std::size_t>(p * static_cast<double>(sorted.size())))];
+}
+
 MachineConfig machine_with_axes(int axes) {
   MachineConfig m = MachineConfig::default_machine();
   auto& ip = m.interpolators[0];
@@ -154,7 +161,7 @@ void BM_Step(benchmark::State& state) {
     ns.push_back(std::chrono::duration<double, std::nano>(t1 - t0).count());
   }
   std::sort(ns.begin(), ns.end());
-  auto pct = [&](double p) { return ns.empty() ? 0.0 : ns[std::min(ns.size() - 1, static_cast<std::size_t>(p * static_cast<double>(ns.size())))]; };
+  auto pct = [&](double p) { return percentile(ns, p); };
   state.counters["p50_ns"] = pct(0.5);
   state.counters["p99_ns"] = pct(0.99);
   state.counters["p999_ns"] = pct(0.999);
@@ -251,7 +258,7 @@ void BM_StepReplay(benchmark::State& state) {
   double sum = 0.0;
   for (double b : best) sum += b;
   std::sort(best.begin(), best.end());
-  auto pct = [&](double p) { return best.empty() ? 0.0 : best[std::min(best.size() - 1, static_cast<std::size_t>(p * static_cast<double>(best.size())))]; };
+  auto pct = [&](double p) { return percentile(best, p); };
   state.counters["mean_ns"] = best.empty() ? 0.0 : sum / static_cast<double>(best.size());
   state.counters["p99_ns"] = pct(0.99);
   state.counters["p999_ns"] = pct(0.999);
@@ -451,14 +458,8 @@ void BM_LimitChecker(benchmark::State& state) {
   state.counters["check_mean_ns"] = cycles > 0.0 ? (check_ns - clock_ns) / cycles : 0.0;
   state.counters["check_max_raw_ns"] = check_max;
   std::sort(each.begin(), each.end());
-  auto pct = [&](double p) {
-    return each.empty()
-               ? 0.0
-               : each[std::min(each.size() - 1,
-                               static_cast<std::size_t>(p * static_cast<double>(each.size())))];
-  };
-  state.counters["check_p99_raw_ns"] = pct(0.99);
-  state.counters["check_p999_raw_ns"] = pct(0.999);
+  state.counters["check_p99_raw_ns"] = percentile(each, 0.99);
+  state.counters["check_p999_raw_ns"] = percentile(each, 0.999);
   state.counters["clock_ns"] = cycles > 0.0 ? clock_ns / cycles : 0.0;
   state.counters["clock_max_raw_ns"] = clock_max;  // what the VM's preemption alone shows
   state.counters["violations"] = violations;
