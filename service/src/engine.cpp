@@ -5,8 +5,6 @@
 #include <cstdio>
 #include <string>
 
-#include "tgm/command_stage.hpp"
-
 namespace tgm::service {
 
 namespace {
@@ -300,11 +298,14 @@ void Engine::apply_chunks(CyclePort& port, int i, std::size_t& budget) {
 void Engine::check_limits(CyclePort& port, int i) {
   Slot& s = ips_[static_cast<std::size_t>(i)];
   const Registers& reg = s.ip.registers();
-  // A position set (Command 2048 / 2049, executed in the cycle after it was pending) moves
-  // Orig_Position by design: the differences across it are no motion.
-  const auto sets_position = [](std::int32_t c) { return c == kCommandSetPositionOn || c == kCommandSetPositionOff; };
-  if (sets_position(s.last_command) || sets_position(reg.command)) s.checker->reset();
-  s.last_command = reg.command;
+  // A position set (Command 2048 / 2049, executed with the request or in a later cycle while
+  // the smoothing settles) moves Orig_Position by design: the differences across it are no
+  // motion. (Watching the Command register missed a set executed with its request: the
+  // register is back at 0 when the cycle ends.)
+  if (s.ip.position_sets() != s.position_sets) {
+    s.position_sets = s.ip.position_sets();
+    s.checker->reset();
+  }
   const std::size_t stored_before = s.checker->violations().size();
   const std::uint64_t counted_before = s.checker->violation_count();
   s.checker->add_cycle(reg, s.ip.corner_events());

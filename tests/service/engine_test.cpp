@@ -333,6 +333,53 @@ TEST(Engine, CheckLimitsReportsWhatTheOfflineCheckerFinds) {
   }
 }
 
+// A position set (Command 2048) moves Orig_Position by design between two checked programs: the
+// live checker does not report the jump as motion (here 100 mm in one cycle, 200 m/s on X, which
+// every limit of the machine flags), and it checks the motion after it as before.
+TEST(Engine, CheckLimitsIgnoresAPositionSetBetweenPrograms) {
+  EngineOptions o;
+  o.check_limits = true;
+  Engine e = make_engine(o);
+  MockPort port;
+  const Program p = line_program(40);
+  auto run_program = [&](int program_id) {
+    port.add_chunk(0, p, 0, p.segments.size(), program_id, true);
+    e.cycle(port, {});
+    port.add_request(Role::kHmi, RequestKind::kStart);
+    int cycles = 0;
+    do {
+      e.cycle(port, {});
+    } while (port.last.ip[0].reg.status != 3 && cycles++ < 100000);
+    ASSERT_EQ(port.last.ip[0].reg.status, 3);
+  };
+  run_program(1);
+  ASSERT_EQ(e.counters().limit_violations, 0u);
+  const double x_end = port.last.ip[0].reg.orig_position[0];
+  EXPECT_NEAR(x_end, 4.0, 1e-9);
+
+  const double ratio = port.last.ip[0].reg.ratio[0];  // inc per mm
+  RequestIn& set = port.add_request(Role::kPlc, RequestKind::kCommand);
+  set.command = 2048;
+  set.command_parameter[0] = static_cast<std::int32_t>(std::lround((x_end + 100.0) * ratio));
+  double largest_jump = 0.0;
+  for (int c = 0; c < 10; ++c) {
+    const double before = port.last.ip[0].reg.orig_position[0];
+    e.cycle(port, {});
+    largest_jump = std::max(largest_jump, std::fabs(port.last.ip[0].reg.orig_position[0] - before));
+  }
+  ASSERT_EQ(port.replies.back().code, ReplyCode::kAccepted) << port.replies.back().reason.view();
+  EXPECT_NEAR(port.last.ip[0].reg.orig_position[0], x_end + 100.0, 1.0 / ratio);
+  EXPECT_GT(largest_jump, 99.0);  // in one cycle: no motion could do that
+  EXPECT_EQ(e.counters().limit_violations, 0u);
+
+  // The next program starts at the new position (a 100 mm move back to its first point) and is
+  // checked across its whole run.
+  run_program(2);
+  EXPECT_EQ(e.counters().limit_violations, 0u);
+  for (const auto& msg : port.messages)
+    EXPECT_NE(msg.severity, MessageOut::Severity::kWarning) << msg.text.view();
+}
+
 // Whatever a client sends (any kind, role, interpolator, Command code, parameter, axis and
 // value, NaN and infinities included), in the middle of a running program: every request is
 // answered exactly once, a refusal says why, and the registers stay finite. Seeded sweep.

@@ -186,6 +186,9 @@ class Interpolator {
   //! Count of times the generator had to clamp at a stop point while still moving faster than
   //! 1e-3 mm/s (a planning defect; 0 expected).
   std::uint64_t hard_stops() const;
+  //! Count of position sets (set_position, Command 2048 / 2049): Orig_Position jumps there by
+  //! design, so a per-cycle check of the motion (LimitChecker) starts afresh when it changes.
+  std::uint64_t position_sets() const;
   //! Cycle time [s] and calculation step [s].
   double cycle_time_s() const;
   double calc_step_s() const;

@@ -289,6 +289,7 @@ struct Interpolator::Impl {
   bool stop_off = false;       // Command 9 / 5 in progress
   bool resumable_estop = false;
   std::uint64_t hard_stop_count = 0;
+  std::uint64_t position_set_count = 0;  // place() calls (Interpolator::position_sets)
   LimitFactor factor = LimitFactor::kNone;
   bool braking_to_stop = false;
   double last_vt = 0.0;
@@ -1203,6 +1204,7 @@ struct Interpolator::Impl {
 
   // New position of a standing interpolator without a program (set_position, 2048 / 2049).
   void place(const std::array<double, kMaxAxes>& position_mm) {
+    ++position_set_count;
     on_path = false;
     paused_m0 = false;
     resume_wait_m = false;
@@ -2799,6 +2801,9 @@ std::span<const BlockReport> Interpolator::block_reports() const {
 }
 
 std::uint64_t Interpolator::hard_stops() const { return impl_->hard_stop_count; }
+std::uint64_t Interpolator::position_sets() const {
+  return impl_->position_set_count;
+}
 double Interpolator::cycle_time_s() const { return impl_->T; }
 double Interpolator::calc_step_s() const { return impl_->dt; }
 const InterpolatorConfig& Interpolator::config() const { return impl_->cfg; }

@@ -77,7 +77,7 @@ class Engine {
     Interpolator ip;
     std::optional<LimitChecker> checker;  // EngineOptions::check_limits
     int limit_messages = 0;               // excesses reported for the current program
-    std::int32_t last_command = 0;        // Command register after the previous cycle
+    std::uint64_t position_sets = 0;      // Interpolator::position_sets() the checker has seen
     std::uint32_t program_id = 0;
     std::uint64_t next_sequence = 0;
     std::uint32_t refused_program = 0;  // last program id a refusal message was sent for
