@@ -181,5 +181,24 @@ TEST(RandomSweep, WideSeed1Program281BrakesForAJunctionIntoAFarSofterRecord) {
   expect_clean(c, s, "wide seed 1 program 281");
 }
 
+// The calculation step that crosses a junction judged the limit there by its end-of-step speed
+// only. Wide sweep seed 1: programs 105, 136 and 265 (1 ms, corner tolerances of 0.016..0.04
+// mm/s on stiff axes) were still braking at the junction, so the speed there was above the
+// end-of-step speed (corner steps 1.005..1.03 x the tolerance); programs 124 and 147 crossed
+// into a record whose velocity cap was the junction's limit still accelerating, and the landing
+// on it overshot by the step's gain (axis velocity 1.0003 x, jerk 1.07 x). Now the crossing
+// step is judged by the speed at the junction and by the speed its acceleration settles at.
+TEST(RandomSweep, WideSeed1JunctionsAreJudgedAtTheCrossingItself) {
+  for (const std::uint64_t k : {105u, 124u, 136u, 147u, 265u}) {
+    const SweepCase c = sweep_case(1, k, true);
+    auto sim = Simulation::create(c.machine, sweep_options(c));
+    ASSERT_TRUE(sim);
+    const auto s = sim->run(c.generated.program);
+    const std::string ctx = "wide seed 1 program " + std::to_string(k);
+    ASSERT_EQ(s.result, StepResult::kFinished) << ctx << ": " << s.error;
+    expect_clean(c, s, ctx);
+  }
+}
+
 }  // namespace
 }  // namespace tgm
