@@ -1246,6 +1246,25 @@ struct Interpolator::Impl {
     return tau;
   }
 
+  // An upper bound, closed-form and continuous in the step's end state ns, of the speed at which
+  // the calculation step from b passes the point d0 ahead (within the step's travel). The speed
+  // is a quadratic in time over the step; with vm its highest value, the point is not reached
+  // before d0 / vm, and from there to the step's end the speed is at most the quadratic's
+  // largest value on that interval. (Solving for the crossing time, crossing_time, inside the
+  // search for the largest passing acceleration raised the worst step() from 3.3 to 5.0 us.)
+  double crossing_speed_bound(const jerk::State& b, const jerk::State& ns, double d0) const {
+    const double j = (ns.a - b.a) / dt;
+    auto v_at = [&](double t) { return b.v + t * (b.a + 0.5 * j * t); };
+    // Interior maximum: the acceleration turns from positive to negative inside the step.
+    const double t_peak = b.a > 0.0 && ns.a < 0.0 ? -b.a / j : -1.0;
+    double vm = std::max(b.v, ns.v);
+    if (t_peak > 0.0) vm = std::max(vm, v_at(t_peak));
+    const double t_lo = vm > 0.0 ? std::min(dt, d0 / vm) : 0.0;
+    double v = std::max(v_at(t_lo), ns.v);
+    if (t_peak > t_lo) v = std::max(v, v_at(t_peak));
+    return v;
+  }
+
   void record_corner(std::uint64_t qin, std::uint64_t qout, const jerk::State& b, double j,
                      double dist, int calc_index) {
     if (!opt.record_corner_events || n_events >= events.size()) return;
@@ -1578,12 +1597,10 @@ struct Interpolator::Impl {
           // sweep seed 1 programs 105, 136, 265).
           double v_lim = ns.v;
           // (Within the step's highest speed, max(before.v, ns.v) while the acceleration does
-          // not turn from positive to negative, no crossing needs to be solved for.)
+          // not turn from positive to negative, nothing more is needed.)
           if ((before.a < 0.0 || ns.a < 0.0) &&
               (std::max(before.v, ns.v) > ck.w || (before.a > 0.0 && ns.a < 0.0))) {
-            const double j = (ns.a - before.a) / dt;
-            const double tau = crossing_time(before, j, std::max(0.0, ck.d - moved));
-            v_lim = std::max(v_lim, before.v + tau * (before.a + 0.5 * j * tau));
+            v_lim = std::max(v_lim, crossing_speed_bound(before, ns, std::max(0.0, ck.d - moved)));
           }
           // Still accelerating: the speed this acceleration settles at after the junction (taken
           // back at Jx) must stay within w, as it had to before the step. Judging ns.v alone let
