@@ -87,13 +87,11 @@ std::optional<AppConfig> Args::load_app() {
   if (!config) return std::nullopt;
   const int count = static_cast<int>(config->machine.interpolators.size());
   if (!interpolator_text_.empty()) {
-    long long n = 0;
-    if (!parse_integer(interpolator_text_, 0, count - 1, n)) {
+    if (!parse_integer(interpolator_text_, 0, count - 1, interpolator_)) {
       usage_error("--interpolator must be 0.." + std::to_string(count - 1) + " (the config has " +
                   std::to_string(count) + "), not '" + interpolator_text_ + "'");
       return std::nullopt;
     }
-    interpolator_ = static_cast<int>(n);
   }
   return config;
 }

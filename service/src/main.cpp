@@ -116,14 +116,13 @@ int main(int argc, char** argv) {
     } else if (flag == "--handshake-trace") {
       trace_path = value;
     } else if (flag == "--cpu") {
-      if (!tgm::parse_integer(value, 0, 1023, n)) return usage_error("--cpu must be 0..1023");
-      rt.cpu = static_cast<int>(n);
+      if (!tgm::parse_integer(value, 0, 1023, rt.cpu)) return usage_error("--cpu must be 0..1023");
     } else if (flag == "--rt-priority") {
-      if (!tgm::parse_integer(value, 1, 99, n)) return usage_error("--rt-priority must be 1..99");
-      rt.priority = static_cast<int>(n);
+      if (!tgm::parse_integer(value, 1, 99, rt.priority))
+        return usage_error("--rt-priority must be 1..99");
     } else if (flag == "--dds-priority") {
-      if (!tgm::parse_integer(value, 0, 98, n)) return usage_error("--dds-priority must be 0..98");
-      dds_priority = static_cast<int>(n);
+      if (!tgm::parse_integer(value, 0, 98, dds_priority))
+        return usage_error("--dds-priority must be 0..98");
     } else if (flag == "--chunk-budget") {
       if (!tgm::parse_integer(value, 1, 1'000'000, n))
         return usage_error("--chunk-budget must be 1..1000000");
@@ -133,9 +132,8 @@ int main(int argc, char** argv) {
         return usage_error("--state-period-ms must be 1..50");
       port_options.state_period = std::chrono::milliseconds(n);
     } else if (flag == "--setpoint-decimation") {
-      if (!tgm::parse_integer(value, 1, 10000, n))
+      if (!tgm::parse_integer(value, 1, 10000, port_options.setpoint_decimation))
         return usage_error("--setpoint-decimation must be 1..10000");
-      port_options.setpoint_decimation = static_cast<int>(n);
     } else if (flag == "--limit-share") {
       double share = 0.0;
       if (!tgm::parse_finite(value, share) || !tgm::LimitChecker::valid_share(share)) {
