@@ -62,6 +62,18 @@ Program line_program(int moves, bool with_m51 = false, bool with_message = false
   return p;
 }
 
+// Streams p whole into interpolator 0 as program `id`, starts it and cycles until it has ended
+// (Status 3, also after an earlier program ended) or `max_cycles` have passed.
+void run_to_end(Engine& e, MockPort& port, const Program& p, std::uint32_t id, int max_cycles) {
+  port.add_chunk(0, p, 0, p.segments.size(), id, true);
+  e.cycle(port, {});
+  port.add_request(Role::kHmi, RequestKind::kStart);
+  int cycles = 0;
+  do {
+    e.cycle(port, {});
+  } while (port.last.ip[0].reg.status != 3 && cycles++ < max_cycles);
+}
+
 Engine make_engine(EngineOptions o = {}) {
   auto e = Engine::create(MachineConfig::default_machine(), o);
   EXPECT_TRUE(e.has_value());
@@ -295,11 +307,7 @@ TEST(Engine, CheckLimitsReportsWhatTheOfflineCheckerFinds) {
     auto e = Engine::create(m, o);
     ASSERT_TRUE(e);
     MockPort port;
-    port.add_chunk(0, p, 0, p.segments.size(), 3, true);
-    e->cycle(port, {});
-    port.add_request(Role::kHmi, RequestKind::kStart);
-    int cycles = 0;
-    while (port.last.ip[0].reg.status != 3 && cycles++ < 400000) e->cycle(port, {});
+    run_to_end(*e, port, p, 3, 400000);
     ASSERT_EQ(port.last.ip[0].reg.status, 3);
     std::vector<MessageOut> warnings;
     for (const auto& msg : port.messages) {
@@ -342,17 +350,8 @@ TEST(Engine, CheckLimitsIgnoresAPositionSetBetweenPrograms) {
   Engine e = make_engine(o);
   MockPort port;
   const Program p = line_program(40);
-  auto run_program = [&](int program_id) {
-    port.add_chunk(0, p, 0, p.segments.size(), program_id, true);
-    e.cycle(port, {});
-    port.add_request(Role::kHmi, RequestKind::kStart);
-    int cycles = 0;
-    do {
-      e.cycle(port, {});
-    } while (port.last.ip[0].reg.status != 3 && cycles++ < 100000);
-    ASSERT_EQ(port.last.ip[0].reg.status, 3);
-  };
-  run_program(1);
+  run_to_end(e, port, p, 1, 100000);
+  ASSERT_EQ(port.last.ip[0].reg.status, 3);
   ASSERT_EQ(e.counters().limit_violations, 0u);
   const double x_end = port.last.ip[0].reg.orig_position[0];
   EXPECT_NEAR(x_end, 4.0, 1e-9);
@@ -374,7 +373,8 @@ TEST(Engine, CheckLimitsIgnoresAPositionSetBetweenPrograms) {
 
   // The next program starts at the new position (a 100 mm move back to its first point) and is
   // checked across its whole run.
-  run_program(2);
+  run_to_end(e, port, p, 2, 100000);
+  ASSERT_EQ(port.last.ip[0].reg.status, 3);
   EXPECT_EQ(e.counters().limit_violations, 0u);
   for (const auto& msg : port.messages)
     EXPECT_NE(msg.severity, MessageOut::Severity::kWarning) << msg.text.view();
