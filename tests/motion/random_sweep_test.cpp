@@ -104,6 +104,15 @@ void expect_clean(const SweepCase& c, const SimulationSummary& s, const std::str
   }
 }
 
+// Runs one sweep case as the sweep does and checks that it finishes clean (a pinned case).
+void expect_runs_clean(const SweepCase& c, const std::string& ctx) {
+  auto sim = Simulation::create(c.machine, sweep_options(c));
+  ASSERT_TRUE(sim) << ctx;
+  const auto s = sim->run(c.generated.program);
+  ASSERT_EQ(s.result, StepResult::kFinished) << ctx << ": " << s.error;
+  expect_clean(c, s, ctx);
+}
+
 TEST(RandomSweep, ProgramsFinishAtTheirEndWithinLimits) {
   const std::uint64_t seed = arg_u64("seed", "TGM_SEED", 1);
   const std::uint64_t count = arg_u64("count", "TGM_SWEEP_COUNT", 200);
@@ -174,11 +183,7 @@ TEST(SweepTimeLimit, Seed3Program465SlowBeforeAnOverrideDropIsNotAStall) {
 TEST(RandomSweep, WideSeed1Program281BrakesForAJunctionIntoAFarSofterRecord) {
   const SweepCase c = sweep_case(1, 281, true);
   ASSERT_EQ(c.axes, 9);
-  auto sim = Simulation::create(c.machine, sweep_options(c));
-  ASSERT_TRUE(sim);
-  const auto s = sim->run(c.generated.program);
-  ASSERT_EQ(s.result, StepResult::kFinished) << s.error;
-  expect_clean(c, s, "wide seed 1 program 281");
+  expect_runs_clean(c, "wide seed 1 program 281");
 }
 
 // The calculation step that crosses a junction judged the limit there by its end-of-step speed
@@ -190,13 +195,7 @@ TEST(RandomSweep, WideSeed1Program281BrakesForAJunctionIntoAFarSofterRecord) {
 // step is judged by the speed at the junction and by the speed its acceleration settles at.
 TEST(RandomSweep, WideSeed1JunctionsAreJudgedAtTheCrossingItself) {
   for (const std::uint64_t k : {105u, 124u, 136u, 147u, 265u}) {
-    const SweepCase c = sweep_case(1, k, true);
-    auto sim = Simulation::create(c.machine, sweep_options(c));
-    ASSERT_TRUE(sim);
-    const auto s = sim->run(c.generated.program);
-    const std::string ctx = "wide seed 1 program " + std::to_string(k);
-    ASSERT_EQ(s.result, StepResult::kFinished) << ctx << ": " << s.error;
-    expect_clean(c, s, ctx);
+    expect_runs_clean(sweep_case(1, k, true), "wide seed 1 program " + std::to_string(k));
   }
 }
 
