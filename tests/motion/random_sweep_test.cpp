@@ -199,5 +199,17 @@ TEST(RandomSweep, WideSeed1JunctionsAreJudgedAtTheCrossingItself) {
   }
 }
 
+// Wide sweep seed 1 programs 55 and 86 (1 ms): braking for a corner of a few hundredths of a
+// mm/s (X or Z tolerance 0.02..0.04 mm/s), the motion came to rest 1e-5 mm before it, inside
+// the junction's reserve, and crept the rest for over an hour (55: 4,447 s instead of 17.5 s).
+// At rest there the hardest braking (the no-reversal floor) failed the stop point far ahead,
+// whose plan cannot take that deceleration back before standstill, so every step fell back to
+// best effort, the floor; a little less braking passes every limit.
+TEST(RandomSweep, WideSeed1MotionLeavesARestJustBeforeACorner) {
+  for (const std::uint64_t k : {55u, 86u}) {
+    expect_runs_clean(sweep_case(1, k, true), "wide seed 1 program " + std::to_string(k));
+  }
+}
+
 }  // namespace
 }  // namespace tgm

@@ -1725,6 +1725,28 @@ struct Interpolator::Impl {
           return true;
         };
         double xs = lo_dec > lo && ok(lo_dec) ? lo_dec : lo, xu = xd;
+        // Failing at xs need not mean failing above it. Just above standstill the hardest
+        // braking can fail a limit this step cannot reach (a plan cannot take back the
+        // deceleration the no-reversal floor allows before the motion stops) where a little
+        // less braking passes. So when every limit failing at xs lies beyond this step's reach
+        // and beyond kRestD (in the last steps of an arrival the floor is the planned ramp),
+        // probe upwards from xs; a probe that passes becomes xs and the search goes on from
+        // there. Without this a motion resting 1e-5 mm before a corner crept to it for over an
+        // hour, a braking step and a floor step in turn (wide sweep seed 1 program 55).
+        auto passing_above = [&](double& from, double to) {
+          const double reach = std::max(jerk::advance(before, hi, dt).s - before.s, kRestD);
+          for (int i = 0; i < nv; ++i) {
+            if (c[viol[i]].d - moved <= reach && excess(from, viol[i]) > kExcessTol) return false;
+          }
+          for (double f : {1.0 / 1024.0, 1.0 / 256.0, 1.0 / 64.0, 1.0 / 16.0, 1.0 / 4.0}) {
+            const double probe = from + (to - from) * f;
+            if (ok(probe)) {
+              from = probe;
+              return true;
+            }
+          }
+          return false;
+        };
         if (xs == lo && lo_dec > lo && ok_hard(lo_dec)) {
           // Only the feed x Rel_Speed cannot be kept within the acceleration limits ahead (an
           // override decrease): keep the machine limits, cross the feed limit faster.
@@ -1734,7 +1756,7 @@ struct Interpolator::Impl {
             if (ok_hard(mid) && ok(mid)) xs = mid; else xu = mid;
           }
           x = xs;
-        } else if (!ok(xs)) {
+        } else if (!ok(xs) && !passing_above(xs, xu)) {
           // Best effort. A limit that even the hardest braking cannot keep (with the lowest
           // limits of its whole stretch, which is conservative) gets the hardest braking the
           // deceleration limits ahead allow (lo_dec); the limits lo can still keep get what they
