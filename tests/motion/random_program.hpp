@@ -114,10 +114,12 @@ inline Generated random_program(std::mt19937_64& rng, int axes, int blocks) {
 
 // Lower bound [s] of the time the motion of `program` needs on `machine` with Rel_Speed
 // `rel0` changed at the given times: every record at its speed cap min(F x Rel_Speed, axis
-// velocity limits projected on a line) the whole way, no acceleration, no corners, no arc
-// limits, no waits. Integrated in time, so the override schedule applies where the motion is
-// at that time. The real path position never gets ahead of this one (it is never faster at the
-// same place and time), so the real program cannot end earlier.
+// velocity limits projected on the record) the whole way, no acceleration, no corners, no
+// centripetal limits, no waits. Integrated in time, so the override schedule applies where the
+// motion is at that time. Unless Rel_Speed drops, the real path position never gets ahead of
+// this one (it is never faster at the same place and time), so the real program cannot end
+// earlier. A drop acts here at once and in the motion through a ramp: there the bound is
+// approximate (the sweep checks it on programs without a drop).
 inline double motion_time_lower_bound(const Program& program, const MachineConfig& machine,
                                       std::vector<std::pair<double, double>> changes,
                                       double rel0 = 1.0) {
@@ -170,6 +172,21 @@ inline double motion_time_lower_bound(const Program& program, const MachineConfi
         const double c = std::fabs(sg.end[i] - pos[i]) / length;
         if (c > 1e-12) cap = std::min(cap, ip.axes[static_cast<std::size_t>(i)].max_velocity_mm_s / c);
       }
+      // The plane axes: the interpolator holds a whole arc record to one cap from their velocity
+      // limits and the largest share of the path speed they take anywhere on it (core/MOTION.md).
+      // Where the sweep passes an angle with sin th = +-1 the first axis takes
+      // r / sqrt(r^2 + r'^2 + z'^2) of it (r' = dr/dth, z'^2 the other axes' (dz/dth)^2), with
+      // cos th = +-1 the second; r_min / sqrt(r_max^2 + ...) is at most that. An axis whose
+      // direction the sweep does not pass adds no cap here.
+      const double lo_th = sg.type == SegmentType::kArcCcw ? th0 : th0 - sweep;
+      auto passes = [&](double target) {  // an angle target + k pi within [lo_th, lo_th + sweep]
+        return target + std::ceil((lo_th - target) / kSweepPi) * kSweepPi <= lo_th + sweep;
+      };
+      const double rp = (r1 - r0) / sweep;
+      const double share = std::min(r0, r1) / std::sqrt(std::max(r0, r1) * std::max(r0, r1) +
+                                                        rp * rp + lin2 / (sweep * sweep));
+      if (passes(0.5 * kSweepPi)) cap = std::min(cap, ip.axes[f].max_velocity_mm_s / share);
+      if (passes(0.0)) cap = std::min(cap, ip.axes[s].max_velocity_mm_s / share);
     }
     for (int i = 0; i < n; ++i) pos[i] = sg.end[i];
     double left = length;
