@@ -250,9 +250,10 @@ TEST(RandomSweep, WideSeed1JunctionsAreJudgedAtTheCrossingItself) {
 // Wide sweep seed 1 programs 55 and 86 (1 ms): braking for a corner of a few hundredths of a
 // mm/s (X or Z tolerance 0.02..0.04 mm/s), the motion came to rest 1e-5 mm before it, inside
 // the junction's reserve, and crept the rest for over an hour (55: 4,447 s instead of 17.5 s).
-// At rest there the hardest braking (the no-reversal floor) failed the stop point far ahead,
-// whose plan cannot take that deceleration back before standstill, so every step fell back to
-// best effort, the floor; a little less braking passes every limit.
+// At rest there every deceleration failed the corner (by the plan's step allowance) and the
+// hardest one a stop point far ahead, so every step fell back to best effort, the no-reversal
+// floor, and the next one swung back up. Now a state in the reserve at or below the corner's
+// speed and not accelerating keeps the corner, and at rest a step probes above the floor.
 TEST(RandomSweep, WideSeed1MotionLeavesARestJustBeforeACorner) {
   for (const std::uint64_t k : {55u, 86u}) {
     expect_runs_clean(sweep_case(1, k, true), "wide seed 1 program " + std::to_string(k));

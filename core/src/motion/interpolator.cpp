@@ -1616,6 +1616,13 @@ struct Interpolator::Impl {
           if (ns.a <= ck.w) return -remain;
           return accel_distance(std::max(ns.v, 0.0), ns.a, ck.w, kPlanMarginJ * ck.J) - remain;
         }
+        // Inside the reserve there is no room: a state at or below w that is not accelerating
+        // keeps w (the speed only falls) and needs none. The plan's step allowance, on the
+        // easing plan such a state gets with the step's higher jerk, failed it for any
+        // deceleration, so a motion resting there could only creep on (wide sweep seed 1
+        // programs 55, 86; with the probes at rest below but not this, 265 left its rest on
+        // the lowest passing probe and exceeded an axis acceleration by 8 %).
+        if (remain <= ck.reserve && ns.v <= ck.w && ns.a <= 0.0) return 0.0;
         if (ns.a > 0.0 && ck.Jx < ck.J) {
           // Still accelerating with no braking needed before the limit (v + a^2/2J <= w): the
           // part of a not taken back before the junction is taken back after it at Jx. With a'
@@ -1725,15 +1732,17 @@ struct Interpolator::Impl {
           return true;
         };
         double xs = lo_dec > lo && ok(lo_dec) ? lo_dec : lo, xu = xd;
-        // Failing at xs need not mean failing above it. Just above standstill the hardest
-        // braking can fail a limit this step cannot reach (a plan cannot take back the
-        // deceleration the no-reversal floor allows before the motion stops) where a little
-        // less braking passes. So when every limit failing at xs lies beyond this step's reach
-        // and beyond kRestD (in the last steps of an arrival the floor is the planned ramp),
-        // probe upwards from xs; a probe that passes becomes xs and the search goes on from
-        // there. Without this a motion resting 1e-5 mm before a corner crept to it for over an
-        // hour, a braking step and a floor step in turn (wide sweep seed 1 program 55).
+        // Failing at xs need not mean failing above it. At rest just before a junction the
+        // hardest braking (the no-reversal floor) fails a stop point far ahead, whose plan cannot
+        // take that deceleration back before the motion stops, while a little less braking
+        // passes every limit. Taking the floor there swings the next step back up, and so on:
+        // the motion crept to a corner 1e-5 mm ahead for over an hour (wide sweep seed 1
+        // programs 55, 86). So at rest (v <= kArriveV), when every limit failing at xs lies
+        // beyond this step's reach and beyond kRestD, probe upwards; a passing probe becomes xs
+        // and the search goes on from there. Not while moving: in the last steps of an arrival
+        // the floor is the planned ramp, and probes there arrived too fast (hard stops).
         auto passing_above = [&](double& from, double to) {
+          if (v > kArriveV) return false;
           const double reach = std::max(jerk::advance(before, hi, dt).s - before.s, kRestD);
           for (int i = 0; i < nv; ++i) {
             if (c[viol[i]].d - moved <= reach && excess(from, viol[i]) > kExcessTol) return false;
