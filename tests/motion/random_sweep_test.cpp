@@ -7,7 +7,8 @@
 // TGM_SWEEP_FIRST (default 0); the command line wins. A long run:
 //   build/tests/motion/tgm_motion_tests --gtest_filter='RandomSweep.*' --seed=7 --count=5000
 // --machines=wide draws the machines from a far wider envelope (test::wide_machine); that sweep
-// still finds limit excesses (core/MOTION.md, "Known gaps") and is not part of CTest.
+// still finds limit excesses (core/MOTION.md, "Known gaps"). CTest runs its first 60 programs
+// of seed 1 (motion.sweep.wide1), which pass.
 //
 // Time limit per program (test::motion_time_limit): the time of a reference motion at a quarter
 // of every record's cap min(F x Rel_Speed, axis velocity limits), with the override schedule at
@@ -58,7 +59,7 @@ struct SweepCase {
   double limit_s = 0.0;
 };
 
-// --machines=wide: test::wide_machine instead of random_machine (a known gap, not in CTest).
+// --machines=wide: test::wide_machine instead of random_machine (core/MOTION.md, "Known gaps").
 bool wide_machines() {
   for (const std::string& a : ::testing::internal::GetArgvs()) {
     if (a == "--machines=wide") return true;
