@@ -261,5 +261,19 @@ TEST(RandomSweep, WideSeed1MotionLeavesARestJustBeforeACorner) {
   }
 }
 
+// A braking that ends on a soft axis still carries a deceleration in its last 1e-9 mm (wide
+// sweep seed 2 program 161: 0.05 mm/s^2 at 1e-5 mm/s on an axis of 126 mm/s^3, 250 us). The
+// arrival within kArriveD of the stop point set it to 0 at once, and the per-cycle positions
+// showed jerks of 1.04 x and 1.13 x the axis limit around the stop (seed 5 program 147: 1.15 x,
+// seed 1 program 60: 1.006 x). Now that arrival waits until one calculation step can release the
+// deceleration at the record's jerk limit.
+TEST(RandomSweep, WideArrivalsReleaseTheDecelerationBeforeTheStop) {
+  for (const auto& [seed, k] :
+       {std::pair<std::uint64_t, std::uint64_t>{2, 161}, {5, 147}, {1, 60}}) {
+    expect_runs_clean(sweep_case(seed, k, true),
+                      "wide seed " + std::to_string(seed) + " program " + std::to_string(k));
+  }
+}
+
 }  // namespace
 }  // namespace tgm
