@@ -847,12 +847,13 @@ struct Interpolator::Impl {
     return d;
   }
 
-  // Lowest jerk limit, at most J, of the motion records that taking acceleration ap back on the
-  // way up to vt crosses (within vt ap / Jw of here, Jw the window's lowest: an upper bound of
-  // that distance); Jw when they lie beyond the scan budget.
-  double landing_jerk(double ap, double vt, double J, double Jw) const {
+  // Lowest jerk limit, at most J, of the motion records that taking acceleration (or
+  // deceleration) ap back on the way to the target crosses (within v_max ap / Jw of here, v_max
+  // the highest speed on the way, Jw the window's lowest jerk: an upper bound of that distance);
+  // Jw when they lie beyond the scan budget.
+  double landing_jerk(double ap, double v_max, double J, double Jw) const {
     const Rec& rc = R(cur);
-    const double limit = rc.s0 + st.s + vt * (ap / Jw + dt);
+    const double limit = rc.s0 + st.s + v_max * (ap / Jw + dt);
     std::size_t idx = ring_index(cur + 1);
     int scanned = 0;
     for (std::uint64_t q = cur + 1; q < tail; ++q) {
@@ -1542,6 +1543,21 @@ struct Interpolator::Impl {
           xd = std::min(xd, std::clamp(xl, lo, hi));
         }
       }
+      // The same for a deceleration towards a lower target (an override decrease, a lower feed):
+      // released over the records ahead at their lower jerk limit, a deceleration built at J
+      // undershoots vt (sweep seed 15 program 529: by 10 % after an override drop from 1.89 to
+      // 0.65 on chords whose path jerk falls from 34,000 to 12,400 mm/s^3). The speed stays
+      // below v while landing, which bounds the distance the release crosses.
+      if (xd < 0.0 && v > vt && Jw < J && jerk::landing_acceleration(v, a, vt, Jw, dt) > xd) {
+        const double Jl = landing_jerk(std::max(-a, -xd), v, J, Jw);
+        if (Jl < J && jerk::landing_acceleration(v, a, vt, Jl, dt) > xd) {
+          double xl = jerk::track_velocity(v, a, vt, A, Jl, dt);
+          // Still accelerating: taking that back is not part of the landing (this step's jerk).
+          if (a > 0.0)
+            xl = std::min(xl, std::max(jerk::landing_acceleration(v, a, vt, Jl, dt), lo));
+          xd = std::max(xd, std::clamp(xl, lo, hi));
+        }
+      }
       // Lowest x from which every deceleration above a record's limit ahead can still be taken
       // back before the record (monotone in x while the motion does not reverse). Tracking the
       // target (an override decrease, a lower feed) never goes below it; braking for a limit
@@ -1771,9 +1787,18 @@ struct Interpolator::Impl {
           // deceleration limits ahead allow (lo_dec); the limits lo can still keep get what they
           // need. Braking below lo_dec for a hopeless limit only exceeds an acceleration limit
           // at the next junction (e.g. TGM_SEED=1 program 723).
+          // Hopeless limits that are all the feed x Rel_Speed (soft: an override decrease) get
+          // the tracking towards the target instead: it brakes as hard as landing on the target
+          // allows. The hardest braking undershot the target by far when the jerk limits ahead
+          // were lower than here, down to a standstill mid-line (sweep seed 15 program 529).
           int nf = 0;
+          bool hard_hopeless = false;
           for (int i = 0; i < nv; ++i) {
-            if (excess(lo, viol[i]) <= kExcessTol) viol[nf++] = viol[i];
+            if (excess(lo, viol[i]) <= kExcessTol) {
+              viol[nf++] = viol[i];
+            } else if (!c[viol[i]].soft) {
+              hard_hopeless = true;
+            }
           }
           nv = nf;
           xs = lo;
@@ -1786,7 +1811,7 @@ struct Interpolator::Impl {
           } else {
             xs = xd;
           }
-          x = std::min(lo_dec, xs);
+          x = hard_hopeless ? std::min(lo_dec, xs) : xs;
         } else {
           // x at which limit k's end-of-step state needs no braking any more:
           // v + (a + x) dt / 2 + x |x| / (2 j) = w (increasing in x), with the plan's jerk and,
