@@ -20,6 +20,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <functional>
 #include <limits>
 #include <random>
 #include <string>
@@ -127,11 +128,16 @@ void expect_clean(const SweepCase& c, const SimulationSummary& s, const std::str
   }
 }
 
-// Runs one sweep case as the sweep does and checks that it finishes clean (a pinned case).
-void expect_runs_clean(const SweepCase& c, const std::string& ctx) {
+// Runs one sweep case as the sweep does and checks that it finishes clean; the summary goes to
+// `out` when given (also when the run did not finish), `on_cycle` sees every cycle's registers.
+// Its ASSERTs end only this function: callers that go on with `out` wrap it in
+// ASSERT_NO_FATAL_FAILURE.
+void expect_runs_clean(const SweepCase& c, const std::string& ctx, SimulationSummary* out = nullptr,
+                       const std::function<void(const Registers&)>& on_cycle = {}) {
   auto sim = Simulation::create(c.machine, sweep_options(c));
   ASSERT_TRUE(sim) << ctx;
-  const auto s = sim->run(c.generated.program);
+  const auto s = sim->run(c.generated.program, on_cycle);
+  if (out) *out = s;
   ASSERT_EQ(s.result, StepResult::kFinished) << ctx << ": " << s.error;
   expect_clean(c, s, ctx);
 }
@@ -143,20 +149,14 @@ TEST(RandomSweep, ProgramsFinishAtTheirEndWithinLimits) {
   std::uint64_t total_cycles = 0;
   for (std::uint64_t k = first; k < first + count; ++k) {
     const SweepCase c = sweep_case(seed, k, wide_machines());
-    const int axes = c.axes;
-    const MachineConfig& m = c.machine;
-    const Generated& g = c.generated;
-    const SimulationOptions o = sweep_options(c);
-    const double bound_s = c.bound_s;
-    auto sim = Simulation::create(m, o);
-    ASSERT_TRUE(sim);
-    const auto s = sim->run(g.program);
+    const std::string ctx = "seed " + std::to_string(seed) + " program " + std::to_string(k) +
+                            " axes " + std::to_string(c.axes) + " cycle " +
+                            std::to_string(c.machine.cycle_time_us) + " us, lower bound " +
+                            std::to_string(c.bound_s) + " s, limit " + std::to_string(c.limit_s) +
+                            " s";
+    SimulationSummary s;
+    expect_runs_clean(c, ctx, &s);
     total_cycles += s.cycles;
-    const std::string ctx = "seed " + std::to_string(seed) + " program " + std::to_string(k) + " axes " +
-                            std::to_string(axes) + " cycle " + std::to_string(m.cycle_time_us) + " us, lower bound " +
-                            std::to_string(bound_s) + " s, limit " + std::to_string(o.max_time_s) + " s";
-    ASSERT_EQ(s.result, StepResult::kFinished) << ctx << ": " << s.error;
-    expect_clean(c, s, ctx);
     if (::testing::Test::HasFailure()) break;
   }
   RecordProperty("cycles", std::to_string(total_cycles));
@@ -212,14 +212,12 @@ TEST(SweepTimeLimit, Seed3Program465SlowBeforeAnOverrideDropIsNotAStall) {
   EXPECT_LT(c.generated.overrides[0].second, 0.02);
   EXPECT_GT(drop_s, c.bound_s);  // the lower bound never sees the drop
   const double earlier_limit_s = 4.0 * c.bound_s + 60.0;
-  auto sim = Simulation::create(c.machine, sweep_options(c));
-  ASSERT_TRUE(sim);
-  const auto s = sim->run(c.generated.program);
-  ASSERT_EQ(s.result, StepResult::kFinished) << s.error << " limit " << c.limit_s;
+  SimulationSummary s;
+  ASSERT_NO_FATAL_FAILURE(
+      expect_runs_clean(c, "seed 3 program 465, limit " + std::to_string(c.limit_s) + " s", &s));
   EXPECT_GT(s.program_time_s, earlier_limit_s);  // what the sweep reported as a stall
   EXPECT_LT(s.program_time_s, c.limit_s);
   EXPECT_GE(s.program_time_s, c.bound_s);
-  expect_clean(c, s, "seed 3 program 465");
   // Most of the program runs at the override target after the drop, none of it stalled.
   const double override_s = s.factor_time_s[static_cast<std::size_t>(LimitFactor::kOverride)];
   EXPECT_GT(override_s, 0.9 * (s.program_time_s - drop_s));
@@ -288,20 +286,16 @@ TEST(RandomSweep, WideArrivalsReleaseTheDecelerationBeforeTheStop) {
 TEST(RandomSweep, Seed15Program529OverrideDropLandsOnTheTargetOverSofterRecords) {
   const SweepCase c = sweep_case(15, 529, false);
   ASSERT_EQ(c.axes, 6);
-  auto sim = Simulation::create(c.machine, sweep_options(c));
-  ASSERT_TRUE(sim);
-  const Program& prog = c.generated.program;
   double feed_mm_min = 0.0;
-  for (const Segment& sg : prog.segments) {
+  for (const Segment& sg : c.generated.program.segments) {
     if (sg.line == 77) feed_mm_min = sg.feed_mm_per_min;
   }
   ASSERT_NEAR(feed_mm_min, 3038.42, 0.01);
   double lowest = std::numeric_limits<double>::infinity();
-  const auto s = sim->run(prog, [&](const Registers& r) {
-    if (r.act_line >= 75 && r.act_line <= 95) lowest = std::min(lowest, r.act_speed);
-  });
-  ASSERT_EQ(s.result, StepResult::kFinished) << s.error;
-  expect_clean(c, s, "seed 15 program 529");
+  ASSERT_NO_FATAL_FAILURE(
+      expect_runs_clean(c, "seed 15 program 529", nullptr, [&](const Registers& r) {
+        if (r.act_line >= 75 && r.act_line <= 95) lowest = std::min(lowest, r.act_speed);
+      }));
   EXPECT_GE(lowest, 0.97 * 0.65 * feed_mm_min);  // Act_Speed [mm/min]
 }
 
