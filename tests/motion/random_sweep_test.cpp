@@ -274,6 +274,20 @@ TEST(RandomSweep, WideArrivalsReleaseTheDecelerationBeforeTheStop) {
   }
 }
 
+// Wide sweep seed 8 program 65 (3 axes, 250 us; Y: 347 mm/s^2, 694 mm/s^3, X 2,500 times
+// stiffer): 0.1 mm chords running along X and turning slowly towards Y, so the path jerk limit
+// falls from 52,000 to 1,300 mm/s^3 over the next 5 mm. A move far ahead with a path
+// acceleration limit of 8 mm/s^2 made the stop point behind it hopeless, and best effort braked
+// as hard as the acceleration limits allowed, building 740 mm/s^2 that the softer chords ahead
+// could not take back: the motion came to a standstill mid-line with 50 mm/s^2 still on Y
+// (jerks up to 188 x its limit). Best effort now keeps a deceleration that the jerk limits
+// ahead can still release.
+TEST(RandomSweep, WideSeed8Program65BestEffortKeepsTheDecelerationReleasable) {
+  const SweepCase c = sweep_case(8, 65, true);
+  ASSERT_EQ(c.axes, 3);
+  expect_runs_clean(c, "wide seed 8 program 65");
+}
+
 // Sweep seed 15 program 529 (6 axes, 500 us): CAM chords turning towards Y (jerk 12,422
 // mm/s^3), whose path jerk limit falls from 34,000 to 12,400 mm/s^3 along them, run at F 3038 x
 // 1.892 when Rel_Speed drops to 0.65 at 4.996 s. The feed limits at the next junctions could not

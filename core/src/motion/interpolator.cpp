@@ -71,6 +71,8 @@ constexpr double kPlanMarginJ = 0.9;
 // The floor itself uses a little more jerk than the plans, so a planned final ramp is strictly
 // inside it (equal factors would make the two bounds meet and the discrete choice flip).
 constexpr double kFloorMarginJ = 0.92;
+// Records a release may cross before release_floor stops following it.
+constexpr int kReleaseRecords = 64;
 constexpr double kArriveD = 1e-9;         // [mm]
 constexpr double kArriveV = 1e-3;         // [mm/s]
 // A motion that comes to rest this close before its stop point has arrived there (the last
@@ -1812,6 +1814,24 @@ struct Interpolator::Impl {
             xs = xd;
           }
           x = hard_hopeless ? std::min(lo_dec, xs) : xs;
+          // Never so hard that the deceleration cannot be taken back before the motion stops
+          // at the jerk limits of the records the release crosses (the floor in lo has only
+          // this record's), as far as the limits that can be kept allow.
+          if (x < 0.0 && cons_Jw < J) {
+            double fl = release_floor(before, x, hi);
+            if (fl > x && nv > 0 && !ok(fl)) {
+              double xp = x, xf = fl;
+              for (int it = 0; it < 10; ++it) {
+                const double mid = 0.5 * (xp + xf);
+                if (ok(mid))
+                  xp = mid;
+                else
+                  xf = mid;
+              }
+              fl = xp;
+            }
+            x = std::max(x, fl);
+          }
         } else {
           // x at which limit k's end-of-step state needs no braking any more:
           // v + (a + x) dt / 2 + x |x| / (2 j) = w (increasing in x), with the plan's jerk and,
@@ -1843,6 +1863,96 @@ struct Interpolator::Impl {
       }
     }
     integrate_step(before, x, vt, J, calc_index);
+  }
+
+  // Lowest end-of-step acceleration in [x, hi] from which the deceleration can be taken back
+  // to zero before the motion stops, at the jerk limits of the records the release crosses (to
+  // 1/256 of the range); x itself when x can, or when no x can. The release runs at full jerk,
+  // integrated record by record with the no-reversal floor's margin (at the full limits, the
+  // steps between best-effort steps, which do not keep this floor, were left too little room:
+  // wide sweep seed 8 program 65 still stopped mid-line). A calculation step that reaches a
+  // junction already has the next record's limit, so each record's stretch starts and ends one
+  // step of travel early and has the lower limit of the record and the one before it. The
+  // release is followed up to a stop point or the end of the buffer (braking for those is
+  // their own limit's) and over at most kReleaseRecords records.
+  double release_floor(const jerk::State& before, double x, double hi) const {
+    // The stretches, read from the ring as far as a release gets (most end in a record or two).
+    struct Stretch {
+      double end;  // path position where the next stretch begins
+      double j;    // jerk available in it
+    };
+    std::array<Stretch, kReleaseRecords> sk{};
+    int n_sk = 0;
+    bool all_read = false;  // a stop point, the end of the buffer or kReleaseRecords reached
+    std::uint64_t q_next = cur;
+    const double shift = before.v * dt;
+    double j_prev = R(cur).jt;
+    auto stretch = [&](int i) -> const Stretch* {
+      while (n_sk <= i && !all_read) {
+        if (q_next >= tail || n_sk == kReleaseRecords || R(q_next).kind == RecKind::kStop) {
+          all_read = true;
+          break;
+        }
+        const Rec& r = R(q_next++);
+        if (r.kind != RecKind::kMotion) continue;
+        sk[static_cast<std::size_t>(n_sk++)] = {r.s0 + r.g.length - shift,
+                                                kFloorMarginJ * std::min(j_prev, r.jt)};
+        j_prev = r.jt;
+      }
+      return i < n_sk ? &sk[static_cast<std::size_t>(i)] : nullptr;
+    };
+    // True when the release from the end-of-step state at xx ends before the motion stops.
+    auto completes = [&](double xx) {
+      const jerk::State ns = jerk::advance(before, xx, dt);
+      double v = ns.v, a = ns.a, pos = R(cur).s0 + ns.s;
+      if (a >= 0.0) return true;
+      if (v <= 0.0) return false;
+      // At the window's lowest jerk limit (the window holds a lower bound of every record's
+      // in it), a release that ends in time and inside the window ends so at any jerk there.
+      const double j_w = kFloorMarginJ * cons_Jw, t_w = -a / j_w;
+      if (v >= 0.5 * a * a / j_w && pos + shift + t_w * (v + t_w * (0.5 * a + t_w * j_w / 6.0)) <=
+                                        (win_end < tail ? R(win_end).s0 : s_tail)) {
+        return true;
+      }
+      for (int i = 0;; ++i) {
+        const Stretch* e = stretch(i);
+        if (e == nullptr) return true;  // a stop point, the end of the buffer, or far enough
+        if (e->end <= pos) continue;
+        const double j = e->j, len = e->end - pos;
+        pos = e->end;
+        auto dist = [&](double t) { return t * (v + t * (0.5 * a + t * j / 6.0)); };
+        const double t_rel = -a / j;
+        const double v_rel = v - 0.5 * a * a / j;
+        if (v_rel >= 0.0 && dist(t_rel) <= len) return true;  // released inside this stretch
+        // Leaves the stretch still decelerating, unless it stops first: v reaches 0 at t_end.
+        double t_end = t_rel;
+        if (v_rel < 0.0) {
+          t_end = (-a - std::sqrt(std::max(0.0, a * a - 2.0 * j * v))) / j;
+          if (dist(t_end) <= len) return false;
+        }
+        // The time it leaves the stretch: dist = len. dist is increasing and concave on
+        // [0, t_end], and dist(t) <= v t, so Newton's steps from len / v rise to the root.
+        double t = std::min(len / v, t_end);
+        for (int it = 0; it < 8; ++it) {
+          const double f = dist(t) - len;
+          if (f >= -1e-12 * len) break;
+          t = std::min(t_end, t - f / (v + t * (a + 0.5 * j * t)));
+        }
+        v += t * (a + 0.5 * j * t);
+        a += j * t;
+        if (v <= 0.0) return false;
+      }
+    };
+    if (!completes(hi) || completes(x)) return x;  // none completes (no floor helps), or x does
+    double xf = x, xp = hi;
+    for (int it = 0; it < 8; ++it) {
+      const double mid = 0.5 * (xf + xp);
+      if (completes(mid))
+        xp = mid;
+      else
+        xf = mid;
+    }
+    return xp;
   }
 
   // The end of a calculation step with end acceleration x chosen: integrates the path state
