@@ -1819,17 +1819,7 @@ struct Interpolator::Impl {
           // this record's), as far as the limits that can be kept allow.
           if (x < 0.0 && cons_Jw < J) {
             double fl = release_floor(before, x, hi);
-            if (fl > x && nv > 0 && !ok(fl)) {
-              double xp = x, xf = fl;
-              for (int it = 0; it < 10; ++it) {
-                const double mid = 0.5 * (xp + xf);
-                if (ok(mid))
-                  xp = mid;
-                else
-                  xf = mid;
-              }
-              fl = xp;
-            }
+            if (fl > x && nv > 0 && !ok(fl)) fl = bisect(x, fl, ok, 10);
             x = std::max(x, fl);
           }
         } else {
@@ -1944,15 +1934,21 @@ struct Interpolator::Impl {
       }
     };
     if (!completes(hi) || completes(x)) return x;  // none completes (no floor helps), or x does
-    double xf = x, xp = hi;
-    for (int it = 0; it < 8; ++it) {
-      const double mid = 0.5 * (xf + xp);
-      if (completes(mid))
-        xp = mid;
+    return bisect(hi, x, completes, 8);
+  }
+
+  // Bisection between an x that passes `ok` and one that fails it (either may be the larger);
+  // returns the passing end after n halvings.
+  template <class P>
+  static double bisect(double pass, double fail, const P& ok, int n) {
+    for (int it = 0; it < n; ++it) {
+      const double mid = 0.5 * (pass + fail);
+      if (ok(mid))
+        pass = mid;
       else
-        xf = mid;
+        fail = mid;
     }
-    return xp;
+    return pass;
   }
 
   // The end of a calculation step with end acceleration x chosen: integrates the path state
