@@ -1362,6 +1362,20 @@ struct Interpolator::Impl {
     bool have_gs;
   };
 
+  // Bisection between an x that passes `ok` and one that fails it (either may be the larger);
+  // returns the passing end after n halvings.
+  template <class P>
+  static double bisect(double pass, double fail, const P& ok, int n) {
+    for (int it = 0; it < n; ++it) {
+      const double mid = 0.5 * (pass + fail);
+      if (ok(mid))
+        pass = mid;
+      else
+        fail = mid;
+    }
+    return pass;
+  }
+
   // Evaluates g at x inside b and moves the end on x's side there.
   template <class G>
   static void narrow(Bracket& b, double x, const G& g) {
@@ -1580,12 +1594,7 @@ struct Interpolator::Impl {
           if (!dec_ok(hi)) {
             lo_dec = hi;  // as much easing as the jerk allows
           } else {
-            double xf = lo, xp = hi;
-            for (int it = 0; it < 10; ++it) {
-              const double mid = 0.5 * (xf + xp);
-              if (dec_ok(mid)) xp = mid; else xf = mid;
-            }
-            lo_dec = xp;
+            lo_dec = bisect(hi, lo, dec_ok, 10);
           }
         }
         xd = std::max(xd, lo_dec);
@@ -1777,12 +1786,8 @@ struct Interpolator::Impl {
         if (xs == lo && lo_dec > lo && ok_hard(lo_dec)) {
           // Only the feed x Rel_Speed cannot be kept within the acceleration limits ahead (an
           // override decrease): keep the machine limits, cross the feed limit faster.
-          xs = lo_dec;
-          for (int it = 0; it < 10; ++it) {
-            const double mid = 0.5 * (xs + xu);
-            if (ok_hard(mid) && ok(mid)) xs = mid; else xu = mid;
-          }
-          x = xs;
+          x = bisect(
+              lo_dec, xu, [&](double xx) { return ok_hard(xx) && ok(xx); }, 10);
         } else if (!ok(xs) && !passing_above(xs, xu)) {
           // Best effort. A limit that even the hardest braking cannot keep (with the lowest
           // limits of its whole stretch, which is conservative) gets the hardest braking the
@@ -1803,16 +1808,7 @@ struct Interpolator::Impl {
             }
           }
           nv = nf;
-          xs = lo;
-          xu = xd;
-          if (nv > 0) {
-            for (int it = 0; it < 10; ++it) {
-              const double mid = 0.5 * (xs + xu);
-              if (ok(mid)) xs = mid; else xu = mid;
-            }
-          } else {
-            xs = xd;
-          }
+          xs = nv > 0 ? bisect(lo, xd, ok, 10) : xd;
           x = hard_hopeless ? std::min(lo_dec, xs) : xs;
           // Never so hard that the deceleration cannot be taken back before the motion stops
           // at the jerk limits of the records the release crosses (the floor in lo has only
@@ -1935,20 +1931,6 @@ struct Interpolator::Impl {
     };
     if (!completes(hi) || completes(x)) return x;  // none completes (no floor helps), or x does
     return bisect(hi, x, completes, 8);
-  }
-
-  // Bisection between an x that passes `ok` and one that fails it (either may be the larger);
-  // returns the passing end after n halvings.
-  template <class P>
-  static double bisect(double pass, double fail, const P& ok, int n) {
-    for (int it = 0; it < n; ++it) {
-      const double mid = 0.5 * (pass + fail);
-      if (ok(mid))
-        pass = mid;
-      else
-        fail = mid;
-    }
-    return pass;
   }
 
   // The end of a calculation step with end acceleration x chosen: integrates the path state
