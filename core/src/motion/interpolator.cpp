@@ -233,6 +233,11 @@ struct Constraint {
   double reserve = 0.0;
 };
 
+// Path travelled in time t from speed v and acceleration a at constant jerk j.
+double travel(double v, double a, double j, double t) {
+  return t * (v + t * (0.5 * a + t * j / 6.0));
+}
+
 double norm_angle_deg(double rad) {
   double d = rad * 180.0 / kPi;
   d = std::fmod(d, 360.0);
@@ -359,6 +364,8 @@ struct Interpolator::Impl {
   const Rec& R(std::uint64_t q) const { return rec[ring_index(q)]; }
   Segment& S(std::uint64_t q) { return seg[ring_index(q)]; }
   const Segment& S(std::uint64_t q) const { return seg[ring_index(q)]; }
+  // Path position where record q starts (the end of the buffered path for q == tail).
+  double start_of(std::uint64_t q) const { return q < tail ? R(q).s0 : s_tail; }
 
   // ================= planning =================
 
@@ -806,7 +813,7 @@ struct Interpolator::Impl {
     if (std::fabs(a) <= w) return 0.0;
     const double t = (std::fabs(a) - w) / J;
     const double jj = a > 0.0 ? -J : J;
-    return std::max(0.0, t * (v + t * (0.5 * a + t * jj / 6.0)));
+    return std::max(0.0, travel(v, a, jj, t));
   }
 
   // Braking distance [mm] of a plan from (v, a) to w, plus what the generator can lose
@@ -1896,8 +1903,7 @@ struct Interpolator::Impl {
       // At the window's lowest jerk limit (the window holds a lower bound of every record's
       // in it), a release that ends in time and inside the window ends so at any jerk there.
       const double j_w = kFloorMarginJ * cons_Jw, t_w = -a / j_w;
-      if (v >= 0.5 * a * a / j_w && pos + shift + t_w * (v + t_w * (0.5 * a + t_w * j_w / 6.0)) <=
-                                        (win_end < tail ? R(win_end).s0 : s_tail)) {
+      if (v >= 0.5 * a * a / j_w && pos + shift + travel(v, a, j_w, t_w) <= start_of(win_end)) {
         return true;
       }
       for (int i = 0;; ++i) {
@@ -1906,7 +1912,7 @@ struct Interpolator::Impl {
         if (e->end <= pos) continue;
         const double j = e->j, len = e->end - pos;
         pos = e->end;
-        auto dist = [&](double t) { return t * (v + t * (0.5 * a + t * j / 6.0)); };
+        auto dist = [&](double t) { return travel(v, a, j, t); };
         const double t_rel = -a / j;
         const double v_rel = v - 0.5 * a * a / j;
         if (v_rel >= 0.0 && dist(t_rel) <= len) return true;  // released inside this stretch
@@ -2253,7 +2259,7 @@ struct Interpolator::Impl {
         }
         ++entered;
       }
-      const double scan_end = qf < tail ? R(qf).s0 : s_tail;  // the end of record qf - 1
+      const double scan_end = start_of(qf);  // the end of record qf - 1
       if (!ok || (closed && scan_end <= p1 + safety) || n_blocks + entered >= blocks.size() ||
           (opt.record_corner_events && n_events + entered > events.size())) {
         break;
@@ -2262,7 +2268,7 @@ struct Interpolator::Impl {
       if (slack_stale || cur != slack_cur || win_end != slack_end || n_slow != slack_slow) {
         while (first_slow < n_slow && slow[static_cast<std::size_t>(first_slow)].q <= cur)
           ++first_slow;
-        slack = (win_end < tail ? R(win_end).s0 : s_tail) - b_stop;
+        slack = start_of(win_end) - b_stop;
         for (int i = first_slow; i < n_slow; ++i) {
           const Slow& sl = slow[static_cast<std::size_t>(i)];
           slack = std::min(slack, sl.s0 - reserve_for(sl.w, j_hi) - braking(sl.w));
