@@ -6,11 +6,13 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <random>
 #include <string>
 #include <vector>
 
+#include "program_builder.hpp"
 #include "random_program.hpp"
 #include "tgm/interpolator.hpp"
 #include "tgm/simulation.hpp"
@@ -289,7 +291,9 @@ TEST(Advance, ChordCruiseAcrossJunctionsEqualsStepping) {
 
 // Whole simulations: fast-forward and stepping give the same summary and block reports.
 // Three seeds' programs from TGM_SEED on (the default run includes seed 3 program 3, where a
-// cruise skip once ignored the part of the window beyond what the cruise itself needed).
+// cruise skip once ignored the part of the window beyond what the cruise itself needed). Every
+// second program gets one or two stops (Command 8 or 4) in its first 3 s, restarted after
+// 0.05 s: the fast-forward must stop at them and restart as the stepping run does.
 TEST(Advance, SimulationSummaryEqualsStepping) {
   const std::uint64_t first = env_u64("TGM_SEED", 1);
   for (std::uint64_t run = 0; run < 30; ++run) {
@@ -301,6 +305,12 @@ TEST(Advance, SimulationSummaryEqualsStepping) {
     SimulationOptions o;
     o.m_ack_s = 0.0123;
     o.rel_speed_changes = g.overrides;
+    if (k % 2 == 1) {
+      std::uniform_real_distribution<double> u(0.0, 1.0);
+      const int n = 1 + static_cast<int>(k % 4 == 1);
+      for (int i = 0; i < n; ++i) o.stops.emplace_back(3.0 * u(rng), u(rng) < 0.5 ? 8 : 4);
+      o.stop_restart_s = 0.05;
+    }
     std::vector<BlockReport> b[2];
     SimulationSummary s[2];
     for (int mode = 0; mode < 2; ++mode) {
@@ -316,10 +326,74 @@ TEST(Advance, SimulationSummaryEqualsStepping) {
     EXPECT_EQ(s[0].distance_mm, s[1].distance_mm) << ctx;
     EXPECT_EQ(s[0].end_position, s[1].end_position) << ctx;
     EXPECT_EQ(s[0].m_functions, s[1].m_functions) << ctx;
+    EXPECT_EQ(s[0].stops, s[1].stops) << ctx;
+    if (k % 2 == 1) {
+      EXPECT_GE(s[0].stops, 1u) << ctx;
+    }
     EXPECT_EQ(s[0].factor_time_s, s[1].factor_time_s) << ctx;
     ASSERT_EQ(b[0].size(), b[1].size()) << ctx;
     for (std::size_t i = 0; i < b[0].size(); ++i) EXPECT_TRUE(same_block(b[0][i], b[1][i])) << ctx << " block " << i;
   }
+}
+
+// A stop given at a program time: the motion brakes on the line, stands until the emulated
+// operator restarts it, and ends at the programmed end; the run takes the restart time and the
+// braking and acceleration longer. Stops that are not on the trajectory, or at times or with
+// restart times out of range, are refused when the simulation is made, with the reason.
+TEST(Simulation, StopsAreGivenAtTheirTimesAndBadOnesRefused) {
+  const MachineConfig m = MachineConfig::default_machine();
+  test::ProgramBuilder b;
+  b.line({100.0, 0.0, 0.0}, 6000.0).end();
+  SimulationOptions o;
+  auto plain = Simulation::create(m, o);
+  ASSERT_TRUE(plain);
+  const auto s0 = plain->run(b.program());
+  ASSERT_EQ(s0.result, StepResult::kFinished);
+  for (const std::int32_t code : {8, 4}) {
+    SimulationOptions os;
+    os.stops = {{0.5, code}};
+    os.stop_restart_s = 0.2;
+    std::vector<std::int32_t> statuses;
+    auto sim = Simulation::create(m, os);
+    ASSERT_TRUE(sim);
+    const auto s = sim->run(b.program(), [&](const Registers& r) {
+      if (statuses.empty() || statuses.back() != r.status) statuses.push_back(r.status);
+    });
+    ASSERT_EQ(s.result, StepResult::kFinished) << s.error;
+    EXPECT_EQ(s.stops, 1u);
+    EXPECT_EQ(s.end_position[0], 100.0);
+    EXPECT_GT(s.program_time_s, s0.program_time_s + 0.2);
+    const std::vector<std::int32_t> expected = code == 8 ? std::vector<std::int32_t>{1, 4, 1, 3}
+                                                         : std::vector<std::int32_t>{1, 6, 7, 1, 3};
+    EXPECT_EQ(statuses, expected) << "Command " << code;
+  }
+  // A stop after the end does nothing.
+  SimulationOptions late;
+  late.stops = {{s0.program_time_s + 1.0, 8}};
+  auto after = Simulation::create(m, late);
+  ASSERT_TRUE(after);
+  const auto s1 = after->run(b.program());
+  EXPECT_EQ(s1.stops, 0u);
+  EXPECT_EQ(s1.program_time_s, s0.program_time_s);
+  auto refused = [&](const SimulationOptions& bad, const std::string& part) {
+    std::string error;
+    EXPECT_FALSE(Simulation::create(m, bad, &error));
+    EXPECT_NE(error.find(part), std::string::npos) << error;
+  };
+  for (const std::int32_t code : {5, 9, 1, 0}) {
+    SimulationOptions bad;
+    bad.stops = {{1.0, code}};
+    refused(bad, "Command " + std::to_string(code) + " is not a stop on the trajectory");
+  }
+  SimulationOptions early;
+  early.stops = {{-0.1, 8}};
+  refused(early, "stop time");
+  SimulationOptions nan_time;
+  nan_time.stops = {{std::nan(""), 4}};
+  refused(nan_time, "stop time");
+  SimulationOptions restart;
+  restart.stop_restart_s = -1.0;
+  refused(restart, "stop_restart_s");
 }
 
 // The progress hook: called while the run goes on with cycles, program time and Act_Part

@@ -43,6 +43,13 @@ struct SimulationOptions {
   std::map<int, double> m_ack_by_number;
   //! Time after an M0 pause until the emulated operator presses start [s].
   double m0_restart_s = 0.0;
+  //! Stops given at program times [s] (sorted by time when run), each Command 8 (normal stop)
+  //! or 4 (emergency stop), both on the trajectory: what an operator's feed hold or emergency
+  //! button does at that moment. Once the motion stands, the emulated operator presses start
+  //! after `stop_restart_s`. A stop given while the motion stands (M wait, dwell, M0 pause)
+  //! takes effect at once, as on the machine; one given after the end does nothing.
+  std::vector<std::pair<double, std::int32_t>> stops;
+  double stop_restart_s = 0.5;
   //! Run the limit checker (records corner events).
   bool check_limits = false;
   //! The part of each limit the checker holds the motion to (LimitChecker::create).
@@ -81,6 +88,7 @@ struct SimulationSummary {
   bool nan = false;             //!< a NaN / inf appeared in a register
   std::uint64_t hard_stops = 0;
   std::uint64_t m_functions = 0;  //!< normal M-functions acknowledged
+  std::uint64_t stops = 0;        //!< SimulationOptions::stops given before the end
   //! Time [s] during which each LimitFactor limited the path speed (indexed by the enum value).
   std::array<double, 11> factor_time_s{};
   //! Limit checker (when enabled).

@@ -26,6 +26,23 @@ std::optional<Simulation> Simulation::create(const MachineConfig& machine, const
     if (error) *error = "rel speed: " + r.reason;
     return std::nullopt;
   }
+  for (const auto& [t, code] : options.stops) {
+    if (code != 4 && code != 8) {
+      if (error) {
+        *error = "stop at " + std::to_string(t) + " s: Command " + std::to_string(code) +
+                 " is not a stop on the trajectory (4 emergency, 8 normal)";
+      }
+      return std::nullopt;
+    }
+    if (!(t >= 0.0 && t <= options.max_time_s)) {
+      if (error) *error = "stop time " + std::to_string(t) + " s is not within 0..max_time_s";
+      return std::nullopt;
+    }
+  }
+  if (!(options.stop_restart_s >= 0.0 && options.stop_restart_s <= 3600.0)) {
+    if (error) *error = "stop_restart_s must be 0..3600 s";
+    return std::nullopt;
+  }
   for (const auto& [code, parameter] : options.commands) {
     const auto c = ip->command(code, parameter);
     if (!c.ok()) {
@@ -87,6 +104,13 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
   };
   bool m_pending = false, m0_pending = false;
   std::uint64_t m_ack_at = 0, m0_start_at = 0;
+  auto stops = opt_.stops;
+  std::stable_sort(stops.begin(), stops.end(),
+                   [](const auto& x, const auto& y) { return x.first < y.first; });
+  std::size_t next_stop = 0;
+  // A stop given and the motion not yet restarted; the restart is due at restart_at.
+  bool stopped = false, restart_pending = false;
+  std::uint64_t restart_at = 0;
   const std::uint64_t max_cycles = static_cast<std::uint64_t>(opt_.max_time_s / T) + 1;
   const bool batch = opt_.fast_forward && !on_cycle && !checker_;
   std::array<std::uint64_t, 11> factor_cycles{};
@@ -100,6 +124,17 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
       ip.set_rel_speed(changes[change].second);
       ++change;
     }
+    while (next_stop < stops.size() && stops[next_stop].first <= t) {
+      if (ip.registers().status != static_cast<std::int32_t>(InterpolatorStatus::kEnded)) {
+        const auto c = ip.command(stops[next_stop].second);
+        if (c.ok()) {
+          ++sum.stops;
+          stopped = true;
+          restart_pending = false;
+        }
+      }
+      ++next_stop;
+    }
     if (ip.free_slots() > 0 && !feed()) {
       sum.result = StepResult::kErrorInternal;
       break;
@@ -108,14 +143,18 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
     std::uint64_t allow = 1;
     if (batch) {
       allow = max_cycles - cycle;
-      if (change < changes.size()) {
-        // The next change applies before the first cycle c > cycle with c T >= its time.
-        const double first = changes[change].first;
+      // A change or stop at time `first` applies before the first cycle c > cycle with
+      // c T >= first.
+      auto until = [&](double first) {
         auto c = static_cast<std::uint64_t>(std::max(0.0, std::ceil(first / T)));
         while (static_cast<double>(c) * T < first) ++c;
         while (c > cycle + 1 && static_cast<double>(c - 1) * T >= first) --c;
-        allow = std::min(allow, std::max<std::uint64_t>(c, cycle + 1) - cycle);
-      }
+        return std::max<std::uint64_t>(c, cycle + 1) - cycle;
+      };
+      if (change < changes.size()) allow = std::min(allow, until(changes[change].first));
+      if (next_stop < stops.size()) allow = std::min(allow, until(stops[next_stop].first));
+      if (restart_pending)
+        allow = std::min(allow, std::max<std::uint64_t>(restart_at, cycle + 1) - cycle);
       if (m_pending) allow = std::min(allow, std::max<std::uint64_t>(m_ack_at, cycle + 1) - cycle);
       if (m0_pending) allow = std::min(allow, std::max<std::uint64_t>(m0_start_at, cycle + 1) - cycle);
     }
@@ -175,19 +214,42 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
       if (cycle >= m0_start_at) {
         ip.start();
         m0_pending = false;
+        stopped = restart_pending = false;  // a stop given in the pause ends with it
       }
+    }
+    // The operator restarts a motion that a stop brought to rest (Status 4, or 7 after an
+    // emergency stop on the trajectory).
+    bool held = false;
+    if (stopped && r == StepResult::kIdle &&
+        (reg.status == static_cast<std::int32_t>(InterpolatorStatus::kReady) ||
+         reg.status == static_cast<std::int32_t>(InterpolatorStatus::kEmergencyStopped))) {
+      if (!restart_pending) {
+        restart_at = cycle - 1 + wait_cycles(opt_.stop_restart_s);
+        restart_pending = true;
+      }
+      if (cycle >= restart_at) {
+        const auto st2 = ip.start();
+        if (!st2.ok()) {
+          sum.result = StepResult::kIdle;
+          sum.error = "start after a stop refused: " + st2.reason;
+          break;
+        }
+        stopped = restart_pending = false;
+      }
+      held = true;
     }
     if (r == StepResult::kWaiting &&
         reg.status == static_cast<std::int32_t>(InterpolatorStatus::kUnderrun)) {
       if (next < total) {
         ip.start();  // more records arrived: the HMI restarts
+        stopped = restart_pending = false;
       } else {
         sum.result = r;
         sum.error = "buffer underrun with no more records";
         break;
       }
     }
-    if (r == StepResult::kIdle) {
+    if (r == StepResult::kIdle && !held) {
       sum.result = r;
       sum.error = "interpolator went idle (status " + std::to_string(reg.status) + ")";
       break;
