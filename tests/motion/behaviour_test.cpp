@@ -197,6 +197,64 @@ TEST(Stops, EmergencyStopOffTrajectoryRefusesStart) {
   EXPECT_EQ(ip.command(1024).code, RequestCode::kUnsupported);
 }
 
+// A stop given while the motion brakes for a corner still keeps the corner. X runs at 150 mm/s
+// into a right-angle corner to Y, and 5 mm after it a record moves Z, whose acceleration limit is
+// a tenth of X's: while braking for the corner the look-ahead window holds that record. The stop
+// braked towards zero alone, at the window's lowest limits (Z's), softer than the corner braking
+// with X's: it crossed the corner at 54 mm/s (38 mm/s on the emergency ramp). Both stops (8 normal,
+// 4 emergency) are given 3 mm before the corner, restarted after 0.1 s, and the program finishes
+// without a limit excess.
+TEST(Stops, StopWhileBrakingForACornerKeepsTheCorner) {
+  MachineConfig m = machine();
+  m.interpolators[0].axes[2].max_acceleration_mm_s2 = 150.0;
+  ProgramBuilder b;
+  b.line({100.0, 0.0, 0.0}, 9000.0)
+      .line({100.0, 5.0, 0.0}, 9000.0)
+      .line({100.0, 5.0, -5.0}, 9000.0)
+      .end();
+  // When X passes 97 mm, and the speed there.
+  double t97 = -1.0, v97 = 0.0;
+  {
+    SimulationOptions o;
+    auto sim = Simulation::create(m, o);
+    ASSERT_TRUE(sim);
+    std::uint64_t c = 0;
+    const auto s = sim->run(b.program(), [&](const Registers& r) {
+      ++c;
+      if (t97 < 0.0 && r.orig_position[0] >= 97.0) {
+        t97 = static_cast<double>(c) * 0.0005;
+        v97 = r.act_speed / 60.0;
+      }
+    });
+    ASSERT_EQ(s.result, StepResult::kFinished);
+  }
+  ASSERT_GT(t97, 0.0);
+  // Already braking for the corner there, far too fast to stop in 3 mm at Z's 150 mm/s^2.
+  EXPECT_GT(v97, 40.0);
+  EXPECT_LT(v97, 149.0);
+  for (const std::int32_t code : {8, 4}) {
+    SimulationOptions o;
+    o.check_limits = true;
+    o.stops = {{t97, code}};
+    o.stop_restart_s = 0.1;
+    auto sim = Simulation::create(m, o);
+    ASSERT_TRUE(sim);
+    double corner_speed = -1.0;
+    const auto s = sim->run(b.program(), [&](const Registers& r) {
+      if (corner_speed < 0.0 && r.orig_position[1] > 0.0) corner_speed = r.act_speed / 60.0;
+    });
+    ASSERT_EQ(s.result, StepResult::kFinished) << "Command " << code << ": " << s.error;
+    EXPECT_EQ(s.stops, 1u) << "Command " << code;
+    EXPECT_EQ(s.violation_count, 0u) << "Command " << code;
+    EXPECT_EQ(s.hard_stops, 0u) << "Command " << code;
+    // Past the corner only after the restart, slowly (the corner limit of a right angle with a
+    // velocity step tolerance of 2 mm/s is well below 2 mm/s).
+    EXPECT_GE(corner_speed, 0.0) << "Command " << code;
+    EXPECT_LT(corner_speed, 2.0) << "Command " << code;
+    EXPECT_EQ(s.end_position[2], -5.0) << "Command " << code;
+  }
+}
+
 TEST(Buffer, UnderrunStopsOnTrajectoryAndResumes) {
   Interpolator ip = make();
   ProgramBuilder b;

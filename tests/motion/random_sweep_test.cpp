@@ -162,6 +162,53 @@ TEST(RandomSweep, ProgramsFinishAtTheirEndWithinLimits) {
   RecordProperty("cycles", std::to_string(total_cycles));
 }
 
+// The sweep's programs with one to three stops at random times up to their lower bound, each a
+// normal (Command 8) or an emergency stop (4) on the trajectory, restarted by the emulated
+// operator after 0.01..0.3 s: a feed hold or an emergency button at any moment (accelerating,
+// braking for a corner, inside an arc, during an M wait or a dwell, in the last steps before a
+// stop point). Same oracles as the plain sweep (the emergency ramp is held to the emergency
+// deceleration and its jerk ratio), and every stop before the end was given.
+TEST(RandomSweep, StopsOnTheTrajectoryResumeAndFinishWithinLimits) {
+  const std::uint64_t seed = arg_u64("seed", "TGM_SEED", 1);
+  const std::uint64_t count = arg_u64("count", "TGM_SWEEP_COUNT", 200);
+  const std::uint64_t first = arg_u64("first", "TGM_SWEEP_FIRST", 0);
+  std::uint64_t given = 0;
+  for (std::uint64_t k = first; k < first + count; ++k) {
+    SweepCase c = sweep_case(seed, k, wide_machines());
+    // Its own stream: the programs are those of the plain sweep.
+    std::mt19937_64 rng(seed * 1000003ull + k + 0x9e3779b97f4a7c15ull);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    SimulationOptions o = sweep_options(c);
+    const int n = 1 + static_cast<int>(u(rng) * 3.0);
+    for (int i = 0; i < n; ++i) {
+      o.stops.emplace_back(u(rng) * c.bound_s, u(rng) < 0.5 ? 8 : 4);
+    }
+    o.stop_restart_s = 0.01 + 0.29 * u(rng);
+    o.max_time_s = c.limit_s + n * (o.stop_restart_s + 10.0);
+    std::string ctx = "seed " + std::to_string(seed) + " program " + std::to_string(k) + " axes " +
+                      std::to_string(c.axes) + " cycle " + std::to_string(c.machine.cycle_time_us) +
+                      " us, restart after " + std::to_string(o.stop_restart_s) + " s, stops";
+    for (const auto& [t, code] : o.stops) {
+      ctx += ' ';
+      ctx += std::to_string(code);
+      ctx += '@';
+      ctx += std::to_string(t);
+    }
+    auto sim = Simulation::create(c.machine, o);
+    ASSERT_TRUE(sim) << ctx;
+    const auto s = sim->run(c.generated.program);
+    ASSERT_EQ(s.result, StepResult::kFinished) << ctx << ": " << s.error;
+    expect_clean(c, s, ctx);
+    std::uint64_t due = 0;
+    for (const auto& st : o.stops) due += st.first < s.program_time_s - 0.01 ? 1 : 0;
+    EXPECT_GE(s.stops, due) << ctx;
+    EXPECT_LE(s.stops, o.stops.size()) << ctx;
+    given += s.stops;
+    if (::testing::Test::HasFailure()) break;
+  }
+  RecordProperty("stops", std::to_string(given));
+}
+
 // The lower bound holds an arc to the velocity limit of a plane axis whose direction it passes
 // (a full circle: both; 100..170 degrees: neither). It left the plane axes out, so programs
 // with arcs on a machine with a slow plane axis took 5.8 to 8.5 times their bound and ran into

@@ -914,14 +914,16 @@ struct Interpolator::Impl {
   // way, at 90 % of the lowest jerk limit before q (what the braking plans use), so each such q
   // becomes an acceleration point for negative x (collected in `dec`, at most kMaxDecelLimits,
   // from at most kMaxExtendPerStep records). hi is the highest end-of-step acceleration allowed.
-  int decel_limits(double v, double a, double J, double A, double hi, Constraint* dec) const {
+  // sc scales the records' limits (the emergency ramp's rho).
+  int decel_limits(double v, double a, double J, double A, double hi, double sc,
+                   Constraint* dec) const {
     const Rec& rc = R(cur);
     const double here = rc.s0 + st.s;
     const double ds_max = dt * (v + dt * (a / 3.0 + hi / 6.0));
     const double v_end = v + 0.5 * (a + hi) * dt;
     if (!(v_end > 0.0)) return 0;
     const double a_max = std::max(std::fabs(a), A) + J * dt;  // largest |x| this step can have
-    double j_before = rc.jt;  // lowest jerk limit over [cur, q)
+    double j_before = sc * rc.jt;                             // lowest jerk limit over [cur, q)
     // Farther than this the largest deceleration is taken back completely (changes with j_before).
     double reach = ds_max + v_end * a_max / (kPlanMarginJ * j_before);
     int n_dec = 0;
@@ -934,12 +936,12 @@ struct Interpolator::Impl {
       if (r.kind != RecKind::kMotion) continue;
       const double d = r.s0 - here;
       if (d > reach) break;
-      if (r.at < a_max) {
-        dec[n_dec++] = {d, r.at, r.at, j_before, LimitFactor::kAccelJerk, true};
+      if (sc * r.at < a_max) {
+        dec[n_dec++] = {d, sc * r.at, sc * r.at, j_before, LimitFactor::kAccelJerk, true};
         if (n_dec == kMaxDecelLimits) break;
       }
-      if (r.jt < j_before) {
-        j_before = r.jt;
+      if (sc * r.jt < j_before) {
+        j_before = sc * r.jt;
         reach = ds_max + v_end * a_max / (kPlanMarginJ * j_before);
       }
     }
@@ -1525,21 +1527,21 @@ struct Interpolator::Impl {
     ride_jerk = kInf;
     braking_to_stop = false;
     double vt = 0.0;
-    if (mode == Mode::kEmergency || mode == Mode::kStopping) {
-      A = Aw;
-      J = Jw;
-      if (mode == Mode::kEmergency) {
-        A *= rho;
-        J *= rho;
-      }
-      x = jerk::track_velocity(v, a, 0.0, A, J, dt);
-      x = std::max(x, std::min(jerk::floor_acceleration(v, a, J, dt), a + J * dt));
-      factor = LimitFactor::kStopCommand;
-      braking_to_stop = true;
-    } else {
+    {
+      // A stop command (8/9, 4/5) is a target speed of zero: the limits ahead (corners, arcs,
+      // softer records, stop points) still bind while it brakes, as they did before it. Braking
+      // towards zero alone, at the window's lowest limits, ran through a corner at 46 mm/s
+      // (axis velocity steps of 13 and 48 x the tolerance) when the motion was braking harder
+      // for it with the current record's limits (stop sweep seed 1 program 3). The emergency
+      // ramp has every tangential acceleration and jerk limit scaled by rho (the emergency /
+      // normal deceleration ratio, which the limit checker allows during it).
+      const bool stopping = mode == Mode::kEmergency || mode == Mode::kStopping;
+      const double sc = mode == Mode::kEmergency ? rho : 1.0;
       step_limits(A, J);
-      LimitFactor target_reason = LimitFactor::kFeed;
-      vt = target_speed(rc, target_reason);
+      A *= sc;
+      J *= sc;
+      LimitFactor target_reason = LimitFactor::kStopCommand;
+      if (!stopping) vt = target_speed(rc, target_reason);
       double lo = std::max(a - J * dt, -A);
       double hi = std::min(a + J * dt, A);
       if (lo > hi) {  // |a| above a limit that just dropped: recover at full jerk
@@ -1547,7 +1549,7 @@ struct Interpolator::Impl {
         else lo = hi = std::min(a + J * dt, A);
       }
       Constraint dec[kMaxDecelLimits];
-      const int n_dec = decel_limits(v, a, J, A, hi, dec);
+      const int n_dec = decel_limits(v, a, J, A, hi, sc, dec);
       lo = std::max(lo, std::min(jerk::floor_acceleration(v, a, kFloorMarginJ * J, dt), hi));
       double xd = std::clamp(jerk::track_velocity(v, a, vt, A, J, dt), lo, hi);
       // Landing on vt takes the acceleration back over the records ahead: with a lower jerk
@@ -1571,8 +1573,9 @@ struct Interpolator::Impl {
       // undershoots vt (sweep seed 15 program 529: by 10 % after an override drop from 1.89 to
       // 0.65 on chords whose path jerk falls from 34,000 to 12,400 mm/s^3). The speed stays
       // below v while landing, which bounds the distance the release crosses.
-      if (xd < 0.0 && v > vt && Jw < J && jerk::landing_acceleration(v, a, vt, Jw, dt) > xd) {
-        const double Jl = landing_jerk(std::max(-a, -xd), v, J, Jw);
+      if (xd < 0.0 && v > vt && sc * Jw < J &&
+          jerk::landing_acceleration(v, a, vt, sc * Jw, dt) > xd) {
+        const double Jl = landing_jerk(std::max(-a, -xd), v, J, sc * Jw);
         if (Jl < J && jerk::landing_acceleration(v, a, vt, Jl, dt) > xd) {
           double xl = jerk::track_velocity(v, a, vt, A, Jl, dt);
           // Still accelerating: taking that back is not part of the landing (this step's jerk).
@@ -1821,7 +1824,7 @@ struct Interpolator::Impl {
           // at the jerk limits of the records the release crosses (the floor in lo has only
           // this record's), as far as the limits that can be kept allow.
           if (x < 0.0 && cons_Jw < J) {
-            double fl = release_floor(before, x, hi);
+            double fl = release_floor(before, x, hi, 1.0);
             if (fl > x && nv > 0 && !ok(fl)) fl = bisect(x, fl, ok, 10);
             x = std::max(x, fl);
           }
@@ -1854,6 +1857,38 @@ struct Interpolator::Impl {
         factor = c[worst_k].reason;
         braking_to_stop = c[worst_k].w == 0.0;
       }
+      if (stopping) {
+        braking_to_stop = true;
+        // A stop ends at zero speed wherever its braking ends, so it may not build a
+        // deceleration that the records its release crosses cannot take back before then (the
+        // floor in lo knows this record's jerk only), as far as the limits x keeps allow.
+        // Tracking zero released a deceleration built in a stiff record at the jerk of the soft
+        // one after it, too slowly: the speed reached zero with 171 mm/s^2 left (stop sweep
+        // seed 4 program 160, X jerk 6.8 x its limit). Not in the last steps (v <= kArriveV,
+        // where the floor in lo leaves less than 1e-6 mm of release): this floor wants the
+        // speed above zero at every step's end and held the landing at 5e-7 mm/s for ever
+        // (stop sweep seed 3 program 626).
+        if (x < 0.0 && v > kArriveV && sc * cons_Jw < J) {
+          double fl = release_floor(before, x, hi, sc);
+          if (fl > x) {
+            int kept[3 * kChainMax + 4];
+            int n_kept = 0;
+            const jerk::State nx = jerk::advance(before, x, dt);
+            for (int k = 0; k < nc; ++k) {
+              if (c[k].d - moved >= 0.0 && excess_from(nx, k) <= kExcessTol) kept[n_kept++] = k;
+            }
+            auto keeps = [&](double xx) {
+              const jerk::State ns = jerk::advance(before, xx, dt);
+              for (int i = 0; i < n_kept; ++i) {
+                if (excess_from(ns, kept[i]) > kExcessTol) return false;
+              }
+              return true;
+            };
+            if (!keeps(fl)) fl = bisect(x, fl, keeps, 10);
+            x = fl;
+          }
+        }
+      }
     }
     integrate_step(before, x, vt, J, calc_index);
   }
@@ -1867,8 +1902,9 @@ struct Interpolator::Impl {
   // junction already has the next record's limit, so each record's stretch starts and ends one
   // step of travel early and has the lower limit of the record and the one before it. The
   // release is followed up to a stop point or the end of the buffer (braking for those is
-  // their own limit's) and over at most kReleaseRecords records.
-  double release_floor(const jerk::State& before, double x, double hi) const {
+  // their own limit's) and over at most kReleaseRecords records. sc scales the records' jerk
+  // limits (the emergency ramp's rho).
+  double release_floor(const jerk::State& before, double x, double hi, double sc) const {
     // The stretches, read from the ring as far as a release gets (most end in a record or two).
     struct Stretch {
       double end;  // path position where the next stretch begins
@@ -1889,7 +1925,7 @@ struct Interpolator::Impl {
         const Rec& r = R(q_next++);
         if (r.kind != RecKind::kMotion) continue;
         sk[static_cast<std::size_t>(n_sk++)] = {r.s0 + r.g.length - shift,
-                                                kFloorMarginJ * std::min(j_prev, r.jt)};
+                                                kFloorMarginJ * sc * std::min(j_prev, r.jt)};
         j_prev = r.jt;
       }
       return i < n_sk ? &sk[static_cast<std::size_t>(i)] : nullptr;
@@ -1902,7 +1938,7 @@ struct Interpolator::Impl {
       if (v <= 0.0) return false;
       // At the window's lowest jerk limit (the window holds a lower bound of every record's
       // in it), a release that ends in time and inside the window ends so at any jerk there.
-      const double j_w = kFloorMarginJ * cons_Jw, t_w = -a / j_w;
+      const double j_w = kFloorMarginJ * sc * cons_Jw, t_w = -a / j_w;
       if (v >= 0.5 * a * a / j_w && pos + shift + travel(v, a, j_w, t_w) <= start_of(win_end)) {
         return true;
       }

@@ -72,7 +72,11 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
     const std::size_t count = std::min(total - next, std::max<std::size_t>(ip.free_slots(), 1));
     const auto r = ip.append(program, next, count, next + count == total, &took);
     next += took;
-    if (!r.ok() && r.code != RequestCode::kBufferFull) {
+    // The interpolator takes no records during an emergency ramp: they wait for its end.
+    const bool ramp =
+        r.code == RequestCode::kWrongState &&
+        ip.registers().status == static_cast<std::int32_t>(InterpolatorStatus::kEmergencyRamp);
+    if (!r.ok() && r.code != RequestCode::kBufferFull && !ramp) {
       sum.error = "append: " + r.reason;
       return false;
     }
