@@ -274,6 +274,12 @@ void Engine::apply_chunks(CyclePort& port, int i, std::size_t& budget) {
     const std::size_t rest = total - c->applied;
     const std::size_t piece = std::min(rest, budget);
     const bool last_piece = piece == rest;
+    // The interpolator takes no records during an emergency ramp (Command 4/5): the chunk
+    // waits for its end, like one that finds the buffer full, instead of being refused. A
+    // refusal broke the stream (every later chunk a gap), so a program streamed while an
+    // emergency stop on the trajectory was given could not be resumed.
+    if (s.ip.registers().status == static_cast<std::int32_t>(InterpolatorStatus::kEmergencyRamp))
+      return;
     std::size_t accepted = 0;
     const RequestResult res =
         s.ip.append(c->program, c->applied, piece, last_piece && c->end_of_program, &accepted);

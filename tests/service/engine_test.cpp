@@ -209,6 +209,47 @@ TEST(Engine, ChunkBudgetIsSharedByAllInterpolatorsAndRotates) {
   EXPECT_EQ(e.counters().segments, 180u);
 }
 
+// An emergency stop on the trajectory (Command 4) while the program still streams: the chunks
+// that arrive during the ramp wait for its end instead of being refused, so after the restart
+// the program runs to its end. Refused, they broke the stream (every later chunk a gap).
+TEST(Engine, ChunksWaitWhileTheEmergencyRampRuns) {
+  Engine e = make_engine();
+  MockPort port;
+  const Program p = line_program(999);  // 0.1 mm moves at F6000 to X99.9, then M2
+  port.add_chunk(0, p, 0, 500, 9, false);
+  e.cycle(port, {});
+  port.add_request(Role::kHmi, RequestKind::kStart);
+  for (int c = 0; c < 400; ++c) e.cycle(port, {});
+  ASSERT_EQ(port.last.ip[0].reg.status, static_cast<std::int32_t>(InterpolatorStatus::kRunning));
+  port.add_request(Role::kPlc, RequestKind::kCommand).command = 4;
+  e.cycle(port, {});
+  ASSERT_EQ(port.last.ip[0].reg.status,
+            static_cast<std::int32_t>(InterpolatorStatus::kEmergencyRamp));
+  port.add_chunk(0, p, 500, 500, 9, true);
+  e.cycle(port, {});
+  EXPECT_EQ(port.last.ip[0].next_sequence, 500u);  // waits
+  EXPECT_EQ(port.chunks[0].size(), 1u);
+  int cycles = 0;
+  while (port.last.ip[0].reg.status !=
+             static_cast<std::int32_t>(InterpolatorStatus::kEmergencyStopped) &&
+         cycles++ < 2000) {
+    e.cycle(port, {});
+  }
+  ASSERT_EQ(port.last.ip[0].reg.status,
+            static_cast<std::int32_t>(InterpolatorStatus::kEmergencyStopped));
+  e.cycle(port, {});
+  EXPECT_EQ(port.last.ip[0].next_sequence, 1000u);  // applied once the ramp ended
+  EXPECT_TRUE(port.chunks[0].empty());
+  port.add_request(Role::kHmi, RequestKind::kStart);
+  cycles = 0;
+  while (port.last.ip[0].reg.status != 3 && cycles++ < 100000) e.cycle(port, {});
+  EXPECT_EQ(port.last.ip[0].reg.status, 3);
+  EXPECT_EQ(port.last.ip[0].reg.orig_position[0], 0.1 * 999);
+  for (const auto& m : port.messages) {
+    EXPECT_NE(m.severity, MessageOut::Severity::kError) << m.text.view();
+  }
+}
+
 TEST(Engine, DuplicatesAreDroppedGapsAndForeignProgramsRefused) {
   Engine e = make_engine();
   MockPort port;
