@@ -3,16 +3,17 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <cerrno>
-#include <csignal>
-#include <climits>
-#include <cstdint>
 #include <charconv>
 #include <chrono>
+#include <climits>
 #include <cmath>
-#include <cstring>
+#include <csignal>
+#include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -31,8 +32,10 @@ namespace {
 
 constexpr const char* kUsage =
     "usage: tgm-hmi simulate FILE [--config YAML] [--interpolator N] [--csv OUT]\n"
-    "                             [--rel-speed R] [--check-limits] [--limit-share F] [--m-ack S] [--blocks OUT]\n"
+    "                             [--rel-speed R] [--check-limits] [--limit-share F] [--m-ack S] "
+    "[--blocks OUT]\n"
     "                             [--spline POINTS,JERK] [--iir P,Q,F,MASK] [--lookahead OUT]\n"
+    "                             [--stop-at T[:CODE],...] [--restart-after S]\n"
     "\n"
     "Compiles FILE and runs it through interpolator N (default 0) offline, cycle by cycle,\n"
     "acknowledging every M-function like the PLC emulator would (plc.default_m_delay_s and\n"
@@ -44,7 +47,8 @@ constexpr const char* kUsage =
     "  --spline POINTS,JERK  Command -2 before the start: points 50..500 (0 = off), jerk limit\n"
     "                   [mm/s^3] (integers, as Command_Parameter[0..1])\n"
     "  --iir P,Q,F,MASK Command -1 before the start: p, q, f x 1e6 (f in ms) and the axis bit\n"
-    "                   mask (integers, as Command_Parameter[0..3]), e.g. 2000000,1000000,6000000,7\n"
+    "                   mask (integers, as Command_Parameter[0..3]), e.g. "
+    "2000000,1000000,6000000,7\n"
     "  --lookahead OUT  JSON lines: the LookAheadBuffer each time it shifts (cycle, time_s,\n"
     "                   act_part and the 8 entries; kNotSet values as null)\n"
     "  --blocks OUT     one row per executed motion block: line, length, programmed and peak\n"
@@ -55,6 +59,11 @@ constexpr const char* kUsage =
     "  --limit-share F  with --check-limits (implied): hold the motion to F (0..1] of each\n"
     "                   limit, e.g. 0.8 lists where the program uses more than 80 % of one\n"
     "  --m-ack S        time the emulated PLC takes per normal M-function [s]\n"
+    "  --stop-at T[:CODE],...  stops at program times T [s]: CODE 8 normal stop (default) or 4\n"
+    "                   emergency stop, both on the trajectory (a feed hold, an emergency "
+    "button);\n"
+    "                   the emulated operator restarts once the motion stands\n"
+    "  --restart-after S  seconds from the standstill after a stop to the restart (default 0.5)\n"
     "  --progress-interval S  when standard error is not a terminal, a progress line there\n"
     "                   every S seconds (default 10); on a terminal the line is redrawn\n"
     "  --quiet          no progress display\n"
@@ -159,8 +168,8 @@ File open_out(const std::string& path) {
 
 int run_simulate(int argc, char** argv) {
   Args args(argc, argv, "simulate", kUsage);
-  std::string file, csv_path, blocks_path, rel_text, m_ack_text, spline_text, iir_text, la_path, interval_text,
-      share_text;
+  std::string file, csv_path, blocks_path, rel_text, m_ack_text, spline_text, iir_text, la_path,
+      interval_text, share_text, stop_text, restart_text;
   bool check_limits = false, quiet = false;
   while (args.more()) {
     if (args.flag("--csv", csv_path)) continue;
@@ -172,6 +181,8 @@ int run_simulate(int argc, char** argv) {
     if (args.flag("--lookahead", la_path)) continue;
     if (args.flag("--progress-interval", interval_text)) continue;
     if (args.flag("--limit-share", share_text)) continue;
+    if (args.flag("--stop-at", stop_text)) continue;
+    if (args.flag("--restart-after", restart_text)) continue;
     if (args.boolean("--check-limits", check_limits)) continue;
     if (args.boolean("--quiet", quiet)) continue;
     if (args.common()) continue;
@@ -198,6 +209,27 @@ int run_simulate(int argc, char** argv) {
   }
   double interval_s = 10.0;
   if (!parse_progress_interval(args, interval_text, interval_s)) return 2;
+  // --stop-at T[:CODE],...: each item a time [s] and optionally :8 or :4.
+  std::vector<std::pair<double, std::int32_t>> stops;
+  for (std::size_t at = 0; !stop_text.empty() && at <= stop_text.size();) {
+    const std::size_t comma = std::min(stop_text.find(',', at), stop_text.size());
+    const std::string item = stop_text.substr(at, comma - at);
+    const std::size_t colon = item.find(':');
+    double t = 0.0;
+    const std::string code_text = colon == std::string::npos ? "8" : item.substr(colon + 1);
+    if (!parse_finite(item.substr(0, colon), t) || t < 0.0 ||
+        (code_text != "8" && code_text != "4")) {
+      return args.usage_error(
+          "--stop-at takes TIME[:8|:4] items (seconds >= 0, comma-separated), not '" + item + "'");
+    }
+    stops.emplace_back(t, code_text == "8" ? 8 : 4);
+    at = comma + 1;
+  }
+  double restart_s = 0.5;
+  if (!restart_text.empty() &&
+      (!parse_finite(restart_text, restart_s) || restart_s < 0.0 || restart_s > 3600.0)) {
+    return args.usage_error("--restart-after takes seconds 0..3600, not '" + restart_text + "'");
+  }
   // Integer lists for the Command_Parameter registers.
   auto int_list = [](const std::string& text, std::size_t count, std::array<std::int32_t, kCommandParameters>& out) {
     std::size_t at = 0;
@@ -258,6 +290,8 @@ int run_simulate(int argc, char** argv) {
   so.check_limits = check_limits;
   so.limit_share = share;
   so.commands = commands;
+  so.stops = stops;
+  so.stop_restart_s = restart_s;
   const auto wall0 = std::chrono::steady_clock::now();
   // Progress on standard error (standard output is the summary): redrawn on a terminal from
   // half a second on, a plain line every interval_s otherwise.
@@ -418,6 +452,11 @@ int run_simulate(int argc, char** argv) {
               wall > 0.0 ? sum.program_time_s / wall : 0.0);
   std::printf("distance:  %.4f mm, peak path speed %.1f mm/min, %llu M-functions acknowledged\n",
               sum.distance_mm, peak_speed, static_cast<unsigned long long>(sum.m_functions));
+  if (!stops.empty()) {
+    std::printf(
+        "stops:     %llu of %zu given before the end, each restarted %.3f s after the standstill\n",
+        static_cast<unsigned long long>(sum.stops), stops.size(), restart_s);
+  }
   std::printf("end:      ");
   for (int i = 0; i < n; ++i) std::printf(" %c=%.6f", letters[static_cast<std::size_t>(i)], sum.end_position[static_cast<std::size_t>(i)]);
   std::printf("  (Position after smoothing:");
@@ -453,6 +492,11 @@ int run_simulate(int argc, char** argv) {
                   a.letter, sum.peaks[ui].velocity_mm_s, a.max_velocity_mm_s, sum.peaks[ui].acceleration_mm_s2,
                   a.max_acceleration_mm_s2, sum.peaks[ui].jerk_mm_s3, a.max_jerk_mm_s3,
                   sum.peaks[ui].corner_step_mm_s, a.corner_velocity_tolerance_mm_s);
+    }
+    if (std::any_of(stops.begin(), stops.end(), [](const auto& st) { return st.second == 4; })) {
+      std::printf(
+          "(peaks include the emergency ramp, which is held to the emergency deceleration and\n"
+          " the jerk scaled by the same ratio, not to the limits above)\n");
     }
     std::printf("violations: %llu\n", static_cast<unsigned long long>(sum.violation_count));
     std::size_t shown = 0;

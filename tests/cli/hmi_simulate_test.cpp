@@ -130,6 +130,29 @@ TEST_F(HmiSimulate, OverrideStretchesAFeedLimitedLine) {
   EXPECT_NE(full.out.find("distance:  100.0000 mm"), std::string::npos) << full.out;
 }
 
+// --stop-at: a normal stop at 2 s on a 100 mm line at F600 (10 s): the motion stands, is
+// restarted 1.5 s later and still ends at X100, 1.5 s plus the extra ramps later, without a
+// limit excess; the summary says how many stops were given.
+TEST_F(HmiSimulate, StopAtGivesAStopAndTheRestartGoesOn) {
+  const fs::path prog = write("line.ngc", "G90 G1 X100 F600\nM2\n");
+  const ProcessResult plain = run("simulate " + prog.string() + " --config " + kConfig);
+  const ProcessResult held = run("simulate " + prog.string() + " --config " + kConfig +
+                                 " --check-limits --stop-at 2,4:4 --restart-after 1.5");
+  ASSERT_EQ(plain.exit_code, 0) << plain.out << plain.err;
+  ASSERT_EQ(held.exit_code, 0) << held.out << held.err;
+  const double t0 = number_before(plain.out, " s program time");
+  const double t1 = number_before(held.out, " s program time");
+  EXPECT_GT(t1, t0 + 3.0);
+  EXPECT_LT(t1, t0 + 3.0 + 1.0);
+  EXPECT_NE(
+      held.out.find(
+          "stops:     2 of 2 given before the end, each restarted 1.500 s after the standstill"),
+      std::string::npos)
+      << held.out;
+  EXPECT_NE(held.out.find("violations: 0"), std::string::npos) << held.out;
+  EXPECT_NE(held.out.find("X=100.000000 Y=0.000000 Z=0.000000"), std::string::npos) << held.out;
+}
+
 TEST_F(HmiSimulate, BadInputIsAUsageErrorAndWritesNothing) {
   const fs::path bad = write("bad.ngc", "G90\nG1 X1 Q2\n");
   const fs::path csv = dir_ / "out.csv";
@@ -150,6 +173,11 @@ TEST_F(HmiSimulate, BadInputIsAUsageErrorAndWritesNothing) {
       {"simulate " + ok + " --limit-share 1.5",
        "--limit-share takes a number in (0, 1], not '1.5'"},
       {"simulate " + ok + " --interpolator 3", "--interpolator must be 0..2"},
+      {"simulate " + ok + " --stop-at 3:5", "--stop-at takes TIME[:8|:4] items"},
+      {"simulate " + ok + " --stop-at 1,x",
+       "--stop-at takes TIME[:8|:4] items (seconds >= 0, comma-separated), not 'x'"},
+      {"simulate " + ok + " --stop-at -1", "not '-1'"},
+      {"simulate " + ok + " --restart-after -2", "--restart-after takes seconds 0..3600, not '-2'"},
       {"simulate " + ok + " --frobnicate", "unknown option '--frobnicate'"},
       {"simulate /nonexistent.ngc --config " + kConfig, "/nonexistent.ngc: error: cannot open"},
   };
