@@ -258,6 +258,20 @@ void Engine::apply_chunks(CyclePort& port, int i, std::size_t& budget) {
       s.next_sequence = 0;
       s.refused_program = 0;
       s.limit_messages = 0;
+    } else if (s.ip.registers().off_trajectory != 0) {
+      // An off-trajectory stop (Command 5/9) dropped the program: the rest of its stream must
+      // not become a program of its own, which would start where the axes stand. Streamed
+      // again from its first record, it loads again.
+      if (c->sequence_number != 0 || c->applied != 0) {
+        refuse_chunk(port, i, *c,
+                     "program " + std::to_string(s.program_id) +
+                         " was dropped by an off-trajectory stop (Command 5/9): stream it again");
+        port.pop_chunk(i);
+        continue;
+      }
+      s.next_sequence = 0;
+      s.refused_program = 0;
+      s.limit_messages = 0;
     }
     const std::size_t total = c->program.segments.size();
     const std::uint64_t at = c->sequence_number + c->applied;

@@ -250,6 +250,56 @@ TEST(Engine, ChunksWaitWhileTheEmergencyRampRuns) {
   }
 }
 
+// Command 5 (emergency stop, off the trajectory) while the program streams: the chunk that
+// waited for the ramp, and every later one, is refused with the reason once the program has
+// been dropped; the rest of the stream does not become a program of its own, and a new
+// program loads as usual.
+TEST(Engine, ChunksOfAProgramDroppedByAnOffTrajectoryStopAreRefused) {
+  Engine e = make_engine();
+  MockPort port;
+  const Program p = line_program(999);
+  port.add_chunk(0, p, 0, 500, 9, false);
+  e.cycle(port, {});
+  port.add_request(Role::kHmi, RequestKind::kStart);
+  for (int c = 0; c < 400; ++c) e.cycle(port, {});
+  port.add_request(Role::kPlc, RequestKind::kCommand).command = 5;
+  e.cycle(port, {});
+  port.add_chunk(0, p, 500, 300, 9, false);
+  int cycles = 0;
+  while (port.last.ip[0].reg.status !=
+             static_cast<std::int32_t>(InterpolatorStatus::kEmergencyStopped) &&
+         cycles++ < 2000) {
+    e.cycle(port, {});
+  }
+  e.cycle(port, {});
+  port.add_chunk(0, p, 800, 200, 9, true);
+  e.cycle(port, {});
+  EXPECT_TRUE(port.chunks[0].empty());
+  EXPECT_EQ(port.last.ip[0].reg.status,
+            static_cast<std::int32_t>(InterpolatorStatus::kEmergencyStopped));
+  EXPECT_EQ(port.last.ip[0].reg.off_trajectory, 1);
+  EXPECT_EQ(port.last.ip[0].next_sequence, 500u);
+  ASSERT_EQ(port.messages.size(), 1u);  // one message per refused program
+  EXPECT_NE(port.messages[0].text.view().find(
+                "program 9 refused: program 9 was dropped by an off-trajectory stop"),
+            std::string_view::npos)
+      << port.messages[0].text.view();
+  EXPECT_EQ(e.counters().refused_chunks, 2u);
+  port.add_request(Role::kHmi, RequestKind::kStart);
+  e.cycle(port, {});
+  EXPECT_EQ(port.last.ip[0].reg.status,
+            static_cast<std::int32_t>(InterpolatorStatus::kEmergencyStopped));
+  // A new program from where the axes stand.
+  Program q = line_program(9);
+  const double x0 = port.last.ip[0].reg.orig_position[0];
+  for (Segment& sg : q.segments) sg.end[0] += x0;
+  port.add_chunk(0, q, 0, q.segments.size(), 10, true);
+  e.cycle(port, {});
+  EXPECT_EQ(port.last.ip[0].program_id, 10u);
+  EXPECT_EQ(port.last.ip[0].reg.status, static_cast<std::int32_t>(InterpolatorStatus::kReady));
+  EXPECT_EQ(port.last.ip[0].next_sequence, q.segments.size());
+}
+
 TEST(Engine, DuplicatesAreDroppedGapsAndForeignProgramsRefused) {
   Engine e = make_engine();
   MockPort port;
