@@ -35,7 +35,10 @@ std::optional<Simulation> Simulation::create(const MachineConfig& machine, const
       return std::nullopt;
     }
     if (!(t >= 0.0 && t <= options.max_time_s)) {
-      if (error) *error = "stop time " + std::to_string(t) + " s is not within 0..max_time_s";
+      if (error) {
+        *error = "stop time " + std::to_string(t) + " s is not within 0.." +
+                 std::to_string(options.max_time_s) + " s (the run's time limit, max_time_s)";
+      }
       return std::nullopt;
     }
   }
