@@ -240,10 +240,19 @@ void Engine::apply_chunks(CyclePort& port, int i, std::size_t& budget) {
       port.pop_chunk(i);
       continue;
     }
-    if (c->program_id != s.program_id) {
+    // A chunk that must start a program: one of another program than the loaded one, or of the
+    // loaded one after an off-trajectory stop (Command 5/9) dropped it. The rest of a dropped
+    // program's stream must not become a program of its own, which would start where the axes
+    // stand; streamed again from its first record, it loads again.
+    const bool other = c->program_id != s.program_id;
+    if (other || s.ip.registers().off_trajectory != 0) {
       if (c->sequence_number != 0 || c->applied != 0) {
-        refuse_chunk(port, i, *c, "chunk " + std::to_string(c->sequence_number) +
-                                      " of a program that is not loaded (cleared?)");
+        refuse_chunk(
+            port, i, *c,
+            other ? "chunk " + std::to_string(c->sequence_number) +
+                        " of a program that is not loaded (cleared?)"
+                  : "program " + std::to_string(s.program_id) +
+                        " was dropped by an off-trajectory stop (Command 5/9): stream it again");
         port.pop_chunk(i);
         continue;
       }
@@ -255,20 +264,6 @@ void Engine::apply_chunks(CyclePort& port, int i, std::size_t& budget) {
         continue;
       }
       s.program_id = c->program_id;
-      s.next_sequence = 0;
-      s.refused_program = 0;
-      s.limit_messages = 0;
-    } else if (s.ip.registers().off_trajectory != 0) {
-      // An off-trajectory stop (Command 5/9) dropped the program: the rest of its stream must
-      // not become a program of its own, which would start where the axes stand. Streamed
-      // again from its first record, it loads again.
-      if (c->sequence_number != 0 || c->applied != 0) {
-        refuse_chunk(port, i, *c,
-                     "program " + std::to_string(s.program_id) +
-                         " was dropped by an off-trajectory stop (Command 5/9): stream it again");
-        port.pop_chunk(i);
-        continue;
-      }
       s.next_sequence = 0;
       s.refused_program = 0;
       s.limit_messages = 0;
@@ -292,8 +287,7 @@ void Engine::apply_chunks(CyclePort& port, int i, std::size_t& budget) {
     // waits for its end, like one that finds the buffer full, instead of being refused. A
     // refusal broke the stream (every later chunk a gap), so a program streamed while an
     // emergency stop on the trajectory was given could not be resumed.
-    if (s.ip.registers().status == static_cast<std::int32_t>(InterpolatorStatus::kEmergencyRamp))
-      return;
+    if (!s.ip.takes_records()) return;
     std::size_t accepted = 0;
     const RequestResult res =
         s.ip.append(c->program, c->applied, piece, last_piece && c->end_of_program, &accepted);

@@ -128,18 +128,31 @@ void expect_clean(const SweepCase& c, const SimulationSummary& s, const std::str
   }
 }
 
-// Runs one sweep case as the sweep does and checks that it finishes clean; the summary goes to
+// Runs one sweep case with options `o` and checks that it finishes clean; the summary goes to
 // `out` when given (also when the run did not finish), `on_cycle` sees every cycle's registers.
 // Its ASSERTs end only this function: callers that go on with `out` wrap it in
 // ASSERT_NO_FATAL_FAILURE.
-void expect_runs_clean(const SweepCase& c, const std::string& ctx, SimulationSummary* out = nullptr,
+void expect_runs_clean(const SweepCase& c, const SimulationOptions& o, const std::string& ctx,
+                       SimulationSummary* out = nullptr,
                        const std::function<void(const Registers&)>& on_cycle = {}) {
-  auto sim = Simulation::create(c.machine, sweep_options(c));
+  auto sim = Simulation::create(c.machine, o);
   ASSERT_TRUE(sim) << ctx;
   const auto s = sim->run(c.generated.program, on_cycle);
   if (out) *out = s;
   ASSERT_EQ(s.result, StepResult::kFinished) << ctx << ": " << s.error;
   expect_clean(c, s, ctx);
+}
+
+// The same as the sweep runs it (sweep_options).
+void expect_runs_clean(const SweepCase& c, const std::string& ctx, SimulationSummary* out = nullptr,
+                       const std::function<void(const Registers&)>& on_cycle = {}) {
+  expect_runs_clean(c, sweep_options(c), ctx, out, on_cycle);
+}
+
+// "seed S program K axes N cycle T us" for a failure message.
+std::string case_context(std::uint64_t seed, std::uint64_t k, const SweepCase& c) {
+  return "seed " + std::to_string(seed) + " program " + std::to_string(k) + " axes " +
+         std::to_string(c.axes) + " cycle " + std::to_string(c.machine.cycle_time_us) + " us";
 }
 
 TEST(RandomSweep, ProgramsFinishAtTheirEndWithinLimits) {
@@ -149,9 +162,7 @@ TEST(RandomSweep, ProgramsFinishAtTheirEndWithinLimits) {
   std::uint64_t total_cycles = 0;
   for (std::uint64_t k = first; k < first + count; ++k) {
     const SweepCase c = sweep_case(seed, k, wide_machines());
-    const std::string ctx = "seed " + std::to_string(seed) + " program " + std::to_string(k) +
-                            " axes " + std::to_string(c.axes) + " cycle " +
-                            std::to_string(c.machine.cycle_time_us) + " us, lower bound " +
+    const std::string ctx = case_context(seed, k, c) + ", lower bound " +
                             std::to_string(c.bound_s) + " s, limit " + std::to_string(c.limit_s) +
                             " s";
     SimulationSummary s;
@@ -174,7 +185,7 @@ TEST(RandomSweep, StopsOnTheTrajectoryResumeAndFinishWithinLimits) {
   const std::uint64_t first = arg_u64("first", "TGM_SWEEP_FIRST", 0);
   std::uint64_t given = 0;
   for (std::uint64_t k = first; k < first + count; ++k) {
-    SweepCase c = sweep_case(seed, k, wide_machines());
+    const SweepCase c = sweep_case(seed, k, wide_machines());
     // Its own stream: the programs are those of the plain sweep.
     std::mt19937_64 rng(seed * 1000003ull + k + 0x9e3779b97f4a7c15ull);
     std::uniform_real_distribution<double> u(0.0, 1.0);
@@ -185,20 +196,16 @@ TEST(RandomSweep, StopsOnTheTrajectoryResumeAndFinishWithinLimits) {
     }
     o.stop_restart_s = 0.01 + 0.29 * u(rng);
     o.max_time_s = c.limit_s + n * (o.stop_restart_s + 10.0);
-    std::string ctx = "seed " + std::to_string(seed) + " program " + std::to_string(k) + " axes " +
-                      std::to_string(c.axes) + " cycle " + std::to_string(c.machine.cycle_time_us) +
-                      " us, restart after " + std::to_string(o.stop_restart_s) + " s, stops";
+    std::string ctx = case_context(seed, k, c) + ", restart after " +
+                      std::to_string(o.stop_restart_s) + " s, stops";
     for (const auto& [t, code] : o.stops) {
       ctx += ' ';
       ctx += std::to_string(code);
       ctx += '@';
       ctx += std::to_string(t);
     }
-    auto sim = Simulation::create(c.machine, o);
-    ASSERT_TRUE(sim) << ctx;
-    const auto s = sim->run(c.generated.program);
-    ASSERT_EQ(s.result, StepResult::kFinished) << ctx << ": " << s.error;
-    expect_clean(c, s, ctx);
+    SimulationSummary s;
+    ASSERT_NO_FATAL_FAILURE(expect_runs_clean(c, o, ctx, &s));
     std::uint64_t due = 0;
     for (const auto& st : o.stops) due += st.first < s.program_time_s - 0.01 ? 1 : 0;
     EXPECT_GE(s.stops, due) << ctx;

@@ -177,6 +177,9 @@ class Interpolator {
 
   //! Free ring slots.
   std::size_t free_slots() const;
+  //! False while an emergency ramp runs (Command 4/5): append() refuses records then, and
+  //! callers that stream keep them until it has ended.
+  bool takes_records() const;
   //! Text of an M29 message by Registers::message_slot ("" when the slot is empty).
   std::string_view message_text(std::int32_t slot) const;
   //! Corner events of the last step (empty unless recording).

@@ -1823,11 +1823,7 @@ struct Interpolator::Impl {
           // Never so hard that the deceleration cannot be taken back before the motion stops
           // at the jerk limits of the records the release crosses (the floor in lo has only
           // this record's), as far as the limits that can be kept allow.
-          if (x < 0.0 && cons_Jw < J) {
-            double fl = release_floor(before, x, hi, 1.0);
-            if (fl > x && nv > 0 && !ok(fl)) fl = bisect(x, fl, ok, 10);
-            x = std::max(x, fl);
-          }
+          if (x < 0.0 && cons_Jw < J) x = releasable(before, x, hi, 1.0, ok);
         } else {
           // x at which limit k's end-of-step state needs no braking any more:
           // v + (a + x) dt / 2 + x |x| / (2 j) = w (increasing in x), with the plan's jerk and,
@@ -1869,28 +1865,38 @@ struct Interpolator::Impl {
         // speed above zero at every step's end and held the landing at 5e-7 mm/s for ever
         // (stop sweep seed 3 program 626).
         if (x < 0.0 && v > kArriveV && sc * cons_Jw < J) {
-          double fl = release_floor(before, x, hi, sc);
-          if (fl > x) {
-            int kept[3 * kChainMax + 4];
-            int n_kept = 0;
-            const jerk::State nx = jerk::advance(before, x, dt);
-            for (int k = 0; k < nc; ++k) {
-              if (c[k].d - moved >= 0.0 && excess_from(nx, k) <= kExcessTol) kept[n_kept++] = k;
-            }
-            auto keeps = [&](double xx) {
-              const jerk::State ns = jerk::advance(before, xx, dt);
-              for (int i = 0; i < n_kept; ++i) {
-                if (excess_from(ns, kept[i]) > kExcessTol) return false;
+          // The limits x keeps (those not passed yet), found only when the floor moves x.
+          int kept[3 * kChainMax + 4];
+          int n_kept = -1;
+          auto keeps = [&](double xx) {
+            if (n_kept < 0) {
+              n_kept = 0;
+              const jerk::State nx = jerk::advance(before, x, dt);
+              for (int k = 0; k < nc; ++k) {
+                if (c[k].d - moved >= 0.0 && excess_from(nx, k) <= kExcessTol) kept[n_kept++] = k;
               }
-              return true;
-            };
-            if (!keeps(fl)) fl = bisect(x, fl, keeps, 10);
-            x = fl;
-          }
+            }
+            const jerk::State ns = jerk::advance(before, xx, dt);
+            for (int i = 0; i < n_kept; ++i) {
+              if (excess_from(ns, kept[i]) > kExcessTol) return false;
+            }
+            return true;
+          };
+          x = releasable(before, x, hi, sc, keeps);
         }
       }
     }
     integrate_step(before, x, vt, J, calc_index);
+  }
+
+  // x raised to release_floor as far as `keeps` (true at x) stays true: the floor, or the
+  // highest x below it that keeps the limits (bisection).
+  template <class K>
+  double releasable(const jerk::State& before, double x, double hi, double sc,
+                    const K& keeps) const {
+    double fl = release_floor(before, x, hi, sc);
+    if (fl > x && !keeps(fl)) fl = bisect(x, fl, keeps, 10);
+    return std::max(x, fl);
   }
 
   // Lowest end-of-step acceleration in [x, hi] from which the deceleration can be taken back
@@ -2741,7 +2747,7 @@ RequestResult Interpolator::append(const Program& program, std::size_t first, st
                                    bool program_complete, std::size_t* accepted) {
   Impl& m = *impl_;
   if (accepted) *accepted = 0;
-  if (m.mode == Mode::kEmergency) return refuse(RequestCode::kWrongState, "emergency ramp in progress");
+  if (!takes_records()) return refuse(RequestCode::kWrongState, "emergency ramp in progress");
   if (program.number_axes != m.n) {
     return refuse(RequestCode::kInvalid, "program was compiled for " + std::to_string(program.number_axes) +
                                              " axes, interpolator " + std::to_string(m.number) + " has " +
@@ -3017,6 +3023,9 @@ RequestResult Interpolator::write_number_axes(int number_axes) {
 }
 
 std::size_t Interpolator::free_slots() const { return impl_->cap - (impl_->tail - impl_->cur); }
+bool Interpolator::takes_records() const {
+  return impl_->mode != Mode::kEmergency;
+}
 
 std::string_view Interpolator::message_text(std::int32_t slot) const {
   if (slot < 0 || static_cast<std::size_t>(slot) >= impl_->msg.size()) return {};

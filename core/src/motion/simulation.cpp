@@ -69,17 +69,14 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
   std::size_t next = 0;
   const std::size_t total = program.segments.size();
   auto feed = [&]() -> bool {
-    if (next >= total) return true;
+    // During an emergency ramp the records wait for its end.
+    if (next >= total || !ip.takes_records()) return true;
     std::size_t took = 0;
     // Only what fits, so a full ring is not a refusal (whose reason would be formatted).
     const std::size_t count = std::min(total - next, std::max<std::size_t>(ip.free_slots(), 1));
     const auto r = ip.append(program, next, count, next + count == total, &took);
     next += took;
-    // The interpolator takes no records during an emergency ramp: they wait for its end.
-    const bool ramp =
-        r.code == RequestCode::kWrongState &&
-        ip.registers().status == static_cast<std::int32_t>(InterpolatorStatus::kEmergencyRamp);
-    if (!r.ok() && r.code != RequestCode::kBufferFull && !ramp) {
+    if (!r.ok() && r.code != RequestCode::kBufferFull) {
       sum.error = "append: " + r.reason;
       return false;
     }
@@ -109,15 +106,31 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
     const double n = std::ceil((s - 1e-12) / T);
     return n < 1.0 ? 1 : static_cast<std::uint64_t>(n);
   };
-  bool m_pending = false, m0_pending = false;
-  std::uint64_t m_ack_at = 0, m0_start_at = 0;
+  // An action of the emulated PLC or operator, due `wait_cycles` after it was first seen.
+  struct Due {
+    bool armed = false;
+    std::uint64_t at = 0;
+    void arm(std::uint64_t cycle, std::uint64_t n) {
+      at = cycle - 1 + n;
+      armed = true;
+    }
+    // True (and disarmed) once `cycle` has reached it.
+    bool fire(std::uint64_t cycle) {
+      if (!armed || cycle < at) return false;
+      armed = false;
+      return true;
+    }
+    // `allow` cut to the cycles that may pass before it.
+    std::uint64_t limit(std::uint64_t cycle, std::uint64_t allow) const {
+      return armed ? std::min(allow, std::max<std::uint64_t>(at, cycle + 1) - cycle) : allow;
+    }
+  };
+  Due m_ack, m0_start, restart;
   auto stops = opt_.stops;
   std::stable_sort(stops.begin(), stops.end(),
                    [](const auto& x, const auto& y) { return x.first < y.first; });
   std::size_t next_stop = 0;
-  // A stop given and the motion not yet restarted; the restart is due at restart_at.
-  bool stopped = false, restart_pending = false;
-  std::uint64_t restart_at = 0;
+  bool stopped = false;  // a stop given and the motion not yet restarted
   const std::uint64_t max_cycles = static_cast<std::uint64_t>(opt_.max_time_s / T) + 1;
   const bool batch = opt_.fast_forward && !on_cycle && !checker_;
   std::array<std::uint64_t, 11> factor_cycles{};
@@ -137,7 +150,7 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
         if (c.ok()) {
           ++sum.stops;
           stopped = true;
-          restart_pending = false;
+          restart.armed = false;
         }
       }
       ++next_stop;
@@ -160,10 +173,7 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
       };
       if (change < changes.size()) allow = std::min(allow, until(changes[change].first));
       if (next_stop < stops.size()) allow = std::min(allow, until(stops[next_stop].first));
-      if (restart_pending)
-        allow = std::min(allow, std::max<std::uint64_t>(restart_at, cycle + 1) - cycle);
-      if (m_pending) allow = std::min(allow, std::max<std::uint64_t>(m_ack_at, cycle + 1) - cycle);
-      if (m0_pending) allow = std::min(allow, std::max<std::uint64_t>(m0_start_at, cycle + 1) - cycle);
+      for (const Due* d : {&restart, &m_ack, &m0_start}) allow = d->limit(cycle, allow);
     }
     std::uint64_t done = 1;
     const StepResult r = batch ? ip.advance(allow, &done) : ip.step();
@@ -201,27 +211,21 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
       ip.write_m_func(0);  // continuous M: the PLC takes note at once
     }
     if (waiting_m) {
-      if (!m_pending) {
+      if (!m_ack.armed) {
         const auto it = opt_.m_ack_by_number.find(reg.m_func);
-        m_ack_at = cycle - 1 + wait_cycles(it != opt_.m_ack_by_number.end() ? it->second : opt_.m_ack_s);
-        m_pending = true;
+        m_ack.arm(cycle, wait_cycles(it != opt_.m_ack_by_number.end() ? it->second : opt_.m_ack_s));
       }
-      if (cycle >= m_ack_at) {
+      if (m_ack.fire(cycle)) {
         ip.write_m_func(0);
         ++sum.m_functions;
-        m_pending = false;
       }
     }
     if (r == StepResult::kWaiting &&
         reg.status == static_cast<std::int32_t>(InterpolatorStatus::kReady)) {  // paused at M0
-      if (!m0_pending) {
-        m0_start_at = cycle - 1 + wait_cycles(opt_.m0_restart_s);
-        m0_pending = true;
-      }
-      if (cycle >= m0_start_at) {
+      if (!m0_start.armed) m0_start.arm(cycle, wait_cycles(opt_.m0_restart_s));
+      if (m0_start.fire(cycle)) {
         ip.start();
-        m0_pending = false;
-        stopped = restart_pending = false;  // a stop given in the pause ends with it
+        stopped = restart.armed = false;  // a stop given in the pause ends with it
       }
     }
     // The operator restarts a motion that a stop brought to rest (Status 4, or 7 after an
@@ -230,18 +234,15 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
     if (stopped && r == StepResult::kIdle &&
         (reg.status == static_cast<std::int32_t>(InterpolatorStatus::kReady) ||
          reg.status == static_cast<std::int32_t>(InterpolatorStatus::kEmergencyStopped))) {
-      if (!restart_pending) {
-        restart_at = cycle - 1 + wait_cycles(opt_.stop_restart_s);
-        restart_pending = true;
-      }
-      if (cycle >= restart_at) {
+      if (!restart.armed) restart.arm(cycle, wait_cycles(opt_.stop_restart_s));
+      if (restart.fire(cycle)) {
         const auto st2 = ip.start();
         if (!st2.ok()) {
           sum.result = StepResult::kIdle;
           sum.error = "start after a stop refused: " + st2.reason;
           break;
         }
-        stopped = restart_pending = false;
+        stopped = false;
       }
       held = true;
     }
@@ -249,7 +250,7 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
         reg.status == static_cast<std::int32_t>(InterpolatorStatus::kUnderrun)) {
       if (next < total) {
         ip.start();  // more records arrived: the HMI restarts
-        stopped = restart_pending = false;
+        stopped = restart.armed = false;
       } else {
         sum.result = r;
         sum.error = "buffer underrun with no more records";
