@@ -237,6 +237,10 @@ struct Constraint {
 double travel(double v, double a, double j, double t) {
   return t * (v + t * (0.5 * a + t * j / 6.0));
 }
+// Speed after time t from speed v and acceleration a at constant jerk j.
+double speed_after(double v, double a, double j, double t) {
+  return v + t * (a + 0.5 * j * t);
+}
 
 double norm_angle_deg(double rad) {
   double d = rad * 180.0 / kPi;
@@ -1244,9 +1248,9 @@ struct Interpolator::Impl {
     double lo = 0.0, hi = dt;
     double tau = b.v > 1e-12 ? std::clamp(dist / b.v, 0.0, dt) : 0.5 * dt;
     for (int it = 0; it < 60; ++it) {
-      const double f = tau * (b.v + tau * (0.5 * b.a + tau * j / 6.0)) - dist;
+      const double f = travel(b.v, b.a, j, tau) - dist;
       if (f > 0.0) hi = tau; else lo = tau;
-      const double fp = b.v + tau * (b.a + 0.5 * j * tau);
+      const double fp = speed_after(b.v, b.a, j, tau);
       double nt = fp > 0.0 ? tau - f / fp : 0.5 * (lo + hi);
       if (!(nt > lo && nt < hi)) nt = 0.5 * (lo + hi);
       if (std::fabs(nt - tau) < 1e-18 || hi - lo < 1e-18) {
@@ -1266,7 +1270,7 @@ struct Interpolator::Impl {
   // search for the largest passing acceleration raised the worst step() from 3.3 to 5.0 us.)
   double crossing_speed_bound(const jerk::State& b, const jerk::State& ns, double d0) const {
     const double j = (ns.a - b.a) / dt;
-    auto v_at = [&](double t) { return b.v + t * (b.a + 0.5 * j * t); };
+    auto v_at = [&](double t) { return speed_after(b.v, b.a, j, t); };
     // Interior maximum: the acceleration turns from positive to negative inside the step.
     const double t_peak = b.a > 0.0 && ns.a < 0.0 ? -b.a / j : -1.0;
     double vm = std::max(b.v, ns.v);
@@ -1281,7 +1285,7 @@ struct Interpolator::Impl {
                      double dist, int calc_index) {
     if (!opt.record_corner_events || n_events >= events.size()) return;
     const double tau = crossing_time(b, j, dist);
-    const double vj = b.v + tau * (b.a + 0.5 * j * tau);
+    const double vj = speed_after(b.v, b.a, j, tau);
     const double aj = b.a + j * tau;
     double t_in[kMaxAxes], t_out[kMaxAxes], k_in[kMaxAxes], k_out[kMaxAxes];
     const Geometry& gi = R(qin).g;
@@ -1970,9 +1974,9 @@ struct Interpolator::Impl {
         for (int it = 0; it < 8; ++it) {
           const double f = dist(t) - len;
           if (f >= -1e-12 * len) break;
-          t = std::min(t_end, t - f / (v + t * (a + 0.5 * j * t)));
+          t = std::min(t_end, t - f / speed_after(v, a, j, t));
         }
-        v += t * (a + 0.5 * j * t);
+        v = speed_after(v, a, j, t);
         a += j * t;
         if (v <= 0.0) return false;
       }
