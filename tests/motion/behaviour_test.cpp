@@ -91,6 +91,61 @@ TEST(ShortSegments, FeedIsNotExceededWhileTheJerkLimitFallsAhead) {
   EXPECT_LE(peak, feed * (1.0 + 1e-9));
 }
 
+TEST(ShortSegments, PolylineFollowsTheCornerLimitOfEachJunction) {
+  // 0.3 mm chords turning 0.06 rad each (a circle of radius 5 mm) at F4000: the corners limit
+  // the speed, not the feed. Each junction's limit is the axis tolerance over the largest axis
+  // change of direction, 0.999 x 2 mm/s / max_i |t'_i - t_i|: 33.3 mm/s where the path runs
+  // along an axis, 47.0 mm/s on the diagonals. The motion crosses the low junctions at their
+  // limit (it neither crawls at the lowest limit nor overshoots one) and swells between them.
+  const double chord = 0.3, turn = 0.06, feed = 4000.0;
+  const int n = 400;
+  ProgramBuilder b;
+  std::array<double, kMaxAxes> p{};
+  std::vector<double> w(n + 2, 0.0);  // w[k]: limit of the junction at the start of record k
+  for (int i = 1; i <= n; ++i) {
+    const double h = turn * i;
+    p[0] += chord * std::cos(h);
+    p[1] += chord * std::sin(h);
+    b.line_to(p, feed);
+    const double dx = std::cos(h + turn) - std::cos(h), dy = std::sin(h + turn) - std::sin(h);
+    w[static_cast<std::size_t>(i + 1)] = 0.999 * 2.0 / std::max(std::fabs(dx), std::fabs(dy));
+  }
+  b.end();
+  SimulationOptions o;
+  o.check_limits = true;
+  auto sim = Simulation::create(machine(), o);
+  ASSERT_TRUE(sim);
+  int part = 0, low = 0, low_kept = 0;
+  double prev_speed = 0.0, peak = 0.0;
+  const auto s = sim->run(b.program(), [&](const Registers& g) {
+    const double v = g.act_speed / 60.0;  // mm/s
+    if (g.act_part != part && part >= 2 && g.act_part == part + 1 && g.act_part <= n) {
+      // Crossed the junction into record act_part during this cycle: its speed there lies
+      // between the speeds at the cycle's start and end.
+      const double wk = w[static_cast<std::size_t>(g.act_part)];
+      const double lo = std::min(prev_speed, v), hi = std::max(prev_speed, v);
+      peak = std::max(peak, hi);
+      if (wk < 34.0 && g.act_part > 20 && g.act_part < n - 20) {
+        ++low;
+        if (lo <= wk * 1.0005 && hi >= wk * 0.998) ++low_kept;
+      }
+    }
+    part = g.act_part;
+    prev_speed = v;
+  });
+  ASSERT_EQ(s.result, StepResult::kFinished) << s.error;
+  EXPECT_EQ(s.violation_count, 0u);
+  EXPECT_GT(low, 40);  // about a sixth of the junctions lie in the valleys below 34 mm/s
+  EXPECT_EQ(low_kept, low) << "junctions below 34 mm/s crossed at their limit";
+  EXPECT_GT(peak, 43.0);  // swells towards the diagonals' 47 mm/s (the jerk limit cuts the top)
+  EXPECT_LT(peak, 47.1);
+  // Time over the distance: between the lowest limit and the highest.
+  const double mean = s.distance_mm / s.program_time_s;
+  EXPECT_GT(mean, 35.0);
+  EXPECT_LT(mean, 45.0);
+  RecordProperty("mean_speed_mm_s", std::to_string(mean));
+}
+
 TEST(Override, ActsWithinOneCycleThroughAJerkLimitedRamp) {
   ProgramBuilder b;
   b.line({300.0, 0.0, 0.0}, 6000.0).end();
