@@ -187,7 +187,8 @@ class Interpolator {
   //! Motion records completed during the last step.
   std::span<const BlockReport> block_reports() const;
   //! Count of times the generator had to clamp at a stop point while still moving faster than
-  //! 1e-3 mm/s (a planning defect; 0 expected).
+  //! 1e-3 mm/s and than 1/16 of J dt^2, the speed one calculation step changes at the record's
+  //! jerk limit (a planning defect; 0 expected).
   std::uint64_t hard_stops() const;
   //! Count of position sets (set_position, Command 2048 / 2049): Orig_Position jumps there by
   //! design, so a per-cycle check of the motion (LimitChecker) starts afresh when it changes.

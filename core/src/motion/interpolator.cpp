@@ -79,6 +79,14 @@ constexpr double kArriveV = 1e-3;         // [mm/s]
 // calculation steps of a braking work at the resolution of the plans, ~1e-9 mm; creeping the
 // rest in another cycle would show a standstill before the stop).
 constexpr double kRestD = 1e-8;           // [mm]
+// An arrival at a stop point still moving counts as a hard stop (a planning defect) above
+// kArriveV and above this share of J dt^2, the scale of the speed change of one calculation
+// step at the record's jerk limit J (J dt^2 / 2 from zero acceleration). Landing on a point
+// with one jerk per step leaves a residual speed at that resolution: 0.2..2.4 % of J dt^2
+// (0.001..0.006 mm/s, within every limit) on the stiff axes (1e6..1.4e7 mm/s^3) of the wide
+// sweep at 1 ms cycles. On the default machine (J dt^2 about 3e-4 mm/s) kArriveV stays the
+// threshold.
+constexpr double kArriveStepShare = 1.0 / 16.0;
 
 enum class RecKind : std::uint8_t { kMotion, kStop, kPass };
 
@@ -1309,9 +1317,10 @@ struct Interpolator::Impl {
     }
   }
 
-  // Arrival at a stop point or the end of the buffer while moving.
-  void arrive(double v_before) {
-    if (v_before > kArriveV) ++hard_stop_count;
+  // Arrival at a stop point or the end of the buffer while moving, at the end of a record of
+  // jerk limit j_rec.
+  void arrive(double v_before, double j_rec) {
+    if (v_before > std::max(kArriveV, kArriveStepShare * j_rec * dt * dt)) ++hard_stop_count;
     st.v = 0.0;
     st.a = 0.0;
   }
@@ -2060,7 +2069,7 @@ struct Interpolator::Impl {
       // A stop point or the end of the buffer: standstill at the end of q.
       for (int i = 0; i < n; ++i) rest[i] = R(q).g.end[i];
       arrived = true;
-      arrive(ns.v);
+      arrive(ns.v, R(q).jt);
       ns.v = 0.0;
       ns.a = 0.0;
       cur = k;
