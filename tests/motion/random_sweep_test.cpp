@@ -361,6 +361,20 @@ TEST(RandomSweep, WideSeed8Program65BestEffortKeepsTheDecelerationReleasable) {
   expect_runs_clean(c, "wide seed 8 program 65");
 }
 
+// Wide sweep seed 102 program 776 (3 axes, 1 ms; X: 20 mm/s^2, 10,000 mm/s^3): at Rel_Speed
+// 0.046 a chord along Z (path jerk 820,000 mm/s^3) meets a 0.06 mm chord led by X (path
+// acceleration limit 62 mm/s^2, jerk 31,000 mm/s^3) whose feed is a fiftieth of the first's.
+// The braking for that feed tapered its deceleration at the stiff chord's jerk and ran out of
+// room: the step that could reach the junction had the soft chord's jerk, and the motion entered
+// it at -175 mm/s^2 (X at 2.3 x its acceleration limit for four cycles). The deceleration is
+// now within the limit two steps' reach before such a junction.
+TEST(RandomSweep, WideSeed102Program776TakesTheDecelerationBackBeforeASofterChord) {
+  const SweepCase c = sweep_case(102, 776, true);
+  ASSERT_EQ(c.axes, 3);
+  ASSERT_NEAR(c.machine.interpolators[0].axes[0].max_acceleration_mm_s2, 20.03, 0.01);
+  expect_runs_clean(c, "wide seed 102 program 776");
+}
+
 // Sweep seed 15 program 529 (6 axes, 500 us): CAM chords turning towards Y (jerk 12,422
 // mm/s^3), whose path jerk limit falls from 34,000 to 12,400 mm/s^3 along them, run at F 3038 x
 // 1.892 when Rel_Speed drops to 0.65 at 4.996 s. The feed limits at the next junctions could not

@@ -936,8 +936,12 @@ struct Interpolator::Impl {
     if (!(v_end > 0.0)) return 0;
     const double a_max = std::max(std::fabs(a), A) + J * dt;  // largest |x| this step can have
     double j_before = sc * rc.jt;                             // lowest jerk limit over [cur, q)
-    // Farther than this the largest deceleration is taken back completely (changes with j_before).
-    double reach = ds_max + v_end * a_max / (kPlanMarginJ * j_before);
+    // Farther than this the largest deceleration is taken back completely, with dec_room's two
+    // steps after it (changes with j_before).
+    auto reach_for = [&](double j) {
+      return ds_max + v_end * a_max / (kPlanMarginJ * j) + 2.0 * dt * (v_end + dt * dt * j / 6.0);
+    };
+    double reach = reach_for(j_before);
     int n_dec = 0;
     int scanned = 0;
     std::size_t idx = ring_index(cur + 1);
@@ -949,15 +953,39 @@ struct Interpolator::Impl {
       const double d = r.s0 - here;
       if (d > reach) break;
       if (sc * r.at < a_max) {
-        dec[n_dec++] = {d, sc * r.at, sc * r.at, j_before, LimitFactor::kAccelJerk, true};
+        Constraint& ck = dec[n_dec++];
+        ck = {d, sc * r.at, sc * r.at, j_before, LimitFactor::kAccelJerk, true};
+        // Into a record of lower jerk: the calculation step that can reach the junction has
+        // that jerk already (dec_room).
+        if (sc * r.jt < j_before) ck.Jx = sc * r.jt;
         if (n_dec == kMaxDecelLimits) break;
       }
       if (sc * r.jt < j_before) {
         j_before = sc * r.jt;
-        reach = ds_max + v_end * a_max / (kPlanMarginJ * j_before);
+        reach = reach_for(j_before);
       }
     }
     return n_dec;
+  }
+
+  // Room [mm] that a deceleration a < -w needs before deceleration limit ck (decel_limits):
+  // taking it back to w at the plan's jerk and, into a record of lower jerk (ck.Jx < ck.J),
+  // twice the farthest a calculation step reaches from the state then, (v', -w) (step_limits:
+  // its end acceleration is at most -w + J dt). A step that can reach the junction has the
+  // lower jerk and takes little deceleration back: without this room wide sweep seed 102
+  // program 776 (X: 20 mm/s^2, 10,000 mm/s^3, 1 ms) entered a chord led by X at 2.8 x its
+  // path acceleration limit, the taper planned at the stiff chord's jerk having run out of
+  // room. (Two steps of travel at v' plus the jerk reach of a step from rest, the speed
+  // limits' junction_reserve, is far more than a step braking at -w reaches, and made a
+  // corner of 0.014 mm/s hopeless: wide seed 4 program 118 crossed it at 0.36 mm/s.)
+  double dec_room(double v, double a, const Constraint& ck) const {
+    const double jp = kPlanMarginJ * ck.J;
+    double need = accel_distance(v, a, ck.w, jp);
+    if (ck.Jx < ck.J) {
+      const double v_after = std::max(0.0, speed_after(v, a, jp, (-a - ck.w) / jp));
+      need += 2.0 * std::max(0.0, dt * (v_after + dt * (ck.J * dt / 6.0 - 0.5 * ck.w)));
+    }
+    return need;
   }
 
   // Next non-pass record after `q` is a stop, or the buffer ends there.
@@ -1609,7 +1637,7 @@ struct Interpolator::Impl {
           for (int i = 0; i < n_dec; ++i) {
             const Constraint& ck = dec[i];
             if (ns.a >= -ck.w || ck.d - ds <= 0.0) continue;  // within, or entered in this step
-            if (accel_distance(std::max(ns.v, 0.0), ns.a, ck.w, kPlanMarginJ * ck.J) > ck.d - ds) return false;
+            if (dec_room(std::max(ns.v, 0.0), ns.a, ck) > ck.d - ds) return false;
           }
           return true;
         };
