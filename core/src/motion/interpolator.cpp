@@ -223,6 +223,8 @@ struct Constraint {
   //! acceleration is then taken back after the junction, at this jerk. The chain hides the
   //! larger limits in that range because this ramp keeps them; with a lower jerk there than
   //! before the junction it would overshoot them (TGM_SEED=6 program 835, a corner step).
+  //! Deceleration limits (decel_limits): the jerk limit of the record entered, when lower than
+  //! J (kInf otherwise); dec_room then keeps a step's reach of room before the junction.
   double Jx = kInf;
   //! How much farther than a stopping distance (with the window's limits) the limit can still
   //! bind: landing on w > 0 with zero acceleration can take longer than stopping, by less than
@@ -755,8 +757,17 @@ struct Interpolator::Impl {
     while (b > cur && R(b).kind != RecKind::kMotion) --b;
     return reserve_for(w, R(b).jt);
   }
-  // junction_reserve for jerk J before the junction; grows with J (skip_cruise bounds it).
+  // junction_reserve for jerk J before the junction: twice a step's reach from (w, 0), i.e.
+  // 2 step_reach(w, 0, J), summed in the order it always was (step_reach's order moves
+  // trajectories by rounding); grows with J (skip_cruise bounds it).
   double reserve_for(double w, double J) const { return 2.0 * (w * dt + J * dt * dt * dt / 6.0); }
+  // Farthest a calculation step goes from (v, a) when its end acceleration is at most a + J dt
+  // (step_limits' reach without the tangential cap); 0 when it cannot move forward. Twice it,
+  // from the state a limit is planned to be kept in, is the room a junction into a record of
+  // lower jerk needs (reserve_for, dec_room): a step that can reach the junction has that jerk.
+  double step_reach(double v, double a, double J) const {
+    return std::max(0.0, dt * (v + dt * (0.5 * a + J * dt / 6.0)));
+  }
 
   // Collects the limits ahead into `c`; returns their count. Window minima Aw, Jw apply to the
   // end of the window.
@@ -939,7 +950,7 @@ struct Interpolator::Impl {
     // Farther than this the largest deceleration is taken back completely, with dec_room's two
     // steps after it (changes with j_before).
     auto reach_for = [&](double j) {
-      return ds_max + v_end * a_max / (kPlanMarginJ * j) + 2.0 * dt * (v_end + dt * dt * j / 6.0);
+      return ds_max + v_end * a_max / (kPlanMarginJ * j) + 2.0 * step_reach(v_end, 0.0, j);
     };
     double reach = reach_for(j_before);
     int n_dec = 0;
@@ -968,22 +979,21 @@ struct Interpolator::Impl {
     return n_dec;
   }
 
-  // Room [mm] that a deceleration a < -w needs before deceleration limit ck (decel_limits):
-  // taking it back to w at the plan's jerk and, into a record of lower jerk (ck.Jx < ck.J),
-  // twice the farthest a calculation step reaches from the state then, (v', -w) (step_limits:
-  // its end acceleration is at most -w + J dt). A step that can reach the junction has the
-  // lower jerk and takes little deceleration back: without this room wide sweep seed 102
-  // program 776 (X: 20 mm/s^2, 10,000 mm/s^3, 1 ms) entered a chord led by X at 2.8 x its
-  // path acceleration limit, the taper planned at the stiff chord's jerk having run out of
-  // room. (Two steps of travel at v' plus the jerk reach of a step from rest, the speed
-  // limits' junction_reserve, is far more than a step braking at -w reaches, and made a
-  // corner of 0.014 mm/s hopeless: wide seed 4 program 118 crossed it at 0.36 mm/s.)
+  // Room [mm] that a deceleration a < -w needs before deceleration limit ck (decel_limits): taking
+  // it back to w at the plan's jerk and, into a record of lower jerk (ck.Jx < ck.J), twice the
+  // farthest a calculation step reaches from the state then, (v', -w) (step_reach). A step that
+  // can reach the junction has the lower jerk and takes little deceleration back: without this
+  // room wide sweep seed 102 program 776 (X: 20 mm/s^2, 10,000 mm/s^3, 1 ms) entered a chord led
+  // by X at 2.8 x its path acceleration limit, the taper planned at the stiff chord's jerk having
+  // run out of room. (The speed limits' reserve taken from (v', 0), 2 step_reach(v', 0, J), is far
+  // more than a step braking at -w reaches, and made a corner of 0.014 mm/s hopeless: wide seed 4
+  // program 118 crossed it at 0.36 mm/s.)
   double dec_room(double v, double a, const Constraint& ck) const {
     const double jp = kPlanMarginJ * ck.J;
     double need = accel_distance(v, a, ck.w, jp);
     if (ck.Jx < ck.J) {
       const double v_after = std::max(0.0, speed_after(v, a, jp, (-a - ck.w) / jp));
-      need += 2.0 * std::max(0.0, dt * (v_after + dt * (ck.J * dt / 6.0 - 0.5 * ck.w)));
+      need += 2.0 * step_reach(v_after, -ck.w, ck.J);
     }
     return need;
   }
