@@ -323,8 +323,8 @@ TEST(RandomSweep, WideSeed1MotionLeavesARestJustBeforeACorner) {
 TEST(RandomSweep, WideArrivalsReleaseTheDecelerationBeforeTheStop) {
   for (const auto& [seed, k] :
        {std::pair<std::uint64_t, std::uint64_t>{2, 161}, {5, 147}, {1, 60}}) {
-    expect_runs_clean(sweep_case(seed, k, true),
-                      "wide seed " + std::to_string(seed) + " program " + std::to_string(k));
+    const SweepCase c = sweep_case(seed, k, true);
+    expect_runs_clean(c, "wide " + case_context(seed, k, c));
   }
 }
 
@@ -343,7 +343,7 @@ TEST(RandomSweep, WideArrivalsAtTheResolutionOfAStepAreNotHardStops) {
                                 {3, 73}}) {
     const SweepCase c = sweep_case(seed, k, true);
     ASSERT_EQ(c.machine.cycle_time_us, 1000);
-    expect_runs_clean(c, "wide seed " + std::to_string(seed) + " program " + std::to_string(k));
+    expect_runs_clean(c, "wide " + case_context(seed, k, c));
   }
 }
 
