@@ -347,6 +347,24 @@ TEST(RandomSweep, WideArrivalsAtTheResolutionOfAStepAreNotHardStops) {
   }
 }
 
+// 1-axis machines at 1 ms cycles reversing at corner tolerances far below J dt^2, the speed
+// change of one calculation step at full jerk: seed 5 program 212 (X 1.3e7 mm/s^3, J dt^2 =
+// 0.52 mm/s, tolerance 0.0145 mm/s), 101/107 (9.1e6, 0.017) and 103/32 (4.2e6, 0.064). The
+// continuous braking plans let the motion come to rest just before a reversal with
+// deceleration left, or land on its limit with acceleration left; the next step, one jerk,
+// could not take either back without crossing at up to 2.7 x the tolerance (eight corners in
+// 212, six in 107, two in 32). Below that resolution a step now ends where a linear release
+// keeps the speed within [0, w] (land_below_step_resolution).
+TEST(RandomSweep, WideReversalsBelowTheStepResolutionKeepTheirTolerance) {
+  for (const auto& [seed, k] :
+       {std::pair<std::uint64_t, std::uint64_t>{5, 212}, {101, 107}, {103, 32}}) {
+    const SweepCase c = sweep_case(seed, k, true);
+    ASSERT_EQ(c.axes, 1);
+    ASSERT_EQ(c.machine.cycle_time_us, 1000);
+    expect_runs_clean(c, "wide " + case_context(seed, k, c));
+  }
+}
+
 // Wide sweep seed 8 program 65 (3 axes, 250 us; Y: 347 mm/s^2, 694 mm/s^3, X 2,500 times
 // stiffer): 0.1 mm chords running along X and turning slowly towards Y, so the path jerk limit
 // falls from 52,000 to 1,300 mm/s^3 over the next 5 mm. A move far ahead with a path

@@ -1602,6 +1602,7 @@ struct Interpolator::Impl {
       Constraint dec[kMaxDecelLimits];
       const int n_dec = decel_limits(v, a, J, A, hi, sc, dec);
       lo = std::max(lo, std::min(jerk::floor_acceleration(v, a, kFloorMarginJ * J, dt), hi));
+      land_below_step_resolution(v, a, J, lo, hi);
       double xd = std::clamp(jerk::track_velocity(v, a, vt, A, J, dt), lo, hi);
       // Landing on vt takes the acceleration back over the records ahead: with a lower jerk
       // limit there than this step's, a landing planned at J overshoots vt (by up to 0.06 % of
@@ -1938,6 +1939,40 @@ struct Interpolator::Impl {
       }
     }
     integrate_step(before, x, vt, J, calc_index);
+  }
+
+  // Landing on a junction limit below the resolution of a calculation step. The braking plans
+  // and the no-reversal floor are continuous: they let the jerk turn at any instant. A step has
+  // one jerk, and at speeds and limits below J dt^2 (what one step at full jerk changes the
+  // speed by) that difference is the whole limit: a reversal at a tolerance of 0.0145 mm/s on
+  // an axis where J dt^2 is 0.52 mm/s (wide sweep seed 5 program 212, 1 ms cycles) came to
+  // rest 6e-6 mm before its junction with -875 mm/s^2 left, which the next step could only take
+  // back by ending at +555 mm/s^2 (the floor), and a step later it crossed at 2.7 x its limit;
+  // elsewhere it landed on the limit with acceleration left, and the step that took it back
+  // peaked at 1.5 x the limit. So while the speed is below J dt^2 and a speed limit 0 < w <
+  // J dt^2 lies within two steps' reach, a step must end in a state whose acceleration the
+  // next step can take back linearly (end acceleration 0) with the speed staying in [0, w]:
+  // v + (a + x) dt / 2 + x dt / 2 between 0 and w. Stop points (w = 0) keep their arrival
+  // (arrive(); held to this, a motion stopped 4e-7 mm short of one and could not hop the
+  // rest). Narrows [lo, hi], keeping lo <= hi.
+  void land_below_step_resolution(double v, double a, double J, double& lo, double& hi) const {
+    const double resolution = J * dt * dt;
+    if (!(v < resolution)) return;
+    const double moved = R(cur).s0 + st.s - cons_here;
+    const double reach =
+        step_reach(v, a, J) + step_reach(v + dt * (a + 0.5 * J * dt), a + J * dt, J);
+    double w = kInf;
+    for (int k = 0; k < ncons; ++k) {
+      const Constraint& ck = cons[static_cast<std::size_t>(k)];
+      const double remain = ck.d - moved;
+      if (ck.accel || remain < 0.0 || remain > reach || !(ck.w > 0.0 && ck.w < resolution))
+        continue;
+      w = std::min(w, ck.w);
+    }
+    if (w == kInf) return;
+    const double c = v + 0.5 * a * dt;  // end speed of this step at x = 0
+    lo = std::max(lo, std::min(-c / dt, hi));
+    hi = std::max(lo, std::min(hi, (w - c) / dt));
   }
 
   // x raised to release_floor as far as `keeps` (true at x) stays true: the floor, or the
