@@ -1602,7 +1602,8 @@ struct Interpolator::Impl {
       Constraint dec[kMaxDecelLimits];
       const int n_dec = decel_limits(v, a, J, A, hi, sc, dec);
       lo = std::max(lo, std::min(jerk::floor_acceleration(v, a, kFloorMarginJ * J, dt), hi));
-      land_below_step_resolution(v, a, J, lo, hi);
+      const double moved = rc.s0 + before.s - cons_here;  // since the constraints were gathered
+      land_below_step_resolution(v, a, J, moved, lo, hi);
       double xd = std::clamp(jerk::track_velocity(v, a, vt, A, J, dt), lo, hi);
       // Landing on vt takes the acceleration back over the records ahead: with a lower jerk
       // limit there than this step's, a landing planned at J overshoots vt (by up to 0.06 % of
@@ -1664,7 +1665,6 @@ struct Interpolator::Impl {
 
       Constraint* c = cons.data();
       const int nc = ncons;
-      const double moved = rc.s0 + before.s - cons_here;  // since the constraints were gathered
       int viol[3 * kChainMax + 4];
       int nv = 0;
       int ride_k = -1;  // the limit the last step rode, when violated again
@@ -1954,13 +1954,13 @@ struct Interpolator::Impl {
   // next step can take back linearly (end acceleration 0) with the speed staying in [0, w]:
   // v + (a + x) dt / 2 + x dt / 2 between 0 and w. Stop points (w = 0) keep their arrival
   // (arrive(); held to this, a motion stopped 4e-7 mm short of one and could not hop the
-  // rest). Narrows [lo, hi], keeping lo <= hi.
-  void land_below_step_resolution(double v, double a, double J, double& lo, double& hi) const {
+  // rest). `moved`: path travelled since the limits were gathered. Narrows [lo, hi], keeping
+  // lo <= hi.
+  void land_below_step_resolution(double v, double a, double J, double moved, double& lo,
+                                  double& hi) const {
     const double resolution = J * dt * dt;
     if (!(v < resolution)) return;
-    const double moved = R(cur).s0 + st.s - cons_here;
-    const double reach =
-        step_reach(v, a, J) + step_reach(v + dt * (a + 0.5 * J * dt), a + J * dt, J);
+    const double reach = step_reach(v, a, J) + step_reach(speed_after(v, a, J, dt), a + J * dt, J);
     double w = kInf;
     for (int k = 0; k < ncons; ++k) {
       const Constraint& ck = cons[static_cast<std::size_t>(k)];
