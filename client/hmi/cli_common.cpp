@@ -27,14 +27,18 @@ bool Args::flag(const char* name, std::string& value) {
     }
     value = argv_[i_ + 1];
     i_ += 2;
-    return true;
-  }
-  if (arg.size() > n && arg.compare(0, n, name) == 0 && arg[n] == '=') {
+  } else if (arg.size() > n && arg.compare(0, n, name) == 0 && arg[n] == '=') {
     value = arg.substr(n + 1);
     ++i_;
-    return true;
+  } else {
+    return false;
   }
-  return false;
+  // An empty value would read as the flag not given (its default), silently.
+  if (value.empty()) {
+    usage_error(std::string(name) + " needs a value, not an empty string");
+    failed_ = true;
+  }
+  return true;
 }
 
 bool Args::boolean(const char* name, bool& value) {

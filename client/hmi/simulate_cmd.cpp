@@ -31,7 +31,7 @@ namespace tgm::hmi {
 namespace {
 
 constexpr const char* kUsage =
-    "usage: tgm-hmi simulate FILE [--config YAML] [--interpolator N] [--csv OUT]\n"
+    "usage: tgm-hmi simulate FILE [--config YAML] [--interpolator N] [--csv OUT] [--csv-every N]\n"
     "                             [--rel-speed R] [--check-limits] [--limit-share F] [--m-ack S] "
     "[--blocks OUT]\n"
     "                             [--spline POINTS,JERK] [--iir P,Q,F,MASK] [--lookahead OUT]\n"
@@ -44,6 +44,8 @@ constexpr const char* kUsage =
     "                   act_speed_mm_min, move_distance_mm, orig_<axis> (Orig_Position),\n"
     "                   pos_<axis> (Position, after spline / IIR), inc_<axis> (PositionInc),\n"
     "                   speed_<axis> (after smoothing), limit_factor\n"
+    "  --csv-every N    only every N-th cycle (1..1000000, default 1) in the CSV, plus each\n"
+    "                   cycle where status, run_flag or m_func changes and the last one\n"
     "  --spline POINTS,JERK  Command -2 before the start: points 50..500 (0 = off), jerk limit\n"
     "                   [mm/s^3] (integers, as Command_Parameter[0..1])\n"
     "  --iir P,Q,F,MASK Command -1 before the start: p, q, f x 1e6 (f in ms) and the axis bit\n"
@@ -169,10 +171,11 @@ File open_out(const std::string& path) {
 int run_simulate(int argc, char** argv) {
   Args args(argc, argv, "simulate", kUsage);
   std::string file, csv_path, blocks_path, rel_text, m_ack_text, spline_text, iir_text, la_path,
-      interval_text, share_text, stop_text, restart_text;
+      interval_text, share_text, stop_text, restart_text, every_text;
   bool check_limits = false, quiet = false;
   while (args.more()) {
     if (args.flag("--csv", csv_path)) continue;
+    if (args.flag("--csv-every", every_text)) continue;
     if (args.flag("--blocks", blocks_path)) continue;
     if (args.flag("--rel-speed", rel_text)) continue;
     if (args.flag("--m-ack", m_ack_text)) continue;
@@ -196,6 +199,13 @@ int run_simulate(int argc, char** argv) {
   if (!rel_text.empty() && (!parse_finite(rel_text, rel) || rel < 0.01 || rel > 2.0)) {
     return args.usage_error("--rel-speed takes a number 0.01..2, not '" + rel_text + "'");
   }
+  long long csv_every = 1;
+  if (!every_text.empty() && !parse_integer(every_text, 1, 1000000, csv_every)) {
+    return args.usage_error("--csv-every takes a number of cycles 1..1000000, not '" + every_text +
+                            "'");
+  }
+  if (!every_text.empty() && csv_path.empty())
+    return args.usage_error("--csv-every needs --csv OUT");
   double m_ack = -1.0;
   if (!m_ack_text.empty() && (!parse_finite(m_ack_text, m_ack) || m_ack < 0.0 || m_ack > 3600.0)) {
     return args.usage_error("--m-ack takes seconds 0..3600, not '" + m_ack_text + "'");
@@ -403,26 +413,56 @@ int run_simulate(int argc, char** argv) {
     la_last = r.lookahead;
     la_first = false;
   };
+  // The CSV's fields of one cycle. With --csv-every the last cycle's are kept until the next
+  // one (the last cycle of a run is written whether it is an N-th or not).
+  struct CsvRow {
+    std::uint64_t cycle = 0;
+    long long ints[5] = {};  // line, act_part, status, run_flag, m_func
+    double act_speed = 0.0, move_distance = 0.0;
+    std::array<double, kMaxAxes> orig{}, pos{}, speed{};
+    std::array<std::int64_t, kMaxAxes> inc{};
+    LimitFactor factor = LimitFactor::kNone;
+  };
+  CsvRow row;
+  bool row_written = true;  // row is in the file (or there is none yet)
+  bool any_row = false;
+  auto write_row = [&](const CsvRow& x) {
+    CsvWriter& w = *csv_out;
+    w.fixed(static_cast<double>(x.cycle) * T, 6);
+    for (const long long v : x.ints) w.col(v);
+    w.col(x.act_speed, 6);
+    w.col(x.move_distance, 9);
+    for (int i = 0; i < n; ++i) w.col(x.orig[static_cast<std::size_t>(i)], 9);
+    for (int i = 0; i < n; ++i) w.col(x.pos[static_cast<std::size_t>(i)], 9);
+    for (int i = 0; i < n; ++i) w.col(static_cast<long long>(x.inc[static_cast<std::size_t>(i)]));
+    for (int i = 0; i < n; ++i) w.col(x.speed[static_cast<std::size_t>(i)], 6);
+    w.put(',');
+    w.text(limit_factor_name(x.factor));
+    w.put('\n');
+  };
   if (csv || la) {
     on_cycle = [&](const Registers& r) {
       if (la && la_changed(r)) write_lookahead(r);
       if (!csv) return;
-      CsvWriter& w = *csv_out;
-      w.fixed(static_cast<double>(r.cycle) * T, 6);
-      for (const long long v : {static_cast<long long>(r.act_line), static_cast<long long>(r.act_part),
-                                static_cast<long long>(r.status), static_cast<long long>(r.run_flag),
-                                static_cast<long long>(r.m_func)}) {
-        w.col(v);
-      }
-      w.col(r.act_speed, 6);
-      w.col(r.move_distance, 9);
-      for (int i = 0; i < n; ++i) w.col(r.orig_position[static_cast<std::size_t>(i)], 9);
-      for (int i = 0; i < n; ++i) w.col(r.position[static_cast<std::size_t>(i)], 9);
-      for (int i = 0; i < n; ++i) w.col(static_cast<long long>(r.position_inc[static_cast<std::size_t>(i)]));
-      for (int i = 0; i < n; ++i) w.col(r.speed[static_cast<std::size_t>(i)], 6);
-      w.put(',');
-      w.text(limit_factor_name(r.limit_factor));
-      w.put('\n');
+      // An event: status, run_flag or m_func differ from the cycle before.
+      const bool event = !any_row || r.status != row.ints[2] || r.run_flag != row.ints[3] ||
+                         r.m_func != row.ints[4];
+      row.cycle = r.cycle;
+      row.ints[0] = r.act_line;
+      row.ints[1] = r.act_part;
+      row.ints[2] = r.status;
+      row.ints[3] = r.run_flag;
+      row.ints[4] = r.m_func;
+      row.act_speed = r.act_speed;
+      row.move_distance = r.move_distance;
+      row.orig = r.orig_position;
+      row.pos = r.position;
+      row.inc = r.position_inc;
+      row.speed = r.speed;
+      row.factor = r.limit_factor;
+      any_row = true;
+      row_written = csv_every == 1 || event || r.cycle % static_cast<std::uint64_t>(csv_every) == 0;
+      if (row_written) write_row(row);
     };
   }
   const SimulationSummary sum = sim->run(compiled.program, on_cycle, [&](const BlockReport& b) {
@@ -434,6 +474,7 @@ int run_simulate(int argc, char** argv) {
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   if (progress_shown) std::fputs("\r\033[K", stderr);
   const int interrupted = sum.result == StepResult::kFinished ? 0 : static_cast<int>(g_signal);
+  if (csv_out && !row_written) write_row(row);  // the last cycle
   if (csv_out) csv_out->flush();
   bool io_ok = true;
   for (File* f : {&csv, &blocks, &la}) {

@@ -6,6 +6,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -113,6 +114,34 @@ TEST_F(HmiSimulate, ManualExampleWritesEveryColumnAndEndsCleanUnderTheChecker) {
   }
 }
 
+// --csv-every N: the rows of the full CSV (the same text) at every N-th cycle, at each cycle
+// where status, run_flag or m_func changes, and at the last cycle; nothing else.
+TEST_F(HmiSimulate, CsvEveryKeepsTheNthCyclesTheEventsAndTheLast) {
+  const fs::path full = dir_ / "full.csv", part = dir_ / "part.csv";
+  const std::string base = "simulate " + kExample + " --config " + kConfig + " --csv ";
+  ASSERT_EQ(run(base + full.string()).exit_code, 0);
+  const ProcessResult r = run(base + part.string() + " --csv-every 250");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto all = lines(slurp(full)), some = lines(slurp(part));
+  ASSERT_GT(all.size(), 10000u);
+  EXPECT_EQ(some[0], all[0]);  // the header
+  std::vector<std::string> expect;
+  std::vector<std::string> prev;
+  int events = 0;
+  for (std::size_t i = 1; i < all.size(); ++i) {
+    const auto f = split(all[i], ',');
+    const bool event = prev.empty() || f[3] != prev[3] || f[4] != prev[4] || f[5] != prev[5];
+    events += event ? 1 : 0;
+    if (i % 250 == 0 || event || i + 1 == all.size()) expect.push_back(all[i]);
+    prev = f;
+  }
+  EXPECT_GT(events, 6);  // start, the M-function handshakes, the end
+  ASSERT_EQ(some.size() - 1, expect.size());
+  for (std::size_t k = 0; k < expect.size(); ++k)
+    ASSERT_EQ(some[k + 1], expect[k]) << "row " << k + 1;
+  EXPECT_EQ(split(some.back(), ',')[3], "3");  // the program's end
+}
+
 TEST_F(HmiSimulate, OverrideStretchesAFeedLimitedLine) {
   // 100 mm at F600: 10 s plus the S-curve's ramps; at Rel_Speed 0.5 twice the cruise.
   const fs::path prog = write("line.ngc", "G90 G1 X100 F600\nM2\n");
@@ -179,6 +208,15 @@ TEST_F(HmiSimulate, BadInputIsAUsageErrorAndWritesNothing) {
       {"simulate " + ok + " --stop-at -1", "not '-1'"},
       {"simulate " + ok + " --restart-after -2", "--restart-after takes seconds 0..3600, not '-2'"},
       {"simulate " + ok + " --frobnicate", "unknown option '--frobnicate'"},
+      {"simulate " + ok + " --csv out.csv --csv-every 0",
+       "--csv-every takes a number of cycles 1..1000000, not '0'"},
+      {"simulate " + ok + " --csv out.csv --csv-every 1000001", "not '1000001'"},
+      {"simulate " + ok + " --csv out.csv --csv-every x", "not 'x'"},
+      {"simulate " + ok + " --csv-every 10", "--csv-every needs --csv OUT"},
+      // An empty value is not the flag left out.
+      {"simulate " + ok + " --csv out.csv --csv-every ''",
+       "--csv-every needs a value, not an empty string"},
+      {"simulate " + ok + " --rel-speed=", "--rel-speed needs a value, not an empty string"},
       {"simulate /nonexistent.ngc --config " + kConfig, "/nonexistent.ngc: error: cannot open"},
   };
   for (const auto& [args, message] : cases) {
@@ -226,18 +264,36 @@ TEST_F(HmiSimulate, ProgressGoesToStandardErrorUnlessQuiet) {
   EXPECT_EQ(r.err, "");
 }
 
-TEST_F(HmiSimulate, InterruptKeepsEveryCycleWrittenAndSaysSo) {
-  // 6,000 s of program time stepped cycle by cycle into a CSV: far longer than the test waits.
-  const fs::path prog = write("long.ngc", "G90 G1 X1000 F10\nM2\n");
-  const fs::path csv = dir_ / "long.csv", out = dir_ / "stdout", err = dir_ / "stderr";
-  const std::string hmi = TGM_HMI, config = kConfig, p = prog.string(), c = csv.string();
+// Runs a 6,000 s program (stepped cycle by cycle into a CSV: far longer than the test waits)
+// with `extra` flags and interrupts it with SIGINT once it is well under way. Returns the exit
+// code (-1: killed or hung, after a test failure), the summary and the CSV.
+struct Interrupted {
+  int exit_code = -1;
+  std::string summary, csv;
+};
+Interrupted run_and_interrupt(const fs::path& dir, const std::vector<std::string>& extra) {
+  const fs::path prog = dir / "long.ngc", csv = dir / "long.csv", out = dir / "stdout",
+                 err = dir / "stderr";
+  std::FILE* f = std::fopen(prog.c_str(), "w");
+  std::fputs("G90 G1 X1000 F10\nM2\n", f);
+  std::fclose(f);
+  std::vector<std::string> argv = {TGM_HMI, "simulate", prog.string(), "--config",
+                                   kConfig, "--csv",    csv.string(),  "--progress-interval",
+                                   "0.05"};
+  argv.insert(argv.end(), extra.begin(), extra.end());
+  std::vector<char*> args;
+  for (std::string& a : argv) args.push_back(a.data());
+  args.push_back(nullptr);
+  Interrupted r;
   const pid_t pid = ::fork();
-  ASSERT_GE(pid, 0);
+  if (pid < 0) {
+    ADD_FAILURE() << "fork failed";
+    return r;
+  }
   if (pid == 0) {
     std::freopen(out.c_str(), "w", stdout);
     std::freopen(err.c_str(), "w", stderr);
-    ::execl(hmi.c_str(), hmi.c_str(), "simulate", p.c_str(), "--config", config.c_str(), "--csv", c.c_str(),
-            "--progress-interval", "0.05", static_cast<char*>(nullptr));
+    ::execv(args[0], args.data());
     ::_exit(127);
   }
   // Interrupt once it is well under way (it says so on standard error).
@@ -254,21 +310,52 @@ TEST_F(HmiSimulate, InterruptKeepsEveryCycleWrittenAndSaysSo) {
   if (done == 0) {
     ::kill(pid, SIGKILL);
     ::waitpid(pid, &status, 0);
-    FAIL() << "tgm-hmi simulate did not stop on SIGINT";
+    ADD_FAILURE() << "tgm-hmi simulate did not stop on SIGINT";
+    return r;
   }
-  ASSERT_TRUE(WIFEXITED(status)) << "killed by signal " << (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
-  EXPECT_EQ(WEXITSTATUS(status), 130);
-  const std::string summary = slurp(out);
-  EXPECT_NE(summary.find("result:    NOT finished: interrupted by SIGINT"), std::string::npos) << summary;
-  const std::string text = slurp(csv);
-  ASSERT_FALSE(text.empty());
-  EXPECT_EQ(text.back(), '\n');
-  const auto rows = lines(text);
-  const double cycles = number_before(summary, " cycles");
+  if (!WIFEXITED(status)) {
+    ADD_FAILURE() << "killed by signal " << (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
+    return r;
+  }
+  r.exit_code = WEXITSTATUS(status);
+  r.summary = slurp(out);
+  r.csv = slurp(csv);
+  return r;
+}
+
+TEST_F(HmiSimulate, InterruptKeepsEveryCycleWrittenAndSaysSo) {
+  const Interrupted r = run_and_interrupt(dir_, {});
+  EXPECT_EQ(r.exit_code, 130);
+  EXPECT_NE(r.summary.find("result:    NOT finished: interrupted by SIGINT"), std::string::npos)
+      << r.summary;
+  ASSERT_FALSE(r.csv.empty());
+  EXPECT_EQ(r.csv.back(), '\n');
+  const auto rows = lines(r.csv);
+  const double cycles = number_before(r.summary, " cycles");
   EXPECT_GT(cycles, 0.0);
   EXPECT_LT(cycles, 12e6);  // stopped long before the end
   EXPECT_EQ(static_cast<double>(rows.size() - 1), cycles);
   EXPECT_NEAR(std::atof(rows.back().c_str()), cycles * 0.0005, 1e-6);
+}
+
+// With --csv-every the cycle the interrupt ended on is the last row, an N-th or not.
+TEST_F(HmiSimulate, InterruptWithCsvEveryStillWritesTheLastCycle) {
+  const Interrupted r = run_and_interrupt(dir_, {"--csv-every", "997"});
+  EXPECT_EQ(r.exit_code, 130);
+  const auto rows = lines(r.csv);
+  const double cycles = number_before(r.summary, " cycles");
+  ASSERT_GT(cycles, 997.0 * 3);
+  // Every 997th cycle, a few events (the start, run_flag's section changes) and the last cycle.
+  std::vector<long long> at;
+  for (std::size_t i = 1; i < rows.size(); ++i)
+    at.push_back(std::llround(std::atof(rows[i].c_str()) / 0.0005));
+  ASSERT_TRUE(std::is_sorted(at.begin(), at.end()));
+  const auto n = static_cast<long long>(cycles);
+  for (long long c = 997; c <= n; c += 997) {
+    EXPECT_TRUE(std::binary_search(at.begin(), at.end(), c)) << "cycle " << c;
+  }
+  EXPECT_LE(at.size(), static_cast<std::size_t>(n / 997 + 8));
+  EXPECT_EQ(at.back(), n);
 }
 
 }  // namespace
