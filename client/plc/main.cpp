@@ -258,6 +258,8 @@ int main(int argc, char** argv) {
       if (i + 1 >= argc) return usage_error(arg + " needs a value, or is unknown");
       value = argv[++i];
     }
+    // An empty value would read as the flag left out (its default), silently.
+    if (value.empty()) return usage_error(flag + " needs a value, not an empty string");
     std::string error;
     if (overrides.take(flag, value, error)) {
       if (!error.empty()) return usage_error(error);

@@ -105,6 +105,8 @@ int main(int argc, char** argv) {
     } else {
       return usage_error("unexpected argument '" + arg + "'");
     }
+    // An empty value would read as the flag left out (its default), silently.
+    if (value.empty()) return usage_error(flag + " needs a value, not an empty string");
     std::string error;
     long long n = 0;
     if (overrides.take(flag, value, error)) {

@@ -457,6 +457,20 @@ TEST(ServiceProcesses, ServiceStopsCleanlyOnSigtermAndRejectsBadFlags) {
                                 env.path("plc_endless.log")));
   EXPECT_EQ(plc_endless.wait(kHang), 2);
   EXPECT_NE(plc_endless.log().find("--duration must be"), std::string::npos) << plc_endless.log();
+  // An empty value is not the flag left out: `--config=` used to run with the default config.
+  test::Child empty_config;
+  ASSERT_TRUE(empty_config.start({TGM_SERVICE_BIN, "--config="}, env.path("empty_config.log")));
+  EXPECT_EQ(empty_config.wait(kHang), 2);
+  EXPECT_NE(empty_config.log().find("--config needs a value, not an empty string"),
+            std::string::npos)
+      << empty_config.log();
+  test::Child empty_profiles;
+  ASSERT_TRUE(empty_profiles.start({TGM_PLC_BIN, "--config", env.config(), "--profiles", ""},
+                                   env.path("empty_profiles.log")));
+  EXPECT_EQ(empty_profiles.wait(kHang), 2);
+  EXPECT_NE(empty_profiles.log().find("--profiles needs a value, not an empty string"),
+            std::string::npos)
+      << empty_profiles.log();
   test::Child bad_config;
   ASSERT_TRUE(bad_config.start({TGM_PLC_BIN, "--config", env.path("missing.yaml")}, env.path("bad_config.log")));
   EXPECT_EQ(bad_config.wait(kHang), 2);
