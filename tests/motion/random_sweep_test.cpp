@@ -12,9 +12,10 @@
 //
 // Time limit per program (test::motion_time_limit): the time of a reference motion at a quarter
 // of every record's cap min(F x Rel_Speed, axis velocity limits), with the override schedule at
-// its real times, + 60 s for accelerations, corners, arcs, dwells and M waits. A program that
-// crawls or stalls below its target hits it; a program that is merely long (an override of 0.02
-// makes some take two hours), or slow before an override drop, does not.
+// its real times, or 1.25 x an exact stop at every junction (test::motion_time_exact_stop) where
+// that is longer, + 60 s for dwells, M waits and the rest. A program that crawls or stalls below
+// its target hits it; a program that is merely long (an override of 0.02 makes some take two
+// hours), slow before an override drop, or held to a very soft axis' jerk, does not.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -243,13 +244,75 @@ TEST(SweepTimeLimit, LowerBoundHoldsArcsToThePlaneAxesTheyRunAlong) {
   EXPECT_NEAR(test::motion_time_lower_bound(helix.program(), m, {}), length / (5.0 / share), 1e-9);
 }
 
-// Without override changes the limit is the earlier one, 4 x the lower bound + 60 s.
-TEST(SweepTimeLimit, WithoutOverrideChangesIsFourTimesTheLowerBoundPlusSlack) {
+// Without override changes the limit is 4 x the lower bound + 60 s, or 1.25 x the exact stop
+// reference + 60 s where that is longer; both occur.
+TEST(SweepTimeLimit, WithoutOverrideChangesIsTheLongerOfBoundAndExactStopPlusSlack) {
+  int by_bound = 0, by_stop = 0;
   for (std::uint64_t k = 0; k < 50; ++k) {
     const SweepCase c = sweep_case(3, k, false);
     const double bound = test::motion_time_lower_bound(c.generated.program, c.machine, {});
-    EXPECT_DOUBLE_EQ(test::motion_time_limit(c.generated.program, c.machine, {}), 4.0 * bound + 60.0) << k;
+    const double stop = test::motion_time_exact_stop(c.generated.program, c.machine, {});
+    EXPECT_DOUBLE_EQ(test::motion_time_limit(c.generated.program, c.machine, {}),
+                     std::max(4.0 * bound, 1.25 * stop) + 60.0)
+        << k;
+    (4.0 * bound >= 1.25 * stop ? by_bound : by_stop) += 1;
   }
+  EXPECT_GT(by_bound, 0);
+  EXPECT_GT(by_stop, 0);
+}
+
+// rest_to_rest_time against the S-curve worked out by hand: jerk phases only (a^2 / j above the
+// peak), with a constant-acceleration phase, and with a cruise.
+TEST(SweepTimeLimit, RestToRestTimeIsTheSCurvesTime) {
+  // 10 mm, j 1e4: peak (L^2 j / 4)^(1/3) = 63.0 < a^2 / j = 100, time (32 L / j)^(1/3).
+  EXPECT_NEAR(test::rest_to_rest_time(10.0, 100.0, 1000.0, 1e4), std::cbrt(0.032), 1e-12);
+  // 5 mm, a 1000, j 1e5 (a^2 / j = 10): peak u with u^2 / a + u a / j = L, u = 65.887,
+  // time 2 (u / a + a / j).
+  const double u = 0.5 * (-10.0 + std::sqrt(100.0 + 4.0 * 1000.0 * 5.0));
+  EXPECT_NEAR(test::rest_to_rest_time(5.0, 100.0, 1000.0, 1e5), 2.0 * (u / 1000.0 + 0.01), 1e-12);
+  // 100 mm at 100 mm/s (a 1000, j 1e4): 0.2 s to speed up over 10 mm, twice, and 80 mm of cruise.
+  EXPECT_NEAR(test::rest_to_rest_time(100.0, 100.0, 1000.0, 1e4), 0.4 + 0.8, 1e-12);
+  EXPECT_EQ(test::rest_to_rest_time(0.0, 100.0, 1000.0, 1e4), 0.0);
+}
+
+// A single line is an exact stop: the interpolator takes at least the S-curve at the full limits
+// and at most the reference (its planning margins) and a cycle.
+TEST(SweepTimeLimit, ExactStopReferenceBoundsASingleLine) {
+  const MachineConfig m = MachineConfig::default_machine();
+  for (const double x : {0.5, 5.0, 50.0, 500.0}) {
+    test::ProgramBuilder b(3);
+    b.line_to({x, 0.0, 0.0}, 6000.0);
+    b.end();
+    SimulationOptions o;
+    auto sim = Simulation::create(m, o);
+    ASSERT_TRUE(sim);
+    const SimulationSummary s = sim->run(b.program());
+    ASSERT_EQ(s.result, StepResult::kFinished) << x;
+    const AxisConfig& ax = m.interpolators[0].axes[0];
+    const double fastest = test::rest_to_rest_time(x, std::min(100.0, ax.max_velocity_mm_s),
+                                                   ax.max_acceleration_mm_s2, ax.max_jerk_mm_s3);
+    const double reference = test::motion_time_exact_stop(b.program(), m, {});
+    EXPECT_GE(s.program_time_s, fastest) << x;
+    EXPECT_LE(s.program_time_s, reference + m.cycle_time_us * 1e-6) << x;
+    EXPECT_GT(reference, fastest) << x;
+  }
+}
+
+// Wide sweep seed 21 program 175 (3 axes, 250 us): Y's jerk limit is 564 mm/s^3 and the corner
+// tolerances 0.03..0.14 mm/s, so the 699 chords of random direction nearly stop at every
+// junction, at the jerk limit: 129.4 s, clean, against a lower bound of 13.6 s. The limit from
+// the bound alone (4 x 13.6 + 60 = 112.2 s) ended it as a stall; the exact stop reference
+// (about 180 s for these chords) admits it.
+TEST(SweepTimeLimit, WideSeed21Program175AtItsJerkLimitIsNotAStall) {
+  const SweepCase c = sweep_case(21, 175, true);
+  ASSERT_EQ(c.axes, 3);
+  const double bound_limit_s = 4.0 * c.bound_s + 60.0;
+  SimulationSummary s;
+  ASSERT_NO_FATAL_FAILURE(expect_runs_clean(
+      c, "wide seed 21 program 175, limit " + std::to_string(c.limit_s) + " s", &s));
+  EXPECT_GT(s.program_time_s, bound_limit_s);  // what the sweep reported as a stall
+  EXPECT_LT(s.program_time_s,
+            test::motion_time_exact_stop(c.generated.program, c.machine, c.generated.overrides));
 }
 
 // Seed 3 program 465 (3 axes, 500 us): corner-limited CAM chords (the Y axis' 0.5 mm/s corner
