@@ -340,6 +340,19 @@ TEST(SweepTimeLimit, Seed3Program465SlowBeforeAnOverrideDropIsNotAStall) {
   EXPECT_GT(override_s, 0.9 * (s.program_time_s - drop_s));
 }
 
+// Wide sweep seed 26 program 280 (3 axes, 1 ms): a full circle led by stiff axes (path
+// acceleration 5,700 mm/s^2) ends at a junction of 0.04 mm/s into a spiral arc led by X
+// (22.6 mm/s^2, 11,300 mm/s^3). Braking hard for the junction, 5e-6 mm short of its plan, the
+// motion was held to the deceleration limit of the arc, whose release-now room was larger than
+// the braking's: it eased the braking and crossed at 12.3 mm/s, 393 findings (corner step 37 x
+// X's tolerance, then 0.5 s above its velocity limit). The braking towards the junction's speed
+// limit now takes the deceleration back itself.
+TEST(RandomSweep, WideSeed26Program280KeepsBrakingForTheJunctionItsDecelerationLimitIsAt) {
+  const SweepCase c = sweep_case(26, 280, true);
+  ASSERT_EQ(c.axes, 3);
+  expect_runs_clean(c, "wide seed 26 program 280");
+}
+
 // Wide sweep seed 1 program 281 (9 axes, 1 ms): a line led by X (jerk 1.7e6 mm/s^3) meets,
 // through a message record, a helix led by axes of jerk 750..5000 mm/s^3; X reverses there, so
 // its 0.014 mm/s corner tolerance holds the junction to 0.0075 mm/s. The braking planned at the

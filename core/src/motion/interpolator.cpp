@@ -241,6 +241,10 @@ struct Constraint {
   //! The calculation step that can reach the junction already has that record's jerk limit, and
   //! the deceleration it carries in cannot be taken back there before the motion stops.
   double reserve = 0.0;
+  //! Deceleration limits: the hard speed limit at the same junction (the record's wg). Braking
+  //! to it from above ends with the deceleration taken back, which keeps this limit too
+  //! (dec_kept).
+  double junction_v = kInf;
 };
 
 // Path travelled in time t from speed v and acceleration a at constant jerk j.
@@ -969,6 +973,7 @@ struct Interpolator::Impl {
         // Into a record of lower jerk: the calculation step that can reach the junction has
         // that jerk already (dec_room).
         if (sc * r.jt < j_before) ck.Jx = sc * r.jt;
+        ck.junction_v = r.wg;
         if (n_dec == kMaxDecelLimits) break;
       }
       if (sc * r.jt < j_before) {
@@ -996,6 +1001,24 @@ struct Interpolator::Impl {
       need += 2.0 * step_reach(v_after, -ck.w, ck.J);
     }
     return need;
+  }
+
+  // True when deceleration limit ck does not bound the deceleration of (v, a) with `room` [mm]
+  // left: it can be taken back to -ck.w before the junction now (dec_room), or the motion is
+  // braking to the speed limit at the same junction (v above it, and the braking to it an
+  // S-curve that ends with zero acceleration: the speed taken back to zero acceleration at the
+  // plan's jerk is still above the limit). That braking is the speed limit's own check (its
+  // plan and reserve, which the calculation steps keep) and takes the deceleration back before
+  // the junction too. dec_room alone takes it back at once and keeps two steps' reach at the
+  // speed that leaves, which for a motion braking hard towards a junction of 0.04 mm/s was more
+  // room than the braking itself: wide sweep seed 26 program 280 (X: 22.6 mm/s^2, 11,300
+  // mm/s^3, 1 ms cycles) eased a braking of 5,000 mm/s^2 at 16 mm/s that was 5e-6 mm short of
+  // its plan and crossed the junction at 12.3 mm/s (corner step 37 x the tolerance, then 0.5 s
+  // above X's velocity limit). When the braking falls short, the speed limit is then missed by
+  // that little, and the deceleration limit by what the braking still carries into the junction.
+  bool dec_kept(double v, double a, const Constraint& ck, double room) const {
+    if (dec_room(v, a, ck) <= room) return true;
+    return v > ck.junction_v && jerk::settled_velocity(v, a, kPlanMarginJ * ck.J) > ck.junction_v;
   }
 
   // Next non-pass record after `q` is a stop, or the buffer ends there.
@@ -1649,7 +1672,7 @@ struct Interpolator::Impl {
           for (int i = 0; i < n_dec; ++i) {
             const Constraint& ck = dec[i];
             if (ns.a >= -ck.w || ck.d - ds <= 0.0) continue;  // within, or entered in this step
-            if (dec_room(std::max(ns.v, 0.0), ns.a, ck) > ck.d - ds) return false;
+            if (!dec_kept(std::max(ns.v, 0.0), ns.a, ck, ck.d - ds)) return false;
           }
           return true;
         };
