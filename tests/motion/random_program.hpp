@@ -211,6 +211,44 @@ inline RecordLimits record_limits(const Segment& sg, const std::array<double, kM
   return out;
 }
 
+// Rel_Speed over time: rel0, then each change from its time on.
+class RelSchedule {
+ public:
+  RelSchedule(std::vector<std::pair<double, double>> changes, double rel0)
+      : changes_(std::move(changes)), rel_(rel0) {
+    std::sort(changes_.begin(), changes_.end());
+  }
+  //! Rel_Speed at time t (t must not decrease from call to call).
+  double at(double t) {
+    while (next_ < changes_.size() && changes_[next_].first <= t) rel_ = changes_[next_++].second;
+    return rel_;
+  }
+  //! Time of the first change not yet applied by at(); infinity when none is left.
+  double next_change() const {
+    return next_ < changes_.size() ? changes_[next_].first
+                                   : std::numeric_limits<double>::infinity();
+  }
+
+ private:
+  std::vector<std::pair<double, double>> changes_;
+  std::size_t next_ = 0;
+  double rel_;
+};
+
+// Calls f(record_limits) for every motion record of `program` in order, each from the end of
+// the one before (the program starts at 0).
+template <class F>
+void for_each_motion_record(const Program& program, const MachineConfig& machine, F&& f) {
+  const int n = program.number_axes;
+  std::array<double, kMaxAxes> pos{};
+  for (const Segment& sg : program.segments) {
+    if (!sg.is_motion()) continue;
+    const RecordLimits lim = record_limits(sg, pos, machine, n);
+    for (int i = 0; i < n; ++i) pos[i] = sg.end[i];
+    f(lim);
+  }
+}
+
 // Lower bound [s] of the time the motion of `program` needs on `machine` with Rel_Speed
 // `rel0` changed at the given times: every record at its speed cap min(F x Rel_Speed, axis
 // velocity limits projected on the record) the whole way, no acceleration, no corners, no
@@ -222,21 +260,13 @@ inline RecordLimits record_limits(const Segment& sg, const std::array<double, kM
 inline double motion_time_lower_bound(const Program& program, const MachineConfig& machine,
                                       std::vector<std::pair<double, double>> changes,
                                       double rel0 = 1.0) {
-  const int n = program.number_axes;
-  std::sort(changes.begin(), changes.end());
-  std::size_t next = 0;
-  double rel = rel0;
+  RelSchedule rel(std::move(changes), rel0);
   double t = 0.0;
-  std::array<double, kMaxAxes> pos{};
-  for (const Segment& sg : program.segments) {
-    if (!sg.is_motion()) continue;
-    const RecordLimits lim = record_limits(sg, pos, machine, n);
-    for (int i = 0; i < n; ++i) pos[i] = sg.end[i];
+  for_each_motion_record(program, machine, [&](const RecordLimits& lim) {
     double left = lim.length;
     while (left > 0.0) {
-      while (next < changes.size() && changes[next].first <= t) rel = changes[next++].second;
-      const double v = std::min(lim.feed * rel, lim.cap);
-      const double t_change = next < changes.size() ? changes[next].first : std::numeric_limits<double>::infinity();
+      const double v = std::min(lim.feed * rel.at(t), lim.cap);
+      const double t_change = rel.next_change();
       if (t + left / v <= t_change) {
         t += left / v;
         left = 0.0;
@@ -245,7 +275,7 @@ inline double motion_time_lower_bound(const Program& program, const MachineConfi
         t = t_change;
       }
     }
-  }
+  });
   return t;
 }
 
@@ -274,20 +304,12 @@ inline double rest_to_rest_time(double length, double v, double a, double j) {
 inline double motion_time_exact_stop(const Program& program, const MachineConfig& machine,
                                      std::vector<std::pair<double, double>> changes,
                                      double rel0 = 1.0) {
-  const int n = program.number_axes;
-  std::sort(changes.begin(), changes.end());
-  std::size_t next = 0;
-  double rel = rel0;
+  RelSchedule rel(std::move(changes), rel0);
   double t = 0.0;
-  std::array<double, kMaxAxes> pos{};
-  for (const Segment& sg : program.segments) {
-    if (!sg.is_motion()) continue;
-    const RecordLimits lim = record_limits(sg, pos, machine, n);
-    for (int i = 0; i < n; ++i) pos[i] = sg.end[i];
-    while (next < changes.size() && changes[next].first <= t) rel = changes[next++].second;
-    const double v = std::min({lim.feed * rel, lim.cap, lim.radius_cap});
+  for_each_motion_record(program, machine, [&](const RecordLimits& lim) {
+    const double v = std::min({lim.feed * rel.at(t), lim.cap, lim.radius_cap});
     t += rest_to_rest_time(lim.length, v, 0.999 * 0.98 * lim.accel, 0.999 * 0.9 * lim.jerk);
-  }
+  });
   return t;
 }
 
