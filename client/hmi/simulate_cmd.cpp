@@ -484,9 +484,12 @@ int run_simulate(int argc, char** argv) {
   const bool finished = sum.result == StepResult::kFinished;
   std::printf("program:   %s (%zu records, interpolator %d, %d us cycle)\n", file.c_str(),
               compiled.program.segments.size(), ip_index, machine.cycle_time_us);
-  const std::string why = interrupted != 0 ? std::string("interrupted by ") + (interrupted == SIGINT ? "SIGINT" : "SIGTERM") +
-                                                  " (the output files hold every cycle up to here)"
-                                            : sum.error;
+  const std::string why =
+      interrupted != 0
+          ? std::string("interrupted by ") + (interrupted == SIGINT ? "SIGINT" : "SIGTERM") +
+                (csv_every > 1 ? " (the output files hold the run up to here)"
+                               : " (the output files hold every cycle up to here)")
+          : sum.error;
   std::printf("result:    %s%s%s\n", finished ? "finished" : "NOT finished", why.empty() ? "" : ": ", why.c_str());
   std::printf("time:      %.4f s program time, %llu cycles, simulated %.0fx faster than real time\n",
               sum.program_time_s, static_cast<unsigned long long>(sum.cycles),

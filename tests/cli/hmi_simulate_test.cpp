@@ -342,6 +342,9 @@ TEST_F(HmiSimulate, InterruptKeepsEveryCycleWrittenAndSaysSo) {
 TEST_F(HmiSimulate, InterruptWithCsvEveryStillWritesTheLastCycle) {
   const Interrupted r = run_and_interrupt(dir_, {"--csv-every", "997"});
   EXPECT_EQ(r.exit_code, 130);
+  EXPECT_NE(r.summary.find("interrupted by SIGINT (the output files hold the run up to here)"),
+            std::string::npos)
+      << r.summary;
   const auto rows = lines(r.csv);
   const double cycles = number_before(r.summary, " cycles");
   ASSERT_GT(cycles, 997.0 * 3);
