@@ -417,7 +417,7 @@ int run_simulate(int argc, char** argv) {
   // one (the last cycle of a run is written whether it is an N-th or not).
   struct CsvRow {
     std::uint64_t cycle = 0;
-    long long ints[5] = {};  // line, act_part, status, run_flag, m_func
+    long long line = 0, act_part = 0, status = 0, run_flag = 0, m_func = 0;
     double act_speed = 0.0, move_distance = 0.0;
     std::array<double, kMaxAxes> orig{}, pos{}, speed{};
     std::array<std::int64_t, kMaxAxes> inc{};
@@ -429,7 +429,7 @@ int run_simulate(int argc, char** argv) {
   auto write_row = [&](const CsvRow& x) {
     CsvWriter& w = *csv_out;
     w.fixed(static_cast<double>(x.cycle) * T, 6);
-    for (const long long v : x.ints) w.col(v);
+    for (const long long v : {x.line, x.act_part, x.status, x.run_flag, x.m_func}) w.col(v);
     w.col(x.act_speed, 6);
     w.col(x.move_distance, 9);
     for (int i = 0; i < n; ++i) w.col(x.orig[static_cast<std::size_t>(i)], 9);
@@ -445,14 +445,14 @@ int run_simulate(int argc, char** argv) {
       if (la && la_changed(r)) write_lookahead(r);
       if (!csv) return;
       // An event: status, run_flag or m_func differ from the cycle before.
-      const bool event = !any_row || r.status != row.ints[2] || r.run_flag != row.ints[3] ||
-                         r.m_func != row.ints[4];
+      const bool event = !any_row || r.status != row.status || r.run_flag != row.run_flag ||
+                         r.m_func != row.m_func;
       row.cycle = r.cycle;
-      row.ints[0] = r.act_line;
-      row.ints[1] = r.act_part;
-      row.ints[2] = r.status;
-      row.ints[3] = r.run_flag;
-      row.ints[4] = r.m_func;
+      row.line = r.act_line;
+      row.act_part = r.act_part;
+      row.status = r.status;
+      row.run_flag = r.run_flag;
+      row.m_func = r.m_func;
       row.act_speed = r.act_speed;
       row.move_distance = r.move_distance;
       row.orig = r.orig_position;

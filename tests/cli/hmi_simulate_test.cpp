@@ -264,19 +264,19 @@ TEST_F(HmiSimulate, ProgressGoesToStandardErrorUnlessQuiet) {
   EXPECT_EQ(r.err, "");
 }
 
-// Runs a 6,000 s program (stepped cycle by cycle into a CSV: far longer than the test waits)
-// with `extra` flags and interrupts it with SIGINT once it is well under way. Returns the exit
-// code (-1: killed or hung, after a test failure), the summary and the CSV.
+// 6,000 s of program time: stepped cycle by cycle into a CSV, far longer than a test waits.
+const std::string kLongProgram = "G90 G1 X1000 F10\nM2\n";
+
+// Runs `prog` with `extra` flags and its CSV in `dir`, and interrupts it with SIGINT once it is
+// well under way. Returns the exit code (-1: killed or hung, after a test failure), the summary
+// and the CSV.
 struct Interrupted {
   int exit_code = -1;
   std::string summary, csv;
 };
-Interrupted run_and_interrupt(const fs::path& dir, const std::vector<std::string>& extra) {
-  const fs::path prog = dir / "long.ngc", csv = dir / "long.csv", out = dir / "stdout",
-                 err = dir / "stderr";
-  std::FILE* f = std::fopen(prog.c_str(), "w");
-  std::fputs("G90 G1 X1000 F10\nM2\n", f);
-  std::fclose(f);
+Interrupted run_and_interrupt(const fs::path& dir, const fs::path& prog,
+                              const std::vector<std::string>& extra) {
+  const fs::path csv = dir / "long.csv", out = dir / "stdout", err = dir / "stderr";
   std::vector<std::string> argv = {TGM_HMI, "simulate", prog.string(), "--config",
                                    kConfig, "--csv",    csv.string(),  "--progress-interval",
                                    "0.05"};
@@ -324,7 +324,7 @@ Interrupted run_and_interrupt(const fs::path& dir, const std::vector<std::string
 }
 
 TEST_F(HmiSimulate, InterruptKeepsEveryCycleWrittenAndSaysSo) {
-  const Interrupted r = run_and_interrupt(dir_, {});
+  const Interrupted r = run_and_interrupt(dir_, write("long.ngc", kLongProgram), {});
   EXPECT_EQ(r.exit_code, 130);
   EXPECT_NE(r.summary.find("result:    NOT finished: interrupted by SIGINT"), std::string::npos)
       << r.summary;
@@ -340,7 +340,8 @@ TEST_F(HmiSimulate, InterruptKeepsEveryCycleWrittenAndSaysSo) {
 
 // With --csv-every the cycle the interrupt ended on is the last row, an N-th or not.
 TEST_F(HmiSimulate, InterruptWithCsvEveryStillWritesTheLastCycle) {
-  const Interrupted r = run_and_interrupt(dir_, {"--csv-every", "997"});
+  const Interrupted r =
+      run_and_interrupt(dir_, write("long.ngc", kLongProgram), {"--csv-every", "997"});
   EXPECT_EQ(r.exit_code, 130);
   EXPECT_NE(r.summary.find("interrupted by SIGINT (the output files hold the run up to here)"),
             std::string::npos)

@@ -137,19 +137,17 @@ inline RecordLimits record_limits(const Segment& sg, const std::array<double, kM
     return std::min(ax.max_jerk_mm_s3, ax.max_acceleration_mm_s2 / (4.0 * dt));
   };
   RecordLimits out;
-  double& length = out.length;
-  double& cap = out.cap;
   out.feed = sg.feed_mm_per_min / 60.0;
   if (!sg.is_arc()) {
     double l2 = 0.0;
     for (int i = 0; i < n; ++i) l2 += (sg.end[i] - pos[i]) * (sg.end[i] - pos[i]);
-    length = std::sqrt(l2);
+    out.length = std::sqrt(l2);
     double rapid = std::numeric_limits<double>::infinity();
-    for (int i = 0; i < n && length > 0.0; ++i) {
-      const double c = std::fabs(sg.end[i] - pos[i]) / length;
+    for (int i = 0; i < n && out.length > 0.0; ++i) {
+      const double c = std::fabs(sg.end[i] - pos[i]) / out.length;
       if (c < 1e-12) continue;
       const AxisConfig& ax = ip.axes[static_cast<std::size_t>(i)];
-      cap = std::min(cap, ax.max_velocity_mm_s / c);
+      out.cap = std::min(out.cap, ax.max_velocity_mm_s / c);
       rapid = std::min(rapid, ax.rapid_velocity_mm_s / c);
       out.accel = std::min(out.accel, ax.max_acceleration_mm_s2 / c);
       out.jerk = std::min(out.jerk, jerk_of(ax) / c);
@@ -175,11 +173,12 @@ inline RecordLimits record_limits(const Segment& sg, const std::array<double, kM
   for (int i = 0; i < n; ++i) {
     if (i != pa.first && i != pa.second) lin2 += (sg.end[i] - pos[i]) * (sg.end[i] - pos[i]);
   }
-  length = std::sqrt(plane_len * plane_len + lin2);
-  for (int i = 0; i < n && length > 0.0; ++i) {
+  out.length = std::sqrt(plane_len * plane_len + lin2);
+  for (int i = 0; i < n && out.length > 0.0; ++i) {
     if (i == pa.first || i == pa.second) continue;
-    const double c = std::fabs(sg.end[i] - pos[i]) / length;
-    if (c > 1e-12) cap = std::min(cap, ip.axes[static_cast<std::size_t>(i)].max_velocity_mm_s / c);
+    const double c = std::fabs(sg.end[i] - pos[i]) / out.length;
+    if (c > 1e-12)
+      out.cap = std::min(out.cap, ip.axes[static_cast<std::size_t>(i)].max_velocity_mm_s / c);
   }
   // The plane axes: the interpolator holds a whole arc record to one cap from their velocity
   // limits and the largest share of the path speed they take anywhere on it (core/MOTION.md).
@@ -194,8 +193,8 @@ inline RecordLimits record_limits(const Segment& sg, const std::array<double, kM
   const double rp = (r1 - r0) / sweep;
   const double share = std::min(r0, r1) / std::sqrt(std::max(r0, r1) * std::max(r0, r1) + rp * rp +
                                                     lin2 / (sweep * sweep));
-  if (passes(0.5 * kSweepPi)) cap = std::min(cap, ip.axes[f].max_velocity_mm_s / share);
-  if (passes(0.0)) cap = std::min(cap, ip.axes[s].max_velocity_mm_s / share);
+  if (passes(0.5 * kSweepPi)) out.cap = std::min(out.cap, ip.axes[f].max_velocity_mm_s / share);
+  if (passes(0.0)) out.cap = std::min(out.cap, ip.axes[s].max_velocity_mm_s / share);
   // Acceleration and jerk: every axis the arc moves, at the conservative shares above.
   double a_min = std::numeric_limits<double>::infinity(), j_min = a_min;
   for (int i = 0; i < n; ++i) {
