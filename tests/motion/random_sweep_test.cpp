@@ -353,6 +353,47 @@ TEST(RandomSweep, WideSeed26Program280KeepsBrakingForTheJunctionItsDecelerationL
   expect_runs_clean(c, "wide seed 26 program 280");
 }
 
+// Wide sweep seed 33 program 204 (2 axes, 1 ms): from rest along a 0.088 mm line of X alone
+// (37,000 mm/s^3) into a line led by Y (15.3 mm/s^2, 7,600 mm/s^3). The acceleration built along
+// X was taken back to the second line's limit at X's jerk, planned to end at the junction; the
+// calculation step that could reach the junction had Y's jerk, and the motion entered at
+// 20.9 mm/s^2 against a path limit of 17.9 (Y at 1.003 x). Seeds 34/205 and 40/90 (an axis of
+// 38 and 12.6 mm/s^2 entering its chord, 1.05 and 1.02 x) were the same. An acceleration limit
+// into a record of lower jerk now keeps two steps' reach of room (accel_room).
+TEST(RandomSweep, WideAccelerationIsWithinTheLimitBeforeASofterRecordIsReached) {
+  for (const auto& [seed, k] :
+       {std::pair<std::uint64_t, std::uint64_t>{33, 204}, {34, 205}, {40, 90}}) {
+    const SweepCase c = sweep_case(seed, k, true);
+    expect_runs_clean(c, "wide " + case_context(seed, k, c));
+  }
+}
+
+// Wide sweep seed 25 program 255 (250 us): a cruise along a chord of X (306,787 mm/s^3) whose
+// look-ahead horizon ended 0.02 mm ahead, where a 0.018 mm chord of 1,516 mm/s^3 began; the corner
+// after that chord, 0.92 mm/s below the cruise, came into view 0.039 mm ahead and needed 0.135 mm
+// of braking. The braking built 281 mm/s^2 at X's jerk and entered the short chord too hard for
+// the chord after it (Y at 1.05 x its acceleration limit); the deceleration limit of that chord
+// was not even looked at (its scan stopped at the first record beyond the stiff chord's reach).
+// The horizon now counts the record just beyond the window, and the scan goes on to the reach at
+// the window's lowest jerk.
+TEST(RandomSweep, WideSeed25Program255SeesTheCornerBehindAShortSofterChordInTime) {
+  const SweepCase c = sweep_case(25, 255, true);
+  ASSERT_EQ(c.axes, 3);
+  expect_runs_clean(c, "wide seed 25 program 255");
+}
+
+// Wide sweep seed 33 program 50 (1 ms): braking along a chord of 2.2e6 mm/s^3 for a corner and a
+// feed dropped by the override, the motion entered a chord led by Z (787 mm/s^3 along the path)
+// at 2.1 mm/s with its full acceleration limit of 393 mm/s^2 as deceleration. That jerk needs
+// 0.5 s to take it back, the speed was gone in 5 ms: the motion stopped dead with Z's jerk at
+// 147 x its limit. Entering a record of lower jerk, the deceleration is now also held to what
+// that jerk can take back before the motion stops (dec_target).
+TEST(RandomSweep, WideSeed33Program50EntersASofterChordWithADecelerationItCanTakeBack) {
+  const SweepCase c = sweep_case(33, 50, true);
+  ASSERT_EQ(c.axes, 3);
+  expect_runs_clean(c, "wide seed 33 program 50");
+}
+
 // Wide sweep seed 1 program 281 (9 axes, 1 ms): a line led by X (jerk 1.7e6 mm/s^3) meets,
 // through a message record, a helix led by axes of jerk 750..5000 mm/s^3; X reverses there, so
 // its 0.014 mm/s corner tolerance holds the junction to 0.0075 mm/s. The braking planned at the

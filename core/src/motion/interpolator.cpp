@@ -693,6 +693,16 @@ struct Interpolator::Impl {
            vc * (ac + a_hi) / (kPlanMarginJ * j0) + 2.0 * vc * T + 1e-6;
   }
 
+  // Lowers a0 and j0 to the tangential limits of the motion record at the window's end, if any
+  // (update_window's horizon, skip_cruise's bound of it).
+  void next_limits(double& a0, double& j0) const {
+    if (win_end <= cur || win_end >= tail) return;
+    const Rec& r = R(win_end);
+    if (r.kind != RecKind::kMotion) return;
+    a0 = std::min(a0, r.at);
+    j0 = std::min(j0, r.jt);
+  }
+
   void update_window(double& A, double& J) {
     while (!dq_a.empty() && dq_a.front() < cur) dq_a.pop_front();
     while (!dq_j.empty() && dq_j.front() < cur) dq_j.pop_front();
@@ -712,8 +722,15 @@ struct Interpolator::Impl {
     // records may lower them and so lengthen the horizon).
     double a_prev = -1.0, j_prev = -1.0;
     for (int pass = 0; pass < 3; ++pass) {
-      const double a0 = dq_a.empty() ? rc.at : dq_a.min();
-      const double j0 = dq_j.empty() ? rc.jt : dq_j.min();
+      double a0 = dq_a.empty() ? rc.at : dq_a.min();
+      double j0 = dq_j.empty() ? rc.jt : dq_j.min();
+      // The motion record just beyond the window counts as well: a braking for a limit in or
+      // after it may have to start before the horizon of the window's own limits reaches it
+      // when its limits are lower. (Wide sweep seed 25 program 255 cruised along a chord of
+      // 306,787 mm/s^3 whose horizon ended 0.02 mm ahead, at a chord of 1,516 mm/s^3 and
+      // 0.018 mm; the corner after it, 0.92 mm/s below the cruise, came into view 0.039 mm
+      // ahead where its braking needed 0.135 mm, and the motion broke a limit either way.)
+      next_limits(a0, j0);
       // Minima unchanged by the records the last pass added: the same horizon, and the scan
       // stopped where it would stop again.
       if (a0 == a_prev && j0 == j_prev) break;
@@ -807,7 +824,11 @@ struct Interpolator::Impl {
                                                  : (rel == 1.0 ? LimitFactor::kFeed : LimitFactor::kOverride));
           Constraint& ck = c[k++];
           ck = {r.s0 - here, w, A, J, why, fam == 2, fam == 1};
-          if (fam != 2) {
+          if (fam == 2) {
+            // Into a record of lower jerk: the calculation step that can reach the junction has
+            // that jerk already (accel_room).
+            if (r.kind == RecKind::kMotion && r.jt < J) ck.Jx = r.jt;
+          } else {
             // Jerk limit over the records up to the next smaller limit of the chain (the window
             // minimum when that is beyond the window): where an acceleration still positive at
             // this limit is taken back (see Constraint::Jx).
@@ -876,7 +897,15 @@ struct Interpolator::Impl {
   // cons_ac back to w (or to 0) at the same jerk needs.
   double cycle_bound(const Constraint& ck) const {
     const double J = kPlanMarginJ * ck.J;
-    if (ck.accel) return accel_distance(cons_vc, cons_ac, ck.w, J);
+    if (ck.accel) {
+      // accel_room from the cycle's fastest state; the speed after the taper is at most
+      // cons_vc + cons_ac^2 / 2J.
+      double d = accel_distance(cons_vc, cons_ac, ck.w, J);
+      if (ck.Jx < ck.J && cons_ac > ck.w) {
+        d += 2.0 * step_reach(cons_vc + cons_ac * cons_ac / (2.0 * J), ck.w, ck.J);
+      }
+      return d;
+    }
     const double A = kPlanMargin * ck.A;
     double d = jerk::braking_plan(cons_vc, cons_ac, ck.w, A, J).distance + quarter_dt2 * A;
     if (ck.Jx < ck.J) d = std::max(d, accel_distance(cons_vc, cons_ac, 0.0, J));
@@ -957,6 +986,13 @@ struct Interpolator::Impl {
       return ds_max + v_end * a_max / (kPlanMarginJ * j) + 2.0 * step_reach(v_end, 0.0, j);
     };
     double reach = reach_for(j_before);
+    // A record beyond the reach may have a lower jerk, and the records after it come into reach
+    // with it: scanning stops beyond the reach at the window's lowest jerk limit. (Stopping at
+    // the first record beyond the reach missed a limit after a short record of lower jerk: wide
+    // sweep seed 25 program 255 braked at 306,787 mm/s^3 to 276 mm/s^2 in front of a 0.018 mm
+    // chord of 1,516 mm/s^3, which could not take the deceleration down to the 34.7 mm/s^2 of
+    // the record after it, and Y exceeded its acceleration limit by 5 %.)
+    const double reach_max = reach_for(std::min(j_before, sc * cons_Jw));
     int n_dec = 0;
     int scanned = 0;
     std::size_t idx = ring_index(cur + 1);
@@ -966,13 +1002,17 @@ struct Interpolator::Impl {
       if (r.kind == RecKind::kStop) break;
       if (r.kind != RecKind::kMotion) continue;
       const double d = r.s0 - here;
-      if (d > reach) break;
-      if (sc * r.at < a_max) {
+      if (d > reach_max) break;
+      // A record of lower jerk also limits the deceleration its jerk can take back before the
+      // motion stops there (dec_target; the entry speed is below v_end while decelerating).
+      const bool softer = sc * r.jt < j_before;
+      if (d <= reach && (sc * r.at < a_max ||
+                         (softer && 2.0 * kFloorMarginJ * sc * r.jt * v_end < a_max * a_max))) {
         Constraint& ck = dec[n_dec++];
         ck = {d, sc * r.at, sc * r.at, j_before, LimitFactor::kAccelJerk, true};
         // Into a record of lower jerk: the calculation step that can reach the junction has
         // that jerk already (dec_room).
-        if (sc * r.jt < j_before) ck.Jx = sc * r.jt;
+        if (softer) ck.Jx = sc * r.jt;
         ck.junction_v = r.wg;
         if (n_dec == kMaxDecelLimits) break;
       }
@@ -995,10 +1035,45 @@ struct Interpolator::Impl {
   // program 118 crossed it at 0.36 mm/s.)
   double dec_room(double v, double a, const Constraint& ck) const {
     const double jp = kPlanMarginJ * ck.J;
+    const double w = dec_target(v, a, ck);
+    double need = accel_distance(v, a, w, jp);
+    if (ck.Jx < ck.J) {
+      const double v_after = std::max(0.0, speed_after(v, a, jp, (-a - w) / jp));
+      need += 2.0 * step_reach(v_after, -w, ck.J);
+    }
+    return need;
+  }
+
+  // Deceleration [mm/s^2, > 0] that a motion at (v, a), a < 0, may carry into the record of
+  // deceleration limit ck: its tangential limit and, into a record of lower jerk, no more than
+  // that jerk can take back before the motion stops (a^2 <= 2 jf v at the speed of entry, jf at
+  // the no-reversal floor's margin). Taking a back to w at the plan's jerk jp first leaves
+  // v - (a^2 - w^2) / 2jp, so w^2 (1 - jf/jp) <= 2 jf v - (jf/jp) a^2; |a| is within that bound
+  // exactly when a^2 <= 2 jf v. Without it wide sweep seed 33 program 50 braked for a corner
+  // along a chord of 2.2e6 mm/s^3 and entered a chord led by Z (787 mm/s^3 along the path) at
+  // its acceleration limit of 393 mm/s^2 and 2.1 mm/s: the motion stopped dead 5 ms later with
+  // Z's jerk at 147 x its limit.
+  double dec_target(double v, double a, const Constraint& ck) const {
+    if (!(ck.Jx < ck.J)) return ck.w;
+    const double jf = kFloorMarginJ * ck.Jx, r = jf / (kPlanMarginJ * ck.J);
+    if (r >= 1.0) return ck.w;  // this record's own floor is the stricter one
+    const double w2 = (2.0 * jf * std::max(v, 0.0) - r * a * a) / (1.0 - r);
+    return std::min(ck.w, std::sqrt(std::max(0.0, w2)));
+  }
+
+  // Room [mm] that an acceleration a > w needs before acceleration limit ck (gather's acceleration
+  // chain): taking it back to w at the plan's jerk and, into a record of lower jerk (ck.Jx <
+  // ck.J), twice the farthest a calculation step reaches from the state then, (v', w): dec_room
+  // for an acceleration. A step that can reach the junction has the lower jerk and takes little
+  // acceleration back: without this room wide sweep seed 33 program 204 (X: 37,000 mm/s^3 along
+  // the first line, Y: 15.3 mm/s^2 and 7,600 mm/s^3 leading the second) entered the second line
+  // at 20.9 mm/s^2 against its path limit of 17.9 (Y at 1.003 x its limit).
+  double accel_room(double v, double a, const Constraint& ck) const {
+    const double jp = kPlanMarginJ * ck.J;
     double need = accel_distance(v, a, ck.w, jp);
     if (ck.Jx < ck.J) {
-      const double v_after = std::max(0.0, speed_after(v, a, jp, (-a - ck.w) / jp));
-      need += 2.0 * step_reach(v_after, -ck.w, ck.J);
+      const double v_after = speed_after(v, a, -jp, (a - ck.w) / jp);
+      need += 2.0 * step_reach(v_after, ck.w, ck.J);
     }
     return need;
   }
@@ -1671,7 +1746,8 @@ struct Interpolator::Impl {
           const double ds = ns.s - before.s;
           for (int i = 0; i < n_dec; ++i) {
             const Constraint& ck = dec[i];
-            if (ns.a >= -ck.w || ck.d - ds <= 0.0) continue;  // within, or entered in this step
+            if (ck.d - ds <= 0.0) continue;  // entered in this step
+            if (ns.a >= -ck.w && (ck.Jx >= ck.J || ns.a >= -dec_target(ns.v, ns.a, ck))) continue;
             if (!dec_kept(std::max(ns.v, 0.0), ns.a, ck, ck.d - ds)) return false;
           }
           return true;
@@ -1724,10 +1800,8 @@ struct Interpolator::Impl {
           }
           return v_lim - ck.w;
         }
-        if (ck.accel) {
-          if (ns.a <= ck.w) return -remain;
-          return accel_distance(std::max(ns.v, 0.0), ns.a, ck.w, kPlanMarginJ * ck.J) - remain;
-        }
+        if (ck.accel)
+          return ns.a <= ck.w ? -remain : accel_room(std::max(ns.v, 0.0), ns.a, ck) - remain;
         // Inside the reserve there is no room: a state at or below w that is not accelerating
         // keeps w (the speed only falls) and needs none. The plan's step allowance, on the
         // easing plan such a state gets with the step's higher jerk, failed it for any
@@ -2311,7 +2385,8 @@ struct Interpolator::Impl {
   //      over one calculation step stays within every acceleration limit of the window (so no
   //      deceleration limit ahead can raise the step's lowest acceleration);
   //  (2) the window cannot grow in this cycle beyond the records scanned here: the next record
-  //      lies farther than a bound of every horizon update_window may compute (scan minima);
+  //      lies farther than a bound of every horizon update_window may compute (scan minima,
+  //      and the next record's own limits, which update_window counts once the window ends there);
   //  (3) the slack of every limit gather() could return is larger than the distance travelled,
   //      judged conservatively: each speed limit below v of the scanned records (at its own
   //      position, braking with the scan's lowest acceleration and jerk and the largest reserve),
@@ -2403,7 +2478,16 @@ struct Interpolator::Impl {
       const double safety = 1e-6 + 1e-12 * std::fabs(p1);
       // (2) Scan the window (made while the motion was faster it may reach farther than this
       // cruise needs), then until the window cannot pass qf in this cycle.
-      auto window_may_pass = [&] { return qf < win_end || R(qf).s0 <= p1 + h + safety; };
+      // (update_window counts the record just beyond the window: qf's own limits too.)
+      auto window_may_pass = [&] {
+        if (qf < win_end) return true;
+        const Rec& r = R(qf);
+        double hq = h;
+        if (r.kind == RecKind::kMotion && (r.at < a_lo || r.jt < j_lo)) {
+          hq = horizon_bound(v, 0.0, j_hi, std::min(a_lo, r.at), a_hi, std::min(j_lo, r.jt));
+        }
+        return r.s0 <= p1 + hq + safety;
+      };
       while (!closed && !full && window_may_pass()) scan_one();
       if (!closed && window_may_pass()) break;
       // (1) The records this cycle may enter.
