@@ -394,6 +394,20 @@ TEST(RandomSweep, WideSeed33Program50EntersASofterChordWithADecelerationItCanTak
   expect_runs_clean(c, "wide seed 33 program 50");
 }
 
+// Wide sweep seeds 29 program 45 and 38 program 47 (1 ms): brakings of about eleven calculation
+// steps at 2.2e6 mm/s^3 for reversals held to about 0.01 mm/s fell micrometres behind their
+// plan, and the best effort's release floor then eased them: its stretches ended one step of
+// travel at the current speed (0.0005 mm at 2.4 mm/s) before the junction into a softer record,
+// where the step that can reach the junction moves at the far lower speed the release has left.
+// They crossed at 0.2 mm/s (Y's corner steps 20 and 16 x the tolerance). The stretch now ends
+// where a step at the release's own speed reaches the junction.
+TEST(RandomSweep, WideBestEffortReleaseEndsWhereAStepReachesTheJunction) {
+  for (const auto& [seed, k] : {std::pair<std::uint64_t, std::uint64_t>{29, 45}, {38, 47}}) {
+    const SweepCase c = sweep_case(seed, k, true);
+    expect_runs_clean(c, "wide " + case_context(seed, k, c));
+  }
+}
+
 // Wide sweep seed 1 program 281 (9 axes, 1 ms): a line led by X (jerk 1.7e6 mm/s^3) meets,
 // through a message record, a helix led by axes of jerk 750..5000 mm/s^3; X reverses there, so
 // its 0.014 mm/s corner tolerance holds the junction to 0.0075 mm/s. The braking planned at the

@@ -2088,11 +2088,11 @@ struct Interpolator::Impl {
   // integrated record by record with the no-reversal floor's margin (at the full limits, the
   // steps between best-effort steps, which do not keep this floor, were left too little room:
   // wide sweep seed 8 program 65 still stopped mid-line). A calculation step that reaches a
-  // junction already has the next record's limit, so each record's stretch starts and ends one
-  // step of travel early and has the lower limit of the record and the one before it. The
-  // release is followed up to a stop point or the end of the buffer (braking for those is
-  // their own limit's) and over at most kReleaseRecords records. sc scales the records' jerk
-  // limits (the emergency ramp's rho).
+  // junction already has the next record's limit, so each record's stretch ends one step of
+  // travel (at the release's speed there) early and the next one has the lower limit of the
+  // record and the one before it. The release is followed up to a stop point or the end of the
+  // buffer (braking for those is their own limit's) and over at most kReleaseRecords records.
+  // sc scales the records' jerk limits (the emergency ramp's rho).
   double release_floor(const jerk::State& before, double x, double hi, double sc) const {
     // The stretches, read from the ring as far as a release gets (most end in a record or two).
     struct Stretch {
@@ -2113,7 +2113,7 @@ struct Interpolator::Impl {
         }
         const Rec& r = R(q_next++);
         if (r.kind != RecKind::kMotion) continue;
-        sk[static_cast<std::size_t>(n_sk++)] = {r.s0 + r.g.length - shift,
+        sk[static_cast<std::size_t>(n_sk++)] = {r.s0 + r.g.length,
                                                 kFloorMarginJ * sc * std::min(j_prev, r.jt)};
         j_prev = r.jt;
       }
@@ -2134,27 +2134,38 @@ struct Interpolator::Impl {
       for (int i = 0;; ++i) {
         const Stretch* e = stretch(i);
         if (e == nullptr) return true;  // a stop point, the end of the buffer, or far enough
-        if (e->end <= pos) continue;
-        const double j = e->j, len = e->end - pos;
-        pos = e->end;
+        // The stretch ends where a calculation step can reach the junction: one step of travel
+        // at the speed the release has there (it only falls), not at the speed it has now. With
+        // the current speed, brakings for reversals of about 0.01 mm/s that fell micrometres
+        // behind their plan lost a step of travel at 2.4 mm/s of their stiff chord, were eased
+        // for a release "into" the softer one that their plan did not make, and crossed at
+        // 0.2 mm/s (wide sweep seed 29 program 45, seed 38 program 47; seed 22 program 221,
+        // 0.003 mm at 15 mm/s, crossed at 6 mm/s and now at 0.08).
+        const double len = e->end - pos;
+        if (len <= v * dt) continue;
+        const double j = e->j;
         auto dist = [&](double t) { return travel(v, a, j, t); };
+        auto reach = [&](double t) {
+          return dist(t) + dt * std::max(0.0, speed_after(v, a, j, t));
+        };
         const double t_rel = -a / j;
         const double v_rel = v - 0.5 * a * a / j;
-        if (v_rel >= 0.0 && dist(t_rel) <= len) return true;  // released inside this stretch
+        if (v_rel >= 0.0 && reach(t_rel) <= len) return true;  // released inside this stretch
         // Leaves the stretch still decelerating, unless it stops first: v reaches 0 at t_end.
         double t_end = t_rel;
         if (v_rel < 0.0) {
           t_end = (-a - std::sqrt(std::max(0.0, a * a - 2.0 * j * v))) / j;
           if (dist(t_end) <= len) return false;
         }
-        // The time it leaves the stretch: dist = len. dist is increasing and concave on
-        // [0, t_end], and dist(t) <= v t, so Newton's steps from len / v rise to the root.
-        double t = std::min(len / v, t_end);
-        for (int it = 0; it < 8; ++it) {
-          const double f = dist(t) - len;
-          if (f >= -1e-12 * len) break;
-          t = std::min(t_end, t - f / speed_after(v, a, j, t));
+        // The time a step can reach the junction: the first t with reach(t) = len (reach(0) < len
+        // <= reach(t_end)), by bisection.
+        double t_lo = 0.0, t_hi = t_end;
+        for (int it = 0; it < 40 && t_hi - t_lo > 1e-12 * t_end; ++it) {
+          const double tm = 0.5 * (t_lo + t_hi);
+          (reach(tm) < len ? t_lo : t_hi) = tm;
         }
+        const double t = t_hi;
+        pos += dist(t);
         v = speed_after(v, a, j, t);
         a += j * t;
         if (v <= 0.0) return false;
