@@ -357,9 +357,9 @@ TEST(RandomSweep, WideSeed26Program280KeepsBrakingForTheJunctionItsDecelerationL
 // (37,000 mm/s^3) into a line led by Y (15.3 mm/s^2, 7,600 mm/s^3). The acceleration built along
 // X was taken back to the second line's limit at X's jerk, planned to end at the junction; the
 // calculation step that could reach the junction had Y's jerk, and the motion entered at
-// 20.9 mm/s^2 against a path limit of 17.9 (Y at 1.003 x). Seeds 34/205 and 40/90 (an axis of
-// 38 and 12.6 mm/s^2 entering its chord, 1.05 and 1.02 x) were the same. An acceleration limit
-// into a record of lower jerk now keeps two steps' reach of room (accel_room).
+// 20.9 mm/s^2 against a path limit of 17.9 (Y at 1.003 x). An acceleration limit into a record
+// of lower jerk now keeps two steps' reach of room (accel_room); the same change made seeds
+// 34/205 and 40/90 clean (an axis of 38 and 12.6 mm/s^2 entering its chord at 1.05 and 1.02 x).
 TEST(RandomSweep, WideAccelerationIsWithinTheLimitBeforeASofterRecordIsReached) {
   for (const auto& [seed, k] :
        {std::pair<std::uint64_t, std::uint64_t>{33, 204}, {34, 205}, {40, 90}}) {
@@ -397,7 +397,7 @@ TEST(RandomSweep, WideSeed33Program50EntersASofterChordWithADecelerationItCanTak
 // Wide sweep seeds 29 program 45 and 38 program 47 (1 ms): brakings of about eleven calculation
 // steps at 2.2e6 mm/s^3 for reversals held to about 0.01 mm/s fell micrometres behind their
 // plan, and the best effort's release floor then eased them: its stretches ended one step of
-// travel at the current speed (0.0005 mm at 2.4 mm/s) before the junction into a softer record,
+// travel at the current speed (0.00026 mm at 1.3 mm/s) before the junction into a softer record,
 // where the step that can reach the junction moves at the far lower speed the release has left.
 // They crossed at 0.2 mm/s (Y's corner steps 20 and 16 x the tolerance). The stretch now ends
 // where a step at the release's own speed reaches the junction.
