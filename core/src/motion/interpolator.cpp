@@ -1016,7 +1016,7 @@ struct Interpolator::Impl {
         ck.junction_v = r.wg;
         if (n_dec == kMaxDecelLimits) break;
       }
-      if (sc * r.jt < j_before) {
+      if (softer) {
         j_before = sc * r.jt;
         reach = reach_for(j_before);
       }
