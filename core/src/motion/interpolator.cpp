@@ -1034,12 +1034,19 @@ struct Interpolator::Impl {
   // more than a step braking at -w reaches, and made a corner of 0.014 mm/s hopeless: wide seed 4
   // program 118 crossed it at 0.36 mm/s.)
   double dec_room(double v, double a, const Constraint& ck) const {
+    return taper_room(v, a, dec_target(v, a, ck), ck);
+  }
+
+  // Room [mm] to take |a| back to w at the plan's jerk and, into a record of lower jerk (ck.Jx <
+  // ck.J), twice the farthest a calculation step reaches from the state then, (v', +-w):
+  // dec_room for a deceleration, accel_room for an acceleration.
+  double taper_room(double v, double a, double w, const Constraint& ck) const {
     const double jp = kPlanMarginJ * ck.J;
-    const double w = dec_target(v, a, ck);
     double need = accel_distance(v, a, w, jp);
     if (ck.Jx < ck.J) {
-      const double v_after = std::max(0.0, speed_after(v, a, jp, (-a - w) / jp));
-      need += 2.0 * step_reach(v_after, -w, ck.J);
+      const double toward = a > 0.0 ? -jp : jp;  // jerk that takes |a| back
+      const double v_after = std::max(0.0, speed_after(v, a, toward, (std::fabs(a) - w) / jp));
+      need += 2.0 * step_reach(v_after, a > 0.0 ? w : -w, ck.J);
     }
     return need;
   }
@@ -1063,19 +1070,13 @@ struct Interpolator::Impl {
 
   // Room [mm] that an acceleration a > w needs before acceleration limit ck (gather's acceleration
   // chain): taking it back to w at the plan's jerk and, into a record of lower jerk (ck.Jx <
-  // ck.J), twice the farthest a calculation step reaches from the state then, (v', w): dec_room
-  // for an acceleration. A step that can reach the junction has the lower jerk and takes little
-  // acceleration back: without this room wide sweep seed 33 program 204 (X: 37,000 mm/s^3 along
-  // the first line, Y: 15.3 mm/s^2 and 7,600 mm/s^3 leading the second) entered the second line
-  // at 20.9 mm/s^2 against its path limit of 17.9 (Y at 1.003 x its limit).
+  // ck.J), twice the farthest a calculation step reaches from the state then, (v', w)
+  // (taper_room, as dec_room). A step that can reach the junction has the lower jerk and takes
+  // little acceleration back: without this room wide sweep seed 33 program 204 (X: 37,000 mm/s^3
+  // along the first line, Y: 15.3 mm/s^2 and 7,600 mm/s^3 leading the second) entered the second
+  // line at 20.9 mm/s^2 against its path limit of 17.9 (Y at 1.003 x its limit).
   double accel_room(double v, double a, const Constraint& ck) const {
-    const double jp = kPlanMarginJ * ck.J;
-    double need = accel_distance(v, a, ck.w, jp);
-    if (ck.Jx < ck.J) {
-      const double v_after = speed_after(v, a, -jp, (a - ck.w) / jp);
-      need += 2.0 * step_reach(v_after, ck.w, ck.J);
-    }
-    return need;
+    return taper_room(v, a, ck.w, ck);
   }
 
   // True when deceleration limit ck does not bound the deceleration of (v, a) with `room` [mm]
@@ -1747,7 +1748,7 @@ struct Interpolator::Impl {
           for (int i = 0; i < n_dec; ++i) {
             const Constraint& ck = dec[i];
             if (ck.d - ds <= 0.0) continue;  // entered in this step
-            if (ns.a >= -ck.w && (ck.Jx >= ck.J || ns.a >= -dec_target(ns.v, ns.a, ck))) continue;
+            if (ns.a >= -dec_target(ns.v, ns.a, ck)) continue;  // within (dec_target <= ck.w)
             if (!dec_kept(std::max(ns.v, 0.0), ns.a, ck, ck.d - ds)) return false;
           }
           return true;
@@ -2159,12 +2160,8 @@ struct Interpolator::Impl {
         }
         // The time a step can reach the junction: the first t with reach(t) = len (reach(0) < len
         // <= reach(t_end)), by bisection.
-        double t_lo = 0.0, t_hi = t_end;
-        for (int it = 0; it < 40 && t_hi - t_lo > 1e-12 * t_end; ++it) {
-          const double tm = 0.5 * (t_lo + t_hi);
-          (reach(tm) < len ? t_lo : t_hi) = tm;
-        }
-        const double t = t_hi;
+        const double t = bisect(
+            t_end, 0.0, [&](double tt) { return reach(tt) >= len; }, 40);
         pos += dist(t);
         v = speed_after(v, a, j, t);
         a += j * t;
