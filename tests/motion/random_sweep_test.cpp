@@ -22,6 +22,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <functional>
+#include <initializer_list>
 #include <limits>
 #include <random>
 #include <string>
@@ -154,6 +155,15 @@ void expect_runs_clean(const SweepCase& c, const std::string& ctx, SimulationSum
 std::string case_context(std::uint64_t seed, std::uint64_t k, const SweepCase& c) {
   return "seed " + std::to_string(seed) + " program " + std::to_string(k) + " axes " +
          std::to_string(c.axes) + " cycle " + std::to_string(c.machine.cycle_time_us) + " us";
+}
+
+// Runs wide-sweep programs (seed, program) and checks that each finishes clean.
+void expect_wide_programs_clean(
+    std::initializer_list<std::pair<std::uint64_t, std::uint64_t>> programs) {
+  for (const auto& [seed, k] : programs) {
+    const SweepCase c = sweep_case(seed, k, true);
+    expect_runs_clean(c, "wide " + case_context(seed, k, c));
+  }
 }
 
 TEST(RandomSweep, ProgramsFinishAtTheirEndWithinLimits) {
@@ -361,11 +371,7 @@ TEST(RandomSweep, WideSeed26Program280KeepsBrakingForTheJunctionItsDecelerationL
 // of lower jerk now keeps two steps' reach of room (accel_room); the same change made seeds
 // 34/205 and 40/90 clean (an axis of 38 and 12.6 mm/s^2 entering its chord at 1.05 and 1.02 x).
 TEST(RandomSweep, WideAccelerationIsWithinTheLimitBeforeASofterRecordIsReached) {
-  for (const auto& [seed, k] :
-       {std::pair<std::uint64_t, std::uint64_t>{33, 204}, {34, 205}, {40, 90}}) {
-    const SweepCase c = sweep_case(seed, k, true);
-    expect_runs_clean(c, "wide " + case_context(seed, k, c));
-  }
+  expect_wide_programs_clean({{33, 204}, {34, 205}, {40, 90}});
 }
 
 // Wide sweep seed 25 program 255 (250 us): a cruise along a chord of X (306,787 mm/s^3) whose
@@ -402,10 +408,7 @@ TEST(RandomSweep, WideSeed33Program50EntersASofterChordWithADecelerationItCanTak
 // They crossed at 0.2 mm/s (Y's corner steps 20 and 16 x the tolerance). The stretch now ends
 // where a step at the release's own speed reaches the junction.
 TEST(RandomSweep, WideBestEffortReleaseEndsWhereAStepReachesTheJunction) {
-  for (const auto& [seed, k] : {std::pair<std::uint64_t, std::uint64_t>{29, 45}, {38, 47}}) {
-    const SweepCase c = sweep_case(seed, k, true);
-    expect_runs_clean(c, "wide " + case_context(seed, k, c));
-  }
+  expect_wide_programs_clean({{29, 45}, {38, 47}});
 }
 
 // Wide sweep seed 1 program 281 (9 axes, 1 ms): a line led by X (jerk 1.7e6 mm/s^3) meets,
@@ -452,11 +455,7 @@ TEST(RandomSweep, WideSeed1MotionLeavesARestJustBeforeACorner) {
 // seed 1 program 60: 1.006 x). Now that arrival waits until one calculation step can release the
 // deceleration at the record's jerk limit.
 TEST(RandomSweep, WideArrivalsReleaseTheDecelerationBeforeTheStop) {
-  for (const auto& [seed, k] :
-       {std::pair<std::uint64_t, std::uint64_t>{2, 161}, {5, 147}, {1, 60}}) {
-    const SweepCase c = sweep_case(seed, k, true);
-    expect_runs_clean(c, "wide " + case_context(seed, k, c));
-  }
+  expect_wide_programs_clean({{2, 161}, {5, 147}, {1, 60}});
 }
 
 // Arrivals at a stop point at the resolution of a calculation step: on 1- to 4-axis machines
