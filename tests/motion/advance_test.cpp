@@ -336,6 +336,37 @@ TEST(Advance, SimulationSummaryEqualsStepping) {
   }
 }
 
+// A stop given while the motion already stands after an earlier one cancels the pending restart
+// and is restarted after its own wait. The fast-forward skipped such a standstill to the next
+// stop or to the time limit, as it knew of no restart to stop at (sweep seed 1 program 50).
+TEST(Advance, AStopGivenWhileStandingIsRestartedAsWhenStepping) {
+  const MachineConfig m = MachineConfig::default_machine();
+  test::ProgramBuilder b;
+  b.line({200.0, 0.0, 0.0}, 3000.0).end();
+  for (const std::int32_t code : {4, 8}) {
+    SimulationOptions o;
+    // The first stop brakes from the start, the second comes while standing, the third during
+    // the motion after the restart.
+    o.stops = {{0.05, code}, {0.2, code}, {1.0, code}};
+    o.stop_restart_s = 0.3;
+    o.max_time_s = 60.0;
+    SimulationSummary s[2];
+    for (int mode = 0; mode < 2; ++mode) {
+      o.fast_forward = mode == 1;
+      auto sim = Simulation::create(m, o);
+      ASSERT_TRUE(sim);
+      s[mode] = sim->run(b.program());
+    }
+    const std::string ctx = "Command " + std::to_string(code);
+    ASSERT_EQ(s[0].result, StepResult::kFinished) << ctx << ": " << s[0].error;
+    EXPECT_EQ(s[1].result, StepResult::kFinished) << ctx << ": " << s[1].error;
+    EXPECT_EQ(s[0].stops, 3u) << ctx;
+    EXPECT_EQ(s[1].stops, 3u) << ctx;
+    EXPECT_EQ(s[0].cycles, s[1].cycles) << ctx;
+    EXPECT_EQ(s[0].end_position, s[1].end_position) << ctx;
+  }
+}
+
 // A stop given at a program time: the motion brakes on the line, stands until the emulated
 // operator restarts it, and ends at the programmed end; the run takes the restart time and the
 // braking and acceleration longer. Stops that are not on the trajectory, or at times or with
