@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <random>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -83,11 +84,14 @@ struct SkipCounts {
 
 // Two interpolators driven alike: `stepped` by step(), `fast` by advance() limited to the next
 // cycle at which the driver acts (override change, M acknowledge, restart after M0). Smoothing:
-// 0 off, 1 spline, 2 IIR on random axes, 3 both.
+// 0 off, 1 spline, 2 IIR on random axes, 3 both. For an odd smoothing_seed `fast` records its
+// cycle trace, and each cycle of it must equal the stepped registers of that cycle.
 void compare_stepping(const MachineConfig& m, const test::Generated& g, int smoothing,
                       std::uint64_t smoothing_seed, const std::string& ctx0, SkipCounts& counts) {
+  InterpolatorOptions fo;
+  fo.record_cycle_trace = smoothing_seed % 2 == 1;
   auto stepped = Interpolator::create(m, 0);
-  auto fast = Interpolator::create(m, 0);
+  auto fast = Interpolator::create(m, 0, fo);
   ASSERT_TRUE(stepped && fast);
   if (smoothing != 0) {
     std::mt19937_64 srng(smoothing_seed);
@@ -150,9 +154,31 @@ void compare_stepping(const MachineConfig& m, const test::Generated& g, int smoo
     ASSERT_LE(done, allow) << ctx0;
     for (const BlockReport& b : fast->block_reports()) blocks_f.push_back(b);
     StepResult rs = StepResult::kWorking;
+    const std::span<const CycleTrace> trace = fast->cycle_trace();
+    std::size_t te = 0;  // trace entry of the cycle stepped
+    if (fo.record_cycle_trace) {
+      ASSERT_FALSE(trace.empty()) << ctx0;
+      EXPECT_EQ(trace.front().cycle, cycle + 1) << ctx0;
+    }
     for (std::uint64_t i = 0; i < done; ++i) {
       rs = stepped->step();
       for (const BlockReport& b : stepped->block_reports()) blocks_s.push_back(b);
+      if (!fo.record_cycle_trace) continue;
+      const Registers& r = stepped->registers();
+      while (te < trace.size() && trace[te].cycle + trace[te].count <= r.cycle) ++te;
+      const std::string ctx = ctx0 + " traced cycle " + std::to_string(r.cycle);
+      ASSERT_LT(te, trace.size()) << ctx;
+      ASSERT_LE(trace[te].cycle, r.cycle) << ctx;
+      EXPECT_EQ(trace[te].line, r.act_line) << ctx;
+      EXPECT_EQ(trace[te].status, r.status) << ctx;
+      for (int a = 0; a < r.number_axes; ++a) {
+        const auto ua = static_cast<std::size_t>(a);
+        ASSERT_EQ(trace[te].orig_position[ua], r.orig_position[ua]) << ctx << " axis " << a;
+      }
+    }
+    if (fo.record_cycle_trace) {
+      EXPECT_EQ(te + 1, trace.size()) << ctx0 << ": trace entries beyond the cycles run";
+      EXPECT_EQ(trace.back().cycle + trace.back().count, cycle + done + 1) << ctx0;
     }
     cycle += done;
     const std::int32_t part_before = part;
@@ -365,6 +391,65 @@ TEST(Advance, AStopGivenWhileStandingIsRestartedAsWhenStepping) {
     EXPECT_EQ(s[0].cycles, s[1].cycles) << ctx;
     EXPECT_EQ(s[0].end_position, s[1].end_position) << ctx;
   }
+}
+
+// The limit check of a fast-forwarded run (the checker fed from the interpolator's cycle
+// trace) equals that of a stepped run: the same peaks and the same violations, bit for bit. Every
+// second run holds the motion to 80 % of each limit, so that the checker has excesses to report;
+// the M-functions take 0.3 s, so that standing runs are traced too.
+TEST(Advance, LimitCheckOfFastForwardEqualsStepping) {
+  const std::uint64_t first = env_u64("TGM_SEED", 1);
+  std::uint64_t violations = 0, corner_steps = 0;
+  for (std::uint64_t k = 0; k < 16; ++k) {
+    std::mt19937_64 rng(first * 92821ull + k);
+    const int axes = k % 2 == 0 ? 3 : 1 + static_cast<int>(k % 10);
+    const MachineConfig m = random_machine(rng, axes);
+    const test::Generated g = random_program(rng, axes, 16);
+    SimulationOptions o;
+    o.m_ack_s = 0.3;
+    o.rel_speed_changes = g.overrides;
+    o.check_limits = true;
+    o.limit_share = k % 2 == 1 ? 0.8 : 1.0;
+    SimulationSummary s[2];
+    for (int mode = 0; mode < 2; ++mode) {
+      o.fast_forward = mode == 1;
+      auto sim = Simulation::create(m, o);
+      ASSERT_TRUE(sim);
+      s[mode] = sim->run(g.program);
+    }
+    const std::string ctx = "seed " + std::to_string(first) + " program " + std::to_string(k);
+    ASSERT_EQ(s[0].result, StepResult::kFinished) << ctx << ": " << s[0].error;
+    EXPECT_EQ(s[0].cycles, s[1].cycles) << ctx;
+    if (k % 2 == 0) {
+      EXPECT_EQ(s[0].violation_count, 0u) << ctx;
+    }
+    violations += s[0].violation_count;
+    for (const LimitViolation& v : s[0].violations) {
+      corner_steps += v.quantity == LimitQuantity::kCornerStep;
+    }
+    EXPECT_EQ(s[0].violation_count, s[1].violation_count) << ctx;
+    ASSERT_EQ(s[0].violations.size(), s[1].violations.size()) << ctx;
+    for (std::size_t i = 0; i < s[0].violations.size(); ++i) {
+      const LimitViolation& a = s[0].violations[i];
+      const LimitViolation& b = s[1].violations[i];
+      EXPECT_TRUE(a.cycle == b.cycle && a.line == b.line && a.axis == b.axis &&
+                  a.quantity == b.quantity && a.value == b.value && a.limit == b.limit)
+          << ctx << " violation " << i << ": cycle " << a.cycle << " / " << b.cycle;
+    }
+    for (int i = 0; i < axes; ++i) {
+      const AxisPeaks& a = s[0].peaks[static_cast<std::size_t>(i)];
+      const AxisPeaks& b = s[1].peaks[static_cast<std::size_t>(i)];
+      EXPECT_EQ(a.velocity_mm_s, b.velocity_mm_s) << ctx << " axis " << i;
+      EXPECT_EQ(a.acceleration_mm_s2, b.acceleration_mm_s2) << ctx << " axis " << i;
+      EXPECT_EQ(a.jerk_mm_s3, b.jerk_mm_s3) << ctx << " axis " << i;
+      EXPECT_EQ(a.corner_step_mm_s, b.corner_step_mm_s) << ctx << " axis " << i;
+    }
+  }
+  // At 80 % of the limits the random programs exceed some: the lists compared were not empty.
+  EXPECT_GT(violations, 0u);
+  EXPECT_GT(corner_steps, 0u);  // (reported in the cycle of their corner event)
+  RecordProperty("violations_compared", std::to_string(violations));
+  RecordProperty("corner_steps_compared", std::to_string(corner_steps));
 }
 
 // A stop given at a program time: the motion brakes on the line, stands until the emulated

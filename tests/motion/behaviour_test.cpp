@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <span>
 #include <vector>
 
 #include "program_builder.hpp"
@@ -684,6 +685,88 @@ TEST(LimitChecker, FindsAJumpAndAnOversizedCorner) {
   ok->add_cycle(g, std::span<const CornerEvent>(&e, 1));
   ASSERT_GT(ok->violation_count(), 0u);
   EXPECT_EQ(ok->violations().front().quantity, LimitQuantity::kCornerStep);
+}
+
+// Feeding an advance()'s cycle trace (runs of standing cycles, single moving cycles, corner
+// events inside the run) reports what feeding the same cycles one by one reports: the same
+// violations with their cycles and lines, the same peaks.
+TEST(LimitChecker, ATraceIsCheckedAsItsCyclesOneByOne) {
+  const MachineConfig mc = machine();
+  const InterpolatorConfig& axes = mc.interpolators[0];
+  auto one = LimitChecker::create(axes, 500);
+  auto traced = LimitChecker::create(axes, 500);
+  ASSERT_TRUE(one && traced);
+  // Cycles 1..12 standing at 0 at an emergency ramp's end, 13..20 standing there after it (the
+  // emergency's higher limits no longer apply to the cycles after them), 21..40 moving with
+  // jumps and two oversized corners, 41..70 standing at the end, 71..75 moving again.
+  std::vector<CycleTrace> trace;
+  auto stand = [&](std::uint64_t first, std::uint64_t count, double x, std::int32_t status) {
+    CycleTrace t;
+    t.cycle = first;
+    t.count = count;
+    t.line = static_cast<std::int32_t>(first);
+    t.status = status;
+    t.orig_position[0] = x;
+    trace.push_back(t);
+  };
+  stand(1, 12, 0.0, static_cast<std::int32_t>(InterpolatorStatus::kEmergencyRamp));
+  stand(13, 8, 0.0, 1);
+  double x = 0.0;
+  for (std::uint64_t c = 21; c <= 40; ++c) {
+    x += c % 9 == 0 ? 0.02 : 0.01;
+    stand(c, 1, x, 1);
+  }
+  stand(41, 30, x, 1);
+  for (std::uint64_t c = 71; c <= 75; ++c) stand(c, 1, x + 0.03 * static_cast<double>(c - 70), 1);
+  std::vector<CornerEvent> events(2);
+  events[0].cycle = 24;
+  events[0].fraction = 0.3;
+  events[0].dv[1] = 3.0;
+  events[1].cycle = 33;
+  events[1].fraction = 0.8;
+  events[1].dv[2] = -2.5;
+  events[1].da[2] = 400.0;
+  // One by one.
+  std::size_t e = 0;
+  for (const CycleTrace& t : trace) {
+    for (std::uint64_t k = 0; k < t.count; ++k) {
+      Registers r;
+      r.number_axes = static_cast<std::int32_t>(axes.axes.size());
+      r.cycle = t.cycle + k;
+      r.act_line = t.line;
+      r.status = t.status;
+      r.orig_position = t.orig_position;
+      const std::size_t first = e;
+      while (e < events.size() && events[e].cycle == r.cycle) ++e;
+      one->add_cycle(r, std::span<const CornerEvent>(events).subspan(first, e - first));
+    }
+  }
+  // As three advance() calls would deliver it: [1, 20], [21, 40], [41, 75].
+  const std::span<const CycleTrace> all(trace);
+  traced->add_trace(all.subspan(0, 2), {});
+  traced->add_trace(all.subspan(2, 20), events);
+  traced->add_trace(all.subspan(22), {});
+  ASSERT_GT(one->violation_count(), 2u);
+  ASSERT_EQ(one->violation_count(), traced->violation_count());
+  bool corner = false;
+  for (std::size_t i = 0; i < one->violations().size(); ++i) {
+    const LimitViolation& a = one->violations()[i];
+    const LimitViolation& b = traced->violations()[i];
+    EXPECT_EQ(a.cycle, b.cycle) << i;
+    EXPECT_EQ(a.line, b.line) << i;
+    EXPECT_EQ(a.axis, b.axis) << i;
+    EXPECT_EQ(a.quantity, b.quantity) << i;
+    EXPECT_EQ(a.value, b.value) << i;
+    EXPECT_EQ(a.limit, b.limit) << i;
+    corner = corner || a.quantity == LimitQuantity::kCornerStep;
+  }
+  EXPECT_TRUE(corner);
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_EQ(one->peaks()[i].velocity_mm_s, traced->peaks()[i].velocity_mm_s) << i;
+    EXPECT_EQ(one->peaks()[i].acceleration_mm_s2, traced->peaks()[i].acceleration_mm_s2) << i;
+    EXPECT_EQ(one->peaks()[i].jerk_mm_s3, traced->peaks()[i].jerk_mm_s3) << i;
+    EXPECT_EQ(one->peaks()[i].corner_step_mm_s, traced->peaks()[i].corner_step_mm_s) << i;
+  }
 }
 
 }  // namespace

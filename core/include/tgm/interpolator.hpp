@@ -80,10 +80,25 @@ struct BlockReport {
   LimitFactor factor = LimitFactor::kNone;
 };
 
+//! Orig_Position over cycles that Interpolator::advance() ran: `count` consecutive cycles from
+//! `cycle` on that all ended there (a dwell, an M wait, standing), or one cycle of a cruise.
+//! Recorded only when `InterpolatorOptions::record_cycle_trace` is set; with it the limit
+//! checker sees every cycle of a fast-forwarded run.
+struct CycleTrace {
+  std::uint64_t cycle = 0;  //!< Registers::cycle of the first cycle
+  std::uint64_t count = 1;  //!< cycles that ended with these values
+  std::int32_t line = 0;    //!< Act_Line
+  std::int32_t status = 0;  //!< Status
+  std::array<double, kMaxAxes> orig_position{};
+};
+
 //! Behaviour switches of one interpolator.
 struct InterpolatorOptions {
   //! Record CornerEvents (for the limit checker); off in production.
   bool record_corner_events = false;
+  //! Record a CycleTrace of every cycle advance() runs (cycle_trace()); a cruise is then
+  //! advanced at most kMaxTracedCycles cycles per call. For the offline limit check.
+  bool record_cycle_trace = false;
   //! After an underrun stop (Status 8), continue by itself when segments arrive instead of
   //! waiting for start (DESIGN section 5 asks for start; the option is for streaming tests).
   bool resume_after_underrun = false;
@@ -115,6 +130,12 @@ class Interpolator {
   //! corner_events() hold those of every junction the run crossed). Requests between calls act
   //! as between steps.
   StepResult advance(std::uint64_t max_cycles, std::uint64_t* advanced);
+  //! Cycles of a cruise one advance() runs at most while recording the cycle trace.
+  static constexpr std::uint64_t kMaxTracedCycles = 4096;
+  //! With `InterpolatorOptions::record_cycle_trace`: Orig_Position, line and Status of every
+  //! cycle the last advance() ran, oldest first, the last one equal to registers() (one entry
+  //! for a step). Empty without the option, and after step().
+  std::span<const CycleTrace> cycle_trace() const;
 
   //! Makes this interpolator an exact copy of `other` (created from the same config: the ring
   //! is copied in place, only message texts may allocate). For benchmarks and tests that replay

@@ -74,6 +74,9 @@ class LimitChecker {
 
   //! Feeds the registers after one step() and that step's corner events.
   void add_cycle(const Registers& reg, std::span<const CornerEvent> events);
+  //! Feeds the cycles one Interpolator::advance() ran (its cycle_trace() and corner_events()):
+  //! the same as add_cycle after each of them.
+  void add_trace(std::span<const CycleTrace> trace, std::span<const CornerEvent> events);
 
   std::uint64_t violation_count() const { return count_; }
   const std::vector<LimitViolation>& violations() const { return stored_; }
@@ -86,7 +89,13 @@ class LimitChecker {
 
  private:
   LimitChecker() = default;
-  void report(const Registers& reg, int axis, LimitQuantity q, double value, double limit);
+  // One cycle: its number, source line, Status, Orig_Position and corner events.
+  void add(std::uint64_t cycle, std::int32_t line, std::int32_t status,
+           const std::array<double, kMaxAxes>& orig, std::span<const CornerEvent> events);
+  // True when every sample of the history is at `orig`.
+  bool history_is(const std::array<double, kMaxAxes>& orig) const;
+  void report(std::uint64_t cycle, std::int32_t line, int axis, LimitQuantity q, double value,
+              double limit);
 
   struct Event {
     std::uint64_t cycle;

@@ -56,8 +56,9 @@ struct SimulationOptions {
   double limit_share = 1.0;
   //! Give up after this much program time [s].
   double max_time_s = 24.0 * 3600.0;
-  //! When run() has no per-cycle callback and no limit checker, advance through cruise, dwells,
-  //! M waits and standstill with Interpolator::advance (same registers, far fewer evaluations).
+  //! When run() has no per-cycle callback, advance through cruise, dwells, M waits and
+  //! standstill with Interpolator::advance (same registers, far fewer evaluations; the limit
+  //! checker sees each of those cycles through the interpolator's cycle trace).
   //! false = step() every cycle (what the equivalence tests compare against).
   bool fast_forward = true;
   //! Commands given before the program starts, in order, with their Command_Parameter (e.g.

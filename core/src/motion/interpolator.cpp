@@ -359,6 +359,7 @@ struct Interpolator::Impl {
   std::vector<CornerEvent> events;
   std::size_t n_events = 0;
   std::vector<BlockReport> blocks;
+  std::vector<CycleTrace> trace;  // cycles of the last advance() (record_cycle_trace)
   std::size_t n_blocks = 0;
 
   // ---- smoothing and output (core/SMOOTHING.md, "Wiring") ----
@@ -2345,7 +2346,9 @@ struct Interpolator::Impl {
         pass_time(max);
         return max;
       case Mode::kMoving:
-        return skip_cruise(max);
+        // Traced, each cruise cycle is an entry: at most kMaxTracedCycles of them per call.
+        return skip_cruise(opt.record_cycle_trace ? std::min(max, Interpolator::kMaxTracedCycles)
+                                                  : max);
       case Mode::kStopping:
       case Mode::kEmergency:
         break;
@@ -2578,6 +2581,13 @@ struct Interpolator::Impl {
         time_s += dt;
       }
       ++k;
+      if (opt.record_cycle_trace) {
+        // Status is the one advance() leaves in the registers (it does not change in a cruise).
+        CycleTrace& t = trace.emplace_back();
+        t.cycle = cycle0 + k;
+        t.line = S(cur).line;
+        current_position(t.orig_position.data());
+      }
     }
     reg.cycle = cycle0;  // advance() counts the cycles
     return k;
@@ -2713,6 +2723,17 @@ struct Interpolator::Impl {
           on_path && q0 == cur && r0.g.arc ? tangent_deg(r0.g, st.s) : start_tangent_deg(q0);
     }
     fill_lookahead_from(kLookAheadEntries - p, last + 1, kNotSet);
+  }
+
+  // With record_cycle_trace: one trace entry of `count` cycles ending as the registers do now.
+  void trace_registers(std::uint64_t count) {
+    if (!opt.record_cycle_trace) return;
+    CycleTrace& t = trace.emplace_back();
+    t.cycle = reg.cycle + 1 - count;
+    t.count = count;
+    t.line = reg.act_line;
+    t.status = reg.status;
+    t.orig_position = reg.orig_position;
   }
 
   void fill_registers() {
@@ -2878,6 +2899,7 @@ std::optional<Interpolator> Interpolator::create(const MachineConfig& machine, i
   m.st_a.init(m.cap + 1);
   m.events.resize(options.record_corner_events ? kMaxCornerEvents : 0);
   m.blocks.resize(kMaxBlockReports);
+  if (options.record_cycle_trace) m.trace.reserve(kMaxTracedCycles);
   m.reg.number = number;
   m.reg.number_axes = m.n;
   m.reg.buffer_size = m.cfg.buffer_size;
@@ -2896,6 +2918,7 @@ Interpolator::~Interpolator() = default;
 
 StepResult Interpolator::step() {
   Impl& m = *impl_;
+  m.trace.clear();
   m.n_events = 0;
   m.n_blocks = 0;
   m.reg.cycle += 1;
@@ -2918,10 +2941,13 @@ StepResult Interpolator::advance(std::uint64_t max_cycles, std::uint64_t* advanc
   if (max_cycles == 0) return m.result();
   m.n_events = 0;  // a cruise skip reports the blocks and corners it runs through
   m.n_blocks = 0;
+  m.trace.clear();
   const std::uint64_t k = m.skip_cycles(max_cycles);
   if (k == 0) {
     if (advanced) *advanced = 1;
-    return step();
+    const StepResult r = step();
+    m.trace_registers(1);
+    return r;
   }
   m.reg.cycle += k;
   {
@@ -2939,6 +2965,8 @@ StepResult Interpolator::advance(std::uint64_t max_cycles, std::uint64_t* advanc
     m.ostage->update(m.smooth->position().data(), m.T);
   }
   m.fill_registers();
+  if (m.trace.empty()) m.trace_registers(k);  // standing: every skipped cycle ended as the last
+  for (CycleTrace& t : m.trace) t.status = m.reg.status;
   if (advanced) *advanced = k;
   for (int i = 0; i < m.n; ++i) {
     if (!std::isfinite(m.reg.orig_position[static_cast<std::size_t>(i)])) return StepResult::kErrorInternal;
@@ -3249,6 +3277,10 @@ std::span<const CornerEvent> Interpolator::corner_events() const {
 
 std::span<const BlockReport> Interpolator::block_reports() const {
   return {impl_->blocks.data(), impl_->n_blocks};
+}
+
+std::span<const CycleTrace> Interpolator::cycle_trace() const {
+  return impl_->trace;
 }
 
 std::uint64_t Interpolator::hard_stops() const { return impl_->hard_stop_count; }

@@ -49,12 +49,53 @@ void LimitChecker::reset() {
   events_.clear();
 }
 
-void LimitChecker::report(const Registers& reg, int axis, LimitQuantity q, double value, double limit) {
+void LimitChecker::report(std::uint64_t cycle, std::int32_t line, int axis, LimitQuantity q,
+                          double value, double limit) {
   ++count_;
-  if (stored_.size() < kMaxStored) stored_.push_back({reg.cycle, reg.act_line, axis, q, value, limit});
+  if (stored_.size() < kMaxStored) stored_.push_back({cycle, line, axis, q, value, limit});
 }
 
 void LimitChecker::add_cycle(const Registers& reg, std::span<const CornerEvent> events) {
+  add(reg.cycle, reg.act_line, reg.status, reg.orig_position, events);
+}
+
+void LimitChecker::add_trace(std::span<const CycleTrace> trace,
+                             std::span<const CornerEvent> events) {
+  std::size_t e = 0;  // events in cycle order; each goes with the cycle it names
+  for (const CycleTrace& t : trace) {
+    for (std::uint64_t k = 0; k < t.count; ++k) {
+      const std::uint64_t c = t.cycle + k;
+      const std::size_t first = e;
+      while (e < events.size() && events[e].cycle <= c) ++e;
+      add(c, t.line, t.status, t.orig_position, events.subspan(first, e - first));
+      // Standing (a dwell, an M wait): once the history holds only this position and no corner
+      // is within it, every further cycle differentiates to exactly 0 until the next event:
+      // only the cycle numbers move on.
+      const std::uint64_t last = t.cycle + t.count - 1;
+      if (k + 1 < t.count && samples_ == 4 && events_.empty() &&
+          (e == events.size() || events[e].cycle > last) && history_is(t.orig_position)) {
+        for (std::size_t h = 0; h < cyc_.size(); ++h) {
+          cyc_[h] = last - h;
+          emergency_[h] = emergency_[0];
+        }
+        break;
+      }
+    }
+  }
+}
+
+bool LimitChecker::history_is(const std::array<double, kMaxAxes>& orig) const {
+  for (const auto& x : x_) {
+    for (int i = 0; i < n_; ++i) {
+      if (x[static_cast<std::size_t>(i)] != orig[static_cast<std::size_t>(i)]) return false;
+    }
+  }
+  return true;
+}
+
+void LimitChecker::add(std::uint64_t cycle, std::int32_t line, std::int32_t status,
+                       const std::array<double, kMaxAxes>& orig,
+                       std::span<const CornerEvent> events) {
   // Shift the history.
   for (int k = 3; k > 0; --k) {
     x_[static_cast<std::size_t>(k)] = x_[static_cast<std::size_t>(k - 1)];
@@ -63,11 +104,11 @@ void LimitChecker::add_cycle(const Registers& reg, std::span<const CornerEvent> 
   }
   double xmax = 1.0;
   for (int i = 0; i < n_; ++i) {
-    x_[0][static_cast<std::size_t>(i)] = reg.orig_position[static_cast<std::size_t>(i)];
-    xmax = std::max(xmax, std::fabs(reg.orig_position[static_cast<std::size_t>(i)]));
+    x_[0][static_cast<std::size_t>(i)] = orig[static_cast<std::size_t>(i)];
+    xmax = std::max(xmax, std::fabs(orig[static_cast<std::size_t>(i)]));
   }
-  cyc_[0] = reg.cycle;
-  emergency_[0] = reg.status == static_cast<std::int32_t>(InterpolatorStatus::kEmergencyRamp);
+  cyc_[0] = cycle;
+  emergency_[0] = status == static_cast<std::int32_t>(InterpolatorStatus::kEmergencyRamp);
   if (samples_ < 4) ++samples_;
   // Cycles must be consecutive; otherwise start a new series.
   for (int k = 1; k < samples_; ++k) {
@@ -83,12 +124,12 @@ void LimitChecker::add_cycle(const Registers& reg, std::span<const CornerEvent> 
       const double dv = std::fabs(e.dv[ui]);
       peaks_[ui].corner_step_mm_s = std::max(peaks_[ui].corner_step_mm_s, dv);
       if (dv > tol_[ui] * (1.0 + kRelativeTolerance) + 1e-9) {
-        report(reg, i, LimitQuantity::kCornerStep, dv, tol_[ui]);
+        report(cycle, line, i, LimitQuantity::kCornerStep, dv, tol_[ui]);
       }
     }
   }
   // Events older than the jerk window no longer matter.
-  const std::uint64_t c = reg.cycle;
+  const std::uint64_t c = cycle;
   events_.erase(std::remove_if(events_.begin(), events_.end(),
                                [&](const Event& e) { return e.cycle + 3 <= c; }),
                 events_.end());
@@ -112,7 +153,7 @@ void LimitChecker::add_cycle(const Registers& reg, std::span<const CornerEvent> 
       const double v = (x_[0][ui] - x_[1][ui]) / T;
       peaks_[ui].velocity_mm_s = std::max(peaks_[ui].velocity_mm_s, std::fabs(v));
       if (std::fabs(v) > vmax_[ui] * (1.0 + kRelativeTolerance) + 4.0 * ulp / T) {
-        report(reg, i, LimitQuantity::kVelocity, std::fabs(v), vmax_[ui]);
+        report(cycle, line, i, LimitQuantity::kVelocity, std::fabs(v), vmax_[ui]);
       }
     }
     if (samples_ >= 3) {
@@ -128,7 +169,7 @@ void LimitChecker::add_cycle(const Registers& reg, std::span<const CornerEvent> 
       const double lim = emergency ? emax_[ui] : amax_[ui];
       peaks_[ui].acceleration_mm_s2 = std::max(peaks_[ui].acceleration_mm_s2, std::fabs(a));
       if (std::fabs(a) > lim * (1.0 + kRelativeTolerance) + 8.0 * ulp / (T * T)) {
-        report(reg, i, LimitQuantity::kAcceleration, std::fabs(a), lim);
+        report(cycle, line, i, LimitQuantity::kAcceleration, std::fabs(a), lim);
       }
     }
     if (samples_ >= 4) {
@@ -141,7 +182,7 @@ void LimitChecker::add_cycle(const Registers& reg, std::span<const CornerEvent> 
       const double lim = emergency ? ejmax_[ui] : jmax_[ui];
       peaks_[ui].jerk_mm_s3 = std::max(peaks_[ui].jerk_mm_s3, std::fabs(j));
       if (std::fabs(j) > lim * (1.0 + kRelativeTolerance) + 16.0 * ulp / (T * T * T)) {
-        report(reg, i, LimitQuantity::kJerk, std::fabs(j), lim);
+        report(cycle, line, i, LimitQuantity::kJerk, std::fabs(j), lim);
       }
     }
   }

@@ -11,6 +11,8 @@ std::optional<Simulation> Simulation::create(const MachineConfig& machine, const
                                              std::string* error) {
   InterpolatorOptions io;
   io.record_corner_events = options.check_limits;
+  // The checker sees the cycles advance() runs through their trace.
+  io.record_cycle_trace = options.check_limits && options.fast_forward;
   auto ip = Interpolator::create(machine, options.interpolator, io, error);
   if (!ip) return std::nullopt;
   Simulation s;
@@ -132,7 +134,7 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
   std::size_t next_stop = 0;
   bool stopped = false;  // a stop given and the motion not yet restarted
   const std::uint64_t max_cycles = static_cast<std::uint64_t>(opt_.max_time_s / T) + 1;
-  const bool batch = opt_.fast_forward && !on_cycle && !checker_;
+  const bool batch = opt_.fast_forward && !on_cycle;
   std::array<std::uint64_t, 11> factor_cycles{};
   std::uint64_t cycle = 0, passes = 0;
   // The axes stand at the start before the first cycle: the checker differentiates the first
@@ -190,7 +192,13 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
     if (!std::isfinite(reg.act_speed)) sum.nan = true;
     const auto lf = static_cast<std::size_t>(reg.limit_factor);
     if (lf < factor_cycles.size()) factor_cycles[lf] += done;
-    if (checker_) checker_->add_cycle(reg, ip.corner_events());
+    if (checker_) {
+      if (batch) {
+        checker_->add_trace(ip.cycle_trace(), ip.corner_events());
+      } else {
+        checker_->add_cycle(reg, ip.corner_events());
+      }
+    }
     if (on_cycle) on_cycle(reg);
     if (on_block) {
       for (const BlockReport& b : ip.block_reports()) on_block(b);
