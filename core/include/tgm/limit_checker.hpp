@@ -112,6 +112,7 @@ class LimitChecker {
   std::array<bool, 4> emergency_{};
   int samples_ = 0;
   std::vector<Event> events_;
+  std::vector<std::array<double, 4>> kink_dt_;  // add(): time from events_[j] to sample k
   std::uint64_t count_ = 0;
   std::vector<LimitViolation> stored_;
   std::array<AxisPeaks, kMaxAxes> peaks_{};

@@ -41,6 +41,7 @@ std::optional<LimitChecker> LimitChecker::create(const InterpolatorConfig& axes,
   }
   c.stored_.reserve(kMaxStored);
   c.events_.reserve(256);  // corners of the last three cycles: no allocation per cycle in a service
+  c.kink_dt_.reserve(256);
   return c;
 }
 
@@ -139,14 +140,14 @@ void LimitChecker::add(std::uint64_t cycle, std::int32_t line, std::int32_t stat
   bool emergency = false;
   for (int k = 0; k < samples_; ++k) emergency = emergency || emergency_[static_cast<std::size_t>(k)];
   // Sample k (0 = newest) is at time -k*T relative to now; event at (cycle - 1 + f) T - c T.
-  auto kink = [&](const Event& e, int k, bool with_da) {
+  // The time from each event to each sample, once for all axes (an event after a sample does
+  // not bend it: dt <= 0).
+  kink_dt_.resize(events_.size());
+  for (std::size_t j = 0; j < events_.size(); ++j) {
+    const Event& e = events_[j];
     const double tj = (static_cast<double>(e.cycle) - 1.0 + e.fraction - static_cast<double>(c)) * T;
-    const double dt = -k * T - tj;
-    return [=](std::size_t i) {
-      if (dt <= 0.0) return 0.0;
-      return e.dv[i] * dt + (with_da ? 0.5 * e.da[i] * dt * dt : 0.0);
-    };
-  };
+    for (int k = 0; k < 4; ++k) kink_dt_[j][static_cast<std::size_t>(k)] = -k * T - tj;
+  }
   for (int i = 0; i < n_; ++i) {
     const auto ui = static_cast<std::size_t>(i);
     if (samples_ >= 2) {
@@ -160,9 +161,11 @@ void LimitChecker::add(std::uint64_t cycle, std::int32_t line, std::int32_t stat
       double y[3];
       for (int k = 0; k < 3; ++k) {
         y[k] = x_[static_cast<std::size_t>(k)][ui];
-        for (const Event& e : events_) {
+        for (std::size_t j = 0; j < events_.size(); ++j) {
+          const Event& e = events_[j];
           if (e.cycle + 2 <= c) continue;  // at or before sample 2: linear on the window
-          y[k] -= kink(e, k, false)(ui);
+          const double dt = kink_dt_[j][static_cast<std::size_t>(k)];
+          if (dt > 0.0) y[k] -= e.dv[ui] * dt;
         }
       }
       const double a = (y[0] - 2.0 * y[1] + y[2]) / (T * T);
@@ -176,7 +179,11 @@ void LimitChecker::add(std::uint64_t cycle, std::int32_t line, std::int32_t stat
       double z[4];
       for (int k = 0; k < 4; ++k) {
         z[k] = x_[static_cast<std::size_t>(k)][ui];
-        for (const Event& e : events_) z[k] -= kink(e, k, true)(ui);
+        for (std::size_t j = 0; j < events_.size(); ++j) {
+          const Event& e = events_[j];
+          const double dt = kink_dt_[j][static_cast<std::size_t>(k)];
+          if (dt > 0.0) z[k] -= e.dv[ui] * dt + 0.5 * e.da[ui] * dt * dt;
+        }
       }
       const double j = (z[0] - 3.0 * z[1] + 3.0 * z[2] - z[3]) / (T * T * T);
       const double lim = emergency ? ejmax_[ui] : jmax_[ui];
