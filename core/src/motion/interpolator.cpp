@@ -1400,6 +1400,10 @@ struct Interpolator::Impl {
     double tau = b.v > 1e-12 ? std::clamp(dist / b.v, 0.0, dt) : 0.5 * dt;
     for (int it = 0; it < 60; ++it) {
       const double f = travel(b.v, b.a, j, tau) - dist;
+      // On the root (a cruise: tau = dist / v exactly): the Newton step would stay on it and the
+      // bracket test below then bisected away from it, 47 halvings down to 1e-18 s, in every
+      // junction crossed (the largest cost of a checked short-segment simulation).
+      if (f == 0.0) return tau;
       if (f > 0.0) hi = tau; else lo = tau;
       const double fp = speed_after(b.v, b.a, j, tau);
       double nt = fp > 0.0 ? tau - f / fp : 0.5 * (lo + hi);
