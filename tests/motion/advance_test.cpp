@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdlib>
 #include <random>
@@ -362,6 +363,22 @@ TEST(Advance, SimulationSummaryEqualsStepping) {
   }
 }
 
+// `program` run with `o` stepped (index 0) and fast-forwarded (index 1).
+std::array<SimulationSummary, 2> run_stepped_and_fast(const MachineConfig& m, SimulationOptions o,
+                                                      const Program& program) {
+  std::array<SimulationSummary, 2> s;
+  for (int mode = 0; mode < 2; ++mode) {
+    o.fast_forward = mode == 1;
+    auto sim = Simulation::create(m, o);
+    if (!sim) {
+      ADD_FAILURE() << "Simulation::create refused the options";
+      return s;
+    }
+    s[static_cast<std::size_t>(mode)] = sim->run(program);
+  }
+  return s;
+}
+
 // A stop given while the motion already stands after an earlier one cancels the pending restart
 // and is restarted after its own wait. The fast-forward skipped such a standstill to the next
 // stop or to the time limit, as it knew of no restart to stop at (sweep seed 1 program 50).
@@ -376,13 +393,7 @@ TEST(Advance, AStopGivenWhileStandingIsRestartedAsWhenStepping) {
     o.stops = {{0.05, code}, {0.2, code}, {1.0, code}};
     o.stop_restart_s = 0.3;
     o.max_time_s = 60.0;
-    SimulationSummary s[2];
-    for (int mode = 0; mode < 2; ++mode) {
-      o.fast_forward = mode == 1;
-      auto sim = Simulation::create(m, o);
-      ASSERT_TRUE(sim);
-      s[mode] = sim->run(b.program());
-    }
+    const auto s = run_stepped_and_fast(m, o, b.program());
     const std::string ctx = "Command " + std::to_string(code);
     ASSERT_EQ(s[0].result, StepResult::kFinished) << ctx << ": " << s[0].error;
     EXPECT_EQ(s[1].result, StepResult::kFinished) << ctx << ": " << s[1].error;
@@ -410,13 +421,7 @@ TEST(Advance, LimitCheckOfFastForwardEqualsStepping) {
     o.rel_speed_changes = g.overrides;
     o.check_limits = true;
     o.limit_share = k % 2 == 1 ? 0.8 : 1.0;
-    SimulationSummary s[2];
-    for (int mode = 0; mode < 2; ++mode) {
-      o.fast_forward = mode == 1;
-      auto sim = Simulation::create(m, o);
-      ASSERT_TRUE(sim);
-      s[mode] = sim->run(g.program);
-    }
+    const auto s = run_stepped_and_fast(m, o, g.program);
     const std::string ctx = "seed " + std::to_string(first) + " program " + std::to_string(k);
     ASSERT_EQ(s[0].result, StepResult::kFinished) << ctx << ": " << s[0].error;
     EXPECT_EQ(s[0].cycles, s[1].cycles) << ctx;
