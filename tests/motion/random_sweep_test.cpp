@@ -157,13 +157,21 @@ std::string case_context(std::uint64_t seed, std::uint64_t k, const SweepCase& c
          std::to_string(c.axes) + " cycle " + std::to_string(c.machine.cycle_time_us) + " us";
 }
 
+// Runs wide-sweep program k of `seed` and checks that it finishes clean; with axes > 0 it must
+// first have that many axes (the program its test describes).
+void expect_wide_program_clean(std::uint64_t seed, std::uint64_t k, int axes = 0) {
+  const SweepCase c = sweep_case(seed, k, true);
+  const std::string ctx = "wide " + case_context(seed, k, c);
+  if (axes > 0) {
+    ASSERT_EQ(c.axes, axes) << ctx;
+  }
+  expect_runs_clean(c, ctx);
+}
+
 // Runs wide-sweep programs (seed, program) and checks that each finishes clean.
 void expect_wide_programs_clean(
     std::initializer_list<std::pair<std::uint64_t, std::uint64_t>> programs) {
-  for (const auto& [seed, k] : programs) {
-    const SweepCase c = sweep_case(seed, k, true);
-    expect_runs_clean(c, "wide " + case_context(seed, k, c));
-  }
+  for (const auto& [seed, k] : programs) expect_wide_program_clean(seed, k);
 }
 
 TEST(RandomSweep, ProgramsFinishAtTheirEndWithinLimits) {
@@ -358,9 +366,7 @@ TEST(SweepTimeLimit, Seed3Program465SlowBeforeAnOverrideDropIsNotAStall) {
 // X's tolerance, then 0.5 s above its velocity limit). The braking towards the junction's speed
 // limit now takes the deceleration back itself.
 TEST(RandomSweep, WideSeed26Program280KeepsBrakingForTheJunctionItsDecelerationLimitIsAt) {
-  const SweepCase c = sweep_case(26, 280, true);
-  ASSERT_EQ(c.axes, 3);
-  expect_runs_clean(c, "wide seed 26 program 280");
+  expect_wide_program_clean(26, 280, 3);
 }
 
 // Wide sweep seed 33 program 204 (2 axes, 1 ms): from rest along a 0.088 mm line of X alone
@@ -383,9 +389,7 @@ TEST(RandomSweep, WideAccelerationIsWithinTheLimitBeforeASofterRecordIsReached) 
 // The horizon now counts the record just beyond the window, and the scan goes on to the reach at
 // the window's lowest jerk.
 TEST(RandomSweep, WideSeed25Program255SeesTheCornerBehindAShortSofterChordInTime) {
-  const SweepCase c = sweep_case(25, 255, true);
-  ASSERT_EQ(c.axes, 3);
-  expect_runs_clean(c, "wide seed 25 program 255");
+  expect_wide_program_clean(25, 255, 3);
 }
 
 // Wide sweep seed 33 program 50 (1 ms): braking along a chord of 2.2e6 mm/s^3 for a corner and a
@@ -395,9 +399,7 @@ TEST(RandomSweep, WideSeed25Program255SeesTheCornerBehindAShortSofterChordInTime
 // 147 x its limit. Entering a record of lower jerk, the deceleration is now also held to what
 // that jerk can take back before the motion stops (dec_target).
 TEST(RandomSweep, WideSeed33Program50EntersASofterChordWithADecelerationItCanTakeBack) {
-  const SweepCase c = sweep_case(33, 50, true);
-  ASSERT_EQ(c.axes, 3);
-  expect_runs_clean(c, "wide seed 33 program 50");
+  expect_wide_program_clean(33, 50, 3);
 }
 
 // Wide sweep seeds 29 program 45 and 38 program 47 (1 ms): brakings of about eleven calculation
@@ -417,9 +419,7 @@ TEST(RandomSweep, WideBestEffortReleaseEndsWhereAStepReachesTheJunction) {
 // line's jerk still ran when a step could reach the junction and so had the helix's jerk: X
 // stepped by 0.055 mm/s (3.9 x its tolerance). Also two corner steps of 1.001 x later on.
 TEST(RandomSweep, WideSeed1Program281BrakesForAJunctionIntoAFarSofterRecord) {
-  const SweepCase c = sweep_case(1, 281, true);
-  ASSERT_EQ(c.axes, 9);
-  expect_runs_clean(c, "wide seed 1 program 281");
+  expect_wide_program_clean(1, 281, 9);
 }
 
 // The calculation step that crosses a junction judged the limit there by its end-of-step speed
@@ -504,9 +504,7 @@ TEST(RandomSweep, WideReversalsBelowTheStepResolutionKeepTheirTolerance) {
 // (jerks up to 188 x its limit). Best effort now keeps a deceleration that the jerk limits
 // ahead can still release.
 TEST(RandomSweep, WideSeed8Program65BestEffortKeepsTheDecelerationReleasable) {
-  const SweepCase c = sweep_case(8, 65, true);
-  ASSERT_EQ(c.axes, 3);
-  expect_runs_clean(c, "wide seed 8 program 65");
+  expect_wide_program_clean(8, 65, 3);
 }
 
 // Wide sweep seed 102 program 776 (3 axes, 1 ms; X: 20 mm/s^2, 10,000 mm/s^3): at Rel_Speed
