@@ -64,6 +64,7 @@ void LimitChecker::add_trace(std::span<const CycleTrace> trace,
                              std::span<const CornerEvent> events) {
   std::size_t e = 0;  // events in cycle order; each goes with the cycle it names
   for (const CycleTrace& t : trace) {
+    const std::uint64_t last = t.cycle + t.count - 1;
     for (std::uint64_t k = 0; k < t.count; ++k) {
       const std::uint64_t c = t.cycle + k;
       const std::size_t first = e;
@@ -72,7 +73,6 @@ void LimitChecker::add_trace(std::span<const CycleTrace> trace,
       // Standing (a dwell, an M wait): once the history holds only this position and no corner
       // is within it, every further cycle differentiates to exactly 0 until the next event:
       // only the cycle numbers move on.
-      const std::uint64_t last = t.cycle + t.count - 1;
       if (k + 1 < t.count && samples_ == 4 && events_.empty() &&
           (e == events.size() || events[e].cycle > last) && history_is(t.orig_position)) {
         for (std::size_t h = 0; h < cyc_.size(); ++h) {
