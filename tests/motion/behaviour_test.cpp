@@ -687,6 +687,27 @@ TEST(LimitChecker, FindsAJumpAndAnOversizedCorner) {
   EXPECT_EQ(ok->violations().front().quantity, LimitQuantity::kCornerStep);
 }
 
+// Cycle numbers that are not consecutive (a run that left cycles out, a position set) start a
+// new series: nothing is differentiated across the gap; within a series a jump still counts.
+TEST(LimitChecker, AGapInTheCyclesStartsANewSeries) {
+  auto ch = LimitChecker::create(machine().interpolators[0], 500);
+  ASSERT_TRUE(ch);
+  Registers g;
+  g.number_axes = 3;
+  auto feed = [&](std::uint64_t c, double x) {
+    g.cycle = c;
+    g.orig_position[0] = x;
+    ch->add_cycle(g, {});
+  };
+  for (std::uint64_t c = 1; c <= 6; ++c) feed(c, 0.0);
+  feed(9, 5.0);  // 5 mm later, two cycles left out: a new series, no finding
+  for (std::uint64_t c = 10; c <= 14; ++c) feed(c, 5.0 + 0.05 * static_cast<double>(c - 9));
+  EXPECT_EQ(ch->violation_count(), 0u);
+  EXPECT_NEAR(ch->peaks()[0].velocity_mm_s, 100.0, 1e-6);  // 0.05 mm per 500 us, not the jump
+  feed(15, 5.4);  // the series goes on: 0.15 mm in one cycle (300 mm/s) is a jump
+  EXPECT_GT(ch->violation_count(), 0u);
+}
+
 // Feeding an advance()'s cycle trace (runs of standing cycles, single moving cycles, corner
 // events inside the run) reports what feeding the same cycles one by one reports: the same
 // violations with their cycles and lines, the same peaks.

@@ -107,10 +107,13 @@ class LimitChecker {
   int n_ = 0;
   double T_ = 0.0;
   std::array<double, kMaxAxes> vmax_{}, amax_{}, jmax_{}, tol_{}, emax_{}, ejmax_{};
-  std::array<std::array<double, kMaxAxes>, 4> x_{};  // x_[0] newest
+  // The last four cycles, a ring: sample k (0 = newest) is in slot (head_ - k) & 3.
+  std::array<std::array<double, kMaxAxes>, 4> x_{};
   std::array<std::uint64_t, 4> cyc_{};
   std::array<bool, 4> emergency_{};
+  unsigned head_ = 0;
   int samples_ = 0;
+  std::size_t slot(int k) const { return (head_ - static_cast<unsigned>(k)) & 3u; }
   std::vector<Event> events_;
   std::vector<std::array<double, 4>> kink_dt_;  // add(): time from events_[j] to sample k
   std::uint64_t count_ = 0;

@@ -75,9 +75,10 @@ void LimitChecker::add_trace(std::span<const CycleTrace> trace,
       // only the cycle numbers move on.
       if (k + 1 < t.count && samples_ == 4 && events_.empty() &&
           (e == events.size() || events[e].cycle > last) && history_is(t.orig_position)) {
-        for (std::size_t h = 0; h < cyc_.size(); ++h) {
-          cyc_[h] = last - h;
-          emergency_[h] = emergency_[0];
+        const bool em = emergency_[slot(0)];
+        for (int h = 0; h < 4; ++h) {
+          cyc_[slot(h)] = last - static_cast<std::uint64_t>(h);
+          emergency_[slot(h)] = em;
         }
         break;
       }
@@ -97,27 +98,19 @@ bool LimitChecker::history_is(const std::array<double, kMaxAxes>& orig) const {
 void LimitChecker::add(std::uint64_t cycle, std::int32_t line, std::int32_t status,
                        const std::array<double, kMaxAxes>& orig,
                        std::span<const CornerEvent> events) {
-  // Shift the history.
-  for (int k = 3; k > 0; --k) {
-    x_[static_cast<std::size_t>(k)] = x_[static_cast<std::size_t>(k - 1)];
-    cyc_[static_cast<std::size_t>(k)] = cyc_[static_cast<std::size_t>(k - 1)];
-    emergency_[static_cast<std::size_t>(k)] = emergency_[static_cast<std::size_t>(k - 1)];
-  }
+  head_ = (head_ + 1) & 3u;
+  const std::size_t s0 = slot(0);
   double xmax = 1.0;
   for (int i = 0; i < n_; ++i) {
-    x_[0][static_cast<std::size_t>(i)] = orig[static_cast<std::size_t>(i)];
+    x_[s0][static_cast<std::size_t>(i)] = orig[static_cast<std::size_t>(i)];
     xmax = std::max(xmax, std::fabs(orig[static_cast<std::size_t>(i)]));
   }
-  cyc_[0] = cycle;
-  emergency_[0] = status == static_cast<std::int32_t>(InterpolatorStatus::kEmergencyRamp);
+  // Cycles must be consecutive; otherwise start a new series. (The older pairs of the history
+  // were checked when they came in.)
+  if (samples_ > 0 && cyc_[slot(1)] + 1 != cycle) samples_ = 0;
+  cyc_[s0] = cycle;
+  emergency_[s0] = status == static_cast<std::int32_t>(InterpolatorStatus::kEmergencyRamp);
   if (samples_ < 4) ++samples_;
-  // Cycles must be consecutive; otherwise start a new series.
-  for (int k = 1; k < samples_; ++k) {
-    if (cyc_[static_cast<std::size_t>(k - 1)] != cyc_[static_cast<std::size_t>(k)] + 1) {
-      samples_ = k;
-      break;
-    }
-  }
   for (const CornerEvent& e : events) {
     events_.push_back({e.cycle, e.fraction, e.dv, e.da});
     for (int i = 0; i < n_; ++i) {
@@ -138,7 +131,7 @@ void LimitChecker::add(std::uint64_t cycle, std::int32_t line, std::int32_t stat
   const double T = T_;
   const double ulp = 2.3e-16 * xmax;  // position rounding [mm]
   bool emergency = false;
-  for (int k = 0; k < samples_; ++k) emergency = emergency || emergency_[static_cast<std::size_t>(k)];
+  for (int k = 0; k < samples_; ++k) emergency = emergency || emergency_[slot(k)];
   // Sample k (0 = newest) is at time -k*T relative to now; event at (cycle - 1 + f) T - c T.
   // The time from each event to each sample, once for all axes (an event after a sample does
   // not bend it: dt <= 0).
@@ -151,7 +144,7 @@ void LimitChecker::add(std::uint64_t cycle, std::int32_t line, std::int32_t stat
   for (int i = 0; i < n_; ++i) {
     const auto ui = static_cast<std::size_t>(i);
     if (samples_ >= 2) {
-      const double v = (x_[0][ui] - x_[1][ui]) / T;
+      const double v = (x_[s0][ui] - x_[slot(1)][ui]) / T;
       peaks_[ui].velocity_mm_s = std::max(peaks_[ui].velocity_mm_s, std::fabs(v));
       if (std::fabs(v) > vmax_[ui] * (1.0 + kRelativeTolerance) + 4.0 * ulp / T) {
         report(cycle, line, i, LimitQuantity::kVelocity, std::fabs(v), vmax_[ui]);
@@ -160,7 +153,7 @@ void LimitChecker::add(std::uint64_t cycle, std::int32_t line, std::int32_t stat
     if (samples_ >= 3) {
       double y[3];
       for (int k = 0; k < 3; ++k) {
-        y[k] = x_[static_cast<std::size_t>(k)][ui];
+        y[k] = x_[slot(k)][ui];
         for (std::size_t j = 0; j < events_.size(); ++j) {
           const Event& e = events_[j];
           if (e.cycle + 2 <= c) continue;  // at or before sample 2: linear on the window
@@ -178,7 +171,7 @@ void LimitChecker::add(std::uint64_t cycle, std::int32_t line, std::int32_t stat
     if (samples_ >= 4) {
       double z[4];
       for (int k = 0; k < 4; ++k) {
-        z[k] = x_[static_cast<std::size_t>(k)][ui];
+        z[k] = x_[slot(k)][ui];
         for (std::size_t j = 0; j < events_.size(); ++j) {
           const Event& e = events_[j];
           const double dt = kink_dt_[j][static_cast<std::size_t>(k)];
