@@ -280,9 +280,10 @@ struct Interpolator::Impl {
   double rho = 1.0;        // emergency / normal deceleration ratio (min over axes, >= 1)
 
   // ---- ring ----
-  // The three slot arrays hold `cap` slots when full. They are reserved at create() and grow
-  // as records are stored (grow_rings): writing all of them there (8.5 MB for the default 10,000
+  // The slot arrays hold `cap` slots when full. They are reserved at create() and grow as
+  // records are stored (grow_rings): writing all of them there (8.5 MB for the default 10,000
   // slots) took 2 ms of a 5 ms offline run of the manual's example, in page faults mostly.
+  // `par` (M parameters, read for M records only) grows only as far as an M record is stored.
   std::vector<Segment> seg;
   std::vector<Rec> rec;
   std::vector<MParams> par;
@@ -395,7 +396,6 @@ struct Interpolator::Impl {
     k = std::min(cap, std::max(k + kRingHeadroom, 2 * rec.size()));
     seg.resize(k);
     rec.resize(k);
-    par.resize(k);
   }
   Rec& R(std::uint64_t q) { return rec[ring_index(q)]; }
   const Rec& R(std::uint64_t q) const { return rec[ring_index(q)]; }
@@ -611,6 +611,8 @@ struct Interpolator::Impl {
     r.s0 = s_tail;
     // Parameters are read for M records only (execution, events, LookAheadBuffer).
     if (sg.type == SegmentType::kMFunction) {
+      if (ring_index(q) >= par.size())
+        par.resize(std::min(cap, std::max(ring_index(q) + 1, 2 * par.size())));
       par[ring_index(q)] =
           sg.aux >= 0 ? p.params[static_cast<std::size_t>(sg.aux)] : unset_params();
     }
