@@ -139,6 +139,10 @@ void LimitChecker::add(std::uint64_t cycle, std::int32_t line, std::int32_t stat
   const double ulp = 2.3e-16 * xmax;  // position rounding [mm]
   bool emergency = false;
   for (int k = 0; k < samples_; ++k) emergency = emergency || emergency_[slot(k)];
+  // The samples newest first (taken once: report() below may, for all the compiler knows,
+  // move the ring's head).
+  const std::array<const double*, 4> xs = {x_[slot(0)].data(), x_[slot(1)].data(),
+                                           x_[slot(2)].data(), x_[slot(3)].data()};
   // Sample k (0 = newest) is at time -k*T relative to now; event at (cycle - 1 + f) T - c T.
   // The time from each event to each sample, once for all axes (an event after a sample does
   // not bend it: dt <= 0).
@@ -148,23 +152,27 @@ void LimitChecker::add(std::uint64_t cycle, std::int32_t line, std::int32_t stat
     const double tj = (static_cast<double>(e.cycle) - 1.0 + e.fraction - static_cast<double>(c)) * T;
     for (int k = 0; k < 4; ++k) kink_dt_[j][static_cast<std::size_t>(k)] = -k * T - tj;
   }
+  // Locals, for the same reason as xs.
+  const int ns = samples_;
+  const std::span<const Event> evs(events_);
+  const std::span<const std::array<double, 4>> kdt(kink_dt_);
   for (int i = 0; i < n_; ++i) {
     const auto ui = static_cast<std::size_t>(i);
-    if (samples_ >= 2) {
-      const double v = (x_[s0][ui] - x_[slot(1)][ui]) / T;
+    if (ns >= 2) {
+      const double v = (xs[0][ui] - xs[1][ui]) / T;
       peaks_[ui].velocity_mm_s = std::max(peaks_[ui].velocity_mm_s, std::fabs(v));
       if (std::fabs(v) > vmax_[ui] * (1.0 + kRelativeTolerance) + 4.0 * ulp / T) {
         report(cycle, line, i, LimitQuantity::kVelocity, std::fabs(v), vmax_[ui]);
       }
     }
-    if (samples_ >= 3) {
+    if (ns >= 3) {
       double y[3];
       for (int k = 0; k < 3; ++k) {
-        y[k] = x_[slot(k)][ui];
-        for (std::size_t j = 0; j < events_.size(); ++j) {
-          const Event& e = events_[j];
+        y[k] = xs[static_cast<std::size_t>(k)][ui];
+        for (std::size_t j = 0; j < evs.size(); ++j) {
+          const Event& e = evs[j];
           if (e.cycle + 2 <= c) continue;  // at or before sample 2: linear on the window
-          const double dt = kink_dt_[j][static_cast<std::size_t>(k)];
+          const double dt = kdt[j][static_cast<std::size_t>(k)];
           if (dt > 0.0) y[k] -= e.dv[ui] * dt;
         }
       }
@@ -175,13 +183,13 @@ void LimitChecker::add(std::uint64_t cycle, std::int32_t line, std::int32_t stat
         report(cycle, line, i, LimitQuantity::kAcceleration, std::fabs(a), lim);
       }
     }
-    if (samples_ >= 4) {
+    if (ns >= 4) {
       double z[4];
       for (int k = 0; k < 4; ++k) {
-        z[k] = x_[slot(k)][ui];
-        for (std::size_t j = 0; j < events_.size(); ++j) {
-          const Event& e = events_[j];
-          const double dt = kink_dt_[j][static_cast<std::size_t>(k)];
+        z[k] = xs[static_cast<std::size_t>(k)][ui];
+        for (std::size_t j = 0; j < evs.size(); ++j) {
+          const Event& e = evs[j];
+          const double dt = kdt[j][static_cast<std::size_t>(k)];
           if (dt > 0.0) z[k] -= e.dv[ui] * dt + 0.5 * e.da[ui] * dt * dt;
         }
       }
