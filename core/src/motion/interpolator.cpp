@@ -392,6 +392,7 @@ struct Interpolator::Impl {
   // (q counts on from 0 and wraps only at cap), and every slot the code reads, the one at
   // `tail` included, lies below the slot of the last record stored plus kRingHeadroom.
   static constexpr std::size_t kRingHeadroom = 64;
+  std::size_t slots_used = 0;  // slots [0, slots_used) have held a record
   void grow_rings(std::size_t k) {
     k = std::min(cap, std::max(k + kRingHeadroom, 2 * rec.size()));
     seg.resize(k);
@@ -603,11 +604,17 @@ struct Interpolator::Impl {
   // Plans and stores one record at q = tail.
   void store(const Program& p, std::size_t i) {
     const std::uint64_t q = tail;
-    if (ring_index(q) + 1 >= rec.size() && rec.size() < cap) grow_rings(ring_index(q) + 1);
+    const std::size_t slot = ring_index(q);
+    if (slot + 1 >= rec.size() && rec.size() < cap) grow_rings(slot + 1);
     const Segment& sg = p.segments[i];
     S(q) = sg;
     Rec& r = R(q);
-    r = Rec{};
+    // A slot that never held a record is the default record grow_rings made.
+    if (slot < slots_used) {
+      r = Rec{};
+    } else {
+      slots_used = slot + 1;
+    }
     r.s0 = s_tail;
     // Parameters are read for M records only (execution, events, LookAheadBuffer).
     if (sg.type == SegmentType::kMFunction) {
