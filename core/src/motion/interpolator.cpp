@@ -618,10 +618,8 @@ struct Interpolator::Impl {
     r.s0 = s_tail;
     // Parameters are read for M records only (execution, events, LookAheadBuffer).
     if (sg.type == SegmentType::kMFunction) {
-      if (ring_index(q) >= par.size())
-        par.resize(std::min(cap, std::max(ring_index(q) + 1, 2 * par.size())));
-      par[ring_index(q)] =
-          sg.aux >= 0 ? p.params[static_cast<std::size_t>(sg.aux)] : unset_params();
+      if (slot >= par.size()) par.resize(std::min(cap, std::max(slot + 1, 2 * par.size())));
+      par[slot] = sg.aux >= 0 ? p.params[static_cast<std::size_t>(sg.aux)] : unset_params();
     }
     if (sg.type == SegmentType::kMessage) {
       msg[msg_next] = p.messages[static_cast<std::size_t>(sg.aux)];

@@ -112,9 +112,9 @@ void LimitChecker::add(std::uint64_t cycle, std::int32_t line, std::int32_t stat
   emergency_[s0] = status == static_cast<std::int32_t>(InterpolatorStatus::kEmergencyRamp);
   if (samples_ < 4) ++samples_;
   for (const CornerEvent& e : events) {
-    // Member by member: a braced temporary was built on the stack and read back as wide loads
-    // across its narrower stores (a third of the checker's time on a program with a corner
-    // every cycle).
+    // Member by member, not through a braced temporary on the stack (perf put a third of the
+    // checker's samples on reading that temporary back, on a program with a corner every
+    // cycle; the whole checker measured no faster for it, BENCHMARKS.md session 22).
     Event& ev = events_.emplace_back();
     ev.cycle = e.cycle;
     ev.fraction = e.fraction;
