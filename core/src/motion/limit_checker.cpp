@@ -112,14 +112,7 @@ void LimitChecker::add(std::uint64_t cycle, std::int32_t line, std::int32_t stat
   emergency_[s0] = status == static_cast<std::int32_t>(InterpolatorStatus::kEmergencyRamp);
   if (samples_ < 4) ++samples_;
   for (const CornerEvent& e : events) {
-    // Member by member, not through a braced temporary on the stack (perf put a third of the
-    // checker's samples on reading that temporary back, on a program with a corner every
-    // cycle; the whole checker measured no faster for it, BENCHMARKS.md session 22).
-    Event& ev = events_.emplace_back();
-    ev.cycle = e.cycle;
-    ev.fraction = e.fraction;
-    ev.dv = e.dv;
-    ev.da = e.da;
+    events_.push_back({e.cycle, e.fraction, e.dv, e.da});
     for (int i = 0; i < n_; ++i) {
       const auto ui = static_cast<std::size_t>(i);
       const double dv = std::fabs(e.dv[ui]);
