@@ -109,8 +109,8 @@ class LimitChecker {
   std::array<double, kMaxAxes> vmax_{}, amax_{}, jmax_{}, tol_{}, emax_{}, ejmax_{};
   // The last four cycles, a ring: sample k (0 = newest) is in slot (head_ - k) & 3.
   std::array<std::array<double, kMaxAxes>, 4> x_{};
-  std::array<std::uint64_t, 4> cyc_{};
   std::array<bool, 4> emergency_{};
+  std::uint64_t last_cycle_ = 0;  // the newest sample's cycle (the series needs consecutive ones)
   unsigned head_ = 0;
   int samples_ = 0;
   std::size_t slot(int k) const { return (head_ - static_cast<unsigned>(k)) & 3u; }

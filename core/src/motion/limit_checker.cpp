@@ -76,10 +76,8 @@ void LimitChecker::add_trace(std::span<const CycleTrace> trace,
       if (k + 1 < t.count && samples_ == 4 && events_.empty() &&
           (e == events.size() || events[e].cycle > last) && history_is(t.orig_position)) {
         const bool em = emergency_[slot(0)];
-        for (int h = 0; h < 4; ++h) {
-          cyc_[slot(h)] = last - static_cast<std::uint64_t>(h);
-          emergency_[slot(h)] = em;
-        }
+        emergency_.fill(em);
+        last_cycle_ = last;
         break;
       }
     }
@@ -107,8 +105,8 @@ void LimitChecker::add(std::uint64_t cycle, std::int32_t line, std::int32_t stat
   }
   // Cycles must be consecutive; otherwise start a new series. (The older pairs of the history
   // were checked when they came in.)
-  if (samples_ > 0 && cyc_[slot(1)] + 1 != cycle) samples_ = 0;
-  cyc_[s0] = cycle;
+  if (samples_ > 0 && last_cycle_ + 1 != cycle) samples_ = 0;
+  last_cycle_ = cycle;
   emergency_[s0] = status == static_cast<std::int32_t>(InterpolatorStatus::kEmergencyRamp);
   if (samples_ < 4) ++samples_;
   for (const CornerEvent& e : events) {
