@@ -271,6 +271,30 @@ TEST(SmoothingStage, EventsPassAtOnceWithoutSplineAndWithIirOnly) {
   EXPECT_FALSE(st.settled());
 }
 
+TEST(SmoothingStage, BothOffPassesOrigPositionAndKeepsTheFilterInputForABumplessStart) {
+  // Both stages off (the default): Position is the input and Speed its difference quotient,
+  // exactly; the filter still records each input, so an axis that enters the IIR mask later
+  // starts at rest where Position stands (a stale input would pull it back towards 0).
+  SmoothingStage st(2, 500);
+  const double dt = st.calc_step_s();
+  double x[2] = {0.0, 0.0};
+  for (int k = 1; k <= 50; ++k) {
+    const double prev[2] = {x[0], x[1]};
+    x[0] = 0.003 * k * k;
+    x[1] = -1.5 * k;
+    st.step(x);
+    ASSERT_EQ(st.position()[0], x[0]);
+    ASSERT_EQ(st.position()[1], x[1]);
+    ASSERT_EQ(st.speed()[0], (x[0] - prev[0]) * (1.0 / dt));
+    ASSERT_EQ(st.speed()[1], (x[1] - prev[1]) * (1.0 / dt));
+  }
+  ASSERT_TRUE(st.configure_iir({2'000'000, 1'000'000, 6'000'000, 1u}).ok());
+  st.step(x);
+  EXPECT_EQ(st.position()[0], x[0]);
+  EXPECT_EQ(st.speed()[0], 0.0);
+  EXPECT_TRUE(st.settled());
+}
+
 TEST(SmoothingStage, SplineChangeOnlyWhenDrainedAndSpeedIsAfterSmoothing) {
   SmoothingStage st(1, 500);
   ASSERT_TRUE(st.configure_spline(50, 1'000'000).ok());

@@ -67,6 +67,14 @@ class IirFilter {
   //! One calculation step: `in` is Orig_Position (or the spline output) at the end of the step,
   //! held over the step; writes the filtered position (axes outside the mask: out = in).
   void step(const double* in_mm, double* out_mm);
+  //! step() with the mask empty (every axis passes through): records the input as the state
+  //! step() would leave, without an output array.
+  void pass(const double* in_mm) {
+    for (int i = 0; i < axes_; ++i) {
+      const auto ui = static_cast<std::size_t>(i);
+      u_[ui] = y_[ui] = in_mm[i];
+    }
+  }
 
   //! True when axis `i` is not filtered or its output is on its input (lag < 1e-9 mm, velocity
   //! < 1e-6 mm/s).
@@ -257,6 +265,7 @@ class SmoothingStage {
  private:
   int axes_;
   double dt_;
+  double inv_dt_;  // 1 / dt_
   SplineSmoother spline_;
   IirFilter iir_;
   std::array<double, kMaxAxes> mid_{}, pos_{}, speed_{};
