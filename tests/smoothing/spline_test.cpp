@@ -288,9 +288,25 @@ TEST(SmoothingStage, BothOffPassesOrigPositionAndKeepsTheFilterInputForABumpless
     ASSERT_EQ(st.speed()[0], (x[0] - prev[0]) * (1.0 / dt));
     ASSERT_EQ(st.speed()[1], (x[1] - prev[1]) * (1.0 / dt));
   }
+  // A step nobody reads (Interpolator: the first three of a cycle) releases events as a step
+  // does, and the two steps after it make Position and Speed as if it had been made.
+  ASSERT_TRUE(st.passes_through());
+  ASSERT_TRUE(st.push_event_next({1, 5, 0}));
+  SmoothingEvent e;
+  EXPECT_FALSE(st.pop_event(&e));
+  st.step_unread();
+  ASSERT_TRUE(st.pop_event(&e));
+  EXPECT_EQ(e.value, 5);
+  const double far[2] = {x[0] + 1.0, x[1] + 2.0};
+  st.step(far);
+  const double last[2] = {far[0] + 0.25, far[1] - 0.5};
+  st.step(last);
+  EXPECT_EQ(st.position()[0], last[0]);
+  EXPECT_EQ(st.speed()[1], (last[1] - far[1]) * (1.0 / dt));
   ASSERT_TRUE(st.configure_iir({2'000'000, 1'000'000, 6'000'000, 1u}).ok());
-  st.step(x);
-  EXPECT_EQ(st.position()[0], x[0]);
+  EXPECT_FALSE(st.passes_through());
+  st.step(last);
+  EXPECT_EQ(st.position()[0], last[0]);
   EXPECT_EQ(st.speed()[0], 0.0);
   EXPECT_TRUE(st.settled());
 }

@@ -231,6 +231,13 @@ class SmoothingStage {
   //! One calculation step: Orig_Position at the end of the step in, Position / Speed out.
   void step(const double* orig_mm);
 
+  //! True when both stages are off: Position is Orig_Position and Speed its difference.
+  bool passes_through() const { return spline_.delay_steps() == 0 && iir_.mask() == 0; }
+  //! Instead of step() while passes_through(), for a calculation step whose Position and Speed
+  //! nobody reads: only the step count moves on (events are released as after step()). The
+  //! two step() calls that follow make Position and Speed what step() would have made them.
+  void step_unread() { ++steps_; }
+
   //! Queues an event that belongs to the input sample of the last step(); it is released by
   //! pop_event() after the step whose output is that sample (N steps later; at once when the
   //! spline is off). False when the queue is full (never with fewer than 256 events in N steps).

@@ -1295,12 +1295,19 @@ struct Interpolator::Impl {
     }
   }
 
-  // After a calculation step of the path: Orig_Position through the smoothing, events out.
-  void smooth_step() {
-    double p[kMaxAxes];
-    for (int i = 0; i < kMaxAxes; ++i) p[i] = rest[static_cast<std::size_t>(i)];
-    current_position(p);
-    smooth->step(p);
+  // After calculation step k of the path: Orig_Position through the smoothing, events out.
+  // With both smoothing stages off only the cycle's last two steps make Position and Speed
+  // (the registers read them after the cycle); the others leave out the path position (on an
+  // arc a sine and a cosine) and count the step.
+  void smooth_step(int k) {
+    if (k < kCalcSteps - 2 && smooth->passes_through()) {
+      smooth->step_unread();
+    } else {
+      double p[kMaxAxes];
+      for (int i = 0; i < kMaxAxes; ++i) p[i] = rest[static_cast<std::size_t>(i)];
+      current_position(p);
+      smooth->step(p);
+    }
     SmoothingEvent e;
     while (smooth->pop_event(&e)) apply_event(e);
     if (end_pending && smooth->at_rest()) {
@@ -2974,7 +2981,7 @@ StepResult Interpolator::step() {
   m.reg.cycle += 1;
   for (int k = 0; k < kCalcSteps; ++k) {
     m.calc_step(k);
-    m.smooth_step();
+    m.smooth_step(k);
   }
   m.ostage->update(m.smooth->position().data(), m.T);
   m.poll_pending_command();

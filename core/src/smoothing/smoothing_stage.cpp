@@ -46,7 +46,7 @@ void SmoothingStage::reset(const double* position_mm) {
 }
 
 void SmoothingStage::step(const double* orig_mm) {
-  if (spline_.delay_steps() == 0 && iir_.mask() == 0) {
+  if (passes_through()) {
     // Both off (the default): Position is Orig_Position. The same values as the general path
     // below, bit for bit, without its copies through two arrays (a tenth of a dense CAM
     // program's simulation went to a stalled reload of the filter's output array).
