@@ -12,6 +12,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
+#include <utility>
 #include <vector>
 
 #include "path_geometry.hpp"
@@ -121,11 +123,35 @@ struct Rec {
   Geometry g;
 };
 
-// Fixed-capacity deque of sequence numbers (no allocation after init).
+// An allocator whose vector(n) leaves trivial elements uninitialised: the deques below are
+// sized for the whole ring at create but only written as records enter them, and a large
+// allocation that is never written costs no pages (a one-shot `tgm-hmi simulate` of a short
+// program used to write their 0.9 MB first). Copies still copy every element.
+template <typename T>
+struct UninitAllocator {
+  using value_type = T;
+  UninitAllocator() = default;
+  template <typename U>
+  explicit UninitAllocator(const UninitAllocator<U>&) {}
+  T* allocate(std::size_t count) { return std::allocator<T>{}.allocate(count); }
+  void deallocate(T* p, std::size_t count) { std::allocator<T>{}.deallocate(p, count); }
+  template <typename U>
+  void construct(U* p) {
+    ::new (static_cast<void*>(p)) U;  // default-initialised: nothing written
+  }
+  template <typename U, typename... Args>
+  void construct(U* p, Args&&... args) {
+    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+  }
+  bool operator==(const UninitAllocator&) const { return true; }
+};
+
+// Fixed-capacity deque of sequence numbers (no allocation after init; an entry is read only
+// after it was written).
 class QDeque {
  public:
   void init(std::size_t cap) {
-    buf_.assign(cap, 0);
+    buf_ = std::vector<std::uint64_t, UninitAllocator<std::uint64_t>>(cap);
     clear();
   }
   void clear() {
@@ -151,7 +177,7 @@ class QDeque {
     std::size_t i = head_ + k;
     return i >= buf_.size() ? i - buf_.size() : i;
   }
-  std::vector<std::uint64_t> buf_;
+  std::vector<std::uint64_t, UninitAllocator<std::uint64_t>> buf_;
   std::size_t head_ = 0;
   std::size_t size_ = 0;
 };
@@ -163,7 +189,7 @@ class QDeque {
 class MinWindow {
  public:
   void init(std::size_t cap) {
-    buf_.assign(cap, Entry{});
+    buf_ = std::vector<Entry, UninitAllocator<Entry>>(cap);
     clear();
   }
   void clear() {
@@ -186,15 +212,15 @@ class MinWindow {
   }
 
  private:
-  struct Entry {
-    std::uint64_t q = 0;
-    double v = 0.0;
+  struct Entry {  // trivial: left unwritten until pushed (UninitAllocator)
+    std::uint64_t q;
+    double v;
   };
   std::size_t idx(std::size_t k) const {
     std::size_t i = head_ + k;
     return i >= buf_.size() ? i - buf_.size() : i;
   }
-  std::vector<Entry> buf_;
+  std::vector<Entry, UninitAllocator<Entry>> buf_;
   std::size_t head_ = 0;
   std::size_t size_ = 0;
 };
