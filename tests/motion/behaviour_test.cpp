@@ -558,6 +558,30 @@ TEST(LookAhead, UpdatedTableEqualsARebuildInEveryCycle) {
   EXPECT_GT(m_waits, 10);
 }
 
+TEST(Requests, BadRecordsAreNamedWithRecordLineAndReason) {
+  // The whole batch is refused, nothing is stored, and the reason names the record, its line
+  // and what is wrong (composed texts: an axis, a plane).
+  MachineConfig m = machine();
+  m.interpolators[0].axes.resize(2);
+  auto ip = Interpolator::create(m, 0, {});
+  ASSERT_TRUE(ip);
+  ProgramBuilder b(2);
+  b.line({1.0, 0.0}, 100.0).line({1.0, 2e9}, 100.0);
+  auto r = ip->load(b.program());
+  EXPECT_EQ(r.code, RequestCode::kInvalid);
+  EXPECT_EQ(r.reason, "record 1 (line 2): end point of axis 1 is not a number within +-1e9 mm");
+  ProgramBuilder c(2);
+  c.line({1.0, 0.0}, 100.0).arc(true, {1.0, 0.0}, {0.5, 0.0}, 100.0, Plane::kXZ);
+  r = ip->load(c.program());
+  EXPECT_EQ(r.code, RequestCode::kInvalid);
+  EXPECT_EQ(r.reason, "record 1 (line 2): arc plane G18 needs axes that are not configured");
+  ProgramBuilder d(2);
+  d.line({1.0, 0.0}, 100.0).dwell(-1.0);
+  r = ip->load(d.program());
+  EXPECT_EQ(r.reason, "record 1 (line 2): dwell must be 0..1e6 s");
+  EXPECT_EQ(ip->registers().free_slots, m.interpolators[0].buffer_size);
+}
+
 TEST(Requests, RefusedWithReasons) {
   Interpolator ip = make();
   EXPECT_EQ(ip.start().code, RequestCode::kWrongState);

@@ -582,47 +582,55 @@ struct Interpolator::Impl {
 
   // What is wrong with record i of p, prefixed with where it is; empty when it can be stored.
   std::string validate(const Program& p, std::size_t i) const {
-    std::string why = record_problem(p, p.segments[i]);
-    if (why.empty()) return why;
-    return "record " + std::to_string(i) + " (line " + std::to_string(p.segments[i].line) +
-           "): " + why;
+    const Segment& sg = p.segments[i];
+    const RecordProblem bad = record_problem(p, sg);
+    if (bad.what == nullptr) return {};
+    std::string why =
+        "record " + std::to_string(i) + " (line " + std::to_string(sg.line) + "): " + bad.what;
+    if (bad.detail >= 0) why += std::to_string(bad.detail) + bad.rest;
+    return why;
   }
 
-  // The problem of one record (no allocation when there is none: this runs for every record).
-  std::string record_problem(const Program& p, const Segment& sg) const {
-    if (static_cast<int>(sg.type) > 6) return "unknown record type";
+  // The problem of one record: `what`, then `detail` and `rest` when detail >= 0 (an axis, a
+  // plane). No string is made for a good record: this runs for every record appended, one per
+  // cycle on a program of short chords.
+  struct RecordProblem {
+    const char* what = nullptr;
+    int detail = -1;
+    const char* rest = "";
+  };
+  RecordProblem record_problem(const Program& p, const Segment& sg) const {
+    if (static_cast<int>(sg.type) > 6) return {"unknown record type"};
     for (int a = 0; a < n; ++a) {
-      if (!(std::fabs(sg.end[a]) <= kMaxCoordinateMm)) {
-        return "end point of axis " + std::to_string(a) + " is not a number within +-1e9 mm";
-      }
+      if (!(std::fabs(sg.end[a]) <= kMaxCoordinateMm))
+        return {"end point of axis ", a, " is not a number within +-1e9 mm"};
     }
     if (sg.type == SegmentType::kLinear || sg.is_arc()) {
       if (!(sg.feed_mm_per_min > 0.0 && sg.feed_mm_per_min <= kMaxFeedMmPerMin)) {
-        return "feed must be > 0 and <= 1000000 mm/min";
+        return {"feed must be > 0 and <= 1000000 mm/min"};
       }
     }
     if (sg.is_arc()) {
       const PlaneAxes pa = plane_axes(sg.plane);
       if (pa.first >= n || pa.second >= n) {
-        return "arc plane G" + std::to_string(static_cast<int>(sg.plane)) +
-               " needs axes that are not configured";
+        return {"arc plane G", static_cast<int>(sg.plane), " needs axes that are not configured"};
       }
       if (!(std::fabs(sg.center[0]) <= kMaxCoordinateMm && std::fabs(sg.center[1]) <= kMaxCoordinateMm)) {
-        return "arc centre is not a point within +-1e9 mm";
+        return {"arc centre is not a point within +-1e9 mm"};
       }
-      if (sg.turns < 0) return "arc turns < 0";
+      if (sg.turns < 0) return {"arc turns < 0"};
     }
     if (sg.type == SegmentType::kDwell && (!std::isfinite(sg.dwell_s) || sg.dwell_s < 0.0 || sg.dwell_s > 1e6)) {
-      return "dwell must be 0..1e6 s";
+      return {"dwell must be 0..1e6 s"};
     }
     if (sg.type == SegmentType::kMFunction) {
-      if (sg.m_kind == MKind::kNone) return "M record without M kind";
+      if (sg.m_kind == MKind::kNone) return {"M record without M kind"};
       if (sg.aux >= static_cast<std::int32_t>(p.params.size()))
-        return "M parameter index out of range";
+        return {"M parameter index out of range"};
     }
     if (sg.type == SegmentType::kMessage &&
         (sg.aux < 0 || sg.aux >= static_cast<std::int32_t>(p.messages.size()))) {
-      return "message index out of range";
+      return {"message index out of range"};
     }
     return {};
   }
