@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "limit_findings.hpp"
 #include "program_builder.hpp"
 #include "random_program.hpp"
 #include "tgm/interpolator.hpp"
@@ -321,6 +322,26 @@ TEST(Advance, ChordCruiseAcrossJunctionsEqualsStepping) {
 // cruise skip once ignored the part of the window beyond what the cruise itself needed). Every
 // second program gets one or two stops (Command 8 or 4) in its first 3 s, restarted after
 // 0.05 s: the fast-forward must stop at them and restart as the stepping run does.
+// `program` run with `o` stepped (index 0) and fast-forwarded (index 1); with `blocks`, the
+// block reports of each run.
+std::array<SimulationSummary, 2> run_stepped_and_fast(
+    const MachineConfig& m, SimulationOptions o, const Program& program,
+    std::array<std::vector<BlockReport>, 2>* blocks = nullptr) {
+  std::array<SimulationSummary, 2> s;
+  for (std::size_t mode = 0; mode < 2; ++mode) {
+    o.fast_forward = mode == 1;
+    auto sim = Simulation::create(m, o);
+    if (!sim) {
+      ADD_FAILURE() << "Simulation::create refused the options";
+      return s;
+    }
+    s[mode] = sim->run(program, {}, [&](const BlockReport& r) {
+      if (blocks != nullptr) (*blocks)[mode].push_back(r);
+    });
+  }
+  return s;
+}
+
 TEST(Advance, SimulationSummaryEqualsStepping) {
   const std::uint64_t first = env_u64("TGM_SEED", 1);
   for (std::uint64_t run = 0; run < 30; ++run) {
@@ -338,14 +359,8 @@ TEST(Advance, SimulationSummaryEqualsStepping) {
       for (int i = 0; i < n; ++i) o.stops.emplace_back(3.0 * u(rng), u(rng) < 0.5 ? 8 : 4);
       o.stop_restart_s = 0.05;
     }
-    std::vector<BlockReport> b[2];
-    SimulationSummary s[2];
-    for (int mode = 0; mode < 2; ++mode) {
-      o.fast_forward = mode == 1;
-      auto sim = Simulation::create(m, o);
-      ASSERT_TRUE(sim);
-      s[mode] = sim->run(g.program, {}, [&](const BlockReport& r) { b[mode].push_back(r); });
-    }
+    std::array<std::vector<BlockReport>, 2> b;
+    const auto s = run_stepped_and_fast(m, o, g.program, &b);
     const std::string ctx = "seed " + std::to_string(seed) + " program " + std::to_string(k);
     ASSERT_EQ(s[0].result, StepResult::kFinished) << ctx << ": " << s[0].error;
     EXPECT_EQ(s[0].result, s[1].result) << ctx;
@@ -361,22 +376,6 @@ TEST(Advance, SimulationSummaryEqualsStepping) {
     ASSERT_EQ(b[0].size(), b[1].size()) << ctx;
     for (std::size_t i = 0; i < b[0].size(); ++i) EXPECT_TRUE(same_block(b[0][i], b[1][i])) << ctx << " block " << i;
   }
-}
-
-// `program` run with `o` stepped (index 0) and fast-forwarded (index 1).
-std::array<SimulationSummary, 2> run_stepped_and_fast(const MachineConfig& m, SimulationOptions o,
-                                                      const Program& program) {
-  std::array<SimulationSummary, 2> s;
-  for (int mode = 0; mode < 2; ++mode) {
-    o.fast_forward = mode == 1;
-    auto sim = Simulation::create(m, o);
-    if (!sim) {
-      ADD_FAILURE() << "Simulation::create refused the options";
-      return s;
-    }
-    s[static_cast<std::size_t>(mode)] = sim->run(program);
-  }
-  return s;
 }
 
 // A stop given while the motion already stands after an earlier one cancels the pending restart
@@ -433,22 +432,8 @@ TEST(Advance, LimitCheckOfFastForwardEqualsStepping) {
       corner_steps += v.quantity == LimitQuantity::kCornerStep;
     }
     EXPECT_EQ(s[0].violation_count, s[1].violation_count) << ctx;
-    ASSERT_EQ(s[0].violations.size(), s[1].violations.size()) << ctx;
-    for (std::size_t i = 0; i < s[0].violations.size(); ++i) {
-      const LimitViolation& a = s[0].violations[i];
-      const LimitViolation& b = s[1].violations[i];
-      EXPECT_TRUE(a.cycle == b.cycle && a.line == b.line && a.axis == b.axis &&
-                  a.quantity == b.quantity && a.value == b.value && a.limit == b.limit)
-          << ctx << " violation " << i << ": cycle " << a.cycle << " / " << b.cycle;
-    }
-    for (int i = 0; i < axes; ++i) {
-      const AxisPeaks& a = s[0].peaks[static_cast<std::size_t>(i)];
-      const AxisPeaks& b = s[1].peaks[static_cast<std::size_t>(i)];
-      EXPECT_EQ(a.velocity_mm_s, b.velocity_mm_s) << ctx << " axis " << i;
-      EXPECT_EQ(a.acceleration_mm_s2, b.acceleration_mm_s2) << ctx << " axis " << i;
-      EXPECT_EQ(a.jerk_mm_s3, b.jerk_mm_s3) << ctx << " axis " << i;
-      EXPECT_EQ(a.corner_step_mm_s, b.corner_step_mm_s) << ctx << " axis " << i;
-    }
+    ASSERT_NO_FATAL_FAILURE(test::expect_same_findings(s[0].violations, s[1].violations, s[0].peaks,
+                                                       s[1].peaks, axes, ctx));
   }
   // At 80 % of the limits the random programs exceed some: the lists compared were not empty.
   EXPECT_GT(violations, 0u);
