@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -171,6 +172,17 @@ int run_run(int argc, char** argv) {
   for (const Segment& s : program.segments) last_line = std::max(last_line, s.line);
 
   install_signal_flag();
+  // M-function waits are counted from the event topic (RELIABLE, every change of the handshake
+  // registers): a wait the PLC acknowledges at once lasts a cycle or two, which the state
+  // (KEEP_LAST 1, taken every 2 ms) often does not show. The event callback only queues what
+  // the main loop needs. Declared before the client, which detaches the callback when destroyed.
+  struct MEvent {
+    std::uint64_t cycle;
+    std::uint32_t program;
+    std::int32_t part, run_flag, m_func;
+  };
+  std::mutex events_mutex;
+  std::vector<MEvent> events_in, events;
   std::optional<client::Client> hmi;
   client::ClientOptions copt;
   copt.setpoints = !plot_path.empty();
@@ -181,6 +193,26 @@ int run_run(int argc, char** argv) {
     return 1;
   }
   if (!wait_for_service(*hmi, *config, ip, "run")) return 1;
+  try {
+    hmi->on_event([&](const client::Event& ev) {
+      const msg::InterpolatorEvent& e = ev.sample;
+      if (e.interpolator() != ip) return;
+      const std::lock_guard lock(events_mutex);
+      events_in.push_back(
+          {e.cycle_counter(), e.program_id(), e.act_part(), e.run_flag(), e.m_func()});
+    });
+  } catch (const dds::SetupError& e) {
+    std::fprintf(stderr, "tgm-hmi run: %s\n", e.what());
+    return 1;
+  }
+  // The service's writer is known (its state arrived); the new reader matches it within
+  // milliseconds. Events written before the match would be missing from the count.
+  const bool events_matched = hmi->wait_for_event_match(std::chrono::seconds(5));
+  if (!events_matched) {
+    std::fprintf(stderr,
+                 "tgm-hmi run: warning: the event topic did not match within 5 s; M-function waits "
+                 "are counted from the state and may miss short ones\n");
+  }
 
   // Take the interpolator over: clear what it holds (only while it stands).
   const msg::InterpolatorState* st = hmi->state(ip);
@@ -224,6 +256,31 @@ int run_run(int argc, char** argv) {
   std::uint64_t fresh_after = 0;  // ignore states from before our last start request
   std::int32_t m_part = -1;
   std::uint64_t m_wait_cycles = 0, m_wait_from = 0;
+  // The same count from the events (used when the event topic matched).
+  std::uint64_t ev_waits = 0, ev_wait_cycles = 0, ev_wait_from = 0;
+  std::int32_t ev_part = -1;
+  auto count_events = [&] {
+    {
+      const std::lock_guard lock(events_mutex);
+      events.swap(events_in);
+    }
+    for (const MEvent& e : events) {
+      if (e.program != program_id || !started || e.cycle <= start_cycle) continue;
+      const auto section =
+          static_cast<SectionState>(static_cast<std::uint32_t>(e.run_flag) & 0xFFFFu);
+      const bool waiting =
+          section == SectionState::kWaitMFunc || section == SectionState::kWaitMFuncEnd;
+      if (waiting && e.m_func != 0 && e.part != ev_part) {
+        ev_part = e.part;
+        ++ev_waits;
+        ev_wait_from = e.cycle;
+      } else if (!waiting && ev_wait_from != 0) {
+        ev_wait_cycles += e.cycle - ev_wait_from;
+        ev_wait_from = 0;
+      }
+    }
+    events.clear();
+  };
   std::size_t messages = 0;
   int exit_code = 0;
   bool progress_shown = false;
@@ -244,6 +301,7 @@ int run_run(int argc, char** argv) {
       break;
     }
     st = hmi->state(ip);
+    count_events();
     for (const msg::Message& m : hmi->take_messages()) {
       if (m.interpolator() != ip) continue;
       clear_progress();
@@ -370,6 +428,16 @@ int run_run(int argc, char** argv) {
   }
   clear_progress();
   for (int k = 0; k < 50 && !plot_path.empty(); ++k) hmi->poll(1ms);  // last samples for the plot
+  // The event that ends the last wait was written before the end state; it may still be on
+  // its way (the state and event topics are separate readers).
+  for (int k = 0; k < 250 && exit_code == 0 && events_matched && ev_wait_from != 0; ++k) {
+    hmi->poll(2ms);
+    count_events();
+  }
+  if (events_matched) {
+    m_waits = ev_waits;
+    m_wait_cycles = ev_wait_cycles;
+  }
   st = hmi->state(ip);
   const double program_s = static_cast<double>(st->cycle_counter() - start_cycle) * cycle_s;
   if (exit_code == 0) {
@@ -381,14 +449,22 @@ int run_run(int argc, char** argv) {
       dro += b;
     }
     std::printf(
-        "done: %llu records, %d lines in %.3f s (%llu cycles), distance %.3f mm, %llu M-function wait%s "
-        "(%.3f s) seen in the state, %zu message%s\n  end position%s\n  service cycle lateness: max %.1f us, p99.9 %.1f us, "
+        "done: %llu records, %d lines in %.3f s (%llu cycles), distance %.3f mm, %llu M-function "
+        "wait%s "
+        "(%.3f s)%s, %zu message%s\n  end position%s\n  service cycle lateness: max %.1f us, p99.9 "
+        "%.1f us, "
         "missed cycles %llu\n",
         static_cast<unsigned long long>(sender.total()), last_line, program_s,
         static_cast<unsigned long long>(st->cycle_counter() - start_cycle), st->move_distance(),
-        static_cast<unsigned long long>(m_waits), m_waits == 1 ? "" : "s", static_cast<double>(m_wait_cycles) * cycle_s,
-        messages, messages == 1 ? "" : "s", dro.c_str(), static_cast<double>(st->lateness_max_ns()) / 1e3,
-        static_cast<double>(st->lateness_p999_ns()) / 1e3, static_cast<unsigned long long>(st->missed_cycles()));
+        static_cast<unsigned long long>(m_waits), m_waits == 1 ? "" : "s",
+        static_cast<double>(m_wait_cycles) * cycle_s,
+        !events_matched          ? " seen in the state"
+        : hmi->events_lost() > 0 ? " (events lost: the count may be short)"
+                                 : "",
+        messages, messages == 1 ? "" : "s", dro.c_str(),
+        static_cast<double>(st->lateness_max_ns()) / 1e3,
+        static_cast<double>(st->lateness_p999_ns()) / 1e3,
+        static_cast<unsigned long long>(st->missed_cycles()));
   }
   if (!plot_path.empty()) {
     if (!write_svg(plot_path, plot, letters, error)) {

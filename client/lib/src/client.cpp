@@ -112,6 +112,10 @@ void Client::on_event(EventHandler handler) {
   }
 }
 
+bool Client::wait_for_event_match(std::chrono::milliseconds timeout) {
+  return event_reader_ != nullptr && dds::wait_for_match(*event_reader_, 1, timeout);
+}
+
 void Client::poll(std::chrono::nanoseconds timeout) {
   if (timeout.count() > 0) {
     waiter_->wait(timeout);
