@@ -449,11 +449,10 @@ int run_run(int argc, char** argv) {
       dro += b;
     }
     std::printf(
-        "done: %llu records, %d lines in %.3f s (%llu cycles), distance %.3f mm, %llu M-function "
-        "wait%s "
-        "(%.3f s)%s, %zu message%s\n  end position%s\n  service cycle lateness: max %.1f us, p99.9 "
-        "%.1f us, "
-        "missed cycles %llu\n",
+        "done: %llu records, %d lines in %.3f s (%llu cycles), distance %.3f mm, "
+        "%llu M-function wait%s (%.3f s)%s, %zu message%s\n"
+        "  end position%s\n"
+        "  service cycle lateness: max %.1f us, p99.9 %.1f us, missed cycles %llu\n",
         static_cast<unsigned long long>(sender.total()), last_line, program_s,
         static_cast<unsigned long long>(st->cycle_counter() - start_cycle), st->move_distance(),
         static_cast<unsigned long long>(m_waits), m_waits == 1 ? "" : "s",
