@@ -13,81 +13,20 @@
 namespace tgm::hmi {
 
 Args::Args(int argc, char** argv, const char* command, const char* usage)
-    : argc_(argc), argv_(argv), command_(command), usage_(usage) {}
-
-bool Args::flag(const char* name, std::string& value) {
-  const std::string arg = argv_[i_];
-  const std::size_t n = std::strlen(name);
-  if (arg == name) {
-    if (i_ + 1 >= argc_) {
-      usage_error(std::string(name) + " needs a value");
-      failed_ = true;
-      ++i_;
-      return true;
-    }
-    value = argv_[i_ + 1];
-    i_ += 2;
-  } else if (arg.size() > n && arg.compare(0, n, name) == 0 && arg[n] == '=') {
-    value = arg.substr(n + 1);
-    ++i_;
-  } else {
-    return false;
-  }
-  // An empty value would read as the flag not given (its default), silently.
-  if (value.empty()) {
-    usage_error(std::string(name) + " needs a value, not an empty string");
-    failed_ = true;
-  }
-  return true;
-}
-
-bool Args::boolean(const char* name, bool& value) {
-  if (std::strcmp(argv_[i_], name) != 0) return false;
-  value = true;
-  ++i_;
-  return true;
-}
+    : ArgReader(argc, argv, std::string("tgm-hmi ") + command), usage_(usage) {}
 
 bool Args::common() {
-  const std::string arg = argv_[i_];
-  if (arg == "--help" || arg == "-h") {
-    help_ = true;
-    ++i_;
-    return true;
-  }
-  return flag("--config", config_path_) || flag("--interpolator", interpolator_text_);
-}
-
-bool Args::positional(std::string& value) {
-  const char* arg = argv_[i_];
-  if (!value.empty() || (arg[0] == '-' && arg[1] != '\0')) return false;
-  value = arg;
-  ++i_;
-  return true;
-}
-
-int Args::fail() {
-  const char* arg = argv_[i_];
-  failed_ = true;
-  ++i_;
-  if (arg[0] == '-') return usage_error(std::string("unknown option '") + arg + "'");
-  return usage_error(std::string("unexpected argument '") + arg + "'");
+  return help_flag() || flag("--config", config_path_) ||
+         flag("--interpolator", interpolator_text_);
 }
 
 bool Args::help() const {
-  if (help_) std::fputs(usage_, stdout);
-  return help_;
-}
-
-int Args::usage_error(const std::string& reason) const {
-  std::fprintf(stderr, "tgm-hmi %s: %s\n(see tgm-hmi %s --help)\n", command_, reason.c_str(),
-               command_);
-  return 2;
+  if (help_given()) std::fputs(usage_, stdout);
+  return help_given();
 }
 
 std::optional<AppConfig> Args::load_app() {
-  std::optional<AppConfig> config =
-      load_config_or_report(config_path_, std::string("tgm-hmi ") + command_);
+  std::optional<AppConfig> config = load_config_or_report(config_path_, program());
   if (!config) return std::nullopt;
   const int count = static_cast<int>(config->machine.interpolators.size());
   if (!interpolator_text_.empty()) {
@@ -224,7 +163,7 @@ bool FileView::open(const std::string& path, std::string& error) {
   return true;
 }
 
-bool parse_progress_interval(const Args& args, const std::string& text, double& out) {
+bool parse_progress_interval(Args& args, const std::string& text, double& out) {
   double v = 0.0;
   if (text.empty()) return true;
   if (!parse_finite(text, v) || !(v > 0.0) || v > 86400.0) {

@@ -6,37 +6,23 @@
 #include <string>
 #include <string_view>
 
+#include "tgm/cli_args.hpp"
 #include "tgm/cli_numbers.hpp"
 #include "tgm/config.hpp"
 #include "tgm/yaml_config.hpp"
 
 namespace tgm::hmi {
 
-//! A small strict argument reader: `--flag VALUE` or `--flag=VALUE`, positionals, and the
-//! flags every subcommand shares (--config, --interpolator, --help). Problems are printed as
-//! "tgm-hmi CMD: reason" with a hint to --help.
-class Args {
+//! The argument reader of a tgm-hmi subcommand (tgm::cli::ArgReader, messages prefixed
+//! "tgm-hmi CMD") with the flags every subcommand shares: --config, --interpolator, --help.
+class Args : public cli::ArgReader {
  public:
   Args(int argc, char** argv, const char* command, const char* usage);
 
-  bool more() const { return i_ < argc_; }
-  //! Consumes `name VALUE` or `name=VALUE`; true when the current argument was `name`.
-  bool flag(const char* name, std::string& value);
-  //! Consumes a flag without a value.
-  bool boolean(const char* name, bool& value);
   //! Consumes --config, --interpolator, --help.
   bool common();
-  //! Consumes a positional argument if `value` is still empty.
-  bool positional(std::string& value);
-  //! Reports the current argument as unknown; returns the exit code 2.
-  int fail();
-
   //! True (after printing the usage to stdout) when --help was given.
   bool help() const;
-  //! True when a flag was malformed (already reported).
-  bool failed() const { return failed_; }
-  //! Prints "tgm-hmi CMD: reason" and a hint; returns 2.
-  int usage_error(const std::string& reason) const;
 
   //! Loads and validates the config (printing every problem); nullopt on failure.
   std::optional<MachineConfig> load_machine();
@@ -46,13 +32,7 @@ class Args {
   const std::string& config_path() const { return config_path_; }
 
  private:
-  int argc_;
-  char** argv_;
-  int i_ = 1;
-  const char* command_;
   const char* usage_;
-  bool help_ = false;
-  bool failed_ = false;
   std::string config_path_;
   std::string interpolator_text_;
   int interpolator_ = 0;
@@ -101,6 +81,6 @@ class FileView {
 };
 //! The --progress-interval value of `run` and `simulate` into `out` when `text` is not empty:
 //! seconds > 0, at most a day. False after reporting a usage error through `args`.
-bool parse_progress_interval(const Args& args, const std::string& text, double& out);
+bool parse_progress_interval(Args& args, const std::string& text, double& out);
 
 }  // namespace tgm::hmi

@@ -29,6 +29,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include "tgm/cli_args.hpp"
 #include "tgm/cli_numbers.hpp"
 #include "tgm/client/client.hpp"
 #include "tgm/dds_overrides.hpp"
@@ -77,11 +78,6 @@ constexpr const char* kUsage =
 std::atomic<bool> g_stop{false};
 void on_signal(int) { g_stop = true; }
 
-int usage_error(const std::string& why) {
-  std::fprintf(stderr, "tgm-plc: %s\n(see tgm-plc --help)\n", why.c_str());
-  return 2;
-}
-
 struct ScriptStep {
   double at_s = 0.0;
   int interpolator = 0;
@@ -119,12 +115,15 @@ bool load_script(const std::string& path, std::vector<ScriptStep>& steps, std::s
           return false;
         }
       }
-      if (s.at_s < 0.0) {
-        error = path + ":" + std::to_string(line) + ": at_s must be >= 0";
+      if (!(s.at_s >= 0.0 && s.at_s <= 1e9)) {
+        error = path + ":" + std::to_string(line) + ": at_s must be a number of seconds >= 0";
         return false;
       }
       steps.push_back(s);
     }
+  } catch (const YAML::BadFile&) {
+    error = path + ": cannot open the script file";
+    return false;
   } catch (const YAML::Exception& e) {
     error = path + ": " + e.what();
     return false;
@@ -233,91 +232,76 @@ int main(int argc, char** argv) {
   std::string trace_path;
   int only = -1;
   bool try_start = false;
-  bool basic = true;
+  bool no_basic = false;
   bool quiet = false;
-  bool events = true;
+  bool no_events = false;
   double duration_s = 0.0;
   int rt_priority = 0;
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    if (arg == "--help" || arg == "-h") {
+  tgm::cli::ArgReader args(argc, argv, "tgm-plc");
+  while (args.more()) {
+    std::string value;
+    if (args.help_flag()) {
       std::printf(kUsage, tgm::kDdsOverrideHelp);
       return 0;
     }
-    if (arg == "--try-start") { try_start = true; continue; }
-    if (arg == "--no-basic-params") { basic = false; continue; }
-    if (arg == "--quiet") { quiet = true; continue; }
-    if (arg == "--no-events") { events = false; continue; }
-    if (arg.rfind("--", 0) != 0) return usage_error("unexpected argument '" + arg + "'");
-    std::string flag = arg;
-    std::string value;
-    if (const auto eq = arg.find('='); eq != std::string::npos) {
-      flag = arg.substr(0, eq);
-      value = arg.substr(eq + 1);
-    } else {
-      if (i + 1 >= argc) return usage_error(arg + " needs a value, or is unknown");
-      value = argv[++i];
+    if (args.dds_flag(overrides) || args.flag("--config", config_path) ||
+        args.flag("--handshake-trace", trace_path) || args.boolean("--try-start", try_start) ||
+        args.boolean("--quiet", quiet) || args.boolean("--no-basic-params", no_basic) ||
+        args.boolean("--no-events", no_events)) {
+      continue;
     }
-    // An empty value would read as the flag left out (its default), silently.
-    if (value.empty()) return usage_error(flag + " needs a value, not an empty string");
-    std::string error;
-    if (overrides.take(flag, value, error)) {
-      if (!error.empty()) return usage_error(error);
-    } else if (flag == "--config") {
-      config_path = value;
-    } else if (flag == "--interpolator") {
+    if (args.flag("--interpolator", value)) {
       if (!tgm::parse_integer(value, 0, 2, only))
-        return usage_error("--interpolator must be 0..2, not '" + value + "'");
-    } else if (flag == "--rel-speed") {
+        return args.usage_error("--interpolator must be 0..2, not '" + value + "'");
+    } else if (args.flag("--rel-speed", value)) {
       double v = 0.0;
-      if (!tgm::parse_finite(value, v) || !(v >= 0.01 && v <= 2.0)) {
-        return usage_error("--rel-speed must be 0.01..2, not '" + value + "'");
-      }
+      if (!tgm::parse_finite(value, v) || !(v >= 0.01 && v <= 2.0))
+        return args.usage_error("--rel-speed must be 0.01..2, not '" + value + "'");
       rel_speed = v;
-    } else if (flag == "--ack-delay") {
+    } else if (args.flag("--ack-delay", value)) {
       double v = 0.0;
-      if (!tgm::parse_finite(value, v) || !(v >= 0.0 && v <= 3600.0)) {
-        return usage_error("--ack-delay must be 0..3600 s, not '" + value + "'");
-      }
+      if (!tgm::parse_finite(value, v) || !(v >= 0.0 && v <= 3600.0))
+        return args.usage_error("--ack-delay must be 0..3600 s, not '" + value + "'");
       ack_delay = v;
-    } else if (flag == "--refuse-ack") {
-      std::size_t p = 0;
-      while (p <= value.size()) {
+    } else if (args.flag("--refuse-ack", value)) {
+      for (std::size_t p = 0; p <= value.size();) {
         const std::size_t q = std::min(value.find(',', p), value.size());
-        const std::string m = value.substr(p, q - p);
         int v = 0;
-        if (!tgm::parse_integer(m, 1, 999999, v))
-          return usage_error("--refuse-ack takes M numbers 1..999999 like 51,50");
+        if (!tgm::parse_integer(value.substr(p, q - p), 1, 999999, v))
+          return args.usage_error("--refuse-ack takes M numbers 1..999999 like 51,50");
         refuse.insert(v);
         p = q + 1;
       }
-    } else if (flag == "--handshake-trace") {
-      trace_path = value;
-    } else if (flag == "--script") {
-      script_path = value;
-      if (!load_script(value, script, error)) {
+    } else if (args.flag("--script", script_path)) {
+      std::string error;
+      if (!args.failed() && !load_script(script_path, script, error)) {
         std::fprintf(stderr, "tgm-plc: %s\n", error.c_str());
         return 2;
       }
-    } else if (flag == "--rt-priority") {
+    } else if (args.flag("--rt-priority", value)) {
       if (!tgm::parse_integer(value, 1, 98, rt_priority))
-        return usage_error("--rt-priority must be 1..98");
-    } else if (flag == "--duration") {
-      if (!tgm::parse_finite(value, duration_s) || !(duration_s > 0.0)) {
-        return usage_error("--duration must be a finite number of seconds > 0, not '" + value +
-                           "'");
-      }
+        return args.usage_error("--rt-priority must be 1..98");
+    } else if (args.flag("--duration", value)) {
+      if (!tgm::parse_finite(value, duration_s) || !(duration_s > 0.0))
+        return args.usage_error("--duration must be a finite number of seconds > 0, not '" + value +
+                                "'");
     } else {
-      return usage_error("unknown option '" + flag + "'");
+      return args.fail();
     }
   }
+  if (args.failed()) return 2;
+  const bool basic = !no_basic;
+  const bool events = !no_events;
   const std::optional<tgm::AppConfig> loaded = tgm::load_config_or_report(config_path, "tgm-plc");
   if (!loaded) return 2;
   tgm::AppConfig config = *loaded;
   overrides.apply(config.dds);
-  if (std::string why = tgm::dds_profiles_problem(config.dds); !why.empty()) return usage_error(why);
+  if (std::string why = tgm::dds_profiles_problem(config.dds); !why.empty())
+    return args.usage_error(why);
   const int count = static_cast<int>(config.machine.interpolators.size());
-  if (only >= count) return usage_error("--interpolator " + std::to_string(only) + ": the config has " + std::to_string(count));
+  if (only >= count)
+    return args.usage_error("--interpolator " + std::to_string(only) + ": the config has " +
+                            std::to_string(count));
   for (const auto& s : script) {
     if (s.interpolator < 0 || s.interpolator >= count) {
       std::fprintf(stderr, "tgm-plc: %s: interpolator %d does not exist\n", script_path.c_str(), s.interpolator);
@@ -351,10 +335,10 @@ int main(int argc, char** argv) {
   // Log lines are collected and written once per loop iteration, after the acknowledgements of
   // that iteration went out: a write to a pipe or file must not delay the handshake.
   std::string pending_log;
-  auto log = [&](const char* fmt, auto... args) {
+  auto log = [&](const char* fmt, auto... values) {
     char line[1024];
     int n = std::snprintf(line, sizeof line, "tgm-plc [%8.3f s] ", stamp());
-    n += std::snprintf(line + n, sizeof line - static_cast<std::size_t>(n), fmt, args...);
+    n += std::snprintf(line + n, sizeof line - static_cast<std::size_t>(n), fmt, values...);
     pending_log.append(line, static_cast<std::size_t>(std::min<int>(n, static_cast<int>(sizeof line) - 1)));
     pending_log += '\n';
   };

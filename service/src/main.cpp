@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "dds_port.hpp"
+#include "tgm/cli_args.hpp"
 #include "tgm/cli_numbers.hpp"
 #include "tgm/dds_overrides.hpp"
 #include "tgm/service/engine.hpp"
@@ -56,11 +57,6 @@ constexpr const char* kUsage =
     "  --handshake-trace FILE write the time stamps of every M-function handshake as CSV at exit\n"
     "  --help                 this text\n";
 
-int usage_error(const std::string& why) {
-  std::fprintf(stderr, "tgm-service: %s\n(see tgm-service --help)\n", why.c_str());
-  return 2;
-}
-
 std::int64_t percentile(std::vector<std::int64_t> v, double q) {
   if (v.empty()) return 0;
   std::sort(v.begin(), v.end());
@@ -80,84 +76,64 @@ int main(int argc, char** argv) {
   tgm::service::DdsPortOptions port_options;
   double duration_s = 0.0;
   int dds_priority = 0;
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    if (arg == "--help" || arg == "-h") {
+  tgm::cli::ArgReader args(argc, argv, "tgm-service");
+  bool no_realtime = false;
+  while (args.more()) {
+    std::string value;
+    long long n = 0;
+    if (args.help_flag()) {
       std::printf(kUsage, tgm::kDdsOverrideHelp);
       return 0;
     }
-    if (arg == "--no-realtime") {
-      rt.realtime = false;
+    if (args.dds_flag(overrides) || args.flag("--config", config_path) ||
+        args.flag("--stats", stats_path) || args.flag("--handshake-trace", trace_path) ||
+        args.boolean("--no-realtime", no_realtime) ||
+        args.boolean("--check-limits", engine_options.check_limits)) {
       continue;
     }
-    if (arg == "--check-limits") {
-      engine_options.check_limits = true;
-      continue;
-    }
-    std::string flag = arg;
-    std::string value;
-    if (const auto eq = arg.find('='); arg.rfind("--", 0) == 0 && eq != std::string::npos) {
-      flag = arg.substr(0, eq);
-      value = arg.substr(eq + 1);
-    } else if (arg.rfind("--", 0) == 0) {
-      if (i + 1 >= argc) return usage_error(arg + " needs a value, or is unknown");
-      value = argv[++i];
-    } else {
-      return usage_error("unexpected argument '" + arg + "'");
-    }
-    // An empty value would read as the flag left out (its default), silently.
-    if (value.empty()) return usage_error(flag + " needs a value, not an empty string");
-    std::string error;
-    long long n = 0;
-    if (overrides.take(flag, value, error)) {
-      if (!error.empty()) return usage_error(error);
-    } else if (flag == "--config") {
-      config_path = value;
-    } else if (flag == "--stats") {
-      stats_path = value;
-    } else if (flag == "--handshake-trace") {
-      trace_path = value;
-    } else if (flag == "--cpu") {
-      if (!tgm::parse_integer(value, 0, 1023, rt.cpu)) return usage_error("--cpu must be 0..1023");
-    } else if (flag == "--rt-priority") {
+    if (args.flag("--cpu", value)) {
+      if (!tgm::parse_integer(value, 0, 1023, rt.cpu))
+        return args.usage_error("--cpu must be 0..1023");
+    } else if (args.flag("--rt-priority", value)) {
       if (!tgm::parse_integer(value, 1, 99, rt.priority))
-        return usage_error("--rt-priority must be 1..99");
-    } else if (flag == "--dds-priority") {
+        return args.usage_error("--rt-priority must be 1..99");
+    } else if (args.flag("--dds-priority", value)) {
       if (!tgm::parse_integer(value, 0, 98, dds_priority))
-        return usage_error("--dds-priority must be 0..98");
-    } else if (flag == "--chunk-budget") {
+        return args.usage_error("--dds-priority must be 0..98");
+    } else if (args.flag("--chunk-budget", value)) {
       if (!tgm::parse_integer(value, 1, 1'000'000, n))
-        return usage_error("--chunk-budget must be 1..1000000");
+        return args.usage_error("--chunk-budget must be 1..1000000");
       engine_options.max_segments_per_cycle = static_cast<std::size_t>(n);
-    } else if (flag == "--state-period-ms") {
+    } else if (args.flag("--state-period-ms", value)) {
       if (!tgm::parse_integer(value, 1, 50, n))
-        return usage_error("--state-period-ms must be 1..50");
+        return args.usage_error("--state-period-ms must be 1..50");
       port_options.state_period = std::chrono::milliseconds(n);
-    } else if (flag == "--setpoint-decimation") {
+    } else if (args.flag("--setpoint-decimation", value)) {
       if (!tgm::parse_integer(value, 1, 10000, port_options.setpoint_decimation))
-        return usage_error("--setpoint-decimation must be 1..10000");
-    } else if (flag == "--limit-share") {
+        return args.usage_error("--setpoint-decimation must be 1..10000");
+    } else if (args.flag("--limit-share", value)) {
       double share = 0.0;
-      if (!tgm::parse_finite(value, share) || !tgm::LimitChecker::valid_share(share)) {
-        return usage_error("--limit-share must be a number in (0, 1], not '" + value + "'");
-      }
+      if (!tgm::parse_finite(value, share) || !tgm::LimitChecker::valid_share(share))
+        return args.usage_error("--limit-share must be a number in (0, 1], not '" + value + "'");
       engine_options.limit_share = share;
       engine_options.check_limits = true;
-    } else if (flag == "--duration") {
-      if (!tgm::parse_finite(value, duration_s) || !(duration_s > 0.0)) {
-        return usage_error("--duration must be a finite number of seconds > 0, not '" + value +
-                           "'");
-      }
+    } else if (args.flag("--duration", value)) {
+      if (!tgm::parse_finite(value, duration_s) || !(duration_s > 0.0))
+        return args.usage_error("--duration must be a finite number of seconds > 0, not '" + value +
+                                "'");
     } else {
-      return usage_error("unknown option '" + flag + "'");
+      return args.fail();
     }
   }
+  if (args.failed()) return 2;
+  if (no_realtime) rt.realtime = false;
 
   const std::optional<tgm::AppConfig> loaded = tgm::load_config_or_report(config_path, "tgm-service");
   if (!loaded) return 2;
   tgm::AppConfig config = *loaded;
   overrides.apply(config.dds);
-  if (std::string why = tgm::dds_profiles_problem(config.dds); !why.empty()) return usage_error(why);
+  if (std::string why = tgm::dds_profiles_problem(config.dds); !why.empty())
+    return args.usage_error(why);
 
   std::string error;
   auto engine = tgm::service::Engine::create(config.machine, engine_options, &error);
@@ -175,7 +151,8 @@ int main(int argc, char** argv) {
   sigaddset(&signals, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
-  if (dds_priority >= rt.priority) return usage_error("--dds-priority must be below --rt-priority");
+  if (dds_priority >= rt.priority)
+    return args.usage_error("--dds-priority must be below --rt-priority");
   if (dds_priority > 0 && rt.realtime) {
     // Threads inherit the policy of their creator: set it here, before the participant and the
     // port's threads exist, so Fast DDS's receive / event threads and ours run at it.

@@ -43,15 +43,12 @@ constexpr const char* kCommandUsage =
 
 struct Common {
   DdsOverrides overrides;
-  std::string error;
   std::optional<AppConfig> config;
   std::optional<client::Client> client;
 };
 
 int connect(Args& args, Common& c) {
-  if (!c.error.empty()) return args.usage_error(c.error);
-  if (const int rc = make_client(args, c.overrides, c.config, c.client); rc != 0) return rc;
-  return 0;
+  return make_client(args, c.overrides, c.config, c.client);
 }
 
 int report(const char* what, const client::Reply& r) {
@@ -66,7 +63,7 @@ int run_status(int argc, char** argv) {
   Common c;
   bool all = false;
   while (args.more()) {
-    if (dds_flag(args, c.overrides, c.error)) continue;
+    if (args.dds_flag(c.overrides)) continue;
     if (args.boolean("--all", all)) continue;
     if (args.common()) continue;
     return args.fail();
@@ -93,7 +90,7 @@ int run_watch(int argc, char** argv) {
   Common c;
   std::string interval_text, count_text;
   while (args.more()) {
-    if (dds_flag(args, c.overrides, c.error)) continue;
+    if (args.dds_flag(c.overrides)) continue;
     if (args.flag("--interval", interval_text)) continue;
     if (args.flag("--count", count_text)) continue;
     if (args.common()) continue;
@@ -134,7 +131,7 @@ int run_stop(int argc, char** argv) {
   Args args(argc, argv, "stop", kStopUsage);
   Common c;
   while (args.more()) {
-    if (dds_flag(args, c.overrides, c.error)) continue;
+    if (args.dds_flag(c.overrides)) continue;
     if (args.common()) continue;
     return args.fail();
   }
@@ -158,7 +155,7 @@ int run_command(int argc, char** argv) {
   Common c;
   std::vector<std::string> words;
   while (args.more()) {
-    if (dds_flag(args, c.overrides, c.error)) continue;
+    if (args.dds_flag(c.overrides)) continue;
     if (args.common()) continue;
     std::string w;
     if (args.positional(w)) {

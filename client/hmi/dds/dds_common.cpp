@@ -22,14 +22,6 @@ void install_signal_flag() {
   sigaction(SIGTERM, &sa, nullptr);
 }
 
-bool dds_flag(Args& args, DdsOverrides& o, std::string& error) {
-  std::string v;
-  if (args.flag("--domain", v)) return o.take("--domain", v, error), true;
-  if (args.flag("--profiles", v)) return o.take("--profiles", v, error), true;
-  if (args.flag("--participant-prefix", v)) return o.take("--participant-prefix", v, error), true;
-  return false;
-}
-
 int make_client(Args& args, const DdsOverrides& o, std::optional<AppConfig>& config,
                 std::optional<client::Client>& c, const client::ClientOptions& options) {
   config = args.load_app();

@@ -15,9 +15,6 @@ namespace tgm::hmi {
 extern std::atomic<bool> g_interrupted;
 void install_signal_flag();
 
-//! Consumes the DDS override flags (--domain, --profiles, --participant-prefix).
-bool dds_flag(Args& args, DdsOverrides& o, std::string& error);
-
 //! Loads the config, applies the overrides and creates an HMI client; prints why not.
 //! Returns the exit code on failure (2 config, 1 DDS), 0 on success.
 int make_client(Args& args, const DdsOverrides& o, std::optional<AppConfig>& config,

@@ -110,7 +110,7 @@ int run_run(int argc, char** argv) {
   std::string file, plot_path, interval_text, m0_text, timeout_text, error;
   bool quiet = false;
   while (args.more()) {
-    if (dds_flag(args, overrides, error)) continue;
+    if (args.dds_flag(overrides)) continue;
     if (args.flag("--plot", plot_path)) continue;
     if (args.flag("--progress-interval", interval_text)) continue;
     if (args.flag("--m0-continue", m0_text)) continue;
@@ -122,7 +122,6 @@ int run_run(int argc, char** argv) {
   }
   if (args.help()) return 0;
   if (args.failed()) return 2;
-  if (!error.empty()) return args.usage_error(error);
   if (file.empty()) return args.usage_error("a program FILE is required");
   double interval_s = 1.0, m0_s = -1.0, timeout_s = 0.0;
   if (!parse_progress_interval(args, interval_text, interval_s)) return 2;

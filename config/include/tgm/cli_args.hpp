@@ -1,0 +1,51 @@
+// Strict command-line reading shared by tgm-service, tgm-plc and every tgm-hmi subcommand:
+// `--flag VALUE` or `--flag=VALUE`, flags without a value, positionals, the DDS overrides.
+// A problem is printed as "PROGRAM: reason" with a pointer to --help, the first one only, so
+// the three binaries word their errors alike and never print a follow-on error.
+#pragma once
+
+#include <string>
+
+#include "tgm/dds_overrides.hpp"
+
+namespace tgm::cli {
+
+class ArgReader {
+ public:
+  //! `program` is the prefix of every message and names the --help to see ("tgm-plc",
+  //! "tgm-hmi simulate").
+  ArgReader(int argc, char** argv, std::string program);
+
+  //! Arguments are left and none was malformed.
+  bool more() const { return i_ < argc_ && !failed_; }
+  //! Consumes `name VALUE` or `name=VALUE`; true when the current argument was `name`. A
+  //! missing or empty value is reported (failed() becomes true, `value` is left empty).
+  bool flag(const char* name, std::string& value);
+  //! Consumes a flag without a value; `name=...` is reported as a malformed flag.
+  bool boolean(const char* name, bool& value);
+  //! Consumes --help or -h.
+  bool help_flag();
+  bool help_given() const { return help_; }
+  //! Consumes a positional argument if `value` is still empty.
+  bool positional(std::string& value);
+  //! Consumes --domain, --profiles and --participant-prefix into `o` (a bad value is reported).
+  bool dds_flag(DdsOverrides& o);
+  //! Reports the current argument as an unknown option or an unexpected argument; returns 2.
+  int fail();
+  //! Prints "PROGRAM: reason" and the hint to --help unless a problem was reported already;
+  //! returns the exit code 2.
+  int usage_error(const std::string& reason);
+  //! A problem was reported.
+  bool failed() const { return failed_; }
+  const std::string& program() const { return program_; }
+
+ private:
+  int argc_;
+  char** argv_;
+  int i_ = 1;
+  std::string program_;
+  bool help_ = false;
+  bool failed_ = false;
+};
+
+}  // namespace tgm::cli

@@ -1,0 +1,91 @@
+#include "tgm/cli_args.hpp"
+
+#include <cstdio>
+#include <cstring>
+#include <utility>
+
+namespace tgm::cli {
+
+ArgReader::ArgReader(int argc, char** argv, std::string program)
+    : argc_(argc), argv_(argv), program_(std::move(program)) {}
+
+bool ArgReader::flag(const char* name, std::string& value) {
+  const char* arg = argv_[i_];
+  const std::size_t n = std::strlen(name);
+  if (std::strcmp(arg, name) == 0) {
+    if (i_ + 1 >= argc_) {
+      ++i_;
+      value.clear();
+      usage_error(std::string(name) + " needs a value");
+      return true;
+    }
+    value = argv_[i_ + 1];
+    i_ += 2;
+  } else if (std::strncmp(arg, name, n) == 0 && arg[n] == '=') {
+    value = arg + n + 1;
+    ++i_;
+  } else {
+    return false;
+  }
+  // An empty value would read as the flag not given (its default), silently.
+  if (value.empty()) usage_error(std::string(name) + " needs a value, not an empty string");
+  return true;
+}
+
+bool ArgReader::boolean(const char* name, bool& value) {
+  const char* arg = argv_[i_];
+  const std::size_t n = std::strlen(name);
+  if (std::strncmp(arg, name, n) != 0 || (arg[n] != '\0' && arg[n] != '=')) return false;
+  ++i_;
+  if (arg[n] == '=') {
+    usage_error(std::string(name) + " takes no value");
+    return true;
+  }
+  value = true;
+  return true;
+}
+
+bool ArgReader::help_flag() {
+  const char* arg = argv_[i_];
+  if (std::strcmp(arg, "--help") != 0 && std::strcmp(arg, "-h") != 0) return false;
+  help_ = true;
+  ++i_;
+  return true;
+}
+
+bool ArgReader::positional(std::string& value) {
+  const char* arg = argv_[i_];
+  if (!value.empty() || (arg[0] == '-' && arg[1] != '\0')) return false;
+  value = arg;
+  ++i_;
+  return true;
+}
+
+bool ArgReader::dds_flag(DdsOverrides& o) {
+  for (const char* name : {"--domain", "--profiles", "--participant-prefix"}) {
+    std::string v;
+    if (!flag(name, v)) continue;
+    if (std::string error; !failed_ && o.take(name, v, error) && !error.empty()) usage_error(error);
+    return true;
+  }
+  return false;
+}
+
+int ArgReader::fail() {
+  const char* arg = argv_[i_];
+  ++i_;
+  if (arg[0] == '-' && arg[1] != '\0')
+    return usage_error(std::string("unknown option '") + arg + "'");
+  return usage_error(std::string("unexpected argument '") + arg + "'");
+}
+
+int ArgReader::usage_error(const std::string& reason) {
+  if (!failed_) {
+    std::fprintf(stderr, "%s: %s\n(see %s --help)\n", program_.c_str(), reason.c_str(),
+                 program_.c_str());
+  }
+  failed_ = true;
+  return 2;
+}
+
+}  // namespace tgm::cli

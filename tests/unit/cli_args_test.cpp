@@ -1,0 +1,134 @@
+// The argument reader shared by tgm-service, tgm-plc and the tgm-hmi subcommands.
+#include "tgm/cli_args.hpp"
+
+#include <gtest/gtest.h>
+
+#include <initializer_list>
+#include <string>
+#include <vector>
+
+namespace tgm::cli {
+namespace {
+
+// argv for ArgReader: program name first, then `args` (kept alive by the struct).
+struct Argv {
+  std::vector<std::string> words;
+  std::vector<char*> ptrs;
+  explicit Argv(std::initializer_list<const char*> args) {
+    words.emplace_back("prog");
+    for (const char* a : args) words.emplace_back(a);
+    for (std::string& w : words) ptrs.push_back(w.data());
+  }
+  int argc() const { return static_cast<int>(ptrs.size()); }
+  char** argv() { return ptrs.data(); }
+};
+
+// Reads the arguments the way the binaries do: --out VALUE, --quiet, the DDS overrides, one
+// positional FILE. Returns what was printed on standard error.
+struct Parsed {
+  std::string out, file, stderr_text;
+  bool quiet = false, help = false, failed = false;
+  DdsOverrides dds;
+};
+Parsed parse(std::initializer_list<const char*> args) {
+  Argv a(args);
+  ArgReader r(a.argc(), a.argv(), "prog sub");
+  Parsed p;
+  testing::internal::CaptureStderr();
+  while (r.more()) {
+    if (r.help_flag() || r.dds_flag(p.dds) || r.flag("--out", p.out) ||
+        r.boolean("--quiet", p.quiet) || r.positional(p.file)) {
+      continue;
+    }
+    EXPECT_EQ(r.fail(), 2);
+  }
+  p.stderr_text = testing::internal::GetCapturedStderr();
+  p.help = r.help_given();
+  p.failed = r.failed();
+  return p;
+}
+
+TEST(CliArgs, ValuesWithASpaceOrAnEqualsSign) {
+  Parsed p = parse({"--out", "a.csv", "--quiet", "prog.ngc"});
+  EXPECT_FALSE(p.failed) << p.stderr_text;
+  EXPECT_EQ(p.out, "a.csv");
+  EXPECT_TRUE(p.quiet);
+  EXPECT_EQ(p.file, "prog.ngc");
+  EXPECT_EQ(p.stderr_text, "");
+  p = parse({"--out=b=c.csv", "--domain=7", "--profiles", "x.xml", "--participant-prefix=cell2"});
+  EXPECT_FALSE(p.failed) << p.stderr_text;
+  EXPECT_EQ(p.out, "b=c.csv");  // only the first '=' separates
+  EXPECT_EQ(p.dds.domain_id, 7);
+  EXPECT_EQ(p.dds.profiles_file, "x.xml");
+  EXPECT_EQ(p.dds.participant_prefix, "cell2");
+  // A value may look like an option ("-5"); a lone "-" is a positional (standard input).
+  p = parse({"--out", "-5", "-"});
+  EXPECT_FALSE(p.failed) << p.stderr_text;
+  EXPECT_EQ(p.out, "-5");
+  EXPECT_EQ(p.file, "-");
+}
+
+TEST(CliArgs, EveryProblemIsNamedWithTheProgramAndAHintToHelp) {
+  struct Case {
+    std::initializer_list<const char*> args;
+    const char* message;
+  };
+  const Case cases[] = {
+      {{"--out"}, "prog sub: --out needs a value\n(see prog sub --help)\n"},
+      {{"--out="}, "prog sub: --out needs a value, not an empty string\n(see prog sub --help)\n"},
+      {{"--quiet=1"}, "prog sub: --quiet takes no value\n(see prog sub --help)\n"},
+      {{"--bogus", "1"}, "prog sub: unknown option '--bogus'\n(see prog sub --help)\n"},
+      {{"-x"}, "prog sub: unknown option '-x'\n(see prog sub --help)\n"},
+      {{"a.ngc", "b.ngc"}, "prog sub: unexpected argument 'b.ngc'\n(see prog sub --help)\n"},
+      {{"--domain", "233"},
+       "prog sub: --domain must be 0..232, not '233'\n(see prog sub --help)\n"},
+      {{"--domain"}, "prog sub: --domain needs a value\n(see prog sub --help)\n"},
+      {{"--outfile", "x"}, "prog sub: unknown option '--outfile'\n(see prog sub --help)\n"},
+  };
+  for (const Case& c : cases) {
+    const Parsed p = parse(c.args);
+    EXPECT_TRUE(p.failed) << c.message;
+    EXPECT_EQ(p.stderr_text, c.message);
+  }
+}
+
+TEST(CliArgs, OnlyTheFirstProblemIsPrintedAndReadingStops) {
+  Argv a({"--out", "--quiet", "stray"});  // --out takes "--quiet" as its value
+  ArgReader r(a.argc(), a.argv(), "prog");
+  std::string out;
+  bool quiet = false;
+  ASSERT_TRUE(r.flag("--out", out));
+  EXPECT_EQ(out, "--quiet");
+  testing::internal::CaptureStderr();
+  EXPECT_FALSE(r.boolean("--quiet", quiet));
+  EXPECT_EQ(r.fail(), 2);
+  EXPECT_FALSE(r.more());
+  // A check after the loop (a value out of range) adds nothing to the first message.
+  EXPECT_EQ(r.usage_error("--out must be a file name"), 2);
+  EXPECT_EQ(testing::internal::GetCapturedStderr(),
+            "prog: unexpected argument 'stray'\n(see prog --help)\n");
+  EXPECT_TRUE(r.failed());
+
+  // A malformed value: the caller's own range check (on the empty value) prints nothing more.
+  Argv b({"--count"});
+  ArgReader s(b.argc(), b.argv(), "prog");
+  std::string count = "unchanged";
+  testing::internal::CaptureStderr();
+  ASSERT_TRUE(s.flag("--count", count));
+  EXPECT_EQ(count, "");
+  EXPECT_EQ(s.usage_error("--count must be 1..10, not ''"), 2);
+  EXPECT_EQ(testing::internal::GetCapturedStderr(),
+            "prog: --count needs a value\n(see prog --help)\n");
+}
+
+TEST(CliArgs, HelpIsConsumedAnywhere) {
+  Parsed p = parse({"prog.ngc", "--help", "--out", "x"});
+  EXPECT_TRUE(p.help);
+  EXPECT_FALSE(p.failed);
+  EXPECT_EQ(p.out, "x");
+  p = parse({"-h"});
+  EXPECT_TRUE(p.help);
+}
+
+}  // namespace
+}  // namespace tgm::cli
