@@ -114,6 +114,64 @@ TEST(KnownValues, CircleStaysOnRadiusAndTurnsTheRightWay) {
   EXPECT_GT(angles[50], 0.0);
 }
 
+// An arc of a radius of 1e9 mm (what a CAM post or a typo can write: the compiler takes centres
+// up to 1e9 mm). Centre + r cos(phi) rounded by 1e-7 mm from cycle to cycle, a jerk of about
+// 34,000 mm/s^3 on X (limit 30,000) in the limit check: the simulate fuzz target found it. The
+// short way (20 mm, nearly a line) and the long way (nearly the whole circle, cut off after
+// 3 s) both keep every limit; the short way ends exactly, its middle on the circle (sagitta
+// 400 / 8e9 mm below the chord).
+TEST(KnownValues, ArcOfAHugeRadiusKeepsTheLimitsOfALine) {
+  const double r = 999999999.0;
+  for (bool ccw : {false, true}) {
+    ProgramBuilder b(3, {10.0, 0.0, 0.0});
+    b.arc(ccw, {-10.0, 0.0, 0.0}, {0.0, r}, 600.0).end();
+    SimulationOptions o;
+    o.max_time_s = 3.0;
+    double worst = 0.0;
+    const auto s = simulate(
+        b.program(), o,
+        [&](const Registers& reg) {
+          // Distance from the circle, relative to the centre: exact enough at this size.
+          const double dx = reg.orig_position[0], dy = reg.orig_position[1] - r;
+          worst = std::max(worst, std::fabs(std::sqrt(dx * dx + dy * dy) - std::hypot(10.0, r)));
+        },
+        machine(), {10.0, 0.0, 0.0});
+    EXPECT_FALSE(s.nan);
+    EXPECT_EQ(s.hard_stops, 0u);
+    EXPECT_EQ(s.violation_count, 0u) << (ccw ? "long way" : "short way");
+    for (const auto& v : s.violations) {
+      ADD_FAILURE() << "cycle " << v.cycle << " axis " << v.axis << " "
+                    << limit_quantity_name(v.quantity) << " " << v.value << " > " << v.limit;
+      break;
+    }
+    EXPECT_LT(worst, 1e-6);  // the radius rounds to 1.2e-7 mm at 1e9 mm
+    if (!ccw) {
+      EXPECT_EQ(s.result, StepResult::kFinished) << s.error;
+      EXPECT_EQ(s.end_position[0], -10.0);
+      EXPECT_EQ(s.end_position[1], 0.0);
+      EXPECT_NEAR(s.distance_mm, 20.0, 1e-9);
+    } else {
+      EXPECT_NE(s.result, StepResult::kFinished);  // 6.3e9 mm at 10 mm/s
+      EXPECT_GT(s.distance_mm, 25.0);
+    }
+  }
+}
+
+// An arc whose end lies 0.2 mm from its start is a 0.2 mm arc at any radius: the planner took
+// "end at start" relative to the radius (1e-9 x r0) and made this one, of a radius of 5e8 mm,
+// a full circle of 3.1e9 mm. The compiler's rule is an absolute 1e-9 mm.
+TEST(KnownValues, ShortArcOfALargeRadiusIsNotAFullCircle) {
+  const double r = 5e8;
+  ProgramBuilder b(3, {0.1, 0.0, 0.0});
+  b.arc(false, {-0.1, 0.0, 0.0}, {0.0, r}, 600.0).end();
+  SimulationOptions o;
+  o.max_time_s = 10.0;
+  const auto s = simulate(b.program(), o, {}, machine(), {0.1, 0.0, 0.0});
+  expect_clean(s);
+  EXPECT_EQ(s.end_position[0], -0.1);
+  EXPECT_NEAR(s.distance_mm, 0.2, 1e-9);
+}
+
 TEST(KnownValues, HelixPitch) {
   // Two full turns (turns = 1) of radius 5 rising 6 mm: pitch 3 mm per turn.
   ProgramBuilder b(3, {5.0, 0.0, 0.0});

@@ -61,6 +61,8 @@ constexpr std::size_t kMaxBlockReports = 2048;
 constexpr std::size_t kMaxCornerEvents = 2048;
 constexpr double kMinLength = 1e-9;       // shorter motions are executed as no-ops [mm]
 constexpr double kArcSafety = 0.97;       // margin on the arc bounds (sum-of-terms, spiral)
+constexpr double kFullCircleMm = 1e-9;    // an arc ending this close to its start is a full circle
+constexpr double kChordFormRadius = 1000.0;  // arcs of this radius [mm] and more: chord form
 // Every limit the planner derives from the axis limits uses 99.9 % of it: the discrete
 // generator may overshoot a target by a few 1e-5 (landing on a speed, end-of-step rounding).
 constexpr double kLimitSafety = 0.999;
@@ -485,9 +487,18 @@ struct Interpolator::Impl {
     g.dr = r1 - r0;
     g.th0 = std::atan2(sy, sx);
     const double th1 = std::atan2(ey, ex);
-    const bool full = std::hypot(ex - sx, ey - sy) <= 1e-9 * std::max(1.0, r0);
+    // End at the start: a full circle (the compiler's rule, an absolute 1e-9 mm; one relative
+    // to the radius made a 0.5 mm arc of a radius of 1e9 mm a full circle of 6e9 mm).
+    const bool full = std::hypot(ex - sx, ey - sy) <= kFullCircleMm;
+    g.chord_form = std::max(r0, r1) >= kChordFormRadius;
     double sweep;
-    if (sg.type == SegmentType::kArcCcw) {
+    if (g.chord_form && !full) {
+      // The angle between the two radii from their cross and dot products: exact to the last
+      // bits for any sweep, where th1 - th0 keeps only 1e-16 rad, r0 x 1e-16 mm at the end.
+      const double between = std::atan2(sx * ey - sy * ex, sx * ex + sy * ey);  // (-pi, pi]
+      sweep = sg.type == SegmentType::kArcCcw ? between : -between;
+      if (sweep <= 0.0) sweep += 2.0 * kPi;
+    } else if (sg.type == SegmentType::kArcCcw) {
       sweep = full ? 2.0 * kPi : std::fmod(th1 - g.th0 + 4.0 * kPi, 2.0 * kPi);
       if (sweep <= 0.0) sweep += 2.0 * kPi;
     } else {

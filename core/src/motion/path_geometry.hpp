@@ -12,8 +12,13 @@ namespace tgm::motion {
 //! Arcs: plane position = centre + r(u) (cos phi(u), sin phi(u)) with u = s / L,
 //! phi(u) = th0 + phi * u (phi signed: + = CCW), r(u) = r0 + dr * u; the other axes are linear.
 //! The radius may change by the compiler's tolerance so the arc always ends at the record's end.
+//! Arcs of a large radius (`chord_form`) take the plane position from the start point along the
+//! chord instead: centre + r cos(phi) loses (|centre| + r) x 1e-16 to rounding, which at a radius
+//! of 1e9 mm is 1e-7 mm from one cycle to the next, a jerk of thousands of mm/s^3 in a limit
+//! check; start + chord keeps the rounding at the size of the start point and of the chord.
 struct Geometry {
   bool arc = false;
+  bool chord_form = false;
   int first = 0;   //!< plane axes (arcs)
   int second = 1;
   double length = 0.0;  //!< L [mm]
@@ -43,6 +48,16 @@ inline void geometry_position(const Geometry& g, int n, double s, double* out) {
   const double u = s / g.length;
   const double ph = g.th0 + g.phi * u;
   const double r = g.r0 + g.dr * u;
+  if (g.chord_form) {
+    // r(u) e(ph) - r0 e(th0) = r0 (e(ph) - e(th0)) + dr u e(ph), and e(th0 + d) - e(th0) is the
+    // chord 2 sin(d/2) e(th0 + d/2 + 90 deg): no difference of two large numbers.
+    const double half = 0.5 * g.phi * u;
+    const double c = 2.0 * g.r0 * std::sin(half);
+    const double mid = g.th0 + half;
+    out[g.first] = g.start[g.first] - c * std::sin(mid) + g.dr * u * std::cos(ph);
+    out[g.second] = g.start[g.second] + c * std::cos(mid) + g.dr * u * std::sin(ph);
+    return;
+  }
   out[g.first] = g.cx + r * std::cos(ph);
   out[g.second] = g.cy + r * std::sin(ph);
 }
