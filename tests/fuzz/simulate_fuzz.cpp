@@ -1,0 +1,76 @@
+// Fuzz target: arbitrary bytes as a G-code program that, when it compiles, runs through the
+// interpolator on the default machine with the limit checker on.
+//
+// Invariants (issue 3, and "bad input never crashes or hangs"): whatever the compiler accepts,
+// the motion core runs without an internal error, NaN or hard stop, keeps every axis within
+// its velocity, acceleration and jerk limits (corners within their tolerance), and a program
+// that finishes ends at its last motion's end point. The run is cut off after kMaxProgramS of
+// program time (a fuzzed feed of F0.001 over a long move is slow, not wrong).
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "fuzz_support.hpp"
+#include "tgm/config.hpp"
+#include "tgm/gcode.hpp"
+#include "tgm/simulation.hpp"
+
+namespace {
+
+constexpr double kMaxProgramS = 20.0;
+
+const tgm::MachineConfig& machine() {
+  static const tgm::MachineConfig m = tgm::MachineConfig::default_machine();
+  return m;
+}
+
+}  // namespace
+
+void tgm::fuzz::prepare_seeds(std::vector<std::string>&) {}
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  const std::string_view text(reinterpret_cast<const char*>(data), size);
+  tgm::CompileOptions co = tgm::CompileOptions::from_machine(machine(), 0);
+  // Loops (G26/G27 with K) stay short; a fuzzed program is about the motion, not its length.
+  co.compiler.max_program_segments = 20'000;
+  const tgm::CompileResult r = tgm::compile_gcode(text, co);
+  if (!r.ok() || r.program.segments.empty()) return 0;
+
+  tgm::SimulationOptions o;
+  o.check_limits = true;
+  o.m_ack_s = 0.002;
+  o.max_time_s = kMaxProgramS;
+  std::string error;
+  std::optional<tgm::Simulation> sim = tgm::Simulation::create(machine(), o, &error);
+  TGM_FUZZ_CHECK(sim.has_value(), "Simulation::create: " + error);
+  const tgm::SimulationSummary s = sim->run(r.program);
+  TGM_FUZZ_CHECK(s.result != tgm::StepResult::kErrorInternal, "internal error: " + s.error);
+  TGM_FUZZ_CHECK(!s.nan, "NaN or inf in a register");
+  TGM_FUZZ_CHECK(s.hard_stops == 0, std::to_string(s.hard_stops) + " hard stops");
+  std::string found;
+  for (const tgm::LimitViolation& v : s.violations) {
+    if (found.size() > 400) break;
+    found += " [line " + std::to_string(v.line) + " axis " + std::to_string(v.axis) + " " +
+             tgm::limit_quantity_name(v.quantity) + " " + std::to_string(v.value) + " > " +
+             std::to_string(v.limit) + "]";
+  }
+  TGM_FUZZ_CHECK(s.violation_count == 0,
+                 std::to_string(s.violation_count) + " limit violations:" + found);
+  if (s.result == tgm::StepResult::kFinished) {
+    // The last motion's end point (absolute machine millimetres in the intercode).
+    const tgm::Segment* last = nullptr;
+    for (const tgm::Segment& g : r.program.segments) {
+      if (g.is_motion()) last = &g;
+    }
+    for (int i = 0; last != nullptr && i < r.program.number_axes; ++i) {
+      const auto k = static_cast<std::size_t>(i);
+      TGM_FUZZ_CHECK(std::fabs(s.end_position[k] - last->end[k]) <= 1e-6,
+                     "axis " + std::to_string(i) + " ends at " + std::to_string(s.end_position[k]) +
+                         ", the program at " + std::to_string(last->end[k]));
+    }
+  }
+  return 0;
+}
