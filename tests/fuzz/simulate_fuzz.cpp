@@ -1,11 +1,12 @@
 // Fuzz target: arbitrary bytes as a G-code program that, when it compiles, runs through the
-// interpolator on the default machine with the limit checker on.
+// interpolator on the default machine (cycle of 250, 500 or 1000 us) with the limit checker on.
 //
 // Invariants (issue 3, and "bad input never crashes or hangs"): whatever the compiler accepts,
 // the motion core runs without an internal error, NaN or hard stop, keeps every axis within
 // its velocity, acceleration and jerk limits (corners within their tolerance), and a program
 // that finishes ends at its last motion's end point. The run is cut off after kMaxProgramS of
 // program time (a fuzzed feed of F0.001 over a long move is slow, not wrong).
+#include <array>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -22,9 +23,19 @@ namespace {
 
 constexpr double kMaxProgramS = 20.0;
 
-const tgm::MachineConfig& machine() {
-  static const tgm::MachineConfig m = tgm::MachineConfig::default_machine();
-  return m;
+// The default machine at each of the manual's cycle times (the input's length picks one): the
+// shorter the cycle, the more a rounding of the position weighs in its differences.
+const tgm::MachineConfig& machine(std::size_t pick) {
+  static const std::array<tgm::MachineConfig, 3> m = [] {
+    std::array<tgm::MachineConfig, 3> c;
+    const int cycle_us[3] = {500, 250, 1000};
+    for (std::size_t k = 0; k < 3; ++k) {
+      c[k] = tgm::MachineConfig::default_machine();
+      c[k].cycle_time_us = cycle_us[k];
+    }
+    return c;
+  }();
+  return m[pick % 3];
 }
 
 }  // namespace
@@ -33,7 +44,8 @@ void tgm::fuzz::prepare_seeds(std::vector<std::string>&) {}
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string_view text(reinterpret_cast<const char*>(data), size);
-  tgm::CompileOptions co = tgm::CompileOptions::from_machine(machine(), 0);
+  const tgm::MachineConfig& m = machine(size);
+  tgm::CompileOptions co = tgm::CompileOptions::from_machine(m, 0);
   // Loops (G26/G27 with K) stay short; a fuzzed program is about the motion, not its length.
   co.compiler.max_program_segments = 20'000;
   const tgm::CompileResult r = tgm::compile_gcode(text, co);
@@ -44,7 +56,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   o.m_ack_s = 0.002;
   o.max_time_s = kMaxProgramS;
   std::string error;
-  std::optional<tgm::Simulation> sim = tgm::Simulation::create(machine(), o, &error);
+  std::optional<tgm::Simulation> sim = tgm::Simulation::create(m, o, &error);
   TGM_FUZZ_CHECK(sim.has_value(), "Simulation::create: " + error);
   const tgm::SimulationSummary s = sim->run(r.program);
   TGM_FUZZ_CHECK(s.result != tgm::StepResult::kErrorInternal, "internal error: " + s.error);
