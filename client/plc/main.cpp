@@ -176,12 +176,6 @@ class MTracker {
   std::array<Seen, tgm::kMaxInterpolators> seen_{};
 };
 
-bool waits_for_ack(std::int32_t run_flag) {
-  const auto section =
-      static_cast<tgm::SectionState>(static_cast<std::uint32_t>(run_flag) & 0xFFFFu);
-  return section == tgm::SectionState::kWaitMFunc || section == tgm::SectionState::kWaitMFuncEnd;
-}
-
 using MParams = std::array<double, TGM_M_FUNCTION_PARAMETERS>;
 
 // An M-function the event callback claimed, for the main loop to log and, unless it was
@@ -393,7 +387,7 @@ int main(int argc, char** argv) {
       EventSeen rec;
       rec.interpolator = i;
       rec.m = e.m_func();
-      rec.normal = waits_for_ack(e.run_flag());
+      rec.normal = tgm::run_flag_waits_for_m(static_cast<std::uint32_t>(e.run_flag()));
       bool refused = false;
       {
         // Every sample goes through claim(), also with M_Func = 0: that ends a noted continuous M.
@@ -563,7 +557,7 @@ int main(int argc, char** argv) {
         seen_new = false;
         log_m(sv.number, seen_m, seen_normal, seen_line, seen_part, seen_params);
       };
-      const bool normal = waits_for_ack(s->run_flag());
+      const bool normal = tgm::run_flag_waits_for_m(static_cast<std::uint32_t>(s->run_flag()));
       bool claimed = false;
       bool refused = false;
       {

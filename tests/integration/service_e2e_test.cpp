@@ -130,7 +130,7 @@ TEST(ServiceProcesses, MFunctionWaitsUntilThePlcAcksAndNotLonger) {
 
   // The PLC sees M51 (normal: the section state says it waits) with its parameter.
   auto waiting = [](const msg::InterpolatorState& s) {
-    const auto sec = static_cast<SectionState>(static_cast<std::uint32_t>(s.run_flag()) & 0xFFFFu);
+    const auto sec = run_flag_section(static_cast<std::uint32_t>(s.run_flag()));
     return s.m_func() == 51 && (sec == SectionState::kWaitMFunc || sec == SectionState::kWaitMFuncEnd);
   };
   ASSERT_TRUE(plc.wait_until(0, waiting, kHang)) << hmi.log();
@@ -208,7 +208,7 @@ TEST(ServiceProcesses, EventCallbackSeesTheMFunctionAndCanAcknowledgeIt) {
   EXPECT_EQ(e.act_line(), 2);
   EXPECT_DOUBLE_EQ(e.m_function_parameter()[0], 7.0);
   EXPECT_TRUE(is_not_set(e.m_function_parameter()[1]));
-  const auto sec = static_cast<SectionState>(static_cast<std::uint32_t>(e.run_flag()) & 0xFFFFu);
+  const auto sec = run_flag_section(static_cast<std::uint32_t>(e.run_flag()));
   EXPECT_TRUE(sec == SectionState::kWaitMFunc || sec == SectionState::kWaitMFuncEnd)
       << e.run_flag();
   EXPECT_NE(e.program_id(), 0u);

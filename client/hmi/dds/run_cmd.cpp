@@ -102,6 +102,26 @@ bool stdin_has_line() {
   return ::read(0, buf, sizeof buf) >= 0;
 }
 
+// M-function waits seen in a stream of samples (state or events): each record whose section
+// waits for the PLC counts once; its time runs from the first sample that waits to the first
+// that does not.
+struct WaitCount {
+  std::uint64_t waits = 0;
+  std::uint64_t cycles = 0;
+  std::uint64_t from = 0;  // cycle the current wait began; 0 = none
+  std::int32_t part = -1;
+  void see(bool waiting, std::int32_t at_part, std::uint64_t cycle) {
+    if (waiting && at_part != part) {
+      part = at_part;
+      ++waits;
+      from = cycle;
+    } else if (!waiting && from != 0) {
+      cycles += cycle - from;
+      from = 0;
+    }
+  }
+};
+
 }  // namespace
 
 int run_run(int argc, char** argv) {
@@ -178,7 +198,8 @@ int run_run(int argc, char** argv) {
   struct MEvent {
     std::uint64_t cycle;
     std::uint32_t program;
-    std::int32_t part, run_flag, m_func;
+    std::int32_t part;
+    bool waiting;  // for the PLC's acknowledgement of an M-function
   };
   std::mutex events_mutex;
   std::vector<MEvent> events_in, events;
@@ -198,7 +219,8 @@ int run_run(int argc, char** argv) {
       if (e.interpolator() != ip) return;
       const std::lock_guard lock(events_mutex);
       events_in.push_back(
-          {e.cycle_counter(), e.program_id(), e.act_part(), e.run_flag(), e.m_func()});
+          {e.cycle_counter(), e.program_id(), e.act_part(),
+           run_flag_waits_for_m(static_cast<std::uint32_t>(e.run_flag())) && e.m_func() != 0});
     });
   } catch (const dds::SetupError& e) {
     std::fprintf(stderr, "tgm-hmi run: %s\n", e.what());
@@ -251,13 +273,10 @@ int run_run(int argc, char** argv) {
   auto last_line_at = t0;
   bool started = false, m0_wait = false, stop_reported = false;
   Clock::time_point m0_since{};
-  std::uint64_t start_cycle = 0, m_waits = 0;
+  std::uint64_t start_cycle = 0;
   std::uint64_t fresh_after = 0;  // ignore states from before our last start request
-  std::int32_t m_part = -1;
-  std::uint64_t m_wait_cycles = 0, m_wait_from = 0;
-  // The same count from the events (used when the event topic matched).
-  std::uint64_t ev_waits = 0, ev_wait_cycles = 0, ev_wait_from = 0;
-  std::int32_t ev_part = -1;
+  // From the state (the fall-back), and from the events (used when the event topic matched).
+  WaitCount state_waits, event_waits;
   auto count_events = [&] {
     {
       const std::lock_guard lock(events_mutex);
@@ -265,18 +284,7 @@ int run_run(int argc, char** argv) {
     }
     for (const MEvent& e : events) {
       if (e.program != program_id || !started || e.cycle <= start_cycle) continue;
-      const auto section =
-          static_cast<SectionState>(static_cast<std::uint32_t>(e.run_flag) & 0xFFFFu);
-      const bool waiting =
-          section == SectionState::kWaitMFunc || section == SectionState::kWaitMFuncEnd;
-      if (waiting && e.m_func != 0 && e.part != ev_part) {
-        ev_part = e.part;
-        ++ev_waits;
-        ev_wait_from = e.cycle;
-      } else if (!waiting && ev_wait_from != 0) {
-        ev_wait_cycles += e.cycle - ev_wait_from;
-        ev_wait_from = 0;
-      }
+      event_waits.see(e.waiting, e.part, e.cycle);
     }
     events.clear();
   };
@@ -342,16 +350,8 @@ int run_run(int argc, char** argv) {
       continue;
     }
     if (!started || !ours || st->cycle_counter() <= fresh_after) continue;
-    const auto section = static_cast<SectionState>(static_cast<std::uint32_t>(st->run_flag()) & 0xFFFFu);
-    const bool m_waiting = section == SectionState::kWaitMFunc || section == SectionState::kWaitMFuncEnd;
-    if (m_waiting && st->act_part() != m_part) {
-      m_part = st->act_part();
-      ++m_waits;
-      m_wait_from = st->cycle_counter();
-    } else if (!m_waiting && m_wait_from != 0) {
-      m_wait_cycles += st->cycle_counter() - m_wait_from;
-      m_wait_from = 0;
-    }
+    const bool m_waiting = run_flag_waits_for_m(static_cast<std::uint32_t>(st->run_flag()));
+    state_waits.see(m_waiting, st->act_part(), st->cycle_counter());
     const auto status = static_cast<InterpolatorStatus>(st->status());
     if (status == InterpolatorStatus::kEnded && sender.all_confirmed()) break;
     if (status == InterpolatorStatus::kEmpty) {
@@ -429,14 +429,11 @@ int run_run(int argc, char** argv) {
   for (int k = 0; k < 50 && !plot_path.empty(); ++k) hmi->poll(1ms);  // last samples for the plot
   // The event that ends the last wait was written before the end state; it may still be on
   // its way (the state and event topics are separate readers).
-  for (int k = 0; k < 250 && exit_code == 0 && events_matched && ev_wait_from != 0; ++k) {
+  for (int k = 0; k < 250 && exit_code == 0 && events_matched && event_waits.from != 0; ++k) {
     hmi->poll(2ms);
     count_events();
   }
-  if (events_matched) {
-    m_waits = ev_waits;
-    m_wait_cycles = ev_wait_cycles;
-  }
+  const WaitCount& waits = events_matched ? event_waits : state_waits;
   st = hmi->state(ip);
   const double program_s = static_cast<double>(st->cycle_counter() - start_cycle) * cycle_s;
   if (exit_code == 0) {
@@ -454,8 +451,8 @@ int run_run(int argc, char** argv) {
         "  service cycle lateness: max %.1f us, p99.9 %.1f us, missed cycles %llu\n",
         static_cast<unsigned long long>(sender.total()), last_line, program_s,
         static_cast<unsigned long long>(st->cycle_counter() - start_cycle), st->move_distance(),
-        static_cast<unsigned long long>(m_waits), m_waits == 1 ? "" : "s",
-        static_cast<double>(m_wait_cycles) * cycle_s,
+        static_cast<unsigned long long>(waits.waits), waits.waits == 1 ? "" : "s",
+        static_cast<double>(waits.cycles) * cycle_s,
         !events_matched          ? " seen in the state"
         : hmi->events_lost() > 0 ? " (events lost: the count may be short)"
                                  : "",

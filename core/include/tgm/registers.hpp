@@ -62,6 +62,11 @@ inline constexpr SectionState run_flag_section(std::uint32_t f) {
 inline constexpr SpeedState run_flag_speed(std::uint32_t f) {
   return static_cast<SpeedState>(f >> 16);
 }
+//! The section waits for the PLC to acknowledge a normal M-function (M_Func = 0).
+inline constexpr bool run_flag_waits_for_m(std::uint32_t f) {
+  const SectionState s = run_flag_section(f);
+  return s == SectionState::kWaitMFunc || s == SectionState::kWaitMFuncEnd;
+}
 
 //! What kept the path speed below the programmed feed (MOTION.md, "Limit factors").
 enum class LimitFactor : std::uint8_t {
