@@ -33,8 +33,6 @@ constexpr double kMaxDwell = 1.0e5;
 constexpr int kMaxM = 999999;
 //! Largest repeat count of G26/G27.
 constexpr double kMaxRepeat = 1.0e9;
-//! Start and end closer than this make an IJK arc a full circle [mm].
-constexpr double kFullCircleEps = 1.0e-9;
 
 constexpr std::uint32_t bit(char letter) { return 1u << (letter - 'A'); }
 
@@ -994,7 +992,7 @@ std::size_t Compiler::execute_block(std::size_t index, bool relex) {
             const double r = std::fabs(wr->value);
             const double dx = ex - sx, dy = ey - sy;
             const double d = norm2(dx, dy);
-            if (d < kFullCircleEps) {
+            if (d < kFullCircleMm) {
               error(b.line, wr->column,
                     "an R arc cannot have its end at its start (use I/J/K for a full circle)");
               ok = false;

@@ -24,6 +24,9 @@ inline constexpr int kParamLetters = 26;
 //! so lengths, squares and products of any accepted record stay finite.
 inline constexpr double kMaxCoordinateMm = 1.0e9;
 inline constexpr double kMaxFeedMmPerMin = 1.0e6;
+//! An arc whose end lies closer than this to its start ends at its start [mm]: a full circle
+//! with I/J/K, an error with R (the compiler and the interpolator hold to the same rule).
+inline constexpr double kFullCircleMm = 1.0e-9;
 //! Value of a register or parameter that does not apply ("greater than 10^38" in the manual).
 inline constexpr double kNotSet = 1.0e39;
 

@@ -61,7 +61,6 @@ constexpr std::size_t kMaxBlockReports = 2048;
 constexpr std::size_t kMaxCornerEvents = 2048;
 constexpr double kMinLength = 1e-9;       // shorter motions are executed as no-ops [mm]
 constexpr double kArcSafety = 0.97;       // margin on the arc bounds (sum-of-terms, spiral)
-constexpr double kFullCircleMm = 1e-9;    // an arc ending this close to its start is a full circle
 constexpr double kChordFormRadius = 1000.0;  // arcs of this radius [mm] and more: chord form
 // Every limit the planner derives from the axis limits uses 99.9 % of it: the discrete
 // generator may overshoot a target by a few 1e-5 (landing on a speed, end-of-step rounding).
@@ -489,7 +488,7 @@ struct Interpolator::Impl {
     const double th1 = std::atan2(ey, ex);
     // End at the start: a full circle (the compiler's rule, an absolute 1e-9 mm; one relative
     // to the radius made a 0.5 mm arc of a radius of 1e9 mm a full circle of 6e9 mm).
-    const bool full = std::hypot(ex - sx, ey - sy) <= kFullCircleMm;
+    const bool full = std::hypot(ex - sx, ey - sy) < kFullCircleMm;
     g.chord_form = std::max(r0, r1) >= kChordFormRadius;
     double sweep;
     if (g.chord_form && !full) {

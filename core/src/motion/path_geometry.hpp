@@ -47,7 +47,6 @@ inline void geometry_position(const Geometry& g, int n, double s, double* out) {
   for (int i = 0; i < n; ++i) out[i] = g.start[i] + g.dir[i] * s;
   const double u = s / g.length;
   const double ph = g.th0 + g.phi * u;
-  const double r = g.r0 + g.dr * u;
   if (g.chord_form) {
     // r(u) e(ph) - r0 e(th0) = r0 (e(ph) - e(th0)) + dr u e(ph), and e(th0 + d) - e(th0) is the
     // chord 2 sin(d/2) e(th0 + d/2 + 90 deg): no difference of two large numbers.
@@ -58,6 +57,7 @@ inline void geometry_position(const Geometry& g, int n, double s, double* out) {
     out[g.second] = g.start[g.second] + c * std::cos(mid) + g.dr * u * std::sin(ph);
     return;
   }
+  const double r = g.r0 + g.dr * u;
   out[g.first] = g.cx + r * std::cos(ph);
   out[g.second] = g.cy + r * std::sin(ph);
 }
