@@ -5,7 +5,8 @@
 // the motion core runs without an internal error, NaN or hard stop, keeps every axis within
 // its velocity, acceleration and jerk limits (corners within their tolerance), and a program
 // that finishes ends at its last motion's end point. The run is cut off after kMaxProgramS of
-// program time (a fuzzed feed of F0.001 over a long move is slow, not wrong).
+// program time (a fuzzed feed of F0.001 over a long move is slow, not wrong). Most runs also
+// change the override and some give stops on the trajectory (see `Operator`).
 #include <array>
 #include <cmath>
 #include <cstddef>
@@ -75,6 +76,35 @@ const tgm::MachineConfig& machine(std::size_t pick) {
   return m[pick % m.size()];
 }
 
+// What the operator does during the run, drawn from a hash of the input (reproducible from the
+// input alone): about a third of the runs keep Rel_Speed at 1 and give no stop; the others start
+// at an override of 0.05..2 and change it up to twice, and half of them also get one or two
+// stops (Command 8 or 4, on the trajectory) at random times, each restarted after 0..0.5 s.
+// The program still ends at its last motion's end point, and every limit holds through it.
+struct Operator {
+  std::uint64_t h;
+  explicit Operator(std::string_view text) : h(1469598103934665603ull) {
+    for (char c : text) h = (h ^ static_cast<unsigned char>(c)) * 1099511628211ull;
+  }
+  double uniform() {  // splitmix64 over the hash: [0, 1)
+    std::uint64_t z = (h += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return static_cast<double>((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
+  }
+  void apply(tgm::SimulationOptions& o) {
+    if (uniform() < 1.0 / 3.0) return;
+    o.rel_speed = 0.05 + 1.95 * uniform();
+    const int changes = static_cast<int>(uniform() * 3.0);
+    for (int k = 0; k < changes; ++k)
+      o.rel_speed_changes.emplace_back(3.0 * uniform(), 0.05 + 1.95 * uniform());
+    if (uniform() < 0.5) return;
+    const int stops = 1 + static_cast<int>(uniform() * 2.0);
+    for (int k = 0; k < stops; ++k) o.stops.emplace_back(3.0 * uniform(), uniform() < 0.5 ? 8 : 4);
+    o.stop_restart_s = 0.5 * uniform();
+  }
+};
+
 }  // namespace
 
 void tgm::fuzz::prepare_seeds(std::vector<std::string>&) {}
@@ -92,6 +122,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   o.check_limits = true;
   o.m_ack_s = 0.002;
   o.max_time_s = kMaxProgramS;
+  Operator(text).apply(o);
   std::string error;
   std::optional<tgm::Simulation> sim = tgm::Simulation::create(m, o, &error);
   TGM_FUZZ_CHECK(sim.has_value(), "Simulation::create: " + error);
