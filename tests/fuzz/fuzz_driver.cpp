@@ -53,17 +53,7 @@ extern "C" void on_crash(int sig) {
   std::raise(sig);
 }
 
-//! splitmix64: the same stream everywhere.
-struct Rng {
-  std::uint64_t s;
-  std::uint64_t next() {
-    std::uint64_t z = (s += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-  }
-  std::size_t below(std::size_t n) { return n == 0 ? 0 : static_cast<std::size_t>(next() % n); }
-};
+using tgm::fuzz::Rng;
 
 // Pieces of G-code and of trouble, inserted by the mutator (also in gcode.dict for libFuzzer).
 constexpr const char* kTokens[] = {

@@ -34,7 +34,7 @@ constexpr double kMaxProgramS = 20.0;
 // with all ten axes, and four of the CTest sweeps' random machines (3 to 10 axes, limits that
 // differ from axis to axis). With TGM_FUZZ_MACHINES=wide in the environment the random
 // machines come from the wide sweep's envelope instead (sixteen of them; not in CTest: the
-// wide sweep's one known gap, core/MOTION.md, would fail it).
+// wide machines' known gaps, core/MOTION.md, fail it).
 constexpr std::size_t kRandomMachines = 4;
 constexpr std::size_t kWideMachines = 16;
 
@@ -82,16 +82,11 @@ const tgm::MachineConfig& machine(std::size_t pick) {
 // stops (Command 8 or 4, on the trajectory) at random times, each restarted after 0..0.5 s.
 // The program still ends at its last motion's end point, and every limit holds through it.
 struct Operator {
-  std::uint64_t h;
-  explicit Operator(std::string_view text) : h(1469598103934665603ull) {
-    for (char c : text) h = (h ^ static_cast<unsigned char>(c)) * 1099511628211ull;
+  tgm::fuzz::Rng rng{1469598103934665603ull};  // seeded with the input's FNV-1a hash
+  explicit Operator(std::string_view text) {
+    for (char c : text) rng.s = (rng.s ^ static_cast<unsigned char>(c)) * 1099511628211ull;
   }
-  double uniform() {  // splitmix64 over the hash: [0, 1)
-    std::uint64_t z = (h += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return static_cast<double>((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
-  }
+  double uniform() { return rng.uniform(); }
   void apply(tgm::SimulationOptions& o) {
     if (uniform() < 1.0 / 3.0) return;
     o.rel_speed = 0.05 + 1.95 * uniform();
