@@ -33,8 +33,8 @@ constexpr double kMaxProgramS = 20.0;
 // cycle, the more a rounding of the position weighs in its differences), the default machine
 // with all ten axes, and four of the CTest sweeps' random machines (3 to 10 axes, limits that
 // differ from axis to axis). With TGM_FUZZ_MACHINES=wide in the environment the random
-// machines come from the wide sweep's envelope instead (sixteen of them; not in CTest: the
-// wide machines' known gaps, core/MOTION.md, fail it).
+// machines come from the wide sweep's envelope instead (sixteen of them; CTest runs that too,
+// fuzz.simulate.wide.driver).
 constexpr std::size_t kRandomMachines = 4;
 constexpr std::size_t kWideMachines = 16;
 
