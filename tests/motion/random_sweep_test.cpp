@@ -513,8 +513,8 @@ TEST(RandomSweep, WideSeed8Program65BestEffortKeepsTheDecelerationReleasable) {
 // as much as the quantised jerk allowance keeps for that, and every later check asked for the
 // whole allowance again; even the hardest braking then missed by micrometres, best effort eased
 // it to a deceleration the softer chord after the corner can release, and the motion crossed at
-// 0.163 mm/s (a nearby corner at 2.56 mm/s in another phase of the same cruise). A braking that
-// fails only by the allowance now spends what the lag used of it and keeps riding its limit.
+// 0.163 mm/s. A braking that fails only by the allowance now keeps riding its limit with the
+// share of the allowance the lag has left.
 TEST(RandomSweep, WideSeed22Program221SpendsTheAllowanceItsBrakingLagUsedUp) {
   expect_wide_program_clean(22, 221, 7);
 }
