@@ -275,7 +275,7 @@ int main(int argc, char** argv) {
     for (std::size_t k = 1; k <= 8 && k <= s.size(); ++k) go(s.substr(0, s.size() - k));
   }
   // 2. Mutated seeds and random strings from a fixed seed.
-  Rng r{seed};
+  Rng r{{seed}};
   for (long k = 0; k < runs; ++k) {
     std::string s;
     switch (r.below(10)) {

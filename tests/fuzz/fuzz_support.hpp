@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "../support/splitmix64.hpp"
 #include "tgm/intercode.hpp"
 
 //! A broken invariant: say which and abort (libFuzzer and the driver both save the input).
@@ -23,18 +24,10 @@
 
 namespace tgm::fuzz {
 
-//! splitmix64: the same stream on every platform (the driver's mutations, a target's choices).
-struct Rng {
-  std::uint64_t s;
-  std::uint64_t next() {
-    std::uint64_t z = (s += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-  }
+//! The driver's mutations and a target's choices (tests/support/splitmix64.hpp: the same stream
+//! on every platform).
+struct Rng : tgm::test::SplitMix64 {
   std::size_t below(std::size_t n) { return n == 0 ? 0 : static_cast<std::size_t>(next() % n); }
-  //! Uniform in [0, 1) from the top 53 bits.
-  double uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }
 };
 
 //! Lets a target turn the driver's seed files into its own input format (the intercode target

@@ -82,11 +82,11 @@ const tgm::MachineConfig& machine(std::size_t pick) {
 // stops (Command 8 or 4, on the trajectory) at random times, each restarted after 0..0.5 s.
 // The program still ends at its last motion's end point, and every limit holds through it.
 struct Operator {
-  tgm::fuzz::Rng rng{1469598103934665603ull};  // seeded with the input's FNV-1a hash
+  tgm::fuzz::Rng rng{{1469598103934665603ull}};  // seeded with the input's FNV-1a hash
   explicit Operator(std::string_view text) {
     for (char c : text) rng.s = (rng.s ^ static_cast<unsigned char>(c)) * 1099511628211ull;
   }
-  double uniform() { return rng.uniform(); }
+  double uniform() { return rng.unit(); }
   void apply(tgm::SimulationOptions& o) {
     if (uniform() < 1.0 / 3.0) return;
     o.rel_speed = 0.05 + 1.95 * uniform();

@@ -9,29 +9,18 @@
 #include <cstdint>
 #include <string>
 
+#include "../support/splitmix64.hpp"
+
 namespace tgm::ref {
 
-//! Small, portable PRNG (splitmix64).
-class Rng {
- public:
-  explicit Rng(std::uint64_t seed) : s_(seed) {}
-  std::uint64_t next() {
-    std::uint64_t z = (s_ += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-  }
-  //! Uniform in [0, 1).
-  double unit() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }
-  double uniform(double lo, double hi) { return lo + (hi - lo) * unit(); }
+//! Small, portable PRNG (tests/support/splitmix64.hpp) with the generator's draws.
+struct Rng : tgm::test::SplitMix64 {
+  explicit Rng(std::uint64_t seed) : SplitMix64{seed} {}
   //! Uniform integer in [lo, hi].
   int range(int lo, int hi) {
     return lo + static_cast<int>(next() % static_cast<std::uint64_t>(hi - lo + 1));
   }
   bool chance(double p) { return unit() < p; }
-
- private:
-  std::uint64_t s_;
 };
 
 //! What a generated program looks like.

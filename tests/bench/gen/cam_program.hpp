@@ -2,7 +2,7 @@
 // (0.05..0.5 mm) and small tangent G2/G3 arcs by IJK (radius 0.5..5 mm), in G90 or G91 as the
 // first line says, with F words now and then and an occasional retract/plunge. Every arc is
 // consistent to ~1e-4 mm, so LinuxCNC's rs274 accepts the program too. Deterministic for a seed
-// on every platform (splitmix64, no <random> distributions).
+// on every platform (tests/support/splitmix64.hpp).
 #pragma once
 
 #include <cmath>
@@ -11,22 +11,14 @@
 #include <cstdlib>
 #include <string>
 
+#include "../../support/splitmix64.hpp"
+
 namespace tgm::bench {
 
 //! Appends a program of exactly `lines` lines (at least 8) to `out`.
 inline void generate_cam_program(std::string& out, long lines, std::uint64_t seed,
                                  bool incremental) {
-  struct Rng {
-    std::uint64_t s;
-    std::uint64_t next() {
-      std::uint64_t z = (s += 0x9E3779B97F4A7C15ull);
-      z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-      z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-      return z ^ (z >> 31);
-    }
-    double unit() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }
-    double uniform(double lo, double hi) { return lo + (hi - lo) * unit(); }
-  } rng{seed};
+  tgm::test::SplitMix64 rng{seed};
   constexpr double kPi = 3.14159265358979323846;
   constexpr double kBox = 100.0;  // the path stays within +-kBox mm in X and Y
   if (lines < 8) lines = 8;
