@@ -163,15 +163,9 @@ bool FileView::open(const std::string& path, std::string& error) {
   return true;
 }
 
-bool parse_progress_interval(Args& args, const std::string& text, double& out) {
-  double v = 0.0;
-  if (text.empty()) return true;
-  if (!parse_finite(text, v) || !(v > 0.0) || v > 86400.0) {
-    args.usage_error("--progress-interval takes seconds > 0, not '" + text + "'");
-    return false;
-  }
-  out = v;
-  return true;
+bool progress_interval_flag(Args& args, double& out) {
+  return args.number_flag("--progress-interval", out, "seconds in (0, 86400]",
+                          [](double v) { return v > 0.0 && v <= 86400.0; });
 }
 
 }  // namespace tgm::hmi

@@ -79,8 +79,9 @@ class FileView {
   std::string copy_;  // for files that cannot be mapped (pipes, empty files)
   std::string_view text_;
 };
-//! The --progress-interval value of `run` and `simulate` into `out` when `text` is not empty:
-//! seconds > 0, at most a day. False after reporting a usage error through `args`.
-bool parse_progress_interval(Args& args, const std::string& text, double& out);
+
+//! Consumes --progress-interval S of `run` and `simulate` into `out`: seconds > 0, at most a
+//! day (a bad value is reported through `args`).
+bool progress_interval_flag(Args& args, double& out);
 
 }  // namespace tgm::hmi

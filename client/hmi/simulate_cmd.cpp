@@ -170,22 +170,34 @@ File open_out(const std::string& path) {
 
 int run_simulate(int argc, char** argv) {
   Args args(argc, argv, "simulate", kUsage);
-  std::string file, csv_path, blocks_path, rel_text, m_ack_text, spline_text, iir_text, la_path,
-      interval_text, share_text, stop_text, restart_text, every_text;
+  std::string file, csv_path, blocks_path, spline_text, iir_text, la_path, stop_text;
   bool check_limits = false, quiet = false;
+  double rel = 1.0, m_ack = -1.0, share = 0.0, interval_s = 10.0, restart_s = 0.5;
+  long long csv_every = 0;  // 0: not given
   while (args.more()) {
     if (args.flag("--csv", csv_path)) continue;
-    if (args.flag("--csv-every", every_text)) continue;
+    if (args.whole_flag("--csv-every", 1, 1000000, csv_every)) continue;
     if (args.flag("--blocks", blocks_path)) continue;
-    if (args.flag("--rel-speed", rel_text)) continue;
-    if (args.flag("--m-ack", m_ack_text)) continue;
+    if (args.number_flag("--rel-speed", rel, "0.01..2",
+                         [](double v) { return v >= 0.01 && v <= 2.0; })) {
+      continue;
+    }
+    if (args.number_flag("--m-ack", m_ack, "seconds 0..3600",
+                         [](double v) { return v >= 0.0 && v <= 3600.0; })) {
+      continue;
+    }
     if (args.flag("--spline", spline_text)) continue;
     if (args.flag("--iir", iir_text)) continue;
     if (args.flag("--lookahead", la_path)) continue;
-    if (args.flag("--progress-interval", interval_text)) continue;
-    if (args.flag("--limit-share", share_text)) continue;
+    if (progress_interval_flag(args, interval_s)) continue;
+    if (args.number_flag("--limit-share", share, "a number in (0, 1]", LimitChecker::valid_share)) {
+      continue;
+    }
     if (args.flag("--stop-at", stop_text)) continue;
-    if (args.flag("--restart-after", restart_text)) continue;
+    if (args.number_flag("--restart-after", restart_s, "seconds 0..3600",
+                         [](double v) { return v >= 0.0 && v <= 3600.0; })) {
+      continue;
+    }
     if (args.boolean("--check-limits", check_limits)) continue;
     if (args.boolean("--quiet", quiet)) continue;
     if (args.common()) continue;
@@ -195,30 +207,13 @@ int run_simulate(int argc, char** argv) {
   if (args.help()) return 0;
   if (args.failed()) return 2;
   if (file.empty()) return args.usage_error("a G-code FILE is required");
-  double rel = 1.0;
-  if (!rel_text.empty() && (!parse_finite(rel_text, rel) || rel < 0.01 || rel > 2.0)) {
-    return args.usage_error("--rel-speed takes a number 0.01..2, not '" + rel_text + "'");
-  }
-  long long csv_every = 1;
-  if (!every_text.empty() && !parse_integer(every_text, 1, 1000000, csv_every)) {
-    return args.usage_error("--csv-every takes a number of cycles 1..1000000, not '" + every_text +
-                            "'");
-  }
-  if (!every_text.empty() && csv_path.empty())
-    return args.usage_error("--csv-every needs --csv OUT");
-  double m_ack = -1.0;
-  if (!m_ack_text.empty() && (!parse_finite(m_ack_text, m_ack) || m_ack < 0.0 || m_ack > 3600.0)) {
-    return args.usage_error("--m-ack takes seconds 0..3600, not '" + m_ack_text + "'");
-  }
-  double share = 1.0;
-  if (!share_text.empty()) {
-    if (!parse_finite(share_text, share) || !LimitChecker::valid_share(share)) {
-      return args.usage_error("--limit-share takes a number in (0, 1], not '" + share_text + "'");
-    }
+  if (csv_every > 0 && csv_path.empty()) return args.usage_error("--csv-every needs --csv OUT");
+  if (csv_every == 0) csv_every = 1;
+  if (share > 0.0) {
     check_limits = true;
+  } else {
+    share = 1.0;
   }
-  double interval_s = 10.0;
-  if (!parse_progress_interval(args, interval_text, interval_s)) return 2;
   // --stop-at T[:CODE],...: each item a time [s] and optionally :8 or :4.
   std::vector<std::pair<double, std::int32_t>> stops;
   for (std::size_t at = 0; !stop_text.empty() && at <= stop_text.size();) {
@@ -234,11 +229,6 @@ int run_simulate(int argc, char** argv) {
     }
     stops.emplace_back(t, code_text == "8" ? 8 : 4);
     at = comma + 1;
-  }
-  double restart_s = 0.5;
-  if (!restart_text.empty() &&
-      (!parse_finite(restart_text, restart_s) || restart_s < 0.0 || restart_s > 3600.0)) {
-    return args.usage_error("--restart-after takes seconds 0..3600, not '" + restart_text + "'");
   }
   // Integer lists for the Command_Parameter registers.
   auto int_list = [](const std::string& text, std::size_t count, std::array<std::int32_t, kCommandParameters>& out) {

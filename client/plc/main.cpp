@@ -244,26 +244,27 @@ int main(int argc, char** argv) {
         args.boolean("--no-events", no_events)) {
       continue;
     }
-    if (args.flag("--interpolator", value)) {
-      if (!tgm::parse_integer(value, 0, 2, only))
-        return args.usage_error("--interpolator must be 0..2, not '" + value + "'");
-    } else if (args.flag("--rel-speed", value)) {
-      double v = 0.0;
-      if (!tgm::parse_finite(value, v) || !(v >= 0.01 && v <= 2.0))
-        return args.usage_error("--rel-speed must be 0.01..2, not '" + value + "'");
+    if (args.whole_flag("--interpolator", 0, 2, only) ||
+        args.whole_flag("--rt-priority", 1, 98, rt_priority) ||
+        args.number_flag("--duration", duration_s, "a finite number of seconds > 0",
+                         [](double v) { return v > 0.0; })) {
+      continue;
+    }
+    double v = 0.0;
+    if (args.number_flag("--rel-speed", v, "0.01..2",
+                         [](double x) { return x >= 0.01 && x <= 2.0; })) {
       rel_speed = v;
-    } else if (args.flag("--ack-delay", value)) {
-      double v = 0.0;
-      if (!tgm::parse_finite(value, v) || !(v >= 0.0 && v <= 3600.0))
-        return args.usage_error("--ack-delay must be 0..3600 s, not '" + value + "'");
+    } else if (args.number_flag("--ack-delay", v, "0..3600 s",
+                                [](double x) { return x >= 0.0 && x <= 3600.0; })) {
       ack_delay = v;
     } else if (args.flag("--refuse-ack", value)) {
       for (std::size_t p = 0; p <= value.size();) {
         const std::size_t q = std::min(value.find(',', p), value.size());
-        int v = 0;
-        if (!tgm::parse_integer(value.substr(p, q - p), 1, 999999, v))
-          return args.usage_error("--refuse-ack takes M numbers 1..999999 like 51,50");
-        refuse.insert(v);
+        int m = 0;
+        if (!tgm::parse_integer(value.substr(p, q - p), 1, 999999, m))
+          return args.usage_error("--refuse-ack takes M numbers 1..999999 like 51,50, not '" +
+                                  value + "'");
+        refuse.insert(m);
         p = q + 1;
       }
     } else if (args.flag("--script", script_path)) {
@@ -272,13 +273,6 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "tgm-plc: %s\n", error.c_str());
         return 2;
       }
-    } else if (args.flag("--rt-priority", value)) {
-      if (!tgm::parse_integer(value, 1, 98, rt_priority))
-        return args.usage_error("--rt-priority must be 1..98");
-    } else if (args.flag("--duration", value)) {
-      if (!tgm::parse_finite(value, duration_s) || !(duration_s > 0.0))
-        return args.usage_error("--duration must be a finite number of seconds > 0, not '" + value +
-                                "'");
     } else {
       return args.fail();
     }

@@ -1,5 +1,7 @@
 #include "tgm/cli_args.hpp"
 
+#include "tgm/cli_numbers.hpp"
+
 #include <cstdio>
 #include <cstring>
 #include <utility>
@@ -42,6 +44,36 @@ bool ArgReader::boolean(const char* name, bool& value) {
     return true;
   }
   value = true;
+  return true;
+}
+
+bool ArgReader::whole_flag(const char* name, long long lo, long long hi, long long& out) {
+  std::string text;
+  if (!flag(name, text)) return false;
+  if (!failed_ && !parse_integer(text, lo, hi, out)) {
+    usage_error(std::string(name) + " must be " + std::to_string(lo) + ".." + std::to_string(hi) +
+                ", not '" + text + "'");
+  }
+  return true;
+}
+
+bool ArgReader::whole_flag(const char* name, int lo, int hi, int& out) {
+  long long v = out;
+  if (!whole_flag(name, static_cast<long long>(lo), static_cast<long long>(hi), v)) return false;
+  if (!failed_) out = static_cast<int>(v);
+  return true;
+}
+
+bool ArgReader::number_flag(const char* name, double& out, const char* what, bool (*ok)(double)) {
+  std::string text;
+  if (!flag(name, text)) return false;
+  double v = 0.0;
+  if (failed_) return true;
+  if (!parse_finite(text, v) || !ok(v)) {
+    usage_error(std::string(name) + " must be " + what + ", not '" + text + "'");
+  } else {
+    out = v;
+  }
   return true;
 }
 

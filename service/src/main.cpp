@@ -79,7 +79,6 @@ int main(int argc, char** argv) {
   tgm::cli::ArgReader args(argc, argv, "tgm-service");
   bool no_realtime = false;
   while (args.more()) {
-    std::string value;
     long long n = 0;
     if (args.help_flag()) {
       std::printf(kUsage, tgm::kDdsOverrideHelp);
@@ -91,36 +90,21 @@ int main(int argc, char** argv) {
         args.boolean("--check-limits", engine_options.check_limits)) {
       continue;
     }
-    if (args.flag("--cpu", value)) {
-      if (!tgm::parse_integer(value, 0, 1023, rt.cpu))
-        return args.usage_error("--cpu must be 0..1023");
-    } else if (args.flag("--rt-priority", value)) {
-      if (!tgm::parse_integer(value, 1, 99, rt.priority))
-        return args.usage_error("--rt-priority must be 1..99");
-    } else if (args.flag("--dds-priority", value)) {
-      if (!tgm::parse_integer(value, 0, 98, dds_priority))
-        return args.usage_error("--dds-priority must be 0..98");
-    } else if (args.flag("--chunk-budget", value)) {
-      if (!tgm::parse_integer(value, 1, 1'000'000, n))
-        return args.usage_error("--chunk-budget must be 1..1000000");
+    if (args.whole_flag("--cpu", 0, 1023, rt.cpu) ||
+        args.whole_flag("--rt-priority", 1, 99, rt.priority) ||
+        args.whole_flag("--dds-priority", 0, 98, dds_priority) ||
+        args.whole_flag("--setpoint-decimation", 1, 10000, port_options.setpoint_decimation) ||
+        args.number_flag("--duration", duration_s, "a finite number of seconds > 0",
+                         [](double v) { return v > 0.0; })) {
+      continue;
+    }
+    if (args.whole_flag("--chunk-budget", 1, 1'000'000, n)) {
       engine_options.max_segments_per_cycle = static_cast<std::size_t>(n);
-    } else if (args.flag("--state-period-ms", value)) {
-      if (!tgm::parse_integer(value, 1, 50, n))
-        return args.usage_error("--state-period-ms must be 1..50");
+    } else if (args.whole_flag("--state-period-ms", 1, 50, n)) {
       port_options.state_period = std::chrono::milliseconds(n);
-    } else if (args.flag("--setpoint-decimation", value)) {
-      if (!tgm::parse_integer(value, 1, 10000, port_options.setpoint_decimation))
-        return args.usage_error("--setpoint-decimation must be 1..10000");
-    } else if (args.flag("--limit-share", value)) {
-      double share = 0.0;
-      if (!tgm::parse_finite(value, share) || !tgm::LimitChecker::valid_share(share))
-        return args.usage_error("--limit-share must be a number in (0, 1], not '" + value + "'");
-      engine_options.limit_share = share;
+    } else if (args.number_flag("--limit-share", engine_options.limit_share, "a number in (0, 1]",
+                                tgm::LimitChecker::valid_share)) {
       engine_options.check_limits = true;
-    } else if (args.flag("--duration", value)) {
-      if (!tgm::parse_finite(value, duration_s) || !(duration_s > 0.0))
-        return args.usage_error("--duration must be a finite number of seconds > 0, not '" + value +
-                                "'");
     } else {
       return args.fail();
     }

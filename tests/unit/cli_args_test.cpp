@@ -121,6 +121,68 @@ TEST(CliArgs, OnlyTheFirstProblemIsPrintedAndReadingStops) {
             "prog: --count needs a value\n(see prog --help)\n");
 }
 
+// Numbers read by whole_flag / number_flag: the value lands only when all of it is a number
+// in range; otherwise one message names the flag, the range and the text given.
+struct Numbers {
+  int small = 7;
+  long long big = 7;
+  double seconds = 7.0;
+  bool failed = false;
+  std::string stderr_text;
+};
+Numbers parse_numbers(std::initializer_list<const char*> args) {
+  Argv a(args);
+  ArgReader r(a.argc(), a.argv(), "prog");
+  Numbers n;
+  testing::internal::CaptureStderr();
+  while (r.more()) {
+    if (r.whole_flag("--small", 0, 2, n.small) ||
+        r.whole_flag("--big", 1LL, 5'000'000'000LL, n.big) ||
+        r.number_flag("--seconds", n.seconds, "seconds > 0", [](double v) { return v > 0.0; })) {
+      continue;
+    }
+    r.fail();
+  }
+  n.stderr_text = testing::internal::GetCapturedStderr();
+  n.failed = r.failed();
+  return n;
+}
+
+TEST(CliArgs, NumbersAreWholeInRangeAndFinite) {
+  Numbers n = parse_numbers({"--small", "2", "--big=5000000000", "--seconds", "0.25"});
+  EXPECT_FALSE(n.failed) << n.stderr_text;
+  EXPECT_EQ(n.small, 2);
+  EXPECT_EQ(n.big, 5'000'000'000LL);
+  EXPECT_EQ(n.seconds, 0.25);
+  struct Case {
+    std::initializer_list<const char*> args;
+    const char* message;
+  };
+  const Case cases[] = {
+      {{"--small", "3"}, "prog: --small must be 0..2, not '3'\n(see prog --help)\n"},
+      {{"--small", "-1"}, "prog: --small must be 0..2, not '-1'\n(see prog --help)\n"},
+      // 2^32 + 1 must not wrap to 1 through a narrowing cast.
+      {{"--small=4294967297"}, "prog: --small must be 0..2, not '4294967297'\n(see prog --help)\n"},
+      {{"--small", "1x"}, "prog: --small must be 0..2, not '1x'\n(see prog --help)\n"},
+      {{"--big", "1.5"}, "prog: --big must be 1..5000000000, not '1.5'\n(see prog --help)\n"},
+      {{"--seconds", "0"}, "prog: --seconds must be seconds > 0, not '0'\n(see prog --help)\n"},
+      {{"--seconds", "inf"}, "prog: --seconds must be seconds > 0, not 'inf'\n(see prog --help)\n"},
+      {{"--seconds", "nan"}, "prog: --seconds must be seconds > 0, not 'nan'\n(see prog --help)\n"},
+      {{"--seconds", "1e999"},
+       "prog: --seconds must be seconds > 0, not '1e999'\n(see prog --help)\n"},
+      {{"--seconds"}, "prog: --seconds needs a value\n(see prog --help)\n"},
+      {{"--seconds="}, "prog: --seconds needs a value, not an empty string\n(see prog --help)\n"},
+  };
+  for (const Case& c : cases) {
+    n = parse_numbers(c.args);
+    EXPECT_TRUE(n.failed) << c.message;
+    EXPECT_EQ(n.stderr_text, c.message);
+    EXPECT_EQ(n.small, 7) << c.message;  // a bad value leaves the default
+    EXPECT_EQ(n.big, 7) << c.message;
+    EXPECT_EQ(n.seconds, 7.0) << c.message;
+  }
+}
+
 TEST(CliArgs, HelpIsConsumedAnywhere) {
   Parsed p = parse({"prog.ngc", "--help", "--out", "x"});
   EXPECT_TRUE(p.help);

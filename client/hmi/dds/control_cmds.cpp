@@ -88,24 +88,18 @@ int run_status(int argc, char** argv) {
 int run_watch(int argc, char** argv) {
   Args args(argc, argv, "watch", kWatchUsage);
   Common c;
-  std::string interval_text, count_text;
+  double interval = 0.5;
+  long long count = 0;
   while (args.more()) {
     if (args.dds_flag(c.overrides)) continue;
-    if (args.flag("--interval", interval_text)) continue;
-    if (args.flag("--count", count_text)) continue;
+    if (args.number_flag("--interval", interval, "seconds > 0", [](double v) { return v > 0.0; }))
+      continue;
+    if (args.whole_flag("--count", 1, 1'000'000'000, count)) continue;
     if (args.common()) continue;
     return args.fail();
   }
   if (args.help()) return 0;
   if (args.failed()) return 2;
-  double interval = 0.5;
-  long long count = 0;
-  if (!interval_text.empty() && (!parse_finite(interval_text, interval) || interval <= 0)) {
-    return args.usage_error("--interval must be a positive number of seconds");
-  }
-  if (!count_text.empty() && !parse_integer(count_text, 1, 1'000'000'000, count)) {
-    return args.usage_error("--count must be a positive whole number");
-  }
   if (const int rc = connect(args, c); rc != 0) return rc;
   install_signal_flag();
   const int ip = args.interpolator();

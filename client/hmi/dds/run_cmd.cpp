@@ -127,14 +127,17 @@ struct WaitCount {
 int run_run(int argc, char** argv) {
   Args args(argc, argv, "run", kUsage);
   DdsOverrides overrides;
-  std::string file, plot_path, interval_text, m0_text, timeout_text, error;
+  std::string file, plot_path, error;
   bool quiet = false;
+  double interval_s = 1.0, m0_s = -1.0, timeout_s = 0.0;
   while (args.more()) {
     if (args.dds_flag(overrides)) continue;
     if (args.flag("--plot", plot_path)) continue;
-    if (args.flag("--progress-interval", interval_text)) continue;
-    if (args.flag("--m0-continue", m0_text)) continue;
-    if (args.flag("--timeout", timeout_text)) continue;
+    if (progress_interval_flag(args, interval_s)) continue;
+    if (args.number_flag("--m0-continue", m0_s, "seconds >= 0", [](double v) { return v >= 0.0; }))
+      continue;
+    if (args.number_flag("--timeout", timeout_s, "seconds > 0", [](double v) { return v > 0.0; }))
+      continue;
     if (args.boolean("--quiet", quiet)) continue;
     if (args.common()) continue;
     if (args.positional(file)) continue;
@@ -143,14 +146,6 @@ int run_run(int argc, char** argv) {
   if (args.help()) return 0;
   if (args.failed()) return 2;
   if (file.empty()) return args.usage_error("a program FILE is required");
-  double interval_s = 1.0, m0_s = -1.0, timeout_s = 0.0;
-  if (!parse_progress_interval(args, interval_text, interval_s)) return 2;
-  if (!m0_text.empty() && (!parse_finite(m0_text, m0_s) || m0_s < 0)) {
-    return args.usage_error("--m0-continue must be >= 0 seconds");
-  }
-  if (!timeout_text.empty() && (!parse_finite(timeout_text, timeout_s) || timeout_s <= 0)) {
-    return args.usage_error("--timeout must be a positive number of seconds");
-  }
 
   // Config and program first: bad input never touches the service.
   std::optional<AppConfig> config = args.load_app();

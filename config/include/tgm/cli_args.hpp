@@ -23,6 +23,14 @@ class ArgReader {
   bool flag(const char* name, std::string& value);
   //! Consumes a flag without a value; `name=...` is reported as a malformed flag.
   bool boolean(const char* name, bool& value);
+  //! Consumes `name N` with N a whole number lo..hi into `out`; a bad value is reported as
+  //! "NAME must be LO..HI, not 'TEXT'" (`out` untouched).
+  bool whole_flag(const char* name, long long lo, long long hi, long long& out);
+  bool whole_flag(const char* name, int lo, int hi, int& out);
+  //! Consumes `name X` with X a finite number that `ok` accepts into `out`; a bad value is
+  //! reported as "NAME must be WHAT, not 'TEXT'" (`out` untouched). `what` words the range
+  //! for a user: "0.01..2", "seconds > 0", "a number in (0, 1]".
+  bool number_flag(const char* name, double& out, const char* what, bool (*ok)(double));
   //! Consumes --help or -h.
   bool help_flag();
   bool help_given() const { return help_; }
