@@ -2,21 +2,32 @@
 // to be killed (or 60 s). Usage: tgm_dds_test_peer <profiles.xml> <domain> <topic>
 #include <chrono>
 #include <cstdio>
-#include <cstdlib>
+#include <cstring>
 #include <string>
 #include <thread>
 
+#include "tgm/cli_numbers.hpp"
 #include "tgm/dds/participant.hpp"
 #include "tgm/msg/tgmPubSubTypes.h"
 
+namespace {
+constexpr const char* kUsage =
+    "usage: tgm_dds_test_peer PROFILES DOMAIN TOPIC\n"
+    "Test helper (DdsLoopback): joins DOMAIN (0..232) with the Fast DDS PROFILES, writes one\n"
+    "Request on TOPIC once a reader matched, and waits 60 s or until killed.\n";
+}  // namespace
+
 int main(int argc, char** argv) {
-  if (argc != 4) {
-    std::fprintf(stderr, "usage: %s PROFILES DOMAIN TOPIC\n", argv[0]);
-    return 2;
+  if (argc == 2 && (std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "-h") == 0)) {
+    std::fputs(kUsage, stdout);
+    return 0;
   }
   tgm::DdsConfig config;
+  if (argc != 4 || !tgm::parse_integer(argv[2], 0, 232, config.domain_id)) {
+    std::fprintf(stderr, "tgm_dds_test_peer: expected PROFILES DOMAIN(0..232) TOPIC\n%s", kUsage);
+    return 2;
+  }
   config.profiles_file = argv[1];
-  config.domain_id = std::atoi(argv[2]);
   config.participant_prefix = "tgmtest";
   try {
     tgm::dds::Participant p(config, "peer");

@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include "tgm/cli_args.hpp"
 #include "tgm/dds/participant.hpp"
 #include "tgm/msg/tgmPubSubTypes.h"
 
@@ -166,39 +167,44 @@ int run_ping(const Options& o) {
   return timeouts == 0 ? 0 : 1;
 }
 
-bool parse(int argc, char** argv, Options& o) {
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    const bool has_value = i + 1 < argc;
-    if (a == "--role" && has_value) {
-      o.role = argv[++i];
-    } else if (a == "--count" && has_value) {
-      o.count = std::atoi(argv[++i]);
-    } else if (a == "--warmup" && has_value) {
-      o.warmup = std::atoi(argv[++i]);
-    } else if (a == "--domain" && has_value) {
-      o.domain = std::atoi(argv[++i]);
-    } else if (a == "--profiles" && has_value) {
-      o.profiles = argv[++i];
-    } else {
-      return false;
+constexpr const char* kUsage =
+    "usage: tgm_dds_pingpong [--role both|ping|pong] [--count N] [--warmup N] [--domain D]\n"
+    "                        [--profiles FILE]\n"
+    "Round-trip latency of a raw Fast DDS ping-pong: Request out, Reply back, with tgm's request "
+    "/\n"
+    "reply QoS profiles. Prints min / median / p99 / p99.9 / max in microseconds.\n"
+    "  --role R       both (default: the pong side in a second process), ping or pong\n"
+    "  --count N      measured round trips, 1..100000000 (default 20000)\n"
+    "  --warmup N     round trips not counted, 0..100000000 (default 2000)\n"
+    "  --domain D     DDS domain, 0..232 (default 77)\n"
+    "  --profiles F   Fast DDS profiles XML (default: config/fastdds_profiles.xml)\n";
+
+// 0: go on; otherwise the exit code (--help printed, or a usage error reported).
+int parse(int argc, char** argv, Options& o) {
+  tgm::cli::ArgReader args(argc, argv, "tgm_dds_pingpong");
+  while (args.more()) {
+    if (args.help_flag()) {
+      std::fputs(kUsage, stdout);
+      return -1;
     }
+    if (args.flag("--role", o.role) || args.whole_flag("--count", 1, 100'000'000, o.count) ||
+        args.whole_flag("--warmup", 0, 100'000'000, o.warmup) ||
+        args.whole_flag("--domain", 0, 232, o.domain) || args.flag("--profiles", o.profiles)) {
+      continue;
+    }
+    return args.fail();
   }
-  return (o.role == "both" || o.role == "ping" || o.role == "pong") && o.count > 0 &&
-         o.warmup >= 0;
+  if (args.failed()) return 2;
+  if (o.role != "both" && o.role != "ping" && o.role != "pong")
+    return args.usage_error("--role must be both, ping or pong, not '" + o.role + "'");
+  return 0;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
   Options o;
-  if (!parse(argc, argv, o)) {
-    std::fprintf(stderr,
-                 "usage: %s [--role both|ping|pong] [--count N] [--warmup N] [--domain D] "
-                 "[--profiles FILE]\n",
-                 argv[0]);
-    return 2;
-  }
+  if (const int rc = parse(argc, argv, o); rc != 0) return rc < 0 ? 0 : rc;
   try {
     if (o.role == "pong") {
       Pong pong(o);

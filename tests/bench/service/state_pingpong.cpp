@@ -45,6 +45,7 @@
 
 #include <fastdds/dds/subscriber/DataReaderListener.hpp>
 
+#include "tgm/cli_args.hpp"
 #include "tgm/dds/participant.hpp"
 #include "tgm/msg/tgmPubSubTypes.h"
 
@@ -406,46 +407,52 @@ int run(const Options& o, char** argv) {
   return rc;
 }
 
+constexpr const char* kUsage =
+    "usage: tgm_bench_state_pingpong [--role both|ping|pong|sink] [--sample state|event]\n"
+    "                                [--mode waitset|listener|both] [--count N] [--warmup N]\n"
+    "                                [--block N] [--domain D] [--profiles F] [--sinks N]\n"
+    "                                [--interval-us N]\n"
+    "The raw Fast DDS reference for the M-function handshake: the pinged sample (state or event,\n"
+    "with its topic's QoS) is answered with the PLC's Request. One RESULT line per mode.\n"
+    "  --role R         both (default: pong and sinks as child processes), ping, pong or sink\n"
+    "  --sample S       state (InterpolatorState) or event (InterpolatorEvent); default state\n"
+    "  --mode M         waitset, listener or both (alternating blocks); default waitset\n"
+    "  --count N        measured round trips, 1..100000000 (default 5000)\n"
+    "  --warmup N       round trips per mode not counted, 0..100000000 (default 500)\n"
+    "  --block N        round trips per block with --mode both, 1..100000000 (default 500)\n"
+    "  --domain D       DDS domain, 0..232 (default 78)\n"
+    "  --profiles F     Fast DDS profiles XML (default: config/fastdds_profiles.xml)\n"
+    "  --sinks N        extra processes that only read the pinged samples, 0..16 (default 0)\n"
+    "  --interval-us N  pause between round trips, 0..10000000 us (default 0: back to back)\n";
+
 }  // namespace
 
 int main(int argc, char** argv) {
   Options o;
-  constexpr const char* kUsage =
-      "usage: %s [--role both|ping|pong|sink] [--sample state|event] [--mode "
-      "waitset|listener|both]\n"
-      "          [--count N] [--warmup N] [--block N] [--domain D] [--profiles F] [--sinks N]\n"
-      "          [--interval-us N]\n";
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (i + 1 >= argc) {
-      std::fprintf(stderr, kUsage, argv[0]);
-      return 2;
+  tgm::cli::ArgReader args(argc, argv, "tgm_bench_state_pingpong");
+  while (args.more()) {
+    if (args.help_flag()) {
+      std::fputs(kUsage, stdout);
+      return 0;
     }
-    if (a == "--role") o.role = argv[++i];
-    else if (a == "--sample")
-      o.sample = argv[++i];
-    else if (a == "--mode")
-      o.mode = argv[++i];
-    else if (a == "--count") o.count = std::atoi(argv[++i]);
-    else if (a == "--warmup") o.warmup = std::atoi(argv[++i]);
-    else if (a == "--block")
-      o.block = std::atoi(argv[++i]);
-    else if (a == "--domain") o.domain = std::atoi(argv[++i]);
-    else if (a == "--profiles") o.profiles = argv[++i];
-    else if (a == "--sinks") o.sinks = std::atoi(argv[++i]);
-    else if (a == "--interval-us")
-      o.interval_us = std::atoi(argv[++i]);
-    else {
-      std::fprintf(stderr, kUsage, argv[0]);
-      return 2;
+    if (args.flag("--role", o.role) || args.flag("--sample", o.sample) ||
+        args.flag("--mode", o.mode) || args.whole_flag("--count", 1, 100'000'000, o.count) ||
+        args.whole_flag("--warmup", 0, 100'000'000, o.warmup) ||
+        args.whole_flag("--block", 1, 100'000'000, o.block) ||
+        args.whole_flag("--domain", 0, 232, o.domain) || args.flag("--profiles", o.profiles) ||
+        args.whole_flag("--sinks", 0, 16, o.sinks) ||
+        args.whole_flag("--interval-us", 0, 10'000'000, o.interval_us)) {
+      continue;
     }
+    return args.fail();
   }
-  if ((o.sample != "state" && o.sample != "event") ||
-      (o.mode != "waitset" && o.mode != "listener" && o.mode != "both") || o.count < 1 ||
-      o.block < 1) {
-    std::fprintf(stderr, kUsage, argv[0]);
-    return 2;
-  }
+  if (args.failed()) return 2;
+  if (o.role != "both" && o.role != "ping" && o.role != "pong" && o.role != "sink")
+    return args.usage_error("--role must be both, ping, pong or sink, not '" + o.role + "'");
+  if (o.sample != "state" && o.sample != "event")
+    return args.usage_error("--sample must be state or event, not '" + o.sample + "'");
+  if (o.mode != "waitset" && o.mode != "listener" && o.mode != "both")
+    return args.usage_error("--mode must be waitset, listener or both, not '" + o.mode + "'");
   try {
     if (o.sample == "event")
       return run<tgm::msg::InterpolatorEvent, tgm::msg::InterpolatorEventPubSubType>(o, argv);

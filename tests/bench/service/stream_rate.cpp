@@ -7,33 +7,54 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
-#include <cstdlib>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "tgm/cli_args.hpp"
 #include "tgm/client/client.hpp"
 #include "tgm/yaml_config.hpp"
+
+namespace {
+constexpr const char* kUsage =
+    "usage: tgm_bench_stream [--config YAML] [--domain D] [--records N] [--runs K]\n"
+    "Streams N plain G1 records into interpolator 0 of a running tgm-service K times and prints\n"
+    "the rate of each run and the median (BENCHMARKS.md, section Service).\n"
+    "  --config YAML   the service's config (default: config/default.yaml); interpolator 0's\n"
+    "                  Buffer_Size must hold the N records\n"
+    "  --domain D      DDS domain, 0..232 (default: the config's)\n"
+    "  --records N     records per run, 1..100000 (default 100000)\n"
+    "  --runs K        runs, 1..1000 (default 5)\n";
+}  // namespace
 
 int main(int argc, char** argv) {
   using namespace std::chrono_literals;
   std::string config_path;
   int domain = -1;
-  std::size_t records = 100'000;
+  long long records_flag = 100'000;
   int runs = 5;
-  for (int i = 1; i + 1 < argc; i += 2) {
-    const std::string a = argv[i];
-    if (a == "--config") config_path = argv[i + 1];
-    else if (a == "--domain") domain = std::atoi(argv[i + 1]);
-    else if (a == "--records") records = static_cast<std::size_t>(std::atol(argv[i + 1]));
-    else if (a == "--runs") runs = std::atoi(argv[i + 1]);
-    else return 2;
+  tgm::cli::ArgReader args(argc, argv, "tgm_bench_stream");
+  while (args.more()) {
+    if (args.help_flag()) {
+      std::fputs(kUsage, stdout);
+      return 0;
+    }
+    if (args.flag("--config", config_path) || args.whole_flag("--domain", 0, 232, domain) ||
+        args.whole_flag("--records", 1LL, 100'000LL, records_flag) ||
+        args.whole_flag("--runs", 1, 1000, runs)) {
+      continue;
+    }
+    return args.fail();
   }
-  tgm::ConfigLoad load = tgm::load_config_file(config_path.empty() ? tgm::default_config_path() : config_path);
-  if (!load.config) return 2;
-  if (domain >= 0) load.config->dds.domain_id = domain;
+  if (args.failed()) return 2;
+  const auto records = static_cast<std::size_t>(records_flag);
+  std::optional<tgm::AppConfig> config =
+      tgm::load_config_or_report(config_path, "tgm_bench_stream");
+  if (!config) return 2;
+  if (domain >= 0) config->dds.domain_id = domain;
   tgm::Program program;
-  program.number_axes = static_cast<int>(load.config->machine.interpolators[0].axes.size());
-  program.axis_letters = load.config->machine.axis_letters(0);
+  program.number_axes = static_cast<int>(config->machine.interpolators[0].axes.size());
+  program.axis_letters = config->machine.axis_letters(0);
   for (std::size_t i = 0; i < records; ++i) {
     tgm::Segment s;
     s.line = static_cast<std::int32_t>(i + 1);
@@ -41,7 +62,7 @@ int main(int argc, char** argv) {
     s.feed_mm_per_min = 6000;
     program.segments.push_back(s);
   }
-  tgm::client::Client hmi(load.config->dds, tgm::client::Role::kHmi);
+  tgm::client::Client hmi(config->dds, tgm::client::Role::kHmi);
   if (!hmi.wait_for_state(0, 10s)) {
     std::fprintf(stderr, "tgm_bench_stream: no tgm-service\n");
     return 1;
