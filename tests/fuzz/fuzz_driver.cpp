@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "fuzz_support.hpp"
+#include "tgm/cli_numbers.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size);
 
@@ -215,12 +216,23 @@ int main(int argc, char** argv) {
       }
       return argv[++i];
     };
+    // Whole numbers only: '--runs 1e5' must not quietly run one input, '--seed x' seed 0.
+    const auto number = [&](long long lo, long long hi) -> long long {
+      const char* name = argv[i];
+      const std::string text = value();
+      long long v = 0;
+      if (!tgm::parse_integer(text, lo, hi, v)) {
+        std::fprintf(stderr, "%s must be %lld..%lld, not '%s'\n", name, lo, hi, text.c_str());
+        std::exit(2);
+      }
+      return v;
+    };
     if (a == "--seed") {
-      seed = std::strtoull(value(), nullptr, 0);
+      seed = static_cast<std::uint64_t>(number(0, INT64_MAX));
     } else if (a == "--runs") {
-      runs = std::strtol(value(), nullptr, 0);
+      runs = static_cast<long>(number(0, 1'000'000'000'000LL));
     } else if (a == "--max-len") {
-      max_len = std::strtoull(value(), nullptr, 0);
+      max_len = static_cast<std::size_t>(number(1, 1LL << 30));
     } else if (a == "--crash-file") {
       std::snprintf(g_crash_file, sizeof g_crash_file, "%s", value());
     } else if (a == "--write-seeds") {

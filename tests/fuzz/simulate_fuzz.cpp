@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <optional>
 #include <random>
@@ -41,7 +42,10 @@ constexpr std::size_t kWideMachines = 16;
 bool wide_machines() {
   static const bool wide = [] {
     const char* e = std::getenv("TGM_FUZZ_MACHINES");
-    return e != nullptr && std::string_view(e) == "wide";
+    if (e == nullptr || *e == '\0' || std::string_view(e) == "random") return false;
+    if (std::string_view(e) == "wide") return true;
+    std::fprintf(stderr, "TGM_FUZZ_MACHINES must be wide or random, not '%s'\n", e);
+    std::exit(2);
   }();
   return wide;
 }

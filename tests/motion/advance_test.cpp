@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "../support/test_params.hpp"
 #include "limit_findings.hpp"
 #include "program_builder.hpp"
 #include "random_program.hpp"
@@ -25,12 +26,6 @@ namespace {
 
 using test::random_machine;
 using test::random_program;
-
-std::uint64_t env_u64(const char* name, std::uint64_t fallback) {
-  const char* v = std::getenv(name);
-  if (!v || !*v) return fallback;
-  return std::strtoull(v, nullptr, 10);
-}
 
 // Every register, compared exactly (doubles with ==, so -0.0 == 0.0 is the only slack).
 void expect_same(const Registers& a, const Registers& b, const std::string& ctx) {
@@ -241,8 +236,8 @@ void compare_stepping(const MachineConfig& m, const test::Generated& g, int smoo
 }
 
 TEST(Advance, RegistersEqualSteppingBitForBit) {
-  const std::uint64_t seed = env_u64("TGM_SEED", 1);
-  const std::uint64_t count = env_u64("TGM_ADVANCE_COUNT", 40);
+  const std::uint64_t seed = test::env_u64("TGM_SEED", 1);
+  const std::uint64_t count = test::env_u64("TGM_ADVANCE_COUNT", 40);
   SkipCounts c;
   for (std::uint64_t k = 0; k < count; ++k) {
     std::mt19937_64 rng(seed * 7919ull + k);
@@ -300,7 +295,7 @@ test::Generated chord_program(std::mt19937_64& rng, int axes) {
 }
 
 TEST(Advance, ChordCruiseAcrossJunctionsEqualsStepping) {
-  const std::uint64_t seed = env_u64("TGM_SEED", 1);
+  const std::uint64_t seed = test::env_u64("TGM_SEED", 1);
   SkipCounts c;
   for (std::uint64_t k = 0; k < 12; ++k) {
     std::mt19937_64 rng(seed * 6151ull + k);
@@ -343,7 +338,7 @@ std::array<SimulationSummary, 2> run_stepped_and_fast(
 }
 
 TEST(Advance, SimulationSummaryEqualsStepping) {
-  const std::uint64_t first = env_u64("TGM_SEED", 1);
+  const std::uint64_t first = test::env_u64("TGM_SEED", 1);
   for (std::uint64_t run = 0; run < 30; ++run) {
     const std::uint64_t seed = first + run / 10, k = run % 10;
     std::mt19937_64 rng(seed * 104729ull + k);
@@ -408,7 +403,7 @@ TEST(Advance, AStopGivenWhileStandingIsRestartedAsWhenStepping) {
 // second run holds the motion to 80 % of each limit, so that the checker has excesses to report;
 // the M-functions take 0.3 s, so that standing runs are traced too.
 TEST(Advance, LimitCheckOfFastForwardEqualsStepping) {
-  const std::uint64_t first = env_u64("TGM_SEED", 1);
+  const std::uint64_t first = test::env_u64("TGM_SEED", 1);
   std::uint64_t violations = 0, corner_steps = 0;
   for (std::uint64_t k = 0; k < 16; ++k) {
     std::mt19937_64 rng(first * 92821ull + k);

@@ -29,6 +29,7 @@
 #include <utility>
 #include <vector>
 
+#include "../support/test_params.hpp"
 #include "random_program.hpp"
 #include "tgm/gcode.hpp"
 #include "tgm/simulation.hpp"
@@ -40,21 +41,6 @@ using test::Generated;
 using test::random_machine;
 using test::random_program;
 
-std::uint64_t env_u64(const char* name, std::uint64_t fallback) {
-  const char* v = std::getenv(name);
-  if (!v || !*v) return fallback;
-  return std::strtoull(v, nullptr, 10);
-}
-
-// --name=N among the arguments gtest left (it removes its own flags), else TGM_<env>.
-std::uint64_t arg_u64(const std::string& name, const char* env, std::uint64_t fallback) {
-  const std::string prefix = "--" + name + "=";
-  for (const std::string& a : ::testing::internal::GetArgvs()) {
-    if (a.rfind(prefix, 0) == 0) return std::strtoull(a.c_str() + prefix.size(), nullptr, 10);
-  }
-  return env_u64(env, fallback);
-}
-
 // Sweep program k of `seed`: machine, program, override schedule, lower bound and time limit.
 struct SweepCase {
   int axes = 0;
@@ -64,10 +50,15 @@ struct SweepCase {
   double limit_s = 0.0;
 };
 
-// --machines=wide: test::wide_machine instead of random_machine (core/MOTION.md, "Known gaps").
+// --machines=wide: test::wide_machine instead of random_machine (core/MOTION.md, "Known gaps");
+// --machines=random is the default.
 bool wide_machines() {
   for (const std::string& a : ::testing::internal::GetArgvs()) {
+    if (a.rfind("--machines=", 0) != 0) continue;
     if (a == "--machines=wide") return true;
+    if (a == "--machines=random") return false;
+    std::fprintf(stderr, "--machines must be wide or random, not '%s'\n", a.c_str() + 11);
+    std::exit(2);
   }
   return false;
 }
@@ -176,9 +167,10 @@ void expect_wide_programs_clean(
 }
 
 TEST(RandomSweep, ProgramsFinishAtTheirEndWithinLimits) {
-  const std::uint64_t seed = arg_u64("seed", "TGM_SEED", 1);
-  const std::uint64_t count = arg_u64("count", "TGM_SWEEP_COUNT", 200);
-  const std::uint64_t first = arg_u64("first", "TGM_SWEEP_FIRST", 0);  // to rerun one program
+  const std::uint64_t seed = test::param_u64("seed", "TGM_SEED", 1);
+  const std::uint64_t count = test::param_u64("count", "TGM_SWEEP_COUNT", 200);
+  const std::uint64_t first =
+      test::param_u64("first", "TGM_SWEEP_FIRST", 0);  // to rerun one program
   std::uint64_t total_cycles = 0;
   for (std::uint64_t k = first; k < first + count; ++k) {
     const SweepCase c = sweep_case(seed, k, wide_machines());
@@ -200,9 +192,9 @@ TEST(RandomSweep, ProgramsFinishAtTheirEndWithinLimits) {
 // stop point). Same oracles as the plain sweep (the emergency ramp is held to the emergency
 // deceleration and its jerk ratio), and every stop before the end was given.
 TEST(RandomSweep, StopsOnTheTrajectoryResumeAndFinishWithinLimits) {
-  const std::uint64_t seed = arg_u64("seed", "TGM_SEED", 1);
-  const std::uint64_t count = arg_u64("count", "TGM_SWEEP_COUNT", 200);
-  const std::uint64_t first = arg_u64("first", "TGM_SWEEP_FIRST", 0);
+  const std::uint64_t seed = test::param_u64("seed", "TGM_SEED", 1);
+  const std::uint64_t count = test::param_u64("count", "TGM_SWEEP_COUNT", 200);
+  const std::uint64_t first = test::param_u64("first", "TGM_SWEEP_FIRST", 0);
   std::uint64_t given = 0;
   for (std::uint64_t k = first; k < first + count; ++k) {
     const SweepCase c = sweep_case(seed, k, wide_machines());

@@ -25,6 +25,7 @@
 #include <string>
 #include <vector>
 
+#include "../support/test_params.hpp"
 #include "gen/cam_program.hpp"  // tests/bench/gen: the compile benchmark's program
 #include "ngc_generator.hpp"
 #include "rs274_canon.hpp"
@@ -37,12 +38,6 @@ namespace {
 
 //! Agreement asked for [mm], plus the rounding of rs274's "%.4f" output.
 constexpr double kTolerance = 1e-4 + 5e-5 + 1e-9;
-
-std::uint64_t env_u64(const char* name, std::uint64_t dflt) {
-  const char* v = std::getenv(name);
-  if (v == nullptr || *v == '\0') return dflt;
-  return std::strtoull(v, nullptr, 0);
-}
 
 bool rs274_required() {
 #ifdef TGM_REQUIRE_RS274_DEFAULT
@@ -195,7 +190,7 @@ void check_program(const fs::path& file, const std::string& text) {
   EXPECT_TRUE(diff.empty()) << "disagreement with rs274 on " << file << " ("
                             << ref.motions.size() << " rs274 motions):\n"
                             << diff;
-  if (diff.empty() && file.parent_path() == work_dir() && env_u64("TGM_REF_KEEP", 0) == 0) {
+  if (diff.empty() && file.parent_path() == work_dir() && test::env_u64("TGM_REF_KEEP", 0) == 0) {
     fs::remove(file);
   }
 }
@@ -343,7 +338,9 @@ INSTANTIATE_TEST_SUITE_P(Programs, HandProgram, ::testing::ValuesIn(hand_program
 
 // ---- generated programs -----------------------------------------------------------------------
 
-std::uint64_t base_seed() { return env_u64("TGM_REF_SEED", 20240611); }
+std::uint64_t base_seed() {
+  return test::env_u64("TGM_REF_SEED", 20240611);
+}
 
 void check_generated(std::uint64_t seed, int lines, const std::string& name) {
   const GeneratedProgram g = generate_reference_program(seed, lines);
@@ -362,8 +359,8 @@ class Generated : public ::testing::TestWithParam<int> {};
 TEST_P(Generated, AgreesWithRs274) {
   const auto index = static_cast<std::uint64_t>(GetParam());
   const std::uint64_t seed = base_seed() * 1000003u + index;
-  const auto lo = static_cast<int>(env_u64("TGM_REF_MIN_LINES", 2000));
-  const auto hi = std::max(lo, static_cast<int>(env_u64("TGM_REF_MAX_LINES", 20000)));
+  const auto lo = static_cast<int>(test::env_u64("TGM_REF_MIN_LINES", 2000));
+  const auto hi = std::max(lo, static_cast<int>(test::env_u64("TGM_REF_MAX_LINES", 20000)));
   Rng rng(seed ^ 0x5eedu);
   const int lines = rng.range(lo, hi);
   check_generated(seed, lines, "generated_" + std::to_string(base_seed()) + "_" +
@@ -371,10 +368,10 @@ TEST_P(Generated, AgreesWithRs274) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Seeded, Generated,
-                         ::testing::Range(0, static_cast<int>(env_u64("TGM_REF_COUNT", 20))));
+                         ::testing::Range(0, static_cast<int>(test::env_u64("TGM_REF_COUNT", 20))));
 
 TEST(GeneratedLong, AgreesWithRs274) {
-  const auto lines = static_cast<int>(env_u64("TGM_REF_LONG_LINES", 200000));
+  const auto lines = static_cast<int>(test::env_u64("TGM_REF_LONG_LINES", 200000));
   check_generated(base_seed() * 7919u + 1u, lines, "generated_long_" + std::to_string(base_seed()));
 }
 
@@ -396,7 +393,8 @@ class CamProgram : public ::testing::TestWithParam<bool> {};
 TEST_P(CamProgram, AgreesWithRs274) {
   const bool incremental = GetParam();
   std::string text;
-  tgm::bench::generate_cam_program(text, static_cast<long>(env_u64("TGM_REF_CAM_LINES", 100000)),
+  tgm::bench::generate_cam_program(text,
+                                   static_cast<long>(test::env_u64("TGM_REF_CAM_LINES", 100000)),
                                    base_seed(), incremental);
   const fs::path file = work_dir() / (std::string("cam_") + (incremental ? "g91" : "g90") + "_" +
                                       std::to_string(base_seed()) + ".ngc");
