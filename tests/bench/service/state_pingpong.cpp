@@ -1,15 +1,18 @@
 // tgm_bench_state_pingpong: the raw Fast DDS reference for the M-function handshake. The ping
 // side writes the sample that carries a new M_Func with its topic's QoS profile; the pong side
 // answers each with a tgm::msg::Request (the PLC's M_Func = 0) with the request profile. Same
-// types, sizes and QoS as the real handshake, without the service's cycle.
+// types, sizes and QoS as the real handshake, without the service's cycle. --sample request
+// pings the request itself and answers with a tgm::msg::Reply (the request / reply round trip
+// of every HMI and PLC request; BENCHMARKS.md, section DDS).
 //
-//   tgm_bench_state_pingpong [--role both|ping|pong|sink] [--sample state|event]
+//   tgm_bench_state_pingpong [--role both|ping|pong|sink] [--sample state|event|request]
 //                            [--mode waitset|listener|both] [--count N] [--warmup N] [--block N]
 //                            [--domain D] [--profiles FILE] [--sinks N] [--interval-us N]
 //
 // --sample state: tgm::msg::InterpolatorState with the tgm_state profiles (3,812 B, the sample
 //   the service wrote first before the event topic existed); event: tgm::msg::InterpolatorEvent
-//   with the tgm_event profiles (what the service writes first now).
+//   with the tgm_event profiles (what the service writes first now); request: tgm::msg::Request
+//   with the tgm_request profiles, answered by a tgm::msg::Reply with the tgm_reply ones.
 // --mode waitset: the pong waits on a WaitSet in its main thread, takes, writes the Request; the
 //   ping waits on a WaitSet for it and stops the clock after the take.
 // --mode listener: the pong answers from its DataReaderListener (Fast DDS's receive thread), as
@@ -19,8 +22,9 @@
 //   so that both see the same load over the run; each mode is reported on its own.
 // The clock starts just before write() and stops when the Request is taken, as the service's
 // "DDS part" of the handshake does. The pong puts the time it began its write() into
-// Request.value (same clock, same host), so the return hop (pong write() begins -> Request
-// taken) is reported too: it compares with the handshake's "ack request call -> service took it".
+// Request.value (Reply.cycle_counter for --sample request; same clock, same host), so the
+// return hop (pong write() begins -> answer taken) is reported too: it compares with the
+// handshake's "ack request call -> service took it".
 // --sinks N starts N more processes that only read the pinged samples (like tgm-hmi next to
 // tgm-plc on the state): the ping side then writes every sample to N + 1 readers.
 // --interval-us N pauses N us between round trips (not timed), as sporadic as the handshake
@@ -36,6 +40,7 @@
 #include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -77,13 +82,18 @@ const char* mode_name(int m) {
 
 // The pinged topic of a mode: the sample's own profiles under a bench name.
 tgm::dds::TopicSpec ping_topic(const Options& o, int mode) {
-  tgm::dds::TopicSpec s = o.sample == "event" ? tgm::dds::kEventTopic : tgm::dds::kStateTopic;
-  s.name = mode == kWaitSet ? (o.sample == "event" ? "tgm_bench_event_w" : "tgm_bench_state")
-                            : (o.sample == "event" ? "tgm_bench_event_l" : "tgm_bench_state_l");
+  tgm::dds::TopicSpec s = o.sample == "event"     ? tgm::dds::kEventTopic
+                          : o.sample == "request" ? tgm::dds::kRequestTopic
+                                                  : tgm::dds::kStateTopic;
+  static const std::string names[2][3] = {
+      {"tgm_bench_state", "tgm_bench_event_w", "tgm_bench_request_w"},
+      {"tgm_bench_state_l", "tgm_bench_event_l", "tgm_bench_request_l"}};
+  s.name = names[mode][o.sample == "event" ? 1 : o.sample == "request" ? 2 : 0];
   return s;
 }
-tgm::dds::TopicSpec ack_topic(int mode) {
-  tgm::dds::TopicSpec s = tgm::dds::kRequestTopic;
+// The answer's topic: the request profiles, or the reply ones when the request is pinged.
+tgm::dds::TopicSpec ack_topic(const Options& o, int mode) {
+  tgm::dds::TopicSpec s = o.sample == "request" ? tgm::dds::kReplyTopic : tgm::dds::kRequestTopic;
   s.name = mode == kWaitSet ? "tgm_bench_ack" : "tgm_bench_ack_l";
   return s;
 }
@@ -102,27 +112,107 @@ double now_ns() {
   return static_cast<double>(Clock::now().time_since_epoch().count());
 }
 
-// The pong's answer: an M_Func = 0 request as tgm-plc writes it.
-tgm::msg::Request pong_ack(const std::string& name) {
-  tgm::msg::Request r;
-  r.role(tgm::msg::CLIENT_ROLE_PLC);
-  r.kind(tgm::msg::REQUEST_KIND_WRITE_M_FUNC);
-  r.client_name(name);
-  return r;
+constexpr std::uint64_t kQuitId = std::numeric_limits<std::uint64_t>::max();
+
+// The pinged samples: a round trip's id, and the quit sample that ends the pong and the sinks.
+template <class Sample>
+std::uint64_t ping_id(const Sample& s) {
+  return s.cycle_counter();
+}
+template <class Sample>
+void set_ping_id(Sample& s, std::uint64_t id) {
+  s.cycle_counter(id);
+}
+template <class Sample>
+bool is_quit(const Sample& s) {
+  return s.m_func() < 0;
+}
+template <class Sample>
+void make_quit(Sample& s) {
+  s.m_func(-1);
+}
+template <class Sample>
+void init_ping(Sample& s, const std::string&) {
+  s.m_func(51);
+}
+template <>
+std::uint64_t ping_id(const tgm::msg::Request& s) {
+  return s.request_id();
+}
+template <>
+void set_ping_id(tgm::msg::Request& s, std::uint64_t id) {
+  s.request_id(id);
+}
+template <>
+bool is_quit(const tgm::msg::Request& s) {
+  return s.request_id() == kQuitId;
+}
+template <>
+void make_quit(tgm::msg::Request& s) {
+  s.request_id(kQuitId);
+}
+template <>
+void init_ping(tgm::msg::Request& s, const std::string& name) {
+  s.role(tgm::msg::CLIENT_ROLE_PLC);
+  s.kind(tgm::msg::REQUEST_KIND_WRITE_M_FUNC);
+  s.client_name(name);
 }
 
-// Answers every sample waiting in `reader` with `ack` (id: the sample's cycle counter, value:
-// the time it was written); true when the quit sample (M_Func < 0) was among them.
+// The pong's answer: an M_Func = 0 request as tgm-plc writes it; to a pinged request, the
+// service's accepting reply.
 template <class Sample>
-bool answer_all(fdds::DataReader& reader, Sample& s, tgm::msg::Request& ack, fdds::DataWriter& acks) {
+struct AnswerOf {
+  using Type = tgm::msg::Request;
+  using PubSub = tgm::msg::RequestPubSubType;
+};
+template <>
+struct AnswerOf<tgm::msg::Request> {
+  using Type = tgm::msg::Reply;
+  using PubSub = tgm::msg::ReplyPubSubType;
+};
+tgm::msg::Request pong_answer(const std::string& name, tgm::msg::Request*) {
+  tgm::msg::Request r;
+  init_ping(r, name);
+  return r;
+}
+tgm::msg::Reply pong_answer(const std::string& name, tgm::msg::Reply*) {
+  tgm::msg::Reply r;
+  r.client_name(name);
+  r.accepted(true);
+  r.code(tgm::msg::REPLY_CODE_ACCEPTED);
+  return r;
+}
+template <class Answer>
+Answer pong_answer(const std::string& name) {
+  return pong_answer(name, static_cast<Answer*>(nullptr));
+}
+// The answer carries the id and the time the pong began its write() (ns, steady clock).
+void stamp(tgm::msg::Request& a, std::uint64_t id) {
+  a.request_id(id);
+  a.value(now_ns());
+}
+void stamp(tgm::msg::Reply& a, std::uint64_t id) {
+  a.request_id(id);
+  a.cycle_counter(static_cast<std::uint64_t>(now_ns()));
+}
+double pong_write_ns(const tgm::msg::Request& a) {
+  return a.value();
+}
+double pong_write_ns(const tgm::msg::Reply& a) {
+  return static_cast<double>(a.cycle_counter());
+}
+
+// Answers every sample waiting in `reader` with `ack` (stamped with the sample's id and the time
+// it was written); true when the quit sample was among them.
+template <class Sample, class Answer>
+bool answer_all(fdds::DataReader& reader, Sample& s, Answer& ack, fdds::DataWriter& acks) {
   bool quit = false;
   while (tgm::dds::take_next(reader, s)) {
-    if (s.m_func() < 0) {
+    if (is_quit(s)) {
       quit = true;
       continue;
     }
-    ack.request_id(s.cycle_counter());
-    ack.value(now_ns());
+    stamp(ack, ping_id(s));
     acks.write(&ack);
   }
   return quit;
@@ -132,7 +222,9 @@ bool answer_all(fdds::DataReader& reader, Sample& s, tgm::msg::Request& ack, fdd
 template <class Sample>
 class PongListener final : public fdds::DataReaderListener {
  public:
-  PongListener(fdds::DataWriter& acks, const std::string& name) : acks_(acks), r_(pong_ack(name)) {}
+  using Answer = typename AnswerOf<Sample>::Type;
+  PongListener(fdds::DataWriter& acks, const std::string& name)
+      : acks_(acks), r_(pong_answer<Answer>(name)) {}
   void on_data_available(fdds::DataReader* reader) override {
     const std::lock_guard lock(mutex_);
     if (detached_) return;
@@ -149,11 +241,12 @@ class PongListener final : public fdds::DataReaderListener {
   std::mutex mutex_;
   bool detached_ = false;
   Sample s_;
-  tgm::msg::Request r_;
+  Answer r_;
 };
 
-// Ping side of the listener mode: takes the Request in Fast DDS's receive thread, stops the
+// Ping side of the listener mode: takes the answer in Fast DDS's receive thread, stops the
 // clock there and tells the ping thread.
+template <class Answer>
 class AckListener final : public fdds::DataReaderListener {
  public:
   void on_data_available(fdds::DataReader* reader) override {
@@ -162,7 +255,7 @@ class AckListener final : public fdds::DataReaderListener {
     while (tgm::dds::take_next(*reader, r_)) {
       if (r_.request_id() == expected_) {
         taken_ = Clock::now();
-        pong_write_ns_ = r_.value();
+        pong_write_ns_ = pong_write_ns(r_);
         got_ = true;
         cv_.notify_one();
       }
@@ -194,7 +287,7 @@ class AckListener final : public fdds::DataReaderListener {
   std::uint64_t expected_ = 0;
   Clock::time_point taken_{};
   double pong_write_ns_ = 0;
-  tgm::msg::Request r_;
+  Answer r_;
 };
 
 template <class Sample, class SampleType>
@@ -206,18 +299,18 @@ int run_pong(const Options& o) {
   fdds::DataReader* l_reader = nullptr;
   if (uses(o, kWaitSet)) {
     ws_reader = &p.reader<SampleType>(ping_topic(o, kWaitSet));
-    ws_acks = &p.writer<tgm::msg::RequestPubSubType>(ack_topic(kWaitSet));
+    ws_acks = &p.writer<typename AnswerOf<Sample>::PubSub>(ack_topic(o, kWaitSet));
   }
   if (uses(o, kListener)) {
     l_reader = &p.reader<SampleType>(ping_topic(o, kListener));
-    auto& acks = p.writer<tgm::msg::RequestPubSubType>(ack_topic(kListener));
+    auto& acks = p.writer<typename AnswerOf<Sample>::PubSub>(ack_topic(o, kListener));
     listener = std::make_unique<PongListener<Sample>>(acks, p.name());
     l_reader->set_listener(listener.get(), fdds::StatusMask::data_available());
   }
   std::optional<tgm::dds::DataWaiter> waiter;
   if (ws_reader != nullptr) waiter.emplace(std::initializer_list<fdds::DataReader*>{ws_reader});
   Sample s;
-  tgm::msg::Request r = pong_ack(p.name());
+  auto r = pong_answer<typename AnswerOf<Sample>::Type>(p.name());
   const auto give_up = Clock::now() + 600s;
   bool ws_quit = ws_reader == nullptr;
   while (Clock::now() < give_up && !(ws_quit && (!listener || listener->quit))) {
@@ -252,7 +345,7 @@ int run_sink(const Options& o) {
     waiter.wait(500ms);
     for (auto* r : readers) {
       while (tgm::dds::take_next(*r, s)) {
-        if (s.m_func() < 0) ++quits;
+        if (is_quit(s)) ++quits;
       }
     }
   }
@@ -266,7 +359,8 @@ double pct(const std::vector<double>& us, double q) {
 
 template <class Sample, class SampleType>
 int run_ping(const Options& o) {
-  AckListener ack_listener;  // outlives the participant's threads
+  using Answer = typename AnswerOf<Sample>::Type;
+  AckListener<Answer> ack_listener;  // outlives the participant's threads
   tgm::dds::Participant p(config(o), "ping");
   struct Side {
     bool on = false;
@@ -281,7 +375,7 @@ int run_ping(const Options& o) {
     if (!uses(o, m)) continue;
     side[m].on = true;
     side[m].writer = &p.writer<SampleType>(ping_topic(o, m));
-    side[m].acks = &p.reader<tgm::msg::RequestPubSubType>(ack_topic(m));
+    side[m].acks = &p.reader<typename AnswerOf<Sample>::PubSub>(ack_topic(o, m));
     if (!tgm::dds::wait_for_match(*side[m].writer, 1 + o.sinks, 30s) ||
         !tgm::dds::wait_for_match(*side[m].acks, 1, 30s)) {
       std::fprintf(stderr, "tgm_bench_state_pingpong: no pong on domain %d (%s)\n", o.domain,
@@ -297,8 +391,8 @@ int run_ping(const Options& o) {
   if (side[kWaitSet].on)
     waiter.emplace(std::initializer_list<fdds::DataReader*>{side[kWaitSet].acks});
   Sample s;
-  s.m_func(51);
-  tgm::msg::Request r;
+  init_ping(s, p.name());
+  Answer r;
   const int modes = side[0].on && side[1].on ? 2 : 1;
   const int first = side[0].on ? 0 : 1;
   // Warm-up rounds of every mode first, then the measured ones in alternating blocks.
@@ -308,11 +402,11 @@ int run_ping(const Options& o) {
     const int k = warm ? i / std::max(1, o.warmup) : (i - modes * o.warmup) / std::max(1, o.block);
     const int m = modes == 1 ? first : k % 2;
     Side& sd = side[m];
-    s.cycle_counter(static_cast<std::uint64_t>(i) + 1);
+    set_ping_id(s, static_cast<std::uint64_t>(i) + 1);
     bool got = false;
     Clock::time_point t1{};
     double pong_write_ns = 0;
-    if (m == kListener) ack_listener.expect(s.cycle_counter());
+    if (m == kListener) ack_listener.expect(ping_id(s));
     const auto t0 = Clock::now();
     sd.writer->write(&s);
     if (m == kListener) {
@@ -321,9 +415,9 @@ int run_ping(const Options& o) {
       while (!got) {
         if (!waiter->wait(2s)) break;
         while (tgm::dds::take_next(*sd.acks, r)) {
-          if (r.request_id() != s.cycle_counter()) continue;
+          if (r.request_id() != ping_id(s)) continue;
           got = true;
-          pong_write_ns = r.value();
+          pong_write_ns = ::pong_write_ns(r);
         }
       }
       t1 = Clock::now();
@@ -339,7 +433,7 @@ int run_ping(const Options& o) {
     }
     if (o.interval_us > 0) std::this_thread::sleep_for(std::chrono::microseconds(o.interval_us));
   }
-  s.m_func(-1);
+  make_quit(s);
   for (Side& sd : side) {
     if (!sd.on) continue;
     sd.writer->write(&s);
@@ -350,14 +444,19 @@ int run_ping(const Options& o) {
     ack_listener.detach();
   }
   SampleType st;
-  tgm::msg::RequestPubSubType rt;
-  r.client_name(p.name());  // as the pong's (and about as long as tgm-plc's "tgm-plc-PID")
+  typename AnswerOf<Sample>::PubSub rt;
+  r = pong_answer<Answer>(p.name());  // as the pong's (about as long as tgm-plc's "tgm-plc-PID")
+  const bool request = o.sample == "request";
   std::printf(
-      "raw %s->request ping-pong (%s %u B -> Request %u B serialized, %s QoS, domain %d), sample "
+      "raw %s->%s ping-pong (%s %u B -> %s %u B serialized, %s QoS, domain %d), sample "
       "readers %d\n",
-      o.sample.c_str(), o.sample == "event" ? "InterpolatorEvent" : "InterpolatorState",
-      st.getSerializedSizeProvider(&s)(), rt.getSerializedSizeProvider(&r)(),
-      std::string(ping_topic(o, first).writer_profile).c_str(), o.domain, 1 + o.sinks);
+      o.sample.c_str(), request ? "reply" : "request",
+      o.sample == "event" ? "InterpolatorEvent"
+      : request           ? "Request"
+                          : "InterpolatorState",
+      st.getSerializedSizeProvider(&s)(), request ? "Reply" : "Request",
+      rt.getSerializedSizeProvider(&r)(), std::string(ping_topic(o, first).writer_profile).c_str(),
+      o.domain, 1 + o.sinks);
   int rc = 0;
   for (int m : {kWaitSet, kListener}) {
     Side& sd = side[m];
@@ -408,14 +507,16 @@ int run(const Options& o, char** argv) {
 }
 
 constexpr const char* kUsage =
-    "usage: tgm_bench_state_pingpong [--role both|ping|pong|sink] [--sample state|event]\n"
+    "usage: tgm_bench_state_pingpong [--role both|ping|pong|sink] [--sample state|event|request]\n"
     "                                [--mode waitset|listener|both] [--count N] [--warmup N]\n"
     "                                [--block N] [--domain D] [--profiles F] [--sinks N]\n"
     "                                [--interval-us N]\n"
     "The raw Fast DDS reference for the M-function handshake: the pinged sample (state or event,\n"
-    "with its topic's QoS) is answered with the PLC's Request. One RESULT line per mode.\n"
+    "with its topic's QoS) is answered with the PLC's Request; a pinged Request with the\n"
+    "service's Reply. One RESULT line per mode.\n"
     "  --role R         both (default: pong and sinks as child processes), ping, pong or sink\n"
-    "  --sample S       state (InterpolatorState) or event (InterpolatorEvent); default state\n"
+    "  --sample S       state (InterpolatorState), event (InterpolatorEvent) or request\n"
+    "                   (Request -> Reply); default state\n"
     "  --mode M         waitset, listener or both (alternating blocks); default waitset\n"
     "  --count N        measured round trips, 1..100000000 (default 5000)\n"
     "  --warmup N       round trips per mode not counted, 0..100000000 (default 500)\n"
@@ -449,13 +550,14 @@ int main(int argc, char** argv) {
   if (args.failed()) return 2;
   if (o.role != "both" && o.role != "ping" && o.role != "pong" && o.role != "sink")
     return args.usage_error("--role must be both, ping, pong or sink, not '" + o.role + "'");
-  if (o.sample != "state" && o.sample != "event")
-    return args.usage_error("--sample must be state or event, not '" + o.sample + "'");
+  if (o.sample != "state" && o.sample != "event" && o.sample != "request")
+    return args.usage_error("--sample must be state, event or request, not '" + o.sample + "'");
   if (o.mode != "waitset" && o.mode != "listener" && o.mode != "both")
     return args.usage_error("--mode must be waitset, listener or both, not '" + o.mode + "'");
   try {
     if (o.sample == "event")
       return run<tgm::msg::InterpolatorEvent, tgm::msg::InterpolatorEventPubSubType>(o, argv);
+    if (o.sample == "request") return run<tgm::msg::Request, tgm::msg::RequestPubSubType>(o, argv);
     return run<tgm::msg::InterpolatorState, tgm::msg::InterpolatorStatePubSubType>(o, argv);
   } catch (const tgm::dds::SetupError& e) {
     std::fprintf(stderr, "tgm_bench_state_pingpong: %s\n", e.what());
