@@ -172,8 +172,9 @@ int run_simulate(int argc, char** argv) {
   Args args(argc, argv, "simulate", kUsage);
   std::string file, csv_path, blocks_path, spline_text, iir_text, la_path, stop_text;
   bool check_limits = false, quiet = false;
-  double rel = 1.0, m_ack = -1.0, share = 0.0, interval_s = 10.0, restart_s = 0.5;
-  long long csv_every = 0;  // 0: not given
+  double rel = 1.0, m_ack = -1.0, interval_s = 10.0, restart_s = 0.5;
+  double share = 0.0;       // 0: --limit-share not given (the full limits, checker as asked)
+  long long csv_every = 0;  // 0: not given (every cycle)
   while (args.more()) {
     if (args.flag("--csv", csv_path)) continue;
     if (args.whole_flag("--csv-every", 1, 1000000, csv_every)) continue;

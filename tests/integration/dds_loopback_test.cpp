@@ -112,9 +112,14 @@ TEST(DdsLoopback, ProgramStreamDeliversEveryChunkOnceInOrder) {
   reader.get_sample_lost_status(lost);
   EXPECT_EQ(rejected.total_count, 0) << "the window did not keep the reader history from filling";
   EXPECT_EQ(lost.total_count, 0);
-  EXPECT_TRUE(writes_ok);
-  EXPECT_TRUE(done);
-  EXPECT_TRUE(order_ok);
+  // Where a stream that stalled stopped: chunks written and taken, records in order so far.
+  const std::string where = "written " + std::to_string(chunks) + " chunks, taken " +
+                            std::to_string(taken.load()) + ", records in order " +
+                            std::to_string(expected_sequence) + " of " +
+                            std::to_string(program.segments.size());
+  EXPECT_TRUE(writes_ok) << where;
+  EXPECT_TRUE(done) << where;
+  EXPECT_TRUE(order_ok) << where;
   EXPECT_GT(chunks, program.segments.size() / mapping::kMaxChunkSegments);
   EXPECT_EQ(expected_sequence, program.segments.size());
   ASSERT_EQ(received.segments.size(), program.segments.size());
