@@ -10,6 +10,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -77,6 +78,8 @@ class Child {
     return code;
   }
   bool running() const { return pid_ > 0; }
+  //! The child's process id while it runs (-1 after the exit was collected).
+  pid_t pid() const { return pid_; }
   std::string log() const {
     std::ifstream f(log_);
     std::stringstream ss;
@@ -106,6 +109,17 @@ inline bool replace_first(std::string& text, const std::string& from, const std:
 }
 
 //! Counts occurrences of `what` in `text`.
+//! A field of /proc/PID/status in kB (VmRSS, VmHWM, ...); -1 when it cannot be read.
+inline long proc_status_kb(pid_t pid, const std::string& field) {
+  std::ifstream f("/proc/" + std::to_string(pid) + "/status");
+  std::string line;
+  while (std::getline(f, line)) {
+    if (line.rfind(field + ":", 0) == 0)
+      return std::strtol(line.c_str() + field.size() + 1, nullptr, 10);
+  }
+  return -1;
+}
+
 inline int count_of(const std::string& text, const std::string& what) {
   int n = 0;
   for (auto p = text.find(what); p != std::string::npos; p = text.find(what, p + 1)) ++n;
