@@ -178,6 +178,14 @@ class MTracker {
 
 using MParams = std::array<double, TGM_M_FUNCTION_PARAMETERS>;
 
+// The reply to the note (M_Func = 0) of a continuous M-function. The service refuses it with
+// WRONG_STATE when M_Func shows the next M-function already: that one is left to be handled,
+// which is what should happen, not an error.
+std::string note_reply(const tgm::client::Reply& r) {
+  if (r.code == tgm::msg::REPLY_CODE_WRONG_STATE) return "M_Func shows the next M-function already";
+  return tgm::client::describe(r);
+}
+
 // An M-function the event callback claimed, for the main loop to log and, unless it was
 // acknowledged from the callback, to acknowledge or refuse.
 struct EventSeen {
@@ -392,7 +400,7 @@ int main(int argc, char** argv) {
       }
       if (!refused && (!rec.normal || delay_for(rec.m) <= 0.0)) {
         rec.ack_call = Clock::now();
-        rec.request_id = client->send_ack_m_func(i);
+        rec.request_id = client->send_ack_m_func(i, rec.m);
         rec.ack_written = Clock::now();
       }
       rec.action = rec.request_id != 0 ? EventSeen::Action::kAcked
@@ -439,7 +447,7 @@ int main(int argc, char** argv) {
             rec.interpolator, rec.m);
       } else if (!rec.normal) {  // continuous, and the callback could not write the note
         log("interpolator %d: M%d noted: %s", rec.interpolator, rec.m,
-            tgm::client::describe(plc->ack_m_func(rec.interpolator)).c_str());
+            note_reply(plc->ack_m_func(rec.interpolator, rec.m)).c_str());
       } else if (sv != nullptr) {
         sv->m_part = rec.part;
         sv->ack_m = rec.m;
@@ -472,7 +480,7 @@ int main(int argc, char** argv) {
             tgm::client::describe(*r).c_str(), static_cast<unsigned long long>(r->cycle));
       } else {
         log("interpolator %d: M%d noted from the event: %s", it->interpolator, it->m,
-            tgm::client::describe(*r).c_str());
+            note_reply(*r).c_str());
       }
       it = acked.erase(it);
     }
@@ -574,7 +582,7 @@ int main(int argc, char** argv) {
         if (!normal) {
           log_seen();
           log("interpolator %d: M%d noted: %s", sv.number, s->m_func(),
-              tgm::client::describe(plc->ack_m_func(sv.number)).c_str());
+              note_reply(plc->ack_m_func(sv.number, s->m_func())).c_str());
         } else if (refused) {
           log_seen();
           log("interpolator %d: M%d: refusing to acknowledge (--refuse-ack / script)", sv.number, s->m_func());
@@ -587,7 +595,7 @@ int main(int argc, char** argv) {
         const int m = sv.ack_m;
         sv.ack_m = 0;
         const auto ack_call = Clock::now();
-        const auto r = plc->ack_m_func(sv.number);
+        const auto r = plc->ack_m_func(sv.number, m);
         trace({sv.number, sv.m_part, sv.woke_at, sv.seen_at, ack_call, plc->last_request_written(),
                Clock::now(), "loop"});
         log_seen();

@@ -40,7 +40,7 @@ const KindRule kKinds[] = {
      [](Interpolator& ip, const RequestIn& r) {
        std::int64_t v = 0;
        if (auto bad = whole(r.value, -2e9, 2e9, "M_Func", v); !bad.ok()) return bad;
-       return ip.write_m_func(static_cast<std::int32_t>(v));
+       return ip.write_m_func(static_cast<std::int32_t>(v), r.m_func_acknowledged);
      }},
     {RequestKind::kWriteRelSpeed, kPlc, "Rel_Speed write",
      [](Interpolator& ip, const RequestIn& r) { return ip.set_rel_speed(r.value); }},
@@ -60,9 +60,12 @@ const KindRule kKinds[] = {
        if (auto bad = whole(r.value, 1, kMaxAxes, "Number_Axes", v); !bad.ok()) return bad;
        return ip.write_number_axes(static_cast<int>(v));
      }},
-    {RequestKind::kStart, kHmi, "start", [](Interpolator& ip, const RequestIn&) { return ip.start(); }},
-    {RequestKind::kStop, kBoth, "stop", [](Interpolator& ip, const RequestIn&) { return ip.command(8); }},
-    {RequestKind::kClear, kHmi, "clear", [](Interpolator& ip, const RequestIn&) { return ip.clear(); }},
+    {RequestKind::kStart, kHmi, "start",
+     [](Interpolator& ip, const RequestIn&) { return ip.start(); }},
+    {RequestKind::kStop, kBoth, "stop",
+     [](Interpolator& ip, const RequestIn&) { return ip.command(8); }},
+    {RequestKind::kClear, kHmi, "clear",
+     [](Interpolator& ip, const RequestIn&) { return ip.clear(); }},
 };
 
 struct CommandRule {

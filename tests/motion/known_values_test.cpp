@@ -196,6 +196,50 @@ TEST(KnownValues, HelixPitch) {
   EXPECT_NEAR(s.end_position[0], 5.0, 1e-9);
 }
 
+// A PLC's note of a continuous M-function (M_Func = 0) that arrives after the next, normal
+// M-function is shown must not acknowledge that one: the write names the M-function it means.
+TEST(KnownValues, LateNoteOfAContinuousMFunctionDoesNotReleaseTheNextOne) {
+  ProgramBuilder b;
+  b.line({10.0, 0.0, 0.0}, 3000.0)
+      .m(1001, MKind::kContinuous)
+      .line({10.5, 0.0, 0.0}, 3000.0)
+      .m(50, MKind::kNormal)
+      .line({20.0, 0.0, 0.0}, 3000.0)
+      .end();
+  auto ip = Interpolator::create(machine(), 0);
+  ASSERT_TRUE(ip);
+  ASSERT_TRUE(ip->load(b.program()).ok());
+  ASSERT_TRUE(ip->start().ok());
+  bool saw_continuous = false;
+  int waited = 0;
+  for (int c = 0; c < 40000; ++c) {
+    const StepResult r = ip->step();
+    const Registers& g = ip->registers();
+    if (g.m_func == 1001) saw_continuous = true;  // not noted: still shown when M50 comes
+    if (g.m_func == 50 && run_flag_section(g.run_flag) == SectionState::kWaitMFuncEnd) {
+      ++waited;
+      if (waited == 5) {
+        const RequestResult late = ip->write_m_func(0, 1001);
+        EXPECT_EQ(late.code, RequestCode::kWrongState) << late.reason;
+        EXPECT_EQ(late.reason, "M_Func shows M50 now: the acknowledgement of M1001 came after it");
+        EXPECT_EQ(ip->registers().m_func, 50);
+      }
+      if (waited == 50) {
+        EXPECT_EQ(g.orig_position[0], 10.5);  // still waiting at the M50 stop
+        ASSERT_TRUE(ip->write_m_func(0, 50).ok());
+        EXPECT_EQ(ip->registers().m_func, 0);
+        // Naming an M-function when M_Func is 0 already changes nothing and is no error.
+        EXPECT_TRUE(ip->write_m_func(0, 50).ok());
+      }
+    }
+    if (r == StepResult::kFinished) break;
+  }
+  EXPECT_TRUE(saw_continuous);
+  EXPECT_EQ(waited, 50);  // released by the M50 write, not by the late one
+  EXPECT_EQ(ip->registers().status, 3);
+  EXPECT_EQ(ip->registers().orig_position[0], 20.0);
+}
+
 TEST(KnownValues, MFunctionHandshakeSequence) {
   ProgramBuilder b;
   b.line({10.0, 0.0, 0.0}, 3000.0).m(10, MKind::kNormal).line({20.0, 0.0, 0.0}, 3000.0).end();

@@ -342,7 +342,18 @@ TEST(Engine, NormalMFunctionWaitsForTheAckAndResumesInTheSameCycle) {
   for (int i = 0; i < 1000; ++i) e.cycle(port, {});  // 0.5 s without an ack
   EXPECT_EQ(port.last.ip[0].reg.m_func, 51);
   EXPECT_EQ(port.last.ip[0].reg.act_part, part);
-  port.add_request(Role::kPlc, RequestKind::kWriteMFunc).value = 0;
+  // An acknowledgement naming another M-function (a late note of a continuous one) is refused
+  // and leaves M51 waiting; the one naming M51 releases it.
+  RequestIn& stale = port.add_request(Role::kPlc, RequestKind::kWriteMFunc);
+  stale.value = 0;
+  stale.m_func_acknowledged = 1001;
+  e.cycle(port, {});
+  EXPECT_EQ(port.replies.back().code, ReplyCode::kWrongState);
+  EXPECT_EQ(port.last.ip[0].reg.m_func, 51);
+  EXPECT_EQ(port.last.ip[0].reg.act_part, part);
+  RequestIn& ack = port.add_request(Role::kPlc, RequestKind::kWriteMFunc);
+  ack.value = 0;
+  ack.m_func_acknowledged = 51;
   e.cycle(port, {});
   EXPECT_EQ(port.replies.back().code, ReplyCode::kAccepted);
   EXPECT_EQ(port.last.ip[0].reg.m_func, 0);

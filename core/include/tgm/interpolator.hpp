@@ -186,8 +186,11 @@ class Interpolator {
   //! (Status 0, 3, 4, 7, 8 and standing). Programs must then be compiled for that many axes;
   //! the registers of the axes above keep their last values.
   RequestResult write_number_axes(int number_axes);
-  //! PLC write of M_Func; only 0 (acknowledge) is accepted.
-  RequestResult write_m_func(std::int32_t value);
+  //! PLC write of M_Func; only 0 (acknowledge) is accepted. `acknowledged` != 0 names the
+  //! M-function the PLC acknowledges: while M_Func shows another one, the write is refused
+  //! (kWrongState) and changes nothing, so a late acknowledgement of a continuous M-function
+  //! cannot release the normal one shown after it. 0 clears whatever M_Func shows.
+  RequestResult write_m_func(std::int32_t value, std::int32_t acknowledged = 0);
   //! Rel_Speed 0.01..2; takes effect in the next calculation step through the jerk-limited ramp.
   RequestResult set_rel_speed(double rel_speed);
   //! Sets Orig_Position = Position [mm] while standing with the smoothing settled; drops the

@@ -3323,10 +3323,16 @@ RequestResult Interpolator::command(std::int32_t code) {
   }
 }
 
-RequestResult Interpolator::write_m_func(std::int32_t value) {
+RequestResult Interpolator::write_m_func(std::int32_t value, std::int32_t acknowledged) {
   if (value != 0) {
     return refuse(RequestCode::kOutOfRange, "M_Func can only be written with 0 (acknowledge), not " +
                                                 std::to_string(value));
+  }
+  const std::int32_t shown = impl_->reg.m_func;
+  if (acknowledged != 0 && shown != 0 && shown != acknowledged) {
+    return refuse(RequestCode::kWrongState, "M_Func shows M" + std::to_string(shown) +
+                                                " now: the acknowledgement of M" +
+                                                std::to_string(acknowledged) + " came after it");
   }
   impl_->reg.m_func = 0;
   return {};

@@ -66,6 +66,8 @@ struct RequestIn {
   std::array<std::int32_t, kCommandParameters> command_parameter{};
   int axis = 0;
   double value = 0.0;
+  //! WRITE_M_FUNC: the M-function acknowledged (0: whichever M_Func shows).
+  std::int32_t m_func_acknowledged = 0;
   //! When the receiver thread took the sample (steady clock) [ns]; for the handshake trace.
   std::int64_t taken_ns = 0;
 };

@@ -154,8 +154,11 @@ class Client {
   //! second while the window is full (a service restarted meanwhile) free it again.
   static constexpr int kRequestsInFlight = 64;
   int requests_in_flight() const { return in_flight_.load(std::memory_order_relaxed); }
-  //! send() of M_Func = 0 (acknowledge the pending M-function of `interpolator`).
-  std::uint64_t send_ack_m_func(int interpolator);
+  //! send() of M_Func = 0 (acknowledge the pending M-function of `interpolator`). `m` names
+  //! the M-function acknowledged, as seen in M_Func: the service refuses the write
+  //! (REPLY_CODE_WRONG_STATE) when M_Func shows another one by then, so a late note of a
+  //! continuous M-function never releases the normal one after it. 0: whichever is shown.
+  std::uint64_t send_ack_m_func(int interpolator, std::int32_t m = 0);
   //! The reply to a send() if it has arrived (taken by poll()); polling thread only. Replies
   //! nobody takes are dropped after the newest kMaxKeptReplies.
   std::optional<Reply> take_reply(std::uint64_t request_id);
@@ -168,8 +171,8 @@ class Client {
   Reply clear(int interpolator);
   //! Command register with Command_Parameter[0..11] (missing parameters are 0).
   Reply command(int interpolator, std::int32_t code, std::span<const std::int32_t> params = {});
-  //! M_Func = 0.
-  Reply ack_m_func(int interpolator);
+  //! M_Func = 0, acknowledging M-function `m` (0: whichever is shown; see send_ack_m_func).
+  Reply ack_m_func(int interpolator, std::int32_t m = 0);
   Reply set_rel_speed(int interpolator, double rel_speed);
 
   Role role() const { return role_; }
