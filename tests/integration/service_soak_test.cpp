@@ -39,8 +39,9 @@ constexpr double kPi = 3.14159265358979323846;
 // on the circle), dwells, feed changes, normal (M50, M51) and continuous (M1001) M-functions.
 // It first goes to the origin in a straight line: each run starts where the last one ended.
 // Two M-functions always have a motion or a dwell between them, and the last one is followed
-// by a motion: a continuous M-function directly followed by another M record is overwritten in
-// the registers within the same cycle and not seen by the PLC (core/MOTION.md, Known gaps).
+// by a motion: M records with nothing between them reach M_Func in successive cycles, which a
+// service publisher running late can still merge, and two equal ones cannot be told apart
+// (core/MOTION.md, Known gaps).
 struct SoakProgram {
   std::string text;
   int normal_m = 0;

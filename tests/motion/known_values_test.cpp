@@ -196,6 +196,53 @@ TEST(KnownValues, HelixPitch) {
   EXPECT_NEAR(s.end_position[0], 5.0, 1e-9);
 }
 
+// M records with nothing between them reach M_Func one per cycle, in program order, so a PLC
+// that reads the registers once a cycle sees each (they used to leave the smoothing in the same
+// calculation step, the later overwriting the earlier). The motion does not wait for the
+// continuous ones.
+TEST(KnownValues, AdjacentMFunctionsReachMFuncOnePerCycle) {
+  ProgramBuilder b;
+  b.line({10.0, 0.0, 0.0}, 3000.0)
+      .m(1001, MKind::kContinuous)
+      .m(1002, MKind::kContinuous)
+      .line({20.0, 0.0, 0.0}, 3000.0)
+      .m(1003, MKind::kContinuous)
+      .m(50, MKind::kNormal)
+      .line({30.0, 0.0, 0.0}, 3000.0)
+      .end();
+  auto ip = Interpolator::create(machine(), 0);
+  ASSERT_TRUE(ip);
+  ASSERT_TRUE(ip->load(b.program()).ok());
+  ASSERT_TRUE(ip->start().ok());
+  std::vector<int> shown;  // M_Func whenever it changes to a non-zero value
+  std::vector<std::uint64_t> at;
+  std::vector<double> x_at;
+  for (int c = 0; c < 40000; ++c) {
+    const StepResult r = ip->step();
+    const Registers& g = ip->registers();
+    if (g.m_func != 0 && (shown.empty() || shown.back() != g.m_func)) {
+      shown.push_back(g.m_func);
+      at.push_back(g.cycle);
+      x_at.push_back(g.orig_position[0]);
+      EXPECT_EQ(g.act_m_func, g.m_func);
+      if (g.m_func > 1000) {
+        EXPECT_EQ(g.last_cont_m_func, g.m_func);
+      }
+    }
+    if (g.m_func == 50 && run_flag_section(g.run_flag) == SectionState::kWaitMFuncEnd) {
+      ASSERT_TRUE(ip->write_m_func(0, 50).ok());
+    }
+    if (r == StepResult::kFinished) break;
+  }
+  ASSERT_EQ(shown, (std::vector<int>{1001, 1002, 1003, 50}));
+  EXPECT_EQ(at[1], at[0] + 1);  // the next cycle
+  EXPECT_EQ(at[3], at[2] + 1);
+  EXPECT_GT(x_at[1], x_at[0]) << "the motion went on past the continuous M-functions";
+  EXPECT_EQ(x_at[3], 20.0);  // M50 stops the motion at its record
+  EXPECT_EQ(ip->registers().status, 3);
+  EXPECT_EQ(ip->registers().orig_position[0], 30.0);
+}
+
 // A PLC's note of a continuous M-function (M_Func = 0) that arrives after the next, normal
 // M-function is shown must not acknowledge that one: the write names the M-function it means.
 TEST(KnownValues, LateNoteOfAContinuousMFunctionDoesNotReleaseTheNextOne) {

@@ -409,6 +409,13 @@ struct Interpolator::Impl {
   // M parameters of the events in the smoothing (the ring slot may be reused meanwhile).
   std::array<MParams, SmoothingStage::kEventCapacity> ev_par{};
   std::size_t ev_par_next = 0;
+  // At most one M-function reaches M_Func per cycle: a PLC reading the registers once a cycle
+  // sees each of two M records with nothing between them (they would otherwise leave the
+  // smoothing in the same calculation step, the second overwriting the first). The later ones
+  // wait here, in order, and are handed over one per cycle at the cycle's start.
+  bool m_announced = false;  // an M-function reached M_Func in this cycle
+  std::array<SmoothingEvent, 16> m_deferred{};
+  int m_deferred_n = 0;
   // Command accepted and waiting for the smoothing (Command_Status 1); 0 = none.
   std::int32_t pend_code = 0;
   std::array<std::int32_t, kCommandParameters> pend_par{};
@@ -1320,8 +1327,32 @@ struct Interpolator::Impl {
     if (!smooth->push_event_next(e)) apply_event(e);  // 256 events inside the spline: at once
   }
 
-  // An event leaves the smoothing: the register writes of the hand-over.
+  // An event leaves the smoothing: the register writes of the hand-over; an M-function after
+  // another one in the same cycle waits for the next (m_deferred).
   void apply_event(const SmoothingEvent& e) {
+    const bool is_m = e.kind == kEvNormalM || e.kind == kEvContinuousM;
+    if (is_m && (m_announced || m_deferred_n > 0) &&
+        m_deferred_n < static_cast<int>(m_deferred.size())) {
+      m_deferred[static_cast<std::size_t>(m_deferred_n++)] = e;
+      return;
+    }
+    if (is_m) m_announced = true;
+    hand_over(e);
+  }
+
+  // At a cycle's start: the oldest deferred M-function reaches M_Func.
+  void hand_over_deferred_m() {
+    m_announced = false;
+    if (m_deferred_n == 0) return;
+    const SmoothingEvent e = m_deferred[0];
+    for (int i = 1; i < m_deferred_n; ++i)
+      m_deferred[static_cast<std::size_t>(i - 1)] = m_deferred[static_cast<std::size_t>(i)];
+    --m_deferred_n;
+    m_announced = true;
+    hand_over(e);
+  }
+
+  void hand_over(const SmoothingEvent& e) {
     switch (e.kind) {
       case kEvNormalM:
         if (!m_pending) break;  // the program was cleared meanwhile
@@ -1456,6 +1487,7 @@ struct Interpolator::Impl {
     resume_wait_m = false;
     resumable_estop = false;
     m_pending = false;
+    m_deferred_n = 0;
     end_pending = false;
     tail = cur;
     base = cur;
@@ -3093,6 +3125,7 @@ StepResult Interpolator::step() {
   m.n_events = 0;
   m.n_blocks = 0;
   m.reg.cycle += 1;
+  m.hand_over_deferred_m();
   for (int k = 0; k < kCalcSteps; ++k) {
     m.calc_step(k);
     m.smooth_step(k);
@@ -3113,7 +3146,9 @@ StepResult Interpolator::advance(std::uint64_t max_cycles, std::uint64_t* advanc
   m.n_events = 0;  // a cruise skip reports the blocks and corners it runs through
   m.n_blocks = 0;
   m.trace.clear();
-  const std::uint64_t k = m.skip_cycles(max_cycles);
+  // A deferred M-function is handed over at a cycle's start: step that cycle.
+  m.m_announced = false;
+  const std::uint64_t k = m.m_deferred_n > 0 ? 0 : m.skip_cycles(max_cycles);
   if (k == 0) {
     if (advanced) *advanced = 1;
     const StepResult r = step();
@@ -3262,6 +3297,7 @@ RequestResult Interpolator::clear() {
   m.resume_wait_m = false;
   m.resumable_estop = false;
   m.m_pending = false;
+  m.m_deferred_n = 0;
   m.end_pending = false;
   m.tail = m.cur;
   m.base = m.cur;
