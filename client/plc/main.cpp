@@ -145,8 +145,10 @@ std::string params_text(const Params& params) {
 }
 
 // Which M-functions have been handled, for the two threads that see them (event callback and
-// main loop; the caller holds the mutex). An M-function is (interpolator, program, Act_Part):
-// a repeated M number at another record is new.
+// main loop; the caller holds the mutex). An M-function is (interpolator, program, Act_Part,
+// M number): a repeated M number at another record is new, and so is another M number at the
+// same Act_Part (continuous M-functions belong to the section after them, so M1001 then M1002
+// with nothing between show the same Act_Part in successive cycles).
 class MTracker {
  public:
   //! True when the sample of `interpolator` at `cycle` shows an M-function nobody claimed yet;
@@ -157,10 +159,13 @@ class MTracker {
     if (cycle < d.cycle) return false;
     d.cycle = cycle;
     if (m != d.cont_noted) d.cont_noted = 0;
-    if (m == 0 || (program == d.program && part == d.part) || (!normal && m == d.cont_noted))
+    if (m == 0 || (program == d.program && part == d.part && m == d.m) ||
+        (!normal && m == d.cont_noted)) {
       return false;
+    }
     d.program = program;
     d.part = part;
+    d.m = m;
     if (!normal) d.cont_noted = m;
     return true;
   }
@@ -170,6 +175,7 @@ class MTracker {
     std::uint64_t cycle = 0;
     std::uint32_t program = 0;
     std::int32_t part = -1;
+    std::int32_t m = 0;
     // Continuous M-function noted and not yet seen cleared (M_Func stays set while motion goes on).
     std::int32_t cont_noted = 0;
   };
