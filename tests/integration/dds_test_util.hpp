@@ -3,6 +3,8 @@
 // see each other's samples.
 #pragma once
 
+#include <fcntl.h>
+#include <sys/file.h>
 #include <unistd.h>
 
 #include <cstdlib>
@@ -20,8 +22,28 @@ inline std::string profiles_path() {
   return env != nullptr && *env != '\0' ? env : TGM_SOURCE_DIR "/config/fastdds_profiles.xml";
 }
 
-//! Domain 100..199, chosen by process id.
-inline int test_domain() { return 100 + static_cast<int>(::getpid() % 100); }
+//! A DDS domain in 100..199 that no other test process on this machine holds. Each process
+//! takes an exclusive lock on /tmp/tgm-test-domain-D.lock, trying its pid's slot first, and
+//! keeps it until it exits (the kernel drops the lock with the process, also on a crash; the
+//! descriptor is close-on-exec, so the service and clients a test starts do not hold it).
+//! Concurrent tests (ctest -j) used to take 100 + pid % 100 and met on one domain when their
+//! pids differed by a multiple of 100: another test's clear then reached this test's service
+//! ("chunk ... of a program that is not loaded", CI, session 27).
+inline int test_domain() {
+  static const int domain = [] {
+    const int start = static_cast<int>(::getpid() % 100);
+    for (int k = 0; k < 100; ++k) {
+      const int d = 100 + (start + k) % 100;
+      const std::string path = "/tmp/tgm-test-domain-" + std::to_string(d) + ".lock";
+      const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0666);
+      if (fd < 0) continue;
+      if (::flock(fd, LOCK_EX | LOCK_NB) == 0) return d;  // fd stays open: the lock is held
+      ::close(fd);
+    }
+    return 100 + start;  // every slot held: the pid's, as before
+  }();
+  return domain;
+}
 
 inline DdsConfig test_config() {
   DdsConfig c;
