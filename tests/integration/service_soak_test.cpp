@@ -203,11 +203,11 @@ TEST(ServiceSoak, ProgramAfterProgramEndsWhereTheSimulationEndsAndMemoryStaysBou
   EXPECT_EQ(test::count_of(plc_log, "refused"), 0) << plc_log;
   EXPECT_EQ(test::count_of(plc_log, "M1001 continuous"), continuous_total) << plc_log;
   // Memory: the service's resident set after the last program against after the second one
-  // (the first runs fill Fast DDS's pools and the ring's pages). Measured in session 27: flat
-  // under 200 HMI connections alone (`tgm-hmi status`), but about 17 kB more per program run
-  // over 120 programs, in steps (README.md, "Tests and benchmarks"; not explained yet). The bound
-  // allows four times that plus 4 MB, so it catches a leak of a program's records or a chunk per
-  // run (tens of kB and more), not that drift.
+  // (the first runs fill Fast DDS's pools). Measured in session 27: about 17 kB more per
+  // program over 120 programs, the first touch of the record ring and chunk pool reserved at
+  // start, which --no-realtime leaves unlocked (README.md, "Tests and benchmarks"; with
+  // mlockall the RSS is flat). The bound allows four times that plus 4 MB, so it catches a
+  // leak of a program's records or a chunk per run (tens of kB and more), not that drift.
   ASSERT_GT(rss_warm_kb, 0);
   ASSERT_GT(rss_end_kb, 0);
   const long allowed_kb = 4096 + 64 * static_cast<long>(programs);
