@@ -24,7 +24,7 @@
 #include <vector>
 
 #include "fuzz_support.hpp"
-#include "tgm/cli_numbers.hpp"
+#include "tgm/cli_args.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size);
 
@@ -202,63 +202,45 @@ std::string read_file(const fs::path& p) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::uint64_t seed = 1;
-  long runs = 10000;
-  std::size_t max_len = 4096;
-  std::string write_seeds;
+  // Whole numbers only: '--runs 1e5' must not quietly run one input, '--seed x' seed 0.
+  long long seed = 1;
+  long long runs = 10000;
+  long long max_len = 4096;
+  std::string crash_file, write_seeds;
   std::vector<fs::path> files;
-  for (int i = 1; i < argc; ++i) {
-    const std::string_view a = argv[i];
-    const auto value = [&]() -> const char* {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "%s needs a value\n", argv[i]);
-        std::exit(2);
-      }
-      return argv[++i];
-    };
-    // Whole numbers only: '--runs 1e5' must not quietly run one input, '--seed x' seed 0.
-    const auto number = [&](long long lo, long long hi) -> long long {
-      const char* name = argv[i];
-      const std::string text = value();
-      long long v = 0;
-      if (!tgm::parse_integer(text, lo, hi, v)) {
-        std::fprintf(stderr, "%s must be %lld..%lld, not '%s'\n", name, lo, hi, text.c_str());
-        std::exit(2);
-      }
-      return v;
-    };
-    if (a == "--seed") {
-      seed = static_cast<std::uint64_t>(number(0, INT64_MAX));
-    } else if (a == "--runs") {
-      runs = static_cast<long>(number(0, 1'000'000'000'000LL));
-    } else if (a == "--max-len") {
-      max_len = static_cast<std::size_t>(number(1, 1LL << 30));
-    } else if (a == "--crash-file") {
-      std::snprintf(g_crash_file, sizeof g_crash_file, "%s", value());
-    } else if (a == "--write-seeds") {
-      write_seeds = value();
-    } else if (a == "--help" || a == "-h") {
+  tgm::cli::ArgReader args(argc, argv, fs::path(argv[0]).filename().string());
+  while (args.more()) {
+    if (args.help_flag()) {
       std::puts(
           "usage: DRIVER [--seed N] [--runs N] [--max-len N] [--crash-file PATH]\n"
           "              [--write-seeds DIR] FILE_OR_DIR...");
       return 0;
-    } else {
-      const fs::path p(argv[i]);
-      if (fs::is_directory(p)) {
-        std::vector<fs::path> in;
-        for (const auto& e : fs::directory_iterator(p)) {
-          if (e.is_regular_file()) in.push_back(e.path());
-        }
-        std::sort(in.begin(), in.end());
-        files.insert(files.end(), in.begin(), in.end());
-      } else if (fs::is_regular_file(p)) {
-        files.push_back(p);
-      } else {
-        std::fprintf(stderr, "no such file or directory: %s\n", argv[i]);
-        return 2;
+    }
+    if (args.whole_flag("--seed", 0LL, INT64_MAX, seed) ||
+        args.whole_flag("--runs", 0LL, 1'000'000'000'000LL, runs) ||
+        args.whole_flag("--max-len", 1LL, 1LL << 30, max_len) ||
+        args.flag("--crash-file", crash_file) || args.flag("--write-seeds", write_seeds)) {
+      continue;
+    }
+    std::string arg;
+    if (!args.positional(arg)) return args.fail();
+    const fs::path p(arg);
+    if (fs::is_directory(p)) {
+      std::vector<fs::path> in;
+      for (const auto& e : fs::directory_iterator(p)) {
+        if (e.is_regular_file()) in.push_back(e.path());
       }
+      std::sort(in.begin(), in.end());
+      files.insert(files.end(), in.begin(), in.end());
+    } else if (fs::is_regular_file(p)) {
+      files.push_back(p);
+    } else {
+      return args.usage_error("no such file or directory: " + arg);
     }
   }
+  if (args.failed()) return 2;
+  if (!crash_file.empty())
+    std::snprintf(g_crash_file, sizeof g_crash_file, "%s", crash_file.c_str());
   for (int sig : {SIGABRT, SIGSEGV, SIGBUS, SIGFPE, SIGILL}) std::signal(sig, on_crash);
 
   std::vector<std::string> seeds;
@@ -287,8 +269,8 @@ int main(int argc, char** argv) {
     for (std::size_t k = 1; k <= 8 && k <= s.size(); ++k) go(s.substr(0, s.size() - k));
   }
   // 2. Mutated seeds and random strings from a fixed seed.
-  Rng r{{seed}};
-  for (long k = 0; k < runs; ++k) {
+  Rng r{{static_cast<std::uint64_t>(seed)}};
+  for (long long k = 0; k < runs; ++k) {
     std::string s;
     switch (r.below(10)) {
       case 0:
@@ -299,7 +281,7 @@ int main(int argc, char** argv) {
         break;
       default:
         s = seeds[r.below(seeds.size())];
-        mutate(r, s, seeds, max_len);
+        mutate(r, s, seeds, static_cast<std::size_t>(max_len));
         break;
     }
     go(s);
