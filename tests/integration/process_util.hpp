@@ -108,7 +108,6 @@ inline bool replace_first(std::string& text, const std::string& from, const std:
   return true;
 }
 
-//! Counts occurrences of `what` in `text`.
 //! A field of /proc/PID/status in kB (VmRSS, VmHWM, ...); -1 when it cannot be read.
 inline long proc_status_kb(pid_t pid, const std::string& field) {
   std::ifstream f("/proc/" + std::to_string(pid) + "/status");
@@ -120,6 +119,7 @@ inline long proc_status_kb(pid_t pid, const std::string& field) {
   return -1;
 }
 
+//! Counts occurrences of `what` in `text`.
 inline int count_of(const std::string& text, const std::string& what) {
   int n = 0;
   for (auto p = text.find(what); p != std::string::npos; p = text.find(what, p + 1)) ++n;

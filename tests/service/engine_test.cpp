@@ -344,18 +344,17 @@ TEST(Engine, NormalMFunctionWaitsForTheAckAndResumesInTheSameCycle) {
   EXPECT_EQ(port.last.ip[0].reg.act_part, part);
   // An acknowledgement naming another M-function (a late note of a continuous one) is refused
   // and leaves M51 waiting; the one naming M51 releases it.
-  RequestIn& stale = port.add_request(Role::kPlc, RequestKind::kWriteMFunc);
-  stale.value = 0;
-  stale.m_func_acknowledged = 1001;
-  e.cycle(port, {});
-  EXPECT_EQ(port.replies.back().code, ReplyCode::kWrongState);
+  auto acknowledge = [&](std::int32_t m) {
+    RequestIn& ack = port.add_request(Role::kPlc, RequestKind::kWriteMFunc);
+    ack.value = 0;
+    ack.m_func_acknowledged = m;
+    e.cycle(port, {});
+    return port.replies.back().code;
+  };
+  EXPECT_EQ(acknowledge(1001), ReplyCode::kWrongState);
   EXPECT_EQ(port.last.ip[0].reg.m_func, 51);
   EXPECT_EQ(port.last.ip[0].reg.act_part, part);
-  RequestIn& ack = port.add_request(Role::kPlc, RequestKind::kWriteMFunc);
-  ack.value = 0;
-  ack.m_func_acknowledged = 51;
-  e.cycle(port, {});
-  EXPECT_EQ(port.replies.back().code, ReplyCode::kAccepted);
+  EXPECT_EQ(acknowledge(51), ReplyCode::kAccepted);
   EXPECT_EQ(port.last.ip[0].reg.m_func, 0);
   EXPECT_GT(port.last.ip[0].reg.act_part, part) << "resumes in the cycle the ack is applied in";
   cycles = 0;

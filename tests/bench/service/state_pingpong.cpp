@@ -46,6 +46,7 @@
 #include <optional>
 #include <string>
 #include <thread>
+#include <type_traits>
 #include <vector>
 
 #include <fastdds/dds/subscriber/DataReaderListener.hpp>
@@ -170,21 +171,17 @@ struct AnswerOf<tgm::msg::Request> {
   using Type = tgm::msg::Reply;
   using PubSub = tgm::msg::ReplyPubSubType;
 };
-tgm::msg::Request pong_answer(const std::string& name, tgm::msg::Request*) {
-  tgm::msg::Request r;
-  init_ping(r, name);
-  return r;
-}
-tgm::msg::Reply pong_answer(const std::string& name, tgm::msg::Reply*) {
-  tgm::msg::Reply r;
-  r.client_name(name);
-  r.accepted(true);
-  r.code(tgm::msg::REPLY_CODE_ACCEPTED);
-  return r;
-}
 template <class Answer>
 Answer pong_answer(const std::string& name) {
-  return pong_answer(name, static_cast<Answer*>(nullptr));
+  Answer r;
+  if constexpr (std::is_same_v<Answer, tgm::msg::Reply>) {
+    r.client_name(name);
+    r.accepted(true);
+    r.code(tgm::msg::REPLY_CODE_ACCEPTED);
+  } else {
+    init_ping(r, name);  // the PLC's M_Func = 0 request
+  }
+  return r;
 }
 // The answer carries the id and the time the pong began its write() (ns, steady clock).
 void stamp(tgm::msg::Request& a, std::uint64_t id) {
