@@ -43,6 +43,7 @@ void expect_same(const Registers& a, const Registers& b, const std::string& ctx)
   EXPECT_EQ(a.command_status, b.command_status) << ctx;
   EXPECT_EQ(a.free_slots, b.free_slots) << ctx;
   EXPECT_EQ(a.message_count, b.message_count) << ctx;
+  EXPECT_EQ(a.m_func_count, b.m_func_count) << ctx;
   EXPECT_EQ(a.limit_factor, b.limit_factor) << ctx;
   EXPECT_EQ(a.rel_speed, b.rel_speed) << ctx;
   EXPECT_EQ(a.set_speed, b.set_speed) << ctx;

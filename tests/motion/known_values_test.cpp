@@ -243,6 +243,54 @@ TEST(KnownValues, AdjacentMFunctionsReachMFuncOnePerCycle) {
   EXPECT_EQ(ip->registers().orig_position[0], 30.0);
 }
 
+// Two equal continuous M-functions in a row leave M_Func unchanged from one cycle to the next:
+// the count of M-functions handed over (the register the PLC deduplicates by) tells them apart,
+// one per cycle, and the normal one after them is counted once although it shows for many cycles.
+TEST(KnownValues, EqualAdjacentMFunctionsAreCountedApart) {
+  ProgramBuilder b;
+  b.line({10.0, 0.0, 0.0}, 3000.0)
+      .m(1001, MKind::kContinuous)
+      .m(1001, MKind::kContinuous)
+      .line({20.0, 0.0, 0.0}, 3000.0)
+      .m(50, MKind::kNormal)
+      .line({30.0, 0.0, 0.0}, 3000.0)
+      .end();
+  auto ip = Interpolator::create(machine(), 0);
+  ASSERT_TRUE(ip);
+  ASSERT_TRUE(ip->load(b.program()).ok());
+  ASSERT_EQ(ip->registers().m_func_count, 0u);
+  ASSERT_TRUE(ip->start().ok());
+  struct Seen {
+    std::uint32_t count;
+    int m;
+    std::uint64_t cycle;
+  };
+  std::vector<Seen> seen;  // (count, M_Func, cycle) whenever the count changes
+  std::uint32_t last = 0;
+  for (int c = 0; c < 40000; ++c) {
+    const StepResult r = ip->step();
+    const Registers& g = ip->registers();
+    if (g.m_func_count != last) {
+      last = g.m_func_count;
+      seen.push_back({g.m_func_count, g.m_func, g.cycle});
+    }
+    if (g.m_func == 50 && run_flag_section(g.run_flag) == SectionState::kWaitMFuncEnd) {
+      ASSERT_TRUE(ip->write_m_func(0, 50).ok());
+    }
+    if (r == StepResult::kFinished) break;
+  }
+  ASSERT_EQ(seen.size(), 3u);
+  EXPECT_EQ(seen[0].count, 1u);
+  EXPECT_EQ(seen[0].m, 1001);
+  EXPECT_EQ(seen[1].count, 2u);
+  EXPECT_EQ(seen[1].m, 1001);
+  EXPECT_EQ(seen[1].cycle, seen[0].cycle + 1);  // the next cycle, M_Func unchanged
+  EXPECT_EQ(seen[2].count, 3u);
+  EXPECT_EQ(seen[2].m, 50);
+  EXPECT_EQ(ip->registers().status, 3);
+  EXPECT_EQ(ip->registers().m_func_count, 3u);
+}
+
 // A PLC's note of a continuous M-function (M_Func = 0) that arrives after the next, normal
 // M-function is shown must not acknowledge that one: the write names the M-function it means.
 TEST(KnownValues, LateNoteOfAContinuousMFunctionDoesNotReleaseTheNextOne) {

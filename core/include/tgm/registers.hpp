@@ -157,6 +157,9 @@ struct Registers {
   //! `Interpolator::message_text`): the service publishes the text when the count changes.
   std::uint32_t message_count = 0;
   std::int32_t message_slot = -1;
+  //! M-functions handed to M_Func since creation (normal and continuous): the PLC tells two
+  //! successive M-functions apart by it, also two equal ones whose M_Func never changes.
+  std::uint32_t m_func_count = 0;
   //! 1 after Command 5 / 9: the program was abandoned; a new program or a position set is needed.
   std::int32_t off_trajectory = 0;
   //! Path acceleration [mm/s^2] at the end of the cycle.
@@ -167,5 +170,40 @@ struct Registers {
   //! progress, else of the last completed pass (0 while the spline is off or never engaged).
   double spline_deviation_mm = 0.0;
 };
+
+//! The registers of the M-function handshake and of the interpolator's status: what a PLC must
+//! see in every cycle in which one of them changes (tgm-service queues each such change for its
+//! event topic, where the full Registers are only published as the newest value).
+struct EventRegisters {
+  std::uint64_t cycle = 0;
+  std::int32_t status = 0;
+  std::uint32_t run_flag = 0;
+  std::int32_t act_part = 0;
+  std::int32_t act_line = 0;
+  std::int32_t m_func = 0;
+  std::int32_t act_m_func = 0;
+  std::int32_t last_cont_m_func = 0;
+  std::int32_t command = 0;
+  std::int32_t command_status = 0;
+  std::uint32_t m_func_count = 0;
+  std::array<double, kMFunctionParameters> m_function_parameter{};
+};
+
+inline EventRegisters event_registers(const Registers& r) {
+  EventRegisters e;
+  e.cycle = r.cycle;
+  e.status = r.status;
+  e.run_flag = r.run_flag;
+  e.act_part = r.act_part;
+  e.act_line = r.act_line;
+  e.m_func = r.m_func;
+  e.act_m_func = r.act_m_func;
+  e.last_cont_m_func = r.last_cont_m_func;
+  e.command = r.command;
+  e.command_status = r.command_status;
+  e.m_func_count = r.m_func_count;
+  e.m_function_parameter = r.m_function_parameter;
+  return e;
+}
 
 }  // namespace tgm

@@ -1358,6 +1358,7 @@ struct Interpolator::Impl {
         if (!m_pending) break;  // the program was cleared meanwhile
         reg.m_func = e.value;
         reg.act_m_func = e.value;
+        reg.m_func_count += 1;
         copy_params_from(ev_par[static_cast<std::size_t>(e.tag)]);
         m_pending = false;
         wait_m_first = mode == Mode::kWaitM;
@@ -1366,6 +1367,7 @@ struct Interpolator::Impl {
         reg.m_func = e.value;
         reg.act_m_func = e.value;
         reg.last_cont_m_func = e.value;
+        reg.m_func_count += 1;
         copy_params_from(ev_par[static_cast<std::size_t>(e.tag)]);
         break;
       case kEvMessage:
