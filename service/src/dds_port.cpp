@@ -8,6 +8,7 @@
 #include <climits>
 #include <cstdio>
 #include <map>
+#include <random>
 #include <utility>
 
 #include "tgm/dds/topics.hpp"
@@ -52,23 +53,6 @@ msg::ReplyCode to_msg(ReplyCode c) {
   return msg::REPLY_CODE_BAD_REQUEST;
 }
 
-// Fields whose change is an event the clients must see at once (M-function handshake, status,
-// commands, messages); progress-only changes (position, next_sequence, Act_Part) are rate-limited.
-bool event_changed(const Registers& a, const Registers& b) {
-  return a.status != b.status || a.m_func != b.m_func || a.act_m_func != b.act_m_func ||
-         a.last_cont_m_func != b.last_cont_m_func || a.run_flag != b.run_flag ||
-         a.command != b.command || a.command_status != b.command_status ||
-         a.off_trajectory != b.off_trajectory || a.rel_speed != b.rel_speed ||
-         a.tool_number != b.tool_number || a.number_axes != b.number_axes;
-}
-
-// An event sample is due (and the state with it): an event register changed, a new program was
-// loaded, or the M-function moved to another record with the same M_Func still set.
-bool event_due(const InterpolatorSnapshot& s, const Registers& p_reg, std::uint32_t p_program) {
-  return event_changed(s.reg, p_reg) || s.program_id != p_program ||
-         (s.reg.m_func != 0 && s.reg.act_part != p_reg.act_part);
-}
-
 bool progress_changed(const Registers& a, const Registers& b) {
   return a.act_part != b.act_part || a.free_slots != b.free_slots || a.act_speed != b.act_speed ||
          a.orig_position != b.orig_position || a.position != b.position;
@@ -104,6 +88,11 @@ DdsPort::DdsPort(const DdsConfig& config, const DdsPortOptions& options)
       free_chunks_(static_cast<std::size_t>(options.interpolators) * 4 *
                    dds::kProgramChunksInFlight) {
   const auto n = static_cast<std::size_t>(opt_.interpolators);
+  std::random_device entropy;
+  while (service_instance_ == 0) {
+    service_instance_ = (static_cast<std::uint64_t>(entropy()) << 32) ^ entropy() ^
+                        static_cast<std::uint64_t>(steady_ns());
+  }
   for (std::size_t i = 0; i < n; ++i) {
     chunks_.push_back(std::make_unique<SpscQueue<ChunkIn*>>(2 * dds::kProgramChunksInFlight));
     m_written_ns_.push_back(std::make_unique<std::atomic<std::int64_t>>(0));
@@ -116,8 +105,7 @@ DdsPort::DdsPort(const DdsConfig& config, const DdsPortOptions& options)
                      "interpolation cycles take requests); not executed, send it again");
   m_published_.reserve(100'000);
   m_pending_.assign(n, -1);
-  published_events_.resize(n);
-  event_counter_.assign(n, 0);
+  last_m_count_.assign(n, 0);
   backlog_.resize(n);
   published_.resize(n);
   published_setpoints_.resize(n);
@@ -197,10 +185,15 @@ void DdsPort::pop_chunk(int i) {
 bool DdsPort::reply(const ReplyOut& r) { return replies_.push(r); }
 bool DdsPort::message(const MessageOut& m) { return messages_.push(m); }
 
+bool DdsPort::event(const EventOut& e) {
+  EventOut q = e;
+  q.queued_ns = steady_ns();
+  return events_.push(q);
+}
+
 void DdsPort::publish(const Snapshot& s) {
   Snapshot& slot = latest_.write_slot();
   slot = s;
-  slot.handoff_ns = steady_ns();
   latest_.publish();
   doorbell_.ring();
 }
@@ -325,15 +318,14 @@ void DdsPort::receive_loop() {
 
 // ---- publisher thread ----
 
-void DdsPort::publish_event(int i, const InterpolatorSnapshot& s, const Snapshot& all) {
-  const auto n = static_cast<std::size_t>(i);
-  mapping::to_event(s.reg, static_cast<std::uint16_t>(i), event_sample_);
-  event_sample_.cycle_counter(all.cycle);
-  event_sample_.program_id(s.program_id);
-  event_sample_.event_counter(++event_counter_[n]);
-  Published& e = published_events_[n];
-  const bool new_m = s.reg.m_func != 0 &&
-                     (!e.any || e.reg.m_func != s.reg.m_func || e.reg.act_part != s.reg.act_part);
+void DdsPort::publish_event(const EventOut& ev) {
+  const auto n = static_cast<std::size_t>(ev.interpolator);
+  mapping::to_event(ev.reg, static_cast<std::uint16_t>(ev.interpolator), event_sample_);
+  event_sample_.service_instance(service_instance_);
+  event_sample_.program_id(ev.program_id);
+  event_sample_.event_counter(ev.counter);
+  const bool new_m = ev.reg.m_func != 0 && ev.reg.m_func_count != last_m_count_[n];
+  last_m_count_[n] = ev.reg.m_func_count;
   // The handshake clock starts before write(), as in the raw ping-pong it is compared with.
   auto& written = *m_written_ns_[n];
   MWritten* rec = nullptr;
@@ -341,9 +333,9 @@ void DdsPort::publish_event(int i, const InterpolatorSnapshot& s, const Snapshot
     // The receiver reads m_written_ only after exchanging a non-zero stamp (acquire).
     written.store(0, std::memory_order_relaxed);
     MWritten& w = m_written_[n];
-    w.interpolator = i;
-    w.act_part = s.reg.act_part;
-    w.handoff_ns = all.handoff_ns;
+    w.interpolator = ev.interpolator;
+    w.act_part = ev.reg.act_part;
+    w.handoff_ns = ev.queued_ns;
     w.publisher_woke_ns = publisher_woke_ns_;
     w.event_write_begin_ns = steady_ns();
     if (m_published_.size() < m_published_.capacity()) {
@@ -356,14 +348,11 @@ void DdsPort::publish_event(int i, const InterpolatorSnapshot& s, const Snapshot
   event_writer_.write(&event_sample_);
   if (rec != nullptr) rec->event_write_end_ns = steady_ns();
   ++events_published_;
-  e.any = true;
-  e.reg = s.reg;
-  e.program_id = s.program_id;
-  e.at = Clock::now();
 }
 
 void DdsPort::publish_state(int i, const InterpolatorSnapshot& s, const Snapshot& all) {
   mapping::to_idl(s.reg, static_cast<std::uint16_t>(i), state_sample_);
+  state_sample_.service_instance(service_instance_);
   state_sample_.program_id(s.program_id);
   state_sample_.next_sequence(s.next_sequence);
   state_sample_.buffered_segments(s.buffered_segments);
@@ -423,27 +412,26 @@ void DdsPort::publish_loop() {
       message_writer_.write(&message);
     }
     if (stopping_) break;
+    // Events first, every one queued, in order: they are small and the PLC acts on them
+    // (M-function handshake). The snapshot is read after them, so the state that follows them
+    // is at least as new; it stays the source of truth.
+    std::array<bool, kMaxInterpolators> evented{};
+    EventOut ev;
+    while (events_.pop(ev)) {
+      publish_event(ev);
+      evented[static_cast<std::size_t>(ev.interpolator)] = true;
+    }
     const bool fresh = latest_.read(snap);
     if (snap == nullptr) continue;
     const auto now = Clock::now();
     if (fresh) ++snapshots_seen_;
-    // Events first, for every interpolator: they are small and the PLC acts on them (M-function
-    // handshake); each is followed by the state below, which stays the source of truth.
-    std::array<bool, kMaxInterpolators> evented{};
-    for (int i = 0; i < snap->count; ++i) {
-      const InterpolatorSnapshot& s = snap->ip[static_cast<std::size_t>(i)];
-      const Published& e = published_events_[static_cast<std::size_t>(i)];
-      if (!e.any || (fresh && event_due(s, e.reg, e.program_id))) {
-        publish_event(i, s, *snap);
-        evented[static_cast<std::size_t>(i)] = true;
-      }
-    }
     for (int i = 0; i < snap->count; ++i) {
       const InterpolatorSnapshot& s = snap->ip[static_cast<std::size_t>(i)];
       const Published& p = published_[static_cast<std::size_t>(i)];
       bool send = !p.any || now - p.at >= opt_.state_period || evented[static_cast<std::size_t>(i)];
       if (!send && fresh) {
-        send = event_due(s, p.reg, p.program_id) || s.message_counter != p.message_counter ||
+        send = event_due(s.reg, s.program_id, p.reg, p.program_id) ||
+               s.message_counter != p.message_counter ||
                ((s.next_sequence != p.next_sequence || progress_changed(s.reg, p.reg)) &&
                 now - p.at >= opt_.progress_period);
       }

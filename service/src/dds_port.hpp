@@ -41,7 +41,7 @@ struct DdsPortOptions {
 };
 
 //! Publisher-side stamps of one event write that showed a new M_Func (and of the state write
-//! after it), steady clock [ns]: hand-off of the cycle's snapshot that first shows the M_Func,
+//! after it), steady clock [ns]: hand-off of the cycle's event that first shows the M-function,
 //! publisher wake-up, event write() begin / end, state write() begin / end. The receiver sees
 //! act_part and the stamps up to event_write_begin_ns (published by an atomic); the rest is
 //! joined in after stop(). A stamp is 0 when that step did not happen.
@@ -95,6 +95,7 @@ class DdsPort final : public CyclePort {
   void pop_chunk(int interpolator) override;
   bool reply(const ReplyOut& r) override;
   bool message(const MessageOut& m) override;
+  bool event(const EventOut& e) override;
   void publish(const Snapshot& s) override;
 
   //! Valid after stop(); applied_ns filled in from the cycle thread's stamps.
@@ -105,6 +106,8 @@ class DdsPort final : public CyclePort {
   //! Requests answered REPLY_CODE_BUSY because the request queue was full (valid after stop()).
   std::uint64_t busy_requests() const { return busy_requests_; }
   const std::string& participant_name() const { return participant_.name(); }
+  //! Drawn at construction, never 0: InterpolatorState / InterpolatorEvent.service_instance.
+  std::uint64_t service_instance() const { return service_instance_; }
 
  private:
   void receive_loop();
@@ -115,7 +118,7 @@ class DdsPort final : public CyclePort {
   void take_requests_locked();
 
   void take_chunks();
-  void publish_event(int i, const InterpolatorSnapshot& s, const Snapshot& all);
+  void publish_event(const EventOut& ev);
   void publish_state(int i, const InterpolatorSnapshot& s, const Snapshot& all);
 
   class RequestListener final : public eprosima::fastdds::dds::DataReaderListener {
@@ -130,6 +133,7 @@ class DdsPort final : public CyclePort {
   RequestListener request_listener_{*this};
 
   DdsPortOptions opt_;
+  std::uint64_t service_instance_ = 0;
   dds::Participant participant_;
   eprosima::fastdds::dds::DataWriter& state_writer_;
   eprosima::fastdds::dds::DataWriter& event_writer_;
@@ -151,6 +155,9 @@ class DdsPort final : public CyclePort {
   // threads for milliseconds) must not make the cycle thread drop answers.
   SpscQueue<ReplyOut> replies_{1024};
   SpscQueue<MessageOut> messages_{256};
+  // Every cycle with an event-register change, of all interpolators: 4 s of the busiest
+  // program seen (a change in every other cycle) at a 1 ms cycle.
+  SpscQueue<EventOut> events_{2048};
   LatestValue<Snapshot> latest_;
   Doorbell doorbell_;
 
@@ -186,9 +193,10 @@ class DdsPort final : public CyclePort {
     std::chrono::steady_clock::time_point at{};
   };
   std::vector<Published> published_;
-  std::vector<Published> published_events_;
   std::vector<Published> published_setpoints_;
-  std::vector<std::uint64_t> event_counter_;
+  // m_func_count of the last event written per interpolator: a new value with M_Func set is a
+  // new M-function (for the handshake records).
+  std::vector<std::uint32_t> last_m_count_;
   // Every new-M_Func event write with the stamps of the state write after it (preallocated;
   // joined into handshakes_ after stop()). m_pending_[i]: index of the record of interpolator i
   // whose state write is still to come, -1 = none.

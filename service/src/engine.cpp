@@ -378,6 +378,15 @@ void Engine::cycle(CyclePort& port, const LatenessStats& lateness) {
       send_message(port, i, MessageOut::Severity::kInfo, text, reg.act_line);
     }
     InterpolatorSnapshot& o = snapshot_.ip[static_cast<std::size_t>(i)];
+    // o still holds the previous cycle: queue the event (the first cycle always has one).
+    if (s.events == 0 || event_due(reg, s.program_id, o.reg, o.program_id)) {
+      EventOut e;
+      e.interpolator = i;
+      e.counter = ++s.events;
+      e.program_id = s.program_id;
+      e.reg = event_registers(reg);
+      if (!port.event(e)) ++counters_.lost_events;
+    }
     o.reg = reg;
     o.program_id = s.program_id;
     o.next_sequence = s.next_sequence;

@@ -171,9 +171,11 @@ int main(int argc, char** argv) {
   port->start();
 
   const auto period_ns = static_cast<std::int64_t>(config.machine.cycle_time_us) * 1000;
-  std::printf("tgm-service: %d interpolator%s, cycle %d us, DDS domain %d as '%s'\n",
-              engine->count(), engine->count() == 1 ? "" : "s", config.machine.cycle_time_us,
-              config.dds.domain_id, port->participant_name().c_str());
+  std::printf(
+      "tgm-service: %d interpolator%s, cycle %d us, DDS domain %d as '%s', instance %016llx\n",
+      engine->count(), engine->count() == 1 ? "" : "s", config.machine.cycle_time_us,
+      config.dds.domain_id, port->participant_name().c_str(),
+      static_cast<unsigned long long>(port->service_instance()));
   std::fflush(stdout);
 
   std::atomic<bool> stop{false};
@@ -233,18 +235,24 @@ int main(int argc, char** argv) {
   std::vector<std::int64_t> rt_ns;
   for (const auto& h : port->handshakes()) rt_ns.push_back(h.round_trip_ns);
   std::printf(
-      "tgm-service: stopping (%s) after %llu cycles: lateness p50 %.1f us, p99 %.1f us, p99.9 %.1f us,"
-      " max %.1f us, missed %llu; cycle work p99.9 %.1f us, max %.1f us; %llu requests (%llu refused, %llu busy), %llu chunks, %llu segments,"
-      " %llu events, %llu states, %llu setpoints published%s\n",
+      "tgm-service: stopping (%s) after %llu cycles: lateness p50 %.1f us, p99 %.1f us, p99.9 %.1f "
+      "us,"
+      " max %.1f us, missed %llu; cycle work p99.9 %.1f us, max %.1f us; %llu requests (%llu "
+      "refused, %llu busy), %llu chunks, %llu segments,"
+      " %llu events (%llu lost), %llu states, %llu setpoints published%s\n",
       sig > 0 ? strsignal(sig) : "time is up", static_cast<unsigned long long>(st.cycles),
-      static_cast<double>(hist.quantile_ns(0.5)) / 1e3, static_cast<double>(hist.quantile_ns(0.99)) / 1e3,
+      static_cast<double>(hist.quantile_ns(0.5)) / 1e3,
+      static_cast<double>(hist.quantile_ns(0.99)) / 1e3,
       static_cast<double>(hist.quantile_ns(0.999)) / 1e3, static_cast<double>(hist.max_ns()) / 1e3,
       static_cast<unsigned long long>(st.missed_cycles),
       static_cast<double>(loop.work_histogram().quantile_ns(0.999)) / 1e3,
-      static_cast<double>(loop.work_histogram().max_ns()) / 1e3, static_cast<unsigned long long>(c.requests),
-      static_cast<unsigned long long>(c.refused_requests), static_cast<unsigned long long>(port->busy_requests()),
+      static_cast<double>(loop.work_histogram().max_ns()) / 1e3,
+      static_cast<unsigned long long>(c.requests),
+      static_cast<unsigned long long>(c.refused_requests),
+      static_cast<unsigned long long>(port->busy_requests()),
       static_cast<unsigned long long>(c.chunks), static_cast<unsigned long long>(c.segments),
       static_cast<unsigned long long>(port->events_published()),
+      static_cast<unsigned long long>(c.lost_events),
       static_cast<unsigned long long>(port->states_published()),
       static_cast<unsigned long long>(port->setpoints_published()),
       engine_options.check_limits
@@ -252,35 +260,45 @@ int main(int argc, char** argv) {
           : "");
   if (!stats_path.empty()) {
     if (std::FILE* f = std::fopen(stats_path.c_str(), "w")) {
-      std::fprintf(f,
-                   "{\"cycles\": %llu, \"cycle_time_us\": %d, \"interpolators\": %d,\n"
-                   " \"lateness_ns\": {\"p50\": %lld, \"p99\": %lld, \"p999\": %lld, \"max\": %lld},\n"
-                   " \"missed_cycles\": %llu,\n"
-                   " \"cycle_work_ns\": {\"p50\": %lld, \"p999\": %lld, \"max\": %lld},\n"
-                   " \"handshake_ns\": {\"count\": %zu, \"min\": %lld, \"p50\": %lld, \"p99\": %lld, \"max\": %lld},\n"
-                   " \"requests\": %llu, \"busy_requests\": %llu, \"chunks\": %llu, \"segments\": %llu, \"duplicate_chunks\": %llu,"
-                   " \"refused_chunks\": %llu, \"lost_replies\": %llu, \"lost_messages\": %llu,\n"
-                   " \"events_published\": %llu, \"states_published\": %llu, \"setpoints_published\": %llu,\n"
-                   " \"limits_checked\": %s, \"limit_violations\": %llu}\n",
-                   static_cast<unsigned long long>(st.cycles), config.machine.cycle_time_us, engine->count(),
-                   static_cast<long long>(hist.quantile_ns(0.5)), static_cast<long long>(hist.quantile_ns(0.99)),
-                   static_cast<long long>(hist.quantile_ns(0.999)), static_cast<long long>(hist.max_ns()),
-                   static_cast<unsigned long long>(st.missed_cycles),
-                   static_cast<long long>(loop.work_histogram().quantile_ns(0.5)),
-                   static_cast<long long>(loop.work_histogram().quantile_ns(0.999)),
-                   static_cast<long long>(loop.work_histogram().max_ns()), rt_ns.size(),
-                   static_cast<long long>(percentile(rt_ns, 0.0)), static_cast<long long>(percentile(rt_ns, 0.5)),
-                   static_cast<long long>(percentile(rt_ns, 0.99)), static_cast<long long>(percentile(rt_ns, 1.0)),
-                   static_cast<unsigned long long>(c.requests), static_cast<unsigned long long>(port->busy_requests()),
-                   static_cast<unsigned long long>(c.chunks),
-                   static_cast<unsigned long long>(c.segments), static_cast<unsigned long long>(c.duplicate_chunks),
-                   static_cast<unsigned long long>(c.refused_chunks), static_cast<unsigned long long>(c.lost_replies),
-                   static_cast<unsigned long long>(c.lost_messages),
-                   static_cast<unsigned long long>(port->events_published()),
-                   static_cast<unsigned long long>(port->states_published()),
-                   static_cast<unsigned long long>(port->setpoints_published()),
-                   engine_options.check_limits ? "true" : "false",
-                   static_cast<unsigned long long>(c.limit_violations));
+      std::fprintf(
+          f,
+          "{\"cycles\": %llu, \"cycle_time_us\": %d, \"interpolators\": %d,\n"
+          " \"lateness_ns\": {\"p50\": %lld, \"p99\": %lld, \"p999\": %lld, \"max\": %lld},\n"
+          " \"missed_cycles\": %llu,\n"
+          " \"cycle_work_ns\": {\"p50\": %lld, \"p999\": %lld, \"max\": %lld},\n"
+          " \"handshake_ns\": {\"count\": %zu, \"min\": %lld, \"p50\": %lld, \"p99\": %lld, "
+          "\"max\": %lld},\n"
+          " \"requests\": %llu, \"busy_requests\": %llu, \"chunks\": %llu, \"segments\": %llu, "
+          "\"duplicate_chunks\": %llu,"
+          " \"refused_chunks\": %llu, \"lost_replies\": %llu, \"lost_messages\": %llu,\n"
+          " \"events_published\": %llu, \"lost_events\": %llu, \"states_published\": %llu, "
+          "\"setpoints_published\": %llu,\n"
+          " \"limits_checked\": %s, \"limit_violations\": %llu}\n",
+          static_cast<unsigned long long>(st.cycles), config.machine.cycle_time_us, engine->count(),
+          static_cast<long long>(hist.quantile_ns(0.5)),
+          static_cast<long long>(hist.quantile_ns(0.99)),
+          static_cast<long long>(hist.quantile_ns(0.999)), static_cast<long long>(hist.max_ns()),
+          static_cast<unsigned long long>(st.missed_cycles),
+          static_cast<long long>(loop.work_histogram().quantile_ns(0.5)),
+          static_cast<long long>(loop.work_histogram().quantile_ns(0.999)),
+          static_cast<long long>(loop.work_histogram().max_ns()), rt_ns.size(),
+          static_cast<long long>(percentile(rt_ns, 0.0)),
+          static_cast<long long>(percentile(rt_ns, 0.5)),
+          static_cast<long long>(percentile(rt_ns, 0.99)),
+          static_cast<long long>(percentile(rt_ns, 1.0)),
+          static_cast<unsigned long long>(c.requests),
+          static_cast<unsigned long long>(port->busy_requests()),
+          static_cast<unsigned long long>(c.chunks), static_cast<unsigned long long>(c.segments),
+          static_cast<unsigned long long>(c.duplicate_chunks),
+          static_cast<unsigned long long>(c.refused_chunks),
+          static_cast<unsigned long long>(c.lost_replies),
+          static_cast<unsigned long long>(c.lost_messages),
+          static_cast<unsigned long long>(port->events_published()),
+          static_cast<unsigned long long>(c.lost_events),
+          static_cast<unsigned long long>(port->states_published()),
+          static_cast<unsigned long long>(port->setpoints_published()),
+          engine_options.check_limits ? "true" : "false",
+          static_cast<unsigned long long>(c.limit_violations));
       std::fclose(f);
     } else {
       std::fprintf(stderr, "tgm-service: cannot write %s: %s\n", stats_path.c_str(), std::strerror(errno));

@@ -8,6 +8,8 @@
 #include <map>
 #include <random>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "../motion/soft_axis_cases.hpp"
 #include "mock_port.hpp"
@@ -366,6 +368,135 @@ TEST(Engine, NormalMFunctionWaitsForTheAckAndResumesInTheSameCycle) {
   EXPECT_TRUE(found);
   EXPECT_EQ(port.last.ip[0].message_text.view(), "hello from M29");
   EXPECT_EQ(port.last.ip[0].message_counter, 1u);
+}
+
+// A program with two equal continuous M-functions in a row and a normal one after them, as
+// the engine receives it: line, M1001, M1001, line, M50, line, M2.
+Program equal_m_program() {
+  Program p;
+  p.number_axes = 3;
+  p.axis_letters = "XYZ";
+  auto line = [&](double x) {
+    Segment s;
+    s.type = SegmentType::kLinear;
+    s.line = static_cast<std::int32_t>(p.segments.size()) + 1;
+    s.end[0] = x;
+    s.feed_mm_per_min = 3000;
+    p.segments.push_back(s);
+  };
+  auto m = [&](std::int32_t number, MKind kind) {
+    Segment s;
+    s.type = SegmentType::kMFunction;
+    s.m_kind = kind;
+    s.m = number;
+    s.line = static_cast<std::int32_t>(p.segments.size()) + 1;
+    s.end = p.segments.back().end;
+    if (kind != MKind::kProgramEnd) {
+      s.aux = static_cast<std::int32_t>(p.params.size());
+      p.params.push_back(unset_params());
+    }
+    p.segments.push_back(s);
+  };
+  line(5.0);
+  m(1001, MKind::kContinuous);
+  m(1001, MKind::kContinuous);
+  line(10.0);
+  m(50, MKind::kNormal);
+  line(15.0);
+  m(2, MKind::kProgramEnd);
+  return p;
+}
+
+// Runs equal_m_program() to its end, acknowledging M50 at once; returns every cycle's snapshot
+// registers of interpolator 0 as events see them.
+std::vector<EventRegisters> run_equal_m(Engine& e, MockPort& port) {
+  const Program p = equal_m_program();
+  port.add_chunk(0, p, 0, p.segments.size(), 3, true);
+  std::vector<EventRegisters> cycles;
+  auto cycle = [&] {
+    e.cycle(port, {});
+    cycles.push_back(event_registers(port.last.ip[0].reg));
+  };
+  cycle();
+  port.add_request(Role::kHmi, RequestKind::kStart);
+  for (int c = 0; c < 40000 && port.last.ip[0].reg.status != 3; ++c) {
+    cycle();
+    const Registers& r = port.last.ip[0].reg;
+    if (r.m_func == 50 && run_flag_waits_for_m(r.run_flag)) {
+      RequestIn& ack = port.add_request(Role::kPlc, RequestKind::kWriteMFunc);
+      ack.m_func_acknowledged = 50;
+    }
+  }
+  EXPECT_EQ(port.last.ip[0].reg.status, 3);
+  return cycles;
+}
+
+// Every cycle whose M-function handshake or status registers differ from the cycle before
+// queues one event with them, in order, numbered without gaps: the event topic shows what the
+// newest-value snapshot merges (M1001 twice in successive cycles, told apart by the count).
+TEST(Engine, EveryEventRegisterChangeIsQueuedInItsCycle) {
+  Engine e = make_engine();
+  MockPort port;
+  const std::vector<EventRegisters> cycles = run_equal_m(e, port);
+  // The idle interpolators 1 and 2 have their first cycle's event only.
+  std::vector<EventOut> events;
+  std::array<int, 3> per_interpolator{};
+  for (const EventOut& ev : port.events) {
+    ++per_interpolator[static_cast<std::size_t>(ev.interpolator)];
+    if (ev.interpolator == 0) events.push_back(ev);
+  }
+  EXPECT_EQ(per_interpolator[1], 1);
+  EXPECT_EQ(per_interpolator[2], 1);
+  ASSERT_FALSE(events.empty());
+  std::map<std::uint64_t, const EventOut*> by_cycle;
+  for (std::size_t k = 0; k < events.size(); ++k) {
+    const EventOut& ev = events[k];
+    EXPECT_EQ(ev.counter, k + 1);
+    if (k > 0) {
+      EXPECT_GT(ev.reg.cycle, events[k - 1].reg.cycle);
+    }
+    by_cycle[ev.reg.cycle] = &ev;
+  }
+  int changes = 0;
+  for (std::size_t k = 1; k < cycles.size(); ++k) {
+    const EventRegisters& a = cycles[k - 1];
+    const EventRegisters& b = cycles[k];
+    if (a.status == b.status && a.run_flag == b.run_flag && a.m_func == b.m_func &&
+        a.m_func_count == b.m_func_count && a.command_status == b.command_status) {
+      continue;
+    }
+    ++changes;
+    const auto it = by_cycle.find(b.cycle);
+    ASSERT_NE(it, by_cycle.end()) << "no event for the change in cycle " << b.cycle;
+    EXPECT_EQ(it->second->reg.status, b.status);
+    EXPECT_EQ(it->second->reg.run_flag, b.run_flag);
+    EXPECT_EQ(it->second->reg.m_func, b.m_func);
+    EXPECT_EQ(it->second->reg.m_func_count, b.m_func_count);
+  }
+  EXPECT_GT(changes, 5);
+  // The M-functions as a PLC sees them on the events: one per count.
+  std::vector<std::pair<std::uint32_t, std::int32_t>> ms;
+  std::vector<std::uint64_t> at;
+  for (const EventOut& ev : events) {
+    if (ev.reg.m_func != 0 && (ms.empty() || ms.back().first != ev.reg.m_func_count)) {
+      ms.emplace_back(ev.reg.m_func_count, ev.reg.m_func);
+      at.push_back(ev.reg.cycle);
+    }
+  }
+  using M = std::pair<std::uint32_t, std::int32_t>;
+  ASSERT_EQ(ms, (std::vector<M>{{1u, 1001}, {2u, 1001}, {3u, 50}}));
+  EXPECT_EQ(at[1], at[0] + 1);
+  EXPECT_EQ(e.counters().lost_events, 0u);
+
+  // A queue that takes only 4: the rest are counted as lost, not queued out of order.
+  Engine small = make_engine();
+  MockPort full;
+  full.event_capacity = 4;
+  run_equal_m(small, full);
+  ASSERT_EQ(full.events.size(), 4u);
+  EXPECT_EQ(full.events.back().interpolator, 0);
+  EXPECT_EQ(full.events.back().counter, 2u);
+  EXPECT_EQ(small.counters().lost_events, port.events.size() - 4);
 }
 
 // tgm-service --check-limits: the live checker reports, as HMI warnings, exactly the excesses

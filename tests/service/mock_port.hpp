@@ -1,5 +1,5 @@
-// A CyclePort for tests: requests and chunks are queued by the test, replies, messages and
-// snapshots are recorded.
+// A CyclePort for tests: requests and chunks are queued by the test, replies, messages, events
+// and snapshots are recorded.
 #pragma once
 
 #include <deque>
@@ -29,6 +29,11 @@ class MockPort final : public CyclePort {
   }
   bool message(const MessageOut& m) override {
     messages.push_back(m);
+    return true;
+  }
+  bool event(const EventOut& e) override {
+    if (events.size() >= event_capacity) return false;
+    events.push_back(e);
     return true;
   }
   void publish(const Snapshot& s) override {
@@ -67,6 +72,9 @@ class MockPort final : public CyclePort {
   std::deque<std::unique_ptr<ChunkIn>> chunks[kMaxInterpolators];
   std::vector<ReplyOut> replies;
   std::vector<MessageOut> messages;
+  //! Events queued; a test may lower the capacity to see the engine count what is dropped.
+  std::vector<EventOut> events;
+  std::size_t event_capacity = 1'000'000;
   Snapshot last;
   std::uint64_t snapshots = 0;
   std::uint64_t ids = 0;

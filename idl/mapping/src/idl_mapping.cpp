@@ -306,6 +306,7 @@ void to_idl(const Registers& r, std::uint16_t interpolator, msg::InterpolatorSta
   out.off_trajectory(r.off_trajectory != 0);
   out.act_acceleration_mm_s2(r.act_acceleration_mm_s2);
   out.limit_factor(static_cast<std::uint8_t>(r.limit_factor));
+  out.m_func_count(r.m_func_count);
   out.free_buffer_slots(r.free_slots);
   out.cycle_counter(r.cycle);
   out.message_counter(r.message_count);
@@ -346,12 +347,13 @@ void from_idl(const msg::InterpolatorState& in, Registers& out) {
   out.off_trajectory = in.off_trajectory() ? 1 : 0;
   out.act_acceleration_mm_s2 = in.act_acceleration_mm_s2();
   out.limit_factor = static_cast<LimitFactor>(in.limit_factor());
+  out.m_func_count = in.m_func_count();
   out.free_slots = in.free_buffer_slots();
   out.cycle = in.cycle_counter();
   out.message_count = in.message_counter();
 }
 
-void to_event(const Registers& r, std::uint16_t interpolator, msg::InterpolatorEvent& out) {
+void to_event(const EventRegisters& r, std::uint16_t interpolator, msg::InterpolatorEvent& out) {
   out.interpolator(interpolator);
   out.cycle_counter(r.cycle);
   out.status(r.status);
@@ -363,6 +365,7 @@ void to_event(const Registers& r, std::uint16_t interpolator, msg::InterpolatorE
   out.last_cont_m_func(r.last_cont_m_func);
   out.command(r.command);
   out.command_status(r.command_status);
+  out.m_func_count(r.m_func_count);
   out.m_function_parameter() = r.m_function_parameter;
 }
 
@@ -377,6 +380,7 @@ void from_event(const msg::InterpolatorEvent& in, Registers& out) {
   out.last_cont_m_func = in.last_cont_m_func();
   out.command = in.command();
   out.command_status = in.command_status();
+  out.m_func_count = in.m_func_count();
   out.m_function_parameter = in.m_function_parameter();
 }
 

@@ -9,7 +9,7 @@
 //                            [--mode waitset|listener|both] [--count N] [--warmup N] [--block N]
 //                            [--domain D] [--profiles FILE] [--sinks N] [--interval-us N]
 //
-// --sample state: tgm::msg::InterpolatorState with the tgm_state profiles (3,812 B, the sample
+// --sample state: tgm::msg::InterpolatorState with the tgm_state profiles (3,828 B, the sample
 //   the service wrote first before the event topic existed); event: tgm::msg::InterpolatorEvent
 //   with the tgm_event profiles (what the service writes first now); request: tgm::msg::Request
 //   with the tgm_request profiles, answered by a tgm::msg::Reply with the tgm_reply ones.

@@ -100,19 +100,19 @@ MapStatus append_chunk(const msg::ProgramChunk& chunk, Program& program);
 
 //! Core registers -> state sample: every register of the manual and the core's extensions;
 //! `cycle_counter` = r.cycle, `free_buffer_slots` = r.free_slots, `message_counter` =
-//! r.message_count. The service's own fields (program_id, next_sequence, buffered_segments,
-//! message_text, lateness_*, missed_cycles) are left as they are in `out`.
+//! r.message_count. The service's own fields (service_instance, program_id, next_sequence,
+//! buffered_segments, message_text, lateness_*, missed_cycles) are left as they are in `out`.
 void to_idl(const Registers& r, std::uint16_t interpolator, msg::InterpolatorState& out);
 
 //! State sample -> core registers (for clients that work with the core struct). `message_slot`
 //! is not on the wire and is left as it is.
 void from_idl(const msg::InterpolatorState& in, Registers& out);
 
-//! Core registers -> event sample (the event registers of the state: Status, Run_Flag, Act_Part,
-//! Act_Line, M_Func, Act_M_Func, Last_Cont_M_Func, Command, Command_Status,
-//! M_Function_Parameter); `cycle_counter` = r.cycle. The service's own fields (event_counter,
-//! program_id) are left as they are in `out`.
-void to_event(const Registers& r, std::uint16_t interpolator, msg::InterpolatorEvent& out);
+//! Event registers (tgm::event_registers() of the core registers: Status, Run_Flag, Act_Part,
+//! Act_Line, M_Func, Act_M_Func, Last_Cont_M_Func, Command, Command_Status, the M-function
+//! count, M_Function_Parameter) -> event sample; `cycle_counter` = r.cycle. The service's own
+//! fields (event_counter, service_instance, program_id) are left as they are in `out`.
+void to_event(const EventRegisters& r, std::uint16_t interpolator, msg::InterpolatorEvent& out);
 
 //! Event sample -> the event registers of `out` (what to_event writes); every other register is
 //! left as it is, so a client can apply an event to the registers of the last state it has.

@@ -49,6 +49,8 @@ struct EngineCounters {
   std::uint64_t refused_chunks = 0;
   std::uint64_t lost_replies = 0;
   std::uint64_t lost_messages = 0;
+  //! Events the port's queue could not take (the publisher fell that far behind).
+  std::uint64_t lost_events = 0;
   //! Limit excesses found by the checker (EngineOptions::check_limits), all interpolators.
   std::uint64_t limit_violations = 0;
 };
@@ -84,6 +86,7 @@ class Engine {
     std::uint32_t message_seen = 0;
     std::uint32_t message_counter = 0;
     FixedText<256> message_text;
+    std::uint64_t events = 0;  // EventOut::counter of the last event queued
   };
   Engine(std::vector<Slot> ips, const EngineOptions& o) : ips_(std::move(ips)), opt_(o) {}
   ReplyOut apply(const RequestIn& r);

@@ -108,6 +108,34 @@ struct ChunkIn {
   std::size_t applied = 0;
 };
 
+//! The event registers of one interpolator after a cycle in which one of them changed (or the
+//! program, or the M-function moved to another record): the cycle thread queues every such
+//! cycle, so the event topic shows each change, also those the newest-value snapshot merges
+//! (two M-functions in successive cycles, two equal continuous ones in a row).
+struct EventOut {
+  int interpolator = 0;
+  //! Events of this interpolator queued so far, 1, 2, ...; a gap is an event the port dropped.
+  std::uint64_t counter = 0;
+  std::uint32_t program_id = 0;
+  EventRegisters reg;
+  //! When the cycle thread queued it (steady clock) [ns]; set by the port.
+  std::int64_t queued_ns = 0;
+};
+
+//! True when the change from `before` to `now` (registers and program of one interpolator in
+//! two cycles) is an event the clients must see at once (M-function handshake, status,
+//! commands); progress (positions, next_sequence, Act_Part alone) is not.
+inline bool event_due(const Registers& now, std::uint32_t program_now, const Registers& before,
+                      std::uint32_t program_before) {
+  return now.status != before.status || now.m_func != before.m_func ||
+         now.m_func_count != before.m_func_count || now.act_m_func != before.act_m_func ||
+         now.last_cont_m_func != before.last_cont_m_func || now.run_flag != before.run_flag ||
+         now.command != before.command || now.command_status != before.command_status ||
+         now.off_trajectory != before.off_trajectory || now.rel_speed != before.rel_speed ||
+         now.tool_number != before.tool_number || now.number_axes != before.number_axes ||
+         program_now != program_before || (now.m_func != 0 && now.act_part != before.act_part);
+}
+
 //! One interpolator's part of a snapshot: its registers and what the service adds.
 struct InterpolatorSnapshot {
   Registers reg;
@@ -124,8 +152,6 @@ struct Snapshot {
   int count = 0;
   std::array<InterpolatorSnapshot, kMaxInterpolators> ip{};
   LatenessStats lateness;
-  //! When the cycle thread handed this snapshot over (steady clock) [ns]; set by the port.
-  std::int64_t handoff_ns = 0;
 };
 
 //! The cycle loop's window to the world. Called only from the cycle thread; no call may block,
@@ -143,6 +169,9 @@ class CyclePort {
   virtual bool reply(const ReplyOut& r) = 0;
   //! Queues a message; false when the outgoing queue is full.
   virtual bool message(const MessageOut& m) = 0;
+  //! Queues an event (before the cycle's publish()); false when the queue is full (the event is
+  //! dropped; its counter leaves a gap the clients count as lost).
+  virtual bool event(const EventOut& e) = 0;
   //! Hands the newest snapshot over (latest value wins).
   virtual void publish(const Snapshot& s) = 0;
 };
