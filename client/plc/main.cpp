@@ -145,39 +145,38 @@ std::string params_text(const Params& params) {
 }
 
 // Which M-functions have been handled, for the two threads that see them (event callback and
-// main loop; the caller holds the mutex). An M-function is (interpolator, program, Act_Part,
-// M number): a repeated M number at another record is new, and so is another M number at the
-// same Act_Part (continuous M-functions belong to the section after them, so M1001 then M1002
-// with nothing between show the same Act_Part in successive cycles).
+// main loop; the caller holds the mutex). The service numbers every M-function it hands to
+// M_Func (m_func_count: 1, 2, ... per service instance), so two equal M-functions in a row are
+// two, a state sample older than an event says nothing new, and an M-function is claimed once
+// whichever topic shows it first. A new service instance (a restarted service) starts afresh.
 class MTracker {
  public:
-  //! True when the sample of `interpolator` at `cycle` shows an M-function nobody claimed yet;
-  //! it is then claimed. Samples older than the newest one seen (on either topic) say nothing.
-  bool claim(int interpolator, std::uint64_t cycle, std::uint32_t program, std::int32_t part,
-             std::int32_t m, bool normal) {
+  //! True when the sample (service instance, m_func_count, M_Func) of `interpolator` shows an
+  //! M-function nobody claimed yet; it is then claimed.
+  bool claim(int interpolator, std::uint64_t instance, std::uint32_t count, std::int32_t m) {
     Seen& d = seen_[static_cast<std::size_t>(interpolator)];
-    if (cycle < d.cycle) return false;
-    d.cycle = cycle;
-    if (m != d.cont_noted) d.cont_noted = 0;
-    if (m == 0 || (program == d.program && part == d.part && m == d.m) ||
-        (!normal && m == d.cont_noted)) {
-      return false;
+    if (instance != d.instance) d = Seen{instance};
+    if (m == 0 || count == 0) return false;
+    if (!d.any || count > d.newest) {
+      const std::uint32_t up = d.any ? count - d.newest : 64;
+      d.recent = up >= 64 ? 0 : d.recent << up;
+      d.recent |= 1;
+      d.newest = count;
+      d.any = true;
+      return true;
     }
-    d.program = program;
-    d.part = part;
-    d.m = m;
-    if (!normal) d.cont_noted = m;
+    const std::uint32_t back = d.newest - count;
+    if (back >= 64 || ((d.recent >> back) & 1U) != 0) return false;
+    d.recent |= std::uint64_t{1} << back;
     return true;
   }
 
  private:
   struct Seen {
-    std::uint64_t cycle = 0;
-    std::uint32_t program = 0;
-    std::int32_t part = -1;
-    std::int32_t m = 0;
-    // Continuous M-function noted and not yet seen cleared (M_Func stays set while motion goes on).
-    std::int32_t cont_noted = 0;
+    std::uint64_t instance = 0;
+    bool any = false;
+    std::uint32_t newest = 0;  // highest count claimed
+    std::uint64_t recent = 0;  // bit k: count newest - k claimed (older ones count as claimed)
   };
   std::array<Seen, tgm::kMaxInterpolators> seen_{};
 };
@@ -210,6 +209,7 @@ struct EventSeen {
 struct Served {
   int number = 0;
   bool found = false;
+  std::uint64_t instance = 0;  // InterpolatorState.service_instance when found
   std::int32_t m_part = -1;
   // A pending acknowledgement.
   std::int32_t ack_m = 0;
@@ -398,10 +398,8 @@ int main(int argc, char** argv) {
       rec.normal = tgm::run_flag_waits_for_m(static_cast<std::uint32_t>(e.run_flag()));
       bool refused = false;
       {
-        // Every sample goes through claim(), also with M_Func = 0: that ends a noted continuous M.
         const std::lock_guard lock(shared_mutex);
-        if (!tracker.claim(i, e.cycle_counter(), e.program_id(), e.act_part(), rec.m, rec.normal))
-          return;
+        if (!tracker.claim(i, e.service_instance(), e.m_func_count(), rec.m)) return;
         refused = rec.normal && refuse.count(rec.m) != 0;
       }
       if (!refused && (!rec.normal || delay_for(rec.m) <= 0.0)) {
@@ -505,7 +503,16 @@ int main(int argc, char** argv) {
     for (Served& sv : served) {
       const tgm::msg::InterpolatorState* s = plc->state(sv.number);
       if (s == nullptr) continue;
+      if (sv.found && s->service_instance() != sv.instance) {
+        // A restarted service: its interpolators start from the defaults, and an acknowledgement
+        // still due belongs to a program that is gone.
+        log("interpolator %d: tgm-service restarted (instance %016llx)", sv.number,
+            static_cast<unsigned long long>(s->service_instance()));
+        sv.found = false;
+        sv.ack_m = 0;
+      }
       if (!sv.found) {
+        sv.instance = s->service_instance();
         sv.found = true;
         log("interpolator %d: found (status %d %s)", sv.number, s->status(),
             std::string(tgm::client::status_name(s->status())).c_str());
@@ -553,8 +560,8 @@ int main(int argc, char** argv) {
         }
         if (!found_at) found_at = Clock::now();
       }
-      // A new M-function: M_Func set at a record (program, Act_Part) that neither this loop nor
-      // the event callback has claimed (with events, the callback usually sees it first).
+      // A new M-function: M_Func set with an m_func_count that neither this loop nor the event
+      // callback has claimed (with events, the callback usually sees it first).
       // (ack_m_func() polls, so *s may be newer afterwards: the line logs a copy of the fields.)
       bool seen_new = false;
       bool seen_normal = false;
@@ -570,8 +577,7 @@ int main(int argc, char** argv) {
       bool refused = false;
       {
         const std::lock_guard lock(shared_mutex);
-        claimed = tracker.claim(sv.number, s->cycle_counter(), s->program_id(), s->act_part(),
-                                s->m_func(), normal);
+        claimed = tracker.claim(sv.number, s->service_instance(), s->m_func_count(), s->m_func());
         refused = claimed && normal && refuse.count(s->m_func()) != 0;
       }
       if (claimed) {

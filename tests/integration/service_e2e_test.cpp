@@ -10,6 +10,7 @@
 #include <mutex>
 #include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "service_test_env.hpp"
@@ -253,6 +254,80 @@ TEST(ServiceProcesses, PlcAcknowledgesFromTheEventAndLogsEachMFunctionOnce) {
   EXPECT_EQ(test::count_of(log, "acknowledged"), 3) << log;
   EXPECT_EQ(test::count_of(log, ": accepted (cycle"), 3) << log;
   EXPECT_EQ(test::count_of(log, " 0 lost"), 1) << log;
+}
+
+// A service restarted under a running tgm-plc: the PLC sees the new instance, sets the basic
+// parameters again and handles M-functions at once. It used to ignore every sample until the new
+// service's cycle counter passed the old one's (a service that had run an hour made the PLC deaf
+// for an hour), and never set the parameters again. Two equal continuous M-functions in a row
+// are two M-functions to the PLC (told apart by m_func_count), in both runs.
+TEST(ServiceProcesses, PlcServesARestartedServiceAtOnceAndSeesEqualMFunctionsApart) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  test::Child plc;
+  ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.config()}, env.path("plc.log")));
+  std::ofstream(env.path("m.ngc")) << "G1 X5 F3000\nM1001\nM1001\nG1 X10\nM50\nG1 X15\nM2\n";
+  // The PLC sets the basic parameters of each interpolator as it finds it: a program started
+  // before that would have them refused.
+  auto wait_found = [&](int n) {
+    for (int i = 0; i < 200 && test::count_of(plc.log(), ": found (") < n; ++i) {
+      std::this_thread::sleep_for(50ms);
+    }
+    return test::count_of(plc.log(), ": found (");
+  };
+  ASSERT_EQ(wait_found(3), 3) << plc.log();
+  auto run = [&](const char* log) {
+    test::Child hmi;
+    EXPECT_TRUE(hmi.start({TGM_HMI_BIN, "run", env.path("m.ngc"), "--config", env.config()},
+                          env.path(log)));
+    EXPECT_EQ(hmi.wait(kHang), 0) << hmi.log() << "\n--- plc:\n" << plc.log();
+    EXPECT_NE(hmi.log().find("done: 7 records"), std::string::npos) << hmi.log();
+  };
+  run("hmi1.log");
+  // Let the first service count well ahead of where the second will show M50.
+  std::this_thread::sleep_for(4s);
+  ASSERT_EQ(env.service.interrupt(), 0);
+  const std::string first_log = env.service.log();
+  const auto at = first_log.find(" after ", first_log.find("stopping ("));
+  ASSERT_NE(at, std::string::npos) << first_log;
+  const unsigned long long first_cycles = std::stoull(first_log.substr(at + 7));
+  ASSERT_TRUE(env.start_service());
+  ASSERT_EQ(wait_found(6), 6) << plc.log();
+  run("hmi2.log");
+  EXPECT_EQ(plc.interrupt(), 0);
+  const std::string log = plc.log();
+  EXPECT_EQ(test::count_of(log, "tgm-service restarted (instance"), 3) << log;
+  EXPECT_EQ(test::count_of(log, "Command 1024 (gear ratio, 3 axes): accepted"), 6) << log;
+  EXPECT_EQ(test::count_of(log, "M1001 continuous"), 4) << log;
+  EXPECT_EQ(test::count_of(log, "M1001 noted"), 4) << log;
+  EXPECT_EQ(test::count_of(log, "M50 acknowledged"), 2) << log;
+  // The second service's M50 was acknowledged in a cycle before the first service's count.
+  const auto last = log.rfind("M50 acknowledged");
+  ASSERT_NE(last, std::string::npos);
+  const auto cycle_at = log.find("(cycle ", last);
+  ASSERT_NE(cycle_at, std::string::npos) << log;
+  EXPECT_LT(std::stoull(log.substr(cycle_at + 7)), first_cycles) << log;
+}
+
+// `tgm-hmi run` under a service that restarts mid-program: it used to wait for ever (the new
+// service's state is not its program's); it ends with exit code 1 and says why.
+TEST(ServiceProcesses, HmiRunEndsWithAClearErrorWhenTheServiceRestarts) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  std::ofstream(env.path("long.ngc")) << "G1 X200 F1000\nM2\n";  // 12 s
+  test::Child hmi;
+  ASSERT_TRUE(hmi.start({TGM_HMI_BIN, "run", env.path("long.ngc"), "--config", env.config()},
+                        env.path("hmi.log")));
+  {
+    client::Client watch(env.dds(), client::Role::kHmi);
+    ASSERT_TRUE(watch.wait_until(
+        0, [](const msg::InterpolatorState& s) { return s.status() == 1; }, kHang))
+        << hmi.log();
+  }
+  ASSERT_EQ(env.service.interrupt(), 0);
+  ASSERT_TRUE(env.start_service());
+  EXPECT_EQ(hmi.wait(kHang), 1) << hmi.log();
+  EXPECT_NE(hmi.log().find("tgm-service restarted during the run"), std::string::npos) << hmi.log();
 }
 
 TEST(ServiceProcesses, LateJoiningHmiSeesTheCurrentStateAtOnce) {

@@ -232,6 +232,8 @@ int run_run(int argc, char** argv) {
 
   // Take the interpolator over: clear what it holds (only while it stands).
   const msg::InterpolatorState* st = hmi->state(ip);
+  // The service this run talks to: a restarted one has lost the program.
+  const std::uint64_t instance = st->service_instance();
   if (st->status() == 1 || st->status() == 6) {
     std::fprintf(stderr, "tgm-hmi run: interpolator %d is busy (status %d %s); stop it first (tgm-hmi stop)\n", ip,
                  st->status(), std::string(client::status_name(st->status())).c_str());
@@ -286,6 +288,11 @@ int run_run(int argc, char** argv) {
   std::size_t messages = 0;
   int exit_code = 0;
   bool progress_shown = false;
+  // The service publishes the state at least every 20 ms: silence means it stopped or the
+  // network is down (said once; the run goes on if it comes back).
+  std::uint64_t state_count = hmi->state_samples(ip);
+  auto state_at = t0;
+  bool silence_reported = false;
   auto clear_progress = [&] {
     if (tty && progress_shown) std::printf("\r\033[K");
     progress_shown = false;
@@ -303,6 +310,33 @@ int run_run(int argc, char** argv) {
       break;
     }
     st = hmi->state(ip);
+    if (st->service_instance() != instance) {
+      clear_progress();
+      std::fprintf(stderr,
+                   "tgm-hmi run: tgm-service restarted during the run (instance %016llx, now "
+                   "%016llx): the program is gone from its buffer; run it again from a known "
+                   "position\n",
+                   static_cast<unsigned long long>(instance),
+                   static_cast<unsigned long long>(st->service_instance()));
+      exit_code = 1;
+      break;
+    }
+    if (const std::uint64_t n = hmi->state_samples(ip); n != state_count) {
+      state_count = n;
+      state_at = Clock::now();
+      if (silence_reported) {
+        clear_progress();
+        std::printf("tgm-hmi run: tgm-service is back\n");
+      }
+      silence_reported = false;
+    } else if (!silence_reported && Clock::now() - state_at > 3s) {
+      clear_progress();
+      std::printf(
+          "tgm-hmi run: no state from tgm-service for 3 s (stopped, or the network is "
+          "down): waiting; Ctrl-C stops the run\n");
+      std::fflush(stdout);
+      silence_reported = true;
+    }
     count_events();
     for (const msg::Message& m : hmi->take_messages()) {
       if (m.interpolator() != ip) continue;

@@ -83,7 +83,11 @@ void Client::EventListener::on_data_available(fdds::DataReader* reader) {
     const std::size_t i = event_.sample.interpolator();
     if (i < last_counter_.size()) {
       const std::uint64_t c = event_.sample.event_counter();
-      // A counter that goes back is a restarted service, not a loss.
+      // A restarted service counts from 1 again: not a loss.
+      if (event_.sample.service_instance() != last_instance_[i]) {
+        last_instance_[i] = event_.sample.service_instance();
+        last_counter_[i] = 0;
+      }
       if (last_counter_[i] != 0 && c > last_counter_[i] + 1) {
         client_.events_lost_.fetch_add(c - last_counter_[i] - 1, std::memory_order_relaxed);
       }

@@ -197,6 +197,7 @@ class Client {
     bool detached_ = false;
     Event event_;
     std::array<std::uint64_t, kMaxInterpolators> last_counter_{};
+    std::array<std::uint64_t, kMaxInterpolators> last_instance_{};
   };
   void fill(msg::Request& r);
 
