@@ -492,6 +492,11 @@ int main(int argc, char** argv) {
 
   std::optional<Clock::time_point> found_at;
   auto last_wait_log = Clock::now();
+  // The service publishes every state at least every 20 ms: silence means it stopped or the
+  // network is down (said once, and when it comes back).
+  std::uint64_t state_count = 0;
+  auto state_at = Clock::now();
+  bool silence_logged = false;
   flush_log();
   while (!g_stop) {
     flush_log();
@@ -620,6 +625,19 @@ int main(int argc, char** argv) {
     if (!found_at && now - last_wait_log > 5s) {
       last_wait_log = now;
       log("waiting for tgm-service on DDS domain %d ...", config.dds.domain_id);
+    }
+    if (found_at) {
+      std::uint64_t n = 0;
+      for (const Served& sv : served) n += plc->state_samples(sv.number);
+      if (n != state_count) {
+        state_count = n;
+        state_at = now;
+        if (silence_logged) log("tgm-service is back");
+        silence_logged = false;
+      } else if (!silence_logged && now - state_at > 3s) {
+        log("no state from tgm-service for 3 s (stopped, or the network is down): waiting");
+        silence_logged = true;
+      }
     }
     if (found_at) {
       const double t = std::chrono::duration<double>(now - *found_at).count();

@@ -309,8 +309,9 @@ TEST(ServiceProcesses, PlcServesARestartedServiceAtOnceAndSeesEqualMFunctionsApa
   EXPECT_LT(std::stoull(log.substr(cycle_at + 7)), first_cycles) << log;
 }
 
-// `tgm-hmi run` under a service that restarts mid-program: it used to wait for ever (the new
-// service's state is not its program's); it ends with exit code 1 and says why.
+// `tgm-hmi run` under a service that stops mid-program and comes back: it says when the state
+// falls silent, and used to wait for ever after the restart (the new service's state is not its
+// program's); it ends with exit code 1 and says why.
 TEST(ServiceProcesses, HmiRunEndsWithAClearErrorWhenTheServiceRestarts) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());
@@ -325,6 +326,11 @@ TEST(ServiceProcesses, HmiRunEndsWithAClearErrorWhenTheServiceRestarts) {
         << hmi.log();
   }
   ASSERT_EQ(env.service.interrupt(), 0);
+  for (int i = 0; i < 200 && hmi.log().find("no state from tgm-service") == std::string::npos;
+       ++i) {
+    std::this_thread::sleep_for(50ms);
+  }
+  EXPECT_NE(hmi.log().find("no state from tgm-service for 3 s"), std::string::npos) << hmi.log();
   ASSERT_TRUE(env.start_service());
   EXPECT_EQ(hmi.wait(kHang), 1) << hmi.log();
   EXPECT_NE(hmi.log().find("tgm-service restarted during the run"), std::string::npos) << hmi.log();

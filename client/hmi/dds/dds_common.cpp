@@ -100,6 +100,8 @@ std::string format_state(const msg::InterpolatorState& s, const std::string& let
   }
   line("  program %u: next_sequence %llu, buffered %d, free %d", s.program_id(),
        static_cast<unsigned long long>(s.next_sequence()), s.buffered_segments(), s.free_buffer_slots());
+  line("  M-functions handed over %u; service instance %016llx", s.m_func_count(),
+       static_cast<unsigned long long>(s.service_instance()));
   line("  cycle %llu, lateness last %.1f us, max %.1f us, p99.9 %.1f us, missed cycles %llu",
        static_cast<unsigned long long>(s.cycle_counter()), static_cast<double>(s.lateness_last_ns()) / 1e3,
        static_cast<double>(s.lateness_max_ns()) / 1e3, static_cast<double>(s.lateness_p999_ns()) / 1e3,
