@@ -16,6 +16,7 @@
 #include <cstring>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cstdio>
@@ -29,6 +30,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include "m_tracker.hpp"
 #include "tgm/cli_args.hpp"
 #include "tgm/cli_numbers.hpp"
 #include "tgm/client/client.hpp"
@@ -143,43 +145,6 @@ std::string params_text(const Params& params) {
   }
   return out.empty() ? "none" : out;
 }
-
-// Which M-functions have been handled, for the two threads that see them (event callback and
-// main loop; the caller holds the mutex). The service numbers every M-function it hands to
-// M_Func (m_func_count: 1, 2, ... per service instance), so two equal M-functions in a row are
-// two, a state sample older than an event says nothing new, and an M-function is claimed once
-// whichever topic shows it first. A new service instance (a restarted service) starts afresh.
-class MTracker {
- public:
-  //! True when the sample (service instance, m_func_count, M_Func) of `interpolator` shows an
-  //! M-function nobody claimed yet; it is then claimed.
-  bool claim(int interpolator, std::uint64_t instance, std::uint32_t count, std::int32_t m) {
-    Seen& d = seen_[static_cast<std::size_t>(interpolator)];
-    if (instance != d.instance) d = Seen{instance};
-    if (m == 0 || count == 0) return false;
-    if (!d.any || count > d.newest) {
-      const std::uint32_t up = d.any ? count - d.newest : 64;
-      d.recent = up >= 64 ? 0 : d.recent << up;
-      d.recent |= 1;
-      d.newest = count;
-      d.any = true;
-      return true;
-    }
-    const std::uint32_t back = d.newest - count;
-    if (back >= 64 || ((d.recent >> back) & 1U) != 0) return false;
-    d.recent |= std::uint64_t{1} << back;
-    return true;
-  }
-
- private:
-  struct Seen {
-    std::uint64_t instance = 0;
-    bool any = false;
-    std::uint32_t newest = 0;  // highest count claimed
-    std::uint64_t recent = 0;  // bit k: count newest - k claimed (older ones count as claimed)
-  };
-  std::array<Seen, tgm::kMaxInterpolators> seen_{};
-};
 
 using MParams = std::array<double, TGM_M_FUNCTION_PARAMETERS>;
 
@@ -378,7 +343,7 @@ int main(int argc, char** argv) {
 
   // Shared by the event callback and the main loop, under `shared_mutex`.
   std::mutex shared_mutex;
-  MTracker tracker;
+  tgm::plc::MTracker tracker;
   std::vector<EventSeen> event_seen;
   event_seen.reserve(256);
   if (events) {
