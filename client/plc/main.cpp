@@ -162,6 +162,7 @@ struct EventSeen {
   enum class Action { kAcked, kRefused, kScheduled };
   int interpolator = 0;
   std::int32_t m = 0, line = 0, part = 0;
+  std::uint32_t count = 0;  // m_func_count: the acknowledgement names the M-function by it
   bool normal = false;
   MParams params{};
   Action action = Action::kScheduled;
@@ -178,6 +179,7 @@ struct Served {
   std::int32_t m_part = -1;
   // A pending acknowledgement.
   std::int32_t ack_m = 0;
+  std::uint32_t ack_count = 0;
   Clock::time_point ack_at{};
   Clock::time_point seen_at{};
   Clock::time_point woke_at{};
@@ -360,6 +362,7 @@ int main(int argc, char** argv) {
       EventSeen rec;
       rec.interpolator = i;
       rec.m = e.m_func();
+      rec.count = e.m_func_count();
       rec.normal = tgm::run_flag_waits_for_m(static_cast<std::uint32_t>(e.run_flag()));
       bool refused = false;
       {
@@ -369,7 +372,7 @@ int main(int argc, char** argv) {
       }
       if (!refused && (!rec.normal || delay_for(rec.m) <= 0.0)) {
         rec.ack_call = Clock::now();
-        rec.request_id = client->send_ack_m_func(i, rec.m);
+        rec.request_id = client->send_ack_m_func(i, rec.m, rec.count);
         rec.ack_written = Clock::now();
       }
       rec.action = rec.request_id != 0 ? EventSeen::Action::kAcked
@@ -416,10 +419,11 @@ int main(int argc, char** argv) {
             rec.interpolator, rec.m);
       } else if (!rec.normal) {  // continuous, and the callback could not write the note
         log("interpolator %d: M%d noted: %s", rec.interpolator, rec.m,
-            note_reply(plc->ack_m_func(rec.interpolator, rec.m)).c_str());
+            note_reply(plc->ack_m_func(rec.interpolator, rec.m, rec.count)).c_str());
       } else if (sv != nullptr) {
         sv->m_part = rec.part;
         sv->ack_m = rec.m;
+        sv->ack_count = rec.count;
         sv->seen_at = rec.seen;
         sv->woke_at = rec.woke;
         sv->ack_at = rec.seen + std::chrono::duration_cast<Clock::duration>(
@@ -564,12 +568,13 @@ int main(int argc, char** argv) {
         if (!normal) {
           log_seen();
           log("interpolator %d: M%d noted: %s", sv.number, s->m_func(),
-              note_reply(plc->ack_m_func(sv.number, s->m_func())).c_str());
+              note_reply(plc->ack_m_func(sv.number, s->m_func(), s->m_func_count())).c_str());
         } else if (refused) {
           log_seen();
           log("interpolator %d: M%d: refusing to acknowledge (--refuse-ack / script)", sv.number, s->m_func());
         } else {
           sv.ack_m = s->m_func();
+          sv.ack_count = s->m_func_count();
           sv.ack_at = now + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(delay_for(s->m_func())));
         }
       }
@@ -577,7 +582,7 @@ int main(int argc, char** argv) {
         const int m = sv.ack_m;
         sv.ack_m = 0;
         const auto ack_call = Clock::now();
-        const auto r = plc->ack_m_func(sv.number, m);
+        const auto r = plc->ack_m_func(sv.number, m, sv.ack_count);
         trace({sv.number, sv.m_part, sv.woke_at, sv.seen_at, ack_call, plc->last_request_written(),
                Clock::now(), "loop"});
         log_seen();

@@ -247,6 +247,7 @@ void DdsPort::take_requests_locked() {
     in.axis = r.axis();
     in.value = r.value();
     in.m_func_acknowledged = r.m_func_acknowledged();
+    in.m_func_count_acknowledged = r.m_func_count_acknowledged();
     if (in.kind == RequestKind::kWriteMFunc && in.interpolator >= 0 &&
         in.interpolator < opt_.interpolators) {
       in.taken_ns = steady_ns();

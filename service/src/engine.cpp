@@ -40,7 +40,8 @@ const KindRule kKinds[] = {
      [](Interpolator& ip, const RequestIn& r) {
        std::int64_t v = 0;
        if (auto bad = whole(r.value, -2e9, 2e9, "M_Func", v); !bad.ok()) return bad;
-       return ip.write_m_func(static_cast<std::int32_t>(v), r.m_func_acknowledged);
+       return ip.write_m_func(static_cast<std::int32_t>(v), r.m_func_acknowledged,
+                              r.m_func_count_acknowledged);
      }},
     {RequestKind::kWriteRelSpeed, kPlc, "Rel_Speed write",
      [](Interpolator& ip, const RequestIn& r) { return ip.set_rel_speed(r.value); }},

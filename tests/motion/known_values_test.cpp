@@ -246,6 +246,8 @@ TEST(KnownValues, AdjacentMFunctionsReachMFuncOnePerCycle) {
 // Two equal continuous M-functions in a row leave M_Func unchanged from one cycle to the next:
 // the count of M-functions handed over (the register the PLC deduplicates by) tells them apart,
 // one per cycle, and the normal one after them is counted once although it shows for many cycles.
+// An acknowledgement that names an M-function by its count is refused once a later one was
+// handed over, also with the same number.
 TEST(KnownValues, EqualAdjacentMFunctionsAreCountedApart) {
   ProgramBuilder b;
   b.line({10.0, 0.0, 0.0}, 3000.0)
@@ -275,7 +277,13 @@ TEST(KnownValues, EqualAdjacentMFunctionsAreCountedApart) {
       seen.push_back({g.m_func_count, g.m_func, g.cycle});
     }
     if (g.m_func == 50 && run_flag_section(g.run_flag) == SectionState::kWaitMFuncEnd) {
-      ASSERT_TRUE(ip->write_m_func(0, 50).ok());
+      const RequestResult stale = ip->write_m_func(0, 50, 2);
+      EXPECT_EQ(stale.code, RequestCode::kWrongState);
+      EXPECT_EQ(stale.reason,
+                "M-function #3 was handed over since: the acknowledgement of #2 came after it");
+      EXPECT_EQ(ip->registers().m_func, 50);
+      ASSERT_TRUE(ip->write_m_func(0, 50, 3).ok());
+      EXPECT_EQ(ip->registers().m_func, 0);
     }
     if (r == StepResult::kFinished) break;
   }

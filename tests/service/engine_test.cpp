@@ -346,17 +346,23 @@ TEST(Engine, NormalMFunctionWaitsForTheAckAndResumesInTheSameCycle) {
   EXPECT_EQ(port.last.ip[0].reg.act_part, part);
   // An acknowledgement naming another M-function (a late note of a continuous one) is refused
   // and leaves M51 waiting; the one naming M51 releases it.
-  auto acknowledge = [&](std::int32_t m) {
+  // So does one naming M51 by another m_func_count (a delayed acknowledgement of an M51 of a
+  // program cleared meanwhile).
+  const std::uint32_t count = port.last.ip[0].reg.m_func_count;
+  EXPECT_EQ(count, 1u);
+  auto acknowledge = [&](std::int32_t m, std::uint32_t c = 0) {
     RequestIn& ack = port.add_request(Role::kPlc, RequestKind::kWriteMFunc);
     ack.value = 0;
     ack.m_func_acknowledged = m;
+    ack.m_func_count_acknowledged = c;
     e.cycle(port, {});
     return port.replies.back().code;
   };
   EXPECT_EQ(acknowledge(1001), ReplyCode::kWrongState);
+  EXPECT_EQ(acknowledge(51, count + 7), ReplyCode::kWrongState);
   EXPECT_EQ(port.last.ip[0].reg.m_func, 51);
   EXPECT_EQ(port.last.ip[0].reg.act_part, part);
-  EXPECT_EQ(acknowledge(51), ReplyCode::kAccepted);
+  EXPECT_EQ(acknowledge(51, count), ReplyCode::kAccepted);
   EXPECT_EQ(port.last.ip[0].reg.m_func, 0);
   EXPECT_GT(port.last.ip[0].reg.act_part, part) << "resumes in the cycle the ack is applied in";
   cycles = 0;

@@ -305,17 +305,19 @@ Reply Client::command(int i, std::int32_t code, std::span<const std::int32_t> pa
   return request(r);
 }
 
-Reply Client::ack_m_func(int i, std::int32_t m) {
+Reply Client::ack_m_func(int i, std::int32_t m, std::uint32_t count) {
   msg::Request r = make(i, msg::REQUEST_KIND_WRITE_M_FUNC);
   r.value(0.0);
   r.m_func_acknowledged(m);
+  r.m_func_count_acknowledged(count);
   return request(r);
 }
 
-std::uint64_t Client::send_ack_m_func(int i, std::int32_t m) {
+std::uint64_t Client::send_ack_m_func(int i, std::int32_t m, std::uint32_t count) {
   msg::Request r = make(i, msg::REQUEST_KIND_WRITE_M_FUNC);
   r.value(0.0);
   r.m_func_acknowledged(m);
+  r.m_func_count_acknowledged(count);
   return send(r);
 }
 

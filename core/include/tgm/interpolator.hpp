@@ -189,8 +189,12 @@ class Interpolator {
   //! PLC write of M_Func; only 0 (acknowledge) is accepted. `acknowledged` != 0 names the
   //! M-function the PLC acknowledges: while M_Func shows another one, the write is refused
   //! (kWrongState) and changes nothing, so a late acknowledgement of a continuous M-function
-  //! cannot release the normal one shown after it. 0 clears whatever M_Func shows.
-  RequestResult write_m_func(std::int32_t value, std::int32_t acknowledged = 0);
+  //! cannot release the normal one shown after it. 0 clears whatever M_Func shows. `count` != 0
+  //! names it exactly, by its `m_func_count`: the write is refused (kWrongState) once a later
+  //! M-function was handed over, also one with the same number (a delayed acknowledgement from
+  //! a program that was cleared meanwhile).
+  RequestResult write_m_func(std::int32_t value, std::int32_t acknowledged = 0,
+                             std::uint32_t count = 0);
   //! Rel_Speed 0.01..2; takes effect in the next calculation step through the jerk-limited ramp.
   RequestResult set_rel_speed(double rel_speed);
   //! Sets Orig_Position = Position [mm] while standing with the smoothing settled; drops the

@@ -3361,7 +3361,8 @@ RequestResult Interpolator::command(std::int32_t code) {
   }
 }
 
-RequestResult Interpolator::write_m_func(std::int32_t value, std::int32_t acknowledged) {
+RequestResult Interpolator::write_m_func(std::int32_t value, std::int32_t acknowledged,
+                                         std::uint32_t count) {
   if (value != 0) {
     return refuse(RequestCode::kOutOfRange, "M_Func can only be written with 0 (acknowledge), not " +
                                                 std::to_string(value));
@@ -3371,6 +3372,12 @@ RequestResult Interpolator::write_m_func(std::int32_t value, std::int32_t acknow
     return refuse(RequestCode::kWrongState, "M_Func shows M" + std::to_string(shown) +
                                                 " now: the acknowledgement of M" +
                                                 std::to_string(acknowledged) + " came after it");
+  }
+  const std::uint32_t handed = impl_->reg.m_func_count;
+  if (count != 0 && count != handed) {
+    return refuse(RequestCode::kWrongState,
+                  "M-function #" + std::to_string(handed) + " was handed over since: the " +
+                      "acknowledgement of #" + std::to_string(count) + " came after it");
   }
   impl_->reg.m_func = 0;
   return {};

@@ -68,6 +68,8 @@ struct RequestIn {
   double value = 0.0;
   //! WRITE_M_FUNC: the M-function acknowledged (0: whichever M_Func shows).
   std::int32_t m_func_acknowledged = 0;
+  //! WRITE_M_FUNC: its m_func_count (0: not checked).
+  std::uint32_t m_func_count_acknowledged = 0;
   //! When the receiver thread took the sample (steady clock) [ns]; for the handshake trace.
   std::int64_t taken_ns = 0;
 };

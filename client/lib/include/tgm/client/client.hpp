@@ -158,7 +158,9 @@ class Client {
   //! the M-function acknowledged, as seen in M_Func: the service refuses the write
   //! (REPLY_CODE_WRONG_STATE) when M_Func shows another one by then, so a late note of a
   //! continuous M-function never releases the normal one after it. 0: whichever is shown.
-  std::uint64_t send_ack_m_func(int interpolator, std::int32_t m = 0);
+  //! `count` != 0 names it exactly, by the m_func_count seen with it: refused once a later
+  //! M-function was handed over, also one with the same number.
+  std::uint64_t send_ack_m_func(int interpolator, std::int32_t m = 0, std::uint32_t count = 0);
   //! The reply to a send() if it has arrived (taken by poll()); polling thread only. Replies
   //! nobody takes are dropped after the newest kMaxKeptReplies.
   std::optional<Reply> take_reply(std::uint64_t request_id);
@@ -171,8 +173,9 @@ class Client {
   Reply clear(int interpolator);
   //! Command register with Command_Parameter[0..11] (missing parameters are 0).
   Reply command(int interpolator, std::int32_t code, std::span<const std::int32_t> params = {});
-  //! M_Func = 0, acknowledging M-function `m` (0: whichever is shown; see send_ack_m_func).
-  Reply ack_m_func(int interpolator, std::int32_t m = 0);
+  //! M_Func = 0, acknowledging M-function `m` (0: whichever is shown) with m_func_count `count`
+  //! (0: not checked); see send_ack_m_func.
+  Reply ack_m_func(int interpolator, std::int32_t m = 0, std::uint32_t count = 0);
   Reply set_rel_speed(int interpolator, double rel_speed);
 
   Role role() const { return role_; }
