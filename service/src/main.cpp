@@ -235,10 +235,9 @@ int main(int argc, char** argv) {
   std::vector<std::int64_t> rt_ns;
   for (const auto& h : port->handshakes()) rt_ns.push_back(h.round_trip_ns);
   std::printf(
-      "tgm-service: stopping (%s) after %llu cycles: lateness p50 %.1f us, p99 %.1f us, p99.9 %.1f "
-      "us,"
-      " max %.1f us, missed %llu; cycle work p99.9 %.1f us, max %.1f us; %llu requests (%llu "
-      "refused, %llu busy), %llu chunks, %llu segments,"
+      "tgm-service: stopping (%s) after %llu cycles: lateness p50 %.1f us, p99 %.1f us,"
+      " p99.9 %.1f us, max %.1f us, missed %llu; cycle work p99.9 %.1f us, max %.1f us;"
+      " %llu requests (%llu refused, %llu busy), %llu chunks, %llu segments,"
       " %llu events (%llu lost), %llu states, %llu setpoints published%s\n",
       sig > 0 ? strsignal(sig) : "time is up", static_cast<unsigned long long>(st.cycles),
       static_cast<double>(hist.quantile_ns(0.5)) / 1e3,
@@ -266,13 +265,13 @@ int main(int argc, char** argv) {
           " \"lateness_ns\": {\"p50\": %lld, \"p99\": %lld, \"p999\": %lld, \"max\": %lld},\n"
           " \"missed_cycles\": %llu,\n"
           " \"cycle_work_ns\": {\"p50\": %lld, \"p999\": %lld, \"max\": %lld},\n"
-          " \"handshake_ns\": {\"count\": %zu, \"min\": %lld, \"p50\": %lld, \"p99\": %lld, "
-          "\"max\": %lld},\n"
-          " \"requests\": %llu, \"busy_requests\": %llu, \"chunks\": %llu, \"segments\": %llu, "
-          "\"duplicate_chunks\": %llu,"
+          " \"handshake_ns\": {\"count\": %zu, \"min\": %lld, \"p50\": %lld, \"p99\": %lld,"
+          " \"max\": %lld},\n"
+          " \"requests\": %llu, \"busy_requests\": %llu, \"chunks\": %llu, \"segments\": %llu,"
+          " \"duplicate_chunks\": %llu,"
           " \"refused_chunks\": %llu, \"lost_replies\": %llu, \"lost_messages\": %llu,\n"
-          " \"events_published\": %llu, \"lost_events\": %llu, \"states_published\": %llu, "
-          "\"setpoints_published\": %llu,\n"
+          " \"events_published\": %llu, \"lost_events\": %llu, \"states_published\": %llu,"
+          " \"setpoints_published\": %llu,\n"
           " \"limits_checked\": %s, \"limit_violations\": %llu}\n",
           static_cast<unsigned long long>(st.cycles), config.machine.cycle_time_us, engine->count(),
           static_cast<long long>(hist.quantile_ns(0.5)),
