@@ -299,6 +299,42 @@ TEST(KnownValues, EqualAdjacentMFunctionsAreCountedApart) {
   EXPECT_EQ(ip->registers().m_func_count, 3u);
 }
 
+// Forty continuous M-functions in a row (setting outputs, say) reach M_Func one per cycle, in
+// order, each counted; the motion goes on meanwhile.
+TEST(KnownValues, FortyMFunctionsInARowReachMFuncOnePerCycle) {
+  ProgramBuilder b;
+  b.line({10.0, 0.0, 0.0}, 3000.0);
+  for (int k = 0; k < 40; ++k) b.m(1001 + k, MKind::kContinuous);
+  b.line({20.0, 0.0, 0.0}, 3000.0).end();
+  auto ip = Interpolator::create(machine(), 0);
+  ASSERT_TRUE(ip);
+  ASSERT_TRUE(ip->load(b.program()).ok());
+  ASSERT_TRUE(ip->start().ok());
+  std::vector<int> shown;
+  std::vector<std::uint64_t> at;
+  std::uint32_t last = 0;
+  for (int c = 0; c < 40000; ++c) {
+    const StepResult r = ip->step();
+    const Registers& g = ip->registers();
+    if (g.m_func_count != last) {
+      EXPECT_EQ(g.m_func_count, last + 1) << "cycle " << g.cycle;
+      last = g.m_func_count;
+      shown.push_back(g.m_func);
+      at.push_back(g.cycle);
+    }
+    if (r == StepResult::kFinished) break;
+  }
+  ASSERT_EQ(shown.size(), 40u);
+  for (int k = 0; k < 40; ++k) {
+    EXPECT_EQ(shown[static_cast<std::size_t>(k)], 1001 + k);
+    if (k > 0) {
+      EXPECT_EQ(at[static_cast<std::size_t>(k)], at[static_cast<std::size_t>(k - 1)] + 1);
+    }
+  }
+  EXPECT_EQ(ip->registers().status, 3);
+  EXPECT_EQ(ip->registers().orig_position[0], 20.0);
+}
+
 // A PLC's note of a continuous M-function (M_Func = 0) that arrives after the next, normal
 // M-function is shown must not acknowledge that one: the write names the M-function it means.
 TEST(KnownValues, LateNoteOfAContinuousMFunctionDoesNotReleaseTheNextOne) {

@@ -407,14 +407,17 @@ struct Interpolator::Impl {
   bool m_pending = false;    // a normal M is inside the spline: the wait starts when it leaves
   bool end_pending = false;  // the program ended; Status 3 once the smoothing has settled
   // M parameters of the events in the smoothing (the ring slot may be reused meanwhile).
-  std::array<MParams, SmoothingStage::kEventCapacity> ev_par{};
+  // Parameters of the events in flight: inside the smoothing and waiting in m_deferred.
+  static constexpr std::size_t kMaxDeferredM = 64;
+  std::array<MParams, SmoothingStage::kEventCapacity + kMaxDeferredM + 1> ev_par{};
   std::size_t ev_par_next = 0;
   // At most one M-function reaches M_Func per cycle: a PLC reading the registers once a cycle
   // sees each of two M records with nothing between them (they would otherwise leave the
   // smoothing in the same calculation step, the second overwriting the first). The later ones
-  // wait here, in order, and are handed over one per cycle at the cycle's start.
+  // wait here, in order, and are handed over one per cycle at the cycle's start (beyond
+  // kMaxDeferredM in a row, the later ones reach M_Func in the same cycle: core/MOTION.md).
   bool m_announced = false;  // an M-function reached M_Func in this cycle
-  std::array<SmoothingEvent, 16> m_deferred{};
+  std::array<SmoothingEvent, kMaxDeferredM> m_deferred{};
   int m_deferred_n = 0;
   // Command accepted and waiting for the smoothing (Command_Status 1); 0 = none.
   std::int32_t pend_code = 0;
