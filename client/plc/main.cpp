@@ -461,11 +461,7 @@ int main(int argc, char** argv) {
 
   std::optional<Clock::time_point> found_at;
   auto last_wait_log = Clock::now();
-  // The service publishes every state at least every 20 ms: silence means it stopped or the
-  // network is down (said once, and when it comes back).
-  std::uint64_t state_count = 0;
-  auto state_at = Clock::now();
-  bool silence_logged = false;
+  tgm::client::SilenceWatch silence(3s);
   flush_log();
   while (!g_stop) {
     flush_log();
@@ -599,17 +595,12 @@ int main(int argc, char** argv) {
     if (found_at) {
       std::uint64_t n = 0;
       for (const Served& sv : served) n += plc->state_samples(sv.number);
-      if (n != state_count) {
-        state_count = n;
-        state_at = now;
-        if (silence_logged) log("tgm-service is back");
-        silence_logged = false;
-      } else if (!silence_logged && now - state_at > 3s) {
+      const auto change = silence.update(n, now);
+      if (change == tgm::client::SilenceWatch::Change::kSilent) {
         log("no state from tgm-service for 3 s (stopped, or the network is down): waiting");
-        silence_logged = true;
+      } else if (change == tgm::client::SilenceWatch::Change::kBack) {
+        log("tgm-service is back");
       }
-    }
-    if (found_at) {
       const double t = std::chrono::duration<double>(now - *found_at).count();
       for (ScriptStep& st : script) {
         if (st.done || t < st.at_s) continue;

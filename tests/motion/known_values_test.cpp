@@ -243,6 +243,32 @@ TEST(KnownValues, AdjacentMFunctionsReachMFuncOnePerCycle) {
   EXPECT_EQ(ip->registers().orig_position[0], 30.0);
 }
 
+// One M-function as it reached M_Func: its m_func_count, number and cycle.
+struct HandedOver {
+  std::uint32_t count;
+  int m;
+  std::uint64_t cycle;
+};
+
+// Steps `ip` to the end of its program (at most 40,000 cycles), calling `each(registers)` after
+// every cycle, and returns every change of m_func_count.
+template <class Each>
+std::vector<HandedOver> hand_overs(Interpolator& ip, Each each) {
+  std::vector<HandedOver> seen;
+  std::uint32_t last = 0;
+  for (int c = 0; c < 40000; ++c) {
+    const StepResult r = ip.step();
+    const Registers& g = ip.registers();
+    if (g.m_func_count != last) {
+      last = g.m_func_count;
+      seen.push_back({g.m_func_count, g.m_func, g.cycle});
+    }
+    each(g);
+    if (r == StepResult::kFinished) break;
+  }
+  return seen;
+}
+
 // Two equal continuous M-functions in a row leave M_Func unchanged from one cycle to the next:
 // the count of M-functions handed over (the register the PLC deduplicates by) tells them apart,
 // one per cycle, and the normal one after them is counted once although it shows for many cycles.
@@ -262,20 +288,7 @@ TEST(KnownValues, EqualAdjacentMFunctionsAreCountedApart) {
   ASSERT_TRUE(ip->load(b.program()).ok());
   ASSERT_EQ(ip->registers().m_func_count, 0u);
   ASSERT_TRUE(ip->start().ok());
-  struct Seen {
-    std::uint32_t count;
-    int m;
-    std::uint64_t cycle;
-  };
-  std::vector<Seen> seen;  // (count, M_Func, cycle) whenever the count changes
-  std::uint32_t last = 0;
-  for (int c = 0; c < 40000; ++c) {
-    const StepResult r = ip->step();
-    const Registers& g = ip->registers();
-    if (g.m_func_count != last) {
-      last = g.m_func_count;
-      seen.push_back({g.m_func_count, g.m_func, g.cycle});
-    }
+  const std::vector<HandedOver> seen = hand_overs(*ip, [&](const Registers& g) {
     if (g.m_func == 50 && run_flag_section(g.run_flag) == SectionState::kWaitMFuncEnd) {
       const RequestResult stale = ip->write_m_func(0, 50, 2);
       EXPECT_EQ(stale.code, RequestCode::kWrongState);
@@ -285,8 +298,7 @@ TEST(KnownValues, EqualAdjacentMFunctionsAreCountedApart) {
       ASSERT_TRUE(ip->write_m_func(0, 50, 3).ok());
       EXPECT_EQ(ip->registers().m_func, 0);
     }
-    if (r == StepResult::kFinished) break;
-  }
+  });
   ASSERT_EQ(seen.size(), 3u);
   EXPECT_EQ(seen[0].count, 1u);
   EXPECT_EQ(seen[0].m, 1001);
@@ -310,25 +322,13 @@ TEST(KnownValues, FortyMFunctionsInARowReachMFuncOnePerCycle) {
   ASSERT_TRUE(ip);
   ASSERT_TRUE(ip->load(b.program()).ok());
   ASSERT_TRUE(ip->start().ok());
-  std::vector<int> shown;
-  std::vector<std::uint64_t> at;
-  std::uint32_t last = 0;
-  for (int c = 0; c < 40000; ++c) {
-    const StepResult r = ip->step();
-    const Registers& g = ip->registers();
-    if (g.m_func_count != last) {
-      EXPECT_EQ(g.m_func_count, last + 1) << "cycle " << g.cycle;
-      last = g.m_func_count;
-      shown.push_back(g.m_func);
-      at.push_back(g.cycle);
-    }
-    if (r == StepResult::kFinished) break;
-  }
-  ASSERT_EQ(shown.size(), 40u);
-  for (int k = 0; k < 40; ++k) {
-    EXPECT_EQ(shown[static_cast<std::size_t>(k)], 1001 + k);
+  const std::vector<HandedOver> seen = hand_overs(*ip, [](const Registers&) {});
+  ASSERT_EQ(seen.size(), 40u);
+  for (std::size_t k = 0; k < seen.size(); ++k) {
+    EXPECT_EQ(seen[k].count, k + 1);  // one at a time
+    EXPECT_EQ(seen[k].m, 1001 + static_cast<int>(k));
     if (k > 0) {
-      EXPECT_EQ(at[static_cast<std::size_t>(k)], at[static_cast<std::size_t>(k - 1)] + 1);
+      EXPECT_EQ(seen[k].cycle, seen[k - 1].cycle + 1);
     }
   }
   EXPECT_EQ(ip->registers().status, 3);

@@ -288,11 +288,8 @@ int run_run(int argc, char** argv) {
   std::size_t messages = 0;
   int exit_code = 0;
   bool progress_shown = false;
-  // The service publishes the state at least every 20 ms: silence means it stopped or the
-  // network is down (said once; the run goes on if it comes back).
-  std::uint64_t state_count = hmi->state_samples(ip);
-  auto state_at = t0;
-  bool silence_reported = false;
+  // Said once; the run goes on if the service comes back.
+  client::SilenceWatch silence(3s);
   auto clear_progress = [&] {
     if (tty && progress_shown) std::printf("\r\033[K");
     progress_shown = false;
@@ -321,21 +318,16 @@ int run_run(int argc, char** argv) {
       exit_code = 1;
       break;
     }
-    if (const std::uint64_t n = hmi->state_samples(ip); n != state_count) {
-      state_count = n;
-      state_at = Clock::now();
-      if (silence_reported) {
-        clear_progress();
-        std::printf("tgm-hmi run: tgm-service is back\n");
-      }
-      silence_reported = false;
-    } else if (!silence_reported && Clock::now() - state_at > 3s) {
+    const auto change = silence.update(hmi->state_samples(ip), Clock::now());
+    if (change == client::SilenceWatch::Change::kSilent) {
       clear_progress();
       std::printf(
           "tgm-hmi run: no state from tgm-service for 3 s (stopped, or the network is "
           "down): waiting; Ctrl-C stops the run\n");
       std::fflush(stdout);
-      silence_reported = true;
+    } else if (change == client::SilenceWatch::Change::kBack) {
+      clear_progress();
+      std::printf("tgm-hmi run: tgm-service is back\n");
     }
     count_events();
     for (const msg::Message& m : hmi->take_messages()) {

@@ -39,6 +39,7 @@
 
 #include <fastdds/dds/subscriber/DataReaderListener.hpp>
 
+#include "tgm/client/silence_watch.hpp"
 #include "tgm/dds/participant.hpp"
 #include "tgm/intercode.hpp"
 #include "tgm/msg/tgm.h"

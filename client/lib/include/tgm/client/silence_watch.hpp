@@ -1,0 +1,40 @@
+// SilenceWatch: when the service stopped publishing (no DDS here: tgm-plc and tgm-hmi use it
+// with Client::state_samples, the unit tests drive it with plain numbers).
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+
+namespace tgm::client {
+
+//! Whether the service still publishes. It writes every state at least every 20 ms
+//! (`--state-period-ms`), so no new state sample for `limit` means it stopped or the network
+//! is down. Feed update() the state samples received so far (Client::state_samples); it says
+//! when a silence begins and when it ends, once each. The first call only takes the count.
+class SilenceWatch {
+ public:
+  enum class Change { kNone, kSilent, kBack };
+  explicit SilenceWatch(std::chrono::steady_clock::duration limit) : limit_(limit) {}
+  Change update(std::uint64_t samples, std::chrono::steady_clock::time_point now) {
+    if (!started_ || samples != samples_) {
+      const bool back = silent_;
+      started_ = true;
+      samples_ = samples;
+      at_ = now;
+      silent_ = false;
+      return back ? Change::kBack : Change::kNone;
+    }
+    if (silent_ || now - at_ <= limit_) return Change::kNone;
+    silent_ = true;
+    return Change::kSilent;
+  }
+
+ private:
+  std::chrono::steady_clock::duration limit_;
+  bool started_ = false;
+  bool silent_ = false;
+  std::uint64_t samples_ = 0;
+  std::chrono::steady_clock::time_point at_{};
+};
+
+}  // namespace tgm::client
