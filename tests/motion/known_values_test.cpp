@@ -196,6 +196,33 @@ TEST(KnownValues, HelixPitch) {
   EXPECT_NEAR(s.end_position[0], 5.0, 1e-9);
 }
 
+// One M-function as it reached M_Func: its m_func_count, number, cycle and axis 0's position.
+struct HandedOver {
+  std::uint32_t count;
+  int m;
+  std::uint64_t cycle;
+  double x;
+};
+
+// Steps `ip` to the end of its program (at most 40,000 cycles), calling `each(registers)` after
+// every cycle, and returns every change of m_func_count.
+template <class Each>
+std::vector<HandedOver> hand_overs(Interpolator& ip, Each each) {
+  std::vector<HandedOver> seen;
+  std::uint32_t last = 0;
+  for (int c = 0; c < 40000; ++c) {
+    const StepResult r = ip.step();
+    const Registers& g = ip.registers();
+    if (g.m_func_count != last) {
+      last = g.m_func_count;
+      seen.push_back({g.m_func_count, g.m_func, g.cycle, g.orig_position[0]});
+    }
+    each(g);
+    if (r == StepResult::kFinished) break;
+  }
+  return seen;
+}
+
 // M records with nothing between them reach M_Func one per cycle, in program order, so a PLC
 // that reads the registers once a cycle sees each (they used to leave the smoothing in the same
 // calculation step, the later overwriting the earlier). The motion does not wait for the
@@ -214,16 +241,8 @@ TEST(KnownValues, AdjacentMFunctionsReachMFuncOnePerCycle) {
   ASSERT_TRUE(ip);
   ASSERT_TRUE(ip->load(b.program()).ok());
   ASSERT_TRUE(ip->start().ok());
-  std::vector<int> shown;  // M_Func whenever it changes to a non-zero value
-  std::vector<std::uint64_t> at;
-  std::vector<double> x_at;
-  for (int c = 0; c < 40000; ++c) {
-    const StepResult r = ip->step();
-    const Registers& g = ip->registers();
-    if (g.m_func != 0 && (shown.empty() || shown.back() != g.m_func)) {
-      shown.push_back(g.m_func);
-      at.push_back(g.cycle);
-      x_at.push_back(g.orig_position[0]);
+  const std::vector<HandedOver> seen = hand_overs(*ip, [&](const Registers& g) {
+    if (g.m_func != 0) {
       EXPECT_EQ(g.act_m_func, g.m_func);
       if (g.m_func > 1000) {
         EXPECT_EQ(g.last_cont_m_func, g.m_func);
@@ -232,41 +251,16 @@ TEST(KnownValues, AdjacentMFunctionsReachMFuncOnePerCycle) {
     if (g.m_func == 50 && run_flag_section(g.run_flag) == SectionState::kWaitMFuncEnd) {
       ASSERT_TRUE(ip->write_m_func(0, 50).ok());
     }
-    if (r == StepResult::kFinished) break;
-  }
+  });
+  std::vector<int> shown;
+  for (const HandedOver& h : seen) shown.push_back(h.m);
   ASSERT_EQ(shown, (std::vector<int>{1001, 1002, 1003, 50}));
-  EXPECT_EQ(at[1], at[0] + 1);  // the next cycle
-  EXPECT_EQ(at[3], at[2] + 1);
-  EXPECT_GT(x_at[1], x_at[0]) << "the motion went on past the continuous M-functions";
-  EXPECT_EQ(x_at[3], 20.0);  // M50 stops the motion at its record
+  EXPECT_EQ(seen[1].cycle, seen[0].cycle + 1);  // the next cycle
+  EXPECT_EQ(seen[3].cycle, seen[2].cycle + 1);
+  EXPECT_GT(seen[1].x, seen[0].x) << "the motion went on past the continuous M-functions";
+  EXPECT_EQ(seen[3].x, 20.0);  // M50 stops the motion at its record
   EXPECT_EQ(ip->registers().status, 3);
   EXPECT_EQ(ip->registers().orig_position[0], 30.0);
-}
-
-// One M-function as it reached M_Func: its m_func_count, number and cycle.
-struct HandedOver {
-  std::uint32_t count;
-  int m;
-  std::uint64_t cycle;
-};
-
-// Steps `ip` to the end of its program (at most 40,000 cycles), calling `each(registers)` after
-// every cycle, and returns every change of m_func_count.
-template <class Each>
-std::vector<HandedOver> hand_overs(Interpolator& ip, Each each) {
-  std::vector<HandedOver> seen;
-  std::uint32_t last = 0;
-  for (int c = 0; c < 40000; ++c) {
-    const StepResult r = ip.step();
-    const Registers& g = ip.registers();
-    if (g.m_func_count != last) {
-      last = g.m_func_count;
-      seen.push_back({g.m_func_count, g.m_func, g.cycle});
-    }
-    each(g);
-    if (r == StepResult::kFinished) break;
-  }
-  return seen;
 }
 
 // Two equal continuous M-functions in a row leave M_Func unchanged from one cycle to the next:
