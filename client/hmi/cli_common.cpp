@@ -45,6 +45,15 @@ std::optional<MachineConfig> Args::load_machine() {
   return app->machine;
 }
 
+void CompensationNote::print(const std::string& file) const {
+  if (!seen_) return;
+  std::fprintf(stderr,
+               "%s:%d: note: G%d (tool radius compensation, radius %g mm) is recorded in the "
+               "intercode but not applied: the tool centre follows the programmed contour\n",
+               file.c_str(), static_cast<int>(first_.line), static_cast<int>(first_.compensation),
+               first_.compensation_radius_mm);
+}
+
 bool read_file(const std::string& path, std::string& out, std::string& error) {
   std::FILE* f = std::fopen(path.c_str(), "rb");
   if (!f) {

@@ -9,6 +9,7 @@
 #include "tgm/cli_args.hpp"
 #include "tgm/cli_numbers.hpp"
 #include "tgm/config.hpp"
+#include "tgm/intercode.hpp"
 #include "tgm/yaml_config.hpp"
 
 namespace tgm::hmi {
@@ -61,6 +62,32 @@ class AtomicFile {
  private:
   std::string path_, tmp_;
   std::FILE* f_ = nullptr;
+};
+
+//! Tool radius compensation (G41/G42) is recorded in the intercode, but no part of tgm offsets
+//! the path yet: the tool centre follows the programmed contour. A program that moves with it on
+//! gets one note naming the first such record, so the user is not misled (compile, simulate,
+//! run).
+class CompensationNote {
+ public:
+  void observe(const Segment& s) {
+    if (!seen_ && s.compensation != Compensation::kOff && s.is_motion()) {
+      seen_ = true;
+      first_ = s;
+    }
+  }
+  void observe(const Program& p) {
+    for (const Segment& s : p.segments) {
+      if (seen_) break;
+      observe(s);
+    }
+  }
+  //! Prints the note to standard error (nothing when no motion ran with compensation on).
+  void print(const std::string& file) const;
+
+ private:
+  bool seen_ = false;
+  Segment first_{};
 };
 
 //! A read-only view of a whole file (memory-mapped when possible).

@@ -72,6 +72,7 @@ int run_compile(int argc, char** argv) {
   std::string bytes;
   std::optional<IntercodeEncoder> encoder;
   CompileResult result;
+  CompensationNote compensation;
   bool write_ok = true;
   if (dump.empty()) {
     bytes.reserve(2u << 20);
@@ -79,6 +80,7 @@ int run_compile(int argc, char** argv) {
                     /*streaming=*/true);
     result = compile_gcode(text, options, [&](const Segment& s) {
       encoder->add(s);
+      compensation.observe(s);
       if (bytes.size() >= (1u << 20)) {
         if (out.is_open() && write_ok) write_ok = out.write(bytes.data(), bytes.size(), io_error);
         bytes.clear();
@@ -86,6 +88,7 @@ int run_compile(int argc, char** argv) {
     });
   } else {
     result = compile_gcode(text, options);
+    compensation.observe(result.program);
   }
   if (!result.ok()) {
     for (const Diagnostic& d : result.errors) {
@@ -129,6 +132,7 @@ int run_compile(int argc, char** argv) {
                  result.program.messages.size(), out_path.empty() ? "" : " written to ",
                  out_path.c_str());
   }
+  compensation.print(file);
   return 0;
 }
 

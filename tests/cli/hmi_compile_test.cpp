@@ -40,6 +40,37 @@ TEST_F(HmiCompile, ExampleProgramWritesIntercodeEqualToTheInProcessEncoding) {
   EXPECT_FALSE(fs::exists(out.string() + ".tmp"));
 }
 
+// G41/G42 are recorded, not applied: compile, --dump and simulate say so once, naming the first
+// record that moves with compensation on and its radius (D on the line, else the tool table);
+// a program without it gets no note.
+TEST_F(HmiCompile, CompensationThatIsNotAppliedIsNotedOnceWithItsLineAndRadius) {
+  const std::string note = "note: G42 (tool radius compensation, radius 3 mm) is recorded";
+  const ProcessResult ex =
+      run("compile " + std::string(test::kManualExample) + " --config " + kConfig);
+  ASSERT_EQ(ex.exit_code, 0) << ex.err;
+  EXPECT_NE(ex.err.find(std::string("manual_example.ngc:4: ") + note), std::string::npos) << ex.err;
+  EXPECT_EQ(ex.err.find("note:"), ex.err.rfind("note:")) << ex.err;
+
+  const fs::path left =
+      write("left.ngc", "G90 G1 X1 F600\nG41 D2.5\nM51\nG1 X5\nG1 Y5\nG40\nG1 X0\nM2\n");
+  for (const char* cmd : {"compile ", "simulate "}) {
+    const ProcessResult r = run(cmd + left.string() + " --config " + kConfig);
+    ASSERT_EQ(r.exit_code, 0) << cmd << r.err;
+    EXPECT_NE(r.err.find("left.ngc:4: note: G41 (tool radius compensation, radius 2.5 mm)"),
+              std::string::npos)
+        << cmd << r.err;
+  }
+  const ProcessResult dump =
+      run("compile " + left.string() + " --config " + kConfig + " --dump text");
+  ASSERT_EQ(dump.exit_code, 0) << dump.err;
+  EXPECT_NE(dump.err.find("left.ngc:4: note: G41"), std::string::npos) << dump.err;
+
+  const fs::path plain = write("plain.ngc", "G90 G1 X1 F600\nG41 D2\nG40\nG1 X5\nM2\n");
+  const ProcessResult p = run("compile " + plain.string() + " --config " + kConfig);
+  ASSERT_EQ(p.exit_code, 0) << p.err;
+  EXPECT_EQ(p.err.find("note:"), std::string::npos) << p.err;  // no motion ran with it on
+}
+
 TEST_F(HmiCompile, LongProgramStreamsInPiecesAndDecodes) {
   // More than 1 MiB of records, with a subroutine so both execution modes run.
   std::string text = "G91 G1 F1000\nG25 L1\n";
