@@ -84,6 +84,12 @@ class CompensationNote {
   }
   //! Prints the note to standard error (nothing when no motion ran with compensation on).
   void print(const std::string& file) const;
+  //! The note for a whole program.
+  static void print(const Program& p, const std::string& file) {
+    CompensationNote note;
+    note.observe(p);
+    note.print(file);
+  }
 
  private:
   bool seen_ = false;

@@ -278,11 +278,7 @@ int run_simulate(int argc, char** argv) {
     for (const auto& d : compiled.errors) std::fprintf(stderr, "%s\n", format_diagnostic(file, d).c_str());
     return 2;
   }
-  {
-    CompensationNote compensation;
-    compensation.observe(compiled.program);
-    compensation.print(file);
-  }
+  CompensationNote::print(compiled.program, file);
 
   SimulationOptions so;
   so.interpolator = ip_index;

@@ -182,11 +182,7 @@ int run_run(int argc, char** argv) {
     std::fprintf(stderr, "%s: the program has no records\n", file.c_str());
     return 2;
   }
-  {
-    CompensationNote compensation;
-    compensation.observe(program);
-    compensation.print(file);
-  }
+  CompensationNote::print(program, file);
   std::int32_t last_line = 0;
   for (const Segment& s : program.segments) last_line = std::max(last_line, s.line);
 
