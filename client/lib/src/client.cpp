@@ -290,6 +290,15 @@ msg::Request make(int interpolator, msg::RequestKind kind) {
   r.kind(kind);
   return r;
 }
+
+// M_Func = 0, naming the M-function acknowledged by number and m_func_count.
+msg::Request m_func_ack(int interpolator, std::int32_t m, std::uint32_t count) {
+  msg::Request r = make(interpolator, msg::REQUEST_KIND_WRITE_M_FUNC);
+  r.value(0.0);
+  r.m_func_acknowledged(m);
+  r.m_func_count_acknowledged(count);
+  return r;
+}
 }  // namespace
 
 Reply Client::start(int i) { return request(make(i, msg::REQUEST_KIND_START)); }
@@ -306,19 +315,11 @@ Reply Client::command(int i, std::int32_t code, std::span<const std::int32_t> pa
 }
 
 Reply Client::ack_m_func(int i, std::int32_t m, std::uint32_t count) {
-  msg::Request r = make(i, msg::REQUEST_KIND_WRITE_M_FUNC);
-  r.value(0.0);
-  r.m_func_acknowledged(m);
-  r.m_func_count_acknowledged(count);
-  return request(r);
+  return request(m_func_ack(i, m, count));
 }
 
 std::uint64_t Client::send_ack_m_func(int i, std::int32_t m, std::uint32_t count) {
-  msg::Request r = make(i, msg::REQUEST_KIND_WRITE_M_FUNC);
-  r.value(0.0);
-  r.m_func_acknowledged(m);
-  r.m_func_count_acknowledged(count);
-  return send(r);
+  return send(m_func_ack(i, m, count));
 }
 
 Reply Client::set_rel_speed(int i, double rel_speed) {

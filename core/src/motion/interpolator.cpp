@@ -406,8 +406,8 @@ struct Interpolator::Impl {
   std::optional<OutputStage> ostage;
   bool m_pending = false;    // a normal M is inside the spline: the wait starts when it leaves
   bool end_pending = false;  // the program ended; Status 3 once the smoothing has settled
-  // M parameters of the events in the smoothing (the ring slot may be reused meanwhile).
-  // Parameters of the events in flight: inside the smoothing and waiting in m_deferred.
+  // M parameters of the events in flight, inside the smoothing and waiting in m_deferred (the
+  // ring slot may be reused meanwhile).
   static constexpr std::size_t kMaxDeferredM = 64;
   std::array<MParams, SmoothingStage::kEventCapacity + kMaxDeferredM + 1> ev_par{};
   std::size_t ev_par_next = 0;
