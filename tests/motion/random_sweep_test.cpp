@@ -428,6 +428,21 @@ TEST(RandomSweep, WideSeed1JunctionsAreJudgedAtTheCrossingItself) {
   }
 }
 
+// Wide sweep seed 117 program 183 (5 axes, 1 ms): from rest along a 22 mm line led by X and A
+// (path jerk 2.9e6 mm/s^3) towards an arc of 914 mm/s^3. The first calculation step accelerated
+// as far as the arc's braking plan allowed; the next one found the arc's limits failing at the
+// no-reversal floor (their plans cannot take that deceleration back before the motion stops),
+// judged them hopeless and braked at the floor, and so on every second step: the line took
+// 1,351 s at 0.02 mm/s (time limit 387 s). Moving, a step now probes above the floor when every
+// limit failing there fails that way; the program takes 79.9 s against a lower bound of 77.7 s.
+TEST(RandomSweep, WideSeed117Program183LeavesRestTowardsASofterArcAtSpeed) {
+  const SweepCase c = sweep_case(117, 183, true);
+  ASSERT_EQ(c.axes, 5);
+  SimulationSummary s;
+  ASSERT_NO_FATAL_FAILURE(expect_runs_clean(c, "wide seed 117 program 183", &s));
+  EXPECT_LT(s.program_time_s, 1.1 * c.bound_s);
+}
+
 // Wide sweep seed 1 programs 55 and 86 (1 ms): braking for a corner of a few hundredths of a
 // mm/s (X or Z tolerance 0.02..0.04 mm/s), the motion came to rest 1e-5 mm before it, inside
 // the junction's reserve, and crept the rest for over an hour (55: 4,447 s instead of 17.5 s).
