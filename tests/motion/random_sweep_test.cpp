@@ -7,8 +7,9 @@
 // TGM_SWEEP_FIRST (default 0); the command line wins. A long run:
 //   build/tests/motion/tgm_motion_tests --gtest_filter='RandomSweep.*' --seed=7 --count=5000
 // --machines=wide draws the machines from a far wider envelope (test::wide_machine); seeds 1..41
-// and 101..104 x 300 pass since session 26 (core/MOTION.md, "Known gaps", has the history).
-// CTest runs seeds 1 and 22 x 300 of it (motion.sweep.wide1, motion.sweep.wide22).
+// and 101..117 x 300 pass, with their stop sweeps, since session 31 (core/MOTION.md, "Known
+// gaps", has the history). CTest runs seeds 1 and 22 x 300 of it, plain and with stops
+// (motion.sweep.wide1, motion.sweep.wide22).
 //
 // Time limit per program (test::motion_time_limit): the time of a reference motion at a quarter
 // of every record's cap min(F x Rel_Speed, axis velocity limits), with the override schedule at
@@ -185,6 +186,31 @@ TEST(RandomSweep, ProgramsFinishAtTheirEndWithinLimits) {
   RecordProperty("cycles", std::to_string(total_cycles));
 }
 
+// The stop sweep's options for program k of `seed` (case c): one to three stops at random times
+// up to the lower bound, each Command 8 or 4, and the restart delay; its context in `ctx`.
+SimulationOptions stop_sweep_options(std::uint64_t seed, std::uint64_t k, const SweepCase& c,
+                                     std::string* ctx) {
+  // Its own stream: the programs are those of the plain sweep.
+  std::mt19937_64 rng(seed * 1000003ull + k + 0x9e3779b97f4a7c15ull);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  SimulationOptions o = sweep_options(c);
+  const int n = 1 + static_cast<int>(u(rng) * 3.0);
+  for (int i = 0; i < n; ++i) {
+    o.stops.emplace_back(u(rng) * c.bound_s, u(rng) < 0.5 ? 8 : 4);
+  }
+  o.stop_restart_s = 0.01 + 0.29 * u(rng);
+  o.max_time_s = c.limit_s + n * (o.stop_restart_s + 10.0);
+  *ctx = case_context(seed, k, c) + ", restart after " + std::to_string(o.stop_restart_s) +
+         " s, stops";
+  for (const auto& [t, code] : o.stops) {
+    *ctx += ' ';
+    *ctx += std::to_string(code);
+    *ctx += '@';
+    *ctx += std::to_string(t);
+  }
+  return o;
+}
+
 // The sweep's programs with one to three stops at random times up to their lower bound, each a
 // normal (Command 8) or an emergency stop (4) on the trajectory, restarted by the emulated
 // operator after 0.01..0.3 s: a feed hold or an emergency button at any moment (accelerating,
@@ -198,24 +224,8 @@ TEST(RandomSweep, StopsOnTheTrajectoryResumeAndFinishWithinLimits) {
   std::uint64_t given = 0;
   for (std::uint64_t k = first; k < first + count; ++k) {
     const SweepCase c = sweep_case(seed, k, wide_machines());
-    // Its own stream: the programs are those of the plain sweep.
-    std::mt19937_64 rng(seed * 1000003ull + k + 0x9e3779b97f4a7c15ull);
-    std::uniform_real_distribution<double> u(0.0, 1.0);
-    SimulationOptions o = sweep_options(c);
-    const int n = 1 + static_cast<int>(u(rng) * 3.0);
-    for (int i = 0; i < n; ++i) {
-      o.stops.emplace_back(u(rng) * c.bound_s, u(rng) < 0.5 ? 8 : 4);
-    }
-    o.stop_restart_s = 0.01 + 0.29 * u(rng);
-    o.max_time_s = c.limit_s + n * (o.stop_restart_s + 10.0);
-    std::string ctx = case_context(seed, k, c) + ", restart after " +
-                      std::to_string(o.stop_restart_s) + " s, stops";
-    for (const auto& [t, code] : o.stops) {
-      ctx += ' ';
-      ctx += std::to_string(code);
-      ctx += '@';
-      ctx += std::to_string(t);
-    }
+    std::string ctx;
+    const SimulationOptions o = stop_sweep_options(seed, k, c, &ctx);
     SimulationSummary s;
     ASSERT_NO_FATAL_FAILURE(expect_runs_clean(c, o, ctx, &s));
     std::uint64_t due = 0;
@@ -441,6 +451,22 @@ TEST(RandomSweep, WideSeed117Program183LeavesRestTowardsASofterArcAtSpeed) {
   SimulationSummary s;
   ASSERT_NO_FATAL_FAILURE(expect_runs_clean(c, "wide seed 117 program 183", &s));
   EXPECT_LT(s.program_time_s, 1.1 * c.bound_s);
+}
+
+// Wide stop sweep seed 8 program 126 (6 axes, 1 ms): a feed hold (Command 8) at 19.69 s, while
+// the motion was braking for an M-function's stop point, ended 3e-8 mm before that point on a
+// path of 1.2e6 mm/s^3, where one calculation step from rest covers 1.7e-6 mm. After the
+// restart no step the search can resolve passed the stop point's plan with its step allowance,
+// and the motion stood there for good. Standing that close, it now arrives.
+TEST(RandomSweep, WideStopSeed8Program126LeavesAFeedHoldJustBeforeAStopPoint) {
+  const SweepCase c = sweep_case(8, 126, true);
+  ASSERT_EQ(c.axes, 6);
+  std::string ctx;
+  const SimulationOptions o = stop_sweep_options(8, 126, c, &ctx);
+  ASSERT_EQ(o.stops.size(), 1u);
+  SimulationSummary s;
+  ASSERT_NO_FATAL_FAILURE(expect_runs_clean(c, o, "wide " + ctx, &s));
+  EXPECT_EQ(s.stops, 1u);
 }
 
 // Wide sweep seed 1 programs 55 and 86 (1 ms): braking for a corner of a few hundredths of a

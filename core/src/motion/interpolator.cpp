@@ -2395,10 +2395,20 @@ struct Interpolator::Impl {
       // braking still carries a deceleration that takes several cycles to release (0.05 mm/s^2
       // at 126 mm/s^3: cut at once it exceeded the axis jerk by 4..15 % in the cycles around the
       // stop, wide sweep seed 2 program 161, seed 5 program 147 and six more).
-      if (remaining < room && !(((room - remaining <= kArriveD && ns.v <= kArriveV &&
-                                  std::fabs(ns.a) <= R(q).jt * dt) ||
-                                 (room - remaining <= kRestD && ns.v <= kStandstillV)) &&
-                                stop_follows(q))) {
+      // Standing, within what one calculation step from rest at the record's jerk limit
+      // covers (J dt^3 / 6): the motion cannot land there in steps of one jerk each (the plans'
+      // step allowance fails every x the search can resolve), so it arrives. A Command 8 ramp
+      // ended 3e-8 mm before an M-function's stop point on an axis of 1.2e6 mm/s^3 (one step
+      // covers 1.7e-6 mm), and after the restart the motion stood there for good (wide stop
+      // sweep seed 8 program 126). The jump is far inside every limit: differentiated per
+      // cycle (T = 5 dt) it shows a jerk of at most 2 (J T^3 / 750) / T^3 = J / 375.
+      const bool standing_short = before.v == 0.0 && before.a == 0.0 && ns.v == 0.0 &&
+                                  room - remaining <= R(q).jt * dt * dt * dt / 6.0;
+      if (remaining < room &&
+          !(((room - remaining <= kArriveD && ns.v <= kArriveV &&
+              std::fabs(ns.a) <= R(q).jt * dt) ||
+             (room - remaining <= kRestD && ns.v <= kStandstillV) || standing_short) &&
+            stop_follows(q))) {
         s_local += remaining;
         traveled += remaining;
         break;
