@@ -2398,7 +2398,7 @@ struct Interpolator::Impl {
       // Standing, within what one calculation step from rest at the record's jerk limit
       // covers (J dt^3 / 6): the motion cannot land there in steps of one jerk each (the plans'
       // step allowance fails every x the search can resolve), so it arrives. A Command 8 ramp
-      // ended 3e-8 mm before an M-function's stop point on an axis of 1.2e6 mm/s^3 (one step
+      // ended 3e-8 mm before an M-function's stop point on a path of 1.2e6 mm/s^3 (one step
       // covers 1.7e-6 mm), and after the restart the motion stood there for good (wide stop
       // sweep seed 8 program 126). The jump is far inside every limit: differentiated per
       // cycle (T = 5 dt) it shows a jerk of at most 2 (J T^3 / 750) / T^3 = J / 375.
