@@ -59,7 +59,8 @@ class Namespaces {
     }
     for (std::size_t i = 0; i < names_.size(); ++i) {
       const std::string& n = names_[i];
-      const std::string port = "p" + std::to_string(i);
+      std::string port = "p";
+      port += std::to_string(i);  // not "p" + ...: GCC 12 -O3 warns falsely (-Wrestrict)
       if (!run("netns add " + n) ||
           !run("-n " + bridge_ + " link add " + port + " type veth peer name eth0 netns " + n) ||
           !run("-n " + bridge_ + " link set " + port + " master br0") ||
@@ -91,7 +92,7 @@ class Namespaces {
 std::string udp_profiles(const std::string& dir) {
   const std::string path = dir + "/fastdds_profiles_udp.xml";
   std::string cmd = "bash " TGM_SOURCE_DIR "/docker/make_udp_profiles.sh";
-  for (std::size_t i = 0; i < 3; ++i) cmd += " " + Namespaces::address(i);
+  for (std::size_t i = 0; i < 3; ++i) (cmd += ' ') += Namespaces::address(i);
   EXPECT_EQ(std::system((cmd + " > " + path).c_str()), 0) << cmd;
   EXPECT_NE(test::read_text(path).find("<useBuiltinTransports>false</useBuiltinTransports>"), std::string::npos);
   return path;
