@@ -28,12 +28,13 @@ class Reader {
     errors.push_back(where + ": " + path + ": " + reason);
   }
 
-  // Checks that `n` is a map whose keys are all in `known`.
+  // Checks that `n` is a map whose keys are all in `known`, each given once.
   bool map(const YAML::Node& n, const std::string& path, const std::set<std::string>& known) {
     if (!n.IsMap()) {
       error(n, path.empty() ? "(top level)" : path, "must be a mapping of key: value");
       return false;
     }
+    unique_keys(n, path);
     for (const auto& kv : n) {
       const auto key = kv.first.as<std::string>("");
       if (!known.count(key)) {
@@ -43,6 +44,16 @@ class Reader {
       }
     }
     return true;
+  }
+
+  // A key given twice in one mapping is an error: yaml-cpp keeps both, and a lookup would
+  // silently take the first.
+  void unique_keys(const YAML::Node& n, const std::string& path) {
+    std::set<std::string> seen;
+    for (const auto& kv : n) {
+      const auto key = kv.first.as<std::string>("");
+      if (!seen.insert(key).second) error(kv.first, join(path, key), "given twice");
+    }
   }
 
   static std::string join(const std::string& path, const std::string& key) {
@@ -291,6 +302,7 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
         if (!md.IsMap()) {
           r.error(md, "plc.m_delay_s", "must map M-numbers to seconds, e.g. {51: 0.2}");
         } else {
+          r.unique_keys(md, "plc.m_delay_s");
           for (const auto& kv : md) {
             long long mnum = 0;
             double sec = 0;
@@ -350,14 +362,24 @@ ConfigLoad load_config_text(const std::string& text, const std::string& path) {
 }
 
 ConfigLoad load_config_file(const std::string& path) {
+  ConfigLoad out;
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) {
+    // An ifstream opens a directory and reads nothing: that would load every default.
+    out.errors.push_back(path + ": is a directory, not a config file");
+    return out;
+  }
   std::ifstream in(path, std::ios::binary);
   if (!in) {
-    ConfigLoad out;
     out.errors.push_back(path + ": cannot open the config file");
     return out;
   }
   std::ostringstream ss;
   ss << in.rdbuf();
+  if (in.bad()) {
+    out.errors.push_back(path + ": cannot read the config file");
+    return out;
+  }
   return load_config_text(ss.str(), path);
 }
 

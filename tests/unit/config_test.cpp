@@ -65,5 +65,30 @@ TEST(Config, MissingFileIsAnError) {
   EXPECT_EQ(load.errors[0], "/nonexistent/tgm.yaml: cannot open the config file");
 }
 
+// A directory opens as a stream that reads nothing, which loaded every default silently.
+TEST(Config, DirectoryIsAnErrorNotAnEmptyConfig) {
+  const auto load = load_config_file(TGM_SOURCE_DIR "/config");
+  EXPECT_FALSE(load.config);
+  ASSERT_EQ(load.errors.size(), 1u);
+  EXPECT_EQ(load.errors[0], TGM_SOURCE_DIR "/config: is a directory, not a config file");
+}
+
+// yaml-cpp keeps both entries of a repeated key and a lookup takes the first: the second value
+// was dropped without a word.
+TEST(Config, KeyGivenTwiceIsAnErrorWithItsLine) {
+  auto load = load_config_text("cycle_time_us: 500\ncycle_time_us: 250\n", "m.yaml");
+  EXPECT_FALSE(load.config);
+  EXPECT_TRUE(has_error(load.errors, "m.yaml:2: cycle_time_us: given twice"));
+  load = load_config_text("interpolators:\n  - buffer_size: 2000\n    buffer_size: 3000\n",
+                          "m.yaml");
+  EXPECT_FALSE(load.config);
+  EXPECT_TRUE(has_error(load.errors, "m.yaml:3: interpolators[0].buffer_size: given twice"));
+  load = load_config_text("plc:\n  m_delay_s: {51: 0.2, 51: 0.5}\n", "m.yaml");
+  EXPECT_FALSE(load.config);
+  EXPECT_TRUE(has_error(load.errors, "plc.m_delay_s.51: given twice"));
+  load = load_config_text("plc:\n  m_delay_s: {51: 0.2, 50: 0.5}\n", "m.yaml");
+  EXPECT_TRUE(load.config) << load.errors.front();
+}
+
 }  // namespace
 }  // namespace tgm
