@@ -45,8 +45,12 @@ std::string fmt_num(double v) {
 //! Source text quoted in a message: bytes outside printable ASCII as \xNN, so a binary or
 //! mis-encoded file cannot put control codes or broken UTF-8 into the terminal or the log.
 std::string quoted_source(std::string_view text) {
+  // A word of a hundred thousand digits is quoted by its start and its length, not whole.
+  constexpr std::size_t kMaxQuoted = 40;
+  const std::size_t full = text.size();
+  if (full > kMaxQuoted) text = text.substr(0, kMaxQuoted);
   std::string out;
-  out.reserve(text.size());
+  out.reserve(text.size() + 32);
   for (const char c : text) {
     const auto uc = static_cast<unsigned char>(c);
     if (uc >= 0x20 && uc < 0x7f) {
@@ -57,6 +61,7 @@ std::string quoted_source(std::string_view text) {
       out += buf;
     }
   }
+  if (full > kMaxQuoted) out += "... (" + std::to_string(full) + " characters)";
   return out;
 }
 
