@@ -1,5 +1,7 @@
 #include "tgm/yaml_config.hpp"
 
+#include "tgm/cli_numbers.hpp"
+
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
@@ -8,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <set>
 #include <sstream>
 
@@ -80,6 +83,16 @@ class Reader {
       error(n, join(path, key), "must be a whole number, not '" + text(n) + "'");
       return;
     }
+    // No wrap-around through the cast: 4294967796 was read as a cycle time of 500 us.
+    constexpr auto lo = static_cast<long long>(std::numeric_limits<Int>::min());
+    constexpr auto hi = static_cast<long long>(
+        std::min<unsigned long long>(std::numeric_limits<Int>::max(), std::numeric_limits<long long>::max()));
+    if (v < lo || v > hi) {
+      error(n, join(path, key),
+            "must be a whole number from " + std::to_string(lo) + " to " + std::to_string(hi) +
+                ", not '" + text(n) + "'");
+      return;
+    }
     out = static_cast<Int>(v);
   }
 
@@ -118,20 +131,16 @@ class Reader {
     return "null";
   }
 
+  // Numbers are read as the command line reads them (cli_numbers.hpp): the whole scalar,
+  // finite; whole numbers in base 10 (with base 0, 0500 was octal 320) and within long long
+  // (an overflow was clamped and then narrowed to -1).
   static bool scalar_double(const YAML::Node& n, double& v) {
-    if (!n.IsScalar()) return false;
-    const std::string& s = n.Scalar();
-    char* end = nullptr;
-    v = std::strtod(s.c_str(), &end);
-    return !s.empty() && end && *end == '\0' && std::isfinite(v);
+    return n.IsScalar() && parse_finite(n.Scalar(), v);
   }
 
   static bool scalar_int(const YAML::Node& n, long long& v) {
-    if (!n.IsScalar()) return false;
-    const std::string& s = n.Scalar();
-    char* end = nullptr;
-    v = std::strtoll(s.c_str(), &end, 0);
-    return !s.empty() && end && *end == '\0';
+    return n.IsScalar() && parse_integer(n.Scalar(), std::numeric_limits<long long>::min(),
+                                         std::numeric_limits<long long>::max(), v);
   }
 
  private:

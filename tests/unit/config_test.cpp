@@ -59,6 +59,25 @@ TEST(Config, NonNumbersAndBadSyntaxAreErrors) {
   EXPECT_TRUE(has_error(load.errors, "compiler.plc_redefined_m[0]: M80 cannot be redefined"));
 }
 
+// Whole numbers are base 10, and one that does not fit its field is an error, not wrapped round.
+TEST(Config, WholeNumbersAreDecimalAndNeverWrapRound) {
+  auto load = load_config_text("cycle_time_us: 4294967796\n", "m.yaml");  // 2^32 + 500
+  EXPECT_FALSE(load.config);
+  EXPECT_TRUE(has_error(
+      load.errors,
+      "m.yaml:1: cycle_time_us: must be a whole number from -2147483648 to 2147483647, not '4294967796'"));
+  load = load_config_text("smoothing: {iir_axis_mask: -1}\n", "m.yaml");
+  EXPECT_FALSE(load.config);
+  EXPECT_TRUE(has_error(load.errors, "smoothing.iir_axis_mask: must be a whole number from 0 to 4294967295"));
+  load = load_config_text("cycle_time_us: 99999999999999999999\n", "m.yaml");
+  EXPECT_TRUE(has_error(load.errors, "cycle_time_us: must be a whole number, not '99999999999999999999'"));
+  load = load_config_text("cycle_time_us: 0x1F4\n", "m.yaml");
+  EXPECT_TRUE(has_error(load.errors, "cycle_time_us: must be a whole number, not '0x1F4'"));
+  load = load_config_text("compiler: {max_call_depth: 010}\n", "m.yaml");  // not octal 8
+  ASSERT_TRUE(load.config) << load.errors.front();
+  EXPECT_EQ(load.config->machine.compiler.max_call_depth, 10);
+}
+
 TEST(Config, MissingFileIsAnError) {
   const auto load = load_config_file("/nonexistent/tgm.yaml");
   ASSERT_EQ(load.errors.size(), 1u);
