@@ -190,7 +190,9 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
   MachineConfig& m = cfg.machine;
   r.integer(root, "", "cycle_time_us", m.cycle_time_us);
 
-  AxisConfig defaults;
+  // Every axis starts from the built-in machine's axis (the values config/default.yaml lists),
+  // changed by axis_defaults, then by its own keys.
+  AxisConfig defaults = MachineConfig::default_machine().interpolators.front().axes.front();
   if (root["axis_defaults"]) read_axis(r, root["axis_defaults"], "axis_defaults", defaults, false);
 
   if (const auto ips = root["interpolators"]) {
@@ -216,6 +218,16 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
           }
         }
         m.interpolators.push_back(ip);
+      }
+    }
+  } else if (root["axis_defaults"]) {
+    // No interpolators listed: the axis defaults apply to the built-in machine's axes (they were
+    // read and then dropped without a word).
+    for (auto& ip : m.interpolators) {
+      for (auto& a : ip.axes) {
+        const char letter = a.letter;
+        a = defaults;
+        a.letter = letter;
       }
     }
   }

@@ -78,6 +78,35 @@ TEST(Config, WholeNumbersAreDecimalAndNeverWrapRound) {
   EXPECT_EQ(load.config->machine.compiler.max_call_depth, 10);
 }
 
+// axis_defaults reach the axes whether or not the interpolators are listed, and an axis listed
+// without axis_defaults has the built-in machine's limits (those of config/default.yaml).
+TEST(Config, AxisDefaultsApplyToTheBuiltInAxesToo) {
+  auto load = load_config_text("axis_defaults: {max_jerk_mm_s3: 1234, backlash_mm: 0.01}\n", "m.yaml");
+  ASSERT_TRUE(load.config) << load.errors.front();
+  const MachineConfig builtin = MachineConfig::default_machine();
+  ASSERT_EQ(load.config->machine.interpolators.size(), builtin.interpolators.size());
+  for (std::size_t k = 0; k < builtin.interpolators.size(); ++k) {
+    const auto& axes = load.config->machine.interpolators[k].axes;
+    ASSERT_EQ(axes.size(), builtin.interpolators[k].axes.size());
+    for (std::size_t i = 0; i < axes.size(); ++i) {
+      EXPECT_EQ(axes[i].letter, builtin.interpolators[k].axes[i].letter);
+      EXPECT_DOUBLE_EQ(axes[i].max_jerk_mm_s3, 1234.0);
+      EXPECT_DOUBLE_EQ(axes[i].backlash_mm, 0.01);
+      EXPECT_DOUBLE_EQ(axes[i].max_velocity_mm_s, builtin.interpolators[k].axes[i].max_velocity_mm_s);
+    }
+  }
+  load = load_config_text("interpolators:\n  - axes: [{letter: X}, {letter: Y, max_velocity_mm_s: 100, rapid_velocity_mm_s: 90}]\n",
+                          "m.yaml");
+  ASSERT_TRUE(load.config) << load.errors.front();
+  const AxisConfig& x = load.config->machine.interpolators[0].axes[0];
+  const AxisConfig& base = builtin.interpolators[0].axes[0];
+  EXPECT_DOUBLE_EQ(x.max_velocity_mm_s, base.max_velocity_mm_s);
+  EXPECT_DOUBLE_EQ(x.max_acceleration_mm_s2, base.max_acceleration_mm_s2);
+  EXPECT_DOUBLE_EQ(x.max_jerk_mm_s3, base.max_jerk_mm_s3);
+  EXPECT_DOUBLE_EQ(x.emergency_deceleration_mm_s2, base.emergency_deceleration_mm_s2);
+  EXPECT_DOUBLE_EQ(load.config->machine.interpolators[0].axes[1].max_velocity_mm_s, 100.0);
+}
+
 TEST(Config, MissingFileIsAnError) {
   const auto load = load_config_file("/nonexistent/tgm.yaml");
   ASSERT_EQ(load.errors.size(), 1u);
