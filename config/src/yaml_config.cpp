@@ -85,8 +85,8 @@ class Reader {
     }
     // No wrap-around through the cast: 4294967796 was read as a cycle time of 500 us.
     constexpr auto lo = static_cast<long long>(std::numeric_limits<Int>::min());
-    constexpr auto hi = static_cast<long long>(
-        std::min<unsigned long long>(std::numeric_limits<Int>::max(), std::numeric_limits<long long>::max()));
+    constexpr auto hi = static_cast<long long>(std::min<unsigned long long>(
+        std::numeric_limits<Int>::max(), std::numeric_limits<long long>::max()));
     if (v < lo || v > hi) {
       error(n, join(path, key),
             "must be a whole number from " + std::to_string(lo) + " to " + std::to_string(hi) +

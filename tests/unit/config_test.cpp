@@ -63,14 +63,16 @@ TEST(Config, NonNumbersAndBadSyntaxAreErrors) {
 TEST(Config, WholeNumbersAreDecimalAndNeverWrapRound) {
   auto load = load_config_text("cycle_time_us: 4294967796\n", "m.yaml");  // 2^32 + 500
   EXPECT_FALSE(load.config);
-  EXPECT_TRUE(has_error(
-      load.errors,
-      "m.yaml:1: cycle_time_us: must be a whole number from -2147483648 to 2147483647, not '4294967796'"));
+  EXPECT_TRUE(has_error(load.errors,
+                        "m.yaml:1: cycle_time_us: must be a whole number from -2147483648 to "
+                        "2147483647, not '4294967796'"));
   load = load_config_text("smoothing: {iir_axis_mask: -1}\n", "m.yaml");
   EXPECT_FALSE(load.config);
-  EXPECT_TRUE(has_error(load.errors, "smoothing.iir_axis_mask: must be a whole number from 0 to 4294967295"));
+  EXPECT_TRUE(has_error(load.errors,
+                        "smoothing.iir_axis_mask: must be a whole number from 0 to 4294967295"));
   load = load_config_text("cycle_time_us: 99999999999999999999\n", "m.yaml");
-  EXPECT_TRUE(has_error(load.errors, "cycle_time_us: must be a whole number, not '99999999999999999999'"));
+  EXPECT_TRUE(
+      has_error(load.errors, "cycle_time_us: must be a whole number, not '99999999999999999999'"));
   load = load_config_text("cycle_time_us: 0x1F4\n", "m.yaml");
   EXPECT_TRUE(has_error(load.errors, "cycle_time_us: must be a whole number, not '0x1F4'"));
   load = load_config_text("compiler: {max_call_depth: 010}\n", "m.yaml");  // not octal 8
@@ -81,7 +83,8 @@ TEST(Config, WholeNumbersAreDecimalAndNeverWrapRound) {
 // axis_defaults reach the axes whether or not the interpolators are listed, and an axis listed
 // without axis_defaults has the built-in machine's limits (those of config/default.yaml).
 TEST(Config, AxisDefaultsApplyToTheBuiltInAxesToo) {
-  auto load = load_config_text("axis_defaults: {max_jerk_mm_s3: 1234, backlash_mm: 0.01}\n", "m.yaml");
+  auto load =
+      load_config_text("axis_defaults: {max_jerk_mm_s3: 1234, backlash_mm: 0.01}\n", "m.yaml");
   ASSERT_TRUE(load.config) << load.errors.front();
   const MachineConfig builtin = MachineConfig::default_machine();
   ASSERT_EQ(load.config->machine.interpolators.size(), builtin.interpolators.size());
@@ -92,11 +95,14 @@ TEST(Config, AxisDefaultsApplyToTheBuiltInAxesToo) {
       EXPECT_EQ(axes[i].letter, builtin.interpolators[k].axes[i].letter);
       EXPECT_DOUBLE_EQ(axes[i].max_jerk_mm_s3, 1234.0);
       EXPECT_DOUBLE_EQ(axes[i].backlash_mm, 0.01);
-      EXPECT_DOUBLE_EQ(axes[i].max_velocity_mm_s, builtin.interpolators[k].axes[i].max_velocity_mm_s);
+      EXPECT_DOUBLE_EQ(axes[i].max_velocity_mm_s,
+                       builtin.interpolators[k].axes[i].max_velocity_mm_s);
     }
   }
-  load = load_config_text("interpolators:\n  - axes: [{letter: X}, {letter: Y, max_velocity_mm_s: 100, rapid_velocity_mm_s: 90}]\n",
-                          "m.yaml");
+  load = load_config_text(
+      "interpolators:\n  - axes: [{letter: X}, {letter: Y, max_velocity_mm_s: 100, "
+      "rapid_velocity_mm_s: 90}]\n",
+      "m.yaml");
   ASSERT_TRUE(load.config) << load.errors.front();
   const AxisConfig& x = load.config->machine.interpolators[0].axes[0];
   const AxisConfig& base = builtin.interpolators[0].axes[0];
@@ -127,8 +133,8 @@ TEST(Config, KeyGivenTwiceIsAnErrorWithItsLine) {
   auto load = load_config_text("cycle_time_us: 500\ncycle_time_us: 250\n", "m.yaml");
   EXPECT_FALSE(load.config);
   EXPECT_TRUE(has_error(load.errors, "m.yaml:2: cycle_time_us: given twice"));
-  load = load_config_text("interpolators:\n  - buffer_size: 2000\n    buffer_size: 3000\n",
-                          "m.yaml");
+  load =
+      load_config_text("interpolators:\n  - buffer_size: 2000\n    buffer_size: 3000\n", "m.yaml");
   EXPECT_FALSE(load.config);
   EXPECT_TRUE(has_error(load.errors, "m.yaml:3: interpolators[0].buffer_size: given twice"));
   load = load_config_text("plc:\n  m_delay_s: {51: 0.2, 51: 0.5}\n", "m.yaml");
