@@ -81,8 +81,10 @@ std::vector<std::string> MachineConfig::validate() const {
       pos("rapid_velocity_mm_s", a.rapid_velocity_mm_s);
       pos("emergency_deceleration_mm_s2", a.emergency_deceleration_mm_s2);
       pos("corner_velocity_tolerance_mm_s", a.corner_velocity_tolerance_mm_s);
-      if (!std::isfinite(a.ratio_inc_per_mm) || a.ratio_inc_per_mm == 0.0) {
-        e.push_back(ab + ".ratio_inc_per_mm: must be a finite non-zero number, not " +
+      // The range a Ratio write accepts (1e300 gave PositionInc values of -2^63).
+      if (!(std::fabs(a.ratio_inc_per_mm) >= kMinRatio &&
+            std::fabs(a.ratio_inc_per_mm) <= kMaxRatio)) {
+        e.push_back(ab + ".ratio_inc_per_mm: |ratio| must be 1e-06..1e+09 inc/mm, not " +
                     num(a.ratio_inc_per_mm));
       }
       if (!std::isfinite(a.backlash_mm) || a.backlash_mm < 0.0 || a.backlash_mm > 10.0) {

@@ -1,6 +1,8 @@
 // Config: core validation and the YAML adapter (key paths, unknown keys, ranges).
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "tgm/yaml_config.hpp"
 
 namespace tgm {
@@ -15,6 +17,26 @@ bool has_error(const std::vector<std::string>& errors, const std::string& needle
 
 TEST(Config, DefaultMachineIsValid) {
   EXPECT_TRUE(MachineConfig::default_machine().validate().empty());
+}
+
+// The config accepts the ratios a Ratio write accepts, no more: 1e300 inc/mm made PositionInc
+// -2^63. A negative ratio turns the axis round and is kept.
+TEST(Config, RatioHasTheRangeOfARatioWrite) {
+  for (const double bad : {1e300, 2e9, 0.0, 1e-7, -1e10, std::nan("")}) {
+    MachineConfig m = MachineConfig::default_machine();
+    m.interpolators[0].axes[1].ratio_inc_per_mm = bad;
+    const auto problems = m.validate();
+    ASSERT_EQ(problems.size(), 1u) << bad;
+    EXPECT_NE(problems[0].find("interpolators[0].axes[1].ratio_inc_per_mm: |ratio| must be "
+                               "1e-06..1e+09 inc/mm, not "),
+              std::string::npos)
+        << problems[0];
+  }
+  for (const double good : {1e9, -1e9, 1e-6, -5.0, 1000.0}) {
+    MachineConfig m = MachineConfig::default_machine();
+    m.interpolators[0].axes[1].ratio_inc_per_mm = good;
+    EXPECT_TRUE(m.validate().empty()) << good;
+  }
 }
 
 TEST(Config, DefaultYamlLoadsAndMatchesBuiltInDefaults) {

@@ -10,6 +10,11 @@
 
 namespace tgm {
 
+//! Accepted |Ratio| [inc/mm], in the config and in a Ratio write alike: a position within
+//! +-1e9 mm times the largest stays within the 64-bit increments of PositionInc.
+inline constexpr double kMinRatio = 1e-6;
+inline constexpr double kMaxRatio = 1e9;
+
 //! Limits and mechanics of one axis.
 struct AxisConfig {
   //! G-code address letter of the axis (X, Y, Z, A, B, C, U, V, W, E by default).

@@ -12,9 +12,7 @@
 
 namespace tgm {
 
-//! Accepted |Ratio| [inc/mm] and |Offset| [inc].
-inline constexpr double kMinRatio = 1e-6;
-inline constexpr double kMaxRatio = 1e9;
+//! Accepted |Offset| [inc] (|Ratio|: kMinRatio..kMaxRatio, config.hpp).
 inline constexpr std::int64_t kMaxOffsetInc = 1'000'000'000'000'000;
 //! Share of the axis velocity / acceleration limits the backlash ramp uses.
 inline constexpr double kBacklashRampShare = 0.1;
