@@ -39,7 +39,7 @@ class Reader {
     }
     unique_keys(n, path);
     for (const auto& kv : n) {
-      const auto key = kv.first.as<std::string>("");
+      const std::string key = text(kv.first);  // a list or mapping as a key is named, not ""
       if (!known.count(key)) {
         std::string list;
         for (const auto& k : known) list += (list.empty() ? "" : ", ") + k;
@@ -54,7 +54,8 @@ class Reader {
   void unique_keys(const YAML::Node& n, const std::string& path) {
     std::set<std::string> seen;
     for (const auto& kv : n) {
-      const auto key = kv.first.as<std::string>("");
+      if (!kv.first.IsScalar()) continue;  // never a known key: map() names it
+      const std::string& key = kv.first.Scalar();
       if (!seen.insert(key).second) error(kv.first, join(path, key), "given twice");
     }
   }

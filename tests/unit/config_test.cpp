@@ -57,6 +57,12 @@ TEST(Config, UnknownKeyIsAnErrorWithPathAndLine) {
   EXPECT_TRUE(has_error(load.errors, "m.yaml:3: compiler.defualt_feed: unknown key"));
 }
 
+TEST(Config, AKeyThatIsAListIsNamed) {
+  const auto load = load_config_text("? [a, b]\n: 1\n", "m.yaml");
+  EXPECT_FALSE(load.config);
+  EXPECT_TRUE(has_error(load.errors, "m.yaml:1: [list]: unknown key")) << load.errors.front();
+}
+
 TEST(Config, OutOfRangeValuesAreAllReported) {
   const auto load = load_config_text(
       "cycle_time_us: 300\n"
