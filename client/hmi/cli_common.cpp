@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 
 #include <fcntl.h>
 #include <sys/mman.h>
@@ -94,7 +95,32 @@ AtomicFile::~AtomicFile() {
 
 bool AtomicFile::open(const std::string& path, std::string& error) {
   path_ = path;
-  tmp_ = path + ".tmp";
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) {  // stat follows links
+    if (S_ISDIR(st.st_mode)) {
+      error = "is a directory";
+      return false;
+    }
+    // A device or a pipe (/dev/stdout too): renaming a file over it would replace it (as root,
+    // /dev/full became a regular file).
+    in_place_ = true;
+    return true;
+  }
+  // Renaming over a symbolic link replaces the link: follow it (also when its file does not
+  // exist yet) and replace the file it names.
+  namespace fs = std::filesystem;
+  fs::path p = path;
+  std::error_code ec;
+  for (int hops = 0; fs::is_symlink(p, ec); ++hops) {
+    const fs::path target = fs::read_symlink(p, ec);
+    if (ec || hops == 40) {
+      error = "cannot follow the symbolic link" + (ec ? ": " + ec.message() : std::string());
+      return false;
+    }
+    p = target.is_absolute() ? target : p.parent_path() / target;
+  }
+  path_ = p.string();
+  tmp_ = path_ + ".tmp";
   f_ = std::fopen(tmp_.c_str(), "wb");
   if (!f_) {
     error = std::string("cannot create: ") + std::strerror(errno);
@@ -106,6 +132,10 @@ bool AtomicFile::open(const std::string& path, std::string& error) {
 }
 
 bool AtomicFile::write(const void* data, std::size_t size, std::string& error) {
+  if (in_place_) {
+    held_.append(static_cast<const char*>(data), size);
+    return true;
+  }
   if (std::fwrite(data, 1, size, f_) != size) {
     error = std::string("cannot write: ") + std::strerror(errno);
     return false;
@@ -114,6 +144,15 @@ bool AtomicFile::write(const void* data, std::size_t size, std::string& error) {
 }
 
 bool AtomicFile::patch(long offset, const void* data, std::size_t size, std::string& error) {
+  if (in_place_) {
+    const auto at = static_cast<std::size_t>(offset);
+    if (offset < 0 || at > held_.size() || size > held_.size() - at) {
+      error = "cannot patch beyond the output written";
+      return false;
+    }
+    held_.replace(at, size, static_cast<const char*>(data), size);
+    return true;
+  }
   const long here = std::ftell(f_);
   if (here < 0 || std::fseek(f_, offset, SEEK_SET) != 0 || !write(data, size, error) ||
       std::fseek(f_, here, SEEK_SET) != 0) {
@@ -124,6 +163,21 @@ bool AtomicFile::patch(long offset, const void* data, std::size_t size, std::str
 }
 
 bool AtomicFile::commit(std::string& error) {
+  if (in_place_) {
+    in_place_ = false;
+    std::FILE* f = std::fopen(path_.c_str(), "wb");
+    if (!f) {
+      error = std::string("cannot open: ") + std::strerror(errno);
+      return false;
+    }
+    const bool written = std::fwrite(held_.data(), 1, held_.size(), f) == held_.size();
+    const int saved = errno;
+    if (std::fclose(f) != 0 || !written) {
+      error = std::string("cannot write: ") + std::strerror(written ? errno : saved);
+      return false;
+    }
+    return true;
+  }
   std::FILE* f = f_;
   f_ = nullptr;
   if (std::fclose(f) != 0) {

@@ -46,6 +46,9 @@ bool write_file_atomic(const std::string& path, const std::string& bytes, std::s
 
 //! A file written in pieces through "<path>.tmp" and renamed into place by commit(); destroyed
 //! without commit() it removes the temporary file, so an error never leaves a partial output.
+//! A path that names a symbolic link is written through it (the file it points to is replaced,
+//! not the link). A path that names a device or a pipe (/dev/stdout, a FIFO) is never renamed
+//! over: the output is held in memory and written into it by commit().
 class AtomicFile {
  public:
   AtomicFile() = default;
@@ -57,11 +60,13 @@ class AtomicFile {
   //! Overwrites bytes already written at `offset`.
   bool patch(long offset, const void* data, std::size_t size, std::string& error);
   bool commit(std::string& error);
-  bool is_open() const { return f_ != nullptr; }
+  bool is_open() const { return f_ != nullptr || in_place_; }
 
  private:
   std::string path_, tmp_;
   std::FILE* f_ = nullptr;
+  bool in_place_ = false;  // a device or a pipe: `held_` is written into it by commit()
+  std::string held_;
 };
 
 //! Tool radius compensation (G41/G42) is recorded in the intercode, but no part of tgm offsets

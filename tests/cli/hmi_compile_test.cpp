@@ -1,6 +1,8 @@
 // tgm-hmi compile as a user runs it: exit codes, the error format, nothing written on error, and
 // the streamed binary output equal to the in-process encoding.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -110,6 +112,51 @@ TEST_F(HmiCompile, DumpJsonlMatchesTheGoldenFile) {
                               " --dump jsonl");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(r.out, slurp(TGM_SOURCE_DIR "/tests/programs/manual_example.jsonl"));
+}
+
+// --out is written into place by a rename: through a symbolic link that must replace the file the
+// link names, not the link, and a pipe or device (a FIFO, /dev/stdout, /dev/full) must be written
+// into, not renamed over (as root, /dev/full became a regular file). The test uses a FIFO of its
+// own: run against a broken tgm-hmi it must not replace a device of the machine.
+TEST_F(HmiCompile, OutputThroughALinkOrIntoAPipeKeepsTheLinkAndThePipe) {
+  const std::string compile =
+      "compile " + std::string(test::kManualExample) + " --config " + kConfig + " --out ";
+  const fs::path plain = dir_ / "plain.tgmi";
+  ASSERT_EQ(run(compile + plain.string()).exit_code, 0);
+  const std::string expected = slurp(plain);
+  ASSERT_FALSE(expected.empty());
+  // Binary: compared whole, reported by size.
+  auto same = [&](const std::string& got) {
+    return got == expected ? ::testing::AssertionSuccess()
+                           : ::testing::AssertionFailure() << got.size() << " bytes, not the "
+                                                           << expected.size() << " expected";
+  };
+
+  const fs::path link = dir_ / "link.tgmi";
+  fs::create_symlink("real.tgmi", link);  // dangling until the first write
+  for (int i = 0; i < 2; ++i) {
+    const ProcessResult r = run(compile + link.string());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_TRUE(fs::is_symlink(link));
+    EXPECT_TRUE(same(slurp(dir_ / "real.tgmi")));
+  }
+  const fs::path bad = write("bad.ngc", "G1 X1 F600\nG7\n");
+  EXPECT_EQ(
+      run("compile " + bad.string() + " --config " + kConfig + " --out " + link.string()).exit_code,
+      2);
+  EXPECT_TRUE(same(slurp(dir_ / "real.tgmi")));  // an error leaves the file as it was
+
+  // A FIFO read by a background cat (ended by timeout if the pipe were replaced: no hang).
+  const fs::path fifo = dir_ / "fifo", got = dir_ / "got", done = dir_ / "done";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const std::string reader = "(timeout 20 cat " + fifo.string() + " > " + got.string() +
+                             "; touch " + done.string() + ") &";
+  ASSERT_EQ(std::system(reader.c_str()), 0);
+  const ProcessResult r = run(compile + fifo.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(fs::is_fifo(fifo));
+  for (int i = 0; i < 250 && !fs::exists(done); ++i) ::usleep(100'000);
+  EXPECT_TRUE(same(slurp(got)));
 }
 
 TEST_F(HmiCompile, BadCommandLinesAndFilesAreUsageErrors) {
