@@ -1,4 +1,5 @@
 // tgm-hmi: the operator client of the tgm motion service.
+#include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <string_view>
@@ -25,7 +26,9 @@ constexpr const char* kUsage =
 
 }  // namespace
 
-int main(int argc, char** argv) {
+namespace {
+
+int run_command(int argc, char** argv) {
   if (argc < 2) {
     std::fputs(kUsage, stderr);
     return 2;
@@ -51,4 +54,17 @@ int main(int argc, char** argv) {
 #endif
   std::fprintf(stderr, "tgm-hmi: unknown command '%s'\n\n%s", argv[1], kUsage);
   return 2;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const int code = run_command(argc, argv);
+  // What went to standard output (a summary, a dump, a CSV on stdout) must have arrived: a full
+  // disk or a closed pipe is an error, not exit code 0 with the output lost.
+  if (std::fflush(stdout) != 0 || std::ferror(stdout)) {
+    std::fprintf(stderr, "tgm-hmi: cannot write standard output: %s\n", std::strerror(errno));
+    return code != 0 ? code : 1;
+  }
+  return code;
 }

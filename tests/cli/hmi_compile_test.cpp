@@ -191,6 +191,23 @@ TEST_F(HmiCompile, BadConfigNamesTheKey) {
   EXPECT_NE(r.err.find("cycle_time_us: must be 250, 500 or 1000, not 400"), std::string::npos);
 }
 
+// Standard output that cannot be written (a full disk: /dev/full) fails the command, whatever it
+// printed there: a summary, a dump, the help.
+TEST_F(HmiCompile, StandardOutputThatIsLostIsAnError) {
+  const fs::path err = dir_ / "err";
+  for (const std::string& args :
+       {std::string("--help"),
+        "simulate " + std::string(test::kManualExample) + " --config " + kConfig,
+        "compile " + std::string(test::kManualExample) + " --config " + kConfig + " --dump text"}) {
+    const std::string cmd =
+        std::string(TGM_HMI) + " " + args + " >/dev/full 2>" + err.string() + " </dev/null";
+    const int status = std::system(cmd.c_str());
+    ASSERT_TRUE(WIFEXITED(status)) << args;
+    EXPECT_EQ(WEXITSTATUS(status), 1) << args;
+    EXPECT_NE(slurp(err).find("No space left on device"), std::string::npos) << args << slurp(err);
+  }
+}
+
 TEST_F(HmiCompile, HelpIsPrintedAndSucceeds) {
   ProcessResult r = run("--help");
   EXPECT_EQ(r.exit_code, 0);
