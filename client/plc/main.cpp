@@ -282,6 +282,9 @@ int main(int argc, char** argv) {
   sa.sa_handler = on_signal;
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
+  // A log reader that goes away must not end the emulator: the interpolators would wait for
+  // their M-function acknowledgements for good. Its writes fail with EPIPE instead.
+  ::signal(SIGPIPE, SIG_IGN);
 
   std::string rt_log;
   if (rt_priority > 0) {

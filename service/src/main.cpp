@@ -4,6 +4,8 @@
 #include <sched.h>
 #include <signal.h>
 
+#include <csignal>
+
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
@@ -134,6 +136,9 @@ int main(int argc, char** argv) {
   sigaddset(&signals, SIGINT);
   sigaddset(&signals, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+  // A log reader that goes away (a closed pipe, a restarted journal) must not end the service
+  // and stop the machines with it: its writes fail with EPIPE and the log is lost, nothing more.
+  ::signal(SIGPIPE, SIG_IGN);
 
   if (dds_priority >= rt.priority)
     return args.usage_error("--dds-priority must be below --rt-priority");

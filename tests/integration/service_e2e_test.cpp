@@ -2,7 +2,10 @@
 // memory): the manual's example end to end, the M-function handshake, a late-joining HMI, role
 // enforcement, and a 100,000-record program streamed into a 1,000-record buffer while it runs.
 // Time bounds only guard against hangs; what is checked is counted in interpolation cycles.
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <cmath>
@@ -519,6 +522,28 @@ TEST(ServiceProcesses, ClientKeepsAtMost64RequestsUnanswered) {
   std::this_thread::sleep_for(1100ms);
   EXPECT_NE(plc.send(r), 0u);
   EXPECT_EQ(env.service.interrupt(20s), 0) << env.service.log();
+}
+
+// The service and the PLC emulator log to standard output. When whatever reads it goes away (a
+// closed pipe, a restarted log collector), their writes fail with EPIPE and they carry on:
+// SIGPIPE used to end them, and the machines with them.
+TEST(ServiceProcesses, ServiceAndPlcOutliveTheReaderOfTheirLog) {
+  ServiceEnv env;
+  const std::string fifo = env.path("log.fifo");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const int reader = ::open(fifo.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);  // children open it
+  ASSERT_GE(reader, 0);
+  test::Child service, plc;
+  ASSERT_TRUE(service.start({TGM_SERVICE_BIN, "--config", env.config(), "--no-realtime"}, fifo));
+  ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.config()}, fifo));
+  std::this_thread::sleep_for(1s);
+  ::close(reader);  // from here on every write to the log fails
+  std::this_thread::sleep_for(1s);
+  EXPECT_TRUE(service.running());
+  EXPECT_TRUE(plc.running());
+  // Both still write (the PLC and the service say that they stop) and still exit cleanly.
+  EXPECT_EQ(plc.interrupt(kHang), 0);
+  EXPECT_EQ(service.interrupt(kHang), 0);
 }
 
 TEST(ServiceProcesses, ServiceStopsCleanlyOnSigtermAndRejectsBadFlags) {
