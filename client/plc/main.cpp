@@ -104,8 +104,13 @@ bool load_script(const std::string& path, std::vector<ScriptStep>& steps, std::s
         return false;
       }
       ScriptStep s;
+      std::set<std::string> seen;
       for (const auto& kv : n) {
         const std::string key = kv.first.as<std::string>();
+        if (!seen.insert(key).second) {  // yaml-cpp keeps both: one would be dropped unsaid
+          error = path + ":" + std::to_string(line) + ": '" + key + "' is given twice";
+          return false;
+        }
         if (key == "at_s") s.at_s = kv.second.as<double>();
         else if (key == "interpolator") s.interpolator = kv.second.as<int>();
         else if (key == "rel_speed") s.rel_speed = kv.second.as<double>();

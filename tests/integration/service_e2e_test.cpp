@@ -546,6 +546,28 @@ TEST(ServiceProcesses, ServiceAndPlcOutliveTheReaderOfTheirLog) {
   EXPECT_EQ(service.interrupt(kHang), 0);
 }
 
+// tgm-plc --script: a bad step is named by its line and the reason, before anything is sent.
+TEST(ServiceProcesses, PlcScriptErrorsNameTheLineAndTheReason) {
+  ServiceEnv env;
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"{at_s: 1, command: 8}\n", ": the script must be a list of steps"},
+      {"- {at_s: 1, command: 8}\n- {at_s: 2, comand: 9}\n", ":2: unknown key 'comand'"},
+      {"- {at_s: 1, command: 8}\n- {at_s: 2, at_s: 3, command: 9}\n", ":2: 'at_s' is given twice"},
+      {"- {at_s: -1, command: 8}\n", ":1: at_s must be a number of seconds >= 0"},
+      {"- 8\n", ":1: a step must be a map"},
+  };
+  for (std::size_t i = 0; i < cases.size(); ++i) {
+    const std::string script = env.path("script" + std::to_string(i) + ".yaml");
+    std::ofstream(script) << cases[i].first;
+    test::Child plc;
+    ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.config(), "--script", script},
+                          env.path("plc" + std::to_string(i) + ".log")));
+    EXPECT_EQ(plc.wait(kHang), 2) << cases[i].first;
+    EXPECT_NE(plc.log().find(script + cases[i].second), std::string::npos)
+        << cases[i].first << plc.log();
+  }
+}
+
 TEST(ServiceProcesses, ServiceStopsCleanlyOnSigtermAndRejectsBadFlags) {
   ServiceEnv env;
   test::Child bad;
