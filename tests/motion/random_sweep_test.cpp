@@ -7,7 +7,7 @@
 // TGM_SWEEP_FIRST (default 0); the command line wins. A long run:
 //   build/tests/motion/tgm_motion_tests --gtest_filter='RandomSweep.*' --seed=7 --count=5000
 // --machines=wide draws the machines from a far wider envelope (test::wide_machine); seeds 1..41
-// and 101..131 x 300 pass, with their stop sweeps, since session 31 (core/MOTION.md, "Known
+// and 101..160 x 300 pass, with their stop sweeps, since session 32 (core/MOTION.md, "Known
 // gaps", has the history). CTest runs seeds 1 and 22 x 300 of it, plain and with stops
 // (motion.sweep.wide1, motion.sweep.wide22).
 //
@@ -467,6 +467,19 @@ TEST(RandomSweep, WideStopSeed8Program126LeavesAFeedHoldJustBeforeAStopPoint) {
   SimulationSummary s;
   ASSERT_NO_FATAL_FAILURE(expect_runs_clean(c, o, "wide " + ctx, &s));
   EXPECT_EQ(s.stops, 1u);
+}
+
+// Wide sweep seed 148 program 273 (5 axes, 250 us): braking at X's jerk limit (2,885 mm/s^3)
+// for a dwell, the motion came within 1e-9 mm of it with 0.28 mm/s^2 of path deceleration left.
+// The arriving step took 0.17 of it back at the record's jerk limit and the arrival cut the
+// rest, 1.7 x that limit in one calculation step; the next line left at once at X's limit, and
+// X's jerk differentiated per cycle came to 2,886.86 > 2,885.12 mm/s^3. An arrival now needs
+// the whole step, from the deceleration it starts with down to none, within the jerk limit.
+TEST(RandomSweep, WideSeed148Program273ArrivesWithinTheJerkLimitBeforeLeavingAtIt) {
+  const SweepCase c = sweep_case(148, 273, true);
+  ASSERT_EQ(c.axes, 5);
+  ASSERT_EQ(c.machine.cycle_time_us, 250);
+  expect_runs_clean(c, "wide seed 148 program 273");
 }
 
 // Wide sweep seed 1 programs 55 and 86 (1 ms): braking for a corner of a few hundredths of a

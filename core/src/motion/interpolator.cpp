@@ -2390,11 +2390,15 @@ struct Interpolator::Impl {
       const double L = R(q).g.length;
       const double room = L - s_local;
       // Short of the record's end, unless coming to rest just before a stop point (arrival).
-      // Within kArriveD only with a deceleration one calculation step can take back at the
-      // record's jerk limit: the arrival sets a = 0, and on a soft axis the last 1e-9 mm of a
-      // braking still carries a deceleration that takes several cycles to release (0.05 mm/s^2
-      // at 126 mm/s^3: cut at once it exceeded the axis jerk by 4..15 % in the cycles around the
-      // stop, wide sweep seed 2 program 161, seed 5 program 147 and six more).
+      // Within kArriveD only when this step, from the deceleration it starts with down to none,
+      // stays within the record's jerk limit: the arrival sets a = 0, and on a soft axis the last
+      // 1e-9 mm of a braking still carries a deceleration that takes several cycles to release
+      // (0.05 mm/s^2 at 126 mm/s^3: cut at once it exceeded the axis jerk by 4..15 % in the
+      // cycles around the stop, wide sweep seed 2 program 161, seed 5 program 147 and six more).
+      // Judged by the deceleration at the step's end, a step that had used the whole jerk limit
+      // could still cut as much again: 1.7 x the limit in one step, and with the next record
+      // leaving at once at its limit, X's jerk per cycle came to 1.0006 x its limit (wide sweep
+      // seed 148 program 273, 250 us).
       // Standing, within what one calculation step from rest at the record's jerk limit
       // covers (J dt^3 / 6): the motion cannot land there in steps of one jerk each (the plans'
       // step allowance fails every x the search can resolve), so it arrives. A Command 8 ramp
@@ -2406,7 +2410,7 @@ struct Interpolator::Impl {
                                   room - remaining <= R(q).jt * dt * dt * dt / 6.0;
       if (remaining < room &&
           !(((room - remaining <= kArriveD && ns.v <= kArriveV &&
-              std::fabs(ns.a) <= R(q).jt * dt) ||
+              std::fabs(before.a) <= R(q).jt * dt) ||
              (room - remaining <= kRestD && ns.v <= kStandstillV) || standing_short) &&
             stop_follows(q))) {
         s_local += remaining;
