@@ -4,8 +4,6 @@
 #include <sched.h>
 #include <signal.h>
 
-#include <csignal>
-
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
