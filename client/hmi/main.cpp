@@ -62,8 +62,11 @@ int main(int argc, char** argv) {
   const int code = run_command(argc, argv);
   // What went to standard output (a summary, a dump, a CSV on stdout) must have arrived: a full
   // disk or a closed pipe is an error, not exit code 0 with the output lost.
-  if (std::fflush(stdout) != 0 || std::ferror(stdout)) {
-    std::fprintf(stderr, "tgm-hmi: cannot write standard output: %s\n", std::strerror(errno));
+  // errno names the cause only when this flush failed; an earlier write's errno is gone.
+  const bool flush_failed = std::fflush(stdout) != 0;
+  if (flush_failed || std::ferror(stdout)) {
+    std::fprintf(stderr, "tgm-hmi: cannot write standard output%s%s\n", flush_failed ? ": " : "",
+                 flush_failed ? std::strerror(errno) : "");
     return code != 0 ? code : 1;
   }
   return code;
