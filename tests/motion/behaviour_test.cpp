@@ -843,5 +843,73 @@ TEST(LimitChecker, ATraceIsCheckedAsItsCyclesOneByOne) {
   EXPECT_TRUE(corner);
 }
 
+// An emergency stop from a crawl on a soft machine with a high emergency / normal ratio ramps
+// down inside one cycle: the registers go from Status 1 straight to 7 and never show 6. That
+// cycle is the ramp's and is judged at its limits; the standstill after it and the restart are
+// judged at the normal ones again. (At 1 ms cycles, A 100 mm/s^2, J 10 mm/s^3 and an emergency
+// deceleration of 10,000 mm/s^2, a Command 4 three cycles after the start braked at 39 mm/s^3,
+// within the ramp's 1,000, and was reported as three jerk excesses over the 10.)
+TEST(LimitChecker, ARampInsideOneCycleIsJudgedAtTheEmergencyLimits) {
+  MachineConfig mc = machine();
+  mc.cycle_time_us = 1000;
+  for (AxisConfig& a : mc.interpolators[0].axes) {
+    a.max_velocity_mm_s = a.rapid_velocity_mm_s = 1000.0;
+    a.max_acceleration_mm_s2 = 100.0;
+    a.max_jerk_mm_s3 = 10.0;
+    a.emergency_deceleration_mm_s2 = 10000.0;
+  }
+  ASSERT_TRUE(mc.validate().empty());
+  test::ProgramBuilder b(3);
+  b.line({1.0, 0.5, 0.0}, 60000.0).end();
+  SimulationOptions o;
+  o.check_limits = true;
+  o.stops = {{0.003, 4}};
+  o.stop_restart_s = 0.01;
+  auto sim = Simulation::create(mc, o);
+  ASSERT_TRUE(sim);
+  std::vector<std::int32_t> status;
+  const SimulationSummary s = sim->run(b.program(), [&](const Registers& r) {
+    if (status.size() < 8) status.push_back(r.status);
+  });
+  EXPECT_EQ(s.result, StepResult::kFinished) << s.error;
+  EXPECT_EQ(s.stops, 1u);
+  // The case itself: no cycle of Status 6.
+  const auto ramp = static_cast<std::int32_t>(InterpolatorStatus::kEmergencyRamp);
+  const auto stopped = static_cast<std::int32_t>(InterpolatorStatus::kEmergencyStopped);
+  ASSERT_EQ(status.size(), 8u);
+  EXPECT_EQ(std::count(status.begin(), status.end(), ramp), 0);
+  EXPECT_EQ(status[3], stopped);
+  EXPECT_GT(s.peaks[0].jerk_mm_s3, 10.0);  // above the normal limit, within the ramp's
+  EXPECT_EQ(s.violation_count, 0u);
+  for (const auto& v : s.violations) {
+    ADD_FAILURE() << "cycle " << v.cycle << " axis " << v.axis << " " << limit_quantity_name(v.quantity)
+                  << " " << v.value << " > " << v.limit;
+  }
+  // The same samples with the step to Status 7 hidden are excesses of normal motion.
+  auto ch = LimitChecker::create(mc.interpolators[0], mc.cycle_time_us);
+  ASSERT_TRUE(ch);
+  auto replay = [&](bool hide) {
+    auto ip = Interpolator::create(mc, 0);
+    EXPECT_TRUE(ip);
+    EXPECT_TRUE(ip->load(b.program()).ok());
+    EXPECT_TRUE(ip->start().ok());
+    ch->add_cycle(ip->registers(), {});
+    for (int c = 1; c <= 8; ++c) {
+      if (c == 4) {
+        EXPECT_TRUE(ip->command(4).ok());
+      }
+      ip->step();
+      Registers r = ip->registers();
+      if (hide && r.status == stopped) r.status = 1;
+      ch->add_cycle(r, ip->corner_events());
+    }
+  };
+  replay(false);
+  EXPECT_EQ(ch->violation_count(), 0u);
+  ch = LimitChecker::create(mc.interpolators[0], mc.cycle_time_us);
+  replay(true);
+  EXPECT_GT(ch->violation_count(), 0u);
+}
+
 }  // namespace
 }  // namespace tgm

@@ -110,6 +110,9 @@ class LimitChecker {
   // The last four cycles, a ring: sample k (0 = newest) is in slot (head_ - k) & 3.
   std::array<std::array<double, kMaxAxes>, 4> x_{};
   std::array<bool, 4> emergency_{};
+  // Status of the newest sample: a ramp that starts and ends inside one cycle shows only as
+  // the step to Status 7, never as Status 6.
+  std::int32_t last_status_ = static_cast<std::int32_t>(InterpolatorStatus::kEmergencyStopped);
   std::uint64_t last_cycle_ = 0;  // the newest sample's cycle (the series needs consecutive ones)
   unsigned head_ = 0;
   int samples_ = 0;

@@ -75,8 +75,8 @@ void LimitChecker::add_trace(std::span<const CycleTrace> trace,
       // only the cycle numbers move on.
       if (k + 1 < t.count && samples_ == 4 && events_.empty() &&
           (e == events.size() || events[e].cycle > last) && history_is(t.orig_position)) {
-        const bool em = emergency_[slot(0)];
-        emergency_.fill(em);
+        // The same status again: a cycle of Status 7 after the first is not part of a ramp.
+        emergency_.fill(t.status == static_cast<std::int32_t>(InterpolatorStatus::kEmergencyRamp));
         last_cycle_ = last;
         break;
       }
@@ -107,7 +107,15 @@ void LimitChecker::add(std::uint64_t cycle, std::int32_t line, std::int32_t stat
   // were checked when they came in.)
   if (samples_ > 0 && last_cycle_ + 1 != cycle) samples_ = 0;
   last_cycle_ = cycle;
-  emergency_[s0] = status == static_cast<std::int32_t>(InterpolatorStatus::kEmergencyRamp);
+  // The emergency ramp's limits hold for its cycles (Status 6) and for the cycle that ends it
+  // (the step to Status 7): a ramp from a crawl, or one of a high emergency / normal ratio,
+  // may start and end inside one cycle and never show Status 6 (at 1 ms cycles, a stop 3 ms
+  // after a start on an axis of 100 mm/s^2 and 10 mm/s^3 braked at 39 mm/s^3 and was reported
+  // against the 10 mm/s^3 of normal motion).
+  const auto stopped = static_cast<std::int32_t>(InterpolatorStatus::kEmergencyStopped);
+  emergency_[s0] = status == static_cast<std::int32_t>(InterpolatorStatus::kEmergencyRamp) ||
+                   (status == stopped && last_status_ != stopped);
+  last_status_ = status;
   if (samples_ < 4) ++samples_;
   for (const CornerEvent& e : events) {
     events_.push_back({e.cycle, e.fraction, e.dv, e.da});
