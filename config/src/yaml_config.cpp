@@ -11,6 +11,7 @@
 #include <fstream>
 #include <functional>
 #include <limits>
+#include <map>
 #include <set>
 #include <sstream>
 
@@ -24,6 +25,14 @@ class Reader {
   explicit Reader(std::string file) : file_(std::move(file)) {}
 
   std::vector<std::string> errors;
+  // Line (1-based) of each value read, by key path; and for a value an axis took from
+  // axis_defaults, the key path it was written at (validate() names the axis's own path).
+  std::map<std::string, int> line_of;
+  std::map<std::string, std::string> origin;
+
+  void note(const YAML::Node& n, const std::string& path) {
+    if (n.IsDefined() && n.Mark().line >= 0) line_of[path] = n.Mark().line + 1;
+  }
 
   void error(const YAML::Node& n, const std::string& path, const std::string& reason) {
     std::string where = file_;
@@ -72,6 +81,7 @@ class Reader {
       error(n, join(path, key), "must be a number, not '" + text(n) + "'");
       return;
     }
+    note(n, join(path, key));
     out = v;
   }
 
@@ -94,6 +104,7 @@ class Reader {
                 ", not '" + text(n) + "'");
       return;
     }
+    note(n, join(path, key));
     out = static_cast<Int>(v);
   }
 
@@ -170,6 +181,7 @@ void read_axis(Reader& r, const YAML::Node& n, const std::string& path, AxisConf
       r.error(n["letter"], path + ".letter", "must be one letter, not '" + s + "'");
     } else {
       a.letter = static_cast<char>(std::toupper(static_cast<unsigned char>(s[0])));
+      r.note(n["letter"], path + ".letter");
     }
   }
   r.number(n, path, "max_velocity_mm_s", a.max_velocity_mm_s);
@@ -180,6 +192,47 @@ void read_axis(Reader& r, const YAML::Node& n, const std::string& path, AxisConf
   r.number(n, path, "corner_velocity_tolerance_mm_s", a.corner_velocity_tolerance_mm_s);
   r.number(n, path, "ratio_inc_per_mm", a.ratio_inc_per_mm);
   r.number(n, path, "backlash_mm", a.backlash_mm);
+}
+
+// Notes the axis_defaults keys that axis `path` (its own node `axis`, maybe undefined) takes.
+void from_defaults(Reader& r, const YAML::Node& defaults, const YAML::Node& axis,
+                   const std::string& path) {
+  if (!defaults || !defaults.IsMap()) return;
+  for (const std::string& key : kAxisKeys) {
+    if (defaults[key] && !(axis && axis.IsMap() && axis[key])) {
+      r.origin[path + "." + key] = "axis_defaults." + key;
+    }
+  }
+}
+
+// validate()'s findings ("key.path: reason") with the file and the line the value was written
+// at. A value an axis took from axis_defaults is named there, once for every axis that took it
+// with the same finding (a bad default was reported nine times, without a line).
+std::vector<std::string> locate(const Reader& r, const std::string& file,
+                                const std::vector<std::string>& findings) {
+  std::vector<std::string> out;
+  std::map<std::string, std::size_t> shared;  // "origin: reason" -> index in out
+  std::map<std::string, int> takers;
+  for (const std::string& f : findings) {
+    const std::size_t colon = f.find(": ");
+    const std::string key = colon == std::string::npos ? f : f.substr(0, colon);
+    const std::string reason = colon == std::string::npos ? "" : f.substr(colon + 2);
+    const auto o = r.origin.find(key);
+    const std::string at = o != r.origin.end() ? o->second : key;
+    const auto l = r.line_of.find(at);
+    const std::string where = file + (l != r.line_of.end() ? ":" + std::to_string(l->second) : "");
+    if (o == r.origin.end()) {
+      out.push_back(where + ": " + f);
+      continue;
+    }
+    const std::string id = at + ": " + reason;
+    const auto [it, fresh] = shared.emplace(id, out.size());
+    if (fresh) out.push_back(where + ": " + f + " (from " + at + ")");
+    if (++takers[id] > 1) {
+      out[it->second] = where + ": " + id + "; " + std::to_string(takers[id]) + " axes take it";
+    }
+  }
+  return out;
 }
 
 void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
@@ -214,7 +267,9 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
           for (std::size_t i = 0; i < axes.size(); ++i) {
             AxisConfig a = defaults;
             a.letter = default_axis_letter(static_cast<int>(i));
-            read_axis(r, axes[i], path + ".axes[" + std::to_string(i) + "]", a, true);
+            const std::string ap = path + ".axes[" + std::to_string(i) + "]";
+            read_axis(r, axes[i], ap, a, true);
+            from_defaults(r, root["axis_defaults"], axes[i], ap);
             ip.axes.push_back(a);
           }
         }
@@ -224,11 +279,14 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
   } else if (root["axis_defaults"]) {
     // No interpolators listed: the axis defaults apply to the built-in machine's axes (they were
     // read and then dropped without a word).
-    for (auto& ip : m.interpolators) {
-      for (auto& a : ip.axes) {
-        const char letter = a.letter;
-        a = defaults;
-        a.letter = letter;
+    for (std::size_t k = 0; k < m.interpolators.size(); ++k) {
+      auto& axes = m.interpolators[k].axes;
+      for (std::size_t i = 0; i < axes.size(); ++i) {
+        const char letter = axes[i].letter;
+        axes[i] = defaults;
+        axes[i].letter = letter;
+        from_defaults(r, root["axis_defaults"], YAML::Node(),
+                      "interpolators[" + std::to_string(k) + "].axes[" + std::to_string(i) + "]");
       }
     }
   }
@@ -368,7 +426,7 @@ ConfigLoad load_config_text(const std::string& text, const std::string& path) {
   } catch (const YAML::Exception& e) {
     r.errors.push_back(path + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg);
   }
-  for (const auto& e : cfg.machine.validate()) r.errors.push_back(path + ": " + e);
+  for (auto& e : locate(r, path, cfg.machine.validate())) r.errors.push_back(std::move(e));
   if (!r.errors.empty()) {
     out.errors = std::move(r.errors);
     return out;

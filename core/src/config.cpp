@@ -72,15 +72,31 @@ std::vector<std::string> MachineConfig::validate() const {
       } else if (!seen.insert(L).second) {
         e.push_back(ab + ".letter: '" + std::string(1, L) + "' is used by two axes");
       }
-      auto pos = [&](const char* key, double v) {
-        if (!finite_positive(v)) e.push_back(ab + "." + key + ": must be > 0, not " + num(v));
+      auto in_range = [&](const char* key, double v, double lo, double hi, const char* unit) {
+        if (!finite_positive(v)) {
+          e.push_back(ab + "." + key + ": must be > 0, not " + num(v));
+        } else if (v < lo || v > hi) {
+          e.push_back(ab + "." + key + ": must be " + num(lo) + ".." + num(hi) + " " + unit +
+                      ", not " + num(v));
+        }
       };
-      pos("max_velocity_mm_s", a.max_velocity_mm_s);
-      pos("max_acceleration_mm_s2", a.max_acceleration_mm_s2);
-      pos("max_jerk_mm_s3", a.max_jerk_mm_s3);
-      pos("rapid_velocity_mm_s", a.rapid_velocity_mm_s);
-      pos("emergency_deceleration_mm_s2", a.emergency_deceleration_mm_s2);
-      pos("corner_velocity_tolerance_mm_s", a.corner_velocity_tolerance_mm_s);
+      in_range("max_velocity_mm_s", a.max_velocity_mm_s, kMinVelocity, kMaxVelocity, "mm/s");
+      in_range("max_acceleration_mm_s2", a.max_acceleration_mm_s2, kMinAcceleration,
+               kMaxAcceleration, "mm/s^2");
+      in_range("max_jerk_mm_s3", a.max_jerk_mm_s3, kMinJerk, kMaxJerk, "mm/s^3");
+      in_range("rapid_velocity_mm_s", a.rapid_velocity_mm_s, kMinVelocity, kMaxVelocity, "mm/s");
+      in_range("emergency_deceleration_mm_s2", a.emergency_deceleration_mm_s2, kMinAcceleration,
+               kMaxAcceleration, "mm/s^2");
+      in_range("corner_velocity_tolerance_mm_s", a.corner_velocity_tolerance_mm_s,
+               kMinCornerTolerance, kMaxCornerTolerance, "mm/s");
+      // The interpolator used to raise a lower one to max_acceleration_mm_s2 without a word.
+      if (finite_positive(a.emergency_deceleration_mm_s2) &&
+          finite_positive(a.max_acceleration_mm_s2) &&
+          a.emergency_deceleration_mm_s2 < a.max_acceleration_mm_s2) {
+        e.push_back(ab + ".emergency_deceleration_mm_s2: " + num(a.emergency_deceleration_mm_s2) +
+                    " is below max_acceleration_mm_s2 " + num(a.max_acceleration_mm_s2) +
+                    " (an emergency stop brakes at least as hard as a normal one)");
+      }
       // The range a Ratio write accepts (1e300 gave PositionInc values of -2^63).
       if (!(std::fabs(a.ratio_inc_per_mm) >= kMinRatio &&
             std::fabs(a.ratio_inc_per_mm) <= kMaxRatio)) {

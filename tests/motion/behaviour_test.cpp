@@ -665,6 +665,65 @@ TEST(Requests, RefusedWithReasons) {
   EXPECT_NE(err.find("not configured"), std::string::npos);
 }
 
+// The config accepts axis limits in kMin*..kMax* (config.hpp); every corner of that box runs
+// clean at every cycle time: lines, a rapid, an arc, a 0.014 mm line, a normal M-function, a
+// helix, a dwell and a line back, with emergency and normal stops on the way, the emergency
+// deceleration at the acceleration or at its largest value. Just outside it they did not: at
+// 1e7 mm/s^2 and 1e10 mm/s^3 with 1 ms cycles a 0.001 mm/s corner was stepped over by 34 mm/s,
+// at 1e-300 mm/s^2 the line never got going.
+TEST(Machines, LimitsAtTheEndsOfTheirRangesRunClean) {
+  int runs = 0;
+  for (const int cycle_us : {250, 500, 1000}) {
+    for (int corner = 0; corner < 32; ++corner) {
+      const bool fast = corner & 1, hard = corner & 2, stiff = corner & 4, loose = corner & 8;
+      MachineConfig mc = machine();
+      mc.cycle_time_us = cycle_us;
+      for (AxisConfig& a : mc.interpolators[0].axes) {
+        a.max_velocity_mm_s = a.rapid_velocity_mm_s = fast ? kMaxVelocity : kMinVelocity;
+        a.max_acceleration_mm_s2 = hard ? kMaxAcceleration : kMinAcceleration;
+        a.emergency_deceleration_mm_s2 = corner & 16 ? kMaxAcceleration : a.max_acceleration_mm_s2;
+        a.max_jerk_mm_s3 = stiff ? kMaxJerk : kMinJerk;
+        a.corner_velocity_tolerance_mm_s = loose ? kMaxCornerTolerance : kMinCornerTolerance;
+      }
+      ASSERT_TRUE(mc.validate().empty());
+      // Slow machines get a smaller program (at 0.01 mm/s, 5.8 s instead of 580 s).
+      const double k = fast ? (hard ? 1.0 : 0.1) : 0.01;
+      ProgramBuilder b;
+      b.line({k * 1.0, k * 0.5, 0.0}, 60000.0);
+      b.rapid({k * 1.2, k * 0.5, 0.0});
+      b.arc(false, {k * 2.2, k * 0.5, 0.0}, {k * 1.7, k * 0.5}, 60000.0);
+      b.line({k * 2.21, k * 0.49, k * 0.001}, 60000.0);
+      b.m(5, MKind::kNormal);
+      b.arc(true, {k * 2.21, k * 0.49, k * 0.2}, {k * 2.11, k * 0.49}, 60000.0);
+      b.dwell(0.01);
+      b.line({0.0, 0.0, 0.0}, 60000.0);
+      b.end();
+      SimulationOptions o;
+      o.check_limits = true;
+      o.m_ack_s = 0.01;
+      o.stops = {{0.003, 4}, {0.05, 8}, {0.3, 4}, {2.0, 8}};
+      o.stop_restart_s = 0.01;
+      auto sim = Simulation::create(mc, o);
+      ASSERT_TRUE(sim);
+      const SimulationSummary s = sim->run(b.program());
+      const std::string where =
+          "cycle " + std::to_string(cycle_us) + " us, corner " + std::to_string(corner);
+      EXPECT_EQ(s.result, StepResult::kFinished) << where << ": " << s.error;
+      EXPECT_EQ(s.violation_count, 0u) << where;
+      for (const auto& v : s.violations) {
+        ADD_FAILURE() << where << ": cycle " << v.cycle << " axis " << v.axis << " "
+                      << limit_quantity_name(v.quantity) << " " << v.value << " > " << v.limit;
+      }
+      EXPECT_EQ(s.hard_stops, 0u) << where;
+      EXPECT_GE(s.stops, fast && hard ? 1u : 4u) << where;  // a stiff machine is done by 0.3 s
+      for (int i = 0; i < 3; ++i)
+        EXPECT_NEAR(s.end_position[static_cast<std::size_t>(i)], 0.0, 1e-9) << where;
+      ++runs;
+    }
+  }
+  EXPECT_EQ(runs, 96);
+}
+
 // A jerk limit far above what one calculation step can use (found by a sweep of random
 // configs): at 1e8..1e10 mm/s^3 the line-to-arc corner below was crossed 2 to 32 % above its
 // tolerance (corner step 2.04..2.64 mm/s > 2). The planner now uses at most A / (4 dt).

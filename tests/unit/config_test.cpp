@@ -77,6 +77,63 @@ TEST(Config, OutOfRangeValuesAreAllReported) {
   EXPECT_TRUE(has_error(load.errors, "interpolators[0].axes[1].letter: 'X' is used by two axes"));
 }
 
+// Axis limits outside the range the motion core is tested over are errors that name the range
+// (1e-300 mm/s^2 never got a line going; 1e300 mm/s was accepted and printed with 300 digits),
+// and an emergency deceleration below the axis's acceleration is one (the interpolator raised
+// it to the acceleration without a word). A finding in a value an axis takes from
+// axis_defaults is reported once, at the line of axis_defaults that sets it.
+TEST(Config, AxisLimitsOutsideTheTestedRangeAreErrorsWithTheirLine) {
+  auto load = load_config_text(
+      "axis_defaults:\n"
+      "  max_acceleration_mm_s2: 2000\n"
+      "  max_jerk_mm_s3: 5\n"
+      "interpolators:\n"
+      "  - axes: [{letter: X, max_jerk_mm_s3: 100}, {letter: Y}, {letter: Z}]\n"
+      "  - axes:\n"
+      "      - {letter: X, max_velocity_mm_s: 1e300, rapid_velocity_mm_s: 0.001}\n"
+      "      - {letter: Y, max_jerk_mm_s3: 50, corner_velocity_tolerance_mm_s: 2e4}\n"
+      "      - {letter: Z, max_jerk_mm_s3: 50, emergency_deceleration_mm_s2: 1999}\n",
+      "m.yaml");
+  EXPECT_FALSE(load.config);
+  ASSERT_EQ(load.errors.size(), 5u);
+  EXPECT_EQ(
+      load.errors[0],
+      "m.yaml:3: axis_defaults.max_jerk_mm_s3: must be 10..1e+10 mm/s^3, not 5; 3 axes take it");
+  EXPECT_EQ(load.errors[1],
+            "m.yaml:7: interpolators[1].axes[0].max_velocity_mm_s: must be 0.01..100000 mm/s, "
+            "not 1e+300");
+  EXPECT_EQ(load.errors[2],
+            "m.yaml:7: interpolators[1].axes[0].rapid_velocity_mm_s: must be 0.01..100000 mm/s, "
+            "not 0.001");
+  EXPECT_EQ(load.errors[3],
+            "m.yaml:8: interpolators[1].axes[1].corner_velocity_tolerance_mm_s: must be "
+            "0.001..10000 mm/s, not 20000");
+  EXPECT_EQ(load.errors[4],
+            "m.yaml:9: interpolators[1].axes[2].emergency_deceleration_mm_s2: 1999 is below "
+            "max_acceleration_mm_s2 2000 (an emergency stop brakes at least as hard as a normal "
+            "one)");
+  // One axis taking a bad default is named with the default's line.
+  load = load_config_text(
+      "axis_defaults: {max_acceleration_mm_s2: 0.01}\n"
+      "interpolators: [{axes: [{letter: X}, {letter: Y, max_acceleration_mm_s2: 100}]}]\n",
+      "m.yaml");
+  ASSERT_EQ(load.errors.size(), 1u);
+  EXPECT_EQ(load.errors[0],
+            "m.yaml:1: interpolators[0].axes[0].max_acceleration_mm_s2: must be 0.1..1e+06 "
+            "mm/s^2, not 0.01 (from axis_defaults.max_acceleration_mm_s2)");
+  // The ends of the ranges are accepted.
+  load = load_config_text(
+      "axis_defaults: {max_velocity_mm_s: 0.01, rapid_velocity_mm_s: 0.01,\n"
+      "  max_acceleration_mm_s2: 1e6, emergency_deceleration_mm_s2: 1e6, max_jerk_mm_s3: 1e10,\n"
+      "  corner_velocity_tolerance_mm_s: 0.001}\n"
+      "interpolators:\n"
+      "  - axes: [{letter: X, max_velocity_mm_s: 1e5, rapid_velocity_mm_s: 1e5,\n"
+      "            max_acceleration_mm_s2: 0.1, emergency_deceleration_mm_s2: 0.1,\n"
+      "            max_jerk_mm_s3: 10, corner_velocity_tolerance_mm_s: 1e4}]\n",
+      "m.yaml");
+  EXPECT_TRUE(load.config) << (load.errors.empty() ? "" : load.errors.front());
+}
+
 TEST(Config, NonNumbersAndBadSyntaxAreErrors) {
   auto load = load_config_text("cycle_time_us: fast\n", "m.yaml");
   EXPECT_TRUE(has_error(load.errors, "m.yaml:1: cycle_time_us: must be a whole number, not 'fast'"));

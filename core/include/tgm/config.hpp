@@ -15,6 +15,16 @@ namespace tgm {
 inline constexpr double kMinRatio = 1e-6;
 inline constexpr double kMaxRatio = 1e9;
 
+//! Accepted axis limits (config): the range the motion core is tested over at all three cycle
+//! times (`Machines.LimitsAtTheEndsOfTheirRangesRunClean`), far beyond any machine tool. Outside
+//! it a calculation step resolves a limit too coarsely or too finely: at 1e-300 mm/s^2 a line
+//! never got going, at 1e7 mm/s^2 and 1e10 mm/s^3 with 1 ms cycles a 0.001 mm/s corner
+//! tolerance was stepped over by 34 mm/s.
+inline constexpr double kMinVelocity = 0.01, kMaxVelocity = 1e5;                // mm/s
+inline constexpr double kMinAcceleration = 0.1, kMaxAcceleration = 1e6;         // mm/s^2
+inline constexpr double kMinJerk = 10.0, kMaxJerk = 1e10;                       // mm/s^3
+inline constexpr double kMinCornerTolerance = 1e-3, kMaxCornerTolerance = 1e4;  // mm/s
+
 //! Limits and mechanics of one axis.
 struct AxisConfig {
   //! G-code address letter of the axis (X, Y, Z, A, B, C, U, V, W, E by default).
@@ -24,7 +34,8 @@ struct AxisConfig {
   double max_jerk_mm_s3 = 50000.0;
   //! Rapid (G0) velocity of the axis [mm/s]; at most max_velocity_mm_s.
   double rapid_velocity_mm_s = 200.0;
-  //! Deceleration of the emergency stop ramp (Command 4/5) [mm/s^2].
+  //! Deceleration of the emergency stop ramp (Command 4/5) [mm/s^2]; at least
+  //! max_acceleration_mm_s2 (an emergency stop never brakes softer than a normal one).
   double emergency_deceleration_mm_s2 = 5000.0;
   //! Largest velocity step of this axis accepted at a corner without slowing down [mm/s].
   double corner_velocity_tolerance_mm_s = 2.0;
