@@ -35,7 +35,7 @@ constexpr const char* kUsage =
     "                             [--rel-speed R] [--check-limits] [--limit-share F] [--m-ack S] "
     "[--blocks OUT]\n"
     "                             [--spline POINTS,JERK] [--iir P,Q,F,MASK] [--lookahead OUT]\n"
-    "                             [--stop-at T[:CODE],...] [--restart-after S]\n"
+    "                             [--stop-at T[:CODE],...] [--restart-after S] [--max-time S]\n"
     "\n"
     "Compiles FILE and runs it through interpolator N (default 0) offline, cycle by cycle,\n"
     "acknowledging every M-function like the PLC emulator would (plc.default_m_delay_s and\n"
@@ -66,6 +66,7 @@ constexpr const char* kUsage =
     "button);\n"
     "                   the emulated operator restarts once the motion stands\n"
     "  --restart-after S  seconds from the standstill after a stop to the restart (default 0.5)\n"
+    "  --max-time S     give up after S seconds of program time (default 86400, up to 1e9)\n"
     "  --progress-interval S  when standard error is not a terminal, a progress line there\n"
     "                   every S seconds (default 10); on a terminal the line is redrawn\n"
     "  --quiet          no progress display\n"
@@ -173,6 +174,7 @@ int run_simulate(int argc, char** argv) {
   std::string file, csv_path, blocks_path, spline_text, iir_text, la_path, stop_text;
   bool check_limits = false, quiet = false;
   double rel = 1.0, m_ack = -1.0, interval_s = 10.0, restart_s = 0.5;
+  double max_time_s = SimulationOptions{}.max_time_s;
   double share = 0.0;       // 0: --limit-share not given (the full limits, checker as asked)
   long long csv_every = 0;  // 0: not given (every cycle)
   while (args.more()) {
@@ -197,6 +199,10 @@ int run_simulate(int argc, char** argv) {
     if (args.flag("--stop-at", stop_text)) continue;
     if (args.number_flag("--restart-after", restart_s, "seconds 0..3600",
                          [](double v) { return v >= 0.0 && v <= 3600.0; })) {
+      continue;
+    }
+    if (args.number_flag("--max-time", max_time_s, "seconds of program time, > 0 and at most 1e9",
+                         [](double v) { return v > 0.0 && v <= SimulationOptions::kMaxTimeS; })) {
       continue;
     }
     if (args.boolean("--check-limits", check_limits)) continue;
@@ -294,6 +300,7 @@ int run_simulate(int argc, char** argv) {
   so.commands = commands;
   so.stops = stops;
   so.stop_restart_s = restart_s;
+  so.max_time_s = max_time_s;
   const auto wall0 = std::chrono::steady_clock::now();
   // Progress on standard error (standard output is the summary): redrawn on a terminal from
   // half a second on, a plain line every interval_s otherwise.
@@ -352,7 +359,6 @@ int run_simulate(int argc, char** argv) {
     std::fputs("line,act_part,g,length_mm,programmed_mm_min,peak_mm_min,duration_s,limit_factor\n", blocks.get());
   }
   const double T = machine.cycle_time_us * 1e-6;
-  double peak_speed = 0.0;
   std::function<void(const Registers&)> on_cycle;
   std::array<LookAheadEntry, kLookAheadEntries> la_last{};
   bool la_first = true;
@@ -458,7 +464,6 @@ int run_simulate(int argc, char** argv) {
     };
   }
   const SimulationSummary sum = sim->run(compiled.program, on_cycle, [&](const BlockReport& b) {
-    peak_speed = std::max(peak_speed, b.peak_mm_min);
     if (!blocks) return;
     std::fprintf(blocks.get(), "%d,%d,%d,%.9f,%.3f,%.3f,%.6f,%s\n", b.line, b.act_part, b.g, b.length_mm,
                  b.programmed_mm_min, b.peak_mm_min, b.duration_s, limit_factor_name(b.factor));
@@ -481,13 +486,14 @@ int run_simulate(int argc, char** argv) {
           ? std::string("interrupted by ") + (interrupted == SIGINT ? "SIGINT" : "SIGTERM") +
                 (csv_every > 1 ? " (the output files hold the run up to here)"
                                : " (the output files hold every cycle up to here)")
-          : sum.error;
+          : sum.error + (sum.time_limit_reached ? " (--max-time S raises it)" : "");
   std::printf("result:    %s%s%s\n", finished ? "finished" : "NOT finished", why.empty() ? "" : ": ", why.c_str());
   std::printf("time:      %.4f s program time, %llu cycles, simulated %.0fx faster than real time\n",
               sum.program_time_s, static_cast<unsigned long long>(sum.cycles),
               wall > 0.0 ? sum.program_time_s / wall : 0.0);
   std::printf("distance:  %.4f mm, peak path speed %.1f mm/min, %llu M-functions acknowledged\n",
-              sum.distance_mm, peak_speed, static_cast<unsigned long long>(sum.m_functions));
+              sum.distance_mm, sum.peak_speed_mm_min,
+              static_cast<unsigned long long>(sum.m_functions));
   if (!stops.empty()) {
     std::printf(
         "stops:     %llu of %zu given before the end, each restarted %.3f s after the standstill\n",

@@ -182,6 +182,26 @@ TEST_F(HmiSimulate, StopAtGivesAStopAndTheRestartGoesOn) {
   EXPECT_NE(held.out.find("X=100.000000 Y=0.000000 Z=0.000000"), std::string::npos) << held.out;
 }
 
+// A program longer than the time limit ends there with exit code 1, says which limit and how
+// to raise it, and still reports the peak path speed of the block it was cut in (it printed
+// 0.0 mm/min: the peak came only from the reports of finished blocks). --max-time raises it.
+TEST_F(HmiSimulate, TimeLimitIsNamedAndMaxTimeRaisesIt) {
+  // 60 mm at F600 (10 mm/s): about 6 s.
+  const fs::path prog = write("line.ngc", "G90 G1 X60 F600\nM2\n");
+  ProcessResult r = run("simulate " + prog.string() + " --config " + kConfig + " --max-time 2");
+  EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
+  EXPECT_NE(r.out.find("result:    NOT finished: program time limit of 2 s reached (--max-time S "
+                       "raises it)\n"),
+            std::string::npos)
+      << r.out;
+  EXPECT_NEAR(number_before(r.out, " mm/min, "), 600.0, 1e-6) << r.out;
+  EXPECT_NEAR(number_before(r.out, " s program time"), 2.0, 0.001) << r.out;
+  r = run("simulate " + prog.string() + " --config " + kConfig + " --max-time 7");
+  EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("result:    finished\n"), std::string::npos) << r.out;
+  EXPECT_NEAR(number_before(r.out, " mm/min, "), 600.0, 1e-6) << r.out;
+}
+
 TEST_F(HmiSimulate, BadInputIsAUsageErrorAndWritesNothing) {
   const fs::path bad = write("bad.ngc", "G90\nG1 X1 Q2\n");
   const fs::path csv = dir_ / "out.csv";
@@ -208,6 +228,9 @@ TEST_F(HmiSimulate, BadInputIsAUsageErrorAndWritesNothing) {
       {"simulate " + ok + " --stop-at -1", "not '-1'"},
       {"simulate " + ok + " --restart-after -2",
        "--restart-after must be seconds 0..3600, not '-2'"},
+      {"simulate " + ok + " --max-time 0",
+       "--max-time must be seconds of program time, > 0 and at most 1e9, not '0'"},
+      {"simulate " + ok + " --max-time 2e9", "not '2e9'"},
       {"simulate " + ok + " --frobnicate", "unknown option '--frobnicate'"},
       {"simulate " + ok + " --csv out.csv --csv-every 0",
        "--csv-every must be 1..1000000, not '0'"},

@@ -54,7 +54,7 @@ struct SimulationOptions {
   bool check_limits = false;
   //! The part of each limit the checker holds the motion to (LimitChecker::create).
   double limit_share = 1.0;
-  //! Give up after this much program time [s].
+  //! Give up after this much program time [s] (> 0; SimulationSummary::time_limit_reached).
   double max_time_s = 24.0 * 3600.0;
   //! When run() has no per-cycle callback, advance through cruise, dwells, M waits and
   //! standstill with Interpolator::advance (same registers, far fewer evaluations; the limit
@@ -70,6 +70,8 @@ struct SimulationOptions {
   //! kWorking, error "interrupted"). Core reads no clock: the caller decides what to show when.
   std::function<bool(const SimulationProgress&)> on_progress;
   static constexpr std::uint64_t kProgressPasses = 1024;
+  //! Largest max_time_s [s] (about 31 years of program time).
+  static constexpr double kMaxTimeS = 1e9;
 };
 
 //! Outcome of a run.
@@ -79,6 +81,10 @@ struct SimulationSummary {
   std::uint64_t cycles = 0;
   double program_time_s = 0.0;  //!< until Status 3
   double distance_mm = 0.0;     //!< Move_Distance at the end
+  //! Highest path speed [mm/min]: the block reports' peaks and Act_Speed of every cycle (so a
+  //! run that ends inside a block, interrupted or at the time limit, has it too).
+  double peak_speed_mm_min = 0.0;
+  bool time_limit_reached = false;  //!< ended by SimulationOptions::max_time_s
   //! Orig_Position at the end (before smoothing) [mm].
   std::array<double, kMaxAxes> end_position{};
   //! Position at the end (after spline / IIR) [mm]; the run ends (Status 3) only once every

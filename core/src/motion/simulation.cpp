@@ -2,10 +2,19 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "tgm/smoothing.hpp"
 
 namespace tgm {
+
+namespace {
+std::string seconds(double s) {
+  char buf[48];
+  std::snprintf(buf, sizeof buf, "%g s", s);
+  return buf;
+}
+}  // namespace
 
 std::optional<Simulation> Simulation::create(const MachineConfig& machine, const SimulationOptions& options,
                                              std::string* error) {
@@ -28,6 +37,11 @@ std::optional<Simulation> Simulation::create(const MachineConfig& machine, const
     if (error) *error = "rel speed: " + r.reason;
     return std::nullopt;
   }
+  if (!(options.max_time_s > 0.0 && options.max_time_s <= SimulationOptions::kMaxTimeS)) {
+    if (error)
+      *error = "max_time_s must be > 0 and at most 1e9 s, not " + seconds(options.max_time_s);
+    return std::nullopt;
+  }
   for (const auto& [t, code] : options.stops) {
     if (code != 4 && code != 8) {
       if (error) {
@@ -38,8 +52,8 @@ std::optional<Simulation> Simulation::create(const MachineConfig& machine, const
     }
     if (!(t >= 0.0 && t <= options.max_time_s)) {
       if (error) {
-        *error = "stop time " + std::to_string(t) + " s is not within 0.." +
-                 std::to_string(options.max_time_s) + " s (the run's time limit, max_time_s)";
+        *error = "stop time " + seconds(t) + " is not within 0.." + seconds(options.max_time_s) +
+                 " (the run's program time limit)";
       }
       return std::nullopt;
     }
@@ -190,6 +204,12 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
       if (!std::isfinite(reg.orig_position[static_cast<std::size_t>(i)])) sum.nan = true;
     }
     if (!std::isfinite(reg.act_speed)) sum.nan = true;
+    // A skip runs at constant speed, so the registers after each call see every peak of
+    // Act_Speed; a block's peak inside a cycle comes with its report.
+    sum.peak_speed_mm_min = std::max(sum.peak_speed_mm_min, reg.act_speed);
+    for (const BlockReport& b : ip.block_reports()) {
+      sum.peak_speed_mm_min = std::max(sum.peak_speed_mm_min, b.peak_mm_min);
+    }
     const auto lf = static_cast<std::size_t>(reg.limit_factor);
     if (lf < factor_cycles.size()) factor_cycles[lf] += done;
     if (checker_) {
@@ -277,7 +297,8 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
     }
     if (cycle >= max_cycles) {
       sum.result = StepResult::kWorking;
-      sum.error = "time limit reached";
+      sum.error = "program time limit of " + seconds(opt_.max_time_s) + " reached";
+      sum.time_limit_reached = true;
       break;
     }
     if (opt_.on_progress && ++passes % SimulationOptions::kProgressPasses == 0) {
