@@ -220,7 +220,8 @@ std::vector<std::string> locate(const Reader& r, const std::string& file,
     const auto o = r.origin.find(key);
     const std::string at = o != r.origin.end() ? o->second : key;
     const auto l = r.line_of.find(at);
-    const std::string where = file + (l != r.line_of.end() ? ":" + std::to_string(l->second) : "");
+    std::string where = file;
+    if (l != r.line_of.end()) where.append(":").append(std::to_string(l->second));
     if (o == r.origin.end()) {
       out.push_back(where + ": " + f);
       continue;
