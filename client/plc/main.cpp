@@ -58,10 +58,13 @@ constexpr const char* kUsage =
     "  --interpolator N     serve only interpolator N (default: every configured one)\n"
     "  --rel-speed R        write Rel_Speed = R (0.01..2) at start\n"
     "  --refuse-ack M[,M]   never acknowledge these M numbers (the interpolator keeps waiting)\n"
-    "  --ack-delay S        acknowledge every normal M-function after S seconds (overrides config)\n"
+    "  --ack-delay S        acknowledge every normal M-function after S seconds (overrides "
+    "config)\n"
     "  --script YAML        timed actions, a list of maps:\n"
     "                         - {at_s: 1.5, rel_speed: 0.5}       Rel_Speed write\n"
-    "                         - {at_s: 3, command: 8}             Command (stop 4/5/8/9, ...)\n"
+    "                         - {at_s: 3, command: 8}             Command: 4/5/8/9 stops (also\n"
+    "                                                             1024 2048 2049 -1 -2, zero\n"
+    "                                                             parameters)\n"
     "                         - {at_s: 4, start: true}            try to start (refused)\n"
     "                         - {at_s: 0, refuse_ack: [51]}       stop acknowledging M51\n"
     "                       each may name `interpolator: N` (default 0); at_s counts from the\n"
@@ -90,6 +93,17 @@ struct ScriptStep {
   bool done = false;
 };
 
+// The Commands of the manual's Command register (stops, gear ratios, position set, IIR and
+// spline parameters); a script sends them with zero parameters.
+bool known_command(long long c) {
+  return c == 4 || c == 5 || c == 8 || c == 9 || c == 1024 || c == 2048 || c == 2049 || c == -1 ||
+         c == -2;
+}
+
+// A script step's values are read as the command line reads numbers (cli_numbers.hpp: the whole
+// text, base 10, finite) and checked against their range: a bad one is named with its line, key
+// and text (yaml-cpp's conversion said only "bad conversion"), and a Rel_Speed or Command the
+// service would refuse is an error here rather than a refusal in the middle of the run.
 bool load_script(const std::string& path, std::vector<ScriptStep>& steps, std::string& error) {
   try {
     const YAML::Node root = YAML::LoadFile(path);
@@ -99,32 +113,66 @@ bool load_script(const std::string& path, std::vector<ScriptStep>& steps, std::s
     }
     for (const YAML::Node& n : root) {
       const int line = n.Mark().line + 1;
+      const std::string at = path + ":" + std::to_string(line) + ": ";
       if (!n.IsMap()) {
-        error = path + ":" + std::to_string(line) + ": a step must be a map";
+        error = at + "a step must be a map";
         return false;
       }
       ScriptStep s;
       std::set<std::string> seen;
       for (const auto& kv : n) {
-        const std::string key = kv.first.as<std::string>();
+        const std::string key = kv.first.IsScalar() ? kv.first.Scalar() : "(not a name)";
         if (!seen.insert(key).second) {  // yaml-cpp keeps both: one would be dropped unsaid
-          error = path + ":" + std::to_string(line) + ": '" + key + "' is given twice";
+          error = at + "'" + key + "' is given twice";
           return false;
         }
-        if (key == "at_s") s.at_s = kv.second.as<double>();
-        else if (key == "interpolator") s.interpolator = kv.second.as<int>();
-        else if (key == "rel_speed") s.rel_speed = kv.second.as<double>();
-        else if (key == "command") s.command = kv.second.as<int>();
-        else if (key == "start") s.start = kv.second.as<bool>();
-        else if (key == "refuse_ack") s.refuse_ack = kv.second.as<std::vector<int>>();
-        else {
-          error = path + ":" + std::to_string(line) + ": unknown key '" + key + "'";
+        const YAML::Node& v = kv.second;
+        const std::string text = v.IsScalar() ? v.Scalar() : v.IsSequence() ? "[list]" : "{map}";
+        auto bad = [&](const std::string& what) {
+          error = at + key + " must be " + what + ", not '" + text + "'";
+          return false;
+        };
+        auto number = [&](double lo, double hi, double& out) {
+          return v.IsScalar() && tgm::parse_finite(v.Scalar(), out) && out >= lo && out <= hi;
+        };
+        auto whole = [&](long long lo, long long hi, long long& out) {
+          return v.IsScalar() && tgm::parse_integer(v.Scalar(), lo, hi, out);
+        };
+        long long k = 0;
+        double x = 0.0;
+        if (key == "at_s") {
+          if (!number(0.0, 1e9, s.at_s)) return bad("a number of seconds >= 0");
+        } else if (key == "interpolator") {
+          if (!whole(0, tgm::kMaxInterpolators - 1, k)) return bad("an interpolator 0..2");
+          s.interpolator = static_cast<int>(k);
+        } else if (key == "rel_speed") {
+          if (!number(0.01, 2.0, x)) return bad("an override 0.01..2");
+          s.rel_speed = x;
+        } else if (key == "command") {
+          if (!whole(INT32_MIN, INT32_MAX, k) || !known_command(k)) {
+            return bad("a Command: 4, 5, 8, 9 (stops), 1024, 2048, 2049, -1 or -2");
+          }
+          s.command = static_cast<int>(k);
+        } else if (key == "start") {
+          if (text == "true" || text == "yes" || text == "on") {
+            s.start = true;
+          } else if (text != "false" && text != "no" && text != "off") {
+            return bad("true or false");
+          }
+        } else if (key == "refuse_ack") {
+          if (!v.IsSequence()) return bad("a list of M numbers");
+          for (const YAML::Node& m : v) {
+            if (!m.IsScalar() || !tgm::parse_integer(m.Scalar(), 0, INT32_MAX, k)) {
+              error = at + "refuse_ack must list M numbers >= 0, not '" +
+                      (m.IsScalar() ? m.Scalar() : std::string("[list]")) + "'";
+              return false;
+            }
+            s.refuse_ack.push_back(static_cast<int>(k));
+          }
+        } else {
+          error = at + "unknown key '" + key + "'";
           return false;
         }
-      }
-      if (!(s.at_s >= 0.0 && s.at_s <= 1e9)) {
-        error = path + ":" + std::to_string(line) + ": at_s must be a number of seconds >= 0";
-        return false;
       }
       steps.push_back(s);
     }

@@ -555,6 +555,13 @@ TEST(ServiceProcesses, PlcScriptErrorsNameTheLineAndTheReason) {
       {"- {at_s: 1, command: 8}\n- {at_s: 2, at_s: 3, command: 9}\n", ":2: 'at_s' is given twice"},
       {"- {at_s: -1, command: 8}\n", ":1: at_s must be a number of seconds >= 0"},
       {"- 8\n", ":1: a step must be a map"},
+      // Values are read as the command line reads numbers and checked against their range
+      // (yaml-cpp said "bad conversion"; a Rel_Speed of 5 was refused only in the run).
+      {"- {at_s: abc}\n", ":1: at_s must be a number of seconds >= 0, not 'abc'"},
+      {"- {at_s: 1, rel_speed: 5}\n", ":1: rel_speed must be an override 0.01..2, not '5'"},
+      {"- {at_s: 1}\n- {at_s: 2, command: 3}\n", ":2: command must be a Command: 4, 5, 8, 9"},
+      {"- {at_s: 1, refuse_ack: [51, x]}\n", ":1: refuse_ack must list M numbers >= 0, not 'x'"},
+      {"- {at_s: 1, start: maybe}\n", ":1: start must be true or false, not 'maybe'"},
   };
   for (std::size_t i = 0; i < cases.size(); ++i) {
     const std::string script = env.path("script" + std::to_string(i) + ".yaml");
