@@ -491,9 +491,12 @@ int run_simulate(int argc, char** argv) {
   std::printf("time:      %.4f s program time, %llu cycles, simulated %.0fx faster than real time\n",
               sum.program_time_s, static_cast<unsigned long long>(sum.cycles),
               wall > 0.0 ? sum.program_time_s / wall : 0.0);
-  std::printf("distance:  %.4f mm, peak path speed %.1f mm/min, %llu M-functions acknowledged\n",
-              sum.distance_mm, sum.peak_speed_mm_min,
-              static_cast<unsigned long long>(sum.m_functions));
+  // Below 1 mm/min with three significant digits (F0.001 printed as 0.0).
+  std::printf(
+      sum.peak_speed_mm_min >= 1.0 || sum.peak_speed_mm_min == 0.0
+          ? "distance:  %.4f mm, peak path speed %.1f mm/min, %llu M-functions acknowledged\n"
+          : "distance:  %.4f mm, peak path speed %.3g mm/min, %llu M-functions acknowledged\n",
+      sum.distance_mm, sum.peak_speed_mm_min, static_cast<unsigned long long>(sum.m_functions));
   if (!stops.empty()) {
     std::printf(
         "stops:     %llu of %zu given before the end, each restarted %.3f s after the standstill\n",

@@ -202,6 +202,17 @@ TEST_F(HmiSimulate, TimeLimitIsNamedAndMaxTimeRaisesIt) {
   EXPECT_NEAR(number_before(r.out, " mm/min, "), 600.0, 1e-6) << r.out;
 }
 
+// A feed of 0.001 mm/min: 0.001 mm take 60 s, and the summary prints the peak with its digits
+// (it printed 0.0 mm/min).
+TEST_F(HmiSimulate, ASlowFeedFinishesAndItsPeakIsPrinted) {
+  const fs::path prog = write("slow.ngc", "G90 G1 X0.001 F0.001\nM2\n");
+  const ProcessResult r = run("simulate " + prog.string() + " --config " + kConfig);
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("peak path speed 0.001 mm/min"), std::string::npos) << r.out;
+  EXPECT_NEAR(number_before(r.out, " s program time"), 60.0, 0.01) << r.out;
+  EXPECT_NE(r.out.find("X=0.001000 Y=0.000000 Z=0.000000"), std::string::npos) << r.out;
+}
+
 TEST_F(HmiSimulate, BadInputIsAUsageErrorAndWritesNothing) {
   const fs::path bad = write("bad.ngc", "G90\nG1 X1 Q2\n");
   const fs::path csv = dir_ / "out.csv";

@@ -313,6 +313,44 @@ TEST(Advance, ChordCruiseAcrossJunctionsEqualsStepping) {
   RecordProperty("cycles", std::to_string(c.total));
 }
 
+// Cruises below kArriveV (1e-3 mm/s: a feed under 0.06 mm/min, or F6 at 1 % override) are
+// skipped too, across junctions and up to just before a stop point, with the registers of
+// stepping: chords of 2..20 nm at F0.002..0.05 mm/min, normal M-functions between polylines.
+TEST(Advance, SlowCruiseBelowOneMicronPerSecondEqualsStepping) {
+  const std::uint64_t seed = test::env_u64("TGM_SEED", 1);
+  SkipCounts c;
+  for (std::uint64_t k = 0; k < 4; ++k) {
+    std::mt19937_64 rng(seed * 4099ull + k);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    const int axes = k % 2 == 0 ? 3 : 5;
+    const MachineConfig m = random_machine(rng, axes);
+    test::ProgramBuilder b(axes);
+    std::array<double, kMaxAxes> p{};
+    double heading = u(rng) * 6.0;
+    for (int run = 0; run < 3; ++run) {
+      const double feed = 0.002 + 0.048 * u(rng);  // mm/min
+      const double chord = 2e-6 + 18e-6 * u(rng);
+      for (int i = 0; i < 40; ++i) {
+        heading += 0.01;
+        p[0] += chord * std::cos(heading);
+        p[1] += chord * std::sin(heading);
+        b.line_to(p, feed);
+      }
+      b.m(8, MKind::kNormal);
+    }
+    b.end();
+    test::Generated g;
+    g.program = b.program();
+    g.end = p;
+    const std::string ctx = "seed " + std::to_string(seed) + " slow program " + std::to_string(k);
+    compare_stepping(m, g, 0, seed * 3001ull + k, ctx, c);
+    if (::testing::Test::HasFailure()) return;
+  }
+  EXPECT_GT(c.skipped_across, c.total_plain / 2) << c.skipped_across << " of " << c.total_plain;
+  RecordProperty("skipped_across", std::to_string(c.skipped_across));
+  RecordProperty("cycles", std::to_string(c.total));
+}
+
 // Whole simulations: fast-forward and stepping give the same summary and block reports.
 // Three seeds' programs from TGM_SEED on (the default run includes seed 3 program 3, where a
 // cruise skip once ignored the part of the window beyond what the cruise itself needed). Every

@@ -2619,7 +2619,11 @@ struct Interpolator::Impl {
   std::uint64_t skip_cruise(std::uint64_t max) {
     if (!on_path || cur >= tail || R(cur).kind != RecKind::kMotion) return 0;
     const double v = st.v;
-    if (st.a != 0.0 || !(v > kArriveV)) return 0;
+    // Any speed above zero: an arrival (v <= kArriveV within kArriveD or kRestD of a stop point)
+    // cannot happen in a skipped cycle, whose proof keeps every stop point and the buffer's end
+    // more than 1e-6 mm beyond the cycle's reach. (Skipping only above kArriveV stepped every
+    // cycle of a feed below 0.06 mm/min, or F6 at 1 % override: 1 mm at F0.001 took 31 s.)
+    if (st.a != 0.0 || !(v > 0.0)) return 0;
     LimitFactor why = LimitFactor::kFeed;
     if (target_speed(R(cur), why) != v) return 0;
     // A cruise whose proof failed is stepped a while before the next proof. On a dense CAM
@@ -2793,8 +2797,9 @@ struct Interpolator::Impl {
         }
         const double ds = std::max(0.0, jerk::advance(st, 0.0, dt).s - st.s);
         if (ds < rc.g.length - st.s) {
-          // No junction in this step (and v > kArriveV: no arrival): integrate_step's arithmetic
-          // for x = 0 at exactly the target speed, inline (advance_test compares bit for bit).
+          // No junction in this step (and no stop point near: no arrival): integrate_step's
+          // arithmetic for x = 0 at exactly the target speed, inline (advance_test compares bit for
+          // bit).
           st.s += ds;
           reg.move_distance += ds;
           last_vt = v;
