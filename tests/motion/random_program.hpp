@@ -387,4 +387,27 @@ inline MachineConfig wide_machine(std::mt19937_64& rng, int axes) {
   return m;
 }
 
+// A machine from the whole box of axis limits the config accepts (config.hpp, kMin* / kMax*):
+// per axis log-uniform velocity 0.01..1e5 mm/s, acceleration 0.1..1e6 mm/s^2, jerk 10..1e10
+// mm/s^3 and corner tolerance 0.001..1e4 mm/s, with no relation between them (v / A from 1e-8 s
+// to 1e6 s). Not in CTest: `--machines=box` on the sweep's command line (core/MOTION.md,
+// "Accepted machine limits").
+inline MachineConfig box_machine(std::mt19937_64& rng, int axes) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  auto log_uniform = [&](double lo, double hi) {
+    return std::exp(std::log(lo) + (std::log(hi) - std::log(lo)) * u(rng));
+  };
+  MachineConfig m = random_machine(rng, axes);
+  for (AxisConfig& a : m.interpolators[0].axes) {
+    a.max_velocity_mm_s = log_uniform(kMinVelocity, kMaxVelocity);
+    a.rapid_velocity_mm_s = std::max(kMinVelocity, a.max_velocity_mm_s * (0.5 + 0.5 * u(rng)));
+    a.max_acceleration_mm_s2 = log_uniform(kMinAcceleration, kMaxAcceleration);
+    a.max_jerk_mm_s3 = log_uniform(kMinJerk, kMaxJerk);
+    a.emergency_deceleration_mm_s2 =
+        std::min(kMaxAcceleration, a.max_acceleration_mm_s2 * (1.0 + 2.0 * u(rng)));
+    a.corner_velocity_tolerance_mm_s = log_uniform(kMinCornerTolerance, kMaxCornerTolerance);
+  }
+  return m;
+}
+
 }  // namespace tgm::test

@@ -9,7 +9,9 @@
 // --machines=wide draws the machines from a far wider envelope (test::wide_machine); seeds 1..41
 // and 101..200 x 300 pass, with their stop sweeps, since session 32 (core/MOTION.md, "Known
 // gaps", has the history). CTest runs seeds 1 and 22 x 300 of it, plain and with stops
-// (motion.sweep.wide1, motion.sweep.wide22).
+// (motion.sweep.wide1, motion.sweep.wide22). --machines=box draws every axis limit from the
+// whole range the config accepts, with no relation between them (test::box_machine; core/
+// MOTION.md, "Accepted machine limits").
 //
 // Time limit per program (test::motion_time_limit): the time of a reference motion at a quarter
 // of every record's cap min(F x Rel_Speed, axis velocity limits), with the override schedule at
@@ -52,25 +54,31 @@ struct SweepCase {
 };
 
 // --machines=wide: test::wide_machine instead of random_machine (core/MOTION.md, "Known gaps");
+// --machines=box: test::box_machine (the whole box of limits the config accepts);
 // --machines=random is the default.
-bool wide_machines() {
+enum class Machines { kRandom, kWide, kBox };
+Machines machine_kind() {
   for (const std::string& a : ::testing::internal::GetArgvs()) {
     if (a.rfind("--machines=", 0) != 0) continue;
-    if (a == "--machines=wide") return true;
-    if (a == "--machines=random") return false;
-    std::fprintf(stderr, "--machines must be wide or random, not '%s'\n", a.c_str() + 11);
+    if (a == "--machines=wide") return Machines::kWide;
+    if (a == "--machines=box") return Machines::kBox;
+    if (a == "--machines=random") return Machines::kRandom;
+    std::fprintf(stderr, "--machines must be wide, box or random, not '%s'\n", a.c_str() + 11);
     std::exit(2);
   }
-  return false;
+  return Machines::kRandom;
 }
 
-// Program k of `seed`'s sweep on random_machine (wide: test::wide_machine) machines.
-SweepCase sweep_case(std::uint64_t seed, std::uint64_t k, bool wide) {
+// Program k of `seed`'s sweep on random_machine (or test::wide_machine, test::box_machine)
+// machines.
+SweepCase sweep_case(std::uint64_t seed, std::uint64_t k, Machines kind) {
   std::mt19937_64 rng(seed * 1000003ull + k);
   std::uniform_int_distribution<int> axes_d(1, 10);
   SweepCase c;
   c.axes = k % 5 == 0 ? 3 : axes_d(rng);
-  c.machine = wide ? test::wide_machine(rng, c.axes) : random_machine(rng, c.axes);
+  c.machine = kind == Machines::kWide  ? test::wide_machine(rng, c.axes)
+              : kind == Machines::kBox ? test::box_machine(rng, c.axes)
+                                       : random_machine(rng, c.axes);
   c.generated = random_program(rng, c.axes, 12);
   c.bound_s = test::motion_time_lower_bound(c.generated.program, c.machine, c.generated.overrides);
   c.limit_s = test::motion_time_limit(c.generated.program, c.machine, c.generated.overrides);
@@ -153,7 +161,7 @@ std::string case_context(std::uint64_t seed, std::uint64_t k, const SweepCase& c
 // Runs wide-sweep program k of `seed` and checks that it finishes clean; with axes > 0 it must
 // first have that many axes (the program its test describes).
 void expect_wide_program_clean(std::uint64_t seed, std::uint64_t k, int axes = 0) {
-  const SweepCase c = sweep_case(seed, k, true);
+  const SweepCase c = sweep_case(seed, k, Machines::kWide);
   const std::string ctx = "wide " + case_context(seed, k, c);
   if (axes > 0) {
     ASSERT_EQ(c.axes, axes) << ctx;
@@ -174,7 +182,7 @@ TEST(RandomSweep, ProgramsFinishAtTheirEndWithinLimits) {
       test::param_u64("first", "TGM_SWEEP_FIRST", 0);  // to rerun one program
   std::uint64_t total_cycles = 0;
   for (std::uint64_t k = first; k < first + count; ++k) {
-    const SweepCase c = sweep_case(seed, k, wide_machines());
+    const SweepCase c = sweep_case(seed, k, machine_kind());
     const std::string ctx = case_context(seed, k, c) + ", lower bound " +
                             std::to_string(c.bound_s) + " s, limit " + std::to_string(c.limit_s) +
                             " s";
@@ -223,7 +231,7 @@ TEST(RandomSweep, StopsOnTheTrajectoryResumeAndFinishWithinLimits) {
   const std::uint64_t first = test::param_u64("first", "TGM_SWEEP_FIRST", 0);
   std::uint64_t given = 0;
   for (std::uint64_t k = first; k < first + count; ++k) {
-    const SweepCase c = sweep_case(seed, k, wide_machines());
+    const SweepCase c = sweep_case(seed, k, machine_kind());
     std::string ctx;
     const SimulationOptions o = stop_sweep_options(seed, k, c, &ctx);
     SimulationSummary s;
@@ -270,7 +278,7 @@ TEST(SweepTimeLimit, LowerBoundHoldsArcsToThePlaneAxesTheyRunAlong) {
 TEST(SweepTimeLimit, WithoutOverrideChangesIsTheLongerOfBoundAndExactStopPlusSlack) {
   int by_bound = 0, by_stop = 0;
   for (std::uint64_t k = 0; k < 50; ++k) {
-    const SweepCase c = sweep_case(3, k, false);
+    const SweepCase c = sweep_case(3, k, Machines::kRandom);
     const double bound = test::motion_time_lower_bound(c.generated.program, c.machine, {});
     const double stop = test::motion_time_exact_stop(c.generated.program, c.machine, {});
     EXPECT_DOUBLE_EQ(test::motion_time_limit(c.generated.program, c.machine, {}),
@@ -325,7 +333,7 @@ TEST(SweepTimeLimit, ExactStopReferenceBoundsASingleLine) {
 // the bound alone (4 x 13.6 + 60 = 112.2 s) ended it as a stall; the exact stop reference
 // (about 180 s for these chords) admits it.
 TEST(SweepTimeLimit, WideSeed21Program175AtItsJerkLimitIsNotAStall) {
-  const SweepCase c = sweep_case(21, 175, true);
+  const SweepCase c = sweep_case(21, 175, Machines::kWide);
   ASSERT_EQ(c.axes, 3);
   const double bound_limit_s = 4.0 * c.bound_s + 60.0;
   SimulationSummary s;
@@ -343,7 +351,7 @@ TEST(SweepTimeLimit, WideSeed21Program175AtItsJerkLimitIsNotAStall) {
 // stall, but over the earlier limit 4 x 2.42 + 60 = 69.7 s, which placed the override drop after
 // the program's end. The limit with the schedule at the reference's own times admits it.
 TEST(SweepTimeLimit, Seed3Program465SlowBeforeAnOverrideDropIsNotAStall) {
-  const SweepCase c = sweep_case(3, 465, false);
+  const SweepCase c = sweep_case(3, 465, Machines::kRandom);
   ASSERT_EQ(c.axes, 3);
   ASSERT_EQ(c.generated.overrides.size(), 1u);
   const double drop_s = c.generated.overrides[0].first;
@@ -434,7 +442,8 @@ TEST(RandomSweep, WideSeed1Program281BrakesForAJunctionIntoAFarSofterRecord) {
 // step is judged by the speed at the junction and by the speed its acceleration settles at.
 TEST(RandomSweep, WideSeed1JunctionsAreJudgedAtTheCrossingItself) {
   for (const std::uint64_t k : {105u, 124u, 136u, 147u, 265u}) {
-    expect_runs_clean(sweep_case(1, k, true), "wide seed 1 program " + std::to_string(k));
+    expect_runs_clean(sweep_case(1, k, Machines::kWide),
+                      "wide seed 1 program " + std::to_string(k));
   }
 }
 
@@ -446,7 +455,7 @@ TEST(RandomSweep, WideSeed1JunctionsAreJudgedAtTheCrossingItself) {
 // 1,351 s at 0.02 mm/s (time limit 387 s). Moving, a step now probes above the floor when every
 // limit failing there fails that way; the program takes 79.9 s against a lower bound of 77.7 s.
 TEST(RandomSweep, WideSeed117Program183LeavesRestTowardsASofterArcAtSpeed) {
-  const SweepCase c = sweep_case(117, 183, true);
+  const SweepCase c = sweep_case(117, 183, Machines::kWide);
   ASSERT_EQ(c.axes, 5);
   SimulationSummary s;
   ASSERT_NO_FATAL_FAILURE(expect_runs_clean(c, "wide seed 117 program 183", &s));
@@ -459,7 +468,7 @@ TEST(RandomSweep, WideSeed117Program183LeavesRestTowardsASofterArcAtSpeed) {
 // restart no step the search can resolve passed the stop point's plan with its step allowance,
 // and the motion stood there for good. Standing that close, it now arrives.
 TEST(RandomSweep, WideStopSeed8Program126LeavesAFeedHoldJustBeforeAStopPoint) {
-  const SweepCase c = sweep_case(8, 126, true);
+  const SweepCase c = sweep_case(8, 126, Machines::kWide);
   ASSERT_EQ(c.axes, 6);
   std::string ctx;
   const SimulationOptions o = stop_sweep_options(8, 126, c, &ctx);
@@ -476,7 +485,7 @@ TEST(RandomSweep, WideStopSeed8Program126LeavesAFeedHoldJustBeforeAStopPoint) {
 // X's jerk differentiated per cycle came to 2,886.86 > 2,885.12 mm/s^3. An arrival now needs
 // the whole step, from the deceleration it starts with down to none, within the jerk limit.
 TEST(RandomSweep, WideSeed148Program273ArrivesWithinTheJerkLimitBeforeLeavingAtIt) {
-  const SweepCase c = sweep_case(148, 273, true);
+  const SweepCase c = sweep_case(148, 273, Machines::kWide);
   ASSERT_EQ(c.axes, 5);
   ASSERT_EQ(c.machine.cycle_time_us, 250);
   expect_runs_clean(c, "wide seed 148 program 273");
@@ -491,7 +500,8 @@ TEST(RandomSweep, WideSeed148Program273ArrivesWithinTheJerkLimitBeforeLeavingAtI
 // speed and not accelerating keeps the corner, and at rest a step probes above the floor.
 TEST(RandomSweep, WideSeed1MotionLeavesARestJustBeforeACorner) {
   for (const std::uint64_t k : {55u, 86u}) {
-    expect_runs_clean(sweep_case(1, k, true), "wide seed 1 program " + std::to_string(k));
+    expect_runs_clean(sweep_case(1, k, Machines::kWide),
+                      "wide seed 1 program " + std::to_string(k));
   }
 }
 
@@ -518,7 +528,7 @@ TEST(RandomSweep, WideArrivalsAtTheResolutionOfAStepAreNotHardStops) {
                                 {8, 42},
                                 {7, 274},
                                 {3, 73}}) {
-    const SweepCase c = sweep_case(seed, k, true);
+    const SweepCase c = sweep_case(seed, k, Machines::kWide);
     ASSERT_EQ(c.machine.cycle_time_us, 1000);
     expect_runs_clean(c, "wide " + case_context(seed, k, c));
   }
@@ -535,7 +545,7 @@ TEST(RandomSweep, WideArrivalsAtTheResolutionOfAStepAreNotHardStops) {
 TEST(RandomSweep, WideReversalsBelowTheStepResolutionKeepTheirTolerance) {
   for (const auto& [seed, k] :
        {std::pair<std::uint64_t, std::uint64_t>{5, 212}, {101, 107}, {103, 32}}) {
-    const SweepCase c = sweep_case(seed, k, true);
+    const SweepCase c = sweep_case(seed, k, Machines::kWide);
     ASSERT_EQ(c.axes, 1);
     ASSERT_EQ(c.machine.cycle_time_us, 1000);
     expect_runs_clean(c, "wide " + case_context(seed, k, c));
@@ -613,7 +623,7 @@ TEST(RandomSweep, WideFuzzBrakingBuiltUpAgainKeepsTheCornerAfterStops) {
 // it at -175 mm/s^2 (X at 2.3 x its acceleration limit for four cycles). The deceleration is
 // now within the limit two steps' reach before such a junction.
 TEST(RandomSweep, WideSeed102Program776TakesTheDecelerationBackBeforeASofterChord) {
-  const SweepCase c = sweep_case(102, 776, true);
+  const SweepCase c = sweep_case(102, 776, Machines::kWide);
   ASSERT_EQ(c.axes, 3);
   ASSERT_NEAR(c.machine.interpolators[0].axes[0].max_acceleration_mm_s2, 20.03, 0.01);
   expect_runs_clean(c, "wide seed 102 program 776");
@@ -629,7 +639,7 @@ TEST(RandomSweep, WideSeed102Program776TakesTheDecelerationBackBeforeASofterChor
 // the records ahead: the speed lands on 32.89 mm/s. Released at this record's jerk it still
 // undershot to 29.6 mm/s.
 TEST(RandomSweep, Seed15Program529OverrideDropLandsOnTheTargetOverSofterRecords) {
-  const SweepCase c = sweep_case(15, 529, false);
+  const SweepCase c = sweep_case(15, 529, Machines::kRandom);
   ASSERT_EQ(c.axes, 6);
   double feed_mm_min = 0.0;
   for (const Segment& sg : c.generated.program.segments) {
