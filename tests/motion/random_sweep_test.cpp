@@ -491,6 +491,20 @@ TEST(RandomSweep, WideSeed148Program273ArrivesWithinTheJerkLimitBeforeLeavingAtI
   expect_runs_clean(c, "wide seed 148 program 273");
 }
 
+// Wide sweep seed 148 program 290 (3 axes, 1 ms): an arc of 3,300 mm/s^2 and 9.8e5 mm/s^3 at
+// 37 mm/s, a continuous M, then chords led by Y (77 mm/s^2, 3e4 mm/s^3) whose first junction
+// allows 0.13 mm/s. The chords' deceleration limits judged the deceleration by their own
+// junctions' speed limits only, wanted it taken back at the chords' jerk, and held the braking
+// for the corner at 1,087 mm/s^2 where it needed 1,157: crossed at 12.9 mm/s, corner steps of
+// 100 x X's 0.018 mm/s, then Y at 6.6 x its acceleration limit. A braking to a junction at or
+// before theirs takes the deceleration back there (decel_limits, dec_kept).
+TEST(RandomSweep, WideSeed148Program290BrakesForACornerBeforeSofterChords) {
+  const SweepCase c = sweep_case(148, 290, Machines::kWide);
+  ASSERT_EQ(c.axes, 3);
+  ASSERT_EQ(c.machine.cycle_time_us, 1000);
+  expect_runs_clean(c, "wide seed 148 program 290");
+}
+
 // Wide sweep seed 1 programs 55 and 86 (1 ms): braking for a corner of a few hundredths of a
 // mm/s (X or Z tolerance 0.02..0.04 mm/s), the motion came to rest 1e-5 mm before it, inside
 // the junction's reserve, and crept the rest for over an hour (55: 4,447 s instead of 17.5 s).

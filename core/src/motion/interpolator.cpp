@@ -1083,6 +1083,7 @@ struct Interpolator::Impl {
     const double reach_max = reach_for(std::min(j_before, sc * cons_Jw));
     int n_dec = 0;
     int scanned = 0;
+    double w_before = kInf;  // lowest hard junction limit over (cur, q]
     std::size_t idx = ring_index(cur + 1);
     for (std::uint64_t q = cur + 1; q < win_end && q < tail && scanned < kMaxExtendPerStep; ++q, ++scanned) {
       const Rec& r = rec[idx];
@@ -1091,6 +1092,7 @@ struct Interpolator::Impl {
       if (r.kind != RecKind::kMotion) continue;
       const double d = r.s0 - here;
       if (d > reach_max) break;
+      w_before = std::min(w_before, r.wg);
       // A record of lower jerk also limits the deceleration its jerk can take back before the
       // motion stops there (dec_target; the entry speed is below v_end while decelerating).
       const bool softer = sc * r.jt < j_before;
@@ -1101,7 +1103,8 @@ struct Interpolator::Impl {
         // Into a record of lower jerk: the calculation step that can reach the junction has
         // that jerk already (dec_room).
         if (softer) ck.Jx = sc * r.jt;
-        ck.junction_v = r.wg;
+        // A braking to a junction at or before q's (dec_kept) takes the deceleration back there.
+        ck.junction_v = w_before;
         if (n_dec == kMaxDecelLimits) break;
       }
       if (softer) {
@@ -1180,6 +1183,13 @@ struct Interpolator::Impl {
   // its plan and crossed the junction at 12.3 mm/s (corner step 37 x the tolerance, then 0.5 s
   // above X's velocity limit). When the braking falls short, the speed limit is then missed by
   // that little, and the deceleration limit by what the braking still carries into the junction.
+  // The speed limit may lie at an earlier junction than ck's (junction_v: the lowest hard
+  // junction limit up to ck's): braking to it ends with a = 0 there, before ck. Judged by ck's
+  // own junction only, wide sweep seed 148 program 290 braked along an arc (3,300 mm/s^2,
+  // 9.8e5 mm/s^3) for a corner of 0.13 mm/s into chords led by Y (77 mm/s^2, 3e4 mm/s^3): the
+  // chords' deceleration limits wanted the deceleration taken back at the chords' jerk, held the
+  // braking to 1,087 mm/s^2 where the corner needed 1,157, and the motion crossed at 12.9 mm/s
+  // (corner steps of 100 x the tolerance, then Y at 6.6 x its acceleration limit).
   bool dec_kept(double v, double a, const Constraint& ck, double room) const {
     if (dec_room(v, a, ck) <= room) return true;
     return v > ck.junction_v && jerk::settled_velocity(v, a, kPlanMarginJ * ck.J) > ck.junction_v;
