@@ -505,6 +505,22 @@ TEST(RandomSweep, WideSeed148Program290BrakesForACornerBeforeSofterChords) {
   expect_runs_clean(c, "wide seed 148 program 290");
 }
 
+// Wide stop sweep seed 169 program 127 (8 axes, 1 ms): a feed hold given in the cycle after the
+// motion reached an M-function's stop point, before the emulated PLC had seen the M wait. After
+// the restart the next advance() skipped the M wait, whose acknowledgement was never armed, to
+// the time limit (105.7 s; 8.1 s stepped). The cycle after a start is now run alone.
+TEST(RandomSweep, WideStopSeed169Program127AcknowledgesAnMFunctionAfterARestart) {
+  const SweepCase c = sweep_case(169, 127, Machines::kWide);
+  ASSERT_EQ(c.axes, 8);
+  std::string ctx;
+  const SimulationOptions o = stop_sweep_options(169, 127, c, &ctx);
+  ASSERT_EQ(o.stops.size(), 2u);
+  SimulationSummary s;
+  ASSERT_NO_FATAL_FAILURE(expect_runs_clean(c, o, "wide " + ctx, &s));
+  EXPECT_EQ(s.stops, 2u);
+  EXPECT_LT(s.program_time_s, 9.0);
+}
+
 // Wide sweep seed 1 programs 55 and 86 (1 ms): braking for a corner of a few hundredths of a
 // mm/s (X or Z tolerance 0.02..0.04 mm/s), the motion came to rest 1e-5 mm before it, inside
 // the junction's reserve, and crept the rest for over an hour (55: 4,447 s instead of 17.5 s).

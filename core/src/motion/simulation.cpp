@@ -147,6 +147,11 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
                    [](const auto& x, const auto& y) { return x.first < y.first; });
   std::size_t next_stop = 0;
   bool stopped = false;  // a stop given and the motion not yet restarted
+  // A start() given by the emulated operator: the next call runs one cycle, so that the PLC
+  // emulation sees the registers it left (a restart into an M wait whose acknowledgement was
+  // not yet armed let advance() skip the wait to the time limit: wide stop sweep seed 169
+  // program 127, a feed hold given in the cycle after the motion reached an M-function).
+  bool started = false;
   const std::uint64_t max_cycles = static_cast<std::uint64_t>(opt_.max_time_s / T) + 1;
   const bool batch = opt_.fast_forward && !on_cycle;
   std::array<std::uint64_t, 11> factor_cycles{};
@@ -195,7 +200,9 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
       // already stood, its restart thereby cancelled, let the standstill be skipped to the next
       // stop or the time limit: sweep seed 1 program 50 with three emergency stops.)
       if (stopped && !restart.armed) allow = 1;
+      if (started) allow = 1;
     }
+    started = false;
     std::uint64_t done = 1;
     const StepResult r = batch ? ip.advance(allow, &done) : ip.step();
     cycle += done;
@@ -258,6 +265,7 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
       if (!m0_start.armed) m0_start.arm(cycle, wait_cycles(opt_.m0_restart_s));
       if (m0_start.fire(cycle)) {
         ip.start();
+        started = true;
         stopped = restart.armed = false;  // a stop given in the pause ends with it
       }
     }
@@ -276,6 +284,7 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
           break;
         }
         stopped = false;
+        started = true;
       }
       held = true;
     }
@@ -283,6 +292,7 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
         reg.status == static_cast<std::int32_t>(InterpolatorStatus::kUnderrun)) {
       if (next < total) {
         ip.start();  // more records arrived: the HMI restarts
+        started = true;
         stopped = restart.armed = false;
       } else {
         sum.result = r;
