@@ -34,6 +34,7 @@
 #include "tgm/cli_args.hpp"
 #include "tgm/cli_numbers.hpp"
 #include "tgm/client/client.hpp"
+#include "tgm/command_stage.hpp"
 #include "tgm/dds_overrides.hpp"
 #include "tgm/registers.hpp"
 #include "tgm/yaml_config.hpp"
@@ -93,11 +94,11 @@ struct ScriptStep {
   bool done = false;
 };
 
-// The Commands of the manual's Command register (stops, gear ratios, position set, IIR and
-// spline parameters); a script sends them with zero parameters.
-bool known_command(long long c) {
-  return c == 4 || c == 5 || c == 8 || c == 9 || c == 1024 || c == 2048 || c == 2049 || c == -1 ||
-         c == -2;
+// The Commands of the manual's Command register: the stops and the smoothing / output stage's
+// (gear ratios, position set, IIR and spline parameters); a script sends them with zero
+// parameters.
+bool known_command(std::int32_t c) {
+  return c == 4 || c == 5 || c == 8 || c == 9 || tgm::is_stage_command(c);
 }
 
 // A script step's values are read as the command line reads numbers (cli_numbers.hpp: the whole
@@ -149,7 +150,7 @@ bool load_script(const std::string& path, std::vector<ScriptStep>& steps, std::s
           if (!number(0.01, 2.0, x)) return bad("an override 0.01..2");
           s.rel_speed = x;
         } else if (key == "command") {
-          if (!whole(INT32_MIN, INT32_MAX, k) || !known_command(k)) {
+          if (!whole(INT32_MIN, INT32_MAX, k) || !known_command(static_cast<std::int32_t>(k))) {
             return bad("a Command: 4, 5, 8, 9 (stops), 1024, 2048, 2049, -1 or -2");
           }
           s.command = static_cast<int>(k);
