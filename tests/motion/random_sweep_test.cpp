@@ -7,7 +7,7 @@
 // TGM_SWEEP_FIRST (default 0); the command line wins. A long run:
 //   build/tests/motion/tgm_motion_tests --gtest_filter='RandomSweep.*' --seed=7 --count=5000
 // --machines=wide draws the machines from a far wider envelope (test::wide_machine); seeds 1..41
-// and 132..200 x 300 pass, with their stop sweeps, since session 33 (judged by the exit code:
+// and 101..200 x 300 pass, with their stop sweeps, since session 33 (judged by the exit code:
 // core/MOTION.md, "Known gaps", has the history). CTest runs seeds 1 and 22 x 300 of it, plain
 // and with stops
 // (motion.sweep.wide1, motion.sweep.wide22). --machines=box draws every axis limit from the
