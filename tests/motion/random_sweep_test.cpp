@@ -468,15 +468,22 @@ TEST(RandomSweep, WideSeed117Program183LeavesRestTowardsASofterArcAtSpeed) {
 // path of 1.2e6 mm/s^3, where one calculation step from rest covers 1.7e-6 mm. After the
 // restart no step the search can resolve passed the stop point's plan with its step allowance,
 // and the motion stood there for good. Standing that close, it now arrives.
-TEST(RandomSweep, WideStopSeed8Program126LeavesAFeedHoldJustBeforeAStopPoint) {
-  const SweepCase c = sweep_case(8, 126, Machines::kWide);
-  ASSERT_EQ(c.axes, 6);
+// Wide stop sweep program k of `seed` on `axes` axes with `stops` stops: runs clean and every
+// stop is given; its summary in `s`.
+void expect_wide_stop_case_clean(std::uint64_t seed, std::uint64_t k, int axes, std::size_t stops,
+                                 SimulationSummary& s) {
+  const SweepCase c = sweep_case(seed, k, Machines::kWide);
+  ASSERT_EQ(c.axes, axes);
   std::string ctx;
-  const SimulationOptions o = stop_sweep_options(8, 126, c, &ctx);
-  ASSERT_EQ(o.stops.size(), 1u);
-  SimulationSummary s;
+  const SimulationOptions o = stop_sweep_options(seed, k, c, &ctx);
+  ASSERT_EQ(o.stops.size(), stops);
   ASSERT_NO_FATAL_FAILURE(expect_runs_clean(c, o, "wide " + ctx, &s));
-  EXPECT_EQ(s.stops, 1u);
+  EXPECT_EQ(s.stops, stops);
+}
+
+TEST(RandomSweep, WideStopSeed8Program126LeavesAFeedHoldJustBeforeAStopPoint) {
+  SimulationSummary s;
+  expect_wide_stop_case_clean(8, 126, 6, 1, s);
 }
 
 // Wide sweep seed 148 program 273 (5 axes, 250 us): braking at X's jerk limit (2,885 mm/s^3)
@@ -511,14 +518,8 @@ TEST(RandomSweep, WideSeed148Program290BrakesForACornerBeforeSofterChords) {
 // the restart the next advance() skipped the M wait, whose acknowledgement was never armed, to
 // the time limit (105.7 s; 8.1 s stepped). The cycle after a start is now run alone.
 TEST(RandomSweep, WideStopSeed169Program127AcknowledgesAnMFunctionAfterARestart) {
-  const SweepCase c = sweep_case(169, 127, Machines::kWide);
-  ASSERT_EQ(c.axes, 8);
-  std::string ctx;
-  const SimulationOptions o = stop_sweep_options(169, 127, c, &ctx);
-  ASSERT_EQ(o.stops.size(), 2u);
   SimulationSummary s;
-  ASSERT_NO_FATAL_FAILURE(expect_runs_clean(c, o, "wide " + ctx, &s));
-  EXPECT_EQ(s.stops, 2u);
+  ASSERT_NO_FATAL_FAILURE(expect_wide_stop_case_clean(169, 127, 8, 2, s));
   EXPECT_LT(s.program_time_s, 9.0);
 }
 
