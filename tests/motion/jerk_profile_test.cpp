@@ -121,5 +121,57 @@ TEST(JerkProfile, BrakingFromRegularStatesGrowsWithSpeedAndAcceleration) {
   EXPECT_GT(regular, 300000);  // the sweep covers the region it claims
 }
 
+// Box sweep seed 2 program 90 (X: 0.0274 mm/s, 1,398 mm/s^2, 4.2e6 mm/s^3; 1 ms cycles): the
+// motion crossed into a chord of a lower velocity cap 0.00023 mm/s below it, still accelerating
+// at 11.95 mm/s^2. The two-step landing ended its first step at 0.0892 mm/s, 0.54 % above the
+// cap (X at 1.0003..1.0038 x its limit); now that step ends on the cap.
+TEST(JerkProfile, TwoStepLandingFromBelowDoesNotPassTheTarget) {
+  const double v = 0.0884862367, a = 11.9506, vt = 0.0887187162, A = 274.903, J = 343629.0;
+  const double dt = 2e-4;
+  const double x = track_velocity(v, a, vt, A, J, dt);
+  EXPECT_NEAR(v + 0.5 * (a + x) * dt, vt, 1e-15);
+  // The next steps land from there, below vt, at zero acceleration.
+  double vv = v, aa = a;
+  for (int i = 0; i < 4; ++i) {
+    const double xx = track_velocity(vv, aa, vt, A, J, dt);
+    vv += 0.5 * (aa + xx) * dt;
+    aa = xx;
+    EXPECT_LE(vv, vt * (1.0 + 1e-12)) << "step " << i;
+  }
+  EXPECT_NEAR(vv, vt, 1e-12);
+  EXPECT_NEAR(aa, 0.0, 1e-9);
+}
+
+// Seeded sweep over the scale of one step's jerk against the speed (J dt^2 / vt from 1e-7 to
+// 100): from states below vt that a continuous jerk-limited landing reaches without passing it
+// (0 <= a <= A, v + a^2 / 2J <= vt), the steps of track_velocity never end above
+// vt (1 + kDeadBeatOvershoot), and they land.
+TEST(JerkProfile, TrackingFromBelowStaysWithinTheTarget) {
+  std::mt19937_64 rng(13);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  int landed = 0;
+  constexpr int kStates = 100000;
+  for (int i = 0; i < kStates; ++i) {
+    const double dt = u(rng) < 0.5 ? 1e-4 : 2e-4;
+    const double vt = std::pow(10.0, -2.0 + 4.0 * u(rng));
+    const double J = std::pow(10.0, -7.0 + 9.0 * u(rng)) * vt / (dt * dt);
+    const double A = std::pow(10.0, -1.0 + 4.0 * u(rng)) * std::sqrt(J * vt);
+    double a = std::min(A, std::sqrt(2.0 * J * vt)) * u(rng);
+    double v = (vt - 0.5 * a * a / J) * u(rng);
+    const double top = vt * (1.0 + kDeadBeatOvershoot) * (1.0 + 1e-12);
+    for (int k = 0; k < 100000; ++k) {
+      const double x = track_velocity(v, a, vt, A, J, dt);
+      v += 0.5 * (a + x) * dt;
+      a = x;
+      ASSERT_LE(v, top) << "vt " << vt << " J " << J << " A " << A << " dt " << dt << " step " << k;
+      if (std::fabs(v - vt) <= 1e-12 * vt && std::fabs(a) <= 1e-9 * A) {
+        ++landed;
+        break;
+      }
+    }
+  }
+  EXPECT_EQ(landed, kStates);
+}
+
 }  // namespace
 }  // namespace tgm::jerk

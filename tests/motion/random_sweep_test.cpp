@@ -513,6 +513,17 @@ TEST(RandomSweep, WideSeed148Program290BrakesForACornerBeforeSofterChords) {
   expect_runs_clean(c, "wide seed 148 program 290");
 }
 
+// Box sweep seed 2 program 90 (3 axes, 1 ms; X: 0.0274 mm/s, 1,398 mm/s^2, 4.2e6 mm/s^3, one
+// calculation step of jerk changing the speed by six times X's velocity limit): at junctions
+// into chords of a slightly lower velocity cap the two-step landing on the cap passed above it
+// between its steps, X at 1.0003..1.0038 x its velocity limit (jerk::track_velocity).
+TEST(RandomSweep, BoxSeed2Program90LandsOnASlowVelocityCapFromBelow) {
+  const SweepCase c = sweep_case(2, 90, Machines::kBox);
+  ASSERT_EQ(c.axes, 3);
+  ASSERT_EQ(c.machine.cycle_time_us, 1000);
+  expect_runs_clean(c, "box seed 2 program 90");
+}
+
 // Wide stop sweep seed 169 program 127 (8 axes, 1 ms): a feed hold given in the cycle after the
 // motion reached an M-function's stop point, before the emulated PLC had seen the M wait. After
 // the restart the next advance() skipped the M wait, whose acknowledgement was never armed, to

@@ -63,9 +63,14 @@ Braking braking_plan_from(double v, double a, double w, double A, double J, doub
 //! jerk J, has velocity vt: v + (a + x) dt / 2 + x |x| / (2J) = vt (unclipped; increasing in x).
 double landing_acceleration(double v, double a, double vt, double J, double dt);
 
+//! The largest share of vt by which track_velocity's two-step landing may pass above vt
+//! between its steps (a quarter of the 0.1 % margin the interpolator keeps below the limits).
+inline constexpr double kDeadBeatOvershoot = 2.5e-4;
+
 //! End-of-step acceleration that tracks the target velocity `vt` time-optimally without
 //! overshoot (the velocity after bringing a to zero at full jerk equals vt), clipped to the
-//! jerk limit (|x - a| <= J dt) and to |x| <= A.
+//! jerk limit (|x - a| <= J dt) and to |x| <= A. Close to vt it lands in two steps; rising
+//! towards vt, their middle state stays within vt (1 + kDeadBeatOvershoot).
 double track_velocity(double v, double a, double vt, double A, double J, double dt);
 
 //! Lowest end-of-step acceleration that keeps the motion from reversing: with x < 0 the velocity
