@@ -524,6 +524,20 @@ TEST(RandomSweep, BoxSeed2Program90LandsOnASlowVelocityCapFromBelow) {
   expect_runs_clean(c, "box seed 2 program 90");
 }
 
+// Box sweep seed 4 program 3 (6 axes, 500 us; Y: 0.40 mm/s^2, 7,575 mm/s^3, so a calculation
+// step can swing Y's acceleration over twice its range): accelerating at the limit along
+// chords whose limit falls by 5 % at a junction, the step that crossed it ended within the new
+// limit but passed the junction a third of the way through, still at 2.14 against 2.06 mm/s^2
+// on the path (Y at 1.00006 x its limit measured per cycle, 1.04 x inside the step). An
+// acceleration limit passed inside a step is now judged at the junction itself
+// (crossing_accel_bound).
+TEST(RandomSweep, BoxSeed4Program3EntersALowerAccelerationLimitWithinIt) {
+  const SweepCase c = sweep_case(4, 3, Machines::kBox);
+  ASSERT_EQ(c.axes, 6);
+  ASSERT_EQ(c.machine.cycle_time_us, 500);
+  expect_runs_clean(c, "box seed 4 program 3");
+}
+
 // Wide stop sweep seed 169 program 127 (8 axes, 1 ms): a feed hold given in the cycle after the
 // motion reached an M-function's stop point, before the emulated PLC had seen the M wait. After
 // the restart the next advance() skipped the M wait, whose acknowledgement was never armed, to

@@ -1562,6 +1562,26 @@ struct Interpolator::Impl {
     return v;
   }
 
+  // The acceleration at the earliest time the calculation step from b to ns can pass the point
+  // d0 ahead (within the step's travel): d0 / vm, vm the step's highest speed, as in
+  // crossing_speed_bound. The acceleration is linear in time over the step, so where it falls
+  // this bounds the acceleration at the point from above (crossing_accel_bound), where it rises
+  // from below (the deceleration limits, decel_limits). Closed-form and continuous in ns.
+  double accel_at_earliest_crossing(const jerk::State& b, const jerk::State& ns, double d0) const {
+    const double j = (ns.a - b.a) / dt;
+    const double t_peak = b.a > 0.0 && ns.a < 0.0 ? -b.a / j : -1.0;
+    double vm = std::max(b.v, ns.v);
+    if (t_peak > 0.0) vm = std::max(vm, speed_after(b.v, b.a, j, t_peak));
+    const double t_lo = vm > 0.0 ? std::min(dt, d0 / vm) : 0.0;
+    return b.a + j * t_lo;
+  }
+
+  // An upper bound of the acceleration at which the step from b to ns passes d0: rising over the
+  // step, the end's.
+  double crossing_accel_bound(const jerk::State& b, const jerk::State& ns, double d0) const {
+    return ns.a >= b.a ? ns.a : accel_at_earliest_crossing(b, ns, d0);
+  }
+
   void record_corner(std::uint64_t qin, std::uint64_t qout, const jerk::State& b, double j,
                      double dist, int calc_index) {
     if (!opt.record_corner_events || n_events >= events.size()) return;
@@ -1920,7 +1940,14 @@ struct Interpolator::Impl {
           const double ds = ns.s - before.s;
           for (int i = 0; i < n_dec; ++i) {
             const Constraint& ck = dec[i];
-            if (ck.d - ds <= 0.0) continue;  // entered in this step
+            if (ck.d - ds <= 0.0) {
+              // Entered in this step: the deceleration at the junction itself is within the
+              // record's limit (taken back over the step, it is highest at the earliest
+              // crossing), as the acceleration is for an acceleration limit.
+              if (ns.a > before.a && accel_at_earliest_crossing(before, ns, ck.d) < -ck.w)
+                return false;
+              continue;
+            }
             if (ns.a >= -dec_target(ns.v, ns.a, ck)) continue;  // within (dec_target <= ck.w)
             if (!dec_kept(std::max(ns.v, 0.0), ns.a, ck, ck.d - ds)) return false;
           }
@@ -1952,7 +1979,12 @@ struct Interpolator::Impl {
         const Constraint& ck = c[k];
         const double remain = ck.d - moved - ds;
         if (remain < 0.0) {  // passed during this step: judge the end-of-step state itself
-          if (ck.accel) return ns.a - ck.w;
+          // An acceleration limit: the acceleration at the junction itself. Falling over the
+          // step it is above ns.a there: ending the step within the limit let the step enter a
+          // record of a 5 % lower limit with most of the old acceleration (an axis of
+          // 0.4 mm/s^2 and 7,575 mm/s^3, whose acceleration a step can swing over its whole
+          // range: box sweep seed 4 program 3).
+          if (ck.accel) return crossing_accel_bound(before, ns, std::max(0.0, ck.d - moved)) - ck.w;
           // The speed at the junction itself: still decelerating there it is above the
           // end-of-step speed, by up to a step's worth of deceleration (corner steps of 1.005 to
           // 1.03 x the tolerance on machines with stiff axes and tolerances of 0.02 mm/s, wide
@@ -2035,7 +2067,8 @@ struct Interpolator::Impl {
         const double dk = c[k].d - moved;
         if (dk < 0.0) continue;  // passed in an earlier calculation step
         if (dk - c[k].reserve > bound + c[k].beyond_stop) continue;
-        if (c[k].accel && nd.a <= c[k].w) continue;  // within that limit already: passes
+        // Within that limit already, at the step's start and end: passes.
+        if (c[k].accel && nd.a <= c[k].w && before.a <= c[k].w) continue;
         if (cons_bounds && regular_for(nd, c[k])) {
           if (c[k].safe == -kInf) c[k].safe = c[k].d - c[k].reserve - cycle_bound(c[k]);
           if (moved + (nd.s - before.s) <= c[k].safe) continue;  // passes (see cycle_bound)
