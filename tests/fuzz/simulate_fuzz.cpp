@@ -35,19 +35,23 @@ constexpr double kMaxProgramS = 20.0;
 // with all ten axes, and four of the CTest sweeps' random machines (3 to 10 axes, limits that
 // differ from axis to axis). With TGM_FUZZ_MACHINES=wide in the environment the random
 // machines come from the wide sweep's envelope instead (sixteen of them; CTest runs that too,
-// fuzz.simulate.wide.driver).
+// fuzz.simulate.wide.driver); with TGM_FUZZ_MACHINES=box from the whole range of limits the
+// config accepts, each limit of each axis drawn on its own (sixteen; the box sweep's machines).
 constexpr std::size_t kRandomMachines = 4;
-constexpr std::size_t kWideMachines = 16;
+constexpr std::size_t kEnvelopeMachines = 16;
 
-bool wide_machines() {
-  static const bool wide = [] {
+enum class Machines { kRandom, kWide, kBox };
+
+Machines machine_kind() {
+  static const Machines kind = [] {
     const char* e = std::getenv("TGM_FUZZ_MACHINES");
-    if (e == nullptr || *e == '\0' || std::string_view(e) == "random") return false;
-    if (std::string_view(e) == "wide") return true;
-    std::fprintf(stderr, "TGM_FUZZ_MACHINES must be wide or random, not '%s'\n", e);
+    if (e == nullptr || *e == '\0' || std::string_view(e) == "random") return Machines::kRandom;
+    if (std::string_view(e) == "wide") return Machines::kWide;
+    if (std::string_view(e) == "box") return Machines::kBox;
+    std::fprintf(stderr, "TGM_FUZZ_MACHINES must be random, wide or box, not '%s'\n", e);
     std::exit(2);
   }();
-  return wide;
+  return kind;
 }
 
 std::vector<tgm::MachineConfig> make_machines() {
@@ -64,13 +68,14 @@ std::vector<tgm::MachineConfig> make_machines() {
     axes.back().letter = tgm::default_axis_letter(static_cast<int>(axes.size()) - 1);
   }
   c.push_back(ten);
-  const bool wide = wide_machines();
-  const std::size_t n = wide ? kWideMachines : kRandomMachines;
+  const Machines kind = machine_kind();
+  const std::size_t n = kind == Machines::kRandom ? kRandomMachines : kEnvelopeMachines;
   for (std::size_t k = 0; k < n; ++k) {
     std::mt19937_64 rng(1000 + k);
     const int n_axes = 3 + static_cast<int>(k * 7 / (n - 1));  // 3 .. 10
-    c.push_back(wide ? tgm::test::wide_machine(rng, n_axes)
-                     : tgm::test::random_machine(rng, n_axes));
+    c.push_back(kind == Machines::kWide  ? tgm::test::wide_machine(rng, n_axes)
+                : kind == Machines::kBox ? tgm::test::box_machine(rng, n_axes)
+                                         : tgm::test::random_machine(rng, n_axes));
   }
   return c;
 }
