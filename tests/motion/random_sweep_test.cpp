@@ -538,6 +538,19 @@ TEST(RandomSweep, BoxSeed4Program3EntersALowerAccelerationLimitWithinIt) {
   expect_runs_clean(c, "box seed 4 program 3");
 }
 
+// Box sweep seed 11 program 11 (8 axes, 500 us): an arc of 7.9e7 mm/s^3 path jerk ran into a
+// line of 668 mm/s^3 and 0.27 mm/s^2 (C: 0.47 mm/s^2, U: 0.13 mm/s^2, V: 465 mm/s^3). The
+// search for the largest passing acceleration resolved (xu - xs) / 1024 of the arc's step
+// range, 7.7 mm/s^2, and left the line's acceleration limit 28 mm/s^2 behind: the line was
+// entered at -28 mm/s^2, C at 37 x and U at 104 x their limits for 42 ms. The search now
+// resolves a sixty-fourth of a step at the window's lowest jerk as well.
+TEST(RandomSweep, BoxSeed11Program11ResolvesTheSearchForASofterRecordAhead) {
+  const SweepCase c = sweep_case(11, 11, Machines::kBox);
+  ASSERT_EQ(c.axes, 8);
+  ASSERT_EQ(c.machine.cycle_time_us, 500);
+  expect_runs_clean(c, "box seed 11 program 11");
+}
+
 // Wide stop sweep seed 169 program 127 (8 axes, 1 ms): a feed hold given in the cycle after the
 // motion reached an M-function's stop point, before the emulated PLC had seen the M wait. After
 // the restart the next advance() skipped the M wait, whose acknowledgement was never armed, to
