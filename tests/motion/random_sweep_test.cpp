@@ -159,15 +159,29 @@ std::string case_context(std::uint64_t seed, std::uint64_t k, const SweepCase& c
          std::to_string(c.axes) + " cycle " + std::to_string(c.machine.cycle_time_us) + " us";
 }
 
-// Runs wide-sweep program k of `seed` and checks that it finishes clean; with axes > 0 it must
-// first have that many axes (the program its test describes).
-void expect_wide_program_clean(std::uint64_t seed, std::uint64_t k, int axes = 0) {
-  const SweepCase c = sweep_case(seed, k, Machines::kWide);
-  const std::string ctx = "wide " + case_context(seed, k, c);
+const char* machines_name(Machines kind) {
+  return kind == Machines::kWide ? "wide" : kind == Machines::kBox ? "box" : "random";
+}
+
+// Runs program k of `seed`'s sweep on `kind` machines and checks that it finishes clean; with
+// axes > 0 (cycle_us > 0) it must first have that many axes (that cycle time): the program its
+// test describes.
+void expect_program_clean(Machines kind, std::uint64_t seed, std::uint64_t k, int axes = 0,
+                          int cycle_us = 0) {
+  const SweepCase c = sweep_case(seed, k, kind);
+  const std::string ctx = std::string(machines_name(kind)) + " " + case_context(seed, k, c);
   if (axes > 0) {
     ASSERT_EQ(c.axes, axes) << ctx;
   }
+  if (cycle_us > 0) {
+    ASSERT_EQ(c.machine.cycle_time_us, cycle_us) << ctx;
+  }
   expect_runs_clean(c, ctx);
+}
+
+// expect_program_clean on the wide sweep's machines.
+void expect_wide_program_clean(std::uint64_t seed, std::uint64_t k, int axes = 0) {
+  expect_program_clean(Machines::kWide, seed, k, axes);
 }
 
 // Runs wide-sweep programs (seed, program) and checks that each finishes clean.
@@ -493,10 +507,7 @@ TEST(RandomSweep, WideStopSeed8Program126LeavesAFeedHoldJustBeforeAStopPoint) {
 // X's jerk differentiated per cycle came to 2,886.86 > 2,885.12 mm/s^3. An arrival now needs
 // the whole step, from the deceleration it starts with down to none, within the jerk limit.
 TEST(RandomSweep, WideSeed148Program273ArrivesWithinTheJerkLimitBeforeLeavingAtIt) {
-  const SweepCase c = sweep_case(148, 273, Machines::kWide);
-  ASSERT_EQ(c.axes, 5);
-  ASSERT_EQ(c.machine.cycle_time_us, 250);
-  expect_runs_clean(c, "wide seed 148 program 273");
+  expect_program_clean(Machines::kWide, 148, 273, 5, 250);
 }
 
 // Wide sweep seed 148 program 290 (3 axes, 1 ms): an arc of 3,300 mm/s^2 and 9.8e5 mm/s^3 at
@@ -507,10 +518,7 @@ TEST(RandomSweep, WideSeed148Program273ArrivesWithinTheJerkLimitBeforeLeavingAtI
 // 100 x X's 0.018 mm/s, then Y at 6.6 x its acceleration limit. A braking to a junction at or
 // before theirs takes the deceleration back there (decel_limits, dec_kept).
 TEST(RandomSweep, WideSeed148Program290BrakesForACornerBeforeSofterChords) {
-  const SweepCase c = sweep_case(148, 290, Machines::kWide);
-  ASSERT_EQ(c.axes, 3);
-  ASSERT_EQ(c.machine.cycle_time_us, 1000);
-  expect_runs_clean(c, "wide seed 148 program 290");
+  expect_program_clean(Machines::kWide, 148, 290, 3, 1000);
 }
 
 // Box sweep seed 2 program 90 (3 axes, 1 ms; X: 0.0274 mm/s, 1,398 mm/s^2, 4.2e6 mm/s^3, one
@@ -518,10 +526,7 @@ TEST(RandomSweep, WideSeed148Program290BrakesForACornerBeforeSofterChords) {
 // into chords of a slightly lower velocity cap the two-step landing on the cap passed above it
 // between its steps, X at 1.0003..1.0038 x its velocity limit (jerk::track_velocity).
 TEST(RandomSweep, BoxSeed2Program90LandsOnASlowVelocityCapFromBelow) {
-  const SweepCase c = sweep_case(2, 90, Machines::kBox);
-  ASSERT_EQ(c.axes, 3);
-  ASSERT_EQ(c.machine.cycle_time_us, 1000);
-  expect_runs_clean(c, "box seed 2 program 90");
+  expect_program_clean(Machines::kBox, 2, 90, 3, 1000);
 }
 
 // Box sweep seed 4 program 3 (6 axes, 500 us; Y: 0.40 mm/s^2, 7,575 mm/s^3, so a calculation
@@ -532,10 +537,7 @@ TEST(RandomSweep, BoxSeed2Program90LandsOnASlowVelocityCapFromBelow) {
 // acceleration limit passed inside a step is now judged at the junction itself
 // (crossing_accel_bound).
 TEST(RandomSweep, BoxSeed4Program3EntersALowerAccelerationLimitWithinIt) {
-  const SweepCase c = sweep_case(4, 3, Machines::kBox);
-  ASSERT_EQ(c.axes, 6);
-  ASSERT_EQ(c.machine.cycle_time_us, 500);
-  expect_runs_clean(c, "box seed 4 program 3");
+  expect_program_clean(Machines::kBox, 4, 3, 6, 500);
 }
 
 // Box sweep seed 11 program 11 (8 axes, 500 us): an arc of 7.9e7 mm/s^3 path jerk ran into a
@@ -545,10 +547,7 @@ TEST(RandomSweep, BoxSeed4Program3EntersALowerAccelerationLimitWithinIt) {
 // entered at -28 mm/s^2, C at 37 x and U at 104 x their limits for 42 ms. The search now
 // resolves a sixty-fourth of a step at the window's lowest jerk as well.
 TEST(RandomSweep, BoxSeed11Program11ResolvesTheSearchForASofterRecordAhead) {
-  const SweepCase c = sweep_case(11, 11, Machines::kBox);
-  ASSERT_EQ(c.axes, 8);
-  ASSERT_EQ(c.machine.cycle_time_us, 500);
-  expect_runs_clean(c, "box seed 11 program 11");
+  expect_program_clean(Machines::kBox, 11, 11, 8, 500);
 }
 
 // Wide stop sweep seed 169 program 127 (8 axes, 1 ms): a feed hold given in the cycle after the
