@@ -550,6 +550,17 @@ TEST(RandomSweep, BoxSeed11Program11ResolvesTheSearchForASofterRecordAhead) {
   expect_program_clean(Machines::kBox, 11, 11, 8, 500);
 }
 
+// Wide sweep seed 277 program 189 (7 axes, 250 us): a corner into an arc behind a chord of
+// 0.0097 mm (45 mm/s^2, 3,250 mm/s^3 along the path) after chords of 441 mm/s^2 and 2.2e5
+// mm/s^3 came into view 0.3 mm ahead at 14 mm/s. Braking for it at the stretch's lowest limits
+// was hopeless, and the best effort braked at only 278 mm/s^2: the arc's deceleration limit
+// planned its taper at the chord's jerk all the way. Crossed at 4.04 mm/s, corner steps of 2.6 x
+// X's and 6.7 x Y's tolerance. Only the part of a taper inside a softer stretch needs its jerk
+// now (decel_limits).
+TEST(RandomSweep, WideSeed277Program189TapersAtTheJerkBeforeASofterChord) {
+  expect_program_clean(Machines::kWide, 277, 189, 7, 250);
+}
+
 // Wide stop sweep seed 169 program 127 (8 axes, 1 ms): a feed hold given in the cycle after the
 // motion reached an M-function's stop point, before the emulated PLC had seen the M wait. After
 // the restart the next advance() skipped the M wait, whose acknowledgement was never armed, to

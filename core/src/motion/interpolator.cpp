@@ -1084,6 +1084,9 @@ struct Interpolator::Impl {
     int n_dec = 0;
     int scanned = 0;
     double w_before = kInf;  // lowest hard junction limit over (cur, q]
+    // Where the jerk limit last fell (-1: not yet), the lowest jerk limit and hard junction limit
+    // before that place.
+    double d_soft = -1.0, j_stiff = j_before, w_stiff = kInf;
     std::size_t idx = ring_index(cur + 1);
     for (std::uint64_t q = cur + 1; q < win_end && q < tail && scanned < kMaxExtendPerStep; ++q, ++scanned) {
       const Rec& r = rec[idx];
@@ -1105,9 +1108,30 @@ struct Interpolator::Impl {
         if (softer) ck.Jx = sc * r.jt;
         // A braking to a junction at or before q's (dec_kept) takes the deceleration back there.
         ck.junction_v = w_before;
+        // Behind a fall of the jerk limit: only the part of the taper inside the softer stretch
+        // needs its jerk. Taken back to w2 before that stretch at the jerk before it, the rest
+        // fits into the stretch at its own (the stretch less two steps' reach, as dec_room keeps
+        // into a softer record; at most v_end the speed there). Planned at the stretch's jerk all
+        // the way, the taper held the braking for a corner behind a chord of 0.01 mm and 3,250
+        // mm/s^3 to 278 mm/s^2 where the chords before it allowed 441, and the corner was crossed
+        // at 4 mm/s against 1.5 (wide sweep seed 277 program 189).
+        if (!softer && d_soft >= 0.0 && j_stiff > j_before) {
+          const double room = d - d_soft - 2.0 * step_reach(v_end, 0.0, j_before);
+          const double w2 = ck.w + kPlanMarginJ * j_before * std::max(0.0, room) / v_end;
+          if (room > 0.0) {
+            ck.d = d_soft;
+            ck.w = ck.A = w2;
+            ck.J = j_stiff;
+            ck.Jx = j_before;  // the softer stretch starts here
+            ck.junction_v = w_stiff;
+          }
+        }
         if (n_dec == kMaxDecelLimits) break;
       }
       if (softer) {
+        d_soft = d;
+        j_stiff = j_before;
+        w_stiff = w_before;
         j_before = sc * r.jt;
         reach = reach_for(j_before);
       }
