@@ -1084,8 +1084,8 @@ struct Interpolator::Impl {
     int n_dec = 0;
     int scanned = 0;
     double w_before = kInf;  // lowest hard junction limit over (cur, q]
-    // Where the jerk limit last fell (-1: not yet), the lowest jerk limit and hard junction limit
-    // before that place.
+    // Where the jerk limit last fell (-1: not yet), the lowest jerk limit before that place and
+    // the lowest hard junction limit up to it.
     double d_soft = -1.0, j_stiff = j_before, w_stiff = kInf;
     std::size_t idx = ring_index(cur + 1);
     for (std::uint64_t q = cur + 1; q < win_end && q < tail && scanned < kMaxExtendPerStep; ++q, ++scanned) {
@@ -1117,10 +1117,9 @@ struct Interpolator::Impl {
         // at 4 mm/s against 1.5 (wide sweep seed 277 program 189).
         if (!softer && d_soft >= 0.0 && j_stiff > j_before) {
           const double room = d - d_soft - 2.0 * step_reach(v_end, 0.0, j_before);
-          const double w2 = ck.w + kPlanMarginJ * j_before * std::max(0.0, room) / v_end;
           if (room > 0.0) {
             ck.d = d_soft;
-            ck.w = ck.A = w2;
+            ck.w = ck.A = ck.w + kPlanMarginJ * j_before * room / v_end;
             ck.J = j_stiff;
             ck.Jx = j_before;  // the softer stretch starts here
             ck.junction_v = w_stiff;
