@@ -1115,7 +1115,7 @@ struct Interpolator::Impl {
         // the way, the taper held the braking for a corner behind a chord of 0.01 mm and 3,250
         // mm/s^3 to 278 mm/s^2 where the chords before it allowed 441, and the corner was crossed
         // at 4 mm/s against 1.5 (wide sweep seed 277 program 189).
-        if (!softer && d_soft >= 0.0 && j_stiff > j_before) {
+        if (!softer && d_soft >= 0.0) {  // the jerk limit fell from j_stiff to j_before there
           const double room = d - d_soft - 2.0 * step_reach(v_end, 0.0, j_before);
           if (room > 0.0) {
             ck.d = d_soft;
