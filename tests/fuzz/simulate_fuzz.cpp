@@ -40,14 +40,13 @@ constexpr double kMaxProgramS = 20.0;
 constexpr std::size_t kRandomMachines = 4;
 constexpr std::size_t kEnvelopeMachines = 16;
 
-enum class Machines { kRandom, kWide, kBox };
+using Machines = tgm::test::MachineKind;
 
 Machines machine_kind() {
   static const Machines kind = [] {
     const char* e = std::getenv("TGM_FUZZ_MACHINES");
-    if (e == nullptr || *e == '\0' || std::string_view(e) == "random") return Machines::kRandom;
-    if (std::string_view(e) == "wide") return Machines::kWide;
-    if (std::string_view(e) == "box") return Machines::kBox;
+    Machines k = Machines::kRandom;
+    if (e == nullptr || *e == '\0' || tgm::test::machine_kind_from_name(e, k)) return k;
     std::fprintf(stderr, "TGM_FUZZ_MACHINES must be random, wide or box, not '%s'\n", e);
     std::exit(2);
   }();
@@ -73,9 +72,7 @@ std::vector<tgm::MachineConfig> make_machines() {
   for (std::size_t k = 0; k < n; ++k) {
     std::mt19937_64 rng(1000 + k);
     const int n_axes = 3 + static_cast<int>(k * 7 / (n - 1));  // 3 .. 10
-    c.push_back(kind == Machines::kWide  ? tgm::test::wide_machine(rng, n_axes)
-                : kind == Machines::kBox ? tgm::test::box_machine(rng, n_axes)
-                                         : tgm::test::random_machine(rng, n_axes));
+    c.push_back(tgm::test::machine_of_kind(kind, rng, n_axes));
   }
   return c;
 }

@@ -7,6 +7,7 @@
 #include <limits>
 #include <random>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -408,6 +409,30 @@ inline MachineConfig box_machine(std::mt19937_64& rng, int axes) {
     a.corner_velocity_tolerance_mm_s = log_uniform(kMinCornerTolerance, kMaxCornerTolerance);
   }
   return m;
+}
+
+// The machines a sweep or the simulate fuzzer draws: random_machine, wide_machine, box_machine.
+enum class MachineKind { kRandom, kWide, kBox };
+
+inline const char* machine_kind_name(MachineKind kind) {
+  return kind == MachineKind::kWide ? "wide" : kind == MachineKind::kBox ? "box" : "random";
+}
+
+// The kind named "random", "wide" or "box"; false for any other name.
+inline bool machine_kind_from_name(std::string_view name, MachineKind& kind) {
+  for (const MachineKind k : {MachineKind::kRandom, MachineKind::kWide, MachineKind::kBox}) {
+    if (name == machine_kind_name(k)) {
+      kind = k;
+      return true;
+    }
+  }
+  return false;
+}
+
+inline MachineConfig machine_of_kind(MachineKind kind, std::mt19937_64& rng, int axes) {
+  return kind == MachineKind::kWide  ? wide_machine(rng, axes)
+         : kind == MachineKind::kBox ? box_machine(rng, axes)
+                                     : random_machine(rng, axes);
 }
 
 }  // namespace tgm::test

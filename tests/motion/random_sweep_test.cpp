@@ -30,6 +30,7 @@
 #include <limits>
 #include <random>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -42,7 +43,6 @@ namespace tgm {
 namespace {
 
 using test::Generated;
-using test::random_machine;
 using test::random_program;
 
 // Sweep program k of `seed`: machine, program, override schedule, lower bound and time limit.
@@ -57,13 +57,12 @@ struct SweepCase {
 // --machines=wide: test::wide_machine instead of random_machine (core/MOTION.md, "Known gaps");
 // --machines=box: test::box_machine (the whole box of limits the config accepts);
 // --machines=random is the default.
-enum class Machines { kRandom, kWide, kBox };
+using Machines = test::MachineKind;
 Machines machine_kind() {
   for (const std::string& a : ::testing::internal::GetArgvs()) {
     if (a.rfind("--machines=", 0) != 0) continue;
-    if (a == "--machines=wide") return Machines::kWide;
-    if (a == "--machines=box") return Machines::kBox;
-    if (a == "--machines=random") return Machines::kRandom;
+    Machines kind;
+    if (test::machine_kind_from_name(std::string_view(a).substr(11), kind)) return kind;
     std::fprintf(stderr, "--machines must be wide, box or random, not '%s'\n", a.c_str() + 11);
     std::exit(2);
   }
@@ -77,9 +76,7 @@ SweepCase sweep_case(std::uint64_t seed, std::uint64_t k, Machines kind) {
   std::uniform_int_distribution<int> axes_d(1, 10);
   SweepCase c;
   c.axes = k % 5 == 0 ? 3 : axes_d(rng);
-  c.machine = kind == Machines::kWide  ? test::wide_machine(rng, c.axes)
-              : kind == Machines::kBox ? test::box_machine(rng, c.axes)
-                                       : random_machine(rng, c.axes);
+  c.machine = test::machine_of_kind(kind, rng, c.axes);
   c.generated = random_program(rng, c.axes, 12);
   c.bound_s = test::motion_time_lower_bound(c.generated.program, c.machine, c.generated.overrides);
   c.limit_s = test::motion_time_limit(c.generated.program, c.machine, c.generated.overrides);
@@ -159,17 +156,14 @@ std::string case_context(std::uint64_t seed, std::uint64_t k, const SweepCase& c
          std::to_string(c.axes) + " cycle " + std::to_string(c.machine.cycle_time_us) + " us";
 }
 
-const char* machines_name(Machines kind) {
-  return kind == Machines::kWide ? "wide" : kind == Machines::kBox ? "box" : "random";
-}
-
 // Runs program k of `seed`'s sweep on `kind` machines and checks that it finishes clean; with
 // axes > 0 (cycle_us > 0) it must first have that many axes (that cycle time): the program its
 // test describes.
 void expect_program_clean(Machines kind, std::uint64_t seed, std::uint64_t k, int axes = 0,
                           int cycle_us = 0) {
   const SweepCase c = sweep_case(seed, k, kind);
-  const std::string ctx = std::string(machines_name(kind)) + " " + case_context(seed, k, c);
+  const std::string ctx =
+      std::string(test::machine_kind_name(kind)) + " " + case_context(seed, k, c);
   if (axes > 0) {
     ASSERT_EQ(c.axes, axes) << ctx;
   }
