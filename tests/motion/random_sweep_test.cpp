@@ -565,6 +565,38 @@ TEST(RandomSweep, WideStopSeed169Program127AcknowledgesAnMFunctionAfterARestart)
   EXPECT_LT(s.program_time_s, 9.0);
 }
 
+// Wide stop sweep seed 218 program 79 (8 axes, 1 ms): chords turning towards X (11.5 mm/s^2)
+// lower the tangential acceleration limit from 450 to 37 mm/s^2 within 3 mm, so braking for an
+// M-function 4 mm ahead and the corners before it, each planned at its stretch's lowest limit,
+// was hopeless. The best effort then braked harder than the next chord's deceleration limit
+// allowed (414 against 301 mm/s^2) for one corner that its plan still kept, 0.05 mm before a
+// hopeless one of nearly the same speed, and X measured 11.60 against 11.52 mm/s^2 on that chord.
+// With a hard limit hopeless, a deceleration limit nearer than the kept limit now comes first.
+TEST(RandomSweep, WideStopSeed218Program79KeepsTheDecelerationLimitsAheadInTheBestEffort) {
+  SimulationSummary s;
+  ASSERT_NO_FATAL_FAILURE(expect_wide_stop_case_clean(218, 79, 8, 1, s));
+}
+
+// Wide sweep seed 204 program 20 (3 axes, 250 us): the other side of that rule. A corner 1.6 mm
+// ahead, planned at the current record's limits, needed 247.6 mm/s^2 of braking while deceleration
+// limits 9 mm ahead, behind a hopeless corner, allowed 245.4; held to those, the motion missed
+// the first corner's plan and crossed it with a step of 25 mm/s in X (tolerance 1.57). The
+// nearer limit wins.
+TEST(RandomSweep, WideSeed204Program20BrakesForANearCornerBeforeFartherDecelerationLimits) {
+  expect_wide_programs_clean({{204, 20}});
+}
+
+// Wide sweep seed 184 program 125 (3 axes, 500 us): a reversal of 0.02 mm/s 5.7 mm ahead at
+// 105 mm/s, stiff records up to it and 207 mm/s^3 behind it. The deceleration limits behind the
+// reversal judged the braking to it at that soft jerk, so it never settled above the reversal's
+// speed, and held the braking to 198 mm/s^2 where the reversal needed 204 and more; the best
+// effort's braking for the reversal made up for it until the rule above, and then the reversal
+// was crossed at 74 mm/s (corner step 45 x X's tolerance; seed 183 program 299, 7 axes,
+// 250 us: 360 x). Such a braking is judged at the jerk before the reversal now (dec_kept).
+TEST(RandomSweep, WideSeeds183And184JudgeTheBrakingToAReversalAtTheJerkBeforeIt) {
+  expect_wide_programs_clean({{184, 125}, {183, 299}});
+}
+
 // Wide sweep seed 1 programs 55 and 86 (1 ms): braking for a corner of a few hundredths of a
 // mm/s (X or Z tolerance 0.02..0.04 mm/s), the motion came to rest 1e-5 mm before it, inside
 // the junction's reserve, and crept the rest for over an hour (55: 4,447 s instead of 17.5 s).

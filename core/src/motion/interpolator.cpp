@@ -273,6 +273,8 @@ struct Constraint {
   //! to it from above ends with the deceleration taken back, which keeps this limit too
   //! (dec_kept).
   double junction_v = kInf;
+  //! The lowest jerk limit before the junction of junction_v: the jerk of the braking to it.
+  double junction_j = kInf;
 };
 
 // Path travelled in time t from speed v and acceleration a at constant jerk j.
@@ -1084,9 +1086,10 @@ struct Interpolator::Impl {
     int n_dec = 0;
     int scanned = 0;
     double w_before = kInf;  // lowest hard junction limit over (cur, q]
+    double j_w = kInf;       // the lowest jerk limit before w_before's junction
     // Where the jerk limit last fell (-1: not yet), the lowest jerk limit before that place and
-    // the lowest hard junction limit up to it.
-    double d_soft = -1.0, j_stiff = j_before, w_stiff = kInf;
+    // the lowest hard junction limit up to it, with the jerk before its junction.
+    double d_soft = -1.0, j_stiff = j_before, w_stiff = kInf, jw_stiff = kInf;
     std::size_t idx = ring_index(cur + 1);
     for (std::uint64_t q = cur + 1; q < win_end && q < tail && scanned < kMaxExtendPerStep; ++q, ++scanned) {
       const Rec& r = rec[idx];
@@ -1095,7 +1098,10 @@ struct Interpolator::Impl {
       if (r.kind != RecKind::kMotion) continue;
       const double d = r.s0 - here;
       if (d > reach_max) break;
-      w_before = std::min(w_before, r.wg);
+      if (r.wg < w_before) {
+        w_before = r.wg;
+        j_w = j_before;
+      }
       // A record of lower jerk also limits the deceleration its jerk can take back before the
       // motion stops there (dec_target; the entry speed is below v_end while decelerating).
       const bool softer = sc * r.jt < j_before;
@@ -1108,6 +1114,7 @@ struct Interpolator::Impl {
         if (softer) ck.Jx = sc * r.jt;
         // A braking to a junction at or before q's (dec_kept) takes the deceleration back there.
         ck.junction_v = w_before;
+        ck.junction_j = j_w;
         // Behind a fall of the jerk limit: only the part of the taper inside the softer stretch
         // needs its jerk. Taken back to w2 before that stretch at the jerk before it, the rest
         // fits into the stretch at its own (the stretch less two steps' reach, as dec_room keeps
@@ -1123,6 +1130,7 @@ struct Interpolator::Impl {
             ck.J = j_stiff;
             ck.Jx = j_before;  // the softer stretch starts here
             ck.junction_v = w_stiff;
+            ck.junction_j = jw_stiff;
           }
         }
         if (n_dec == kMaxDecelLimits) break;
@@ -1131,6 +1139,7 @@ struct Interpolator::Impl {
         d_soft = d;
         j_stiff = j_before;
         w_stiff = w_before;
+        jw_stiff = j_w;
         j_before = sc * r.jt;
         reach = reach_for(j_before);
       }
@@ -1215,7 +1224,8 @@ struct Interpolator::Impl {
   // (corner steps of 100 x the tolerance, then Y at 6.6 x its acceleration limit).
   bool dec_kept(double v, double a, const Constraint& ck, double room) const {
     if (dec_room(v, a, ck) <= room) return true;
-    return v > ck.junction_v && jerk::settled_velocity(v, a, kPlanMarginJ * ck.J) > ck.junction_v;
+    return v > ck.junction_v &&
+           jerk::settled_velocity(v, a, kPlanMarginJ * ck.junction_j) > ck.junction_v;
   }
 
   // Next non-pass record after `q` is a stop, or the buffer ends there.
@@ -1958,25 +1968,28 @@ struct Interpolator::Impl {
       // target (an override decrease, a lower feed) never goes below it; braking for a limit
       // ahead does only when that limit cannot be kept otherwise.
       double lo_dec = lo;
-      if (n_dec > 0) {
-        auto dec_ok = [&](double xx) {
-          const jerk::State ns = jerk::advance(before, xx, dt);
-          const double ds = ns.s - before.s;
-          for (int i = 0; i < n_dec; ++i) {
-            const Constraint& ck = dec[i];
-            if (ck.d - ds <= 0.0) {
-              // Entered in this step: the deceleration at the junction itself is within the
-              // record's limit (taken back over the step, it is highest at the earliest
-              // crossing), as the acceleration is for an acceleration limit.
-              if (ns.a > before.a && accel_at_earliest_crossing(before, ns, ck.d) < -ck.w)
-                return false;
-              continue;
-            }
-            if (ns.a >= -dec_target(ns.v, ns.a, ck)) continue;  // within (dec_target <= ck.w)
-            if (!dec_kept(std::max(ns.v, 0.0), ns.a, ck, ck.d - ds)) return false;
+      // Distance [mm] to the nearest deceleration limit that x = xx does not keep, kInf when it
+      // keeps them all (dec is in path order).
+      auto dec_failing_at = [&](double xx) {
+        const jerk::State ns = jerk::advance(before, xx, dt);
+        const double ds = ns.s - before.s;
+        for (int i = 0; i < n_dec; ++i) {
+          const Constraint& ck = dec[i];
+          if (ck.d - ds <= 0.0) {
+            // Entered in this step: the deceleration at the junction itself is within the
+            // record's limit (taken back over the step, it is highest at the earliest
+            // crossing), as the acceleration is for an acceleration limit.
+            if (ns.a > before.a && accel_at_earliest_crossing(before, ns, ck.d) < -ck.w)
+              return ck.d;
+            continue;
           }
-          return true;
-        };
+          if (ns.a >= -dec_target(ns.v, ns.a, ck)) continue;  // within (dec_target <= ck.w)
+          if (!dec_kept(std::max(ns.v, 0.0), ns.a, ck, ck.d - ds)) return ck.d;
+        }
+        return kInf;
+      };
+      if (n_dec > 0) {
+        auto dec_ok = [&](double xx) { return dec_failing_at(xx) == kInf; };
         if (!dec_ok(lo)) {
           if (!dec_ok(hi)) {
             lo_dec = hi;  // as much easing as the jerk allows
@@ -2197,9 +2210,15 @@ struct Interpolator::Impl {
         } else if (hopeless) {
           // Best effort. A limit that even the hardest braking cannot keep (with the lowest
           // limits of its whole stretch, which is conservative) gets the hardest braking the
-          // deceleration limits ahead allow (lo_dec); the limits lo can still keep get what they
-          // need. Braking below lo_dec for a hopeless limit only exceeds an acceleration limit
-          // at the next junction (e.g. TGM_SEED=1 program 723).
+          // deceleration limits ahead allow (lo_dec). Braking below lo_dec for a hopeless limit
+          // only exceeds an acceleration limit at the next junction (e.g. TGM_SEED=1 program
+          // 723). The limits lo can still keep get what they need, except while a hard limit is
+          // hopeless and a deceleration limit that this would break lies nearer than every kept
+          // limit that needs it: those plans are stretch minima too, judged over a longer
+          // stretch. Braking at 414 mm/s^2 for a corner 2.3 mm ahead that its plan still kept,
+          // 0.05 mm before a hopeless one of nearly the same speed, entered a chord 0.02 mm ahead
+          // that allowed 301 (X at 1.007 x its acceleration limit, wide stop sweep seed 218
+          // program 79); at lo_dec every limit was kept.
           // Hopeless limits that are all the feed x Rel_Speed (soft: an override decrease) get
           // the tracking towards the target instead: it brakes as hard as landing on the target
           // allows. The hardest braking undershot the target by far when the jerk limits ahead
@@ -2214,8 +2233,22 @@ struct Interpolator::Impl {
             }
           }
           nv = nf;
-          xs = nv > 0 ? bisect(lo, xd, ok, 10) : xd;
-          x = hard_hopeless ? std::min(lo_dec, xs) : xs;
+          x = nv > 0 ? bisect(lo, xd, ok, 10) : xd;
+          if (hard_hopeless && x < lo_dec) {
+            // The limits that can be kept need more braking than the deceleration limits ahead
+            // allow: the nearer of the two wins. Held to lo_dec, a corner 1.6 mm ahead planned
+            // at the current record's limits lost 2 mm/s^2 to deceleration limits 9 mm ahead
+            // behind a hopeless corner, and was crossed at 16 x its tolerance (wide sweep seed
+            // 204 program 20).
+            double d_keep = kInf;
+            for (int i = 0; i < nv; ++i) {
+              if (excess(lo_dec, viol[i]) > kExcessTol)
+                d_keep = std::min(d_keep, c[viol[i]].d - moved);
+            }
+            if (dec_failing_at(x) < d_keep) x = lo_dec;
+          } else if (hard_hopeless) {
+            x = lo_dec;
+          }
           // Never so hard that the deceleration cannot be taken back before the motion stops
           // at the jerk limits of the records the release crosses (the floor in lo has only
           // this record's), as far as the limits that can be kept allow.
