@@ -2225,8 +2225,9 @@ struct Interpolator::Impl {
           // were lower than here, down to a standstill mid-line (sweep seed 15 program 529).
           int nf = 0;
           bool hard_hopeless = false;
+          const jerk::State at_lo = jerk::advance(before, lo, dt);
           for (int i = 0; i < nv; ++i) {
-            if (excess(lo, viol[i]) <= kExcessTol) {
+            if (excess_from(at_lo, viol[i]) <= kExcessTol) {
               viol[nf++] = viol[i];
             } else if (!c[viol[i]].soft) {
               hard_hopeless = true;
@@ -2234,20 +2235,21 @@ struct Interpolator::Impl {
           }
           nv = nf;
           x = nv > 0 ? bisect(lo, xd, ok, 10) : xd;
-          if (hard_hopeless && x < lo_dec) {
-            // The limits that can be kept need more braking than the deceleration limits ahead
-            // allow: the nearer of the two wins. Held to lo_dec, a corner 1.6 mm ahead planned
-            // at the current record's limits lost 2 mm/s^2 to deceleration limits 9 mm ahead
-            // behind a hopeless corner, and was crossed at 16 x its tolerance (wide sweep seed
-            // 204 program 20).
-            double d_keep = kInf;
-            for (int i = 0; i < nv; ++i) {
-              if (excess(lo_dec, viol[i]) > kExcessTol)
-                d_keep = std::min(d_keep, c[viol[i]].d - moved);
+          if (hard_hopeless) {
+            // When the limits that can be kept need more braking than the deceleration limits
+            // ahead allow, the nearer of the two wins. Held to lo_dec, a corner 1.6 mm ahead
+            // planned at the current record's limits lost 2 mm/s^2 to deceleration limits 9 mm
+            // ahead behind a hopeless corner, and was crossed at 16 x its tolerance (wide sweep
+            // seed 204 program 20).
+            double d_keep = kInf;  // the nearest kept limit that lo_dec fails
+            if (x < lo_dec) {
+              const jerk::State at_lo_dec = jerk::advance(before, lo_dec, dt);
+              for (int i = 0; i < nv; ++i) {
+                if (excess_from(at_lo_dec, viol[i]) > kExcessTol)
+                  d_keep = std::min(d_keep, c[viol[i]].d - moved);
+              }
             }
-            if (dec_failing_at(x) < d_keep) x = lo_dec;
-          } else if (hard_hopeless) {
-            x = lo_dec;
+            if (x >= lo_dec || dec_failing_at(x) < d_keep) x = lo_dec;
           }
           // Never so hard that the deceleration cannot be taken back before the motion stops
           // at the jerk limits of the records the release crosses (the floor in lo has only
