@@ -754,7 +754,7 @@ TEST(Machines, JerkFarAboveWhatACalculationStepCanUseKeepsTheCorner) {
 // wide-envelope sweep). Braking for a corner along the stiff axis at its jerk used to leave a
 // deceleration at the junction that the next record, led by the soft axis, could not take back
 // before the motion would reverse: the motion stalled at v = 0 still decelerating and the soft
-// axis' jerk went to 10..500 x its limit (core/MOTION.md, "Junctions into a lower jerk").
+// axis' jerk went to 10..500 x its limit (core/MOTION_LOG.md, "Junctions into a lower jerk").
 TEST(Machines, CornerIntoARecordLedByAFarSofterAxisKeepsItsJerk) {
   const auto cases = test::soft_axis_cases();
   for (std::size_t k = 0; k < cases.size(); ++k) {

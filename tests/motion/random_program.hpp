@@ -370,7 +370,8 @@ inline MachineConfig random_machine(std::mt19937_64& rng, int axes) {
 // axis, log-uniform velocity 1..1e4 mm/s, acceleration 10..1e5 mm/s^2, jerk 100..1e8 mm/s^3 and
 // corner tolerance 0.01..100 mm/s, held to realistic relations (v / A 5 ms..5 s, A / J
 // 2 ms..0.5 s), and axes that differ from each other by orders of magnitude. Not in CTest:
-// `--machines=wide` on the sweep's command line (core/MOTION.md, "Known gaps").
+// `--machines=wide` on the sweep's command line (core/MOTION_LOG.md, "Machines far from the
+// swept envelope").
 inline MachineConfig wide_machine(std::mt19937_64& rng, int axes) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   auto log_uniform = [&](double lo, double hi) { return std::exp(std::log(lo) + (std::log(hi) - std::log(lo)) * u(rng)); };

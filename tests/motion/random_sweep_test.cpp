@@ -7,9 +7,9 @@
 // TGM_SWEEP_FIRST (default 0); the command line wins. A long run:
 //   build/tests/motion/tgm_motion_tests --gtest_filter='RandomSweep.*' --seed=7 --count=5000
 // --machines=wide draws the machines from a far wider envelope (test::wide_machine); seeds 1..41
-// and 101..200 x 300 pass, with their stop sweeps, since session 33 (judged by the exit code:
-// core/MOTION.md, "Known gaps", has the history). CTest runs seeds 1 and 22 x 300 of it, plain
-// and with stops
+// and 101..200 x 300 pass, with their stop sweeps, since session 33 (judged by the exit code;
+// core/MOTION.md, "Known gaps", has the coverage on the generator as it stands, and
+// core/MOTION_LOG.md the history). CTest runs seeds 1 and 22 x 300 of it, plain and with stops
 // (motion.sweep.wide1, motion.sweep.wide22). --machines=box draws every axis limit from the
 // whole range the config accepts, with no relation between them (test::box_machine; core/
 // MOTION.md, "Accepted machine limits").
@@ -54,7 +54,7 @@ struct SweepCase {
   double limit_s = 0.0;
 };
 
-// --machines=wide: test::wide_machine instead of random_machine (core/MOTION.md, "Known gaps");
+// --machines=wide: test::wide_machine instead of random_machine (core/MOTION_LOG.md);
 // --machines=box: test::box_machine (the whole box of limits the config accepts);
 // --machines=random is the default.
 using Machines = test::MachineKind;

@@ -1,6 +1,7 @@
 // Two-axis machines whose jerk limits differ by orders of magnitude, with a few moves each that
-// made the planner exceed the soft axis' jerk (found by the wide-envelope sweep; core/MOTION.md
-// "Junctions into a lower jerk"). The motion tests keep them as regression cases.
+// made the planner exceed the soft axis' jerk (found by the wide-envelope sweep; see
+// core/MOTION_LOG.md, "Junctions into a lower jerk"). The motion tests keep them as regression
+// cases.
 #pragma once
 
 #include <array>
