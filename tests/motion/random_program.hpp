@@ -181,21 +181,37 @@ inline RecordLimits record_limits(const Segment& sg, const std::array<double, kM
     if (c > 1e-12)
       out.cap = std::min(out.cap, ip.axes[static_cast<std::size_t>(i)].max_velocity_mm_s / c);
   }
-  // The plane axes: the interpolator holds a whole arc record to one cap from their velocity
-  // limits and the largest share of the path speed they take anywhere on it (core/MOTION.md).
-  // Where the sweep passes an angle with sin th = +-1 the first axis takes
-  // r / sqrt(r^2 + r'^2 + z'^2) of it (r' = dr/dth, z'^2 the other axes' (dz/dth)^2), with
-  // cos th = +-1 the second; r_min / sqrt(r_max^2 + ...) is at most that. An axis whose
-  // direction the sweep does not pass adds no cap here.
+  // The plane axes: the interpolator holds a whole arc record to one cap, the lowest plane
+  // axis velocity limit over the largest share of the path speed a plane axis can take on it,
+  // k = (|r1 - r0| + r_max sweep) / length (core/MOTION.md, Geometry), as if each plane axis
+  // ran along the tangent somewhere on the arc. The first axis takes
+  // |r' cos th - r sin th| / sqrt(r^2 + r'^2 + z'^2) of the path speed (r' = dr/dth, z'^2 the
+  // other axes' (dz/dth)^2), the second |r' sin th + r cos th| / sqrt(...); below they are
+  // estimated from under by share |sin th| and share |cos th| with share = r_min /
+  // sqrt(r_max^2 + r'^2 + z'^2) <= k, at their largest over the sweep: 1 where it passes
+  // sin th = +-1 (cos th = +-1), else at one of its ends. A smaller share is a higher cap, so
+  // the bound stays below the interpolator's time. An arc that ends just short of an axis'
+  // direction (Z at 86 degrees of an arc in G18 on a box machine whose Z runs at 0.04 mm/s)
+  // used to add no cap for that axis: the bound was 175 s, the program runs 2,000 s at Z's
+  // limit, and the time limit (4 x the bound + 60 s) called it a crawl (box sweep seed 3
+  // program 119).
   const double lo_th = sg.type == SegmentType::kArcCcw ? th0 : th0 - sweep;
+  const double hi_th = lo_th + sweep;
   auto passes = [&](double target) {  // an angle target + k pi within [lo_th, lo_th + sweep]
-    return target + std::ceil((lo_th - target) / kSweepPi) * kSweepPi <= lo_th + sweep;
+    return target + std::ceil((lo_th - target) / kSweepPi) * kSweepPi <= hi_th;
   };
   const double rp = (r1 - r0) / sweep;
   const double share = std::min(r0, r1) / std::sqrt(std::max(r0, r1) * std::max(r0, r1) + rp * rp +
                                                     lin2 / (sweep * sweep));
-  if (passes(0.5 * kSweepPi)) out.cap = std::min(out.cap, ip.axes[f].max_velocity_mm_s / share);
-  if (passes(0.0)) out.cap = std::min(out.cap, ip.axes[s].max_velocity_mm_s / share);
+  const double sin_max = passes(0.5 * kSweepPi)
+                             ? 1.0
+                             : std::max(std::fabs(std::sin(lo_th)), std::fabs(std::sin(hi_th)));
+  const double cos_max =
+      passes(0.0) ? 1.0 : std::max(std::fabs(std::cos(lo_th)), std::fabs(std::cos(hi_th)));
+  if (share * sin_max > 0.0)
+    out.cap = std::min(out.cap, ip.axes[f].max_velocity_mm_s / (share * sin_max));
+  if (share * cos_max > 0.0)
+    out.cap = std::min(out.cap, ip.axes[s].max_velocity_mm_s / (share * cos_max));
   // Acceleration and jerk: every axis the arc moves, at the conservative shares above.
   double a_min = std::numeric_limits<double>::infinity(), j_min = a_min;
   for (int i = 0; i < n; ++i) {
@@ -332,10 +348,10 @@ inline double motion_time_exact_stop(const Program& program, const MachineConfig
 //
 // Or, when that is longer, 1.25 x the time of an exact stop at every junction
 // (motion_time_exact_stop) + `slack_s`: no planner with look-ahead should be slower than that.
-// On machines with a very soft axis the caps are far out of reach: wide sweep seed 21 program
-// 175 (3 axes, Y jerk 564 mm/s^3, corner tolerances 0.03..0.14 mm/s, 699 chords of random
-// direction) nearly stops at every junction, at its jerk limit, and takes 129.4 s, against a
-// lower bound of 13.6 s (limit 112.2 s) and an exact stop reference of ~180 s.
+// On machines with a very soft axis the caps are far out of reach: box sweep seed 1 program 19
+// (5 axes, Y at 0.12 mm/s^2 with a corner tolerance of 0.003 mm/s) runs at its acceleration,
+// corner and arc limits and takes 269.3 s, against a lower bound of 15.5 s (limit 122.0 s) and
+// an exact stop reference of 408.9 s.
 inline double motion_time_limit(const Program& program, const MachineConfig& machine,
                                 std::vector<std::pair<double, double>> changes, double slowdown = 4.0,
                                 double slack_s = 60.0, double rel0 = 1.0) {
