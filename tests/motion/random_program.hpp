@@ -13,6 +13,7 @@
 
 #include "program_builder.hpp"
 #include "tgm/config.hpp"
+#include "tgm/intercode.hpp"
 
 namespace tgm::test {
 
@@ -162,7 +163,10 @@ inline RecordLimits record_limits(const Segment& sg, const std::array<double, kM
   const double ex = sg.end[f] - sg.center[0], ey = sg.end[s] - sg.center[1];
   const double r0 = std::hypot(sx, sy), r1 = std::hypot(ex, ey);
   const double th0 = std::atan2(sy, sx), th1 = std::atan2(ey, ex);
-  const bool full = std::hypot(ex - sx, ey - sy) <= 1e-9 * std::max(1.0, r0);
+  // A full circle by the interpolator's rule (an absolute distance, kFullCircleMm): one relative
+  // to the radius would call an arc of a few 1e-9 mm a full circle on a large radius and put a
+  // whole turn into the bound.
+  const bool full = std::hypot(ex - sx, ey - sy) < kFullCircleMm;
   double sweep =
       full ? 2.0 * kSweepPi
            : std::fmod((sg.type == SegmentType::kArcCcw ? th1 - th0 : th0 - th1) + 4.0 * kSweepPi,
