@@ -172,6 +172,28 @@ TEST(KnownValues, ShortArcOfALargeRadiusIsNotAFullCircle) {
   EXPECT_NEAR(s.distance_mm, 0.2, 1e-9);
 }
 
+// An arc is held to one speed cap from its plane axes' velocity limits: each axis' limit over
+// the largest share of the path speed that axis takes on the sweep. From 20 to 40 degrees in
+// XY, X (at 5 mm/s here) takes at most sin 40 degrees of it and Y cos 20 degrees, so the cap is
+// 5 / sin 40 degrees (with the arc margin kArcSafety, 0.97), not 5 mm/s as if X ran along the
+// tangent somewhere on the arc (X then peaked at 3.1 mm/s).
+TEST(KnownValues, ArcIsCappedByEachPlaneAxisAtItsLargestShareOnTheSweep) {
+  MachineConfig m = machine();
+  m.interpolators[0].axes[0].max_velocity_mm_s = 5.0;
+  m.interpolators[0].axes[0].rapid_velocity_mm_s = 5.0;
+  const double r = 10.0, a0 = 20.0 * kPi / 180.0, a1 = 40.0 * kPi / 180.0;
+  const std::array<double, 2> c = {-r * std::cos(a0), -r * std::sin(a0)};
+  ProgramBuilder b(3);
+  b.arc(true, {c[0] + r * std::cos(a1), c[1] + r * std::sin(a1), 0.0}, c, 6000.0).end();
+  double peak = 0.0;
+  const auto s = simulate(
+      b.program(), {}, [&](const Registers& reg) { peak = std::max(peak, reg.act_speed); }, m);
+  expect_clean(s);
+  EXPECT_NEAR(peak / 60.0, 0.97 * 5.0 / std::sin(a1), 1e-9);
+  EXPECT_GT(s.peaks[0].velocity_mm_s, 0.95 * 5.0);
+  EXPECT_LE(s.peaks[0].velocity_mm_s, 5.0);
+}
+
 TEST(KnownValues, HelixPitch) {
   // Two full turns (turns = 1) of radius 5 rising 6 mm: pitch 3 mm per turn.
   ProgramBuilder b(3, {5.0, 0.0, 0.0});

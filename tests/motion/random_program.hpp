@@ -185,20 +185,19 @@ inline RecordLimits record_limits(const Segment& sg, const std::array<double, kM
     if (c > 1e-12)
       out.cap = std::min(out.cap, ip.axes[static_cast<std::size_t>(i)].max_velocity_mm_s / c);
   }
-  // The plane axes: the interpolator holds a whole arc record to one cap, the lowest plane
-  // axis velocity limit over the largest share of the path speed a plane axis can take on it,
-  // k = (|r1 - r0| + r_max sweep) / length (core/MOTION.md, Geometry), as if each plane axis
-  // ran along the tangent somewhere on the arc. The first axis takes
-  // |r' cos th - r sin th| / sqrt(r^2 + r'^2 + z'^2) of the path speed (r' = dr/dth, z'^2 the
-  // other axes' (dz/dth)^2), the second |r' sin th + r cos th| / sqrt(...); below they are
-  // estimated from under by share |sin th| and share |cos th| with share = r_min /
-  // sqrt(r_max^2 + r'^2 + z'^2) <= k, at their largest over the sweep: 1 where it passes
-  // sin th = +-1 (cos th = +-1), else at one of its ends. A smaller share is a higher cap, so
-  // the bound stays below the interpolator's time. An arc that ends just short of an axis'
-  // direction (Z at 86 degrees of an arc in G18 on a box machine whose Z runs at 0.04 mm/s)
-  // used to add no cap for that axis: the bound was 175 s, the program runs 2,000 s at Z's
-  // limit, and the time limit (4 x the bound + 60 s) called it a crawl (box sweep seed 3
-  // program 119).
+  // The plane axes: the interpolator holds a whole arc record to one cap, each plane axis'
+  // velocity limit over an upper bound of the share of the path speed it takes on the sweep,
+  // (|r1 - r0| + r_max sweep m) / length with m the largest |sin th| (first axis) or |cos th|
+  // (second) over the sweep: 1 where it passes sin th = +-1 (cos th = +-1), else at one of its
+  // ends (core/MOTION.md, Planner). The first axis takes |r' cos th - r sin th| /
+  // sqrt(r^2 + r'^2 + z'^2) of the path speed (r' = dr/dth, z'^2 the other axes' (dz/dth)^2),
+  // the second |r' sin th + r cos th| / sqrt(...); here they are estimated from under by
+  // share m with share = r_min / sqrt(r_max^2 + r'^2 + z'^2) <= r_max sweep / length. A
+  // smaller share is a higher cap, so the bound stays below the interpolator's time. An arc that
+  // ends just short of an axis' direction (Z at 86 degrees of an arc in G18 on a box machine
+  // whose Z runs at 0.04 mm/s) used to add no cap for that axis: the bound was 175 s, the
+  // program runs 2,000 s at Z's limit, and the time limit (4 x the bound + 60 s) called it a
+  // crawl (box sweep seed 3 program 119).
   const double lo_th = sg.type == SegmentType::kArcCcw ? th0 : th0 - sweep;
   const double hi_th = lo_th + sweep;
   auto passes = [&](double target) {  // an angle target + k pi within [lo_th, lo_th + sweep]
