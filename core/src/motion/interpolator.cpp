@@ -537,14 +537,20 @@ struct Interpolator::Impl {
       if (i == pa.first || i == pa.second) continue;
       g.dir[i] = (g.end[i] - g.start[i]) / g.length;
     }
-    const double k = std::max((std::fabs(g.dr) + std::max(r0, r1) * sweep) / g.length, 1e-12);
+    // Upper bound of the share of the path speed the plane takes, (|dr| + r_max sweep m) / L,
+    // with m = 1 for the whole plane (k) and m the largest |sin th| or |cos th| for one axis.
+    const double r_max = std::max(r0, r1);
+    auto plane_share = [&](double m) {
+      return std::max((std::fabs(g.dr) + r_max * sweep * m) / g.length, 1e-12);
+    };
+    const double k = plane_share(1.0);
     const double rmin = std::max(std::min(r0, r1), 1e-9);
     const int p[2] = {pa.first, pa.second};
     // Velocity share of each plane axis: (dr cos th - r phi sin th) / L for the first axis,
     // (dr sin th + r phi cos th) / L for the second (angle and radius linear in s), at most
-    // (|dr| + r_max sweep max|sin th|) / L and the same with max|cos th| over the sweep: 1 where
-    // the sweep passes the axis' direction, else at one of its ends. (k, which takes 1 for both,
-    // held an arc of 20..40 degrees to 62 % of its first axis' velocity limit.)
+    // plane_share(max|sin th|) and plane_share(max|cos th|) over the sweep: 1 where the sweep
+    // passes the axis' direction, else at one of its ends. (k, which takes 1 for both, held an
+    // arc of 20..40 degrees to 62 % of its first axis' velocity limit.)
     double share_max[2] = {1.0, 1.0};  // max |sin th|, max |cos th|
     if (sweep < 2.0 * kPi) {
       const double lo_th = g.phi >= 0.0 ? g.th0 : g.th0 - sweep;
@@ -561,9 +567,7 @@ struct Interpolator::Impl {
     double m_vel = kInf, m_arc = kInf;
     for (int i = 0; i < 2; ++i) {
       const int ax = p[i];
-      const double k_ax =
-          std::max((std::fabs(g.dr) + std::max(r0, r1) * sweep * share_max[i]) / g.length, 1e-12);
-      m_vel = std::min(m_vel, vmax[ax] / k_ax);
+      m_vel = std::min(m_vel, vmax[ax] / plane_share(share_max[i]));
       m_arc = std::min(m_arc, std::sqrt(0.5 * amax[ax] * rmin) / k);
       m_arc = std::min(m_arc, std::cbrt(0.5 * jmax[ax] * rmin * rmin) / k);
     }
