@@ -484,17 +484,24 @@ TEST(RandomSweep, WideSeed117Program183LeavesRestTowardsASofterArcAtSpeed) {
 // path of 1.2e6 mm/s^3, where one calculation step from rest covers 1.7e-6 mm. After the
 // restart no step the search can resolve passed the stop point's plan with its step allowance,
 // and the motion stood there for good. Standing that close, it now arrives.
-// Wide stop sweep program k of `seed` on `axes` axes with `stops` stops: runs clean and every
-// stop is given; its summary in `s`.
-void expect_wide_stop_case_clean(std::uint64_t seed, std::uint64_t k, int axes, std::size_t stops,
-                                 SimulationSummary& s) {
-  const SweepCase c = sweep_case(seed, k, Machines::kWide);
+// Stop sweep program k of `seed` on `kind` machines, `axes` axes with `stops` stops: runs clean
+// and every stop is given; its summary in `s`.
+void expect_stop_case_clean(Machines kind, std::uint64_t seed, std::uint64_t k, int axes,
+                            std::size_t stops, SimulationSummary& s) {
+  const SweepCase c = sweep_case(seed, k, kind);
   ASSERT_EQ(c.axes, axes);
   std::string ctx;
   const SimulationOptions o = stop_sweep_options(seed, k, c, &ctx);
   ASSERT_EQ(o.stops.size(), stops);
-  ASSERT_NO_FATAL_FAILURE(expect_runs_clean(c, o, "wide " + ctx, &s));
+  ASSERT_NO_FATAL_FAILURE(
+      expect_runs_clean(c, o, std::string(test::machine_kind_name(kind)) + " " + ctx, &s));
   EXPECT_EQ(s.stops, stops);
+}
+
+// expect_stop_case_clean on the wide sweep's machines.
+void expect_wide_stop_case_clean(std::uint64_t seed, std::uint64_t k, int axes, std::size_t stops,
+                                 SimulationSummary& s) {
+  expect_stop_case_clean(Machines::kWide, seed, k, axes, stops, s);
 }
 
 TEST(RandomSweep, WideStopSeed8Program126LeavesAFeedHoldJustBeforeAStopPoint) {
@@ -550,6 +557,20 @@ TEST(RandomSweep, BoxSeed4Program3EntersALowerAccelerationLimitWithinIt) {
 // resolves a sixty-fourth of a step at the window's lowest jerk as well.
 TEST(RandomSweep, BoxSeed11Program11ResolvesTheSearchForASofterRecordAhead) {
   expect_program_clean(Machines::kBox, 11, 11, 8, 500);
+}
+
+// Box sweep seed 5 program 244 (2 axes, 500 us; X: 254,538 mm/s^2 and 5.4e7 mm/s^3, Y: 0.48
+// mm/s^2): a pure X line brakes from 3.9 to 0.59 mm/s within two cycles for an arc whose Y axis
+// allows a tangential 0.25 mm/s^2 and 1,169 mm/s^3. With less room left than the arc's
+// acceleration limit keeps before it (two steps' reach), that limit's largest passing x is its
+// own w, a jump in its excess; the search ended 2.9 mm/s^2 below it, and one step later no x
+// kept both it and the arc's deceleration limit. The motion entered the arc with -2.6 mm/s^2
+// and the arc's jerk took it back over five cycles: Y at 5.3 x its acceleration limit (15 x in
+// the stop sweep, with two emergency stops earlier on). The search now tries w first.
+TEST(RandomSweep, BoxSeed5Program244ReleasesABrakingOnTheAccelerationLimitOfASofterArc) {
+  expect_program_clean(Machines::kBox, 5, 244, 2, 500);
+  SimulationSummary s;
+  ASSERT_NO_FATAL_FAILURE(expect_stop_case_clean(Machines::kBox, 5, 244, 2, 2, s));
 }
 
 // Box sweep seed 3 program 119 (3 axes, 500 us; Z: 0.038 mm/s): an arc in G18 of 122 degrees

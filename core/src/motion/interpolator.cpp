@@ -1787,7 +1787,8 @@ struct Interpolator::Impl {
   //
   // Per limit, guesses before a regula falsi (Anderson-Bjorck): `boundary(k, out)` (up to two),
   // the x whose end-of-step state just needs no braking for k any more (the velocity after
-  // taking the acceleration back equals the limit), and `ride`, the x of the previous step's
+  // taking the acceleration back equals the limit; for an acceleration limit into a record of
+  // lower jerk its w, where the excess jumps), and `ride`, the x of the previous step's
   // jerk. Near that boundary the excess is not smooth: a step when accelerating towards the
   // limit (no braking needed below it, a whole ramp-down above), a square-root cliff at the end
   // of a braking (the plan turns into a pure release); no secant method converges there, and a
@@ -2285,9 +2286,20 @@ struct Interpolator::Impl {
           // v + (a + x) dt / 2 + x |x| / (2 j) = w (increasing in x), with the plan's jerk and,
           // when the acceleration is taken back after the junction at a lower jerk (excess_from,
           // Jx), with that one (x > 0 only).
+          // An acceleration limit into a record of lower jerk: its own w. Just above w the
+          // excess jumps by accel_room's two steps of reach, so with less room than that left
+          // the root is w itself, where no secant converges: twelve evaluations left the
+          // result 2.9 mm/s^2 below w (which was 0.25), the step after that found no x within
+          // both this limit and the deceleration limit of the same record, and the motion
+          // entered an arc with -2.6 mm/s^2 (Y at 5.3 x its acceleration limit, box sweep
+          // seed 5 program 244).
           auto boundary = [&](int k, double* out) {
             const Constraint& ck = c[k];
-            if (ck.accel) return 0;
+            if (ck.accel) {
+              if (!(ck.Jx < ck.J)) return 0;
+              out[0] = ck.w;
+              return 1;
+            }
             int n_out = 0;
             out[n_out++] = jerk::landing_acceleration(v, a, ck.w, kPlanMarginJ * ck.J, dt);
             if (ck.Jx < ck.J && v + 0.5 * a * dt < ck.w) {
