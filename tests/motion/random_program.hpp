@@ -411,8 +411,8 @@ inline MachineConfig wide_machine(std::mt19937_64& rng, int axes) {
 // A machine from the whole box of axis limits the config accepts (config.hpp, kMin* / kMax*):
 // per axis log-uniform velocity 0.01..1e5 mm/s, acceleration 0.1..1e6 mm/s^2, jerk 10..1e10
 // mm/s^3 and corner tolerance 0.001..1e4 mm/s, with no relation between them (v / A from 1e-8 s
-// to 1e6 s). Not in CTest: `--machines=box` on the sweep's command line (core/MOTION.md,
-// "Accepted machine limits").
+// to 1e6 s). `--machines=box` on the sweep's command line (core/MOTION.md, "Accepted machine
+// limits"); CTest runs the first 50 programs of seed 2 (motion.sweep.box2).
 inline MachineConfig box_machine(std::mt19937_64& rng, int axes) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   auto log_uniform = [&](double lo, double hi) {

@@ -12,7 +12,8 @@
 // core/MOTION_LOG.md the history). CTest runs seeds 1 and 22 x 300 of it, plain and with stops
 // (motion.sweep.wide1, motion.sweep.wide22). --machines=box draws every axis limit from the
 // whole range the config accepts, with no relation between them (test::box_machine; core/
-// MOTION.md, "Accepted machine limits").
+// MOTION.md, "Accepted machine limits"); CTest runs the first 50 programs of seed 2 of it,
+// plain and with stops (motion.sweep.box2).
 //
 // Time limit per program (test::motion_time_limit): the time of a reference motion at a quarter
 // of every record's cap min(F x Rel_Speed, axis velocity limits), with the override schedule at
