@@ -564,10 +564,11 @@ TEST(RandomSweep, BoxSeed11Program11ResolvesTheSearchForASofterRecordAhead) {
 // mm/s^2): a pure X line brakes from 3.9 to 0.59 mm/s within two cycles for an arc whose Y axis
 // allows a tangential 0.25 mm/s^2 and 1,169 mm/s^3. With less room left than the arc's
 // acceleration limit keeps before it (two steps' reach), that limit's largest passing x is its
-// own w, a jump in its excess; the search ended 2.9 mm/s^2 below it, and one step later no x
-// kept both it and the arc's deceleration limit. The motion entered the arc with -2.6 mm/s^2
-// and the arc's jerk took it back over five cycles: Y at 5.3 x its acceleration limit (15 x in
-// the stop sweep, with two emergency stops earlier on). The search now tries w first.
+// own w, a jump in its excess; the search ended 2.9 mm/s^2 below it, the next step again, and
+// the step that could reach the junction had the arc's jerk. The motion entered the arc at
+// about -3 mm/s^2 and the arc's jerk took it back over five cycles: Y at 5.3 x its acceleration
+// limit (15 x in the stop sweep, with two emergency stops earlier on). The search now tries w
+// first.
 TEST(RandomSweep, BoxSeed5Program244ReleasesABrakingOnTheAccelerationLimitOfASofterArc) {
   expect_program_clean(Machines::kBox, 5, 244, 2, 500);
   SimulationSummary s;

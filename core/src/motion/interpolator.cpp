@@ -2289,9 +2289,9 @@ struct Interpolator::Impl {
           // An acceleration limit into a record of lower jerk: its own w. Just above w the
           // excess jumps by accel_room's two steps of reach, so with less room than that left
           // the root is w itself, where no secant converges: twelve evaluations left the
-          // result 2.9 mm/s^2 below w (which was 0.25), the step after that found no x within
-          // both this limit and the deceleration limit of the same record, and the motion
-          // entered an arc with -2.6 mm/s^2 (Y at 5.3 x its acceleration limit, box sweep
+          // result 2.9 mm/s^2 below w (which was 0.25), the step after that stopped below w
+          // again, and the step that could reach the junction had the arc's jerk: the motion
+          // entered the arc at about -3 mm/s^2 (Y at 5.3 x its acceleration limit, box sweep
           // seed 5 program 244).
           auto boundary = [&](int k, double* out) {
             const Constraint& ck = c[k];
