@@ -480,11 +480,6 @@ TEST(RandomSweep, WideSeed117Program183LeavesRestTowardsASofterArcAtSpeed) {
   EXPECT_LT(s.program_time_s, 1.1 * c.bound_s);
 }
 
-// Wide stop sweep seed 8 program 126 (6 axes, 1 ms): a feed hold (Command 8) at 19.69 s, while
-// the motion was braking for an M-function's stop point, ended 3e-8 mm before that point on a
-// path of 1.2e6 mm/s^3, where one calculation step from rest covers 1.7e-6 mm. After the
-// restart no step the search can resolve passed the stop point's plan with its step allowance,
-// and the motion stood there for good. Standing that close, it now arrives.
 // Stop sweep program k of `seed` on `kind` machines, `axes` axes with `stops` stops: runs clean
 // and every stop is given; its summary in `s`.
 void expect_stop_case_clean(Machines kind, std::uint64_t seed, std::uint64_t k, int axes,
@@ -505,6 +500,11 @@ void expect_wide_stop_case_clean(std::uint64_t seed, std::uint64_t k, int axes, 
   expect_stop_case_clean(Machines::kWide, seed, k, axes, stops, s);
 }
 
+// Wide stop sweep seed 8 program 126 (6 axes, 1 ms): a feed hold (Command 8) at 19.69 s, while
+// the motion was braking for an M-function's stop point, ended 3e-8 mm before that point on a
+// path of 1.2e6 mm/s^3, where one calculation step from rest covers 1.7e-6 mm. After the
+// restart no step the search can resolve passed the stop point's plan with its step allowance,
+// and the motion stood there for good. Standing that close, it now arrives.
 TEST(RandomSweep, WideStopSeed8Program126LeavesAFeedHoldJustBeforeAStopPoint) {
   SimulationSummary s;
   expect_wide_stop_case_clean(8, 126, 6, 1, s);
