@@ -575,6 +575,31 @@ TEST(RandomSweep, BoxSeed5Program244ReleasesABrakingOnTheAccelerationLimitOfASof
   ASSERT_NO_FATAL_FAILURE(expect_stop_case_clean(Machines::kBox, 5, 244, 2, 2, s));
 }
 
+// Box sweep seed 8 program 222 (3 axes, 500 us; Z: 40 mm/s^2 and 18.6 mm/s^3): chords of about
+// 2,000 mm/s^3 along the path lead through a G0 of 0.008 mm (39 mm/s^3 along it, Z leads) into
+// a G19 arc of 5.4 mm/s^3. The corner at the arc's start was planned at the G0's jerk from 3.3
+// mm ahead, where it was already out of reach at 12.8 mm/s: the chords braked at their full
+// jerk and then rode that plan, which crosses the corner still braking, into the arc with
+// -10.4 mm/s^2. The arc's jerk could not take that back before the motion stopped, and Y and Z
+// stopped dead at 5.8 x and 169 x their jerk limits (4 violations, also with stops). The corner
+// is now planned in two pieces cut at the G0's start, the first at the chords' jerk
+// (stiff_stretch): the arc is entered at its corner speed with no deceleration left.
+TEST(RandomSweep, BoxSeed8Program222KeepsACornerBehindAShortSoftRecordAtTheJerkBeforeIt) {
+  expect_program_clean(Machines::kBox, 8, 222, 3, 500);
+  SimulationSummary s;
+  ASSERT_NO_FATAL_FAILURE(expect_stop_case_clean(Machines::kBox, 8, 222, 3, 1, s));
+}
+
+// Box sweep seed 1 program 292 (6 axes, 250 us; B: 45 mm/s^3): the same two-piece plan with
+// its cut at the corner speed itself kept a corner of 0.0022 mm/s behind a 0.27 mm line led by
+// B (92 mm/s^3 along it) at the line's start: the chords before it braked at their jerk to a
+// crawl 0.27 mm early, reached the line still braking and stopped dead there (X and B at 6 x
+// and 47 x their jerk limits). The cut is now the speed from which the corner's own plan fits
+// into the line.
+TEST(RandomSweep, BoxSeed1Program292CutsATwoPiecePlanWhereTheSoftRecordCanTakeOver) {
+  expect_program_clean(Machines::kBox, 1, 292, 6, 250);
+}
+
 // Box sweep seed 3 program 119 (3 axes, 500 us; Z: 0.038 mm/s): an arc in G18 of 122 degrees
 // that ends 3.6 degrees short of Z's direction runs its 65 mm at Z's velocity limit, as the
 // interpolator holds every arc to one cap (core/MOTION.md, Known gaps), and the program takes
