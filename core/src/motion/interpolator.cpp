@@ -951,7 +951,7 @@ struct Interpolator::Impl {
     const double room = ck.d - ck.d2 - ck.reserve;
     const double A = kPlanMargin * ck.A, J = kPlanMarginJ * ck.J;
     double lo = 0.0, hi = room > 0.0 ? std::cbrt(room * room * J) : 0.0;  // no A cap, w = 0
-    for (int i = 0; i < 32 && hi - lo > 1e-9 * (ck.w + hi); ++i) {
+    for (int i = 0; i < 24 && hi - lo > 1e-6 * (ck.w + hi); ++i) {  // w2 = w + lo: conservative
       const double u = 0.5 * (lo + hi);
       (jerk::braking_plan(ck.w + u, 0.0, ck.w, A, J).distance <= room ? lo : hi) = u;
     }
@@ -2179,12 +2179,22 @@ struct Interpolator::Impl {
           return ns.a <= ck.w ? -remain : accel_room(std::max(ns.v, 0.0), ns.a, ck) - remain;
         // Before d2 (Constraint::d2) the first piece of its plan: (w2, 0) at d2 at the jerk
         // before the soft record, with the limit's own acceleration limit (the soft record's
-        // among them: a braking carried into it within that) and an acceleration left at d2
-        // taken back behind it at the soft record's jerk. Over-braked states pass; the
-        // deceleration carried in is the deceleration limits' (decel_limits).
+        // among them: a braking carried into it within that), an acceleration taken back
+        // before the cut's reserve. Over-braked states pass; the deceleration carried in is the
+        // deceleration limits' (decel_limits). Inside the reserve, where a step may reach the
+        // soft record and has its jerk, the limit's own plan: it fits from any state the first
+        // piece kept. (Taken back behind the cut at the soft jerk, as the own plan lets an
+        // acceleration be taken back behind its junction, the acceleration settled above w2
+        // inside the soft record and the own plan overshot the corner at its end by 1.85 x
+        // the tolerance, wide sweep seed 16 program 61; with no room for it inside the reserve
+        // a motion at rest there could not accelerate at all, wide seeds 4/265, 5/239.)
         const double remain2 = ck.d2 - moved - ds;
-        if (ck.d2 != kInf && remain2 >= 0.0)
-          return speed_excess(ns, ck.w2, ck.A, ck.J2, ck.J, ck.reserve2, remain2);
+        if (ck.d2 != kInf && remain2 > ck.reserve2) {
+          const double v2 = std::max(ns.v, 0.0), jp2 = kPlanMarginJ * ck.J2;
+          double need = plan_braking(v2, ns.a, ck.w2, kPlanMargin * ck.A, jp2, kPlanMarginJ * J);
+          if (ns.a > 0.0) need = std::max(need, accel_distance(v2, ns.a, 0.0, jp2));
+          return need - (remain2 - ck.reserve2);
+        }
         return speed_excess(ns, ck.w, ck.A, ck.J, ck.Jx, ck.reserve, remain);
       };
       auto excess = [&](double xx, int k) { return excess_from(jerk::advance(before, xx, dt), k); };
@@ -3018,20 +3028,22 @@ struct Interpolator::Impl {
         while (first_slow < n_slow && slow[static_cast<std::size_t>(first_slow)].q <= cur)
           ++first_slow;
         slack = start_of(win_end) - b_stop;
-        // A limit gather() keeps at the start of the soft record before it (stiff_stretch) is
-        // taken there, at the scan's lowest jerk (at most the jerk it is planned at).
+        // A limit gather() plans in two pieces (stiff_stretch) is taken at the start of its
+        // soft record, at the scan's lowest jerk (at most the jerk it is planned at), to w (at
+        // most the cut's speed w2) and with the reserve of the cut at v (the first piece binds
+        // only while v > w2, and its reserve is that of w2).
         for (int i = first_slow; i < n_slow; ++i) {
           const Slow& sl = slow[static_cast<std::size_t>(i)];
           const bool stiff = sl.b != kNoQ && sl.b > cur && kStiffRatio * R(sl.b).jt <= j_hi;
-          slack = std::min(slack,
-                           (stiff ? R(sl.b).s0 : sl.s0) - reserve_for(sl.w, j_hi) - braking(sl.w));
+          slack = std::min(slack, stiff ? R(sl.b).s0 - reserve_for(v, j_hi) - braking(sl.w)
+                                        : sl.s0 - reserve_for(sl.w, j_hi) - braking(sl.w));
         }
         if (cur + kChainMax + 1 < qf) {
           const double w = std::min(wg_min, wf_min * rel);
           if (w < v) {
             // The stand-in's soft record starts at cur + kChainMax at the earliest.
             const double at = kStiffRatio * j_lo <= j_hi
-                                  ? R(cur + kChainMax).s0 - reserve_for(w, j_hi)
+                                  ? R(cur + kChainMax).s0 - reserve_for(v, j_hi)
                                   : R(cur + kChainMax + 1).s0;
             slack = std::min(slack, at - braking(w));
           }
