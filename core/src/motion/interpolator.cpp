@@ -944,16 +944,20 @@ struct Interpolator::Impl {
     ck.J2 = J2;
     // The cut between the two plans is a target in speed and acceleration (MOTION.md, Known
     // gaps): the highest w2 with zero acceleration at d2 from which the limit's own plan fits
-    // into the soft stretch, so that it takes over there. Kept at w instead, the braking for a
-    // corner of 0.0022 mm/s behind a 0.27 mm line of 92 mm/s^3 ended 0.27 mm early, the motion
-    // crept along the line for two minutes and reached it still braking (box sweep seed 1
-    // program 292).
+    // into the soft stretch, so that it takes over there. Cut at w instead, the braking for a
+    // corner of 0.0022 mm/s behind a 0.27 mm line of 92 mm/s^3 was planned to end 0.27 mm
+    // early: the chords braked to a crawl in front of the line and reached it still braking (X
+    // and B at 6 x and 47 x their jerk limits, box sweep seed 1 program 292).
     const double room = ck.d - ck.d2 - ck.reserve;
     const double A = kPlanMargin * ck.A, J = kPlanMarginJ * ck.J;
     double lo = 0.0, hi = room > 0.0 ? std::cbrt(room * room * J) : 0.0;  // no A cap, w = 0
     for (int i = 0; i < 24 && hi - lo > 1e-6 * (ck.w + hi); ++i) {  // w2 = w + lo: conservative
       const double u = 0.5 * (lo + hi);
-      (jerk::braking_plan(ck.w + u, 0.0, ck.w, A, J).distance <= room ? lo : hi) = u;
+      if (jerk::braking_plan(ck.w + u, 0.0, ck.w, A, J).distance <= room) {
+        lo = u;
+      } else {
+        hi = u;
+      }
     }
     ck.w2 = ck.w + lo;
     ck.reserve2 = junction_reserve(b, ck.w2);
@@ -2208,7 +2212,7 @@ struct Interpolator::Impl {
             m = std::min(m, c[k].d - c[k].reserve -
                                 plan_braking(v, 0.0, c[k].w, kPlanMargin * c[k].A,
                                              kPlanMarginJ * c[k].J, kPlanMarginJ * J));
-            // Before d2 the plan at d2 (after it the limit's own: both are kept).
+            // Before d2 also the first piece of a two-piece plan (excess_from).
             if (before_d2(c[k], moved)) {
               m = std::min(m, c[k].d2 - c[k].reserve2 -
                                   plan_braking(v, 0.0, c[k].w2, kPlanMargin * c[k].A,
@@ -2414,7 +2418,7 @@ struct Interpolator::Impl {
               return 1;
             }
             int n_out = 0;
-            if (before_d2(ck, moved)) {  // kept at d2 at J2 (excess_from)
+            if (before_d2(ck, moved)) {  // the first piece of a two-piece plan (excess_from)
               out[n_out++] = jerk::landing_acceleration(v, a, ck.w2, kPlanMarginJ * ck.J2, dt);
               return n_out;
             }
