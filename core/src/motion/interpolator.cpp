@@ -2192,10 +2192,15 @@ struct Interpolator::Impl {
         // inside the soft record and the own plan overshot the corner at its end by 1.85 x
         // the tolerance, wide sweep seed 16 program 61; with no room for it inside the reserve
         // a motion at rest there could not accelerate at all, wide seeds 4/265, 5/239.)
+        // The first piece is a plain braking plan, without plan_braking's easing of a
+        // deceleration above A first: a motion braking for a stop command at the stiff record's
+        // acceleration failed it by the easing alone, 0.8 mm before the soft arc, and the best
+        // effort braked harder still (random sweep seed 19 program 378 with stops).
         const double remain2 = ck.d2 - moved - ds;
         if (ck.d2 != kInf && remain2 > ck.reserve2) {
           const double v2 = std::max(ns.v, 0.0), jp2 = kPlanMarginJ * ck.J2;
-          double need = plan_braking(v2, ns.a, ck.w2, kPlanMargin * ck.A, jp2, kPlanMarginJ * J);
+          const jerk::Braking b = jerk::braking_plan(v2, ns.a, ck.w2, kPlanMargin * ck.A, jp2);
+          double need = b.distance + allowance * quarter_dt2 * b.peak;
           if (ns.a > 0.0) need = std::max(need, accel_distance(v2, ns.a, 0.0, jp2));
           return need - (remain2 - ck.reserve2);
         }
