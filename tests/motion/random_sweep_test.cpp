@@ -600,6 +600,17 @@ TEST(RandomSweep, BoxSeed1Program292CutsATwoPiecePlanWhereTheSoftRecordCanTakeOv
   expect_program_clean(Machines::kBox, 1, 292, 6, 250);
 }
 
+// Random stop sweep seed 19 program 378 (8 axes, 1 ms): a normal stop braked at the line's own
+// acceleration (-1,359 of 5,144 mm/s^2) 0.8 mm before a G17 arc of 132 mm/s^2. With the
+// easing of plan_braking in the first piece of the two-piece plan of the corner behind the arc,
+// that over-braked state failed it, the best effort braked harder still, and the arc was
+// entered at -417 mm/s^2 (corner steps up to 7 x the tolerance). The first piece is a plain
+// braking plan; the deceleration carried into the arc is the deceleration limits' concern.
+TEST(RandomSweep, Seed19Program378StopBrakesIntoASoftArcWithinItsDecelerationLimit) {
+  SimulationSummary s;
+  ASSERT_NO_FATAL_FAILURE(expect_stop_case_clean(Machines::kRandom, 19, 378, 8, 3, s));
+}
+
 // Box sweep seed 3 program 119 (3 axes, 500 us; Z: 0.038 mm/s): an arc in G18 of 122 degrees
 // that ends 3.6 degrees short of Z's direction runs its 65 mm at Z's velocity limit, as the
 // interpolator holds every arc to one cap (core/MOTION.md, Known gaps), and the program takes
