@@ -611,6 +611,16 @@ TEST(RandomSweep, Seed19Program378StopBrakesIntoASoftArcWithinItsDecelerationLim
   ASSERT_NO_FATAL_FAILURE(expect_stop_case_clean(Machines::kRandom, 19, 378, 8, 3, s));
 }
 
+// Box sweep seed 3 program 121 (3 axes, 1 ms; X: 26 mm/s^2, corner tolerance 0.0023 mm/s): the
+// two-piece plan of a corner behind a G1 led by X cut at a speed above the corner into that
+// line itself; that corner's own plan, at the arc's acceleration (37,894 mm/s^2), braked at
+// -7,892 mm/s^2 in the last steps before the line (39 mm/s^2 along it), which was entered at
+// 420 x X's corner tolerance. The cut is now at most the limit of the junction into the soft
+// record.
+TEST(RandomSweep, BoxSeed3Program121CutsATwoPiecePlanAtMostAtTheSoftRecordsOwnCorner) {
+  expect_program_clean(Machines::kBox, 3, 121, 3, 1000);
+}
+
 // Box sweep seed 3 program 119 (3 axes, 500 us; Z: 0.038 mm/s): an arc in G18 of 122 degrees
 // that ends 3.6 degrees short of Z's direction runs its 65 mm at Z's velocity limit, as the
 // interpolator holds every arc to one cap (core/MOTION.md, Known gaps), and the program takes

@@ -959,7 +959,11 @@ struct Interpolator::Impl {
         hi = u;
       }
     }
-    ck.w2 = ck.w + lo;
+    // Never above the junction limit into b itself: that corner's own plan, at the stiff
+    // record's acceleration, then braked at -7,892 mm/s^2 in the last steps before a line of
+    // 39 mm/s^2, which was entered at 420 x X's corner tolerance (box sweep seed 3 program
+    // 121). (b's limit lies above w on w's chain; on the feed chain it may lie below.)
+    ck.w2 = std::min(ck.w + lo, rb.wg);
     ck.reserve2 = junction_reserve(b, ck.w2);
   }
 
