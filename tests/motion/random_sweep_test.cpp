@@ -621,6 +621,20 @@ TEST(RandomSweep, BoxSeed3Program121CutsATwoPiecePlanAtMostAtTheSoftRecordsOwnCo
   expect_program_clean(Machines::kBox, 3, 121, 3, 1000);
 }
 
+// Box sweep seed 5 program 215 (3 axes, 1 ms; X: 15,443 mm/s^2 and 459,660 mm/s^3, Z: 0.44
+// mm/s^2): the program starts on a line along X towards a line led by Z (615 mm/s^3 along it).
+// The first piece of the two-piece plan of the corner at that line's end, a plain braking plan
+// at the jerk before it, called any deceleration at a few um/s a reversal, where the limit's
+// own plan eases it at the step's jerk first; the search then took the no-reversal floor, and
+// the motion swung between +30 and -60 mm/s^2 at 0.005 mm/s until the time limit (178 s). The
+// first piece eases such a deceleration as plan_braking does (not one above A: seed 19
+// program 378 above).
+TEST(RandomSweep, BoxSeed5Program215FirstPieceEasesADecelerationTooHardForItsJerk) {
+  expect_program_clean(Machines::kBox, 5, 215, 3, 1000);
+  SimulationSummary s;
+  ASSERT_NO_FATAL_FAILURE(expect_stop_case_clean(Machines::kBox, 5, 215, 3, 3, s));
+}
+
 // Box sweep seed 3 program 119 (3 axes, 500 us; Z: 0.038 mm/s): an arc in G18 of 122 degrees
 // that ends 3.6 degrees short of Z's direction runs its 65 mm at Z's velocity limit, as the
 // interpolator holds every arc to one cap (core/MOTION.md, Known gaps), and the program takes

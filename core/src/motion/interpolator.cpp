@@ -2202,8 +2202,15 @@ struct Interpolator::Impl {
         // effort braked harder still (random sweep seed 19 program 378 with stops).
         const double remain2 = ck.d2 - moved - ds;
         if (ck.d2 != kInf && remain2 > ck.reserve2) {
+          // A deceleration too hard for J2 to take back before standstill is eased at the
+          // step's jerk first, as plan_braking does (with an acceleration limit of at least |a|,
+          // so no easing for the acceleration limit). The plain plan called that state a
+          // reversal, the search then took the floor, and a motion starting on a stiff line
+          // towards a soft one swung between +30 and -60 mm/s^2 at 0.005 mm/s for ever (box
+          // sweep seed 5 program 215).
           const double v2 = std::max(ns.v, 0.0), jp2 = kPlanMarginJ * ck.J2;
-          const jerk::Braking b = jerk::braking_plan(v2, ns.a, ck.w2, kPlanMargin * ck.A, jp2);
+          const jerk::Braking b = jerk::braking_plan_from(
+              v2, ns.a, ck.w2, std::max(kPlanMargin * ck.A, -ns.a), jp2, kPlanMarginJ * J);
           double need = b.distance + allowance * quarter_dt2 * b.peak;
           if (ns.a > 0.0) need = std::max(need, accel_distance(v2, ns.a, 0.0, jp2));
           return need - (remain2 - ck.reserve2);
