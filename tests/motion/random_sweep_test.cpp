@@ -635,6 +635,20 @@ TEST(RandomSweep, BoxSeed5Program215FirstPieceEasesADecelerationTooHardForItsJer
   ASSERT_NO_FATAL_FAILURE(expect_stop_case_clean(Machines::kBox, 5, 215, 3, 3, s));
 }
 
+// Wide sweep seed 18 program 278 (2 axes, 250 us; X at 3,659 mm/s^2 and 1.8e6 mm/s^3, Y at
+// 54 mm/s^2 and 110 mm/s^3): a line along X brakes at 96 mm/s^2 towards a 0.077 mm line led
+// by Y and a G2 of R 0.44 mm behind it (1.83 mm/s^2 and 32 mm/s^3 along it). The first piece
+// of the arc's end limit, eased at the step's jerk as plan_braking eases (the first fix of
+// seed 5 program 215 above) and then allowed to reach its cut still braking, let that braking
+// pass 0.08 mm before the arc; the arc was entered at -11.4 mm/s^2 and the motion stopped
+// dead inside it, Y at 117 x its jerk limit. The eased first piece takes the deceleration back
+// to zero before its cut.
+TEST(RandomSweep, WideSeed18Program278FirstPieceTakesAnEasedDecelerationBackBeforeItsCut) {
+  expect_program_clean(Machines::kWide, 18, 278, 2, 250);
+  SimulationSummary s;
+  ASSERT_NO_FATAL_FAILURE(expect_stop_case_clean(Machines::kWide, 18, 278, 2, 1, s));
+}
+
 // Box sweep seed 3 program 119 (3 axes, 500 us; Z: 0.038 mm/s): an arc in G18 of 122 degrees
 // that ends 3.6 degrees short of Z's direction runs its 65 mm at Z's velocity limit, as the
 // interpolator holds every arc to one cap (core/MOTION.md, Known gaps), and the program takes

@@ -2202,16 +2202,38 @@ struct Interpolator::Impl {
         // effort braked harder still (random sweep seed 19 program 378 with stops).
         const double remain2 = ck.d2 - moved - ds;
         if (ck.d2 != kInf && remain2 > ck.reserve2) {
-          // A deceleration too hard for J2 to take back before standstill is eased at the
-          // step's jerk first, as plan_braking does (with an acceleration limit of at least |a|,
-          // so no easing for the acceleration limit). The plain plan called that state a
-          // reversal, the search then took the floor, and a motion starting on a stiff line
-          // towards a soft one swung between +30 and -60 mm/s^2 at 0.005 mm/s for ever (box
-          // sweep seed 5 program 215).
           const double v2 = std::max(ns.v, 0.0), jp2 = kPlanMarginJ * ck.J2;
-          const jerk::Braking b = jerk::braking_plan_from(
-              v2, ns.a, ck.w2, std::max(kPlanMargin * ck.A, -ns.a), jp2, kPlanMarginJ * J);
-          double need = b.distance + allowance * quarter_dt2 * b.peak;
+          double need;
+          if (ns.a < 0.0 && ns.a * ns.a > 2.0 * jp2 * v2) {
+            // A deceleration too hard for J2 to take back before standstill: eased at the
+            // step's jerk to what J2 can take back, then taken back to zero before the cut (the
+            // cut is a target in acceleration). A plain plan calls that state a reversal at any
+            // distance: a motion starting on a stiff line 56 mm before a soft arc found every
+            // deceleration at 0.005 mm/s hopeless, the search took the floor, and the motion
+            // swung between +30 and -60 mm/s^2 until its time limit (box sweep seed 5 program
+            // 215). Eased as plan_braking eases, with the plan after it allowed to reach w2
+            // still braking, a state braking at the stiff line's acceleration 0.08 mm before
+            // a short soft line passed, and the arc behind that line was entered at -11.4
+            // mm/s^2 and stopped dead inside (wide sweep seed 18 program 278).
+            const double jn = kPlanMarginJ * J;
+            double target = ns.a, t = 0.0, v0 = v2;
+            for (int it = 0; it < 3; ++it) {
+              const double floor_a = -std::sqrt(2.0 * jp2 * v0);
+              if (target >= floor_a) break;
+              target = 0.999 * floor_a;
+              t = (target - ns.a) / jn;
+              v0 = v2 + t * (ns.a + 0.5 * jn * t);
+              if (v0 <= 0.0) return kInf;
+            }
+            const double d0 = t * (v2 + t * (0.5 * ns.a + t * jn * (1.0 / 6.0)));
+            const double settle =
+                std::max(accel_distance(v0, target, 0.0, jp2),
+                         jerk::braking_plan(v0, target, ck.w2, kPlanMargin * ck.A, jp2).distance);
+            need = d0 + settle + allowance * quarter_dt2 * -ns.a;
+          } else {
+            const jerk::Braking b = jerk::braking_plan(v2, ns.a, ck.w2, kPlanMargin * ck.A, jp2);
+            need = b.distance + allowance * quarter_dt2 * b.peak;
+          }
           if (ns.a > 0.0) need = std::max(need, accel_distance(v2, ns.a, 0.0, jp2));
           return need - (remain2 - ck.reserve2);
         }
