@@ -575,6 +575,80 @@ TEST(RandomSweep, BoxSeed5Program244ReleasesABrakingOnTheAccelerationLimitOfASof
   ASSERT_NO_FATAL_FAILURE(expect_stop_case_clean(Machines::kBox, 5, 244, 2, 2, s));
 }
 
+// Box sweep seed 8 program 222 (3 axes, 500 us; Z: 40 mm/s^2 and 18.6 mm/s^3): chords of about
+// 2,000 mm/s^3 along the path lead through a G0 of 0.008 mm (39 mm/s^3 along it, Z leads) into
+// a G19 arc of 5.4 mm/s^3. The corner at the arc's start was planned at the G0's jerk from 3.3
+// mm ahead, where it was already out of reach at 12.8 mm/s: the chords braked at their full
+// jerk and then rode that plan, which crosses the corner still braking, into the arc with
+// -10.4 mm/s^2. The arc's jerk could not take that back before the motion stopped, and Y and Z
+// stopped dead at 5.8 x and 169 x their jerk limits (4 violations, also with stops). The corner
+// is now planned in two pieces cut at the G0's start, the first at the chords' jerk
+// (stiff_stretch): the arc is entered at its corner speed with no deceleration left.
+TEST(RandomSweep, BoxSeed8Program222KeepsACornerBehindAShortSoftRecordAtTheJerkBeforeIt) {
+  expect_program_clean(Machines::kBox, 8, 222, 3, 500);
+  SimulationSummary s;
+  ASSERT_NO_FATAL_FAILURE(expect_stop_case_clean(Machines::kBox, 8, 222, 3, 1, s));
+}
+
+// Box sweep seed 1 program 292 (6 axes, 250 us; B: 45 mm/s^3): the same two-piece plan with
+// its cut at the corner speed itself kept a corner of 0.0022 mm/s behind a 0.27 mm line led by
+// B (92 mm/s^3 along it) at the line's start: the chords before it braked at their jerk to a
+// crawl 0.27 mm early, reached the line still braking and stopped dead there (X and B at 6 x
+// and 47 x their jerk limits). The cut is now the speed from which the corner's own plan fits
+// into the line.
+TEST(RandomSweep, BoxSeed1Program292CutsATwoPiecePlanWhereTheSoftRecordCanTakeOver) {
+  expect_program_clean(Machines::kBox, 1, 292, 6, 250);
+}
+
+// Random stop sweep seed 19 program 378 (8 axes, 1 ms): a normal stop braked at the line's own
+// acceleration (-1,359 of 5,144 mm/s^2) 0.8 mm before a G17 arc of 132 mm/s^2. With the
+// easing of plan_braking in the first piece of the two-piece plan of the corner behind the arc,
+// that over-braked state failed it, the best effort braked harder still, and the arc was
+// entered at -417 mm/s^2 (corner steps up to 7 x the tolerance). The first piece is a plain
+// braking plan; the deceleration carried into the arc is the deceleration limits' concern.
+TEST(RandomSweep, Seed19Program378StopBrakesIntoASoftArcWithinItsDecelerationLimit) {
+  SimulationSummary s;
+  ASSERT_NO_FATAL_FAILURE(expect_stop_case_clean(Machines::kRandom, 19, 378, 8, 3, s));
+}
+
+// Box sweep seed 3 program 121 (3 axes, 1 ms; X: 26 mm/s^2, corner tolerance 0.0023 mm/s): the
+// two-piece plan of a corner behind a G1 led by X cut at a speed above the corner into that
+// line itself; that corner's own plan, at the arc's acceleration (37,894 mm/s^2), braked at
+// -7,892 mm/s^2 in the last steps before the line (39 mm/s^2 along it), which was entered at
+// 420 x X's corner tolerance. The cut is now at most the limit of the junction into the soft
+// record.
+TEST(RandomSweep, BoxSeed3Program121CutsATwoPiecePlanAtMostAtTheSoftRecordsOwnCorner) {
+  expect_program_clean(Machines::kBox, 3, 121, 3, 1000);
+}
+
+// Box sweep seed 5 program 215 (3 axes, 1 ms; X: 15,443 mm/s^2 and 459,660 mm/s^3, Z: 0.44
+// mm/s^2): the program starts on a line along X towards a line led by Z (615 mm/s^3 along it).
+// The first piece of the two-piece plan of the corner at that line's end, a plain braking plan
+// at the jerk before it, called any deceleration at a few um/s a reversal, where the limit's
+// own plan eases it at the step's jerk first; the search then took the no-reversal floor, and
+// the motion swung between +30 and -60 mm/s^2 at 0.005 mm/s until the time limit (178 s). The
+// first piece eases such a deceleration as plan_braking does (not one above A: seed 19
+// program 378 above).
+TEST(RandomSweep, BoxSeed5Program215FirstPieceEasesADecelerationTooHardForItsJerk) {
+  expect_program_clean(Machines::kBox, 5, 215, 3, 1000);
+  SimulationSummary s;
+  ASSERT_NO_FATAL_FAILURE(expect_stop_case_clean(Machines::kBox, 5, 215, 3, 3, s));
+}
+
+// Wide sweep seed 18 program 278 (2 axes, 250 us; X at 3,659 mm/s^2 and 1.8e6 mm/s^3, Y at
+// 54 mm/s^2 and 110 mm/s^3): a line along X brakes at 96 mm/s^2 towards a 0.077 mm line led
+// by Y and a G2 of R 0.44 mm behind it (1.83 mm/s^2 and 32 mm/s^3 along it). The first piece
+// of the arc's end limit, eased at the step's jerk as plan_braking eases (the first fix of
+// seed 5 program 215 above) and then allowed to reach its cut still braking, let that braking
+// pass 0.08 mm before the arc; the arc was entered at -11.4 mm/s^2 and the motion stopped
+// dead inside it, Y at 117 x its jerk limit. The eased first piece takes the deceleration back
+// to zero before its cut.
+TEST(RandomSweep, WideSeed18Program278FirstPieceTakesAnEasedDecelerationBackBeforeItsCut) {
+  expect_program_clean(Machines::kWide, 18, 278, 2, 250);
+  SimulationSummary s;
+  ASSERT_NO_FATAL_FAILURE(expect_stop_case_clean(Machines::kWide, 18, 278, 2, 1, s));
+}
+
 // Box sweep seed 3 program 119 (3 axes, 500 us; Z: 0.038 mm/s): an arc in G18 of 122 degrees
 // that ends 3.6 degrees short of Z's direction runs its 65 mm at Z's velocity limit, as the
 // interpolator holds every arc to one cap (core/MOTION.md, Known gaps), and the program takes

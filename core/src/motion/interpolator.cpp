@@ -56,6 +56,8 @@ constexpr double kExcessTol = 1e-12;      // [mm] a braking plan longer than its
 constexpr int kMaxExtendPerCycle = 320;   // records added to the look-ahead window per cycle
 constexpr std::size_t kMessageRing = 256;
 constexpr std::uint64_t kMaxSkipCycles = 1'000'000;  // per advance() call (bounds its work)
+constexpr std::uint64_t kStiffScan = 4;  // records stiff_stretch scans per speed limit, at most
+constexpr double kStiffRatio = 4.0;  // stiff_stretch: lowest jerk before a soft record over its own
 constexpr int kMaxCruiseBackoff = 4;  // skip_cruise: at most 2^4 - 1 cycles between failed proofs
 constexpr std::size_t kMaxBlockReports = 2048;
 constexpr std::size_t kMaxCornerEvents = 2048;
@@ -275,6 +277,15 @@ struct Constraint {
   double junction_v = kInf;
   //! The lowest jerk limit before the junction of junction_v: the jerk of the braking to it.
   double junction_j = kInf;
+  //! Speed limits behind a record far softer than every record before it (stiff_stretch): the
+  //! start of that record [mm], the lowest jerk limit before it, the speed w2 >= w from which
+  //! the limit's own plan (at J, from zero acceleration) keeps it within that record, and the
+  //! reserve of the record's junction. Until the motion reaches d2 the limit is planned as
+  //! (w2, 0) at d2 at J2, from there on as itself. d2 = kInf when there is no such record.
+  double d2 = kInf;
+  double J2 = kInf;
+  double w2 = kInf;
+  double reserve2 = 0.0;
 };
 
 // Path travelled in time t from speed v and acceleration a at constant jerk j.
@@ -905,6 +916,57 @@ struct Interpolator::Impl {
     return std::max(0.0, dt * (v + dt * (0.5 * a + J * dt / 6.0)));
   }
 
+  // Constraint::d2 of speed limit ck at the junction into record q, whose chain element before
+  // it is q_prev (J_prev: the lowest jerk limit over [cur, q_prev)). When the motion record b
+  // before the junction is far softer (kStiffRatio) than every record from cur up to it, the
+  // limit is planned in two pieces: to (w2, 0) at b's start at their jerk, then as itself. A
+  // plan at the lowest jerk over [cur, q) takes b's jerk for its whole length: behind a G0 of
+  // 0.008 mm whose Z axis allowed 39 mm/s^3 along it, chords of about 2,000 mm/s^3 found the
+  // corner at its end 3.3 mm ahead and already out of reach at 12.8 mm/s, braked at their full
+  // jerk and rode the corner's plan at the G0's jerk, crossing the corner still braking
+  // (jerk::braking_plan's case 2) into the arc after it, whose jerk (5.4 mm/s^3) could not take
+  // -10.4 mm/s^2 back before the motion stopped: Y and Z at 5.8 x and 169 x their jerk limits
+  // (box sweep seed 8 program 222). In two pieces the braking is complete before the soft
+  // records. Bounded work: only when at most kStiffScan records lie between q_prev and b.
+  void stiff_stretch(Constraint& ck, std::uint64_t q, std::uint64_t q_prev, double J_prev,
+                     double here) const {
+    std::uint64_t b = q - 1;
+    while (b > q_prev && R(b).kind != RecKind::kMotion) --b;
+    if (b <= cur || R(b).kind != RecKind::kMotion || b - q_prev > kStiffScan) return;
+    double J2 = J_prev;
+    for (std::uint64_t u = q_prev; u < b; ++u) {
+      const Rec& r = R(u);
+      if (r.kind == RecKind::kMotion) J2 = std::min(J2, r.jt);
+    }
+    const Rec& rb = R(b);
+    if (!(J2 >= kStiffRatio * rb.jt)) return;
+    ck.d2 = rb.s0 - here;
+    ck.J2 = J2;
+    // The cut between the two plans is a target in speed and acceleration (MOTION.md, Known
+    // gaps): the highest w2 with zero acceleration at d2 from which the limit's own plan fits
+    // into the soft stretch, so that it takes over there. Cut at w instead, the braking for a
+    // corner of 0.0022 mm/s behind a 0.27 mm line of 92 mm/s^3 was planned to end 0.27 mm
+    // early: the chords braked to a crawl in front of the line and reached it still braking (X
+    // and B at 6 x and 47 x their jerk limits, box sweep seed 1 program 292).
+    const double room = ck.d - ck.d2 - ck.reserve;
+    const double A = kPlanMargin * ck.A, J = kPlanMarginJ * ck.J;
+    double lo = 0.0, hi = room > 0.0 ? std::cbrt(room * room * J) : 0.0;  // no A cap, w = 0
+    for (int i = 0; i < 24 && hi - lo > 1e-6 * (ck.w + hi); ++i) {  // w2 = w + lo: conservative
+      const double u = 0.5 * (lo + hi);
+      if (jerk::braking_plan(ck.w + u, 0.0, ck.w, A, J).distance <= room) {
+        lo = u;
+      } else {
+        hi = u;
+      }
+    }
+    // Never above the junction limit into b itself: that corner's own plan, at the stiff
+    // record's acceleration, then braked at -7,892 mm/s^2 in the last steps before a line of
+    // 39 mm/s^2, which was entered at 420 x X's corner tolerance (box sweep seed 3 program
+    // 121). (b's limit lies above w on w's chain; on the feed chain it may lie below.)
+    ck.w2 = std::min(ck.w + lo, rb.wg);
+    ck.reserve2 = junction_reserve(b, ck.w2);
+  }
+
   // Collects the limits ahead into `c`; returns their count. Window minima Aw, Jw apply to the
   // end of the window.
   int gather(Constraint* c, double Aw, double Jw, double reach) const {
@@ -915,6 +977,9 @@ struct Interpolator::Impl {
       const auto f = static_cast<std::size_t>(fam);
       std::uint64_t q = cur + 1;
       double A = rc.at, J = rc.jt;  // limits over [cur, q)
+      // The chain element before q (cur at first) and the lowest jerk limit over [cur, q_prev).
+      std::uint64_t q_prev = cur;
+      double J_prev = kInf;
       int hops = 0;
       while (q < win_end) {
         const Rec& r = R(q);
@@ -925,9 +990,11 @@ struct Interpolator::Impl {
           // (a long monotone run, e.g. the axis projections around a circle of chords).
           if (fam == 0 && !dq_wg.empty()) {
             const Rec& m = R(dq_wg.front());
-            c[k++] = {r.s0 - here, m.wg, A, J, m.wg_reason, false};
+            c[k] = {r.s0 - here, m.wg, A, J, m.wg_reason, false};
+            stiff_stretch(c[k++], q, q_prev, J_prev, here);
           } else if (fam == 1 && !dq_wf.empty()) {
-            c[k++] = {r.s0 - here, dq_wf.min() * rel, A, J, LimitFactor::kFeed, false, true};
+            c[k] = {r.s0 - here, dq_wf.min() * rel, A, J, LimitFactor::kFeed, false, true};
+            stiff_stretch(c[k++], q, q_prev, J_prev, here);
           } else if (fam == 2) {
             c[k++] = {r.s0 - here, Aw, A, J, LimitFactor::kAccelJerk, true};
           }
@@ -950,10 +1017,13 @@ struct Interpolator::Impl {
             const std::uint64_t nse = r.link[f].nse;
             ck.Jx = std::min(J, nse != kNoQ && nse < win_end ? r.link[f].jmin : Jw);
             if (r.kind == RecKind::kMotion && r.jt < J) ck.reserve = junction_reserve(q, w);
+            stiff_stretch(ck, q, q_prev, J_prev, here);
           }
           ++hops;
         }
         if (r.link[f].nse == kNoQ) break;
+        q_prev = q;
+        J_prev = J;
         A = std::min(A, r.link[f].amin);
         J = std::min(J, r.link[f].jmin);
         q = r.link[f].nse;
@@ -1025,6 +1095,16 @@ struct Interpolator::Impl {
     double d = jerk::braking_plan(cons_vc, cons_ac, ck.w, A, J).distance + quarter_dt2 * A;
     if (ck.Jx < ck.J) d = std::max(d, accel_distance(cons_vc, cons_ac, 0.0, J));
     return d;
+  }
+  // True while speed limit ck is kept at its d2 (`moved` [mm] travelled since it was gathered).
+  static bool before_d2(const Constraint& ck, double moved) {
+    return ck.d2 < kInf && ck.d2 - moved >= 0.0;
+  }
+  // cycle_bound for the first piece of a speed limit's plan, (w2, 0) at d2 at J2 (excess_from).
+  double cycle_bound2(const Constraint& ck) const {
+    const double J2 = kPlanMarginJ * ck.J2, A = kPlanMargin * ck.A;
+    return std::max(jerk::braking_plan(cons_vc, cons_ac, ck.w2, A, J2).distance + quarter_dt2 * A,
+                    accel_distance(cons_vc, cons_ac, 0.0, J2));
   }
 
   // Lowest jerk limit, at most J, of the motion records that taking acceleration (or
@@ -2034,6 +2114,40 @@ struct Interpolator::Impl {
       double ride_e = 0.0;
       double worst = 0.0;
       int worst_k = -1;
+      // Where limit ck binds [mm from cons_here]: d2 while the motion is before it (excess_from).
+      auto binding_d = [&](const Constraint& ck) { return before_d2(ck, moved) ? ck.d2 : ck.d; };
+      // excess_from for a speed limit w with `remain` [mm] left to it after the step (>= 0) and
+      // `reserve` kept before it, braking at jerk J and acceleration A; an acceleration still
+      // left at the junction is taken back behind it at Jx (kInf: not lower than J).
+      auto speed_excess = [&](const jerk::State& ns, double w, double A_, double J_, double Jx,
+                              double reserve, double remain) {
+        // Inside the reserve there is no room: a state at or below w that is not accelerating
+        // keeps w (the speed only falls) and needs none. The plan's step allowance, on the
+        // easing plan such a state gets with the step's higher jerk, failed it for any
+        // deceleration, so a motion resting there could only creep on (wide sweep seed 1
+        // programs 55, 86; with the probes at rest below but not this, 265 left its rest on
+        // the lowest passing probe and exceeded an axis acceleration by 8 %).
+        if (remain <= reserve && ns.v <= w && ns.a <= 0.0) return 0.0;
+        if (ns.a > 0.0 && Jx < J_) {
+          // Still accelerating with no braking needed before the limit (v + a^2/2J <= w): the
+          // part of a not taken back before the junction is taken back after it at Jx. With a'
+          // left at the junction the speed ends at vz + a'^2 (1/2Jx - 1/2J) <= w. vz is
+          // computed as braking_plan computes it: just above w it must need braking there too
+          // (rounded differently, braking_plan saw vz <= w and let the acceleration stay,
+          // wide sweep seed 1 program 281).
+          const double jp = kPlanMarginJ * J_, jx = kPlanMarginJ * Jx;
+          const double vz = jerk::settled_velocity(std::max(ns.v, 0.0), ns.a, jp);
+          if (vz <= w) {
+            const double a_ok = std::sqrt((w - vz) / (0.5 / jx - 0.5 / jp));
+            return ns.a <= a_ok
+                       ? -remain
+                       : accel_distance(ns.v, ns.a, a_ok, jp) - std::max(0.0, remain - reserve);
+          }
+        }
+        return plan_braking(std::max(ns.v, 0.0), ns.a, w, kPlanMargin * A_, kPlanMarginJ * J_,
+                            kPlanMarginJ * J) -
+               std::max(0.0, remain - reserve);
+      };
       // Excess [mm] of limit k's braking (or acceleration change) over its room from the
       // end-of-step state ns; > kExcessTol fails. Continuous in x where it can be (no distance
       // needed: -remain), so that largest_passing's secant steps find the root.
@@ -2071,32 +2185,59 @@ struct Interpolator::Impl {
         }
         if (ck.accel)
           return ns.a <= ck.w ? -remain : accel_room(std::max(ns.v, 0.0), ns.a, ck) - remain;
-        // Inside the reserve there is no room: a state at or below w that is not accelerating
-        // keeps w (the speed only falls) and needs none. The plan's step allowance, on the
-        // easing plan such a state gets with the step's higher jerk, failed it for any
-        // deceleration, so a motion resting there could only creep on (wide sweep seed 1
-        // programs 55, 86; with the probes at rest below but not this, 265 left its rest on
-        // the lowest passing probe and exceeded an axis acceleration by 8 %).
-        if (remain <= ck.reserve && ns.v <= ck.w && ns.a <= 0.0) return 0.0;
-        if (ns.a > 0.0 && ck.Jx < ck.J) {
-          // Still accelerating with no braking needed before the limit (v + a^2/2J <= w): the
-          // part of a not taken back before the junction is taken back after it at Jx. With a'
-          // left at the junction the speed ends at vz + a'^2 (1/2Jx - 1/2J) <= w. vz is
-          // computed as braking_plan computes it: just above w it must need braking there too
-          // (rounded differently, braking_plan saw vz <= w and let the acceleration stay,
-          // wide sweep seed 1 program 281).
-          const double jp = kPlanMarginJ * ck.J, jx = kPlanMarginJ * ck.Jx;
-          const double vz = jerk::settled_velocity(std::max(ns.v, 0.0), ns.a, jp);
-          if (vz <= ck.w) {
-            const double a_ok = std::sqrt((ck.w - vz) / (0.5 / jx - 0.5 / jp));
-            return ns.a <= a_ok
-                       ? -remain
-                       : accel_distance(ns.v, ns.a, a_ok, jp) - std::max(0.0, remain - ck.reserve);
+        // Before d2 (Constraint::d2) the first piece of its plan: (w2, 0) at d2 at the jerk
+        // before the soft record, with the limit's own acceleration limit (the soft record's
+        // among them: a braking carried into it within that), an acceleration taken back
+        // before the cut's reserve. Over-braked states pass; the deceleration carried in is the
+        // deceleration limits' (decel_limits). Inside the reserve, where a step may reach the
+        // soft record and has its jerk, the limit's own plan: it fits from any state the first
+        // piece kept. (Taken back behind the cut at the soft jerk, as the own plan lets an
+        // acceleration be taken back behind its junction, the acceleration settled above w2
+        // inside the soft record and the own plan overshot the corner at its end by 1.85 x
+        // the tolerance, wide sweep seed 16 program 61; with no room for it inside the reserve
+        // a motion at rest there could not accelerate at all, wide seeds 4/265, 5/239.)
+        // The first piece is a plain braking plan, without plan_braking's easing of a
+        // deceleration above A first: a motion braking for a stop command at the stiff record's
+        // acceleration failed it by the easing alone, 0.8 mm before the soft arc, and the best
+        // effort braked harder still (random sweep seed 19 program 378 with stops).
+        const double remain2 = ck.d2 - moved - ds;
+        if (ck.d2 != kInf && remain2 > ck.reserve2) {
+          const double v2 = std::max(ns.v, 0.0), jp2 = kPlanMarginJ * ck.J2;
+          double need;
+          if (ns.a < 0.0 && ns.a * ns.a > 2.0 * jp2 * v2) {
+            // A deceleration too hard for J2 to take back before standstill: eased at the
+            // step's jerk to what J2 can take back, then taken back to zero before the cut (the
+            // cut is a target in acceleration). A plain plan calls that state a reversal at any
+            // distance: a motion starting on a stiff line 56 mm before a soft arc found every
+            // deceleration at 0.005 mm/s hopeless, the search took the floor, and the motion
+            // swung between +30 and -60 mm/s^2 until its time limit (box sweep seed 5 program
+            // 215). Eased as plan_braking eases, with the plan after it allowed to reach w2
+            // still braking, a state braking at the stiff line's acceleration 0.08 mm before
+            // a short soft line passed, and the arc behind that line was entered at -11.4
+            // mm/s^2 and stopped dead inside (wide sweep seed 18 program 278).
+            const double jn = kPlanMarginJ * J;
+            double target = ns.a, t = 0.0, v0 = v2;
+            for (int it = 0; it < 3; ++it) {
+              const double floor_a = -std::sqrt(2.0 * jp2 * v0);
+              if (target >= floor_a) break;
+              target = 0.999 * floor_a;
+              t = (target - ns.a) / jn;
+              v0 = v2 + t * (ns.a + 0.5 * jn * t);
+              if (v0 <= 0.0) return kInf;
+            }
+            const double d0 = t * (v2 + t * (0.5 * ns.a + t * jn * (1.0 / 6.0)));
+            const double settle =
+                std::max(accel_distance(v0, target, 0.0, jp2),
+                         jerk::braking_plan(v0, target, ck.w2, kPlanMargin * ck.A, jp2).distance);
+            need = d0 + settle + allowance * quarter_dt2 * -ns.a;
+          } else {
+            const jerk::Braking b = jerk::braking_plan(v2, ns.a, ck.w2, kPlanMargin * ck.A, jp2);
+            need = b.distance + allowance * quarter_dt2 * b.peak;
           }
+          if (ns.a > 0.0) need = std::max(need, accel_distance(v2, ns.a, 0.0, jp2));
+          return need - (remain2 - ck.reserve2);
         }
-        return plan_braking(std::max(ns.v, 0.0), ns.a, ck.w, kPlanMargin * ck.A,
-                            kPlanMarginJ * ck.J, kPlanMarginJ * J) -
-               std::max(0.0, remain - ck.reserve);
+        return speed_excess(ns, ck.w, ck.A, ck.J, ck.Jx, ck.reserve, remain);
       };
       auto excess = [&](double xx, int k) { return excess_from(jerk::advance(before, xx, dt), k); };
       if (a == 0.0 && xd == 0.0) {
@@ -2109,6 +2250,12 @@ struct Interpolator::Impl {
             m = std::min(m, c[k].d - c[k].reserve -
                                 plan_braking(v, 0.0, c[k].w, kPlanMargin * c[k].A,
                                              kPlanMarginJ * c[k].J, kPlanMarginJ * J));
+            // Before d2 also the first piece of a two-piece plan (excess_from).
+            if (before_d2(c[k], moved)) {
+              m = std::min(m, c[k].d2 - c[k].reserve2 -
+                                  plan_braking(v, 0.0, c[k].w2, kPlanMargin * c[k].A,
+                                               kPlanMarginJ * c[k].J2, kPlanMarginJ * J));
+            }
           }
           cruise_margin = m;
           cruise_v = v;
@@ -2129,11 +2276,19 @@ struct Interpolator::Impl {
       for (int k = 0; k < nc; ++k) {
         const double dk = c[k].d - moved;
         if (dk < 0.0) continue;  // passed in an earlier calculation step
-        if (dk - c[k].reserve > bound + c[k].beyond_stop) continue;
+        // Its room: to d2 while the motion is before it (excess_from), within the reserve.
+        const bool stiff = before_d2(c[k], moved);
+        const double room_k = stiff ? std::min(dk - c[k].reserve, c[k].d2 - moved - c[k].reserve2)
+                                    : dk - c[k].reserve;
+        if (room_k > bound + c[k].beyond_stop) continue;
         // Within that limit already, at the step's start and end: passes.
         if (c[k].accel && nd.a <= c[k].w && before.a <= c[k].w) continue;
         if (cons_bounds && regular_for(nd, c[k])) {
-          if (c[k].safe == -kInf) c[k].safe = c[k].d - c[k].reserve - cycle_bound(c[k]);
+          if (c[k].safe == -kInf) {
+            c[k].safe = c[k].d - c[k].reserve - cycle_bound(c[k]);
+            if (stiff)
+              c[k].safe = std::min(c[k].safe, c[k].d2 - c[k].reserve2 - cycle_bound2(c[k]));
+          }
           if (moved + (nd.s - before.s) <= c[k].safe) continue;  // passes (see cycle_bound)
         }
         const double e = excess_from(nd, k);
@@ -2208,7 +2363,7 @@ struct Interpolator::Impl {
         auto passing_above = [&](double& from, double to) {
           const double reach = std::max(jerk::advance(before, hi, dt).s - before.s, kRestD);
           for (int i = 0; i < nv; ++i) {
-            const bool near = c[viol[i]].d - moved <= reach;
+            const bool near = binding_d(c[viol[i]]) - moved <= reach;
             if (!near && v <= kArriveV) continue;  // at rest only a near failure stops the probes
             const double e = excess(from, viol[i]);
             if (e > kExcessTol && (near || e < kInf)) return false;
@@ -2272,7 +2427,7 @@ struct Interpolator::Impl {
               const jerk::State at_lo_dec = jerk::advance(before, lo_dec, dt);
               for (int i = 0; i < nv; ++i) {
                 if (excess_from(at_lo_dec, viol[i]) > kExcessTol)
-                  d_keep = std::min(d_keep, c[viol[i]].d - moved);
+                  d_keep = std::min(d_keep, binding_d(c[viol[i]]) - moved);
               }
             }
             if (x >= lo_dec || dec_failing_at(x) < d_keep) x = lo_dec;
@@ -2301,6 +2456,10 @@ struct Interpolator::Impl {
               return 1;
             }
             int n_out = 0;
+            if (before_d2(ck, moved)) {  // the first piece of a two-piece plan (excess_from)
+              out[n_out++] = jerk::landing_acceleration(v, a, ck.w2, kPlanMarginJ * ck.J2, dt);
+              return n_out;
+            }
             out[n_out++] = jerk::landing_acceleration(v, a, ck.w, kPlanMarginJ * ck.J, dt);
             if (ck.Jx < ck.J && v + 0.5 * a * dt < ck.w) {
               out[n_out++] = jerk::landing_acceleration(v, a, ck.w, kPlanMarginJ * ck.Jx, dt);
@@ -2796,6 +2955,7 @@ struct Interpolator::Impl {
     struct Slow {
       std::uint64_t q;
       double s0, w;
+      std::uint64_t b;  // the motion record before q (kNoQ: none within kStiffScan records)
     };
     std::array<Slow, kMaxSlow> slow{};
     int n_slow = 0, first_slow = 0;
@@ -2838,8 +2998,15 @@ struct Interpolator::Impl {
         full = true;
         return;
       }
+      std::uint64_t b = kNoQ;
+      for (std::uint64_t u = qf; u > 0 && qf - u <= kStiffScan;) {
+        if (R(--u).kind == RecKind::kMotion) {
+          b = u;
+          break;
+        }
+      }
       for (double wk : w) {
-        if (wk < v) slow[static_cast<std::size_t>(n_slow++)] = {qf, r.s0, wk};
+        if (wk < v) slow[static_cast<std::size_t>(n_slow++)] = {qf, r.s0, wk, b};
       }
       if (r.kind == RecKind::kMotion &&
           (r.at < a_lo || r.at > a_hi || r.jt < j_lo || r.jt > j_hi)) {
@@ -2903,13 +3070,25 @@ struct Interpolator::Impl {
         while (first_slow < n_slow && slow[static_cast<std::size_t>(first_slow)].q <= cur)
           ++first_slow;
         slack = start_of(win_end) - b_stop;
+        // A limit gather() plans in two pieces (stiff_stretch) is taken at the start of its
+        // soft record, at the scan's lowest jerk (at most the jerk it is planned at), to w (at
+        // most the cut's speed w2) and with the reserve of the cut at v (the first piece binds
+        // only while v > w2, and its reserve is that of w2).
         for (int i = first_slow; i < n_slow; ++i) {
           const Slow& sl = slow[static_cast<std::size_t>(i)];
-          slack = std::min(slack, sl.s0 - reserve_for(sl.w, j_hi) - braking(sl.w));
+          const bool stiff = sl.b != kNoQ && sl.b > cur && kStiffRatio * R(sl.b).jt <= j_hi;
+          slack = std::min(slack, stiff ? R(sl.b).s0 - reserve_for(v, j_hi) - braking(sl.w)
+                                        : sl.s0 - reserve_for(sl.w, j_hi) - braking(sl.w));
         }
         if (cur + kChainMax + 1 < qf) {
           const double w = std::min(wg_min, wf_min * rel);
-          if (w < v) slack = std::min(slack, R(cur + kChainMax + 1).s0 - braking(w));
+          if (w < v) {
+            // The stand-in's soft record starts at cur + kChainMax at the earliest.
+            const double at = kStiffRatio * j_lo <= j_hi
+                                  ? R(cur + kChainMax).s0 - reserve_for(v, j_hi)
+                                  : R(cur + kChainMax + 1).s0;
+            slack = std::min(slack, at - braking(w));
+          }
         }
         slack_cur = cur;
         slack_end = win_end;
