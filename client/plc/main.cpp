@@ -517,6 +517,7 @@ int main(int argc, char** argv) {
   };
 
   std::optional<Clock::time_point> found_at;
+  bool events_matched = false;
   auto last_wait_log = Clock::now();
   tgm::client::SilenceWatch silence(3s);
   flush_log();
@@ -537,12 +538,24 @@ int main(int argc, char** argv) {
             static_cast<unsigned long long>(s->service_instance()));
         sv.found = false;
         sv.ack_m = 0;
+        events_matched = false;
       }
       if (!sv.found) {
         sv.instance = s->service_instance();
         sv.found = true;
         log("interpolator %d: found (status %d %s)", sv.number, s->status(),
             std::string(tgm::client::status_name(s->status())).c_str());
+        // Events are VOLATILE: those written before the event reader matched never arrive.
+        // Match before the first request, so that whatever this PLC causes from here on is seen
+        // as an event (the state carries it either way: the fall-back when no match comes).
+        if (events && !events_matched) {
+          events_matched = plc->wait_for_event_match(2s);
+          if (!events_matched) {
+            log("interpolator %d: the event topic has not matched after 2 s: M-functions are "
+                "seen in the state until it does",
+                sv.number);
+          }
+        }
         // Basic parameters (the manual: the PLC sets them): Rel_Speed and the Command
         // structure with the config's smoothing and gear ratios.
         if (rel_speed) {
@@ -689,8 +702,10 @@ int main(int argc, char** argv) {
   take_event_seen();
   take_acked_replies(true);
   if (events) {
-    log("events: %llu received, %llu lost", static_cast<unsigned long long>(plc->events_received()),
-        static_cast<unsigned long long>(plc->events_lost()));
+    log("events: %llu received, %llu lost, %llu written before the PLC joined",
+        static_cast<unsigned long long>(plc->events_received()),
+        static_cast<unsigned long long>(plc->events_lost()),
+        static_cast<unsigned long long>(plc->events_before_join()));
   }
   log("stopping");
   flush_log();

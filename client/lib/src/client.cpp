@@ -88,6 +88,9 @@ void Client::EventListener::on_data_available(fdds::DataReader* reader) {
         last_instance_[i] = event_.sample.service_instance();
         last_counter_[i] = 0;
       }
+      if (last_counter_[i] == 0 && c > 1) {
+        client_.events_before_join_.fetch_add(c - 1, std::memory_order_relaxed);
+      }
       if (last_counter_[i] != 0 && c > last_counter_[i] + 1) {
         client_.events_lost_.fetch_add(c - last_counter_[i] - 1, std::memory_order_relaxed);
       }

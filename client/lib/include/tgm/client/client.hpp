@@ -142,6 +142,12 @@ class Client {
   //! client never got (gaps in InterpolatorEvent.event_counter). Thread-safe.
   std::uint64_t events_received() const { return events_received_.load(std::memory_order_relaxed); }
   std::uint64_t events_lost() const { return events_lost_.load(std::memory_order_relaxed); }
+  //! Events the service wrote before this client's first one from it (per interpolator and
+  //! service instance: the first event_counter seen, less one). Not lost: written before the
+  //! match, which a VOLATILE topic does not replay. Thread-safe.
+  std::uint64_t events_before_join() const {
+    return events_before_join_.load(std::memory_order_relaxed);
+  }
 
   //! Writes `r` at once (request_id, role and client_name are filled in) without waiting for the
   //! reply; returns its request_id, 0 when it could not be written (no service matched, the
@@ -232,6 +238,7 @@ class Client {
   void free_slot();
   std::atomic<std::uint64_t> events_received_{0};
   std::atomic<std::uint64_t> events_lost_{0};
+  std::atomic<std::uint64_t> events_before_join_{0};
   msg::InterpolatorState state_scratch_;
   msg::Setpoints setpoints_scratch_;
 };
