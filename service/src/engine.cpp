@@ -131,14 +131,16 @@ std::string role_violation(Role role, RequestKind kind, std::int32_t command) {
   const KindRule* k = find_kind(kind);
   if (k == nullptr) return {};
   unsigned roles = k->roles;
-  std::string what = k->name;
+  const CommandRule* c = nullptr;
   if (kind == RequestKind::kCommand) {
-    const CommandRule* c = find_command(command);
+    c = find_command(command);
     if (c == nullptr) return {};
     roles = c->roles;
-    what = "Command " + std::to_string(command) + " (" + c->name + ")";
   }
   if ((roles & (1u << static_cast<unsigned>(role))) != 0) return {};
+  // Worded only for a refusal: an allowed request must not allocate on the cycle thread.
+  const std::string what =
+      c != nullptr ? "Command " + std::to_string(command) + " (" + c->name + ")" : std::string(k->name);
   std::string why = std::string("the ") + role_name(role) + " may not send " + what;
   if (kind == RequestKind::kStart) why += ": only the HMI starts the interpolator";
   return why;
@@ -284,14 +286,18 @@ void Engine::apply_chunks(CyclePort& port, int i, std::size_t& budget) {
       port.pop_chunk(i);
       continue;
     }
-    const std::size_t rest = total - c->applied;
-    const std::size_t piece = std::min(rest, budget);
-    const bool last_piece = piece == rest;
     // The interpolator takes no records during an emergency ramp (Command 4/5): the chunk
     // waits for its end, like one that finds the buffer full, instead of being refused. A
     // refusal broke the stream (every later chunk a gap), so a program streamed while an
     // emergency stop on the trajectory was given could not be resumed.
     if (!s.ip.takes_records()) return;
+    // Only what fits: append() formats the reason of a full ring (kBufferFull) as a string,
+    // which allocated on the cycle thread in every cycle a stream waited for room (session
+    // 41, tests/service/cycle_alloc_test.cpp).
+    const std::size_t rest = total - c->applied;
+    const std::size_t piece = std::min({rest, budget, s.ip.free_slots()});
+    if (piece == 0 && rest > 0) return;  // (an empty chunk still passes: it may end the program)
+    const bool last_piece = piece == rest;
     std::size_t accepted = 0;
     const RequestResult res =
         s.ip.append(c->program, c->applied, piece, last_piece && c->end_of_program, &accepted);
