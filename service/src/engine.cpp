@@ -150,6 +150,8 @@ std::optional<Engine> Engine::create(const MachineConfig& machine, const EngineO
                                      std::string* error) {
   std::vector<Slot> ips;
   InterpolatorOptions io = options.interpolator;
+  // Appends on the cycle thread never grow a ring (InterpolatorOptions::preallocate_ring).
+  io.preallocate_ring = true;
   if (options.check_limits) io.record_corner_events = true;  // the checker removes the corners
   for (int i = 0; i < static_cast<int>(machine.interpolators.size()); ++i) {
     std::string why;

@@ -11,6 +11,8 @@
 //                           program time over the feed-limited lower bound (counter ratio)
 //   BM_SimulationSpeedShortSegments  the same circle ten times: x_realtime as BM_SimulationSpeed
 //   BM_SimulationSpeedManualExample  the manual's example program: x_realtime
+//   BM_AppendWorst/0, /1    appends of 1,024 records into a 10,000-slot ring, the ring grown as
+//                           records come (0) or built at create (1, tgm-service): mean, worst
 //   BM_LimitChecker/3, /10  cost of LimitChecker::add_cycle (the live check tgm-service runs
 //                           with --limit-share) per cycle of the CAM-like program: mean and max,
 //                           net of the clock read measured around an empty region in the run
@@ -466,5 +468,44 @@ void BM_LimitChecker(benchmark::State& state) {
 BENCHMARK(BM_LimitChecker)->Arg(3)->Arg(10)->Iterations(1)->Unit(benchmark::kMillisecond);
 
 }  // namespace
+
+// Appends on tgm-service's cycle thread (the engine's budget: 1,024 records a cycle) into an
+// empty 10,000-slot ring until it is full, with the ring grown as records are stored (arg 0)
+// or built at create (arg 1, InterpolatorOptions::preallocate_ring, what tgm-service uses).
+// Counters: the mean append of 1,024 records and the slowest one per fill (mean over the
+// fills, and the maximum). Each fill gets a new interpolator; after the first its memory comes
+// back from the allocator already faulted in, as tgm-service's is locked and faulted at start.
+void BM_AppendWorst(benchmark::State& state) {
+  const tgm::MachineConfig m = tgm::MachineConfig::default_machine();
+  tgm::InterpolatorOptions o;
+  o.preallocate_ring = state.range(0) != 0;
+  ProgramBuilder b(3);
+  for (int i = 0; i < 10240; ++i) b.line({0.05 * (i + 1), 0.01 * (i % 2), 0.0}, 6000);
+  const Program& prog = b.program();
+  double sum_ns = 0.0, appends = 0.0, sum_worst = 0.0, worst = 0.0;
+  for (auto _ : state) {
+    state.PauseTiming();
+    auto ip = tgm::Interpolator::create(m, 0, o);
+    state.ResumeTiming();
+    double fill_worst = 0.0;
+    for (std::size_t first = 0; first + 1024 <= prog.segments.size() && ip->free_slots() > 0;
+         first += 1024) {
+      const std::size_t n = std::min<std::size_t>(1024, ip->free_slots());
+      const auto t0 = std::chrono::steady_clock::now();
+      ip->append(prog, first, n, false);
+      const double ns =
+          std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - t0).count();
+      sum_ns += ns;
+      appends += 1.0;
+      fill_worst = std::max(fill_worst, ns);
+    }
+    sum_worst += fill_worst;
+    worst = std::max(worst, fill_worst);
+  }
+  state.counters["append_mean_us"] = sum_ns / std::max(appends, 1.0) * 1e-3;
+  state.counters["worst_mean_us"] = sum_worst / static_cast<double>(state.iterations()) * 1e-3;
+  state.counters["worst_max_us"] = worst * 1e-3;
+}
+BENCHMARK(BM_AppendWorst)->Arg(0)->Arg(1)->Iterations(50)->Unit(benchmark::kMillisecond);
 
 BENCHMARK_MAIN();

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <random>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "limit_findings.hpp"
@@ -968,6 +969,73 @@ TEST(LimitChecker, ARampInsideOneCycleIsJudgedAtTheEmergencyLimits) {
   ch = LimitChecker::create(mc.interpolators[0], mc.cycle_time_us);
   replay(true);
   EXPECT_GT(ch->violation_count(), 0u);
+}
+
+// InterpolatorOptions::preallocate_ring (tgm-service) builds every ring slot at create; the
+// default grows the rings as records are stored. Either way the same records give the same
+// cycles, bit for bit, also through a ring of 1,000 slots the stream wraps three times (slots
+// reused, M parameters and messages among them).
+TEST(Ring, PreallocatedRingRunsTheProgramBitForBit) {
+  MachineConfig m = machine();
+  m.interpolators[0].buffer_size = 1000;
+  ProgramBuilder b(3);
+  std::mt19937_64 rng(41);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int i = 0; i < 3500; ++i) {
+    const auto& at = b.position();
+    if (i % 700 == 350) {
+      b.m(51, MKind::kNormal);
+    } else if (i % 900 == 10) {
+      b.message("pass " + std::to_string(i));
+    } else {
+      b.line({at[0] + 0.2 + 0.1 * u(rng), at[1] + 0.1 * u(rng), at[2] + 0.02 * u(rng)},
+             3000 + 2000 * u(rng));
+    }
+  }
+  b.end();
+  const Program& p = b.program();
+  InterpolatorOptions pre;
+  pre.preallocate_ring = true;
+  auto lazy = Interpolator::create(m, 0);
+  auto full = Interpolator::create(m, 0, pre);
+  ASSERT_TRUE(lazy && full);
+  EXPECT_LT(lazy->ring_slots(), 1000u);
+  EXPECT_EQ(full->ring_slots(), 1000u);
+  std::size_t next_lazy = 0, next_full = 0;
+  auto feed = [&](Interpolator& ip, std::size_t& next) {
+    const std::size_t n = std::min(p.segments.size() - next, ip.free_slots());
+    if (n == 0) return;
+    std::size_t took = 0;
+    ip.append(p, next, n, next + n == p.segments.size(), &took);
+    next += took;
+  };
+  feed(*lazy, next_lazy);
+  feed(*full, next_full);
+  ASSERT_TRUE(lazy->start().ok());
+  ASSERT_TRUE(full->start().ok());
+  int cycles = 0, acks = 0;
+  for (; cycles < 2'000'000; ++cycles) {
+    feed(*lazy, next_lazy);
+    feed(*full, next_full);
+    const StepResult a = lazy->step();
+    const StepResult c = full->step();
+    ASSERT_EQ(a, c) << "cycle " << cycles;
+    const Registers& ra = lazy->registers();
+    const Registers& rc = full->registers();
+    ASSERT_EQ(ra.orig_position, rc.orig_position) << "cycle " << cycles;
+    ASSERT_EQ(ra.act_part, rc.act_part) << "cycle " << cycles;
+    ASSERT_EQ(ra.m_func, rc.m_func) << "cycle " << cycles;
+    if (ra.m_func == 51 && run_flag_waits_for_m(ra.run_flag)) {
+      ASSERT_TRUE(lazy->write_m_func(0).ok());
+      ASSERT_TRUE(full->write_m_func(0).ok());
+      ++acks;
+    }
+    if (ra.status == static_cast<std::int32_t>(InterpolatorStatus::kEnded)) break;
+  }
+  EXPECT_EQ(lazy->registers().status, static_cast<std::int32_t>(InterpolatorStatus::kEnded));
+  EXPECT_EQ(next_lazy, p.segments.size());
+  EXPECT_EQ(acks, 5);
+  EXPECT_EQ(lazy->ring_slots(), 1000u);  // grown to the whole ring by now
 }
 
 }  // namespace

@@ -105,6 +105,13 @@ struct InterpolatorOptions {
   //! Rebuild the LookAheadBuffer table from the ring in every cycle instead of updating it as
   //! `cur` moves on and records arrive (the reference the tests compare the update with).
   bool full_lookahead_fill = false;
+  //! Construct every ring slot at create (tgm-service). Off, the rings grow as records are
+  //! stored, doubling: an append that crossed a doubling wrote up to half the ring (about
+  //! 3 MB of 10,000 slots) on the cycle thread, 0.2 ms even with the memory locked and faulted
+  //! in (tests/bench/BENCHMARKS.md, Service, session 41). On, create() writes all Buffer_Size
+  //! slots (about 8.5 MB for 10,000), which an offline run of a short program need not pay
+  //! (Simulation leaves it off).
+  bool preallocate_ring = false;
 };
 
 //! One interpolator (axis group). Movable, not copyable.
@@ -205,6 +212,8 @@ class Interpolator {
 
   //! Free ring slots.
   std::size_t free_slots() const;
+  //! Ring slots constructed so far (InterpolatorOptions::preallocate_ring: all of them).
+  std::size_t ring_slots() const;
   //! False while an emergency ramp runs (Command 4/5): append() refuses records then, and
   //! callers that stream keep them until it has ended.
   bool takes_records() const;

@@ -3450,7 +3450,12 @@ std::optional<Interpolator> Interpolator::create(const MachineConfig& machine, i
   m.seg.reserve(m.cap);
   m.rec.reserve(m.cap);
   m.par.reserve(m.cap);
-  m.grow_rings(0);
+  if (options.preallocate_ring) {
+    m.grow_rings(m.cap);
+    m.par.resize(m.cap);
+  } else {
+    m.grow_rings(0);
+  }
   m.msg.resize(kMessageRing);
   m.dq_a.init(m.cap + 1);
   m.dq_j.init(m.cap + 1);
@@ -3841,6 +3846,9 @@ RequestResult Interpolator::write_number_axes(int number_axes) {
 }
 
 std::size_t Interpolator::free_slots() const { return impl_->cap - (impl_->tail - impl_->cur); }
+std::size_t Interpolator::ring_slots() const {
+  return impl_->rec.size();
+}
 bool Interpolator::takes_records() const {
   return impl_->mode != Mode::kEmergency;
 }
