@@ -72,7 +72,7 @@ class IirFilter {
   void pass(const double* in_mm) {
     for (int i = 0; i < axes_; ++i) {
       const auto ui = static_cast<std::size_t>(i);
-      u_[ui] = y_[ui] = in_mm[i];
+      u_[ui] = in_mm[i];
     }
   }
 
@@ -106,8 +106,13 @@ class IirFilter {
   int axes_ = 0;
   double zeta_ = 1.0, wn_ = 0.0, f_s_ = 0.0, T_ = 0.0;
   std::array<double, 4> phi_{1.0, 0.0, 0.0, 1.0};
-  // Per axis: last input u, output y (position), velocity v (the lag is y - u).
-  std::array<double, kMaxAxes> u_{}, y_{}, v_{};
+  // Per axis: last input u, lag e of the output behind it (position = u + e) and velocity v.
+  // The lag is the state, not the position: a position near its input, rounded to the
+  // coordinate's resolution, held the lag at a few units in the last place of the coordinate
+  // for ever (a dead band: 1.4e-12 mm at 2,400 mm, wider at larger coordinates or slower
+  // filters), the filter never settled, and a program whose filtered axis ended there never
+  // reached Status 3 (session 41).
+  std::array<double, kMaxAxes> u_{}, e_{}, v_{};
 };
 
 // ============================== Spline ==============================

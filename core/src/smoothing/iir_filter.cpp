@@ -114,7 +114,7 @@ RequestResult IirFilter::configure(const IirParams& params, int axes) {
     if ((mask_ & bit) && !(mask & bit) && !settled(i)) {
       const auto ui = static_cast<std::size_t>(i);
       return refuse(RequestCode::kWrongState,
-                    "IIR: axis " + std::to_string(i) + " is still " + std::to_string(u_[ui] - y_[ui]) +
+                    "IIR: axis " + std::to_string(i) + " is still " + std::to_string(-e_[ui]) +
                         " mm behind Orig_Position; it can leave the mask when it has settled");
     }
   }
@@ -135,7 +135,7 @@ RequestResult IirFilter::configure(const IirParams& params, int axes) {
     const std::uint32_t bit = 1u << i;
     const auto ui = static_cast<std::size_t>(i);
     if (!(mask_ & bit) || i >= axes_) {  // entering (or not filtered): at rest on the input
-      y_[ui] = u_[ui];
+      e_[ui] = 0.0;
       v_[ui] = 0.0;
     }
   }
@@ -149,7 +149,8 @@ void IirFilter::reset(const double* position_mm) {
   for (int i = 0; i < kMaxAxes; ++i) {
     const auto ui = static_cast<std::size_t>(i);
     const double p = i < axes_ ? position_mm[i] : 0.0;
-    u_[ui] = y_[ui] = p;
+    u_[ui] = p;
+    e_[ui] = 0.0;
     v_[ui] = 0.0;
   }
 }
@@ -159,17 +160,20 @@ void IirFilter::step(const double* in_mm, double* out_mm) {
   for (int i = 0; i < axes_; ++i) {
     const auto ui = static_cast<std::size_t>(i);
     const double u = in_mm[i];
-    u_[ui] = u;
     if (!(mask_ & (1u << i))) {
-      y_[ui] = out_mm[i] = u;
+      u_[ui] = out_mm[i] = u;
       continue;
     }
-    // Input held at u over the step: the lag e = y - u and the velocity follow x' = A x.
-    const double e = y_[ui] - u, v = v_[ui];
+    // Input held at u over the step: the lag e = y - u and the velocity follow x' = A x. The
+    // lag behind the new input from the lag behind the last one (the inputs' difference is
+    // exact for nearby values), never from the rounded position.
+    const double e = e_[ui] + (u_[ui] - u), v = v_[ui];
+    u_[ui] = u;
     double en = p00 * e + p01 * v;
     double vn = p10 * e + p11 * v;
     if (std::fabs(en) < 1e-12 && std::fabs(vn) < 1e-9) en = vn = 0.0;  // on the input
-    y_[ui] = out_mm[i] = u + en;
+    e_[ui] = en;
+    out_mm[i] = u + en;
     v_[ui] = vn;
   }
 }
@@ -177,7 +181,7 @@ void IirFilter::step(const double* in_mm, double* out_mm) {
 bool IirFilter::settled(int axis) const {
   if (axis < 0 || axis >= axes_ || !(mask_ & (1u << axis))) return true;
   const auto ui = static_cast<std::size_t>(axis);
-  return std::fabs(y_[ui] - u_[ui]) < 1e-9 && std::fabs(v_[ui]) < 1e-6;
+  return std::fabs(e_[ui]) < 1e-9 && std::fabs(v_[ui]) < 1e-6;
 }
 
 bool IirFilter::settled() const {
@@ -190,7 +194,7 @@ bool IirFilter::settled() const {
 bool IirFilter::at_rest() const {
   for (int i = 0; i < axes_; ++i) {
     const auto ui = static_cast<std::size_t>(i);
-    if ((mask_ & (1u << i)) && (y_[ui] != u_[ui] || v_[ui] != 0.0)) return false;
+    if ((mask_ & (1u << i)) && (e_[ui] != 0.0 || v_[ui] != 0.0)) return false;
   }
   return true;
 }
