@@ -175,9 +175,24 @@ void run_counted(const EngineOptions& options) {
     }
   }
   // Warm-up: the first cycles set the engine up (first events, first snapshot, the first
-  // chunks in the rings); then the starts.
+  // chunks in the rings). Counted from then on: the basic parameters as tgm-plc sends them
+  // (Command -2 spline, -1 IIR, 1024 gear ratio per axis), then the starts.
   for (int c = 0; c < 4; ++c) e.cycle(port, {});
-  for (int i = 0; i < kIps; ++i) port.add_request(Role::kHmi, RequestKind::kStart, i);
+  for (int i = 0; i < kIps; ++i) {
+    RequestIn& spline = port.add_request(Role::kPlc, RequestKind::kCommand, i);
+    spline.command = -2;
+    spline.command_parameter[0] = 50;
+    spline.command_parameter[1] = 20000;
+    RequestIn& iir = port.add_request(Role::kPlc, RequestKind::kCommand, i);
+    iir.command = -1;
+    iir.command_parameter = {2'000'000, 1'000'000, 5'000'000, 0b011};
+    for (int a = 0; a < 3; ++a) {
+      RequestIn& ratio = port.add_request(Role::kPlc, RequestKind::kCommand, i);
+      ratio.command = 1024;
+      ratio.command_parameter = {a, 1000, 1000};
+    }
+  }
+  const std::size_t basic_requests = port.requests.size();
 
   long allocations = 0;
   std::vector<std::uint32_t> acked(kIps, 0);
@@ -191,6 +206,10 @@ void run_counted(const EngineOptions& options) {
         RequestIn& ack = port.add_request(Role::kPlc, RequestKind::kWriteMFunc, i);
         ack.m_func_acknowledged = 51;
       }
+    }
+    if (c == 2) {
+      ASSERT_EQ(port.next, basic_requests) << "the basic parameters were not all applied";
+      for (int i = 0; i < kIps; ++i) port.add_request(Role::kHmi, RequestKind::kStart, i);
     }
     if (c == 3000) {
       RequestIn& rs = port.add_request(Role::kPlc, RequestKind::kWriteRelSpeed, 1);
@@ -225,8 +244,10 @@ void run_counted(const EngineOptions& options) {
   }
   for (int i = 0; i < kIps; ++i) {
     const Registers& r = port.last.ip[static_cast<std::size_t>(i)].reg;
-    EXPECT_EQ(r.status, 3) << "interpolator " << i << ": part " << r.act_part << ", cycle " << r.cycle
-                           << ", M_Func " << r.m_func << ", acknowledged " << acked[static_cast<std::size_t>(i)];
+    EXPECT_EQ(r.status, 3) << "interpolator " << i << ": part " << r.act_part << ", cycle "
+                           << r.cycle << ", M_Func " << r.m_func << ", run_flag " << std::hex
+                           << r.run_flag << std::dec << ", acknowledged "
+                           << acked[static_cast<std::size_t>(i)];
   }
   EXPECT_EQ(allocations, 0);
   // What the run went through (the count above would be empty words without it).
@@ -236,6 +257,10 @@ void run_counted(const EngineOptions& options) {
   EXPECT_FALSE(port.messages.empty());
   EXPECT_GT(port.events.size(), 100u);
   EXPECT_EQ(e.counters().refused_requests, 0u);
+  for (const ReplyOut& r : port.replies) {
+    EXPECT_EQ(r.code, ReplyCode::kAccepted)
+        << "request " << r.request_id << ": " << r.reason.view();
+  }
   EXPECT_EQ(e.counters().segments, 3 * p.segments.size());
 }
 
