@@ -1000,7 +1000,14 @@ struct Interpolator::Impl {
           }
           break;
         }
-        if (w < kInf) {
+        // A feed limit at a junction whose hard limit is no higher is that limit's already,
+        // but with the reserve of its own, higher speed (two steps of travel at w): behind a
+        // stiff rapid into a corner of 0.0147 mm/s, the feed's 11.65 mm/s asked 0.0049 mm
+        // before the junction, failed where the corner's plan fitted, and, being the feed,
+        // kept the spent-allowance ride from applying: the best effort crossed the corner at
+        // 2.5 mm/s (simulate fuzz, box machine 15, session 41). Not gathered.
+        const bool dominated = fam == 1 && r.wg <= w;
+        if (w < kInf && !dominated) {
           LimitFactor why = fam == 0 ? r.wg_reason
                                      : (fam == 2 ? LimitFactor::kAccelJerk
                                                  : (rel == 1.0 ? LimitFactor::kFeed : LimitFactor::kOverride));
@@ -2216,14 +2223,20 @@ struct Interpolator::Impl {
             // a short soft line passed, and the arc behind that line was entered at -11.4
             // mm/s^2 and stopped dead inside (wide sweep seed 18 program 278).
             const double jn = kPlanMarginJ * J;
+            // In jerk::braking_plan_from's order (a ramp, then the check): after a third raise
+            // the plan starts from the last ramp's speed, for which that target is regular.
+            // Ramping after each raise instead called the no-reversal floor's state a reversal
+            // where the step's jerk equals J2 (easing never helps there) and kept the spent-
+            // allowance ride off at the hardest braking (wide sweep seed 17 program 25, once
+            // dominated feed limits were no longer gathered; session 41).
             double target = ns.a, t = 0.0, v0 = v2;
             for (int it = 0; it < 3; ++it) {
+              t = std::max(0.0, (target - ns.a) / jn);
+              v0 = v2 + t * (ns.a + 0.5 * jn * t);
+              if (v0 <= 0.0) return kInf;
               const double floor_a = -std::sqrt(2.0 * jp2 * v0);
               if (target >= floor_a) break;
               target = 0.999 * floor_a;
-              t = (target - ns.a) / jn;
-              v0 = v2 + t * (ns.a + 0.5 * jn * t);
-              if (v0 <= 0.0) return kInf;
             }
             const double d0 = t * (v2 + t * (0.5 * ns.a + t * jn * (1.0 / 6.0)));
             const double settle =
