@@ -59,6 +59,21 @@ double braking_distance_from(double v, double a, double w, double A, double J, d
 //! braking_distance_from with the plan's peak deceleration.
 Braking braking_plan_from(double v, double a, double w, double A, double J, double J_now);
 
+//! The easing braking_plan_from starts with, for a deceleration too hard for jerk J to take
+//! back before standstill: the acceleration ramps from a towards `target` (starting at
+//! `start` >= a) at jerk J_now, taking t [s] and d0 [mm] and leaving speed v0 [mm/s]; after
+//! each ramp a target below -sqrt(2 J v0) is raised to 0.999 of that, three ramps at most. A
+//! third raise keeps the last ramp's t, v0 and d0 (the target is regular for that v0).
+//! `reverses` when a ramp ends at or below zero speed.
+struct Easing {
+  double target = 0.0;
+  double t = 0.0;
+  double v0 = 0.0;
+  double d0 = 0.0;
+  bool reverses = false;
+};
+Easing ease_deceleration(double v, double a, double start, double J, double J_now);
+
 //! End-of-step acceleration x whose state, after bringing the acceleration back to zero at
 //! jerk J, has velocity vt: v + (a + x) dt / 2 + x |x| / (2J) = vt (unclipped; increasing in x).
 double landing_acceleration(double v, double a, double vt, double J, double dt);

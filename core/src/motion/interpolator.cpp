@@ -2222,27 +2222,18 @@ struct Interpolator::Impl {
             // still braking, a state braking at the stiff line's acceleration 0.08 mm before
             // a short soft line passed, and the arc behind that line was entered at -11.4
             // mm/s^2 and stopped dead inside (wide sweep seed 18 program 278).
-            const double jn = kPlanMarginJ * J;
-            // In jerk::braking_plan_from's order (a ramp, then the check): after a third raise
-            // the plan starts from the last ramp's speed, for which that target is regular.
-            // Ramping after each raise instead called the no-reversal floor's state a reversal
-            // where the step's jerk equals J2 (easing never helps there) and kept the spent-
-            // allowance ride off at the hardest braking (wide sweep seed 17 program 25, once
-            // dominated feed limits were no longer gathered; session 41).
-            double target = ns.a, t = 0.0, v0 = v2;
-            for (int it = 0; it < 3; ++it) {
-              t = std::max(0.0, (target - ns.a) / jn);
-              v0 = v2 + t * (ns.a + 0.5 * jn * t);
-              if (v0 <= 0.0) return kInf;
-              const double floor_a = -std::sqrt(2.0 * jp2 * v0);
-              if (target >= floor_a) break;
-              target = 0.999 * floor_a;
-            }
-            const double d0 = t * (v2 + t * (0.5 * ns.a + t * jn * (1.0 / 6.0)));
-            const double settle =
-                std::max(accel_distance(v0, target, 0.0, jp2),
-                         jerk::braking_plan(v0, target, ck.w2, kPlanMargin * ck.A, jp2).distance);
-            need = d0 + settle + allowance * quarter_dt2 * -ns.a;
+            // Eased as jerk::braking_plan_from eases (a ramp, then the check: after a third
+            // raise the plan starts from the last ramp's speed, for which that target is
+            // regular). Ramping after each raise instead called the no-reversal floor's state a
+            // reversal where the step's jerk equals J2 (easing never helps there) and kept the
+            // spent-allowance ride off at the hardest braking (wide sweep seed 17 program 25,
+            // once dominated feed limits were no longer gathered; session 41).
+            const jerk::Easing e = jerk::ease_deceleration(v2, ns.a, ns.a, jp2, kPlanMarginJ * J);
+            if (e.reverses) return kInf;
+            const double settle = std::max(
+                accel_distance(e.v0, e.target, 0.0, jp2),
+                jerk::braking_plan(e.v0, e.target, ck.w2, kPlanMargin * ck.A, jp2).distance);
+            need = e.d0 + settle + allowance * quarter_dt2 * -ns.a;
           } else {
             const jerk::Braking b = jerk::braking_plan(v2, ns.a, ck.w2, kPlanMargin * ck.A, jp2);
             need = b.distance + allowance * quarter_dt2 * b.peak;

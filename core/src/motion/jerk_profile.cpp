@@ -95,19 +95,29 @@ Braking braking_plan_from(double v, double a, double w, double A, double J, doub
   }
   // Decelerating harder than the limits ahead allow (|a| > A, or too hard for jerk J to take back
   // before standstill): first ease the deceleration at the current jerk J_now.
-  double target = std::max(a, -A);
-  double t = 0.0, v0 = v;
+  const Easing e = ease_deceleration(v, a, std::max(a, -A), J, J_now);
+  if (e.reverses) return {std::numeric_limits<double>::infinity(), -a};
+  const Braking rest = braking_plan(e.v0, e.target, w, A, J);
+  return {e.d0 + rest.distance, std::max(-a, rest.peak)};
+}
+
+Easing ease_deceleration(double v, double a, double start, double J, double J_now) {
+  Easing e;
+  e.target = start;
+  e.v0 = v;
   for (int it = 0; it < 3; ++it) {
-    t = std::max(0.0, (target - a) / J_now);
-    v0 = v + t * (a + 0.5 * J_now * t);
-    if (v0 <= 0.0) return {std::numeric_limits<double>::infinity(), -a};
-    const double floor_a = -std::sqrt(2.0 * J * v0);
-    if (target >= floor_a) break;
-    target = floor_a * 0.999;
+    e.t = std::max(0.0, (e.target - a) / J_now);
+    e.v0 = v + e.t * (a + 0.5 * J_now * e.t);
+    if (e.v0 <= 0.0) {
+      e.reverses = true;
+      return e;
+    }
+    const double floor_a = -std::sqrt(2.0 * J * e.v0);
+    if (e.target >= floor_a) break;
+    e.target = floor_a * 0.999;
   }
-  const double d0 = t * (v + t * (0.5 * a + t * J_now * (1.0 / 6.0)));
-  const Braking rest = braking_plan(v0, target, w, A, J);
-  return {d0 + rest.distance, std::max(-a, rest.peak)};
+  e.d0 = e.t * (v + e.t * (0.5 * a + e.t * J_now * (1.0 / 6.0)));
+  return e;
 }
 
 double braking_distance_from(double v, double a, double w, double A, double J, double J_now) {
