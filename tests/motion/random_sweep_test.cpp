@@ -130,6 +130,15 @@ void expect_clean(const SweepCase& c, const SimulationSummary& s, const std::str
   }
 }
 
+// No limit excess in `s`, and each one it kept described.
+void expect_no_violations(const SimulationSummary& s) {
+  EXPECT_EQ(s.violation_count, 0u);
+  for (const LimitViolation& v : s.violations) {
+    ADD_FAILURE() << "cycle " << v.cycle << " line " << v.line << " axis " << v.axis << " "
+                  << limit_quantity_name(v.quantity) << " " << v.value << " > " << v.limit;
+  }
+}
+
 // Runs one sweep case with options `o` and checks that it finishes clean; the summary goes to
 // `out` when given (also when the run did not finish), `on_cycle` sees every cycle's registers.
 // Its ASSERTs end only this function: callers that go on with `out` wrap it in
@@ -826,11 +835,7 @@ TEST(RandomSweep, WideFuzzBrakingBuiltUpAgainKeepsTheCornerAfterStops) {
   const SimulationSummary s = sim->run(r.program);
   ASSERT_EQ(s.result, StepResult::kFinished) << s.error;
   EXPECT_EQ(s.hard_stops, 0u);
-  EXPECT_EQ(s.violation_count, 0u);
-  for (const LimitViolation& v : s.violations) {
-    ADD_FAILURE() << "cycle " << v.cycle << " line " << v.line << " axis " << v.axis << " "
-                  << limit_quantity_name(v.quantity) << " " << v.value << " > " << v.limit;
-  }
+  expect_no_violations(s);
   for (std::size_t i = 0; i < 3; ++i) {
     EXPECT_NEAR(s.end_position[i], r.program.segments.back().end[i], 1e-9) << "axis " << i;
   }
@@ -907,12 +912,7 @@ TEST(RandomSweep, BoxFuzzMachine15BrakesARapidForACornerBelowAStepsResolution) {
   ASSERT_TRUE(sim);
   const SimulationSummary s = sim->run(r.program);
   EXPECT_EQ(s.result, StepResult::kFinished) << s.error;
-  EXPECT_EQ(s.violation_count, 0u);
-  for (const LimitViolation& v : s.violations) {
-    ADD_FAILURE() << "line " << v.line << " axis " << v.axis << " "
-                  << limit_quantity_name(v.quantity) << " " << v.value << " > " << v.limit
-                  << " (cycle " << v.cycle << ")";
-  }
+  expect_no_violations(s);
 }
 
 }  // namespace

@@ -67,6 +67,16 @@ Params spline(int points, int jerk) {
   return p;
 }
 
+// Command -1's parameters: p, q (x 1e6), f (ms x 1e6), axis mask.
+Params iir_params(std::int32_t p_e6, std::int32_t q_e6, std::int32_t f_e6, std::int32_t mask) {
+  Params p{};
+  p[0] = p_e6;
+  p[1] = q_e6;
+  p[2] = f_e6;
+  p[3] = mask;
+  return p;
+}
+
 // ---------------- Spline ----------------
 
 // Smooth motion (jerk far below the limit): Position is Orig_Position exactly N calculation
@@ -252,11 +262,7 @@ TEST(Wiring, CommandsWithValidAndInvalidParametersAndStatusSequence) {
   EXPECT_EQ(res.reason, "unknown Command 7 (valid: 4, 5, 8, 9, 1024, 2048, 2049, -1, -2)");
   EXPECT_EQ(ip.command(1024).code, RequestCode::kUnsupported);  // needs its parameters
   // IIR and spline parameter ranges.
-  Params iir{};
-  iir[0] = 100;  // p 0.0001
-  iir[1] = 1'000'000;
-  iir[2] = 6'000'000;
-  iir[3] = 1;
+  const Params iir = iir_params(100, 1'000'000, 6'000'000, 1);  // p 0.0001
   res = ip.command(kCommandIir, iir);
   EXPECT_EQ(res.code, RequestCode::kOutOfRange);
   EXPECT_NE(res.reason.find("p"), std::string::npos);
@@ -494,12 +500,7 @@ TEST(Wiring, SimulationEndsWhenEveryAxisArrived) {
   b.line({10.0, 5.0, 0.0}, 6000.0).m(8, MKind::kNormal).dwell(0.2).line({-3.0, 1.0, 2.0}, 6000.0).end();
   SimulationOptions o;
   o.commands.push_back({kCommandSpline, spline(500, 1'000'000)});
-  Params iir{};
-  iir[0] = 1'414'214;
-  iir[1] = 2'000'000;
-  iir[2] = 20'000'000;
-  iir[3] = 0b101;
-  o.commands.push_back({kCommandIir, iir});
+  o.commands.push_back({kCommandIir, iir_params(1'414'214, 2'000'000, 20'000'000, 0b101)});
   SimulationSummary s[2];
   for (int fast = 0; fast < 2; ++fast) {
     o.fast_forward = fast == 1;
@@ -530,12 +531,7 @@ TEST(Wiring, SimulationEndsWithTheIirOnFarFromTheOrigin) {
     ProgramBuilder b;
     b.line({x - 1.0, 0.5, 0.0}, 6000.0).line({x, 0.0, 0.0}, 6000.0).end();
     SimulationOptions o;
-    Params iir{};
-    iir[0] = 2'000'000;
-    iir[1] = 1'000'000;
-    iir[2] = 5'000'000;
-    iir[3] = 0b011;
-    o.commands.push_back({kCommandIir, iir});
+    o.commands.push_back({kCommandIir, iir_params(2'000'000, 1'000'000, 5'000'000, 0b011)});
     o.max_time_s = 600.0;
     std::array<double, kMaxAxes> start{};
     start[0] = x - 2.0;
