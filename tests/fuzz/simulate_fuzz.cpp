@@ -97,11 +97,19 @@ struct Operator {
     if (uniform() < 1.0 / 3.0) return;
     o.rel_speed = 0.05 + 1.95 * uniform();
     const int changes = static_cast<int>(uniform() * 3.0);
-    for (int k = 0; k < changes; ++k)
-      o.rel_speed_changes.emplace_back(3.0 * uniform(), 0.05 + 1.95 * uniform());
+    // One draw per statement: the order in which a call's arguments are evaluated is the
+    // compiler's (GCC right to left, clang left to right), and an input found by the clang
+    // fuzzer got another operator in the GCC driver.
+    for (int k = 0; k < changes; ++k) {
+      const double at_s = 3.0 * uniform();
+      o.rel_speed_changes.emplace_back(at_s, 0.05 + 1.95 * uniform());
+    }
     if (uniform() < 0.5) return;
     const int stops = 1 + static_cast<int>(uniform() * 2.0);
-    for (int k = 0; k < stops; ++k) o.stops.emplace_back(3.0 * uniform(), uniform() < 0.5 ? 8 : 4);
+    for (int k = 0; k < stops; ++k) {
+      const double at_s = 3.0 * uniform();
+      o.stops.emplace_back(at_s, uniform() < 0.5 ? 8 : 4);
+    }
     o.stop_restart_s = 0.5 * uniform();
   }
 };

@@ -390,7 +390,10 @@ TEST(Advance, SimulationSummaryEqualsStepping) {
     if (k % 2 == 1) {
       std::uniform_real_distribution<double> u(0.0, 1.0);
       const int n = 1 + static_cast<int>(k % 4 == 1);
-      for (int i = 0; i < n; ++i) o.stops.emplace_back(3.0 * u(rng), u(rng) < 0.5 ? 8 : 4);
+      for (int i = 0; i < n; ++i) {
+        const std::int32_t code = u(rng) < 0.5 ? 8 : 4;  // drawn first, as GCC evaluated it
+        o.stops.emplace_back(3.0 * u(rng), code);
+      }
       o.stop_restart_s = 0.05;
     }
     std::array<std::vector<BlockReport>, 2> b;

@@ -223,7 +223,10 @@ SimulationOptions stop_sweep_options(std::uint64_t seed, std::uint64_t k, const 
   SimulationOptions o = sweep_options(c);
   const int n = 1 + static_cast<int>(u(rng) * 3.0);
   for (int i = 0; i < n; ++i) {
-    o.stops.emplace_back(u(rng) * c.bound_s, u(rng) < 0.5 ? 8 : 4);
+    // The code is drawn first, as GCC's right-to-left evaluation of the two arguments did when
+    // the stop sweeps were swept (an argument order is the compiler's choice).
+    const std::int32_t code = u(rng) < 0.5 ? 8 : 4;
+    o.stops.emplace_back(u(rng) * c.bound_s, code);
   }
   o.stop_restart_s = 0.01 + 0.29 * u(rng);
   o.max_time_s = c.limit_s + n * (o.stop_restart_s + 10.0);

@@ -144,8 +144,11 @@ TEST(Iir, ComesToRestExactlyOnItsInputAtAnyCoordinate) {
         static_cast<std::int64_t>(2.0 * zeta * std::sqrt(static_cast<double>(q_e6) * 1e6));
     const auto f_e6 = static_cast<std::int64_t>(1e6 * std::pow(2000.0, u(rng) * u(rng)));
     if (!IirFilter::check(p_e6, q_e6, f_e6).ok()) continue;
-    const double target = (u(rng) < 0.5 ? -1.0 : 1.0) * std::pow(1e9, u(rng));
-    const double start = target + (u(rng) < 0.5 ? -1.0 : 1.0) * std::pow(10.0, -3.0 + 5.0 * u(rng));
+    // One draw per statement (the operands of * are evaluated in the compiler's order).
+    const double target_sign = u(rng) < 0.5 ? -1.0 : 1.0;
+    const double target = target_sign * std::pow(1e9, u(rng));
+    const double start_sign = u(rng) < 0.5 ? -1.0 : 1.0;
+    const double start = target + start_sign * std::pow(10.0, -3.0 + 5.0 * u(rng));
     IirFilter f(kDt);
     f.reset(&start);
     ASSERT_TRUE(f.configure({p_e6, q_e6, f_e6, 1u}, 1).ok());
