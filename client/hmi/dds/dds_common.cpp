@@ -2,6 +2,7 @@
 
 #include <signal.h>
 
+#include <cstdarg>
 #include <cstdio>
 
 #include "tgm/intercode.hpp"
@@ -46,14 +47,23 @@ bool wait_for_service(client::Client& c, const AppConfig& config, int interpolat
   return false;
 }
 
+namespace {
+// One line of format_state: printf's format, checked by the compiler against the arguments
+// (a lambda forwarding its format could not be), then a newline.
+[[gnu::format(printf, 2, 3)]] void append_line(std::string& out, const char* fmt, ...) {
+  char buf[512];
+  std::va_list args;
+  va_start(args, fmt);
+  std::vsnprintf(buf, sizeof buf, fmt, args);
+  va_end(args);
+  out += buf;
+  out += '\n';
+}
+}  // namespace
+
 std::string format_state(const msg::InterpolatorState& s, const std::string& letters) {
   std::string out;
   char buf[512];
-  auto line = [&](const char* fmt, auto... args) {
-    std::snprintf(buf, sizeof buf, fmt, args...);
-    out += buf;
-    out += '\n';
-  };
   const int n = std::max(1, std::min<int>(s.number_axes(), kMaxAxes));
   auto axes = [&](const char* name, auto get, const char* fmt) {
     std::string t = name;
@@ -66,14 +76,19 @@ std::string format_state(const msg::InterpolatorState& s, const std::string& let
     out += t + '\n';
   };
   const auto rf = static_cast<std::uint32_t>(s.run_flag());
-  line("Interpolator %d: Status %d (%s), Number_Axes %d, Buffer_Size %d", s.number(), s.status(),
-       std::string(client::status_name(s.status())).c_str(), s.number_axes(), s.buffer_size());
-  line("  Command %d, Command_Status %d, Run_Flag 0x%08x (section %u, speed %u)", s.command(), s.command_status(), rf,
-       rf & 0xFFFFu, rf >> 16);
-  line("  Act_Part %d, line %d, Act_G_Func %d, Act_M_Func %d, M_Func %d, Last_Cont_M_Func %d, Tool_Number %d",
-       s.act_part(), s.act_line(), s.act_g_func(), s.act_m_func(), s.m_func(), s.last_cont_m_func(), s.tool_number());
-  line("  Rel_Speed %.3f, Set_Speed %.1f mm/min, Act_Speed %.1f mm/min, Move_Distance %.3f mm", s.rel_speed(),
-       s.set_speed(), s.act_speed(), s.move_distance());
+  append_line(out, "Interpolator %d: Status %d (%s), Number_Axes %d, Buffer_Size %d", s.number(),
+              s.status(), std::string(client::status_name(s.status())).c_str(), s.number_axes(),
+              s.buffer_size());
+  append_line(out, "  Command %d, Command_Status %d, Run_Flag 0x%08x (section %u, speed %u)",
+              s.command(), s.command_status(), rf, rf & 0xFFFFu, rf >> 16);
+  append_line(out,
+              "  Act_Part %d, line %d, Act_G_Func %d, Act_M_Func %d, M_Func %d, Last_Cont_M_Func "
+              "%d, Tool_Number %d",
+              s.act_part(), s.act_line(), s.act_g_func(), s.act_m_func(), s.m_func(),
+              s.last_cont_m_func(), s.tool_number());
+  append_line(
+      out, "  Rel_Speed %.3f, Set_Speed %.1f mm/min, Act_Speed %.1f mm/min, Move_Distance %.3f mm",
+      s.rel_speed(), s.set_speed(), s.act_speed(), s.move_distance());
   axes("  Orig_Position [mm]   ", [&](std::size_t i) { return s.orig_position()[i]; }, " %c %.4f");
   axes("  Position [mm]        ", [&](std::size_t i) { return s.position()[i]; }, " %c %.4f");
   axes("  PositionInc [inc]    ", [&](std::size_t i) { return static_cast<long long>(s.position_inc()[i]); }, " %c %lld");
@@ -86,27 +101,32 @@ std::string format_state(const msg::InterpolatorState& s, const std::string& let
     std::snprintf(buf, sizeof buf, " %c%g", static_cast<char>('A' + k), s.m_function_parameter()[k]);
     params += buf;
   }
-  line("  M_Function_Parameter:%s", params.empty() ? " (none)" : params.c_str());
-  line("  LookAheadBuffer:");
+  append_line(out, "  M_Function_Parameter:%s", params.empty() ? " (none)" : params.c_str());
+  append_line(out, "  LookAheadBuffer:");
   for (std::size_t e = 0; e < s.look_ahead_buffer().size(); ++e) {
     const auto& l = s.look_ahead_buffer()[e];
     if (l.movement_type() == 0) {
-      line("    [%zu] invalid", e);
+      append_line(out, "    [%zu] invalid", e);
       continue;
     }
-    line("    [%zu] %s%d line %d plane %d tool %d end (%.4f, %.4f, %.4f) radius %.4f", e,
-         l.movement_type() == 1 ? "G" : "M", l.movement_code(), l.line(), l.plane(), l.tool(), l.end_pos()[0],
-         l.end_pos()[1], l.end_pos()[2], l.radius());
+    append_line(out, "    [%zu] %s%d line %d plane %d tool %d end (%.4f, %.4f, %.4f) radius %.4f",
+                e, l.movement_type() == 1 ? "G" : "M", l.movement_code(), l.line(), l.plane(),
+                l.tool(), l.end_pos()[0], l.end_pos()[1], l.end_pos()[2], l.radius());
   }
-  line("  program %u: next_sequence %llu, buffered %d, free %d", s.program_id(),
-       static_cast<unsigned long long>(s.next_sequence()), s.buffered_segments(), s.free_buffer_slots());
-  line("  M-functions handed over %u; service instance %016llx", s.m_func_count(),
-       static_cast<unsigned long long>(s.service_instance()));
-  line("  cycle %llu, lateness last %.1f us, max %.1f us, p99.9 %.1f us, missed cycles %llu",
-       static_cast<unsigned long long>(s.cycle_counter()), static_cast<double>(s.lateness_last_ns()) / 1e3,
-       static_cast<double>(s.lateness_max_ns()) / 1e3, static_cast<double>(s.lateness_p999_ns()) / 1e3,
-       static_cast<unsigned long long>(s.missed_cycles()));
-  if (s.message_counter() > 0) line("  last message (%u): %s", s.message_counter(), s.message_text().c_str());
+  append_line(out, "  program %u: next_sequence %llu, buffered %d, free %d", s.program_id(),
+              static_cast<unsigned long long>(s.next_sequence()), s.buffered_segments(),
+              s.free_buffer_slots());
+  append_line(out, "  M-functions handed over %u; service instance %016llx", s.m_func_count(),
+              static_cast<unsigned long long>(s.service_instance()));
+  append_line(out,
+              "  cycle %llu, lateness last %.1f us, max %.1f us, p99.9 %.1f us, missed cycles %llu",
+              static_cast<unsigned long long>(s.cycle_counter()),
+              static_cast<double>(s.lateness_last_ns()) / 1e3,
+              static_cast<double>(s.lateness_max_ns()) / 1e3,
+              static_cast<double>(s.lateness_p999_ns()) / 1e3,
+              static_cast<unsigned long long>(s.missed_cycles()));
+  if (s.message_counter() > 0)
+    append_line(out, "  last message (%u): %s", s.message_counter(), s.message_text().c_str());
   return out;
 }
 
