@@ -918,5 +918,70 @@ TEST(RandomSweep, BoxFuzzMachine15BrakesARapidForACornerBelowAStepsResolution) {
   expect_no_violations(s);
 }
 
+// The same machine (X at 1.3e8 mm/s^3, Z at 3,757 mm/s^3 and a corner tolerance of 0.078 mm/s):
+// a line along X into a move along Z. The braking for the corner ends a few micrometres before
+// the junction, where a step reaching it has Z's jerk. The release floor (release_floor), which
+// bounds how hard a best-effort braking may be, searched the decelerations whose release
+// completes by bisection, but close to such a junction that set has two parts: a hard braking
+// releases inside the X line, a slight one releases at Z's jerk in time, a middling one does
+// neither. The bisection found the slight one, and the corner was crossed at 3 to 9 mm/s
+// (Z's velocity step at 36 to 118 x its tolerance). The simulate fuzzer found it (with a
+// normal stop and restart before the corner); these are the 25 of 1,080 lines (6 overrides x
+// 60 lengths x 3 moves) that crossed too fast, each failing before the fix.
+TEST(RandomSweep, BoxFuzzMachine15ReleasesAHardBrakingBeforeAJunctionIntoAFarSofterMove) {
+  std::mt19937_64 rng(1015);
+  const MachineConfig m = test::machine_of_kind(Machines::kBox, rng, 10);
+  const CompileOptions co = CompileOptions::from_machine(m, 0);
+  struct Case {
+    double rel;
+    const char* x;
+    const char* move;
+  };
+  const Case cases[] = {
+      {0.3, "3.2735", "Z-0.2 Y0.0001"}, {0.3, "6.9086", "Z-0.2 Y0.0001"},
+      {0.7, "0.6822", "Z-0.2 Y0.0001"}, {0.7, "0.8553", "Z-0.2 Y0.0001"},
+      {1.0, "1.2054", "Z-0.2 Y0.0001"}, {1.0, "1.3785", "Z-0.2 Y0.0001"},
+      {1.0, "4.6674", "Z-0.2 Y0.0001"}, {1.0, "7.4370", "Z-0.2 Y0.0001"},
+      {1.3, "0.5169", "Z-1"},           {1.3, "0.6900", "Z-1"},
+      {1.3, "0.6900", "Z-0.2 Y0.0001"}, {1.3, "0.8631", "Z-0.2 Y0.0001"},
+      {1.3, "7.6140", "Z-0.2 Y0.0001"}, {1.6, "0.6939", "Z-1"},
+      {1.6, "1.0401", "Z-1"},           {1.6, "2.0787", "Z-0.2 Y0.0001"},
+      {1.6, "2.4249", "Z-0.2 Y0.0001"}, {1.6, "2.7711", "Z-0.2 Y0.0001"},
+      {1.6, "3.9828", "Z-0.2 Y0.0001"}, {1.6, "5.5407", "Z-0.2 Y0.0001"},
+      {2.0, "0.6991", "Z-1"},           {2.0, "1.3915", "Z-0.2 Y0.0001"},
+      {2.0, "2.7763", "Z-1"},           {2.0, "5.1997", "Z-0.2 Y0.0001"},
+      {2.0, "6.2383", "Z-0.2 Y0.0001"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(std::string("X-") + c.x + " then " + c.move + " at override " +
+                 std::to_string(c.rel));
+    const CompileResult r =
+        compile_gcode(std::string("G90 G17\nF800\nG1 X-") + c.x + "\nG1 " + c.move + "\nM2\n", co);
+    ASSERT_TRUE(r.ok());
+    SimulationOptions o;
+    o.check_limits = true;
+    o.rel_speed = c.rel;
+    auto sim = Simulation::create(m, o);
+    ASSERT_TRUE(sim);
+    const SimulationSummary s = sim->run(r.program);
+    EXPECT_EQ(s.result, StepResult::kFinished) << s.error;
+    expect_no_violations(s);
+  }
+  // The fuzzer's input, reduced: the stop falls on the line, the restart runs into the corner.
+  const CompileResult r = compile_gcode("G90 G17\nF800\nG1 X-10.255\nG1 Z-1\nM2\n", co);
+  ASSERT_TRUE(r.ok());
+  SimulationOptions o;
+  o.check_limits = true;
+  o.rel_speed = 1.6004713517819358;
+  o.stops.emplace_back(0.41444869443537657, 8);
+  o.stop_restart_s = 0.17346074364610464;
+  auto sim = Simulation::create(m, o);
+  ASSERT_TRUE(sim);
+  const SimulationSummary s = sim->run(r.program);
+  EXPECT_EQ(s.result, StepResult::kFinished) << s.error;
+  EXPECT_EQ(s.stops, 1u);
+  expect_no_violations(s);
+}
+
 }  // namespace
 }  // namespace tgm
