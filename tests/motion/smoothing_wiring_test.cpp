@@ -335,7 +335,7 @@ TEST(Wiring, CommandsWithValidAndInvalidParametersAndStatusSequence) {
   EXPECT_EQ(r.position_inc[0], 10'000);
   EXPECT_EQ(r.position_inc[1], 3'000);
   EXPECT_EQ(r.position_inc[2], -500);
-  EXPECT_DOUBLE_EQ(r.position[0], (10'000.0 - std::llround(-half)) / 2048.0);
+  EXPECT_DOUBLE_EQ(r.position[0], (10'000.0 - static_cast<double>(std::llround(-half))) / 2048.0);
   EXPECT_DOUBLE_EQ(r.orig_position[1], (3'000.0 - 500.0) / 1000.0);
   EXPECT_EQ(r.off_trajectory, 0);
   ASSERT_TRUE(ip.command(kCommandSetPositionOff, pos).ok());
