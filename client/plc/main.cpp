@@ -19,6 +19,7 @@
 #include <array>
 #include <atomic>
 #include <chrono>
+#include <cstdarg>
 #include <cstdio>
 #include <cstdlib>
 #include <map>
@@ -42,6 +43,21 @@
 namespace {
 
 using Clock = std::chrono::steady_clock;
+
+// Appends one log line, "tgm-plc [t s] " and printf's format (checked by the compiler against
+// the arguments), to `out`; a line longer than 1 KiB is cut.
+[[gnu::format(printf, 3, 4)]] void append_log(std::string& out, double t_s, const char* fmt, ...) {
+  char line[1024];
+  const int head = std::snprintf(line, sizeof line, "tgm-plc [%8.3f s] ", t_s);
+  std::va_list args;
+  va_start(args, fmt);
+  const int body =
+      std::vsnprintf(line + head, sizeof line - static_cast<std::size_t>(head), fmt, args);
+  va_end(args);
+  const int n = std::min<int>(head + std::max(body, 0), static_cast<int>(sizeof line) - 1);
+  out.append(line, static_cast<std::size_t>(n));
+  out += '\n';
+}
 using namespace std::chrono_literals;
 
 constexpr const char* kUsage =
@@ -361,13 +377,6 @@ int main(int argc, char** argv) {
   // Log lines are collected and written once per loop iteration, after the acknowledgements of
   // that iteration went out: a write to a pipe or file must not delay the handshake.
   std::string pending_log;
-  auto log = [&](const char* fmt, auto... values) {
-    char line[1024];
-    int n = std::snprintf(line, sizeof line, "tgm-plc [%8.3f s] ", stamp());
-    n += std::snprintf(line + n, sizeof line - static_cast<std::size_t>(n), fmt, values...);
-    pending_log.append(line, static_cast<std::size_t>(std::min<int>(n, static_cast<int>(sizeof line) - 1)));
-    pending_log += '\n';
-  };
   auto flush_log = [&] {
     if (pending_log.empty()) return;
     std::fwrite(pending_log.data(), 1, pending_log.size(), stdout);
@@ -384,9 +393,10 @@ int main(int argc, char** argv) {
   for (int i = 0; i < count; ++i) {
     if (only < 0 || only == i) served.push_back(Served{i});
   }
-  log("PLC emulator on DDS domain %d as '%s', serving %zu interpolator%s", config.dds.domain_id,
-      plc->name().c_str(), served.size(), served.size() == 1 ? "" : "s");
-  if (!rt_log.empty()) log("%s", rt_log.c_str());
+  append_log(
+      pending_log, stamp(), "PLC emulator on DDS domain %d as '%s', serving %zu interpolator%s",
+      config.dds.domain_id, plc->name().c_str(), served.size(), served.size() == 1 ? "" : "s");
+  if (!rt_log.empty()) append_log(pending_log, stamp(), "%s", rt_log.c_str());
 
   std::vector<AckTrace> traces;
   if (!trace_path.empty()) traces.reserve(100'000);
@@ -452,9 +462,9 @@ int main(int argc, char** argv) {
   }
   auto log_m = [&](int i, std::int32_t m, bool normal, std::int32_t line, std::int32_t part,
                    const MParams& params) {
-    log("interpolator %d: M%d %s (line %d, part %d), parameters: %s", i, m,
-        normal ? "normal: the interpolator waits" : "continuous: motion goes on", line, part,
-        params_text(params).c_str());
+    append_log(pending_log, stamp(), "interpolator %d: M%d %s (line %d, part %d), parameters: %s",
+               i, m, normal ? "normal: the interpolator waits" : "continuous: motion goes on", line,
+               part, params_text(params).c_str());
   };
   // Acknowledgements written from the event callback whose reply the main loop still waits for.
   std::vector<EventSeen> acked;
@@ -472,11 +482,12 @@ int main(int argc, char** argv) {
       if (rec.action == EventSeen::Action::kAcked) {
         acked.push_back(rec);
       } else if (rec.action == EventSeen::Action::kRefused) {
-        log("interpolator %d: M%d: refusing to acknowledge (--refuse-ack / script)",
-            rec.interpolator, rec.m);
+        append_log(pending_log, stamp(),
+                   "interpolator %d: M%d: refusing to acknowledge (--refuse-ack / script)",
+                   rec.interpolator, rec.m);
       } else if (!rec.normal) {  // continuous, and the callback could not write the note
-        log("interpolator %d: M%d noted: %s", rec.interpolator, rec.m,
-            note_reply(plc->ack_m_func(rec.interpolator, rec.m, rec.count)).c_str());
+        append_log(pending_log, stamp(), "interpolator %d: M%d noted: %s", rec.interpolator, rec.m,
+                   note_reply(plc->ack_m_func(rec.interpolator, rec.m, rec.count)).c_str());
       } else if (sv != nullptr) {
         sv->m_part = rec.part;
         sv->ack_m = rec.m;
@@ -505,12 +516,13 @@ int main(int argc, char** argv) {
       trace({it->interpolator, it->part, it->woke, it->seen, it->ack_call, it->ack_written, t,
              "event"});
       if (it->normal) {
-        log("interpolator %d: M%d acknowledged from the event after %.3f s: %s (cycle %llu)",
-            it->interpolator, it->m, std::chrono::duration<double>(t - it->seen).count(),
-            tgm::client::describe(*r).c_str(), static_cast<unsigned long long>(r->cycle));
+        append_log(pending_log, stamp(),
+                   "interpolator %d: M%d acknowledged from the event after %.3f s: %s (cycle %llu)",
+                   it->interpolator, it->m, std::chrono::duration<double>(t - it->seen).count(),
+                   tgm::client::describe(*r).c_str(), static_cast<unsigned long long>(r->cycle));
       } else {
-        log("interpolator %d: M%d noted from the event: %s", it->interpolator, it->m,
-            note_reply(*r).c_str());
+        append_log(pending_log, stamp(), "interpolator %d: M%d noted from the event: %s",
+                   it->interpolator, it->m, note_reply(*r).c_str());
       }
       it = acked.erase(it);
     }
@@ -534,8 +546,9 @@ int main(int argc, char** argv) {
       if (sv.found && s->service_instance() != sv.instance) {
         // A restarted service: its interpolators start from the defaults, and an acknowledgement
         // still due belongs to a program that is gone.
-        log("interpolator %d: tgm-service restarted (instance %016llx)", sv.number,
-            static_cast<unsigned long long>(s->service_instance()));
+        append_log(pending_log, stamp(),
+                   "interpolator %d: tgm-service restarted (instance %016llx)", sv.number,
+                   static_cast<unsigned long long>(s->service_instance()));
         sv.found = false;
         sv.ack_m = 0;
         events_matched = false;
@@ -543,15 +556,17 @@ int main(int argc, char** argv) {
       if (!sv.found) {
         sv.instance = s->service_instance();
         sv.found = true;
-        log("interpolator %d: found (status %d %s)", sv.number, s->status(),
-            std::string(tgm::client::status_name(s->status())).c_str());
+        append_log(pending_log, stamp(), "interpolator %d: found (status %d %s)", sv.number,
+                   s->status(), std::string(tgm::client::status_name(s->status())).c_str());
         // Events are VOLATILE: those written before the event reader matched never arrive.
         // Match before the first request, so that whatever this PLC causes from here on is seen
         // as an event (the state carries it either way: the fall-back when no match comes).
         if (events && !events_matched) {
           events_matched = plc->wait_for_event_match(2s);
           if (!events_matched) {
-            log("interpolator %d: the event topic has not matched after 2 s: M-functions are "
+            append_log(
+                pending_log, stamp(),
+                "interpolator %d: the event topic has not matched after 2 s: M-functions are "
                 "seen in the state until it does",
                 sv.number);
           }
@@ -559,8 +574,9 @@ int main(int argc, char** argv) {
         // Basic parameters (the manual: the PLC sets them): Rel_Speed and the Command
         // structure with the config's smoothing and gear ratios.
         if (rel_speed) {
-          log("interpolator %d: Rel_Speed = %g: %s", sv.number, *rel_speed,
-              tgm::client::describe(plc->set_rel_speed(sv.number, *rel_speed)).c_str());
+          append_log(pending_log, stamp(), "interpolator %d: Rel_Speed = %g: %s", sv.number,
+                     *rel_speed,
+                     tgm::client::describe(plc->set_rel_speed(sv.number, *rel_speed)).c_str());
         }
         if (basic) {
           const auto& sm = config.machine.smoothing;
@@ -582,21 +598,24 @@ int main(int argc, char** argv) {
           // --quiet still logs a refusal: it is an error (e.g. the interpolator was already
           // running a program when the PLC came up).
           if (!quiet || !r2.accepted) {
-            log("interpolator %d: basic parameters: Command -2 (spline %d points): %s", sv.number, sm.spline_points,
-                tgm::client::describe(r2).c_str());
+            append_log(pending_log, stamp(),
+                       "interpolator %d: basic parameters: Command -2 (spline %d points): %s",
+                       sv.number, sm.spline_points, tgm::client::describe(r2).c_str());
           }
           if (!quiet || !r1.accepted) {
-            log("interpolator %d: basic parameters: Command -1 (IIR mask 0x%x): %s", sv.number, sm.iir_axis_mask,
-                tgm::client::describe(r1).c_str());
+            append_log(pending_log, stamp(),
+                       "interpolator %d: basic parameters: Command -1 (IIR mask 0x%x): %s",
+                       sv.number, sm.iir_axis_mask, tgm::client::describe(r1).c_str());
           }
           if (!quiet || !r1024.accepted) {
-            log("interpolator %d: basic parameters: Command 1024 (gear ratio, %zu axes): %s", sv.number, axes.size(),
-                tgm::client::describe(r1024).c_str());
+            append_log(pending_log, stamp(),
+                       "interpolator %d: basic parameters: Command 1024 (gear ratio, %zu axes): %s",
+                       sv.number, axes.size(), tgm::client::describe(r1024).c_str());
           }
         }
         if (try_start) {
-          log("interpolator %d: trying to start as the PLC: %s", sv.number,
-              tgm::client::describe(plc->start(sv.number)).c_str());
+          append_log(pending_log, stamp(), "interpolator %d: trying to start as the PLC: %s",
+                     sv.number, tgm::client::describe(plc->start(sv.number)).c_str());
         }
         if (!found_at) found_at = Clock::now();
       }
@@ -633,11 +652,14 @@ int main(int argc, char** argv) {
         sv.woke_at = plc->last_wake();
         if (!normal) {
           log_seen();
-          log("interpolator %d: M%d noted: %s", sv.number, s->m_func(),
+          append_log(
+              pending_log, stamp(), "interpolator %d: M%d noted: %s", sv.number, s->m_func(),
               note_reply(plc->ack_m_func(sv.number, s->m_func(), s->m_func_count())).c_str());
         } else if (refused) {
           log_seen();
-          log("interpolator %d: M%d: refusing to acknowledge (--refuse-ack / script)", sv.number, s->m_func());
+          append_log(pending_log, stamp(),
+                     "interpolator %d: M%d: refusing to acknowledge (--refuse-ack / script)",
+                     sv.number, s->m_func());
         } else {
           sv.ack_m = s->m_func();
           sv.ack_count = s->m_func_count();
@@ -652,47 +674,53 @@ int main(int argc, char** argv) {
         trace({sv.number, sv.m_part, sv.woke_at, sv.seen_at, ack_call, plc->last_request_written(),
                Clock::now(), "loop"});
         log_seen();
-        log("interpolator %d: M%d acknowledged after %.3f s: %s (cycle %llu)", sv.number, m,
-            std::chrono::duration<double>(Clock::now() - sv.seen_at).count(), tgm::client::describe(r).c_str(),
-            static_cast<unsigned long long>(r.cycle));
+        append_log(pending_log, stamp(),
+                   "interpolator %d: M%d acknowledged after %.3f s: %s (cycle %llu)", sv.number, m,
+                   std::chrono::duration<double>(Clock::now() - sv.seen_at).count(),
+                   tgm::client::describe(r).c_str(), static_cast<unsigned long long>(r.cycle));
       }
       log_seen();
     }
     if (!found_at && now - last_wait_log > 5s) {
       last_wait_log = now;
-      log("waiting for tgm-service on DDS domain %d ...", config.dds.domain_id);
+      append_log(pending_log, stamp(), "waiting for tgm-service on DDS domain %d ...",
+                 config.dds.domain_id);
     }
     if (found_at) {
       std::uint64_t n = 0;
       for (const Served& sv : served) n += plc->state_samples(sv.number);
       const auto change = silence.update(n, now);
       if (change == tgm::client::SilenceWatch::Change::kSilent) {
-        log("no state from tgm-service for 3 s (stopped, or the network is down): waiting");
+        append_log(pending_log, stamp(),
+                   "no state from tgm-service for 3 s (stopped, or the network is down): waiting");
       } else if (change == tgm::client::SilenceWatch::Change::kBack) {
-        log("tgm-service is back");
+        append_log(pending_log, stamp(), "tgm-service is back");
       }
       const double t = std::chrono::duration<double>(now - *found_at).count();
       for (ScriptStep& st : script) {
         if (st.done || t < st.at_s) continue;
         st.done = true;
         if (st.rel_speed) {
-          log("script: interpolator %d: Rel_Speed = %g: %s", st.interpolator, *st.rel_speed,
+          append_log(
+              pending_log, stamp(), "script: interpolator %d: Rel_Speed = %g: %s", st.interpolator,
+              *st.rel_speed,
               tgm::client::describe(plc->set_rel_speed(st.interpolator, *st.rel_speed)).c_str());
         }
         if (st.command) {
-          log("script: interpolator %d: Command %d: %s", st.interpolator, *st.command,
-              tgm::client::describe(plc->command(st.interpolator, *st.command)).c_str());
+          append_log(pending_log, stamp(), "script: interpolator %d: Command %d: %s",
+                     st.interpolator, *st.command,
+                     tgm::client::describe(plc->command(st.interpolator, *st.command)).c_str());
         }
         if (st.start) {
-          log("script: interpolator %d: start as the PLC: %s", st.interpolator,
-              tgm::client::describe(plc->start(st.interpolator)).c_str());
+          append_log(pending_log, stamp(), "script: interpolator %d: start as the PLC: %s",
+                     st.interpolator, tgm::client::describe(plc->start(st.interpolator)).c_str());
         }
         for (int m : st.refuse_ack) {
           {
             const std::lock_guard lock(shared_mutex);
             refuse.insert(m);
           }
-          log("script: from now on M%d is not acknowledged", m);
+          append_log(pending_log, stamp(), "script: from now on M%d is not acknowledged", m);
         }
       }
     }
@@ -702,12 +730,13 @@ int main(int argc, char** argv) {
   take_event_seen();
   take_acked_replies(true);
   if (events) {
-    log("events: %llu received, %llu lost, %llu written before the PLC joined",
-        static_cast<unsigned long long>(plc->events_received()),
-        static_cast<unsigned long long>(plc->events_lost()),
-        static_cast<unsigned long long>(plc->events_before_join()));
+    append_log(pending_log, stamp(),
+               "events: %llu received, %llu lost, %llu written before the PLC joined",
+               static_cast<unsigned long long>(plc->events_received()),
+               static_cast<unsigned long long>(plc->events_lost()),
+               static_cast<unsigned long long>(plc->events_before_join()));
   }
-  log("stopping");
+  append_log(pending_log, stamp(), "stopping");
   flush_log();
   if (!trace_path.empty()) {
     if (std::FILE* f = std::fopen(trace_path.c_str(), "w")) {
