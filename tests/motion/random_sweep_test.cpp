@@ -139,6 +139,20 @@ void expect_no_violations(const SimulationSummary& s) {
   }
 }
 
+// Runs `program` on machine `m` with options `o`, the limit checker switched on, and expects
+// it to finish within every limit (the fuzz regressions below); returns the summary.
+SimulationSummary expect_finishes_within_limits(const MachineConfig& m, const Program& program,
+                                                SimulationOptions o) {
+  o.check_limits = true;
+  auto sim = Simulation::create(m, o);
+  EXPECT_TRUE(sim);
+  if (!sim) return {};
+  const SimulationSummary s = sim->run(program);
+  EXPECT_EQ(s.result, StepResult::kFinished) << s.error;
+  expect_no_violations(s);
+  return s;
+}
+
 // Runs one sweep case with options `o` and checks that it finishes clean; the summary goes to
 // `out` when given (also when the run did not finish), `on_cycle` sees every cycle's registers.
 // Its ASSERTs end only this function: callers that go on with `out` wrap it in
@@ -909,13 +923,8 @@ TEST(RandomSweep, BoxFuzzMachine15BrakesARapidForACornerBelowAStepsResolution) {
   const CompileResult r = compile_gcode("G90 G17\nF699\nG0 X10\nG1 X11 Y1\nG1 X12\nM2\n", co);
   ASSERT_TRUE(r.ok());
   SimulationOptions o;
-  o.check_limits = true;
   o.max_time_s = 30.0;
-  auto sim = Simulation::create(m, o);
-  ASSERT_TRUE(sim);
-  const SimulationSummary s = sim->run(r.program);
-  EXPECT_EQ(s.result, StepResult::kFinished) << s.error;
-  expect_no_violations(s);
+  expect_finishes_within_limits(m, r.program, o);
 }
 
 // The same machine (X at 1.3e8 mm/s^3, Z at 3,757 mm/s^3 and a corner tolerance of 0.078 mm/s):
@@ -959,28 +968,17 @@ TEST(RandomSweep, BoxFuzzMachine15ReleasesAHardBrakingBeforeAJunctionIntoAFarSof
         compile_gcode(std::string("G90 G17\nF800\nG1 X-") + c.x + "\nG1 " + c.move + "\nM2\n", co);
     ASSERT_TRUE(r.ok());
     SimulationOptions o;
-    o.check_limits = true;
     o.rel_speed = c.rel;
-    auto sim = Simulation::create(m, o);
-    ASSERT_TRUE(sim);
-    const SimulationSummary s = sim->run(r.program);
-    EXPECT_EQ(s.result, StepResult::kFinished) << s.error;
-    expect_no_violations(s);
+    expect_finishes_within_limits(m, r.program, o);
   }
   // The fuzzer's input, reduced: the stop falls on the line, the restart runs into the corner.
   const CompileResult r = compile_gcode("G90 G17\nF800\nG1 X-10.255\nG1 Z-1\nM2\n", co);
   ASSERT_TRUE(r.ok());
   SimulationOptions o;
-  o.check_limits = true;
   o.rel_speed = 1.6004713517819358;
   o.stops.emplace_back(0.41444869443537657, 8);
   o.stop_restart_s = 0.17346074364610464;
-  auto sim = Simulation::create(m, o);
-  ASSERT_TRUE(sim);
-  const SimulationSummary s = sim->run(r.program);
-  EXPECT_EQ(s.result, StepResult::kFinished) << s.error;
-  EXPECT_EQ(s.stops, 1u);
-  expect_no_violations(s);
+  EXPECT_EQ(expect_finishes_within_limits(m, r.program, o).stops, 1u);
 }
 
 }  // namespace
