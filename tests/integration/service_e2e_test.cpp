@@ -392,6 +392,17 @@ TEST(ServiceProcesses, LateJoiningHmiSeesTheCurrentStateAtOnce) {
                            env.path("status.log")));
   EXPECT_EQ(status.wait(kHang), 0) << status.log();
   EXPECT_NE(status.log().find("Rel_Speed 0.370"), std::string::npos) << status.log();
+  // The per-axis rows: each axis' letter and value in its row's format.
+  for (const char* row : {R"(  Orig_Position \[mm\]   ( [A-Z] -?\d+\.\d{4})+)",
+                          R"(  Position \[mm\]        ( [A-Z] -?\d+\.\d{4})+)",
+                          R"(  PositionInc \[inc\]    ( [A-Z] -?\d+)+)",
+                          R"(  Speed \[mm/s\]         ( [A-Z] -?\d+\.\d{3})+)",
+                          R"(  Ratio \[inc/mm\]       ( [A-Z] [-+.e\d]+)+)",
+                          R"(  Offset \[inc\]         ( [A-Z] -?\d+)+)"}) {
+    EXPECT_TRUE(std::regex_search(status.log(), std::regex(std::string("(^|\n)") + row + "\n")))
+        << row << "\n"
+        << status.log();
+  }
 }
 
 TEST(ServiceProcesses, ThePlcCannotStartAndOtherRolesAreEnforced) {

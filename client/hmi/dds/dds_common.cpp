@@ -4,6 +4,7 @@
 
 #include <cstdarg>
 #include <cstdio>
+#include <type_traits>
 
 #include "tgm/intercode.hpp"
 #include "tgm/registers.hpp"
@@ -65,12 +66,22 @@ std::string format_state(const msg::InterpolatorState& s, const std::string& let
   std::string out;
   char buf[512];
   const int n = std::max(1, std::min<int>(s.number_axes(), kMaxAxes));
-  auto axes = [&](const char* name, auto get, const char* fmt) {
+  // One row of per-axis values: integers as they are, reals with `decimals` (-1: %g). The
+  // formats are literals, so the compiler checks them against the values.
+  auto axes = [&](const char* name, int decimals, auto get) {
     std::string t = name;
     for (int i = 0; i < n; ++i) {
       char b[64];
-      std::snprintf(b, sizeof b, fmt, i < static_cast<int>(letters.size()) ? letters[static_cast<std::size_t>(i)] : '?',
-                    get(static_cast<std::size_t>(i)));
+      const char letter =
+          i < static_cast<int>(letters.size()) ? letters[static_cast<std::size_t>(i)] : '?';
+      const auto value = get(static_cast<std::size_t>(i));
+      if constexpr (std::is_integral_v<decltype(value)>) {
+        std::snprintf(b, sizeof b, " %c %lld", letter, static_cast<long long>(value));
+      } else if (decimals < 0) {
+        std::snprintf(b, sizeof b, " %c %g", letter, value);
+      } else {
+        std::snprintf(b, sizeof b, " %c %.*f", letter, decimals, value);
+      }
       t += b;
     }
     out += t + '\n';
@@ -89,12 +100,12 @@ std::string format_state(const msg::InterpolatorState& s, const std::string& let
   append_line(
       out, "  Rel_Speed %.3f, Set_Speed %.1f mm/min, Act_Speed %.1f mm/min, Move_Distance %.3f mm",
       s.rel_speed(), s.set_speed(), s.act_speed(), s.move_distance());
-  axes("  Orig_Position [mm]   ", [&](std::size_t i) { return s.orig_position()[i]; }, " %c %.4f");
-  axes("  Position [mm]        ", [&](std::size_t i) { return s.position()[i]; }, " %c %.4f");
-  axes("  PositionInc [inc]    ", [&](std::size_t i) { return static_cast<long long>(s.position_inc()[i]); }, " %c %lld");
-  axes("  Speed [mm/s]         ", [&](std::size_t i) { return s.speed()[i]; }, " %c %.3f");
-  axes("  Ratio [inc/mm]       ", [&](std::size_t i) { return s.ratio()[i]; }, " %c %g");
-  axes("  Offset [inc]         ", [&](std::size_t i) { return static_cast<long long>(s.offset()[i]); }, " %c %lld");
+  axes("  Orig_Position [mm]   ", 4, [&](std::size_t i) { return s.orig_position()[i]; });
+  axes("  Position [mm]        ", 4, [&](std::size_t i) { return s.position()[i]; });
+  axes("  PositionInc [inc]    ", 0, [&](std::size_t i) { return s.position_inc()[i]; });
+  axes("  Speed [mm/s]         ", 3, [&](std::size_t i) { return s.speed()[i]; });
+  axes("  Ratio [inc/mm]       ", -1, [&](std::size_t i) { return s.ratio()[i]; });
+  axes("  Offset [inc]         ", 0, [&](std::size_t i) { return s.offset()[i]; });
   std::string params;
   for (std::size_t k = 0; k < kParamLetters; ++k) {
     if (is_not_set(s.m_function_parameter()[k])) continue;
