@@ -1824,6 +1824,15 @@ struct Interpolator::Impl {
     bool have_gs;
   };
 
+  // The limits an end-of-step acceleration `at` keeps (indices into the step's constraints),
+  // found when first asked (motion_step's `keeps`); n < 0: not yet.
+  struct KeptSet {
+    explicit KeptSet(double x) : at(x) {}
+    double at;
+    int n = -1;
+    int k[3 * kChainMax + 4];
+  };
+
   // Bisection between an x that passes `ok` and one that fails it (either may be the larger);
   // returns the passing end after n halvings.
   template <class P>
@@ -2244,6 +2253,22 @@ struct Interpolator::Impl {
         return speed_excess(ns, ck.w, ck.A, ck.J, ck.Jx, ck.reserve, remain);
       };
       auto excess = [&](double xx, int k) { return excess_from(jerk::advance(before, xx, dt), k); };
+      // Whether x = xx keeps every limit (not passed yet) that x = kept.at keeps; the set is
+      // found when first asked (a floor that raises x asks, releasable).
+      auto keeps = [&](KeptSet& kept, double xx) {
+        if (kept.n < 0) {
+          kept.n = 0;
+          const jerk::State na = jerk::advance(before, kept.at, dt);
+          for (int k = 0; k < nc; ++k) {
+            if (c[k].d - moved >= 0.0 && excess_from(na, k) <= kExcessTol) kept.k[kept.n++] = k;
+          }
+        }
+        const jerk::State ns = jerk::advance(before, xx, dt);
+        for (int i = 0; i < kept.n; ++i) {
+          if (excess_from(ns, kept.k[i]) > kExcessTol) return false;
+        }
+        return true;
+      };
       if (a == 0.0 && xd == 0.0) {
         if (!cruise_valid || cruise_v != v) {
           double m = kInf;
@@ -2438,8 +2463,18 @@ struct Interpolator::Impl {
           }
           // Never so hard that the deceleration cannot be taken back before the motion stops
           // at the jerk limits of the records the release crosses (the floor in lo has only
-          // this record's), as far as the limits that can be kept allow.
-          if (x < 0.0 && cons_Jw < J) x = releasable(before, x, hi, 1.0, ok);
+          // this record's), as far as the limits that can be kept allow: those kept at lo among
+          // the violated ones (ok) and every limit x keeps. The violated ones alone failed when
+          // a stop command's braking was the tracking's choice (xd): a corner 0.04 mm ahead
+          // passed there, so it was not among them, and the floor, raised step by step while a
+          // far corner behind a soft record stayed hopeless, released the braking it needed
+          // until it was hopeless too; the line was left at 6.4 mm/s, 84 x X's corner tolerance
+          // (simulate fuzz, wide machine 12, session 43).
+          if (x < 0.0 && cons_Jw < J) {
+            KeptSet kept{x};
+            x = releasable(before, x, hi, 1.0,
+                           [&](double xx) { return ok(xx) && keeps(kept, xx); });
+          }
         } else {
           // x at which limit k's end-of-step state needs no braking any more:
           // v + (a + x) dt / 2 + x |x| / (2 j) = w (increasing in x), with the plan's jerk and,
@@ -2509,24 +2544,8 @@ struct Interpolator::Impl {
         // speed above zero at every step's end and held the landing at 5e-7 mm/s for ever
         // (stop sweep seed 3 program 626).
         if (x < 0.0 && v > kArriveV && sc * cons_Jw < J) {
-          // The limits x keeps (those not passed yet), found only when the floor moves x.
-          int kept[3 * kChainMax + 4];
-          int n_kept = -1;
-          auto keeps = [&](double xx) {
-            if (n_kept < 0) {
-              n_kept = 0;
-              const jerk::State nx = jerk::advance(before, x, dt);
-              for (int k = 0; k < nc; ++k) {
-                if (c[k].d - moved >= 0.0 && excess_from(nx, k) <= kExcessTol) kept[n_kept++] = k;
-              }
-            }
-            const jerk::State ns = jerk::advance(before, xx, dt);
-            for (int i = 0; i < n_kept; ++i) {
-              if (excess_from(ns, kept[i]) > kExcessTol) return false;
-            }
-            return true;
-          };
-          x = releasable(before, x, hi, sc, keeps);
+          KeptSet kept{x};
+          x = releasable(before, x, hi, sc, [&](double xx) { return keeps(kept, xx); });
         }
       }
     }
