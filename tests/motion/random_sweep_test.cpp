@@ -986,7 +986,7 @@ TEST(RandomSweep, BoxFuzzMachine15ReleasesAHardBrakingBeforeAJunctionIntoAFarSof
 // mm/s^3; session 43). After an emergency stop and its restart, a normal stop falls on a G1
 // along Z about 0.09 mm before the corner into a G1 along X, while the motion brakes for that
 // corner. The corner at the X line's end (Y's tolerance, 0.0135 mm/s, planned in two pieces cut
-// at the X line's start) is hopeless there, so the best effort chose the step; the stop's
+// at the X line's start) is hopeless there, so each step took the best effort; the stop's
 // braking towards zero was the tracking's choice, and the near corner, which that braking kept,
 // was not among the violated limits the release floor had to keep. Raised step by step, the
 // floor released the braking the corner needed until it was hopeless too: the X line was
