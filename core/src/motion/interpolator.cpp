@@ -1824,15 +1824,6 @@ struct Interpolator::Impl {
     bool have_gs;
   };
 
-  // The limits an end-of-step acceleration `at` keeps (indices into the step's constraints),
-  // found when first asked (motion_step's `keeps`); n < 0: not yet.
-  struct KeptSet {
-    explicit KeptSet(double x) : at(x) {}
-    double at;
-    int n = -1;
-    int k[3 * kChainMax + 4];
-  };
-
   // Bisection between an x that passes `ok` and one that fails it (either may be the larger);
   // returns the passing end after n halvings.
   template <class P>
@@ -2253,21 +2244,27 @@ struct Interpolator::Impl {
         return speed_excess(ns, ck.w, ck.A, ck.J, ck.Jx, ck.reserve, remain);
       };
       auto excess = [&](double xx, int k) { return excess_from(jerk::advance(before, xx, dt), k); };
-      // Whether x = xx keeps every limit (not passed yet) that x = kept.at keeps; the set is
-      // found when first asked (a floor that raises x asks, releasable).
-      auto keeps = [&](KeptSet& kept, double xx) {
-        if (kept.n < 0) {
-          kept.n = 0;
-          const jerk::State na = jerk::advance(before, kept.at, dt);
-          for (int k = 0; k < nc; ++k) {
-            if (c[k].d - moved >= 0.0 && excess_from(na, k) <= kExcessTol) kept.k[kept.n++] = k;
+      // x0 raised to the release floor (releasable) as far as `also` holds and every limit (not
+      // passed yet) that x0 keeps stays kept; that set is found only when the floor moves x0.
+      auto release_keeping = [&](double x0, double sc_, const auto& also) {
+        int kept[3 * kChainMax + 4];
+        int n_kept = -1;
+        auto keeps = [&](double xx) {
+          if (!also(xx)) return false;
+          if (n_kept < 0) {
+            n_kept = 0;
+            const jerk::State n0 = jerk::advance(before, x0, dt);
+            for (int k = 0; k < nc; ++k) {
+              if (c[k].d - moved >= 0.0 && excess_from(n0, k) <= kExcessTol) kept[n_kept++] = k;
+            }
           }
-        }
-        const jerk::State ns = jerk::advance(before, xx, dt);
-        for (int i = 0; i < kept.n; ++i) {
-          if (excess_from(ns, kept.k[i]) > kExcessTol) return false;
-        }
-        return true;
+          const jerk::State ns = jerk::advance(before, xx, dt);
+          for (int i = 0; i < n_kept; ++i) {
+            if (excess_from(ns, kept[i]) > kExcessTol) return false;
+          }
+          return true;
+        };
+        return releasable(before, x0, hi, sc_, keeps);
       };
       if (a == 0.0 && xd == 0.0) {
         if (!cruise_valid || cruise_v != v) {
@@ -2470,11 +2467,7 @@ struct Interpolator::Impl {
           // far corner behind a soft record stayed hopeless, released the braking it needed
           // until it was hopeless too; the line was left at 6.4 mm/s, 84 x X's corner tolerance
           // (simulate fuzz, wide machine 12, session 43).
-          if (x < 0.0 && cons_Jw < J) {
-            KeptSet kept{x};
-            x = releasable(before, x, hi, 1.0,
-                           [&](double xx) { return ok(xx) && keeps(kept, xx); });
-          }
+          if (x < 0.0 && cons_Jw < J) x = release_keeping(x, 1.0, ok);
         } else {
           // x at which limit k's end-of-step state needs no braking any more:
           // v + (a + x) dt / 2 + x |x| / (2 j) = w (increasing in x), with the plan's jerk and,
@@ -2544,8 +2537,7 @@ struct Interpolator::Impl {
         // speed above zero at every step's end and held the landing at 5e-7 mm/s for ever
         // (stop sweep seed 3 program 626).
         if (x < 0.0 && v > kArriveV && sc * cons_Jw < J) {
-          KeptSet kept{x};
-          x = releasable(before, x, hi, sc, [&](double xx) { return keeps(kept, xx); });
+          x = release_keeping(x, sc, [](double) { return true; });
         }
       }
     }
