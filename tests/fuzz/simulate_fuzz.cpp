@@ -8,6 +8,7 @@
 // program time (a fuzzed feed of F0.001 over a long move is slow, not wrong). Most runs also
 // change the override and some give stops on the trajectory (see `Operator`).
 #include <array>
+#include <cerrno>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -37,6 +38,9 @@ constexpr double kMaxProgramS = 20.0;
 // machines come from the wide sweep's envelope instead (sixteen of them; CTest runs that too,
 // fuzz.simulate.wide.driver); with TGM_FUZZ_MACHINES=box from the whole range of limits the
 // config accepts, each limit of each axis drawn on its own (sixteen; the box sweep's machines).
+// Random machine k is drawn from std::mt19937_64(base + k), base 1000 (every finding so far
+// names its machine that way); TGM_FUZZ_MACHINE_SEED=N in the environment makes it N, so that a
+// long run can explore other machines of the same kind.
 constexpr std::size_t kRandomMachines = 4;
 constexpr std::size_t kEnvelopeMachines = 16;
 
@@ -51,6 +55,22 @@ Machines machine_kind() {
     std::exit(2);
   }();
   return kind;
+}
+
+std::uint64_t machine_seed() {
+  static const std::uint64_t base = [] {
+    const char* e = std::getenv("TGM_FUZZ_MACHINE_SEED");
+    if (e == nullptr || *e == '\0') return std::uint64_t{1000};
+    char* end = nullptr;
+    errno = 0;
+    const unsigned long long v = std::strtoull(e, &end, 10);
+    if (*e == '-' || errno != 0 || *end != '\0' || v > (1ull << 62)) {
+      std::fprintf(stderr, "TGM_FUZZ_MACHINE_SEED must be a whole number 0..2^62, not '%s'\n", e);
+      std::exit(2);
+    }
+    return static_cast<std::uint64_t>(v);
+  }();
+  return base;
 }
 
 std::vector<tgm::MachineConfig> make_machines() {
@@ -70,7 +90,7 @@ std::vector<tgm::MachineConfig> make_machines() {
   const Machines kind = machine_kind();
   const std::size_t n = kind == Machines::kRandom ? kRandomMachines : kEnvelopeMachines;
   for (std::size_t k = 0; k < n; ++k) {
-    std::mt19937_64 rng(1000 + k);
+    std::mt19937_64 rng(machine_seed() + k);
     const int n_axes = 3 + static_cast<int>(k * 7 / (n - 1));  // 3 .. 10
     c.push_back(tgm::test::machine_of_kind(kind, rng, n_axes));
   }
