@@ -219,7 +219,15 @@ std::vector<std::string> locate(const Reader& r, const std::string& file,
     const std::string reason = colon == std::string::npos ? "" : f.substr(colon + 2);
     const auto o = r.origin.find(key);
     const std::string at = o != r.origin.end() ? o->second : key;
-    const auto l = r.line_of.find(at);
+    // A finding about more than one key (the IIR and spline checks of Command -1 / -2, the
+    // number of interpolators) has the line of the nearest section above it that was read.
+    auto l = r.line_of.find(at);
+    for (std::string up = at; l == r.line_of.end();) {
+      const std::size_t cut = up.find_last_of(".[");
+      if (cut == std::string::npos || cut == 0) break;
+      up.resize(cut);
+      l = r.line_of.find(up);
+    }
     std::string where = file;
     if (l != r.line_of.end()) where.append(":").append(std::to_string(l->second));
     if (o == r.origin.end()) {
@@ -251,6 +259,7 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
   if (root["axis_defaults"]) read_axis(r, root["axis_defaults"], "axis_defaults", defaults, false);
 
   if (const auto ips = root["interpolators"]) {
+    r.note(ips, "interpolators");
     if (!ips.IsSequence()) {
       r.error(ips, "interpolators", "must be a list of interpolators");
     } else {
@@ -349,6 +358,7 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
   }
 
   if (const auto s = root["smoothing"]) {
+    r.note(s, "smoothing");
     if (r.map(s, "smoothing",
               {"spline_points", "spline_jerk_mm_s3", "iir_p_e6", "iir_q_e6", "iir_f_e6",
                "iir_axis_mask"})) {

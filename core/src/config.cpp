@@ -169,6 +169,13 @@ std::vector<std::string> MachineConfig::validate() const {
   if (s.spline_points >= 50 && s.spline_points <= 500 && finite_positive(s.spline_jerk_mm_s3)) {
     if (s.spline_jerk_mm_s3 > 9.2e18) {
       e.push_back("smoothing.spline_jerk_mm_s3: must be < 9.2e18, not " + num(s.spline_jerk_mm_s3));
+    } else if (std::llround(s.spline_jerk_mm_s3) < 1) {
+      // Command -2 takes the jerk rounded to whole mm/s^3: 0.2 became 0, and the message said
+      // "must be > 0 mm/s^3, not 0" of a value the file gives as 0.2.
+      e.push_back(
+          "smoothing.spline_jerk_mm_s3: must be at least 0.5 (Command -2 takes it rounded "
+          "to whole mm/s^3), not " +
+          num(s.spline_jerk_mm_s3));
     } else if (const RequestResult r =
                    SplineSmoother::check(s.spline_points, std::llround(s.spline_jerk_mm_s3));
                !r.ok()) {

@@ -229,5 +229,66 @@ TEST(Config, KeyGivenTwiceIsAnErrorWithItsLine) {
   EXPECT_TRUE(load.config) << load.errors.front();
 }
 
+// Every other check of MachineConfig::validate, each named with its key, its value and the
+// reason, and with the line of the YAML that set it. Line coverage (session 44) showed that no
+// test had given any of these values.
+TEST(Config, EveryOtherBadValueIsNamedWithItsKeyAndLine) {
+  auto load = load_config_text(
+      "interpolators:\n"
+      "  - axes:\n"
+      "      - {letter: G}\n"
+      "      - {letter: Y, backlash_mm: 11}\n"
+      "      - {letter: Z, max_velocity_mm_s: 100, rapid_velocity_mm_s: 200}\n"
+      "tools:\n"
+      "  - {number: 4, radius_mm: -1, length_mm: 1}\n"
+      "  - {number: 4, radius_mm: 1, length_mm: 1}\n"
+      "compiler:\n"
+      "  default_feed_mm_per_min: 0\n"
+      "  initial_tool: -2\n"
+      "  max_program_segments: 0\n"
+      "  max_call_depth: 17\n"
+      "smoothing:\n"
+      "  spline_points: 20\n"
+      "  spline_jerk_mm_s3: -5\n",
+      "m.yaml");
+  EXPECT_FALSE(load.config);
+  for (const char* want :
+       {"m.yaml:3: interpolators[0].axes[0].letter: 'G' is not an axis letter (D F G I J K L M N P "
+        "R "
+        "T are G-code words)",
+        "m.yaml:4: interpolators[0].axes[1].backlash_mm: must be 0..10 mm, not 11",
+        "m.yaml:5: interpolators[0].axes[2].rapid_velocity_mm_s: 200 exceeds max_velocity_mm_s 100",
+        "m.yaml:7: tools[0].radius_mm: must be >= 0, not -1",
+        "m.yaml:8: tools[1].number: tool 4 is listed twice",
+        "m.yaml:10: compiler.default_feed_mm_per_min: must be > 0, not 0",
+        "m.yaml:11: compiler.initial_tool: must be >= 0, not -2",
+        "m.yaml:12: compiler.max_program_segments: must be 1..1000000000, not 0",
+        "m.yaml:13: compiler.max_call_depth: must be 1..16, not 17",
+        "m.yaml:15: smoothing.spline_points: must be 0 (off) or 50..500, not 20",
+        "m.yaml:16: smoothing.spline_jerk_mm_s3: must be > 0, not -5"}) {
+    EXPECT_TRUE(has_error(load.errors, want)) << "missing: " << want;
+  }
+  EXPECT_EQ(load.errors.size(), 11u);
+
+  // Four interpolators; smoothing defaults that Command -1 / -2 would refuse.
+  load = load_config_text(
+      "interpolators: [{axes: [{letter: X}]}, {axes: [{letter: X}]}, {axes: [{letter: X}]},\n"
+      "                {axes: [{letter: X}]}]\n"
+      "smoothing: {spline_points: 100, spline_jerk_mm_s3: 0.2, iir_axis_mask: 1,\n"
+      "            iir_p_e6: 1000, iir_q_e6: 1000000}\n",
+      "m.yaml");
+  EXPECT_FALSE(load.config);
+  // A finding about several keys has the line of its section.
+  for (const char* want :
+       {"m.yaml:1: interpolators: between 1 and 3 interpolators are needed, not 4",
+        "m.yaml:3: smoothing.iir: IIR damping p / (2 sqrt q) = 0.000500 (p 0.001000, q 1.000000) "
+        "must be 0.2..10",
+        "m.yaml:3: smoothing.spline_jerk_mm_s3: must be at least 0.5 (Command -2 takes it rounded "
+        "to whole mm/s^3), not 0.2"}) {
+    EXPECT_TRUE(has_error(load.errors, want)) << "missing: " << want;
+  }
+  EXPECT_EQ(load.errors.size(), 3u);
+}
+
 }  // namespace
 }  // namespace tgm
