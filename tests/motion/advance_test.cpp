@@ -587,6 +587,21 @@ TEST(Simulation, StopsAreGivenAtTheirTimesAndBadOnesRefused) {
   SimulationOptions restart;
   restart.stop_restart_s = -1.0;
   refused(restart, "stop_restart_s");
+  // The other options Simulation::create checks (no test gave them before session 44).
+  SimulationOptions fast;
+  fast.rel_speed = 2.5;
+  refused(fast, "rel speed: ");
+  for (const double t : {0.0, -1.0, 2e9, std::nan("")}) {
+    SimulationOptions limit;
+    limit.max_time_s = t;
+    refused(limit, "max_time_s must be > 0 and at most 1e9 s");
+  }
+  // An empty program is an error, not a run of no cycles.
+  auto empty = Simulation::create(m, {});
+  ASSERT_TRUE(empty);
+  const auto s2 = empty->run(Program{});
+  EXPECT_EQ(s2.result, StepResult::kErrorInternal);
+  EXPECT_EQ(s2.error, "empty program");
 }
 
 // The progress hook: called while the run goes on with cycles, program time and Act_Part
