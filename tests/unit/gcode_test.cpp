@@ -488,6 +488,52 @@ TEST(GcodeErrors, AllErrorsAreReportedInLineOrder) {
   EXPECT_EQ(errs[3].substr(0, 2), "4:");
 }
 
+// The reasons no other test gave (line coverage, session 44), each with its line and column.
+TEST(GcodeErrors, TheRemainingReasonsNameTheirWord) {
+  EXPECT_THAT(errors_of("N-5 G1 X1 F100\n"),
+              ElementsAre("1:1: line number N must be a whole number >= 0, not -5"));
+  EXPECT_THAT(errors_of("N1.5 G1 X1 F100\n"),
+              ElementsAre("1:1: line number N must be a whole number >= 0, not 1.5"));
+  EXPECT_THAT(errors_of("M99 F100 X1\n"), ElementsAre("1:10: M99 takes only F, not X"));
+  EXPECT_THAT(errors_of("M99 F-3\n"),
+              ElementsAre("1:5: feed F must be > 0 and <= 1000000 mm/min, not -3"));
+  EXPECT_THAT(errors_of("G41 D-1\n"),
+              ElementsAre("1:5: compensation radius D must be >= 0, not -1"));
+  EXPECT_THAT(errors_of("G41 D1\nG40 D1\n"),
+              ElementsAre("2:5: D (compensation radius) belongs to G41/G42, not G40"));
+  EXPECT_THAT(errors_of("G25 L-2\n"),
+              ElementsAre("1:5: label L must be a whole number >= 0, not -2"));
+  EXPECT_THAT(errors_of("G29 L1\nG1 G25 L1\n"),
+              ElementsAre("2:1: G25 cannot share a line with motion or axis words"));
+  EXPECT_THAT(errors_of("G29 L1 X2\n"),
+              ElementsAre("1:1: G29 cannot share a line with motion or axis words"));
+  EXPECT_THAT(errors_of("G90 G2 X0 I0 J0 F100\n"),
+              ElementsAre("1:11: arc centre is at the start point (radius 0)"));
+  EXPECT_THAT(errors_of("G90 G1 X900000000 F1000\nG2 X900000001 I200000000\n"),
+              ElementsAre("2:1: arc centre is beyond +-1e9 mm"));
+  // What the compiler is given to compile for.
+  CompileOptions none = options();
+  none.axis_letters = "";
+  EXPECT_THAT(errors_of("G1 X1\n", none),
+              ElementsAre("0:0: the interpolator must have 1..10 axes, not 0"));
+  CompileOptions word_letter = options();
+  word_letter.axis_letters = "XYF";
+  EXPECT_THAT(errors_of("G1 X1\n", word_letter), ElementsAre("0:0: bad axis letter 'F'"));
+  CompileOptions twice = options();
+  twice.axis_letters = "XyY";
+  EXPECT_THAT(errors_of("G1 X1\n", twice), ElementsAre("0:0: bad axis letter 'Y'"));
+}
+
+// Errors past the first 10,000 are counted, not listed: the last entry says how many more.
+TEST(GcodeErrors, ErrorsPastTheLimitAreCountedInOneLastEntry) {
+  std::string text;
+  for (int i = 0; i < 10'003; ++i) text += "Q1\n";
+  const auto errs = errors_of(text);
+  ASSERT_EQ(errs.size(), 10'001u);
+  EXPECT_EQ(errs[9'999], "10000:1: unknown word 'Q1'");
+  EXPECT_EQ(errs.back(), "10000:1: 3 further errors not shown");
+}
+
 TEST(GcodeErrors, UncalledSubroutinesAreCheckedToo) {
   EXPECT_THAT(errors_of("M2\nG29 L1\nG1 X1 Q2\nM17\n"), ElementsAre("3:7: unknown word 'Q2'"));
 }
