@@ -8,7 +8,6 @@
 // program time (a fuzzed feed of F0.001 over a long move is slow, not wrong). Most runs also
 // change the override and some give stops on the trajectory (see `Operator`).
 #include <array>
-#include <cerrno>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -21,6 +20,7 @@
 #include <vector>
 
 #include "../motion/random_program.hpp"
+#include "../support/env_params.hpp"
 #include "fuzz_support.hpp"
 #include "tgm/config.hpp"
 #include "tgm/gcode.hpp"
@@ -59,16 +59,13 @@ Machines machine_kind() {
 
 std::uint64_t machine_seed() {
   static const std::uint64_t base = [] {
-    const char* e = std::getenv("TGM_FUZZ_MACHINE_SEED");
-    if (e == nullptr || *e == '\0') return std::uint64_t{1000};
-    char* end = nullptr;
-    errno = 0;
-    const unsigned long long v = std::strtoull(e, &end, 10);
-    if (*e == '-' || errno != 0 || *end != '\0' || v > (1ull << 62)) {
-      std::fprintf(stderr, "TGM_FUZZ_MACHINE_SEED must be a whole number 0..2^62, not '%s'\n", e);
+    const std::uint64_t v = tgm::test::env_u64("TGM_FUZZ_MACHINE_SEED", 1000);
+    if (v > (std::uint64_t{1} << 62)) {
+      std::fprintf(stderr, "TGM_FUZZ_MACHINE_SEED must be at most 2^62, not %llu\n",
+                   static_cast<unsigned long long>(v));
       std::exit(2);
     }
-    return static_cast<std::uint64_t>(v);
+    return v;
   }();
   return base;
 }
