@@ -97,8 +97,8 @@ struct Segment {
 using MParams = std::array<double, kParamLetters>;
 
 //! Parameters with every letter unset.
-inline MParams unset_params() {
-  MParams p;
+constexpr MParams unset_params() {
+  MParams p{};
   p.fill(kNotSet);
   return p;
 }

@@ -88,8 +88,9 @@ const char* limit_factor_name(LimitFactor f);
 
 //! One entry of the LookAheadBuffer (manual appendix; entry 0 = section being executed).
 struct LookAheadEntry {
-  //! AllParams: M-function addresses A..Z of the section; kNotSet where not given [any unit].
-  std::array<double, kParamLetters> all_params{};
+  //! AllParams: M-function addresses A..Z of the section; kNotSet where not given [any unit],
+  //! and in every letter of an invalid entry (a section that is not there gave no address).
+  MParams all_params = unset_params();
   //! Tangent of motion in the XY plane [deg, 0..360): the direction of the XY velocity,
   //! atan2(dY, dX), counterclockwise from +X (0 = moving in +X, 90 = +Y). For entry 0 on an
   //! arc the current one (updated every cycle), otherwise the initial one of the section;
