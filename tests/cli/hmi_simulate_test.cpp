@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <regex>
 #include <set>
 #include <sstream>
 #include <string>
@@ -157,6 +158,151 @@ TEST_F(HmiSimulate, OverrideStretchesAFeedLimitedLine) {
   EXPECT_LT(t2, 20.1);
   EXPECT_NE(full.out.find("X=100.000000 Y=0.000000 Z=0.000000"), std::string::npos) << full.out;
   EXPECT_NE(full.out.find("distance:  100.0000 mm"), std::string::npos) << full.out;
+}
+
+// Rows of a CSV as numbers, with the column index of each header name.
+struct Table {
+  std::vector<std::string> header;
+  std::vector<std::vector<double>> rows;
+  std::size_t col(const std::string& name) const {
+    return static_cast<std::size_t>(std::find(header.begin(), header.end(), name) - header.begin());
+  }
+  // The first row whose column `name` reaches `at` or more (rows.size() when none does).
+  std::size_t first_reaching(const std::string& name, double at) const {
+    const std::size_t c = col(name);
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      if (rows[i][c] >= at) return i;
+    }
+    return rows.size();
+  }
+};
+
+Table read_table(const fs::path& csv) {
+  Table t;
+  const auto all = lines(slurp(csv));
+  if (all.empty()) return t;
+  t.header = split(all[0], ',');
+  for (std::size_t i = 1; i < all.size(); ++i) {
+    std::vector<double> row;
+    for (const std::string& f : split(all[i], ',')) row.push_back(std::atof(f.c_str()));
+    t.rows.push_back(std::move(row));
+  }
+  return t;
+}
+
+// --spline and --iir as the README gives them reach the interpolator as Command -2 and -1
+// before the start: the summary names both, Position (pos_<axis>) follows Orig_Position by the
+// spline's delay (200 points of 100 us: 40 cycles of 500 us, exactly, as the spline is
+// symmetric) and, on the axes in the IIR's mask only, by the filter's lag on top (p 2, q 1,
+// f 6 ms: 2 ms on a ramp); the run ends with Position on the end point. Without either option
+// Position is Orig_Position in every cycle.
+TEST_F(HmiSimulate, SplineAndIirFromTheCommandLineDelayThePositionAsConfigured) {
+  const std::string base =
+      "simulate " + kExample + " --config " + kConfig + " --rel-speed 0.8 --csv ";
+  const fs::path plain = dir_ / "plain.csv", spline = dir_ / "spline.csv", both = dir_ / "both.csv";
+  const ProcessResult p = run(base + plain.string());
+  const ProcessResult s = run(base + spline.string() + " --spline 200,1000000");
+  const ProcessResult b =
+      run(base + both.string() + " --spline 200,1000000 --iir 2000000,1000000,6000000,1");
+  ASSERT_EQ(p.exit_code, 0) << p.out << p.err;
+  ASSERT_EQ(s.exit_code, 0) << s.out << s.err;
+  ASSERT_EQ(b.exit_code, 0) << b.out << b.err;
+  EXPECT_EQ(p.out.find("spline:"), std::string::npos) << p.out;
+  EXPECT_EQ(p.out.find("iir:"), std::string::npos) << p.out;
+  EXPECT_NE(s.out.find("spline:    200 points (20.0 ms delay), jerk limit 1000000 mm/s^3"),
+            std::string::npos)
+      << s.out;
+  EXPECT_EQ(s.out.find("iir:"), std::string::npos) << s.out;
+  EXPECT_NE(b.out.find("iir:       p 2 q 1 f 6 ms, zeta 1.000, axis mask 0x1\n"), std::string::npos)
+      << b.out;
+
+  const Table tp = read_table(plain), ts = read_table(spline), tb = read_table(both);
+  ASSERT_GT(tp.rows.size(), 1000u);
+  for (const std::string axis : {"X", "Y"}) {
+    for (const auto& row : tp.rows)
+      ASSERT_EQ(row[tp.col("pos_" + axis)], row[tp.col("orig_" + axis)]);
+    // The rapid to (60.6051, 40.7723) takes X and Y through 10, 20 and 40 mm.
+    for (double at : {10.0, 20.0, 40.0}) {
+      const std::size_t o = ts.first_reaching("orig_" + axis, at);
+      ASSERT_LT(o, ts.rows.size()) << axis << " " << at;
+      EXPECT_EQ(ts.first_reaching("pos_" + axis, at), o + 40) << axis << " " << at;
+      ASSERT_EQ(tb.first_reaching("orig_" + axis, at), o) << axis << " " << at;
+      // The IIR's mask 0x1 holds X only: Y keeps the spline's 40 cycles.
+      EXPECT_EQ(tb.first_reaching("pos_" + axis, at), o + (axis == "X" ? 44 : 40))
+          << axis << " " << at;
+    }
+    for (const Table* t : {&ts, &tb}) {
+      EXPECT_EQ(t->rows.back()[t->col("pos_" + axis)], t->rows.back()[t->col("orig_" + axis)])
+          << axis;
+    }
+  }
+  EXPECT_EQ(tb.rows.back()[tb.col("status")], 3.0);
+}
+
+// --lookahead writes the LookAheadBuffer each time it shifts, one JSON object a line: the first
+// holds the program's first eight sections (the G42 and G40 lines make none; M51 is a normal
+// M-function), each later one the same entries moved up by one with the next section appended
+// (the current arc's tangent aside, which turns with the motion), and the last, at the end,
+// only invalid entries, which give no addresses.
+TEST_F(HmiSimulate, LookAheadFileIsTheShiftBufferOfTheProgram) {
+  const fs::path la = dir_ / "la.jsonl";
+  const ProcessResult r =
+      run("simulate " + kExample + " --config " + kConfig + " --lookahead " + la.string());
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  const auto shifts = lines(slurp(la));
+  ASSERT_EQ(shifts.size(), 13u);  // the first table, then one shift for each of the 12 sections
+  const std::string kEntry = "{\"movement_type\":";
+  const std::regex tangent("\"tangent_deg\":[^,]*,");
+  std::vector<std::vector<std::string>> tables;
+  long last_cycle = 0;
+  for (const std::string& line : shifts) {
+    ASSERT_EQ(line.rfind("{\"cycle\":", 0), 0u) << line;
+    ASSERT_TRUE(line.ends_with("]}")) << line;
+    const long cycle = std::atol(line.c_str() + 9);
+    EXPECT_GT(cycle, last_cycle) << line;
+    last_cycle = cycle;
+    std::vector<std::string> entries;
+    for (std::size_t at = line.find(kEntry); at != std::string::npos;) {
+      const std::size_t next = line.find(kEntry, at + 1);
+      // Up to the next entry's comma, or the line's closing "]}".
+      const std::size_t end = next == std::string::npos ? line.size() - 2 : next - 1;
+      entries.push_back(std::regex_replace(line.substr(at, end - at), tangent, ""));
+      at = next;
+    }
+    ASSERT_EQ(entries.size(), 8u) << line;
+    tables.push_back(entries);
+  }
+  const auto field = [](const std::string& entry, const std::string& name) {
+    const std::size_t at = entry.find("\"" + name + "\":");
+    return at == std::string::npos ? std::string("?")
+                                   : entry.substr(at + name.size() + 3,
+                                                  entry.find_first_of(",}", at + name.size() + 3) -
+                                                      at - name.size() - 3);
+  };
+  const std::vector<std::string> first_lines = {"1", "3", "4", "5", "6", "7", "8", "9"};
+  for (std::size_t e = 0; e < 8; ++e) {
+    EXPECT_EQ(field(tables[0][e], "line"), first_lines[e]) << tables[0][e];
+    EXPECT_EQ(field(tables[0][e], "movement_type"), e == 1 ? "2" : "1") << tables[0][e];
+    EXPECT_EQ(field(tables[0][e], "movement_code"), e == 0   ? "0"
+                                                    : e == 1 ? "51"
+                                                             : "2")
+        << tables[0][e];
+  }
+  EXPECT_NE(tables[0][0].find("\"end_pos_mm\":[60.6051,40.7723,0]"), std::string::npos)
+      << tables[0][0];
+  // The first arc: I3.0336 J-1.2601 from (60.6051, 40.7723).
+  EXPECT_EQ(field(tables[0][2], "radius_mm"), "3.28490197") << tables[0][2];
+  EXPECT_EQ(field(tables[0][2], "plane"), "17") << tables[0][2];
+  for (std::size_t t = 1; t < tables.size(); ++t) {
+    for (std::size_t e = 0; e + 1 < 8; ++e)
+      ASSERT_EQ(tables[t][e], tables[t - 1][e + 1]) << "shift " << t;
+  }
+  const std::string invalid =
+      "{\"movement_type\":0,\"movement_code\":0,\"line\":0,\"plane\":17,\"tool\":0,\"start_angle_"
+      "deg\":null,"
+      "\"end_angle_deg\":null,\"radius_mm\":0,\"end_pos_mm\":[0,0,0],\"all_params\":{}}";
+  for (const std::string& e : tables.back()) EXPECT_EQ(e, invalid);
+  EXPECT_EQ(field(tables[tables.size() - 2][0], "line"), "15");  // the last section: M51
 }
 
 // --stop-at: a normal stop at 2 s on a 100 mm line at F600 (10 s): the motion stands, is
