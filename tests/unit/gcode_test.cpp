@@ -560,6 +560,83 @@ TEST(Intercode, RoundTripKeepsEveryField) {
   EXPECT_EQ(q.messages, p.messages);
 }
 
+// Both dumps of every record kind the example program lacks: a continuous M-function, M0, an
+// M-function with parameters, a message whose comment holds a quote, a backslash, a tab and a
+// control character (JSON-escaped in the jsonl dump, as written in the text dump) and a dwell.
+TEST(Intercode, DumpsShowEveryRecordKind) {
+  const Program p = compile_ok(
+      "G90 G1 X1 F100\nM1003\nM0\nM3 S1200 Q2.5\nM29 (say \"hi\" \\ back\ttab\001x)\nG4 "
+      "P0.25\nM2\n");
+  std::string jsonl, text;
+  dump_jsonl(p, jsonl);
+  dump_text(p, text);
+  const std::string at = R"("end":{"X":1,"Y":0,"Z":0},)";
+  EXPECT_EQ(jsonl, R"({"line":1,"type":"G1",)" + at +
+                       R"("feed_mm_per_min":100,"plane":17,"tool":1})"
+                       "\n" +
+                       R"({"line":2,"type":"M",)" + at +
+                       R"("m":1003,"kind":"continuous","params":{},"tool":1})"
+                       "\n" +
+                       R"({"line":3,"type":"M",)" + at +
+                       R"("m":0,"kind":"program_stop","params":{},"tool":1})"
+                       "\n" +
+                       R"({"line":4,"type":"M",)" + at +
+                       R"("m":3,"kind":"normal","params":{"Q":2.5,"S":1200},"tool":1})"
+                       "\n" +
+                       R"({"line":5,"type":"MSG",)" + at +
+                       R"("text":"say \"hi\" \\ back\ttab\u0001x","tool":1})"
+                       "\n" +
+                       R"({"line":6,"type":"G4",)" + at +
+                       R"("seconds":0.25,"tool":1})"
+                       "\n" +
+                       R"({"line":7,"type":"M",)" + at +
+                       R"("m":2,"kind":"program_end","params":{},"tool":1})"
+                       "\n");
+  EXPECT_EQ(text,
+            "     1  G1  X1.0000 Y0.0000 Z0.0000  F100\n"
+            "     2  M   M1003 (continuous)\n"
+            "     3  M   M0 (program_stop)\n"
+            "     4  M   M3 (normal) Q2.5 S1200\n"
+            "     5  MSG \"say \"hi\" \\ back\ttab\001x\"\n"
+            "     6  G4  0.25 s\n"
+            "     7  M   M2 (program_end)\n");
+}
+
+// Intercode that encodes but does not describe a program is refused with the record and the
+// reason: negative sizes, and M or message records whose side-table entry is not there.
+TEST(Intercode, DecodeRefusesOutOfRangeValuesAndMissingSideTableEntries) {
+  struct Case {
+    const char* what;
+    void (*spoil)(Program&);
+    const char* error;
+  };
+  const Case cases[] = {
+      {"negative dwell", [](Program& p) { p.segments[1].dwell_s = -1.0; },
+       "value out of range in record 1"},
+      {"negative feed", [](Program& p) { p.segments[0].feed_mm_per_min = -5.0; },
+       "value out of range in record 0"},
+      {"negative radius", [](Program& p) { p.segments[3].radius = -2.0; },
+       "value out of range in record 3"},
+      {"negative turns", [](Program& p) { p.segments[3].turns = -1; },
+       "value out of range in record 3"},
+      {"M without parameters", [](Program& p) { p.params.clear(); },
+       "an M record at line 3 names a missing parameter set"},
+      {"message without text", [](Program& p) { p.segments[4].aux = 7; },
+       "a message record at line 5 names a missing text"},
+  };
+  for (const Case& c : cases) {
+    Program p = compile_ok("G90 G1 X1 F100\nG4 P1\nM3 S5\nG2 X3 I1\nM29 (hello)\n");
+    ASSERT_EQ(p.segments.size(), 5u);
+    c.spoil(p);
+    std::string bytes;
+    encode_intercode(p, bytes);
+    Program q;
+    std::string err;
+    EXPECT_FALSE(decode_intercode(bytes, q, err)) << c.what;
+    EXPECT_NE(err.find(c.error), std::string::npos) << c.what << ": " << err;
+  }
+}
+
 TEST(Intercode, RecordsStoreOnlyWhatChanged) {
   // Header 25 bytes; first move: type, flags, axis mask, tool (initial tool 1), X, feed = 24;
   // then X only = 12 each; the table counts 8.
