@@ -47,6 +47,9 @@ int run_compile(int argc, char** argv) {
   if (args.help()) return 0;
   if (args.failed()) return 2;
   if (file.empty()) return args.usage_error("a G-code FILE is required");
+  if (!args.distinct_files({{"FILE", file}, args.config_file()}, {{"--out", out_path}})) {
+    return 2;
+  }
   if (!dump.empty() && dump != "jsonl" && dump != "text") {
     return args.usage_error("--dump takes jsonl or text, not '" + dump + "'");
   }

@@ -215,6 +215,11 @@ int run_simulate(int argc, char** argv) {
   if (args.failed()) return 2;
   if (file.empty()) return args.usage_error("a G-code FILE is required");
   if (csv_every > 0 && csv_path.empty()) return args.usage_error("--csv-every needs --csv OUT");
+  if (!args.distinct_files(
+          {{"FILE", file}, args.config_file()},
+          {{"--csv", csv_path}, {"--lookahead", la_path}, {"--blocks", blocks_path}})) {
+    return 2;
+  }
   if (csv_every == 0) csv_every = 1;
   if (share > 0.0) {
     check_limits = true;

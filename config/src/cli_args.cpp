@@ -4,9 +4,36 @@
 
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
+#include <system_error>
 #include <utility>
+#include <vector>
 
 namespace tgm::cli {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// `a` and `b` would be one file once written: the same existing regular file (through links,
+// hard links or different spellings), or the same path where nothing exists yet. An existing
+// device, pipe or directory never counts: the first may be shared, the last fails on its own.
+bool same_file(const std::string& a, const std::string& b) {
+  std::error_code ea, eb;
+  const fs::file_status sa = fs::status(a, ea), sb = fs::status(b, eb);
+  const bool has_a = fs::exists(sa), has_b = fs::exists(sb);
+  if (has_a && has_b) {
+    if (!fs::is_regular_file(sa) || !fs::is_regular_file(sb)) return false;
+    std::error_code e;
+    return fs::equivalent(a, b, e) && !e;
+  }
+  if (has_a || has_b) return false;
+  const fs::path ca = fs::weakly_canonical(fs::absolute(a, ea), ea);
+  const fs::path cb = fs::weakly_canonical(fs::absolute(b, eb), eb);
+  return !ea && !eb && ca == cb;
+}
+
+}  // namespace
 
 ArgReader::ArgReader(int argc, char** argv, std::string program)
     : argc_(argc), argv_(argv), program_(std::move(program)) {}
@@ -31,6 +58,29 @@ bool ArgReader::flag(const char* name, std::string& value) {
   }
   // An empty value would read as the flag not given (its default), silently.
   if (value.empty()) usage_error(std::string(name) + " needs a value, not an empty string");
+  return true;
+}
+
+bool ArgReader::distinct_files(const std::vector<NamedFile>& inputs,
+                               const std::vector<NamedFile>& outputs) {
+  std::vector<const NamedFile*> seen;  // the inputs, then the outputs checked so far
+  for (const NamedFile& f : inputs) {
+    if (!f.path.empty()) seen.push_back(&f);
+  }
+  const std::size_t input_count = seen.size();
+  for (const NamedFile& out : outputs) {
+    if (out.path.empty()) continue;
+    for (std::size_t k = 0; k < seen.size(); ++k) {
+      const NamedFile& other = *seen[k];
+      if (!same_file(out.path, other.path)) continue;
+      usage_error(std::string(out.what) + " '" + out.path + "' is the same file as " + other.what +
+                  " '" + other.path + "'" +
+                  (k < input_count ? ": writing it would destroy the input"
+                                   : ": both outputs would be written into it"));
+      return false;
+    }
+    seen.push_back(&out);
+  }
   return true;
 }
 

@@ -181,6 +181,36 @@ TEST_F(HmiCompile, BadCommandLinesAndFilesAreUsageErrors) {
   EXPECT_NE(r.err.find("unknown command 'frobnicate'"), std::string::npos);
 }
 
+// A typo that names the program as an output (`--out prog.ngc`, `--csv prog.ngc`, through a
+// link) is a usage error before anything is opened: the program is still there, unchanged.
+TEST_F(HmiCompile, AnOutputNamingTheProgramIsRefusedAndTheProgramKept) {
+  const std::string text = "G90 G1 X10 F600\nM2\n";
+  const fs::path prog = write("prog.ngc", text);
+  fs::create_symlink(prog, dir_ / "link.ngc");
+  const std::string cfg = " --config " + std::string(kConfig);
+  const std::string cases[] = {
+      "compile " + prog.string() + cfg + " --out " + prog.string(),
+      "compile " + (dir_ / "link.ngc").string() + cfg + " --out " + prog.string(),
+      "simulate " + prog.string() + cfg + " --csv " + (dir_ / "link.ngc").string(),
+      "simulate " + prog.string() + cfg + " --blocks " + prog.string(),
+      "simulate " + prog.string() + cfg + " --csv " + (dir_ / "a.csv").string() + " --lookahead " +
+          (dir_ / "sub" / ".." / "a.csv").string(),
+  };
+  fs::create_directories(dir_ / "sub");
+  for (const std::string& c : cases) {
+    const ProcessResult r = run(c);
+    EXPECT_EQ(r.exit_code, 2) << c;
+    EXPECT_NE(r.err.find("is the same file as"), std::string::npos) << c << "\n" << r.err;
+    EXPECT_EQ(r.out, "") << c;
+    EXPECT_EQ(slurp(prog), text) << c;
+    EXPECT_FALSE(fs::exists(dir_ / "a.csv")) << c;
+  }
+  // /dev/null may take several outputs.
+  const ProcessResult r =
+      run("simulate " + prog.string() + cfg + " --csv /dev/null --blocks /dev/null --quiet");
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+}
+
 TEST_F(HmiCompile, BadConfigNamesTheKey) {
   const fs::path cfg = write("bad.yaml", "cycle_time_us: 400\ncompiler: {distance_mode: G92}\n");
   const ProcessResult r = run("compile x.ngc --config " + cfg.string());

@@ -3,6 +3,11 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
 #include <initializer_list>
 #include <string>
 #include <vector>
@@ -190,6 +195,65 @@ TEST(CliArgs, HelpIsConsumedAnywhere) {
   EXPECT_EQ(p.out, "x");
   p = parse({"-h"});
   EXPECT_TRUE(p.help);
+}
+
+// An output that names an input or another output, under any spelling, is refused before
+// anything is opened; distinct files, paths not given and shared devices or pipes are not.
+TEST(CliArgs, AnOutputMayNotBeAnInputOrAnotherOutput) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("tgm_cli_args_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir / "sub");
+  std::ofstream(dir / "prog.ngc") << "G1 X1 F100\n";
+  std::ofstream(dir / "cfg.yaml") << "cycle_time_us: 500\n";
+  fs::create_symlink(dir / "prog.ngc", dir / "link.ngc");
+  fs::create_hard_link(dir / "prog.ngc", dir / "hard.ngc");
+  const std::string fifo = (dir / "pipe").string();
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const std::string prog = (dir / "prog.ngc").string(), cfg = (dir / "cfg.yaml").string();
+  const std::string fresh = (dir / "new.csv").string();
+  const std::string fresh_other = (dir / "sub" / ".." / "new.csv").string();
+
+  struct Case {
+    std::vector<ArgReader::NamedFile> outputs;
+    std::string message;  // "" when accepted
+  };
+  const std::string destroy = ": writing it would destroy the input\n(see prog sub --help)\n";
+  const std::string both = ": both outputs would be written into it\n(see prog sub --help)\n";
+  const Case cases[] = {
+      {{{"--out", prog}},
+       "prog sub: --out '" + prog + "' is the same file as FILE '" + prog + "'" + destroy},
+      {{{"--out", (dir / "link.ngc").string()}},
+       "prog sub: --out '" + (dir / "link.ngc").string() + "' is the same file as FILE '" + prog +
+           "'" + destroy},
+      {{{"--out", (dir / "hard.ngc").string()}},
+       "prog sub: --out '" + (dir / "hard.ngc").string() + "' is the same file as FILE '" + prog +
+           "'" + destroy},
+      {{{"--csv", fresh}, {"--blocks", cfg}},
+       "prog sub: --blocks '" + cfg + "' is the same file as --config '" + cfg + "'" + destroy},
+      {{{"--csv", fresh}, {"--blocks", fresh_other}},
+       "prog sub: --blocks '" + fresh_other + "' is the same file as --csv '" + fresh + "'" + both},
+      {{{"--csv", fresh}, {"--blocks", (dir / "other.csv").string()}, {"--lookahead", ""}}, ""},
+      {{{"--csv", "/dev/null"}, {"--blocks", "/dev/null"}}, ""},
+      {{{"--csv", fifo}, {"--blocks", fifo}}, ""},
+      {{{"--out", (dir / "sub").string()}}, ""},  // a directory: opening it fails on its own
+  };
+  for (const Case& c : cases) {
+    Argv a({});
+    ArgReader r(a.argc(), a.argv(), "prog sub");
+    testing::internal::CaptureStderr();
+    const bool ok = r.distinct_files({{"FILE", prog}, {"--config", cfg}}, c.outputs);
+    const std::string err = testing::internal::GetCapturedStderr();
+    EXPECT_EQ(ok, c.message.empty()) << c.outputs[0].path;
+    EXPECT_EQ(r.failed(), !c.message.empty()) << c.outputs[0].path;
+    EXPECT_EQ(err, c.message);
+  }
+  // Nothing was created or changed by the check.
+  EXPECT_FALSE(fs::exists(fresh));
+  std::ifstream in(prog);
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(text, "G1 X1 F100\n");
+  fs::remove_all(dir);
 }
 
 }  // namespace

@@ -146,6 +146,9 @@ int run_run(int argc, char** argv) {
   if (args.help()) return 0;
   if (args.failed()) return 2;
   if (file.empty()) return args.usage_error("a program FILE is required");
+  if (!args.distinct_files({{"FILE", file}, args.config_file()}, {{"--plot", plot_path}})) {
+    return 2;
+  }
 
   // Config and program first: bad input never touches the service.
   std::optional<AppConfig> config = args.load_app();

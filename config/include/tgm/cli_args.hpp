@@ -5,6 +5,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "tgm/dds_overrides.hpp"
 
@@ -43,6 +44,18 @@ class ArgReader {
   //! Prints "PROGRAM: reason" and the hint to --help unless a problem was reported already;
   //! returns the exit code 2.
   int usage_error(const std::string& reason);
+  //! A file named on the command line: what named it ("FILE", "--csv") and the path ("" when
+  //! not given).
+  struct NamedFile {
+    const char* what;
+    std::string path;
+  };
+  //! Refuses, as a usage error, an output that would overwrite an input or another output: the
+  //! same regular file under any name (a link, "./", another directory's path to it), or the
+  //! same path not created yet. Devices and pipes (/dev/null, a FIFO) may be named more than
+  //! once. Checked before anything is opened, so a typo such as `--out prog.ngc` cannot
+  //! destroy the program. Returns false after reporting.
+  bool distinct_files(const std::vector<NamedFile>& inputs, const std::vector<NamedFile>& outputs);
   //! A problem was reported.
   bool failed() const { return failed_; }
   const std::string& program() const { return program_; }
