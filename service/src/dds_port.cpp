@@ -84,6 +84,7 @@ DdsPort::DdsPort(const DdsConfig& config, const DdsPortOptions& options)
       message_writer_(participant_.writer<msg::MessagePubSubType>(dds::kMessageTopic)),
       request_reader_(participant_.reader<msg::RequestPubSubType>(dds::kRequestTopic)),
       program_reader_(participant_.reader<msg::ProgramChunkPubSubType>(dds::kProgramTopic)),
+      state_reader_(participant_.reader<msg::InterpolatorStatePubSubType>(dds::kStateTopic)),
       waiter_({&program_reader_}),
       free_chunks_(static_cast<std::size_t>(options.interpolators) * 4 *
                    dds::kProgramChunksInFlight) {
@@ -115,9 +116,33 @@ DdsPort::DdsPort(const DdsConfig& config, const DdsPortOptions& options)
     chunk_pool_.back()->program.segments.reserve(mapping::kMaxChunkSegments);
     free_chunks_.push(chunk_pool_.back().get());
   }
+  state_reader_.set_listener(&state_watch_, fdds::StatusMask::data_available());
+  take_states();  // what came before the listener
 }
 
 DdsPort::~DdsPort() { stop(); }
+
+void DdsPort::take_states() {
+  const std::lock_guard lock(state_watch_mutex_);
+  while (dds::take_next(state_reader_, other_state_sample_)) {
+    if (other_state_sample_.service_instance() != service_instance_) {
+      other_latest_.store(other_state_sample_.service_instance(), std::memory_order_release);
+    }
+  }
+}
+
+std::uint64_t DdsPort::other_service(std::chrono::milliseconds wait) {
+  const auto until = Clock::now() + wait;
+  while (true) {
+    if (const std::uint64_t other = other_latest_.load(std::memory_order_acquire); other != 0) {
+      return other;
+    }
+    const auto now = Clock::now();
+    if (now >= until) return 0;
+    std::this_thread::sleep_for(
+        std::min<Clock::duration>(until - now, std::chrono::milliseconds(10)));
+  }
+}
 
 void DdsPort::start() {
   receiver_ = std::thread([this] { receive_loop(); });
@@ -132,8 +157,10 @@ void DdsPort::stop(std::atomic<const char*>* stage) {
   stopping_ = true;
   at("removing the DDS request listener");
   request_reader_.set_listener(nullptr);
+  state_reader_.set_listener(nullptr);
   at("waiting for a DDS request callback in progress");
   { const std::lock_guard lock(request_mutex_); }  // a callback in progress has finished
+  { const std::lock_guard lock(state_watch_mutex_); }
   waiter_.wake();
   doorbell_.ring();
   at("joining the DDS receive thread");
@@ -413,6 +440,26 @@ void DdsPort::publish_loop() {
       message_writer_.write(&message);
     }
     if (stopping_) break;
+    // Another service on the domain (two started within each other's wait, see
+    // other_service()): said once per instance, on standard error and to the HMIs.
+    if (const auto t = Clock::now(); t - other_checked_ >= std::chrono::milliseconds(200)) {
+      other_checked_ = t;
+      const std::uint64_t other = other_latest_.load(std::memory_order_acquire);
+      if (other != 0 && other != other_seen_.load(std::memory_order_relaxed)) {
+        other_seen_.store(other, std::memory_order_release);
+        char text[256];
+        std::snprintf(text, sizeof text,
+                      "another tgm-service (instance %016llx) serves this DDS domain: both take "
+                      "every request and program sent to it; stop one of them",
+                      static_cast<unsigned long long>(other));
+        std::fprintf(stderr, "tgm-service: %s\n", text);
+        message.interpolator(0);
+        message.severity(msg::SEVERITY_ERROR);
+        message.text(text);
+        message.source_line(0);
+        message_writer_.write(&message);
+      }
+    }
     // Events first, every one queued, in order: they are small and the PLC acts on them
     // (M-function handshake). The snapshot is read after them, so the state that follows them
     // is at least as new; it stays the source of truth.

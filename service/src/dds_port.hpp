@@ -108,6 +108,15 @@ class DdsPort final : public CyclePort {
   const std::string& participant_name() const { return participant_.name(); }
   //! Drawn at construction, never 0: InterpolatorState / InterpolatorEvent.service_instance.
   std::uint64_t service_instance() const { return service_instance_; }
+  //! Before start(), while nothing of this service is published: waits up to `wait` for the
+  //! state of another tgm-service on the domain (a tgm_state sample of another instance; a
+  //! live service publishes one every state period, a dead one nothing). Returns its instance,
+  //! 0 when none came.
+  std::uint64_t other_service(std::chrono::milliseconds wait);
+  //! Another service's instance seen on tgm_state after start() (two services started within
+  //! each other's wait); 0 when none. The publisher thread checks every 200 ms and says so on
+  //! standard error and as an error message to the HMIs, once per instance.
+  std::uint64_t other_service_seen() const { return other_seen_.load(std::memory_order_acquire); }
 
  private:
   void receive_loop();
@@ -118,6 +127,9 @@ class DdsPort final : public CyclePort {
   void take_requests_locked();
 
   void take_chunks();
+  //! Takes every tgm_state sample (the watch listener, any thread); another instance's is
+  //! kept in other_latest_.
+  void take_states();
   void publish_event(const EventOut& ev);
   void publish_state(int i, const InterpolatorSnapshot& s, const Snapshot& all);
 
@@ -131,6 +143,18 @@ class DdsPort final : public CyclePort {
   };
   // Declared before the participant so it outlives the participant's receive threads.
   RequestListener request_listener_{*this};
+  // tgm_state as read back: every sample is taken as it comes (this service's own are delivered
+  // too, within the process); a deeper look than the reader's KEEP_LAST 1 per interpolator,
+  // where this service's next write would hide another's sample.
+  class StateWatch final : public eprosima::fastdds::dds::DataReaderListener {
+   public:
+    explicit StateWatch(DdsPort& port) : port_(port) {}
+    void on_data_available(eprosima::fastdds::dds::DataReader*) override { port_.take_states(); }
+
+   private:
+    DdsPort& port_;
+  };
+  StateWatch state_watch_{*this};
 
   DdsPortOptions opt_;
   std::uint64_t service_instance_ = 0;
@@ -142,6 +166,8 @@ class DdsPort final : public CyclePort {
   eprosima::fastdds::dds::DataWriter& message_writer_;
   eprosima::fastdds::dds::DataReader& request_reader_;
   eprosima::fastdds::dds::DataReader& program_reader_;
+  // tgm_state as another service publishes it (this service's own samples are skipped).
+  eprosima::fastdds::dds::DataReader& state_reader_;
   dds::DataWaiter waiter_;
 
   // cycle <- receiver
@@ -209,6 +235,13 @@ class DdsPort final : public CyclePort {
   std::uint64_t events_published_ = 0;
   std::uint64_t setpoints_published_ = 0;
   std::uint64_t snapshots_seen_ = 0;
+  // take_states (under state_watch_mutex_), then read by other_service and the publisher
+  std::mutex state_watch_mutex_;
+  tgm::msg::InterpolatorState other_state_sample_;
+  std::atomic<std::uint64_t> other_latest_{0};
+  // publisher thread
+  std::chrono::steady_clock::time_point other_checked_{};
+  std::atomic<std::uint64_t> other_seen_{0};
 
   std::atomic<bool> stopping_{false};
   std::thread receiver_;

@@ -52,6 +52,9 @@ constexpr const char* kUsage =
     "                         the HMI as a warning (axis, size, limit, line, cycle)\n"
     "  --limit-share F        with --check-limits (implied): hold the motion to F (0..1] of\n"
     "                         each limit, e.g. 0.8 reports where a program uses over 80 %%\n"
+    "  --service-check-ms N   before serving, wait up to N ms for the state of another\n"
+    "                         tgm-service on the domain and exit (code 1) if one is live\n"
+    "                         (default 500, 0..10000; 0 = do not look)\n"
     "  --duration S           stop by itself after S seconds\n"
     "  --stats FILE           write lateness, handshake and counter figures as JSON at exit\n"
     "  --handshake-trace FILE write the time stamps of every M-function handshake as CSV at exit\n"
@@ -76,6 +79,7 @@ int main(int argc, char** argv) {
   tgm::service::DdsPortOptions port_options;
   double duration_s = 0.0;
   int dds_priority = 0;
+  long long service_check_ms = 500;
   tgm::cli::ArgReader args(argc, argv, "tgm-service");
   bool no_realtime = false;
   while (args.more()) {
@@ -93,6 +97,7 @@ int main(int argc, char** argv) {
     if (args.whole_flag("--cpu", 0, 1023, rt.cpu) ||
         args.whole_flag("--rt-priority", 1, 99, rt.priority) ||
         args.whole_flag("--dds-priority", 0, 98, dds_priority) ||
+        args.whole_flag("--service-check-ms", 0, 10000, service_check_ms) ||
         args.whole_flag("--setpoint-decimation", 1, 10000, port_options.setpoint_decimation) ||
         args.number_flag("--duration", duration_s, "a finite number of seconds > 0",
                          [](double v) { return v > 0.0; })) {
@@ -177,6 +182,24 @@ int main(int argc, char** argv) {
   } catch (const tgm::dds::SetupError& e) {
     std::fprintf(stderr, "tgm-service: %s\n", e.what());
     return 1;
+  }
+  // A second service on the domain would take the same requests and programs and drive the
+  // same axes: refuse to start next to a live one (a dead one publishes nothing, so a restart
+  // after a crash is not held up by its participant lease).
+  if (service_check_ms > 0) {
+    std::printf("tgm-service: looking %lld ms for another tgm-service on DDS domain %d\n",
+                service_check_ms, config.dds.domain_id);
+    std::fflush(stdout);
+    if (const std::uint64_t other =
+            port->other_service(std::chrono::milliseconds(service_check_ms))) {
+      std::fprintf(
+          stderr,
+          "tgm-service: another tgm-service (instance %016llx) already serves DDS domain %d: "
+          "two would both take every request and program and drive the same axes. Stop "
+          "it, or give this one another domain (--domain)\n",
+          static_cast<unsigned long long>(other), config.dds.domain_id);
+      return 1;
+    }
   }
   port->start();
 

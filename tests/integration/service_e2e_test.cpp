@@ -368,6 +368,68 @@ TEST(ServiceProcesses, HmiRunEndsWithAClearErrorWhenTheServiceRestarts) {
   EXPECT_NE(hmi.log().find("tgm-service restarted during the run"), std::string::npos) << hmi.log();
 }
 
+// A second tgm-service on a live service's domain would take the same requests and programs:
+// it looks for another service's state before serving and exits 1 naming its instance, and the
+// first goes on. Two that started within each other's wait (here: --service-check-ms 0) both
+// say so, on standard error and as an error message to the HMIs. A service that is gone (its
+// participant still within its lease after SIGKILL) publishes nothing and holds up no restart.
+TEST(ServiceProcesses, ASecondServiceOnTheDomainIsRefusedOrReported) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  client::Client hmi(env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(hmi.wait_for_state(0, kHang));
+  const std::uint64_t first = hmi.state(0)->service_instance();
+  char first_hex[17];
+  std::snprintf(first_hex, sizeof first_hex, "%016llx", static_cast<unsigned long long>(first));
+
+  test::Child second;
+  ASSERT_TRUE(second.start({TGM_SERVICE_BIN, "--config", env.config(), "--no-realtime"},
+                           env.path("second.log")));
+  EXPECT_EQ(second.wait(kHang), 1) << second.log();
+  EXPECT_NE(second.log().find(std::string("another tgm-service (instance ") + first_hex +
+                              ") already serves DDS domain " + std::to_string(env.domain())),
+            std::string::npos)
+      << second.log();
+  EXPECT_EQ(hmi.state(0)->service_instance(), first);  // the first one goes on
+
+  test::Child unchecked;
+  ASSERT_TRUE(unchecked.start(
+      {TGM_SERVICE_BIN, "--config", env.config(), "--no-realtime", "--service-check-ms", "0"},
+      env.path("unchecked.log")));
+  bool said = false;
+  for (int i = 0; i < 100 && !said; ++i) {
+    hmi.poll(50ms);
+    for (const msg::Message& m : hmi.take_messages()) {
+      said = said || (m.severity() == msg::SEVERITY_ERROR &&
+                      std::string(m.text().to_string()).find("another tgm-service (instance ") !=
+                          std::string::npos);
+    }
+  }
+  EXPECT_TRUE(said);
+  for (int i = 0;
+       i < 100 && (env.service.log().find("serves this DDS domain") == std::string::npos ||
+                   unchecked.log().find("serves this DDS domain") == std::string::npos);
+       ++i) {
+    std::this_thread::sleep_for(50ms);
+  }
+  EXPECT_NE(env.service.log().find("another tgm-service (instance "), std::string::npos)
+      << env.service.log();
+  EXPECT_NE(unchecked.log().find(std::string("another tgm-service (instance ") + first_hex +
+                                 ") serves this DDS domain"),
+            std::string::npos)
+      << unchecked.log();
+  EXPECT_EQ(unchecked.interrupt(10s, SIGTERM), 0) << unchecked.log();
+
+  // Killed without a word, the first service leaves its participant behind for the lease; a
+  // new service starts at once all the same.
+  EXPECT_EQ(env.service.interrupt(10s, SIGKILL), 128 + SIGKILL);
+  ASSERT_TRUE(env.start_service());
+  ASSERT_TRUE(hmi.wait_until(
+      0, [&](const msg::InterpolatorState& s) { return s.service_instance() != first; }, kHang))
+      << env.service.log();
+  EXPECT_EQ(env.service.log().find("already serves"), std::string::npos) << env.service.log();
+}
+
 TEST(ServiceProcesses, LateJoiningHmiSeesTheCurrentStateAtOnce) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());
