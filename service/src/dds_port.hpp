@@ -133,28 +133,22 @@ class DdsPort final : public CyclePort {
   void publish_event(const EventOut& ev);
   void publish_state(int i, const InterpolatorSnapshot& s, const Snapshot& all);
 
-  class RequestListener final : public eprosima::fastdds::dds::DataReaderListener {
+  // A listener that calls `take` of the port when its reader has data.
+  template <void (DdsPort::*take)()>
+  class TakeListener final : public eprosima::fastdds::dds::DataReaderListener {
    public:
-    explicit RequestListener(DdsPort& port) : port_(port) {}
-    void on_data_available(eprosima::fastdds::dds::DataReader*) override { port_.take_requests(); }
+    explicit TakeListener(DdsPort& port) : port_(port) {}
+    void on_data_available(eprosima::fastdds::dds::DataReader*) override { (port_.*take)(); }
 
    private:
     DdsPort& port_;
   };
-  // Declared before the participant so it outlives the participant's receive threads.
-  RequestListener request_listener_{*this};
+  // Declared before the participant so they outlive the participant's receive threads.
+  TakeListener<&DdsPort::take_requests> request_listener_{*this};
   // tgm_state as read back: every sample is taken as it comes (this service's own are delivered
   // too, within the process); a deeper look than the reader's KEEP_LAST 1 per interpolator,
   // where this service's next write would hide another's sample.
-  class StateWatch final : public eprosima::fastdds::dds::DataReaderListener {
-   public:
-    explicit StateWatch(DdsPort& port) : port_(port) {}
-    void on_data_available(eprosima::fastdds::dds::DataReader*) override { port_.take_states(); }
-
-   private:
-    DdsPort& port_;
-  };
-  StateWatch state_watch_{*this};
+  TakeListener<&DdsPort::take_states> state_watch_{*this};
 
   DdsPortOptions opt_;
   std::uint64_t service_instance_ = 0;
