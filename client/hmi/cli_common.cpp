@@ -120,11 +120,21 @@ bool AtomicFile::open(const std::string& path, std::string& error) {
     p = target.is_absolute() ? target : p.parent_path() / target;
   }
   path_ = p.string();
-  tmp_ = path_ + ".tmp";
-  f_ = std::fopen(tmp_.c_str(), "wb");
-  if (!f_) {
-    error = std::string("cannot create: ") + std::strerror(errno);
-    return false;
+  // A temporary name of our own, created exclusively: a fixed "<path>.tmp" truncated a user's
+  // file of that name and removed it after a failed run.
+  for (int k = 0;; ++k) {
+    tmp_ = path_ + ".tmp-" + std::to_string(::getpid()) + (k > 0 ? "-" + std::to_string(k) : "");
+    const int fd = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+    if (fd >= 0) {
+      f_ = ::fdopen(fd, "wb");
+      if (f_) break;
+      ::close(fd);
+      std::remove(tmp_.c_str());
+    }
+    if (fd >= 0 || errno != EEXIST || k == 99) {
+      error = std::string("cannot create: ") + std::strerror(errno);
+      return false;
+    }
   }
   static thread_local char buffer[1 << 20];
   std::setvbuf(f_, buffer, _IOFBF, sizeof buffer);

@@ -50,7 +50,8 @@ bool read_file(const std::string& path, std::string& out, std::string& error);
 //! Writes `path` through a temporary file and rename, so a failed run leaves nothing half-written.
 bool write_file_atomic(const std::string& path, const std::string& bytes, std::string& error);
 
-//! A file written in pieces through "<path>.tmp" and renamed into place by commit(); destroyed
+//! A file written in pieces through "<path>.tmp-<pid>" (created exclusively, so no file of the
+//! user's is touched) and renamed into place by commit(); destroyed
 //! without commit() it removes the temporary file, so an error never leaves a partial output.
 //! A path that names a symbolic link is written through it (the file it points to is replaced,
 //! not the link). A path that names a device or a pipe (/dev/stdout, a FIFO) is never renamed

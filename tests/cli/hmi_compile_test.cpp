@@ -24,6 +24,15 @@ using HmiCompile = test::CliTest;
 
 const char* const kConfig = test::kDefaultConfig;
 
+// Temporary outputs (AtomicFile's "<path>.tmp-<pid>") left in `dir`.
+int temporaries(const fs::path& dir) {
+  int n = 0;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    n += e.path().filename().string().find(".tmp-") != std::string::npos ? 1 : 0;
+  }
+  return n;
+}
+
 TEST_F(HmiCompile, ExampleProgramWritesIntercodeEqualToTheInProcessEncoding) {
   const fs::path prog = test::kManualExample;
   const fs::path out = dir_ / "ex.tgmi";
@@ -39,7 +48,7 @@ TEST_F(HmiCompile, ExampleProgramWritesIntercodeEqualToTheInProcessEncoding) {
   std::string expected;
   encode_intercode(c.program, expected);
   EXPECT_EQ(slurp(out), expected);
-  EXPECT_FALSE(fs::exists(out.string() + ".tmp"));
+  EXPECT_EQ(temporaries(dir_), 0) << "a temporary file was left";
 }
 
 // G41/G42 are recorded, not applied: compile, --dump and simulate say so once, naming the first
@@ -103,7 +112,7 @@ TEST_F(HmiCompile, ErrorsAreAllListedWithFileLineColumnAndNothingIsWritten) {
                        ":4:5: error: unknown label L4 (define it with G29 L4)\n" + f +
                        ": 3 errors, no intercode written\n");
   EXPECT_EQ(slurp(out), "previous");
-  EXPECT_FALSE(fs::exists(out.string() + ".tmp"));
+  EXPECT_EQ(temporaries(dir_), 0) << "a temporary file was left";
   EXPECT_TRUE(r.out.empty());
 }
 
@@ -209,6 +218,23 @@ TEST_F(HmiCompile, AnOutputNamingTheProgramIsRefusedAndTheProgramKept) {
   const ProcessResult r =
       run("simulate " + prog.string() + cfg + " --csv /dev/null --blocks /dev/null --quiet");
   EXPECT_EQ(r.exit_code, 0) << r.err;
+}
+
+// The temporary output never touches a file of the user's: "<out>.tmp" next to --out keeps
+// its content through a compile that writes --out and one that fails.
+TEST_F(HmiCompile, AUsersTmpFileNextToTheOutputIsLeftAlone) {
+  const fs::path good = write("good.ngc", "G90 G1 X1 F100\nM2\n"), bad = write("bad.ngc", "G7\n");
+  const fs::path out = dir_ / "prog.tgmi", mine = dir_ / "prog.tgmi.tmp";
+  std::ofstream(mine) << "my notes";
+  EXPECT_EQ(
+      run("compile " + good.string() + " --config " + kConfig + " --out " + out.string()).exit_code,
+      0);
+  EXPECT_EQ(
+      run("compile " + bad.string() + " --config " + kConfig + " --out " + out.string()).exit_code,
+      2);
+  EXPECT_EQ(slurp(mine), "my notes");
+  EXPECT_GT(fs::file_size(out), 0u);
+  EXPECT_EQ(temporaries(dir_), 0);
 }
 
 TEST_F(HmiCompile, BadConfigNamesTheKey) {
