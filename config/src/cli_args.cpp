@@ -143,6 +143,17 @@ bool ArgReader::positional(std::string& value) {
   return true;
 }
 
+bool ArgReader::negative_number(std::string& value) {
+  const char* arg = argv_[i_];
+  if (arg[0] != '-' || arg[1] == '\0' ||
+      std::strspn(arg + 1, "0123456789") != std::strlen(arg + 1)) {
+    return false;
+  }
+  value = arg;
+  ++i_;
+  return true;
+}
+
 bool ArgReader::dds_flag(DdsOverrides& o) {
   for (const char* name : {"--domain", "--profiles", "--participant-prefix"}) {
     std::string v;

@@ -430,6 +430,49 @@ TEST(ServiceProcesses, ASecondServiceOnTheDomainIsRefusedOrReported) {
   EXPECT_EQ(env.service.log().find("already serves"), std::string::npos) << env.service.log();
 }
 
+// tgm-hmi command and stop as an operator types them: "WHAT: accepted" and exit code 0, or the
+// service's reason and exit code 1; negative Command codes are words, bad lines exit 2.
+TEST(ServiceProcesses, HmiCommandAndStopSayAcceptedOrWhyNot) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  {
+    client::Client hmi(env.dds(), client::Role::kHmi);
+    ASSERT_TRUE(hmi.wait_for_state(0, kHang));
+  }
+  struct Case {
+    std::vector<std::string> words;
+    int code;
+    std::string says;
+  };
+  const Case cases[] = {
+      {{"command", "clear"}, 0, "clear: accepted\n"},
+      {{"command", "start"}, 1, "tgm-hmi command: start: refused (wrong state): nothing loaded\n"},
+      {{"command", "1024", "1", "1", "1"},
+       1,
+       "tgm-hmi command: Command 1024: refused (wrong role): the HMI may not send Command 1024 "
+       "(gear ratio)\n"},
+      {{"command", "-2", "100", "1000000"},
+       1,
+       "tgm-hmi command: Command -2: refused (wrong role): the HMI may not send Command -2 (spline "
+       "parameters)\n"},
+      {{"command", "7"}, 1, "tgm-hmi command: Command 7: refused (bad request): unknown Command 7"},
+      {{"stop"}, 0, "stop: accepted\n"},
+      {{"command", "estop"}, 0, "Command 4: accepted\n"},
+      {{"command", "frob"}, 2, "tgm-hmi command: unknown command 'frob'\n"},
+      {{"command", "start", "1"}, 2, "tgm-hmi command: 'start' takes no parameters\n"},
+  };
+  int k = 0;
+  for (const Case& c : cases) {
+    std::vector<std::string> args{TGM_HMI_BIN};
+    args.insert(args.end(), c.words.begin(), c.words.end());
+    args.insert(args.end(), {"--config", env.config()});
+    test::Child hmi;
+    ASSERT_TRUE(hmi.start(args, env.path("cmd" + std::to_string(k++) + ".log")));
+    EXPECT_EQ(hmi.wait(kHang), c.code) << c.words[0] << " " << c.words.back() << "\n" << hmi.log();
+    EXPECT_EQ(hmi.log().rfind(c.says, 0), 0u) << hmi.log();
+  }
+}
+
 TEST(ServiceProcesses, LateJoiningHmiSeesTheCurrentStateAtOnce) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());

@@ -197,6 +197,34 @@ TEST(CliArgs, HelpIsConsumedAnywhere) {
   EXPECT_TRUE(p.help);
 }
 
+// Negative numbers are words where a command takes them (Command -2, its parameters); a flag
+// read first keeps its value, so `--domain -1` is still refused as a domain, with its text.
+TEST(CliArgs, NegativeNumbersAreWordsButFlagValuesStayTheFlags) {
+  Argv a({"-2", "100", "-7", "--domain", "-1", "-x", "--5"});
+  ArgReader r(a.argc(), a.argv(), "prog sub");
+  std::vector<std::string> words;
+  DdsOverrides dds;
+  testing::internal::CaptureStderr();
+  while (r.more()) {
+    if (r.dds_flag(dds)) continue;
+    if (std::string w; r.positional(w) || r.negative_number(w)) {
+      words.push_back(w);
+      continue;
+    }
+    r.fail();
+  }
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(words, (std::vector<std::string>{"-2", "100", "-7"}));
+  EXPECT_EQ(err, "prog sub: --domain must be 0..232, not '-1'\n(see prog sub --help)\n");
+  for (const char* bad : {"-x", "--5", "-", "-5a"}) {
+    Argv b({bad});
+    ArgReader rb(b.argc(), b.argv(), "prog sub");
+    std::string w;
+    EXPECT_FALSE(rb.negative_number(w)) << bad;
+    EXPECT_TRUE(w.empty()) << bad;
+  }
+}
+
 // An output that names an input or another output, under any spelling, is refused before
 // anything is opened; distinct files, paths not given and shared devices or pipes are not.
 TEST(CliArgs, AnOutputMayNotBeAnInputOrAnotherOutput) {

@@ -51,9 +51,14 @@ int connect(Args& args, Common& c) {
   return make_client(args, c.overrides, c.config, c.client);
 }
 
-int report(const char* what, const client::Reply& r) {
-  std::printf("%s: %s\n", what, client::describe(r).c_str());
-  return r.accepted ? 0 : 1;
+// "WHAT: accepted" on standard output (exit code 0), or why not on standard error (1).
+int report(const char* command, const std::string& what, const client::Reply& r) {
+  if (r.accepted) {
+    std::printf("%s: accepted\n", what.c_str());
+    return 0;
+  }
+  std::fprintf(stderr, "tgm-hmi %s: %s: %s\n", command, what.c_str(), client::describe(r).c_str());
+  return 1;
 }
 
 }  // namespace
@@ -132,28 +137,18 @@ int run_stop(int argc, char** argv) {
   if (args.help()) return 0;
   if (args.failed()) return 2;
   if (const int rc = connect(args, c); rc != 0) return rc;
-  return report("stop", c.client->stop(args.interpolator()));
+  return report("stop", "stop", c.client->stop(args.interpolator()));
 }
 
 int run_command(int argc, char** argv) {
-  // Negative numbers (Command -1 / -2, parameters) are words, not options: mark them so the
-  // argument reader takes them as positionals.
-  std::vector<std::string> marked(argv, argv + argc);
-  std::vector<char*> ptrs;
-  for (std::string& a : marked) {
-    if (a.size() > 1 && a[0] == '-' && a.find_first_not_of("0123456789", 1) == std::string::npos) a[0] = '~';
-    ptrs.push_back(a.data());
-  }
-  argv = ptrs.data();
   Args args(argc, argv, "command", kCommandUsage);
   Common c;
   std::vector<std::string> words;
   while (args.more()) {
     if (args.dds_flag(c.overrides)) continue;
     if (args.common()) continue;
-    std::string w;
-    if (args.positional(w)) {
-      if (w[0] == '~') w[0] = '-';
+    // Negative numbers (Command -1 / -2, parameters) are words, not options.
+    if (std::string w; args.positional(w) || args.negative_number(w)) {
       words.push_back(w);
       continue;
     }
@@ -184,14 +179,15 @@ int run_command(int argc, char** argv) {
   if (const int rc = connect(args, c); rc != 0) return rc;
   const int ip = args.interpolator();
   client::Client& cl = *c.client;
-  if (what == "start") return report("start", cl.start(ip));
-  if (what == "stop") return report("stop", cl.stop(ip));
-  if (what == "clear") return report("clear", cl.clear(ip));
-  if (what == "estop") return report("Command 4", cl.command(ip, 4));
-  if (what == "estop-off") return report("Command 5", cl.command(ip, 5));
-  if (what == "stop-off") return report("Command 9", cl.command(ip, 9));
+  if (what == "start") return report("command", "start", cl.start(ip));
+  if (what == "stop") return report("command", "stop", cl.stop(ip));
+  if (what == "clear") return report("command", "clear", cl.clear(ip));
+  if (what == "estop") return report("command", "Command 4", cl.command(ip, 4));
+  if (what == "estop-off") return report("command", "Command 5", cl.command(ip, 5));
+  if (what == "stop-off") return report("command", "Command 9", cl.command(ip, 9));
   (void)is_code;
-  return report(("Command " + what).c_str(), cl.command(ip, static_cast<std::int32_t>(code), params));
+  return report("command", "Command " + what,
+                cl.command(ip, static_cast<std::int32_t>(code), params));
 }
 
 }  // namespace tgm::hmi

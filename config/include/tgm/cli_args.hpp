@@ -37,6 +37,9 @@ class ArgReader {
   bool help_given() const { return help_; }
   //! Consumes a positional argument if `value` is still empty.
   bool positional(std::string& value);
+  //! Consumes a negative whole number ("-2") as a word, not an option (Command codes and
+  //! parameters). Flags read before it keep theirs: `--domain -1` is still --domain's value.
+  bool negative_number(std::string& value);
   //! Consumes --domain, --profiles and --participant-prefix into `o` (a bad value is reported).
   bool dds_flag(DdsOverrides& o);
   //! Reports the current argument as an unknown option or an unexpected argument; returns 2.
