@@ -473,6 +473,40 @@ TEST(ServiceProcesses, HmiCommandAndStopSayAcceptedOrWhyNot) {
   }
 }
 
+// Intercode compiled for other axis letters (XYC, where interpolator 0 has XYZ) is refused
+// before anything is sent: by index, its C positions would move Z. Compiled for the right
+// letters it runs to its end.
+TEST(ServiceProcesses, HmiRunRefusesIntercodeOfOtherAxes) {
+  ServiceEnv env;
+  std::string rotary = test::read_text(env.config());
+  ASSERT_TRUE(test::replace_first(rotary, "{letter: Z}]", "{letter: C}]"));
+  std::ofstream(env.path("rotary.yaml")) << rotary;
+  std::ofstream(env.path("p.ngc")) << "G90 G1 X5 F3000\nM2\n";
+  for (const char* cfg : {"rotary.yaml", "config.yaml"}) {
+    test::Child compile;
+    ASSERT_TRUE(compile.start({TGM_HMI_BIN, "compile", env.path("p.ngc"), "--config", env.path(cfg),
+                               "--out", env.path(std::string(cfg) + ".tgmi")},
+                              env.path("compile.log")));
+    ASSERT_EQ(compile.wait(kHang), 0) << compile.log();
+  }
+  ASSERT_TRUE(env.start_service());
+  test::Child wrong;
+  ASSERT_TRUE(wrong.start(
+      {TGM_HMI_BIN, "run", env.path("rotary.yaml.tgmi"), "--config", env.config(), "--quiet"},
+      env.path("wrong.log")));
+  EXPECT_EQ(wrong.wait(kHang), 2) << wrong.log();
+  EXPECT_NE(wrong.log().find("compiled for the axes XYC, interpolator 0 has XYZ"),
+            std::string::npos)
+      << wrong.log();
+  test::Child right;
+  ASSERT_TRUE(right.start(
+      {TGM_HMI_BIN, "run", env.path("config.yaml.tgmi"), "--config", env.config(), "--quiet"},
+      env.path("right.log")));
+  EXPECT_EQ(right.wait(kHang), 0) << right.log();
+  EXPECT_NE(right.log().find("end position X5.0000 Y0.0000 Z0.0000"), std::string::npos)
+      << right.log();
+}
+
 TEST(ServiceProcesses, LateJoiningHmiSeesTheCurrentStateAtOnce) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());

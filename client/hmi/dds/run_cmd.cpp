@@ -170,6 +170,15 @@ int run_run(int argc, char** argv) {
         std::fprintf(stderr, "%s: error: %s\n", file.c_str(), error.c_str());
         return 2;
       }
+      // Intercode holds axis positions by index: compiled for other letters (a C where this
+      // interpolator has Z), it would move the wrong axes. The service checks only the count.
+      if (program.axis_letters != letters) {
+        std::fprintf(stderr,
+                     "%s: error: compiled for the axes %s, interpolator %d has %s: compile the "
+                     "G-code for it (tgm-hmi compile --interpolator %d)\n",
+                     file.c_str(), program.axis_letters.c_str(), ip, letters.c_str(), ip);
+        return 2;
+      }
     } else {
       CompileResult r = compile_gcode(input.text(), CompileOptions::from_machine(config->machine, ip));
       if (!r.ok()) {
