@@ -4,6 +4,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -479,7 +480,14 @@ std::optional<AppConfig> load_config_or_report(const std::string& path,
   const std::string file = path.empty() ? default_config_path() : path;
   ConfigLoad load = load_config_file(file);
   if (!load.config) {
-    for (const auto& e : load.errors) std::fprintf(stderr, "%s\n", e.c_str());
+    // A file that is not a config at all (a G-code program, a log given by mistake) has a
+    // problem on every line: the first ones say what is wrong, the count says the rest.
+    const std::size_t shown = std::min(load.errors.size(), kConfigProblemsShown);
+    for (std::size_t k = 0; k < shown; ++k) std::fprintf(stderr, "%s\n", load.errors[k].c_str());
+    if (shown < load.errors.size()) {
+      std::fprintf(stderr, "%s: ... and %zu more not shown\n", file.c_str(),
+                   load.errors.size() - shown);
+    }
     std::fprintf(stderr, "%s: the config %s has %zu problem%s\n", program.c_str(), file.c_str(),
                  load.errors.size(), load.errors.size() == 1 ? "" : "s");
   }

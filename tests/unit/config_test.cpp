@@ -1,7 +1,12 @@
 // Config: core validation and the YAML adapter (key paths, unknown keys, ranges).
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
 
 #include "tgm/yaml_config.hpp"
 
@@ -49,6 +54,31 @@ TEST(Config, DefaultYamlLoadsAndMatchesBuiltInDefaults) {
   EXPECT_DOUBLE_EQ(m.interpolators[1].axes[2].max_jerk_mm_s3, 30000.0);
   EXPECT_TRUE(m.compiler.start_incremental);
   EXPECT_DOUBLE_EQ(load.config->plc.m_delay_s.at(51), 0.2);
+}
+
+// A file that is not a config (here 200 "kN: 1" lines, as a log or a program given by mistake)
+// has a problem on every line: the first 50 are printed, then how many more, then the count.
+TEST(Config, AFileWithAProblemOnEveryLinePrintsTheFirstFiftyAndTheCount) {
+  const std::string path =
+      (std::filesystem::temp_directory_path() / ("tgm_kv_" + std::to_string(::getpid()) + ".yaml"))
+          .string();
+  {
+    std::ofstream f(path);
+    for (int k = 0; k < 200; ++k) f << "k" << k << ": 1\n";
+  }
+  testing::internal::CaptureStderr();
+  EXPECT_FALSE(load_config_or_report(path, "prog"));
+  const std::string err = testing::internal::GetCapturedStderr();
+  std::remove(path.c_str());
+  std::size_t lines = 0;
+  for (char c : err) lines += c == '\n' ? 1 : 0;
+  EXPECT_EQ(lines, kConfigProblemsShown + 2) << err;
+  EXPECT_NE(err.find(path + ":50: k49: unknown key"), std::string::npos) << err;
+  EXPECT_EQ(err.find(path + ":51:"), std::string::npos) << err;
+  EXPECT_NE(err.find(path + ": ... and 150 more not shown\nprog: the config " + path +
+                     " has 200 problems\n"),
+            std::string::npos)
+      << err;
 }
 
 TEST(Config, UnknownKeyIsAnErrorWithPathAndLine) {

@@ -2,6 +2,7 @@
 // core (DDS, PLC emulator) from one YAML file (DESIGN.md section 7).
 #pragma once
 
+#include <cstddef>
 #include <map>
 #include <optional>
 #include <string>
@@ -38,6 +39,9 @@ struct AppConfig {
 };
 
 //! Outcome of loading: a config, or every problem found as "FILE:LINE: key.path: reason".
+//! load_config_or_report prints at most this many problems, then how many more there are.
+inline constexpr std::size_t kConfigProblemsShown = 50;
+
 struct ConfigLoad {
   std::optional<AppConfig> config;
   std::vector<std::string> errors;
@@ -50,7 +54,8 @@ ConfigLoad load_config_text(const std::string& text, const std::string& path);
 ConfigLoad load_config_file(const std::string& path);
 
 //! Loads `path` (default_config_path() when empty) for a command-line program: on failure prints
-//! every problem and "<program>: the config <path> has N problems" to stderr, returns nullopt.
+//! the problems (the first kConfigProblemsShown, then how many more) and "<program>: the config
+//! <path> has N problems" to stderr, returns nullopt.
 std::optional<AppConfig> load_config_or_report(const std::string& path, const std::string& program);
 
 //! The config file used when none is given: $TGM_CONFIG, then the installed
