@@ -55,7 +55,7 @@ void CompensationNote::print(const std::string& file) const {
                first_.compensation_radius_mm);
 }
 
-bool read_file(const std::string& path, std::string& out, std::string& error) {
+bool read_file(const std::string& path, std::string& out, std::string& error, std::size_t limit) {
   std::FILE* f = std::fopen(path.c_str(), "rb");
   if (!f) {
     error = std::string("cannot open: ") + std::strerror(errno);
@@ -68,14 +68,22 @@ bool read_file(const std::string& path, std::string& out, std::string& error) {
     if (size > 0) out.resize(static_cast<std::size_t>(size));
     std::rewind(f);
   }
+  if (out.size() > limit) out.resize(limit + 1);
   std::size_t got = out.empty() ? 0 : std::fread(out.data(), 1, out.size(), f);
   out.resize(got);
   char buf[65536];
-  for (std::size_t n; (n = std::fread(buf, 1, sizeof buf, f)) > 0;) out.append(buf, n);
+  for (std::size_t n; out.size() <= limit && (n = std::fread(buf, 1, sizeof buf, f)) > 0;) {
+    out.append(buf, n);
+  }
   const bool bad = std::ferror(f) != 0;
   std::fclose(f);
   if (bad) {
     error = "read error";
+    return false;
+  }
+  if (out.size() > limit) {
+    out.clear();
+    error = "more than " + std::to_string(limit >> 20) + " MiB to read (an input without end?)";
     return false;
   }
   return true;
@@ -219,6 +227,13 @@ bool FileView::open(const std::string& path, std::string& error) {
     error = "is a directory";
     return false;
   }
+  // A device other than a terminal (/dev/zero, /dev/urandom) is no program: its bytes never
+  // end. A pipe and a terminal are read (up to kMaxStreamedInput).
+  if (S_ISCHR(st.st_mode) && ::isatty(fd) == 0) {
+    ::close(fd);
+    error = "is a device, not a file";
+    return false;
+  }
   if (fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && st.st_size > 0) {
     void* p = mmap(nullptr, static_cast<std::size_t>(st.st_size), PROT_READ,
                    MAP_PRIVATE | MAP_POPULATE, fd, 0);
@@ -231,7 +246,7 @@ bool FileView::open(const std::string& path, std::string& error) {
     }
   }
   ::close(fd);
-  if (!read_file(path, copy_, error)) return false;
+  if (!read_file(path, copy_, error, kMaxStreamedInput)) return false;
   text_ = copy_;
   return true;
 }

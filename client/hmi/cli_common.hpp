@@ -45,8 +45,12 @@ class Args : public cli::ArgReader {
   int interpolator_ = 0;
 };
 
-//! Reads a whole file; on failure says why in `error`.
-bool read_file(const std::string& path, std::string& out, std::string& error);
+//! Reads a whole file of at most `limit` bytes; on failure (also: more bytes than that, as from
+//! a device without end such as /dev/zero) says why in `error`.
+bool read_file(const std::string& path, std::string& out, std::string& error, std::size_t limit);
+//! What FileView reads from a pipe or a device (regular files are mapped, of any size): 1 GiB,
+//! several times the longest program the compiler expands (compiler.max_program_segments).
+inline constexpr std::size_t kMaxStreamedInput = std::size_t{1} << 30;
 //! Writes `path` through a temporary file and rename, so a failed run leaves nothing half-written.
 bool write_file_atomic(const std::string& path, const std::string& bytes, std::string& error);
 

@@ -466,13 +466,23 @@ ConfigLoad load_config_file(const std::string& path) {
     out.errors.push_back(path + ": cannot open the config file");
     return out;
   }
-  std::ostringstream ss;
-  ss << in.rdbuf();
+  // Read in pieces up to a bound: a config is a few KB, and a device without end (/dev/zero)
+  // or a large file given by mistake must not be read for minutes.
+  std::string text;
+  char buf[65536];
+  while (text.size() <= kMaxConfigBytes && in.read(buf, sizeof buf).gcount() > 0) {
+    text.append(buf, static_cast<std::size_t>(in.gcount()));
+  }
   if (in.bad()) {
     out.errors.push_back(path + ": cannot read the config file");
     return out;
   }
-  return load_config_text(ss.str(), path);
+  if (text.size() > kMaxConfigBytes) {
+    out.errors.push_back(path + ": more than " + std::to_string(kMaxConfigBytes >> 20) +
+                         " MiB: not a config file");
+    return out;
+  }
+  return load_config_text(text, path);
 }
 
 std::optional<AppConfig> load_config_or_report(const std::string& path,

@@ -188,6 +188,16 @@ TEST_F(HmiCompile, BadCommandLinesAndFilesAreUsageErrors) {
   r = run("frobnicate");
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.err.find("unknown command 'frobnicate'"), std::string::npos);
+  // Inputs without end are refused at once, not read until the memory runs out.
+  r = run("compile /dev/zero --config " + std::string(kConfig));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.err, "/dev/zero: error: is a device, not a file\n");
+  const fs::path prog = write("p.ngc", "G1 X1 F100\n");
+  r = run("compile " + prog.string() + " --config /dev/zero");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.err,
+            "/dev/zero: more than 16 MiB: not a config file\n"
+            "tgm-hmi compile: the config /dev/zero has 1 problem\n");
 }
 
 // A typo that names the program as an output (`--out prog.ngc`, `--csv prog.ngc`, through a

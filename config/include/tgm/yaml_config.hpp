@@ -39,6 +39,9 @@ struct AppConfig {
 };
 
 //! Outcome of loading: a config, or every problem found as "FILE:LINE: key.path: reason".
+//! load_config_file reads at most this much: a config is a few KB.
+inline constexpr std::size_t kMaxConfigBytes = std::size_t{16} << 20;
+
 //! load_config_or_report prints at most this many problems, then how many more there are.
 inline constexpr std::size_t kConfigProblemsShown = 50;
 
