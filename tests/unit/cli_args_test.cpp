@@ -225,6 +225,26 @@ TEST(CliArgs, NegativeNumbersAreWordsButFlagValuesStayTheFlags) {
   }
 }
 
+// The profiles file is checked before Fast DDS sees it: missing, or not a file (a directory,
+// /dev/zero, which Fast DDS would read without end), each said as it is.
+TEST(CliArgs, TheProfilesFileMustBeARegularFile) {
+  DdsConfig c;
+  c.profiles_file = "";
+  EXPECT_EQ(dds_profiles_problem(c), "");  // none set: Fast DDS's defaults
+  c.profiles_file = TGM_SOURCE_DIR "/config/fastdds_profiles.xml";
+  EXPECT_EQ(dds_profiles_problem(c), "");
+  c.profiles_file = "/nonexistent/profiles.xml";
+  EXPECT_EQ(dds_profiles_problem(c),
+            "the DDS profiles file '/nonexistent/profiles.xml' does not exist (dds.profiles_file "
+            "or --profiles)");
+  for (const char* odd : {"/dev/zero", "/tmp"}) {
+    c.profiles_file = odd;
+    EXPECT_EQ(dds_profiles_problem(c),
+              std::string("the DDS profiles file '") + odd +
+                  "' is not a regular file (dds.profiles_file or --profiles)");
+  }
+}
+
 // An output that names an input or another output, under any spelling, is refused before
 // anything is opened; distinct files, paths not given and shared devices or pipes are not.
 TEST(CliArgs, AnOutputMayNotBeAnInputOrAnotherOutput) {

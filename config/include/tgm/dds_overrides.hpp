@@ -57,7 +57,10 @@ struct DdsOverrides {
 inline std::string dds_profiles_problem(const DdsConfig& c) {
   std::error_code ec;
   if (c.profiles_file.empty() || std::filesystem::is_regular_file(c.profiles_file, ec)) return {};
-  return "the DDS profiles file '" + c.profiles_file + "' does not exist (dds.profiles_file or --profiles)";
+  const bool exists = std::filesystem::exists(c.profiles_file, ec);
+  return "the DDS profiles file '" + c.profiles_file + "' " +
+         (exists ? "is not a regular file" : "does not exist") +
+         " (dds.profiles_file or --profiles)";
 }
 
 }  // namespace tgm
