@@ -14,6 +14,7 @@
 
 #include "commands.hpp"
 #include "dds_common.hpp"
+#include "plot_series.hpp"
 #include "tgm/gcode.hpp"
 #include "tgm/intercode_io.hpp"
 #include "tgm/registers.hpp"
@@ -48,6 +49,10 @@ struct PlotData {
   std::vector<std::pair<double, double>> path;      // Position of the first two axes [mm]
   std::vector<std::pair<double, double>> speed;     // (time [s], Act_Speed [mm/min])
 };
+
+// Points kept for the plot while the program runs: every 0.05 mm of the path and every state
+// of the speed until a million of each, then thinned (PlotSeries): a run of hours stays bounded.
+constexpr std::size_t kMaxPlotPoints = std::size_t{1} << 20;
 
 bool write_svg(const std::string& path, const PlotData& d, const std::string& letters, std::string& error) {
   const double W = 900, H = 420, pad = 40;
@@ -260,19 +265,19 @@ int run_run(int argc, char** argv) {
     }
   }
 
-  PlotData plot;
+  PlotSeries plot_path_points(PlotSeries::Spacing::kDistance, 0.05, kMaxPlotPoints);
+  PlotSeries plot_speed_points(PlotSeries::Spacing::kFirst, 0.0, kMaxPlotPoints);
   std::uint64_t first_cycle = 0;
   const double cycle_s = config->machine.cycle_time_us * 1e-6;
   if (!plot_path.empty()) {
     hmi->on_setpoints = [&](const msg::Setpoints& s) {
       if (s.interpolator() != ip) return;
-      const std::pair<double, double> p{s.position()[0], s.position()[1]};
-      if (plot.path.empty() || std::hypot(p.first - plot.path.back().first, p.second - plot.path.back().second) > 0.05)
-        plot.path.push_back(p);
+      plot_path_points.add({s.position()[0], s.position()[1]});
     };
     hmi->on_state = [&](const msg::InterpolatorState& s) {
       if (s.interpolator() != ip || first_cycle == 0) return;
-      plot.speed.emplace_back(static_cast<double>(s.cycle_counter() - first_cycle) * cycle_s, s.act_speed());
+      plot_speed_points.add(
+          {static_cast<double>(s.cycle_counter() - first_cycle) * cycle_s, s.act_speed()});
     };
   }
 
@@ -496,6 +501,7 @@ int run_run(int argc, char** argv) {
         static_cast<unsigned long long>(st->missed_cycles()));
   }
   if (!plot_path.empty()) {
+    const PlotData plot{plot_path_points.points(), plot_speed_points.points()};
     if (!write_svg(plot_path, plot, letters, error)) {
       std::fprintf(stderr, "%s: error: %s\n", plot_path.c_str(), error.c_str());
       if (exit_code == 0) exit_code = 1;
