@@ -12,7 +12,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
-#include <regex>
 #include <set>
 #include <sstream>
 #include <string>
@@ -252,7 +251,13 @@ TEST_F(HmiSimulate, LookAheadFileIsTheShiftBufferOfTheProgram) {
   const auto shifts = lines(slurp(la));
   ASSERT_EQ(shifts.size(), 13u);  // the first table, then one shift for each of the 12 sections
   const std::string kEntry = "{\"movement_type\":";
-  const std::regex tangent("\"tangent_deg\":[^,]*,");
+  // An entry without its "tangent_deg":VALUE, field (std::regex would do, but GCC 12 warns
+  // inside it under the sanitizer build's -Werror).
+  const auto without_tangent = [](std::string e) {
+    const std::size_t at = e.find("\"tangent_deg\":");
+    if (at != std::string::npos) e.erase(at, e.find(',', at) + 1 - at);
+    return e;
+  };
   std::vector<std::vector<std::string>> tables;
   long last_cycle = 0;
   for (const std::string& line : shifts) {
@@ -266,7 +271,7 @@ TEST_F(HmiSimulate, LookAheadFileIsTheShiftBufferOfTheProgram) {
       const std::size_t next = line.find(kEntry, at + 1);
       // Up to the next entry's comma, or the line's closing "]}".
       const std::size_t end = next == std::string::npos ? line.size() - 2 : next - 1;
-      entries.push_back(std::regex_replace(line.substr(at, end - at), tangent, ""));
+      entries.push_back(without_tangent(line.substr(at, end - at)));
       at = next;
     }
     ASSERT_EQ(entries.size(), 8u) << line;

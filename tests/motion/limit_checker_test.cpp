@@ -26,7 +26,8 @@ constexpr double kT = 1e-3;
 
 InterpolatorConfig round_axes(int count = 3) {
   InterpolatorConfig ip = MachineConfig::default_machine().interpolators[0];
-  ip.axes.resize(static_cast<std::size_t>(count), ip.axes[0]);
+  const AxisConfig first = ip.axes[0];  // a copy: resize may move the elements
+  ip.axes.resize(static_cast<std::size_t>(count), first);
   for (int i = 0; i < count; ++i) {
     AxisConfig& a = ip.axes[static_cast<std::size_t>(i)];
     a.letter = default_axis_letter(i);
@@ -179,7 +180,8 @@ TEST(LimitCheckerQuantities, CreateRefusesABadShareAxisCountOrCycle) {
   };
   for (const Case& c : {Case{0, kCycleUs}, Case{11, kCycleUs}, Case{3, 0}, Case{3, -500}}) {
     InterpolatorConfig ip = round_axes(std::clamp(c.axes, 1, 10));
-    ip.axes.resize(static_cast<std::size_t>(c.axes), ip.axes[0]);
+    const AxisConfig first = ip.axes[0];
+    ip.axes.resize(static_cast<std::size_t>(c.axes), first);
     std::string error;
     EXPECT_FALSE(LimitChecker::create(ip, c.cycle_us, &error)) << c.axes << " " << c.cycle_us;
     EXPECT_EQ(error, "limit checker needs 1..10 axes and a positive cycle time");
