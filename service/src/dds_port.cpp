@@ -442,23 +442,20 @@ void DdsPort::publish_loop() {
     if (stopping_) break;
     // Another service on the domain (two started within each other's wait, see
     // other_service()): said once per instance, on standard error and to the HMIs.
-    if (const auto t = Clock::now(); t - other_checked_ >= std::chrono::milliseconds(200)) {
-      other_checked_ = t;
-      const std::uint64_t other = other_latest_.load(std::memory_order_acquire);
-      if (other != 0 && other != other_seen_.load(std::memory_order_relaxed)) {
-        other_seen_.store(other, std::memory_order_release);
-        char text[256];
-        std::snprintf(text, sizeof text,
-                      "another tgm-service (instance %016llx) serves this DDS domain: both take "
-                      "every request and program sent to it; stop one of them",
-                      static_cast<unsigned long long>(other));
-        std::fprintf(stderr, "tgm-service: %s\n", text);
-        message.interpolator(0);
-        message.severity(msg::SEVERITY_ERROR);
-        message.text(text);
-        message.source_line(0);
-        message_writer_.write(&message);
-      }
+    if (const std::uint64_t other = other_latest_.load(std::memory_order_acquire);
+        other != 0 && other != other_reported_) {
+      other_reported_ = other;
+      char text[256];
+      std::snprintf(text, sizeof text,
+                    "another tgm-service (instance %016llx) serves this DDS domain: both take "
+                    "every request and program sent to it; stop one of them",
+                    static_cast<unsigned long long>(other));
+      std::fprintf(stderr, "tgm-service: %s\n", text);
+      message.interpolator(0);
+      message.severity(msg::SEVERITY_ERROR);
+      message.text(text);
+      message.source_line(0);
+      message_writer_.write(&message);
     }
     // Events first, every one queued, in order: they are small and the PLC acts on them
     // (M-function handshake). The snapshot is read after them, so the state that follows them

@@ -112,11 +112,10 @@ class DdsPort final : public CyclePort {
   //! state of another tgm-service on the domain (a tgm_state sample of another instance; a
   //! live service publishes one every state period, a dead one nothing). Returns its instance,
   //! 0 when none came.
+  //! After start(), another instance seen on tgm_state (two services started within each
+  //! other's wait) is said by the publisher thread on standard error and as an error message to
+  //! the HMIs, once per instance.
   std::uint64_t other_service(std::chrono::milliseconds wait);
-  //! Another service's instance seen on tgm_state after start() (two services started within
-  //! each other's wait); 0 when none. The publisher thread checks every 200 ms and says so on
-  //! standard error and as an error message to the HMIs, once per instance.
-  std::uint64_t other_service_seen() const { return other_seen_.load(std::memory_order_acquire); }
 
  private:
   void receive_loop();
@@ -233,9 +232,7 @@ class DdsPort final : public CyclePort {
   std::mutex state_watch_mutex_;
   tgm::msg::InterpolatorState other_state_sample_;
   std::atomic<std::uint64_t> other_latest_{0};
-  // publisher thread
-  std::chrono::steady_clock::time_point other_checked_{};
-  std::atomic<std::uint64_t> other_seen_{0};
+  std::uint64_t other_reported_ = 0;  // publisher thread: the last instance said
 
   std::atomic<bool> stopping_{false};
   std::thread receiver_;
