@@ -31,12 +31,8 @@ class Args : public cli::ArgReader {
   //! The --interpolator value (0 when not given); valid after load_machine().
   int interpolator() const { return interpolator_; }
   const std::string& config_path() const { return config_path_; }
-  //! The config file that load_app() reads (--config, else default_config_path()), named for
-  //! distinct_files().
-  NamedFile config_file() const {
-    return config_path_.empty() ? NamedFile{"the default config", default_config_path()}
-                                : NamedFile{"--config", config_path_};
-  }
+  //! The config file that load_app() reads, named for distinct_files().
+  NamedFile config_file() const { return ArgReader::config_file(config_path_); }
 
  private:
   const char* usage_;

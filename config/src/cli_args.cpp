@@ -1,6 +1,7 @@
 #include "tgm/cli_args.hpp"
 
 #include "tgm/cli_numbers.hpp"
+#include "tgm/yaml_config.hpp"
 
 #include <cstdio>
 #include <cstring>
@@ -82,6 +83,11 @@ bool ArgReader::distinct_files(const std::vector<NamedFile>& inputs,
     seen.push_back(&out);
   }
   return true;
+}
+
+ArgReader::NamedFile ArgReader::config_file(const std::string& config_flag) {
+  return config_flag.empty() ? NamedFile{"the default config", default_config_path()}
+                             : NamedFile{"--config", config_flag};
 }
 
 bool ArgReader::boolean(const char* name, bool& value) {

@@ -115,11 +115,8 @@ int main(int argc, char** argv) {
     }
   }
   if (args.failed()) return 2;
-  if (!args.distinct_files(
-          {config_path.empty()
-               ? tgm::cli::ArgReader::NamedFile{"the default config", tgm::default_config_path()}
-               : tgm::cli::ArgReader::NamedFile{"--config", config_path}},
-          {{"--stats", stats_path}, {"--handshake-trace", trace_path}})) {
+  if (!args.distinct_files({tgm::cli::ArgReader::config_file(config_path)},
+                           {{"--stats", stats_path}, {"--handshake-trace", trace_path}})) {
     return 2;
   }
   if (no_realtime) rt.realtime = false;

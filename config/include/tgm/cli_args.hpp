@@ -59,6 +59,9 @@ class ArgReader {
   //! once. Checked before anything is opened, so a typo such as `--out prog.ngc` cannot
   //! destroy the program. Returns false after reporting.
   bool distinct_files(const std::vector<NamedFile>& inputs, const std::vector<NamedFile>& outputs);
+  //! The config file a program loads for `--config VALUE` (empty: not given, the default of
+  //! default_config_path()), named for distinct_files().
+  static NamedFile config_file(const std::string& config_flag);
   //! A problem was reported.
   bool failed() const { return failed_; }
   const std::string& program() const { return program_; }
