@@ -38,13 +38,13 @@ struct AppConfig {
   std::string source_path;
 };
 
-//! Outcome of loading: a config, or every problem found as "FILE:LINE: key.path: reason".
 //! load_config_file reads at most this much: a config is a few KB.
 inline constexpr std::size_t kMaxConfigBytes = std::size_t{16} << 20;
 
 //! load_config_or_report prints at most this many problems, then how many more there are.
 inline constexpr std::size_t kConfigProblemsShown = 50;
 
+//! Outcome of loading: a config, or every problem found as "FILE:LINE: key.path: reason".
 struct ConfigLoad {
   std::optional<AppConfig> config;
   std::vector<std::string> errors;
