@@ -55,40 +55,6 @@ void CompensationNote::print(const std::string& file) const {
                first_.compensation_radius_mm);
 }
 
-bool read_file(const std::string& path, std::string& out, std::string& error, std::size_t limit) {
-  std::FILE* f = std::fopen(path.c_str(), "rb");
-  if (!f) {
-    error = std::string("cannot open: ") + std::strerror(errno);
-    return false;
-  }
-  out.clear();
-  // One read of the known size; a pipe or a growing file is read to its end in blocks.
-  if (std::fseek(f, 0, SEEK_END) == 0) {
-    const long size = std::ftell(f);
-    if (size > 0) out.resize(static_cast<std::size_t>(size));
-    std::rewind(f);
-  }
-  if (out.size() > limit) out.resize(limit + 1);
-  std::size_t got = out.empty() ? 0 : std::fread(out.data(), 1, out.size(), f);
-  out.resize(got);
-  char buf[65536];
-  for (std::size_t n; out.size() <= limit && (n = std::fread(buf, 1, sizeof buf, f)) > 0;) {
-    out.append(buf, n);
-  }
-  const bool bad = std::ferror(f) != 0;
-  std::fclose(f);
-  if (bad) {
-    error = "read error";
-    return false;
-  }
-  if (out.size() > limit) {
-    out.clear();
-    error = "more than " + std::to_string(limit >> 20) + " MiB to read (an input without end?)";
-    return false;
-  }
-  return true;
-}
-
 bool write_file_atomic(const std::string& path, const std::string& bytes, std::string& error) {
   AtomicFile f;  // removes the temporary file on every early return
   return f.open(path, error) && f.write(bytes.data(), bytes.size(), error) && f.commit(error);
@@ -222,19 +188,20 @@ bool FileView::open(const std::string& path, std::string& error) {
     return false;
   }
   struct stat st {};
-  if (fstat(fd, &st) == 0 && S_ISDIR(st.st_mode)) {
+  const bool have_stat = fstat(fd, &st) == 0;
+  if (have_stat && S_ISDIR(st.st_mode)) {
     ::close(fd);
     error = "is a directory";
     return false;
   }
   // A device other than a terminal (/dev/zero, /dev/urandom) is no program: its bytes never
   // end. A pipe and a terminal are read (up to kMaxStreamedInput).
-  if (S_ISCHR(st.st_mode) && ::isatty(fd) == 0) {
+  if (have_stat && S_ISCHR(st.st_mode) && ::isatty(fd) == 0) {
     ::close(fd);
     error = "is a device, not a file";
     return false;
   }
-  if (fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && st.st_size > 0) {
+  if (have_stat && S_ISREG(st.st_mode) && st.st_size > 0) {
     void* p = mmap(nullptr, static_cast<std::size_t>(st.st_size), PROT_READ,
                    MAP_PRIVATE | MAP_POPULATE, fd, 0);
     if (p != MAP_FAILED) {
@@ -246,7 +213,20 @@ bool FileView::open(const std::string& path, std::string& error) {
     }
   }
   ::close(fd);
-  if (!read_file(path, copy_, error, kMaxStreamedInput)) return false;
+  switch (read_whole_file(path, kMaxStreamedInput, copy_)) {
+    case ReadResult::kRead:
+      break;
+    case ReadResult::kCannotOpen:
+      error = std::string("cannot open: ") + std::strerror(errno);
+      return false;
+    case ReadResult::kReadError:
+      error = "read error";
+      return false;
+    case ReadResult::kTooLarge:
+      error = "more than " + std::to_string(kMaxStreamedInput >> 20) +
+              " MiB to read (an input without end?)";
+      return false;
+  }
   text_ = copy_;
   return true;
 }

@@ -9,6 +9,7 @@
 #include "tgm/cli_args.hpp"
 #include "tgm/cli_numbers.hpp"
 #include "tgm/config.hpp"
+#include "tgm/file_text.hpp"
 #include "tgm/intercode.hpp"
 #include "tgm/yaml_config.hpp"
 
@@ -41,9 +42,6 @@ class Args : public cli::ArgReader {
   int interpolator_ = 0;
 };
 
-//! Reads a whole file of at most `limit` bytes; on failure (also: more bytes than that, as from
-//! a device without end such as /dev/zero) says why in `error`.
-bool read_file(const std::string& path, std::string& out, std::string& error, std::size_t limit);
 //! What FileView reads from a pipe or a device (regular files are mapped, of any size): 1 GiB,
 //! several times the longest program the compiler expands (compiler.max_program_segments).
 inline constexpr std::size_t kMaxStreamedInput = std::size_t{1} << 30;

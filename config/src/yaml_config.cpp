@@ -1,6 +1,7 @@
 #include "tgm/yaml_config.hpp"
 
 #include "tgm/cli_numbers.hpp"
+#include "tgm/file_text.hpp"
 
 #include <yaml-cpp/yaml.h>
 
@@ -9,12 +10,10 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <functional>
 #include <limits>
 #include <map>
 #include <set>
-#include <sstream>
 
 namespace tgm {
 
@@ -457,32 +456,29 @@ ConfigLoad load_config_file(const std::string& path) {
   ConfigLoad out;
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec)) {
-    // An ifstream opens a directory and reads nothing: that would load every default.
+    // A directory opens as a file; what reading it gives is no config (an empty text would load
+    // every default): say what it is.
     out.errors.push_back(path + ": is a directory, not a config file");
     return out;
   }
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    out.errors.push_back(path + ": cannot open the config file");
-    return out;
-  }
-  // Read in pieces up to a bound: a config is a few KB, and a device without end (/dev/zero)
-  // or a large file given by mistake must not be read for minutes.
+  // Up to a bound: a config is a few KB, and a device without end (/dev/zero) or a large file
+  // given by mistake must not be read for minutes.
   std::string text;
-  char buf[65536];
-  while (text.size() <= kMaxConfigBytes && in.read(buf, sizeof buf).gcount() > 0) {
-    text.append(buf, static_cast<std::size_t>(in.gcount()));
+  switch (read_whole_file(path, kMaxConfigBytes, text)) {
+    case ReadResult::kRead:
+      return load_config_text(text, path);
+    case ReadResult::kCannotOpen:
+      out.errors.push_back(path + ": cannot open the config file");
+      break;
+    case ReadResult::kReadError:
+      out.errors.push_back(path + ": cannot read the config file");
+      break;
+    case ReadResult::kTooLarge:
+      out.errors.push_back(path + ": more than " + std::to_string(kMaxConfigBytes >> 20) +
+                           " MiB: not a config file");
+      break;
   }
-  if (in.bad()) {
-    out.errors.push_back(path + ": cannot read the config file");
-    return out;
-  }
-  if (text.size() > kMaxConfigBytes) {
-    out.errors.push_back(path + ": more than " + std::to_string(kMaxConfigBytes >> 20) +
-                         " MiB: not a config file");
-    return out;
-  }
-  return load_config_text(text, path);
+  return out;
 }
 
 std::optional<AppConfig> load_config_or_report(const std::string& path,

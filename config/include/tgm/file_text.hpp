@@ -1,0 +1,21 @@
+// Reading a whole input file with a bound on its size, shared by the config loader and the
+// programs tgm-hmi reads from pipes: a device without end (/dev/zero) or a huge file given by
+// mistake ends in an answer, not in the memory running out.
+#pragma once
+
+#include <cstddef>
+#include <string>
+
+namespace tgm {
+
+enum class ReadResult {
+  kRead,
+  kCannotOpen,  //!< errno says why
+  kReadError,
+  kTooLarge,  //!< more than the limit (`out` is left empty)
+};
+
+//! Reads the whole of `path` into `out`, at most `limit` bytes.
+ReadResult read_whole_file(const std::string& path, std::size_t limit, std::string& out);
+
+}  // namespace tgm
