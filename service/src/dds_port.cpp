@@ -386,6 +386,7 @@ void DdsPort::publish_state(int i, const InterpolatorSnapshot& s, const Snapshot
   state_sample_.buffered_segments(s.buffered_segments);
   state_sample_.message_counter(s.message_counter);
   state_sample_.message_text(std::string(s.message_text.view()));
+  state_sample_.axis_letters(std::string(s.axis_letters.view()));
   state_sample_.cycle_counter(all.cycle);
   state_sample_.lateness_last_ns(all.lateness.last_ns);
   state_sample_.lateness_max_ns(all.lateness.max_ns);

@@ -161,6 +161,7 @@ std::optional<Engine> Engine::create(const MachineConfig& machine, const EngineO
       return std::nullopt;
     }
     Slot slot(std::move(*ip));
+    slot.letters = machine.axis_letters(i);
     if (options.check_limits) {
       slot.checker = LimitChecker::create(machine.interpolators[static_cast<std::size_t>(i)],
                                           machine.cycle_time_us, &why, options.limit_share);
@@ -245,6 +246,19 @@ void Engine::apply_chunks(CyclePort& port, int i, std::size_t& budget) {
     if (c == nullptr) return;
     if (c->decode_status != 0) {
       refuse_chunk(port, i, *c, c->error.view());
+      port.pop_chunk(i);
+      continue;
+    }
+    // Records hold positions by axis index: a program compiled for other letters (XYC) would
+    // drive this interpolator's axes (XYZ) as if they were those. The axis count is checked
+    // by the interpolator; letters only when the chunk names them.
+    const std::string_view letters =
+        std::string_view(s.letters).substr(0, s.ip.registers().number_axes);
+    if (!c->program.axis_letters.empty() && c->program.axis_letters != letters) {
+      refuse_chunk(port, i, *c,
+                   "compiled for axes " + c->program.axis_letters + ", interpolator " +
+                       std::to_string(i) + " drives " + std::string(letters) +
+                       " (the service's config): compile with that config");
       port.pop_chunk(i);
       continue;
     }
@@ -402,6 +416,7 @@ void Engine::cycle(CyclePort& port, const LatenessStats& lateness) {
     o.buffered_segments = reg.buffer_size - static_cast<std::int32_t>(s.ip.free_slots());
     o.message_counter = s.message_counter;
     o.message_text = s.message_text;
+    o.axis_letters.set(std::string_view(s.letters).substr(0, reg.number_axes));
   }
   port.publish(snapshot_);
 }

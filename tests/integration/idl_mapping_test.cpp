@@ -34,6 +34,7 @@ void expect_same_program(const Program& a, const Program& b) {
   EXPECT_EQ(a.params, b.params);
   EXPECT_EQ(a.messages, b.messages);
   EXPECT_EQ(a.number_axes, b.number_axes);
+  EXPECT_EQ(a.axis_letters, b.axis_letters);
 }
 
 Segment line_to(double x, double y, int line) {
@@ -331,6 +332,13 @@ TEST(IdlMapping, WireSideErrorsLeaveTheProgramUnchanged) {
       {"text on G1", [](msg::ProgramChunk& c) { c.segments()[1].text("hi"); },
        MapStatus::kUnexpectedText},
       {"0 axes", [](msg::ProgramChunk& c) { c.number_axes(0); }, MapStatus::kBadAxisCount},
+      {"3 letters for 4 axes", [](msg::ProgramChunk& c) { c.axis_letters("XYZ"); },
+       MapStatus::kBadAxisLetters},
+      {"a letter twice", [](msg::ProgramChunk& c) { c.axis_letters("XYZX"); },
+       MapStatus::kBadAxisLetters},
+      {"lower case", [](msg::ProgramChunk& c) { c.axis_letters("XYZa"); },
+       MapStatus::kBadAxisLetters},
+      {"a digit", [](msg::ProgramChunk& c) { c.axis_letters("XY1A"); }, MapStatus::kBadAxisLetters},
       {"129 records",
        [](msg::ProgramChunk& c) { c.segments().resize(mapping::kMaxChunkSegments + 1); },
        MapStatus::kTooManySegments},
@@ -345,6 +353,36 @@ TEST(IdlMapping, WireSideErrorsLeaveTheProgramUnchanged) {
     expect_same_program(before, target);
     EXPECT_FALSE(mapping::to_string(k.expected).empty());
   }
+}
+
+// The letters travel with every chunk, so the service can refuse a program compiled for other
+// axes; a sender that does not know them sends none, and only the axis count is checked.
+TEST(IdlMapping, AxisLettersTravelWithTheChunksAndBadOnesAreRefused) {
+  Program p = sample_program();
+  std::vector<msg::ProgramChunk> chunks;
+  ASSERT_EQ(mapping::to_chunks(p, {}, chunks), MapStatus::kOk);
+  EXPECT_EQ(chunks[0].axis_letters().to_string(), "XYZA");
+  Program back;
+  ASSERT_EQ(mapping::append_chunk(through_cdr(chunks[0]), back), MapStatus::kOk);
+  EXPECT_EQ(back.axis_letters, "XYZA");
+
+  msg::ProgramChunk unnamed = chunks[0];
+  unnamed.axis_letters("");
+  Program none;
+  ASSERT_EQ(mapping::append_chunk(through_cdr(unnamed), none), MapStatus::kOk);
+  EXPECT_EQ(none.axis_letters, "");
+  EXPECT_EQ(none.number_axes, 4);
+
+  // The sender refuses letters that do not name its axes, rather than send what the service
+  // would refuse.
+  for (const char* letters : {"XYZ", "XYZAB", "XYZX", "", "XYZ-"}) {
+    SCOPED_TRACE(letters);
+    p.axis_letters = letters;
+    EXPECT_EQ(mapping::to_chunks(p, {}, chunks), MapStatus::kBadAxisLetters);
+    EXPECT_TRUE(chunks.empty());
+  }
+  EXPECT_TRUE(mapping::valid_axis_letters("XYZABCUVWE", 10));
+  EXPECT_FALSE(mapping::valid_axis_letters("XYZABCUVWEQ", 11));
 }
 
 TEST(IdlMapping, SingleRecordPayloadIsReported) {

@@ -476,7 +476,11 @@ TEST(ServiceProcesses, HmiCommandAndStopSayAcceptedOrWhyNot) {
 // Intercode compiled for other axis letters (XYC, where interpolator 0 has XYZ) is refused
 // before anything is sent: by index, its C positions would move Z. Compiled for the right
 // letters it runs to its end.
-TEST(ServiceProcesses, HmiRunRefusesIntercodeOfOtherAxes) {
+// Intercode holds positions by axis index. A .tgmi built for XYC is refused against the
+// HMI's own config; G-code compiled with an HMI config of other letters than the service's is
+// refused against the letters the service publishes (the service refuses such a stream too:
+// Engine.AProgramCompiledForOtherAxisLettersIsRefused), and `status` names the service's axes.
+TEST(ServiceProcesses, HmiRunRefusesProgramsOfOtherAxisLetters) {
   ServiceEnv env;
   std::string rotary = test::read_text(env.config());
   ASSERT_TRUE(test::replace_first(rotary, "{letter: Z}]", "{letter: C}]"));
@@ -498,6 +502,23 @@ TEST(ServiceProcesses, HmiRunRefusesIntercodeOfOtherAxes) {
   EXPECT_NE(wrong.log().find("compiled for the axes XYC, interpolator 0 has XYZ"),
             std::string::npos)
       << wrong.log();
+  test::Child other;
+  ASSERT_TRUE(other.start(
+      {TGM_HMI_BIN, "run", env.path("p.ngc"), "--config", env.path("rotary.yaml"), "--quiet"},
+      env.path("other.log")));
+  EXPECT_EQ(other.wait(kHang), 2) << other.log();
+  EXPECT_NE(other.log().find(
+                "p.ngc: error: compiled for the axes XYC (config " + env.path("rotary.yaml") +
+                "), the service's interpolator 0 drives XYZ: use the service's config"),
+            std::string::npos)
+      << other.log();
+  test::Child status;
+  ASSERT_TRUE(status.start({TGM_HMI_BIN, "status", "--config", env.path("rotary.yaml")},
+                           env.path("status.log")));
+  EXPECT_EQ(status.wait(kHang), 0) << status.log();
+  EXPECT_NE(status.log().find("  Orig_Position [mm]    X 0.0000 Y 0.0000 Z 0.0000"),
+            std::string::npos)
+      << status.log();
   test::Child right;
   ASSERT_TRUE(right.start(
       {TGM_HMI_BIN, "run", env.path("config.yaml.tgmi"), "--config", env.config(), "--quiet"},

@@ -330,6 +330,56 @@ TEST(Engine, DuplicatesAreDroppedGapsAndForeignProgramsRefused) {
   EXPECT_EQ(port.last.ip[0].reg.status, static_cast<std::int32_t>(InterpolatorStatus::kReady));
 }
 
+// Records hold positions by axis index: a program compiled for XYC, streamed to an XYZ
+// interpolator, would drive Z as C. The service refuses it; a chunk that names no letters is
+// checked only by its axis count. The snapshot names the letters for the state topic.
+TEST(Engine, AProgramCompiledForOtherAxisLettersIsRefused) {
+  Engine e = make_engine();
+  MockPort port;
+  Program rotary = line_program(4);
+  rotary.axis_letters = "XYC";
+  port.add_chunk(0, rotary, 0, rotary.segments.size(), 3, true);
+  e.cycle(port, {});
+  ASSERT_EQ(port.messages.size(), 1u);
+  EXPECT_EQ(port.messages[0].severity, MessageOut::Severity::kError);
+  EXPECT_EQ(port.messages[0].text.view(),
+            "program 3 refused: compiled for axes XYC, interpolator 0 drives XYZ (the service's "
+            "config): compile with that config");
+  EXPECT_EQ(port.last.ip[0].program_id, 0u);
+  EXPECT_EQ(port.last.ip[0].next_sequence, 0u);
+  EXPECT_EQ(port.last.ip[0].axis_letters.view(), "XYZ");
+
+  Program unnamed = line_program(4);
+  unnamed.axis_letters.clear();
+  port.add_chunk(0, unnamed, 0, unnamed.segments.size(), 4, true);
+  const Program right = line_program(4);
+  port.add_chunk(1, right, 0, right.segments.size(), 5, true);
+  e.cycle(port, {});
+  EXPECT_EQ(port.messages.size(), 1u);
+  EXPECT_EQ(port.last.ip[0].program_id, 4u);
+  EXPECT_EQ(port.last.ip[0].next_sequence, unnamed.segments.size());
+  EXPECT_EQ(port.last.ip[1].program_id, 5u);
+  EXPECT_EQ(port.last.ip[1].next_sequence, right.segments.size());
+
+  // Number_Axes 2 (written by the PLC): the first two letters, and a 3-axis program is refused
+  // by its count as before.
+  port.add_request(Role::kHmi, RequestKind::kClear, 1);
+  port.add_request(Role::kPlc, RequestKind::kWriteNumberAxes, 1).value = 2;
+  e.cycle(port, {});
+  ASSERT_EQ(port.replies.size(), 2u);
+  EXPECT_EQ(port.replies[1].code, ReplyCode::kAccepted) << port.replies[1].reason.view();
+  EXPECT_EQ(port.last.ip[1].axis_letters.view(), "XY");
+  Program two = line_program(2);
+  two.number_axes = 2;
+  two.axis_letters = "XZ";
+  port.add_chunk(1, two, 0, two.segments.size(), 6, true);
+  e.cycle(port, {});
+  ASSERT_EQ(port.messages.size(), 2u);
+  EXPECT_NE(port.messages[1].text.view().find("compiled for axes XZ, interpolator 1 drives XY"),
+            std::string_view::npos)
+      << port.messages[1].text.view();
+}
+
 TEST(Engine, NormalMFunctionWaitsForTheAckAndResumesInTheSameCycle) {
   Engine e = make_engine();
   MockPort port;

@@ -62,7 +62,10 @@ namespace {
 }
 }  // namespace
 
-std::string format_state(const msg::InterpolatorState& s, const std::string& letters) {
+std::string format_state(const msg::InterpolatorState& s, const std::string& config_letters) {
+  // The service's letters, where it sends them: they are what its positions mean.
+  const std::string letters =
+      s.axis_letters().size() == 0 ? config_letters : s.axis_letters().to_string();
   std::string out;
   char buf[512];
   const int n = std::max(1, std::min<int>(s.number_axes(), kMaxAxes));

@@ -23,7 +23,8 @@ int make_client(Args& args, const DdsOverrides& o, std::optional<AppConfig>& con
 //! Waits for the state of `interpolator`; prints a clear error when there is none.
 bool wait_for_service(client::Client& c, const AppConfig& config, int interpolator, const char* command);
 
-//! The registers of one interpolator as readable lines.
-std::string format_state(const msg::InterpolatorState& s, const std::string& axis_letters);
+//! The registers of one interpolator as readable lines, the axes named by the service's
+//! letters (`config_letters` when the state has none).
+std::string format_state(const msg::InterpolatorState& s, const std::string& config_letters);
 
 }  // namespace tgm::hmi

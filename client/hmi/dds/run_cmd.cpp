@@ -250,6 +250,17 @@ int run_run(int argc, char** argv) {
 
   // Take the interpolator over: clear what it holds (only while it stands).
   const msg::InterpolatorState* st = hmi->state(ip);
+  // Positions go by axis index: a program compiled with a config whose letters differ from the
+  // service's would drive the wrong axes (the service refuses it too; this says why up front).
+  if (const std::string service_letters = st->axis_letters().to_string();
+      !service_letters.empty() && service_letters != program.axis_letters) {
+    std::fprintf(stderr,
+                 "%s: error: compiled for the axes %s (config %s), the service's interpolator %d "
+                 "drives %s: use the service's config\n",
+                 file.c_str(), program.axis_letters.c_str(), args.config_file().path.c_str(), ip,
+                 service_letters.c_str());
+    return 2;
+  }
   // The service this run talks to: a restarted one has lost the program.
   const std::uint64_t instance = st->service_instance();
   if (st->status() == 1 || st->status() == 6) {

@@ -75,6 +75,8 @@ std::string_view to_string(MapStatus s) {
       return "number of axes outside 1..10";
     case MapStatus::kBadIndex:
       return "record index beyond the end of the program";
+    case MapStatus::kBadAxisLetters:
+      return "axis letters must be one distinct letter A..Z per axis";
   }
   return "unknown mapping status";
 }
@@ -185,7 +187,10 @@ MapStatus fill_chunk(const Program& program, std::size_t first, const ChunkHeade
   out.interpolator(header.interpolator);
   out.program_id(header.program_id);
   out.sequence_number(first);
+  if (!valid_axis_letters(program.axis_letters, program.number_axes))
+    return MapStatus::kBadAxisLetters;
   out.number_axes(static_cast<std::uint16_t>(program.number_axes));
+  out.axis_letters(program.axis_letters);
   auto& segs = out.segments();
   segs.clear();
   std::size_t bytes = empty_chunk_bytes();
@@ -224,13 +229,31 @@ MapStatus to_chunks(const Program& program, const ChunkHeader& header,
   return MapStatus::kOk;
 }
 
+bool valid_axis_letters(std::string_view letters, int number_axes) {
+  if (number_axes < 1 || number_axes > kMaxAxes ||
+      letters.size() != static_cast<std::size_t>(number_axes)) {
+    return false;
+  }
+  for (std::size_t i = 0; i < letters.size(); ++i) {
+    if (letters[i] < 'A' || letters[i] > 'Z' ||
+        letters.substr(0, i).find(letters[i]) != std::string_view::npos) {
+      return false;
+    }
+  }
+  return true;
+}
+
 MapStatus append_chunk(const msg::ProgramChunk& chunk, Program& program) {
   if (chunk.segments().size() > kMaxChunkSegments) return MapStatus::kTooManySegments;
   if (chunk.number_axes() < 1 || chunk.number_axes() > kMaxAxes) return MapStatus::kBadAxisCount;
+  const std::string_view letters(chunk.axis_letters().c_str(), chunk.axis_letters().size());
+  if (!letters.empty() && !valid_axis_letters(letters, chunk.number_axes()))
+    return MapStatus::kBadAxisLetters;
   for (const msg::Segment& s : chunk.segments()) {
     if (const MapStatus st = validate(s); st != MapStatus::kOk) return st;
   }
   program.number_axes = chunk.number_axes();
+  program.axis_letters = letters;
   program.segments.reserve(program.segments.size() + chunk.segments().size());
   for (const msg::Segment& s : chunk.segments()) {
     (void)append_from_idl(s, program);  // validated above, cannot fail

@@ -42,6 +42,7 @@ enum class MapStatus : std::int8_t {
   kTooManySegments = -7,  //!< chunk holds more records than the IDL bound
   kBadAxisCount = -8,     //!< number of axes outside 1..kMaxAxes
   kBadIndex = -9,         //!< first record index beyond the end of the program
+  kBadAxisLetters = -10,  //!< axis letters neither empty nor one distinct A..Z per axis
 };
 
 //! A short English reason for a status ("ok" for kOk).
@@ -90,7 +91,12 @@ MapStatus fill_chunk(const Program& program, std::size_t first, const ChunkHeade
 MapStatus to_chunks(const Program& program, const ChunkHeader& header,
                     std::vector<msg::ProgramChunk>& chunks);
 
-//! Appends every record of `chunk` to `program` (and sets `program.number_axes`). Validates the
+//! True when `letters` name `number_axes` axes: one distinct letter A..Z each. (Empty letters,
+//! which a chunk may carry when its sender does not know them, are checked by the callers.)
+bool valid_axis_letters(std::string_view letters, int number_axes);
+
+//! Appends every record of `chunk` to `program` (and sets `program.number_axes` and
+//! `program.axis_letters`, empty when the chunk names none). Validates the
 //! whole chunk first: on error `program` is unchanged. Sequence numbers are the caller's business
 //! (it knows which one it expects).
 MapStatus append_chunk(const msg::ProgramChunk& chunk, Program& program);

@@ -87,6 +87,7 @@ class Engine {
     std::uint32_t message_counter = 0;
     FixedText<256> message_text;
     std::uint64_t events = 0;  // EventOut::counter of the last event queued
+    std::string letters;       // the config's axis letters (Number_Axes takes the first ones)
   };
   Engine(std::vector<Slot> ips, const EngineOptions& o) : ips_(std::move(ips)), opt_(o) {}
   ReplyOut apply(const RequestIn& r);

@@ -146,6 +146,8 @@ struct InterpolatorSnapshot {
   std::int32_t buffered_segments = 0;
   std::uint32_t message_counter = 0;
   FixedText<256> message_text;
+  //! Letters of the Number_Axes axes ("XYZ").
+  FixedText<kMaxAxes + 1> axis_letters;
 };
 
 //! Everything the publisher needs after one cycle.
