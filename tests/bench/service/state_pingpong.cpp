@@ -9,10 +9,11 @@
 //                            [--mode waitset|listener|both] [--count N] [--warmup N] [--block N]
 //                            [--domain D] [--profiles FILE] [--sinks N] [--interval-us N]
 //
-// --sample state: tgm::msg::InterpolatorState with the tgm_state profiles (3,828 B, the sample
-//   the service wrote first before the event topic existed); event: tgm::msg::InterpolatorEvent
-//   with the tgm_event profiles (what the service writes first now); request: tgm::msg::Request
-//   with the tgm_request profiles, answered by a tgm::msg::Reply with the tgm_reply ones.
+// --sample state: tgm::msg::InterpolatorState with the tgm_state profiles (3,836 B with three
+//   axis letters, the sample the service wrote first before the event topic existed); event:
+//   tgm::msg::InterpolatorEvent with the tgm_event profiles (what the service writes first
+//   now); request: tgm::msg::Request with the tgm_request profiles, answered by a
+//   tgm::msg::Reply with the tgm_reply ones.
 // --mode waitset: the pong waits on a WaitSet in its main thread, takes, writes the Request; the
 //   ping waits on a WaitSet for it and stops the clock after the take.
 // --mode listener: the pong answers from its DataReaderListener (Fast DDS's receive thread), as
