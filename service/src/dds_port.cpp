@@ -13,6 +13,7 @@
 
 #include "tgm/dds/topics.hpp"
 #include "tgm/idl_mapping.hpp"
+#include "tgm/service/peer_service.hpp"
 
 namespace tgm::service {
 
@@ -126,6 +127,7 @@ void DdsPort::take_states() {
   const std::lock_guard lock(state_watch_mutex_);
   while (dds::take_next(state_reader_, other_state_sample_)) {
     if (other_state_sample_.service_instance() != service_instance_) {
+      other_cycles_.store(other_state_sample_.cycle_counter(), std::memory_order_relaxed);
       other_latest_.store(other_state_sample_.service_instance(), std::memory_order_release);
     }
   }
@@ -442,16 +444,37 @@ void DdsPort::publish_loop() {
     }
     if (stopping_) break;
     // Another service on the domain (two started within each other's wait, see
-    // other_service()): said once per instance, on standard error and to the HMIs.
+    // other_service()): said once per instance, on standard error and to the HMIs. In its
+    // first cycles a service gives way to it (gives_way(), DdsPortOptions::yield_window_cycles);
+    // after them it does not (one that drives a machine is not stopped by a newcomer).
     if (const std::uint64_t other = other_latest_.load(std::memory_order_acquire);
         other != 0 && other != other_reported_) {
       other_reported_ = other;
+      const std::uint64_t mine = snap != nullptr ? snap->cycle : 0;
+      const bool young = opt_.yield_window_cycles > 0 && mine < opt_.yield_window_cycles;
+      const bool give_way =
+          gives_way(mine, service_instance_, other_cycles_.load(std::memory_order_relaxed), other,
+                    opt_.yield_window_cycles);
       char text[256];
-      std::snprintf(text, sizeof text,
-                    "another tgm-service (instance %016llx) serves this DDS domain: both take "
-                    "every request and program sent to it; stop one of them",
-                    static_cast<unsigned long long>(other));
+      if (give_way) {
+        std::snprintf(text, sizeof text,
+                      "another tgm-service (instance %016llx) serves this DDS domain: this one "
+                      "(instance %016llx, started with it or after it) gives way and exits",
+                      static_cast<unsigned long long>(other),
+                      static_cast<unsigned long long>(service_instance_));
+      } else if (young) {
+        std::snprintf(text, sizeof text,
+                      "another tgm-service (instance %016llx) started on this DDS domain with "
+                      "this one; it should give way and exit: if it does not, stop one of them",
+                      static_cast<unsigned long long>(other));
+      } else {
+        std::snprintf(text, sizeof text,
+                      "another tgm-service (instance %016llx) serves this DDS domain: both take "
+                      "every request and program sent to it; stop one of them",
+                      static_cast<unsigned long long>(other));
+      }
       std::fprintf(stderr, "tgm-service: %s\n", text);
+      if (give_way) yielded_to_.store(other, std::memory_order_release);
       message.interpolator(0);
       message.severity(msg::SEVERITY_ERROR);
       message.text(text);

@@ -38,6 +38,12 @@ struct DdsPortOptions {
   std::chrono::microseconds progress_period{2000};
   //! Publish setpoints every Nth snapshot the publisher sees (1 = every cycle).
   int setpoint_decimation = 1;
+  //! Two services that started within each other's look (DdsPort::other_service) both serve.
+  //! In its first `yield_window_cycles` cycles a service that sees another one gives way to it
+  //! (yielded_to()) when the other has run a fifth of the window longer or, closer in age, has
+  //! the lower instance: of two that see each other one gives way. 0: never (tgm-service
+  //! --service-check-ms 0).
+  std::uint64_t yield_window_cycles = 0;
 };
 
 //! Publisher-side stamps of one event write that showed a new M_Func (and of the state write
@@ -116,6 +122,9 @@ class DdsPort final : public CyclePort {
   //! other's wait) is said by the publisher thread on standard error and as an error message to
   //! the HMIs, once per instance.
   std::uint64_t other_service(std::chrono::milliseconds wait);
+  //! The instance this service gave way to (DdsPortOptions::yield_window_cycles), 0 = none: the
+  //! caller stops the service. Any thread.
+  std::uint64_t yielded_to() const { return yielded_to_.load(std::memory_order_acquire); }
 
  private:
   void receive_loop();
@@ -232,7 +241,9 @@ class DdsPort final : public CyclePort {
   std::mutex state_watch_mutex_;
   tgm::msg::InterpolatorState other_state_sample_;
   std::atomic<std::uint64_t> other_latest_{0};
+  std::atomic<std::uint64_t> other_cycles_{0};  // cycle_counter of other_latest_'s last sample
   std::uint64_t other_reported_ = 0;  // publisher thread: the last instance said
+  std::atomic<std::uint64_t> yielded_to_{0};
 
   std::atomic<bool> stopping_{false};
   std::thread receiver_;

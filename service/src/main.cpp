@@ -54,7 +54,8 @@ constexpr const char* kUsage =
     "                         each limit, e.g. 0.8 reports where a program uses over 80 %%\n"
     "  --service-check-ms N   before serving, wait up to N ms for the state of another\n"
     "                         tgm-service on the domain and exit (code 1) if one is live\n"
-    "                         (default 500, 0..10000; 0 = do not look)\n"
+    "                         (default 500, 0..10000; 0 = do not look). Of two started\n"
+    "                         together, one gives way (exit code 1) in its first 10,000 cycles\n"
     "  --duration S           stop by itself after S seconds\n"
     "  --stats FILE           write lateness, handshake and counter figures as JSON at exit\n"
     "  --handshake-trace FILE write the time stamps of every M-function handshake as CSV at exit\n"
@@ -135,6 +136,10 @@ int main(int argc, char** argv) {
     return 2;
   }
   port_options.interpolators = engine->count();
+  // Two services started within each other's look both serve; in its first cycles one gives
+  // way to the other (DdsPortOptions::yield_window_cycles): 5 s at 500 us, long enough for
+  // discovery on a loaded host, short enough that no program has been sent yet.
+  if (service_check_ms > 0) port_options.yield_window_cycles = 10'000;
 
   // SIGINT / SIGTERM are taken by sigwait in this thread only: block them before any other
   // thread (Fast DDS's included) exists, so no other thread is interrupted.
@@ -217,16 +222,27 @@ int main(int argc, char** argv) {
     loop.run(stop);
   });
 
+  // Runs until a signal, the --duration or, in the first cycles, another service this one gives
+  // way to (DdsPortOptions::yield_window_cycles); looked at every 100 ms.
   int sig = 0;
-  if (duration_s > 0.0) {
-    timespec ts{};
-    ts.tv_sec = static_cast<time_t>(duration_s);
-    ts.tv_nsec = static_cast<long>((duration_s - static_cast<double>(ts.tv_sec)) * 1e9);
-    sig = sigtimedwait(&signals, nullptr, &ts);
-  } else {
-    while (sigwait(&signals, &sig) != 0) {
+  {
+    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(duration_s);
+    while (port->yielded_to() == 0 &&
+           (duration_s <= 0.0 || std::chrono::steady_clock::now() < until)) {
+      timespec slice{};
+      slice.tv_nsec = 100'000'000;
+      if (duration_s > 0.0) {
+        const auto left = std::chrono::duration_cast<std::chrono::nanoseconds>(
+            until - std::chrono::steady_clock::now());
+        if (left.count() < slice.tv_nsec)
+          slice.tv_nsec = std::max<long>(0, static_cast<long>(left.count()));
+      }
+      sig = sigtimedwait(&signals, nullptr, &slice);
+      if (sig > 0) break;
+      sig = 0;
     }
   }
+  const std::uint64_t yielded_to = port->yielded_to();
   // The stop can wait on other threads (the cycle, Fast DDS callbacks, the participant's
   // shutdown). A watchdog says where it is when that takes long, and a second signal ends the
   // process at once: an operator is never left with a service that ignores Ctrl-C.
@@ -269,8 +285,10 @@ int main(int argc, char** argv) {
       " p99.9 %.1f us, max %.1f us, missed %llu; cycle work p99.9 %.1f us, max %.1f us;"
       " %llu requests (%llu refused, %llu busy), %llu chunks, %llu segments,"
       " %llu events (%llu lost), %llu states, %llu setpoints published%s\n",
-      sig > 0 ? strsignal(sig) : "time is up", static_cast<unsigned long long>(st.cycles),
-      static_cast<double>(hist.quantile_ns(0.5)) / 1e3,
+      sig > 0           ? strsignal(sig)
+      : yielded_to != 0 ? "gave way to another service"
+                        : "time is up",
+      static_cast<unsigned long long>(st.cycles), static_cast<double>(hist.quantile_ns(0.5)) / 1e3,
       static_cast<double>(hist.quantile_ns(0.99)) / 1e3,
       static_cast<double>(hist.quantile_ns(0.999)) / 1e3, static_cast<double>(hist.max_ns()) / 1e3,
       static_cast<unsigned long long>(st.missed_cycles),
@@ -355,5 +373,5 @@ int main(int argc, char** argv) {
   port.reset();
   stopped.store(true, std::memory_order_release);
   watchdog.join();
-  return 0;
+  return yielded_to != 0 ? 1 : 0;
 }

@@ -375,7 +375,9 @@ TEST(ServiceProcesses, HmiRunEndsWithAClearErrorWhenTheServiceRestarts) {
 // participant still within its lease after SIGKILL) publishes nothing and holds up no restart.
 TEST(ServiceProcesses, ASecondServiceOnTheDomainIsRefusedOrReported) {
   ServiceEnv env;
-  ASSERT_TRUE(env.start_service());
+  // Not looking, the first service also never gives way (OfTwoServicesStartedTogetherOneGivesWay):
+  // the unchecked one below starts within its first cycles.
+  ASSERT_TRUE(env.start_service({"--service-check-ms", "0"}));
   client::Client hmi(env.dds(), client::Role::kHmi);
   ASSERT_TRUE(hmi.wait_for_state(0, kHang));
   const std::uint64_t first = hmi.state(0)->service_instance();
@@ -428,6 +430,53 @@ TEST(ServiceProcesses, ASecondServiceOnTheDomainIsRefusedOrReported) {
       0, [&](const msg::InterpolatorState& s) { return s.service_instance() != first; }, kHang))
       << env.service.log();
   EXPECT_EQ(env.service.log().find("already serves"), std::string::npos) << env.service.log();
+}
+
+// Two services started at the same moment each look (50 ms here, shorter than discovery), see
+// nothing (neither publishes while it looks) and serve. In their first cycles one gives way to
+// the other and exits with code 1 (or, started far enough apart, the later one finds the first
+// in its look and exits): one service is left, and every state an HMI sees afterwards is its.
+TEST(ServiceProcesses, OfTwoServicesStartedTogetherOneGivesWay) {
+  ServiceEnv env;
+  test::Child a, b;
+  for (test::Child* c : {&a, &b}) {
+    ASSERT_TRUE(c->start(
+        {TGM_SERVICE_BIN, "--config", env.config(), "--no-realtime", "--service-check-ms", "50"},
+        env.path(c == &a ? "a.log" : "b.log")));
+  }
+  const auto until = std::chrono::steady_clock::now() + kHang;
+  int code_a = -1, code_b = -1;
+  while (code_a == -1 && code_b == -1 && std::chrono::steady_clock::now() < until) {
+    code_a = a.wait(50ms);
+    if (code_a == -1) code_b = b.wait(50ms);
+  }
+  ASSERT_TRUE(code_a != -1 || code_b != -1) << a.log() << "\n----\n" << b.log();
+  test::Child& gone = code_a != -1 ? a : b;
+  test::Child& left = code_a != -1 ? b : a;
+  EXPECT_EQ(code_a != -1 ? code_a : code_b, 1) << gone.log();
+  const std::string why = gone.log();
+  EXPECT_TRUE(why.find("gives way and exits") != std::string::npos ||
+              why.find("already serves DDS domain") != std::string::npos)
+      << why;
+  if (why.find("gives way") != std::string::npos) {
+    EXPECT_NE(why.find("stopping (gave way to another service)"), std::string::npos) << why;
+  }
+  // The one left serves on, alone: after its peer's last samples it is the only instance.
+  client::Client hmi(env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(hmi.wait_for_state(0, kHang));
+  std::this_thread::sleep_for(1s);
+  hmi.poll(100ms);
+  const std::uint64_t instance = hmi.state(0)->service_instance();
+  bool other_seen = false;
+  for (int i = 0; i < 20; ++i) {
+    hmi.poll(50ms);
+    other_seen = other_seen || hmi.state(0)->service_instance() != instance;
+  }
+  EXPECT_FALSE(other_seen);
+  EXPECT_TRUE(left.running()) << left.log();
+  EXPECT_EQ(left.wait(1s), -1) << left.log();
+  EXPECT_EQ(left.interrupt(10s, SIGTERM), 0) << left.log();
+  EXPECT_EQ(left.log().find("gives way and exits"), std::string::npos) << left.log();
 }
 
 // tgm-hmi command and stop as an operator types them: "WHAT: accepted" and exit code 0, or the
