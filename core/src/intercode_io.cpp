@@ -5,6 +5,8 @@
 #include <cstring>
 #include <limits>
 
+#include "tgm/printable.hpp"
+
 namespace tgm {
 
 namespace {
@@ -444,7 +446,7 @@ void dump_text(const Program& p, std::string& out) {
       }
     } else if (s.type == SegmentType::kMessage) {
       out += " \"";
-      out += message_of(p, s);
+      out += printable(message_of(p, s));
       out += '"';
     } else if (s.type == SegmentType::kDwell) {
       std::snprintf(buf, sizeof buf, " %.6g s", s.dwell_s);

@@ -10,6 +10,7 @@
 
 #include "tgm/gcode.hpp"
 #include "tgm/intercode_io.hpp"
+#include "tgm/printable.hpp"
 
 namespace tgm {
 namespace {
@@ -597,9 +598,20 @@ TEST(Intercode, DumpsShowEveryRecordKind) {
             "     2  M   M1003 (continuous)\n"
             "     3  M   M0 (program_stop)\n"
             "     4  M   M3 (normal) Q2.5 S1200\n"
-            "     5  MSG \"say \"hi\" \\ back\ttab\001x\"\n"
+            "     5  MSG \"say \"hi\" \\ back\\ttab\\x01x\"\n"
             "     6  G4  0.25 s\n"
             "     7  M   M2 (program_end)\n");
+}
+
+// A message or a reply's reason printed on an operator's terminal: control characters (an
+// escape sequence would clear or recolour the screen) are shown as escapes, UTF-8 as it is.
+TEST(Printable, ControlCharactersAreEscapedAndTheRestKept) {
+  EXPECT_EQ(printable("plain text, 100 %"), "plain text, 100 %");
+  EXPECT_EQ(printable("tab\tcr\rlf\n"), "tab\\tcr\\rlf\\n");
+  EXPECT_EQ(printable("\x1b[2Jgone"), "\\x1b[2Jgone");
+  EXPECT_EQ(printable(std::string_view("nul\0del\x7f", 8)), "nul\\x00del\\x7f");
+  EXPECT_EQ(printable("Spindel gekühlt"), "Spindel gekühlt");
+  EXPECT_EQ(printable("back\\slash \"quoted\""), "back\\slash \"quoted\"");
 }
 
 // Intercode that encodes but does not describe a program is refused with the record and the

@@ -8,6 +8,7 @@
 
 #include "commands.hpp"
 #include "dds_common.hpp"
+#include "tgm/printable.hpp"
 
 namespace tgm::hmi {
 
@@ -118,7 +119,9 @@ int run_watch(int argc, char** argv) {
     if (tty) std::printf("\033[H\033[2J");
     std::fputs(format_state(*c.client->state(ip), c.config->machine.axis_letters(ip)).c_str(), stdout);
     for (const auto& m : c.client->take_messages()) {
-      if (m.interpolator() == ip) std::printf("message (line %d): %s\n", m.source_line(), m.text().c_str());
+      if (m.interpolator() == ip)
+        std::printf("message (line %d): %s\n", m.source_line(),
+                    printable(m.text().c_str()).c_str());
     }
     if (!tty) std::printf("\n");
     std::fflush(stdout);

@@ -7,6 +7,7 @@
 #include <type_traits>
 
 #include "tgm/intercode.hpp"
+#include "tgm/printable.hpp"
 #include "tgm/registers.hpp"
 
 namespace tgm::hmi {
@@ -140,7 +141,8 @@ std::string format_state(const msg::InterpolatorState& s, const std::string& con
               static_cast<double>(s.lateness_p999_ns()) / 1e3,
               static_cast<unsigned long long>(s.missed_cycles()));
   if (s.message_counter() > 0)
-    append_line(out, "  last message (%u): %s", s.message_counter(), s.message_text().c_str());
+    append_line(out, "  last message (%u): %s", s.message_counter(),
+                printable(s.message_text().c_str()).c_str());
   return out;
 }
 

@@ -17,6 +17,7 @@
 #include "plot_series.hpp"
 #include "tgm/gcode.hpp"
 #include "tgm/intercode_io.hpp"
+#include "tgm/printable.hpp"
 #include "tgm/registers.hpp"
 
 namespace tgm::hmi {
@@ -363,8 +364,11 @@ int run_run(int argc, char** argv) {
       if (m.interpolator() != ip) continue;
       clear_progress();
       const bool err = m.severity() == msg::SEVERITY_ERROR;
-      std::printf("%s (line %d): %s\n", err ? "ERROR" : m.severity() == msg::SEVERITY_WARNING ? "warning" : "M29",
-                  m.source_line(), m.text().c_str());
+      std::printf("%s (line %d): %s\n",
+                  err                                     ? "ERROR"
+                  : m.severity() == msg::SEVERITY_WARNING ? "warning"
+                                                          : "M29",
+                  m.source_line(), printable(m.text().c_str()).c_str());
       ++messages;
       if (err && std::string(m.text().c_str()).find(std::to_string(program_id)) != std::string::npos) exit_code = 1;
     }

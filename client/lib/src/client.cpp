@@ -8,6 +8,7 @@
 #include "tgm/dds/topics.hpp"
 #include "tgm/idl_mapping.hpp"
 #include "tgm/msg/tgmPubSubTypes.h"
+#include "tgm/printable.hpp"
 
 namespace tgm::client {
 
@@ -30,7 +31,7 @@ std::string_view reply_code_name(msg::ReplyCode c) {
 std::string describe(const Reply& r) {
   if (r.timed_out) return "no reply (is tgm-service running on this domain?)";
   if (r.accepted) return "accepted";
-  return "refused (" + std::string(reply_code_name(r.code)) + "): " + r.reason;
+  return "refused (" + std::string(reply_code_name(r.code)) + "): " + printable(r.reason);
 }
 
 std::string_view status_name(std::int32_t status) {
