@@ -390,6 +390,7 @@ void DdsPort::publish_state(int i, const InterpolatorSnapshot& s, const Snapshot
   state_sample_.message_text(std::string(s.message_text.view()));
   state_sample_.axis_letters(std::string(s.axis_letters.view()));
   state_sample_.cycle_counter(all.cycle);
+  state_sample_.cycle_time_us(opt_.cycle_time_us);
   state_sample_.lateness_last_ns(all.lateness.last_ns);
   state_sample_.lateness_max_ns(all.lateness.max_ns);
   state_sample_.lateness_p999_ns(all.lateness.p999_ns);

@@ -38,6 +38,8 @@ struct DdsPortOptions {
   std::chrono::microseconds progress_period{2000};
   //! Publish setpoints every Nth snapshot the publisher sees (1 = every cycle).
   int setpoint_decimation = 1;
+  //! The interpolation cycle [us], published in every state (InterpolatorState.cycle_time_us).
+  int cycle_time_us = 500;
   //! Two services that started within each other's look (DdsPort::other_service) both serve.
   //! In its first `yield_window_cycles` cycles a service that sees another one gives way to it
   //! (yielded_to()) when the other has run a fifth of the window longer or, closer in age, has

@@ -136,6 +136,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   port_options.interpolators = engine->count();
+  port_options.cycle_time_us = config.machine.cycle_time_us;
   // Two services started within each other's look both serve; in its first cycles one gives
   // way to the other (DdsPortOptions::yield_window_cycles): 5 s at 500 us, long enough for
   // discovery on a loaded host, short enough that no program has been sent yet.

@@ -577,6 +577,34 @@ TEST(ServiceProcesses, HmiRunRefusesProgramsOfOtherAxisLetters) {
       << right.log();
 }
 
+// The state carries the service's cycle time: tgm-hmi run times the program by it, not by its
+// own config's (an HMI with the default 500 us config against a service at 1 ms printed half
+// the program time), and status shows it.
+TEST(ServiceProcesses, HmiTimesTheProgramByTheServicesCycle) {
+  ServiceEnv env;
+  std::string slow = test::read_text(env.config());
+  ASSERT_TRUE(test::replace_first(slow, "cycle_time_us: 500", "cycle_time_us: 1000"));
+  std::ofstream(env.path("slow.yaml")) << slow;
+  ASSERT_TRUE(env.start_service({"--config", env.path("slow.yaml")}));
+  std::ofstream(env.path("p.ngc")) << "G90 G1 X10 F600\nM2\n";  // 1 s at the feed, plus the ramps
+  test::Child run;
+  ASSERT_TRUE(
+      run.start({TGM_HMI_BIN, "run", env.path("p.ngc"), "--config", env.config(), "--quiet"},
+                env.path("run.log")));
+  ASSERT_EQ(run.wait(kHang), 0) << run.log();
+  const std::string log = run.log();
+  const auto at = log.find(" lines in ");
+  ASSERT_NE(at, std::string::npos) << log;
+  const double seconds = std::strtod(log.c_str() + at + 10, nullptr);
+  EXPECT_GT(seconds, 1.0) << log;
+  EXPECT_LT(seconds, 1.3) << log;
+  test::Child status;
+  ASSERT_TRUE(
+      status.start({TGM_HMI_BIN, "status", "--config", env.config()}, env.path("status.log")));
+  EXPECT_EQ(status.wait(kHang), 0) << status.log();
+  EXPECT_NE(status.log().find(" of 1000 us, lateness"), std::string::npos) << status.log();
+}
+
 TEST(ServiceProcesses, LateJoiningHmiSeesTheCurrentStateAtOnce) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());

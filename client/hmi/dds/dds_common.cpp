@@ -134,8 +134,9 @@ std::string format_state(const msg::InterpolatorState& s, const std::string& con
   append_line(out, "  M-functions handed over %u; service instance %016llx", s.m_func_count(),
               static_cast<unsigned long long>(s.service_instance()));
   append_line(out,
-              "  cycle %llu, lateness last %.1f us, max %.1f us, p99.9 %.1f us, missed cycles %llu",
-              static_cast<unsigned long long>(s.cycle_counter()),
+              "  cycle %llu of %d us, lateness last %.1f us, max %.1f us, p99.9 %.1f us, missed "
+              "cycles %llu",
+              static_cast<unsigned long long>(s.cycle_counter()), s.cycle_time_us(),
               static_cast<double>(s.lateness_last_ns()) / 1e3,
               static_cast<double>(s.lateness_max_ns()) / 1e3,
               static_cast<double>(s.lateness_p999_ns()) / 1e3,

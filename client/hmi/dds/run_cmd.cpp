@@ -280,7 +280,9 @@ int run_run(int argc, char** argv) {
   PlotSeries plot_path_points(PlotSeries::Spacing::kDistance, 0.05, kMaxPlotPoints);
   PlotSeries plot_speed_points(PlotSeries::Spacing::kFirst, 0.0, kMaxPlotPoints);
   std::uint64_t first_cycle = 0;
-  const double cycle_s = config->machine.cycle_time_us * 1e-6;
+  // Times are the service's cycles at the service's cycle time (this config's may differ).
+  const double cycle_s =
+      (st->cycle_time_us() > 0 ? st->cycle_time_us() : config->machine.cycle_time_us) * 1e-6;
   if (!plot_path.empty()) {
     hmi->on_setpoints = [&](const msg::Setpoints& s) {
       if (s.interpolator() != ip) return;
