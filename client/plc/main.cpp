@@ -67,7 +67,8 @@ constexpr const char* kUsage =
     "of plc.m_delay_s (or plc.default_m_delay_s), notes continuous M-functions, logs both.\n"
     "It sees M-functions on the small event topic first: an acknowledgement due at once\n"
     "(delay 0, continuous) is written from the event callback, the rest from the main loop.\n"
-    "Stops cleanly on SIGINT / SIGTERM.\n"
+    "The basic parameters go by axis index: when the config's axis letters are not those the\n"
+    "service publishes, none are sent and the log says why. Stops cleanly on SIGINT / SIGTERM.\n"
     "\n"
     "  --config YAML        machine config (default: $TGM_CONFIG, the installed or the in-tree\n"
     "                       config/default.yaml)\n"
@@ -583,7 +584,19 @@ int main(int argc, char** argv) {
                      *rel_speed,
                      tgm::client::describe(plc->set_rel_speed(sv.number, *rel_speed)).c_str());
         }
-        if (basic) {
+        // The basic parameters go by axis index (gear ratios, the IIR axis mask): from a config
+        // whose axes are not the service's they would set the wrong axes.
+        const std::string mine = config.machine.axis_letters(sv.number);
+        const std::string theirs = s->axis_letters().to_string();
+        const bool same_axes = theirs.empty() || mine.compare(0, theirs.size(), theirs) == 0;
+        if (basic && !same_axes) {
+          append_log(pending_log, stamp(),
+                     "interpolator %d: error: basic parameters not sent: the service drives the "
+                     "axes %s, this config (%s) has %s: give tgm-plc the service's config",
+                     sv.number, theirs.c_str(),
+                     tgm::cli::ArgReader::config_file(config_path).path.c_str(), mine.c_str());
+        }
+        if (basic && same_axes) {
           const auto& sm = config.machine.smoothing;
           const std::int32_t spline[] = {sm.spline_points, static_cast<std::int32_t>(sm.spline_jerk_mm_s3)};
           const std::int32_t iir[] = {static_cast<std::int32_t>(sm.iir_p_e6), static_cast<std::int32_t>(sm.iir_q_e6),

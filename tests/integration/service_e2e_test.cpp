@@ -568,6 +568,26 @@ TEST(ServiceProcesses, HmiRunRefusesProgramsOfOtherAxisLetters) {
   EXPECT_NE(status.log().find("  Orig_Position [mm]    X 0.0000 Y 0.0000 Z 0.0000"),
             std::string::npos)
       << status.log();
+  // tgm-plc with that config sends no basic parameters (gear ratios by axis index); with the
+  // service's own it does.
+  for (const char* cfg : {"rotary.yaml", "config.yaml"}) {
+    test::Child plc;
+    ASSERT_TRUE(plc.start(
+        {TGM_PLC_BIN, "--config", env.path(cfg), "--interpolator", "0", "--duration", "1.5"},
+        env.path("plc.log")));
+    EXPECT_EQ(plc.wait(kHang), 0) << plc.log();
+    const bool rotary_plc = std::string(cfg) == "rotary.yaml";
+    EXPECT_EQ(
+        plc.log().find(
+            "interpolator 0: error: basic parameters not sent: the service drives the axes XYZ, "
+            "this config (" +
+            env.path(cfg) + ") has XYC: give tgm-plc the service's config") != std::string::npos,
+        rotary_plc)
+        << plc.log();
+    EXPECT_EQ(plc.log().find("Command 1024 (gear ratio, 3 axes): accepted") != std::string::npos,
+              !rotary_plc)
+        << plc.log();
+  }
   test::Child right;
   ASSERT_TRUE(right.start(
       {TGM_HMI_BIN, "run", env.path("config.yaml.tgmi"), "--config", env.config(), "--quiet"},
