@@ -625,6 +625,29 @@ TEST(ServiceProcesses, HmiTimesTheProgramByTheServicesCycle) {
   EXPECT_NE(status.log().find(" of 1000 us, lateness"), std::string::npos) << status.log();
 }
 
+// Without a PLC an M-function waits for ever: the progress line says for how long and asks
+// for tgm-plc, and --timeout stops the interpolator and exits 1.
+TEST(ServiceProcesses, HmiRunSaysWhenAnMFunctionWaitsLongAndTimesOut) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  std::ofstream(env.path("m.ngc")) << "G90 G1 X1 F600\nM51\nG1 X2\nM2\n";
+  test::Child run;
+  ASSERT_TRUE(run.start({TGM_HMI_BIN, "run", env.path("m.ngc"), "--config", env.config(),
+                         "--progress-interval", "0.5", "--timeout", "7"},
+                        env.path("run.log")));
+  EXPECT_EQ(run.wait(kHang), 1) << run.log();
+  const std::string log = run.log();
+  EXPECT_NE(log.find(" running waiting for M51\n"), std::string::npos) << log;
+  EXPECT_NE(log.find(" running waiting for M51 for 5 s (is tgm-plc running?)\n"), std::string::npos)
+      << log;
+  EXPECT_NE(log.find("tgm-hmi run: timeout after 7.0 s: normal stop: accepted"), std::string::npos)
+      << log;
+  client::Client hmi(env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(hmi.wait_until(
+      0, [](const msg::InterpolatorState& s) { return s.status() != 1; }, kHang));
+  EXPECT_NEAR(hmi.state(0)->orig_position()[0], 1.0, 1e-9);  // stopped at the M-function
+}
+
 TEST(ServiceProcesses, LateJoiningHmiSeesTheCurrentStateAtOnce) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());

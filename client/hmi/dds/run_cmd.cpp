@@ -55,6 +55,10 @@ struct PlotData {
 // of the speed until a million of each, then thinned (PlotSeries): a run of hours stays bounded.
 constexpr std::size_t kMaxPlotPoints = std::size_t{1} << 20;
 
+// An M-function that has waited this long for the PLC's acknowledgement [s]: the progress line
+// asks whether tgm-plc runs (the PLC's own delays are fractions of a second).
+constexpr double kLongMWait = 5.0;
+
 bool write_svg(const std::string& path, const PlotData& d, const std::string& letters, std::string& error) {
   const double W = 900, H = 420, pad = 40;
   std::string s;
@@ -302,6 +306,8 @@ int run_run(int argc, char** argv) {
   auto last_line_at = t0;
   bool started = false, m0_wait = false, stop_reported = false;
   Clock::time_point m0_since{};
+  std::uint32_t m_wait_count = 0;  // m_func_count of the M-function waiting now; 0 = none
+  Clock::time_point m_wait_since{};
   std::uint64_t start_cycle = 0;
   std::uint64_t fresh_after = 0;  // ignore states from before our last start request
   // From the state (the fall-back), and from the events (used when the event topic matched).
@@ -408,6 +414,13 @@ int run_run(int argc, char** argv) {
     if (!started || !ours || st->cycle_counter() <= fresh_after) continue;
     const bool m_waiting = run_flag_waits_for_m(static_cast<std::uint32_t>(st->run_flag()));
     state_waits.see(m_waiting, st->act_part(), st->cycle_counter());
+    // How long this M-function has waited, for the operator: the PLC acknowledges it.
+    if (!m_waiting) {
+      m_wait_count = 0;
+    } else if (st->m_func_count() != m_wait_count) {
+      m_wait_count = st->m_func_count();
+      m_wait_since = Clock::now();
+    }
     const auto status = static_cast<InterpolatorStatus>(st->status());
     if (status == InterpolatorStatus::kEnded && sender.all_confirmed()) break;
     if (status == InterpolatorStatus::kEmpty) {
@@ -473,7 +486,12 @@ int run_run(int argc, char** argv) {
         dro += b;
       }
       std::string wait;
-      if (m_waiting) wait = " waiting for M" + std::to_string(st->m_func());
+      if (m_waiting) {
+        wait = " waiting for M" + std::to_string(st->m_func());
+        const double waited = std::chrono::duration<double>(now - m_wait_since).count();
+        if (waited >= kLongMWait)
+          wait += " for " + std::to_string(static_cast<int>(waited)) + " s (is tgm-plc running?)";
+      }
       std::printf("%s[%s] %5.1f%% line %d/%d%s F%.0f %s%s%s", tty ? "\r\033[K" : "", bar, pct, st->act_line(), last_line,
                   dro.c_str(), st->act_speed(), std::string(client::status_name(st->status())).c_str(), wait.c_str(),
                   tty ? "" : "\n");
