@@ -588,6 +588,28 @@ TEST(ServiceProcesses, HmiRunRefusesProgramsOfOtherAxisLetters) {
               !rotary_plc)
         << plc.log();
   }
+  // Number_Axes 2, written by the PLC: the letters are the first two, and run says who cut them.
+  {
+    client::Client plc(env.dds(), client::Role::kPlc);
+    ASSERT_TRUE(plc.wait_for_state(0, kHang));
+    msg::Request r;
+    r.interpolator(0);
+    r.kind(msg::REQUEST_KIND_WRITE_NUMBER_AXES);
+    r.value(2);
+    ASSERT_TRUE(plc.request(r).accepted);
+    test::Child fewer;
+    ASSERT_TRUE(
+        fewer.start({TGM_HMI_BIN, "run", env.path("p.ngc"), "--config", env.config(), "--quiet"},
+                    env.path("fewer.log")));
+    EXPECT_EQ(fewer.wait(kHang), 2) << fewer.log();
+    EXPECT_NE(fewer.log().find(
+                  "p.ngc: error: compiled for the axes XYZ, interpolator 0 runs with Number_Axes 2 "
+                  "(XY), written by the PLC"),
+              std::string::npos)
+        << fewer.log();
+    r.value(3);
+    ASSERT_TRUE(plc.request(r).accepted);
+  }
   test::Child right;
   ASSERT_TRUE(right.start(
       {TGM_HMI_BIN, "run", env.path("config.yaml.tgmi"), "--config", env.config(), "--quiet"},

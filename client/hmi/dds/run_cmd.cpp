@@ -259,11 +259,20 @@ int run_run(int argc, char** argv) {
   // service's would drive the wrong axes (the service refuses it too; this says why up front).
   if (const std::string service_letters = st->axis_letters().to_string();
       !service_letters.empty() && service_letters != program.axis_letters) {
-    std::fprintf(stderr,
-                 "%s: error: compiled for the axes %s (config %s), the service's interpolator %d "
-                 "drives %s: use the service's config\n",
-                 file.c_str(), program.axis_letters.c_str(), args.config_file().path.c_str(), ip,
-                 service_letters.c_str());
+    // Fewer axes of the same config: the PLC wrote Number_Axes.
+    if (program.axis_letters.compare(0, service_letters.size(), service_letters) == 0) {
+      std::fprintf(stderr,
+                   "%s: error: compiled for the axes %s, interpolator %d runs with Number_Axes %d "
+                   "(%s), written by the PLC\n",
+                   file.c_str(), program.axis_letters.c_str(), ip, st->number_axes(),
+                   service_letters.c_str());
+    } else {
+      std::fprintf(stderr,
+                   "%s: error: compiled for the axes %s (config %s), the service's interpolator %d "
+                   "drives %s: use the service's config\n",
+                   file.c_str(), program.axis_letters.c_str(), args.config_file().path.c_str(), ip,
+                   service_letters.c_str());
+    }
     return 2;
   }
   // The service this run talks to: a restarted one has lost the program.
