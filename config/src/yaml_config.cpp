@@ -3,6 +3,7 @@
 #include "tgm/cli_numbers.hpp"
 #include "tgm/file_text.hpp"
 
+#include <yaml-cpp/depthguard.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -423,6 +424,12 @@ ConfigLoad load_config_text(const std::string& text, const std::string& path) {
   YAML::Node root;
   try {
     root = YAML::Load(text);
+  } catch (const YAML::DeepRecursion& e) {
+    // yaml-cpp's own message for this is "bad file".
+    out.errors.push_back(path + ":" + std::to_string(e.mark.line + 1) + ":" +
+                         std::to_string(e.mark.column + 1) + ": YAML syntax: nested more than " +
+                         std::to_string(e.depth() - 1) + " levels deep");
+    return out;
   } catch (const YAML::Exception& e) {
     out.errors.push_back(path + ":" + std::to_string(e.mark.line + 1) + ":" +
                          std::to_string(e.mark.column + 1) + ": YAML syntax: " + e.msg);

@@ -81,6 +81,34 @@ TEST(Config, AFileWithAProblemOnEveryLinePrintsTheFirstFiftyAndTheCount) {
       << err;
 }
 
+// Brackets nested thousands deep (a generated or corrupted file): yaml-cpp stops at its depth
+// limit with the words "bad file"; the error says what is wrong. Aliases that would expand
+// exponentially are never expanded: a list where a table is expected is one problem per item.
+TEST(Config, DeepNestingAndAliasBombsAreOneClearProblem) {
+  const std::string deep = "tools: " + std::string(100'000, '[') + std::string(100'000, ']') + "\n";
+  auto load = load_config_text(deep, "deep.yaml");
+  EXPECT_FALSE(load.config);
+  ASSERT_EQ(load.errors.size(), 1u);
+  EXPECT_EQ(load.errors[0].rfind("deep.yaml:1:", 0), 0u) << load.errors[0];
+  EXPECT_NE(load.errors[0].find(": YAML syntax: nested more than "), std::string::npos)
+      << load.errors[0];
+  EXPECT_NE(load.errors[0].find(" levels deep"), std::string::npos) << load.errors[0];
+  std::string bomb = "compiler:\n  plc_redefined_m: &a [5, 5, 5, 5, 5, 5, 5, 5, 5, 5]\n";
+  std::string prev = "a";
+  for (char c = 'b'; c <= 'h'; ++c) {
+    bomb += std::string("x") + c + ": &" + c + " [";
+    for (int k = 0; k < 10; ++k) bomb += (k ? ", *" : "*") + prev;
+    bomb += "]\n";
+    prev = std::string(1, c);
+  }
+  bomb += "tools: *h\n";  // 10^8 numbers if it were expanded
+  load = load_config_text(bomb, "bomb.yaml");
+  EXPECT_FALSE(load.config);
+  EXPECT_EQ(load.errors.size(), 7u + 10u);  // x.. keys unknown; each of the 10 tools not a table
+  EXPECT_NE(load.errors.back().find("tools[9]: must be a mapping"), std::string::npos)
+      << load.errors.back();
+}
+
 TEST(Config, UnknownKeyIsAnErrorWithPathAndLine) {
   const auto load = load_config_text("cycle_time_us: 500\ncompiler:\n  defualt_feed: 3\n", "m.yaml");
   EXPECT_FALSE(load.config);
