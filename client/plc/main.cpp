@@ -18,10 +18,12 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <cerrno>
 #include <chrono>
 #include <cstdarg>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <map>
 #include <mutex>
 #include <optional>
@@ -29,6 +31,7 @@
 #include <string>
 #include <vector>
 
+#include <yaml-cpp/depthguard.h>
 #include <yaml-cpp/yaml.h>
 
 #include "m_tracker.hpp"
@@ -37,6 +40,7 @@
 #include "tgm/client/client.hpp"
 #include "tgm/command_stage.hpp"
 #include "tgm/dds_overrides.hpp"
+#include "tgm/file_text.hpp"
 #include "tgm/registers.hpp"
 #include "tgm/yaml_config.hpp"
 
@@ -123,8 +127,30 @@ bool known_command(std::int32_t c) {
 // and text (yaml-cpp's conversion said only "bad conversion"), and a Rel_Speed or Command the
 // service would refuse is an error here rather than a refusal in the middle of the run.
 bool load_script(const std::string& path, std::vector<ScriptStep>& steps, std::string& error) {
+  // Read as a config is: bounded (a device without end, a huge file given by mistake), and a
+  // directory named as such.
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) {
+    error = path + ": is a directory, not a script";
+    return false;
+  }
+  std::string script;
+  switch (tgm::read_whole_file(path, tgm::kMaxConfigBytes, script)) {
+    case tgm::ReadResult::kRead:
+      break;
+    case tgm::ReadResult::kCannotOpen:
+      error = path + ": cannot open the script file: " + std::strerror(errno);
+      return false;
+    case tgm::ReadResult::kReadError:
+      error = path + ": cannot read the script file";
+      return false;
+    case tgm::ReadResult::kTooLarge:
+      error =
+          path + ": more than " + std::to_string(tgm::kMaxConfigBytes >> 20) + " MiB: not a script";
+      return false;
+  }
   try {
-    const YAML::Node root = YAML::LoadFile(path);
+    const YAML::Node root = YAML::Load(script);
     if (!root.IsSequence()) {
       error = path + ": the script must be a list of steps";
       return false;
@@ -194,8 +220,9 @@ bool load_script(const std::string& path, std::vector<ScriptStep>& steps, std::s
       }
       steps.push_back(s);
     }
-  } catch (const YAML::BadFile&) {
-    error = path + ": cannot open the script file";
+  } catch (const YAML::DeepRecursion& e) {
+    error = path + ":" + std::to_string(e.mark.line + 1) + ": nested more than " +
+            std::to_string(e.depth() - 1) + " levels deep";
     return false;
   } catch (const YAML::Exception& e) {
     error = path + ": " + e.what();

@@ -900,6 +900,8 @@ TEST(ServiceProcesses, PlcScriptErrorsNameTheLineAndTheReason) {
       {"- {at_s: 1}\n- {at_s: 2, command: 3}\n", ":2: command must be a Command: 4, 5, 8, 9"},
       {"- {at_s: 1, refuse_ack: [51, x]}\n", ":1: refuse_ack must list M numbers >= 0, not 'x'"},
       {"- {at_s: 1, start: maybe}\n", ":1: start must be true or false, not 'maybe'"},
+      // yaml-cpp's "bad file" for brackets nested past its depth limit.
+      {"- " + std::string(3000, '[') + std::string(3000, ']') + "\n", ":2: nested more than "},
   };
   for (std::size_t i = 0; i < cases.size(); ++i) {
     const std::string script = env.path("script" + std::to_string(i) + ".yaml");
@@ -910,6 +912,20 @@ TEST(ServiceProcesses, PlcScriptErrorsNameTheLineAndTheReason) {
     EXPECT_EQ(plc.wait(kHang), 2) << cases[i].first;
     EXPECT_NE(plc.log().find(script + cases[i].second), std::string::npos)
         << cases[i].first << plc.log();
+  }
+  // Files that are no script: a directory (an uncaught exception aborted the PLC), one that is
+  // not there, a device without end (read up to the config bound, 16 MiB).
+  const std::vector<std::pair<std::string, std::string>> files = {
+      {env.path(""), ": is a directory, not a script"},
+      {env.path("none.yaml"), ": cannot open the script file: No such file or directory"},
+      {"/dev/zero", ": more than 16 MiB: not a script"},
+  };
+  for (const auto& [file, says] : files) {
+    test::Child plc;
+    ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.config(), "--script", file},
+                          env.path("plc_file.log")));
+    EXPECT_EQ(plc.wait(kHang), 2) << file << plc.log();
+    EXPECT_NE(plc.log().find(file + says), std::string::npos) << file << plc.log();
   }
 }
 
