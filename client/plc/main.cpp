@@ -23,9 +23,11 @@
 #include <cstdarg>
 #include <cstdio>
 #include <cstdlib>
+#include <exception>
 #include <filesystem>
 #include <map>
 #include <mutex>
+#include <new>
 #include <optional>
 #include <set>
 #include <string>
@@ -294,7 +296,25 @@ struct AckTrace {
 
 }  // namespace
 
+namespace {
+int plc_main(int argc, char** argv);
+}  // namespace
+
+// What escapes plc_main (memory running out, a library's exception nobody foresaw) ends with
+// words and exit 1, not with an abort.
 int main(int argc, char** argv) {
+  try {
+    return plc_main(argc, argv);
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "tgm-plc: out of memory\n");
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "tgm-plc: internal error: %s\n", e.what());
+  }
+  return 1;
+}
+
+namespace {
+int plc_main(int argc, char** argv) {
   std::string config_path;
   tgm::DdsOverrides overrides;
   std::optional<double> rel_speed;
@@ -804,3 +824,5 @@ int main(int argc, char** argv) {
   plc.reset();
   return 0;
 }
+
+}  // namespace

@@ -364,6 +364,25 @@ TEST_F(HmiSimulate, ASlowFeedFinishesAndItsPeakIsPrinted) {
   EXPECT_NE(r.out.find("X=0.001000 Y=0.000000 Z=0.000000"), std::string::npos) << r.out;
 }
 
+// Memory running out (here a 150 MB address-space limit and a million-line program) ends with
+// words and exit code 1; it used to abort with an uncaught std::bad_alloc and a core dump.
+TEST_F(HmiSimulate, RunningOutOfMemoryIsSaidAndExitsOne) {
+#if defined(__SANITIZE_ADDRESS__)
+  GTEST_SKIP() << "AddressSanitizer reserves far more address space than the limit";
+#else
+  std::string big = "G91 F6000\n";
+  big.reserve(10'000'000);
+  for (int k = 0; k < 1'000'000; ++k) big += "G1 X0.01\n";
+  big += "M2\n";
+  const fs::path prog = write("big.ngc", big);
+  const ProcessResult r =
+      run("simulate " + prog.string() + " --config " + kConfig + " --csv /dev/null",
+          "ulimit -v 150000; ");
+  EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
+  EXPECT_EQ(r.err, "tgm-hmi: out of memory\n") << r.out;
+#endif
+}
+
 TEST_F(HmiSimulate, BadInputIsAUsageErrorAndWritesNothing) {
   const fs::path bad = write("bad.ngc", "G90\nG1 X1 Q2\n");
   const fs::path csv = dir_ / "out.csv";
