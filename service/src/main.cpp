@@ -7,12 +7,15 @@
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
-#include <chrono>
 #include <cstring>
 #include <ctime>
+#include <exception>
+#include <new>
 #include <string>
+#include <system_error>
 #include <thread>
 #include <vector>
 
@@ -68,9 +71,30 @@ std::int64_t percentile(std::vector<std::int64_t> v, double q) {
   return v[std::min(k, v.size() - 1)];
 }
 
+int service_main(int argc, char** argv);
+
 }  // namespace
 
+// What escapes the setup (memory running out for the buffers, a library's exception nobody
+// foresaw) ends with words and exit 1, not with an abort. (Once the cycle thread runs, an
+// exception is a defect that terminates the process.)
 int main(int argc, char** argv) {
+  try {
+    return service_main(argc, argv);
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "tgm-service: out of memory\n");
+  } catch (const std::system_error& e) {
+    // A thread that cannot start (EAGAIN: memory or the thread limit), a clock, a lock.
+    std::fprintf(stderr, "tgm-service: the system refused: %s\n", e.what());
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "tgm-service: internal error: %s\n", e.what());
+  }
+  return 1;
+}
+
+namespace {
+
+int service_main(int argc, char** argv) {
   std::string config_path;
   std::string stats_path;
   std::string trace_path;
@@ -376,3 +400,5 @@ int main(int argc, char** argv) {
   watchdog.join();
   return yielded_to != 0 ? 1 : 0;
 }
+
+}  // namespace
