@@ -6,6 +6,7 @@
 #include <string>
 #include <string_view>
 
+#include "tgm/atomic_file.hpp"
 #include "tgm/cli_args.hpp"
 #include "tgm/cli_numbers.hpp"
 #include "tgm/config.hpp"
@@ -45,34 +46,6 @@ class Args : public cli::ArgReader {
 //! What FileView reads from a pipe or a device (regular files are mapped, of any size): 1 GiB,
 //! several times the longest program the compiler expands (compiler.max_program_segments).
 inline constexpr std::size_t kMaxStreamedInput = std::size_t{1} << 30;
-//! Writes `path` through a temporary file and rename, so a failed run leaves nothing half-written.
-bool write_file_atomic(const std::string& path, const std::string& bytes, std::string& error);
-
-//! A file written in pieces through "<path>.tmp-<pid>" (created exclusively, so no file of the
-//! user's is touched) and renamed into place by commit(); destroyed
-//! without commit() it removes the temporary file, so an error never leaves a partial output.
-//! A path that names a symbolic link is written through it (the file it points to is replaced,
-//! not the link). A path that names a device or a pipe (/dev/stdout, a FIFO) is never renamed
-//! over: the output is held in memory and written into it by commit().
-class AtomicFile {
- public:
-  AtomicFile() = default;
-  AtomicFile(const AtomicFile&) = delete;
-  AtomicFile& operator=(const AtomicFile&) = delete;
-  ~AtomicFile();
-  bool open(const std::string& path, std::string& error);
-  bool write(const void* data, std::size_t size, std::string& error);
-  //! Overwrites bytes already written at `offset`.
-  bool patch(long offset, const void* data, std::size_t size, std::string& error);
-  bool commit(std::string& error);
-  bool is_open() const { return f_ != nullptr || in_place_; }
-
- private:
-  std::string path_, tmp_;
-  std::FILE* f_ = nullptr;
-  bool in_place_ = false;  // a device or a pipe: `held_` is written into it by commit()
-  std::string held_;
-};
 
 //! Tool radius compensation (G41/G42) is recorded in the intercode, but no part of tgm offsets
 //! the path yet: the tool centre follows the programmed contour. A program that moves with it on

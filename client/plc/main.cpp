@@ -37,6 +37,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "m_tracker.hpp"
+#include "tgm/atomic_file.hpp"
 #include "tgm/cli_args.hpp"
 #include "tgm/cli_numbers.hpp"
 #include "tgm/client/client.hpp"
@@ -381,6 +382,11 @@ int plc_main(int argc, char** argv) {
           {tgm::cli::ArgReader::config_file(config_path), {"--script", script_path}},
           {{"--handshake-trace", trace_path}})) {
     return 2;
+  }
+  // Written at exit: a path that cannot be written fails the start, not the end of the run.
+  tgm::ReportFile trace_file;
+  if (std::string why; !trace_path.empty() && !trace_file.open(trace_path, why)) {
+    return args.usage_error("--handshake-trace " + trace_path + ": " + why);
   }
   const bool basic = !no_basic;
   const bool events = !no_events;
@@ -803,26 +809,26 @@ int plc_main(int argc, char** argv) {
   }
   append_log(pending_log, stamp(), "stopping");
   flush_log();
-  if (!trace_path.empty()) {
-    if (std::FILE* f = std::fopen(trace_path.c_str(), "w")) {
-      auto ns = [](Clock::time_point t) {
-        return static_cast<long long>(std::chrono::duration_cast<std::chrono::nanoseconds>(t.time_since_epoch()).count());
-      };
-      std::fprintf(
-          f, "interpolator,act_part,woke_ns,seen_ns,ack_call_ns,ack_written_ns,reply_ns,path\n");
-      for (const AckTrace& t : traces) {
-        std::fprintf(f, "%d,%d,%lld,%lld,%lld,%lld,%lld,%s\n", t.interpolator, t.act_part,
-                     ns(t.woke), ns(t.seen), ns(t.ack_call), ns(t.ack_written), ns(t.reply),
-                     t.path);
-      }
-      std::fclose(f);
-    } else {
-      std::fprintf(stderr, "tgm-plc: cannot write %s\n", trace_path.c_str());
+  int exit_code = 0;
+  if (std::FILE* f = trace_file.is_open() ? trace_file.stream() : nullptr) {
+    auto ns = [](Clock::time_point t) {
+      return static_cast<long long>(
+          std::chrono::duration_cast<std::chrono::nanoseconds>(t.time_since_epoch()).count());
+    };
+    std::fprintf(
+        f, "interpolator,act_part,woke_ns,seen_ns,ack_call_ns,ack_written_ns,reply_ns,path\n");
+    for (const AckTrace& t : traces) {
+      std::fprintf(f, "%d,%d,%lld,%lld,%lld,%lld,%lld,%s\n", t.interpolator, t.act_part, ns(t.woke),
+                   ns(t.seen), ns(t.ack_call), ns(t.ack_written), ns(t.reply), t.path);
     }
+  }
+  if (std::string why; trace_file.is_open() && !trace_file.finish(why)) {
+    std::fprintf(stderr, "tgm-plc: %s: %s\n", trace_path.c_str(), why.c_str());
+    exit_code = 1;
   }
   // Before the locals the event callback uses go out of scope: ~Client detaches the callback.
   plc.reset();
-  return 0;
+  return exit_code;
 }
 
 }  // namespace

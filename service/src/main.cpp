@@ -17,9 +17,11 @@
 #include <string>
 #include <system_error>
 #include <thread>
+#include <tuple>
 #include <vector>
 
 #include "dds_port.hpp"
+#include "tgm/atomic_file.hpp"
 #include "tgm/cli_args.hpp"
 #include "tgm/cli_numbers.hpp"
 #include "tgm/dds_overrides.hpp"
@@ -143,6 +145,14 @@ int service_main(int argc, char** argv) {
   if (!args.distinct_files({tgm::cli::ArgReader::config_file(config_path)},
                            {{"--stats", stats_path}, {"--handshake-trace", trace_path}})) {
     return 2;
+  }
+  // Written at exit: a path that cannot be written fails the start, not the end of a long run.
+  tgm::ReportFile stats_file, trace_file;
+  for (auto [flag, path, file] : {std::tuple{"--stats", &stats_path, &stats_file},
+                                  std::tuple{"--handshake-trace", &trace_path, &trace_file}}) {
+    if (std::string why; !path->empty() && !file->open(*path, why)) {
+      return args.usage_error(std::string(flag) + " " + *path + ": " + why);
+    }
   }
   if (no_realtime) rt.realtime = false;
 
@@ -330,75 +340,76 @@ int service_main(int argc, char** argv) {
       engine_options.check_limits
           ? ("; limit excesses " + std::to_string(c.limit_violations)).c_str()
           : "");
-  if (!stats_path.empty()) {
-    if (std::FILE* f = std::fopen(stats_path.c_str(), "w")) {
-      std::fprintf(
-          f,
-          "{\"cycles\": %llu, \"cycle_time_us\": %d, \"interpolators\": %d,\n"
-          " \"lateness_ns\": {\"p50\": %lld, \"p99\": %lld, \"p999\": %lld, \"max\": %lld},\n"
-          " \"missed_cycles\": %llu,\n"
-          " \"cycle_work_ns\": {\"p50\": %lld, \"p999\": %lld, \"max\": %lld},\n"
-          " \"handshake_ns\": {\"count\": %zu, \"min\": %lld, \"p50\": %lld, \"p99\": %lld,"
-          " \"max\": %lld},\n"
-          " \"requests\": %llu, \"busy_requests\": %llu, \"chunks\": %llu, \"segments\": %llu,"
-          " \"duplicate_chunks\": %llu,"
-          " \"refused_chunks\": %llu, \"lost_replies\": %llu, \"lost_messages\": %llu,\n"
-          " \"events_published\": %llu, \"lost_events\": %llu, \"states_published\": %llu,"
-          " \"setpoints_published\": %llu,\n"
-          " \"limits_checked\": %s, \"limit_violations\": %llu}\n",
-          static_cast<unsigned long long>(st.cycles), config.machine.cycle_time_us, engine->count(),
-          static_cast<long long>(hist.quantile_ns(0.5)),
-          static_cast<long long>(hist.quantile_ns(0.99)),
-          static_cast<long long>(hist.quantile_ns(0.999)), static_cast<long long>(hist.max_ns()),
-          static_cast<unsigned long long>(st.missed_cycles),
-          static_cast<long long>(loop.work_histogram().quantile_ns(0.5)),
-          static_cast<long long>(loop.work_histogram().quantile_ns(0.999)),
-          static_cast<long long>(loop.work_histogram().max_ns()), rt_ns.size(),
-          static_cast<long long>(percentile(rt_ns, 0.0)),
-          static_cast<long long>(percentile(rt_ns, 0.5)),
-          static_cast<long long>(percentile(rt_ns, 0.99)),
-          static_cast<long long>(percentile(rt_ns, 1.0)),
-          static_cast<unsigned long long>(c.requests),
-          static_cast<unsigned long long>(port->busy_requests()),
-          static_cast<unsigned long long>(c.chunks), static_cast<unsigned long long>(c.segments),
-          static_cast<unsigned long long>(c.duplicate_chunks),
-          static_cast<unsigned long long>(c.refused_chunks),
-          static_cast<unsigned long long>(c.lost_replies),
-          static_cast<unsigned long long>(c.lost_messages),
-          static_cast<unsigned long long>(port->events_published()),
-          static_cast<unsigned long long>(c.lost_events),
-          static_cast<unsigned long long>(port->states_published()),
-          static_cast<unsigned long long>(port->setpoints_published()),
-          engine_options.check_limits ? "true" : "false",
-          static_cast<unsigned long long>(c.limit_violations));
-      std::fclose(f);
-    } else {
-      std::fprintf(stderr, "tgm-service: cannot write %s: %s\n", stats_path.c_str(), std::strerror(errno));
+  int exit_code = yielded_to != 0 ? 1 : 0;
+  if (std::FILE* f = stats_file.is_open() ? stats_file.stream() : nullptr) {
+    std::fprintf(
+        f,
+        "{\"cycles\": %llu, \"cycle_time_us\": %d, \"interpolators\": %d,\n"
+        " \"lateness_ns\": {\"p50\": %lld, \"p99\": %lld, \"p999\": %lld, \"max\": %lld},\n"
+        " \"missed_cycles\": %llu,\n"
+        " \"cycle_work_ns\": {\"p50\": %lld, \"p999\": %lld, \"max\": %lld},\n"
+        " \"handshake_ns\": {\"count\": %zu, \"min\": %lld, \"p50\": %lld, \"p99\": %lld,"
+        " \"max\": %lld},\n"
+        " \"requests\": %llu, \"busy_requests\": %llu, \"chunks\": %llu, \"segments\": %llu,"
+        " \"duplicate_chunks\": %llu,"
+        " \"refused_chunks\": %llu, \"lost_replies\": %llu, \"lost_messages\": %llu,\n"
+        " \"events_published\": %llu, \"lost_events\": %llu, \"states_published\": %llu,"
+        " \"setpoints_published\": %llu,\n"
+        " \"limits_checked\": %s, \"limit_violations\": %llu}\n",
+        static_cast<unsigned long long>(st.cycles), config.machine.cycle_time_us, engine->count(),
+        static_cast<long long>(hist.quantile_ns(0.5)),
+        static_cast<long long>(hist.quantile_ns(0.99)),
+        static_cast<long long>(hist.quantile_ns(0.999)), static_cast<long long>(hist.max_ns()),
+        static_cast<unsigned long long>(st.missed_cycles),
+        static_cast<long long>(loop.work_histogram().quantile_ns(0.5)),
+        static_cast<long long>(loop.work_histogram().quantile_ns(0.999)),
+        static_cast<long long>(loop.work_histogram().max_ns()), rt_ns.size(),
+        static_cast<long long>(percentile(rt_ns, 0.0)),
+        static_cast<long long>(percentile(rt_ns, 0.5)),
+        static_cast<long long>(percentile(rt_ns, 0.99)),
+        static_cast<long long>(percentile(rt_ns, 1.0)), static_cast<unsigned long long>(c.requests),
+        static_cast<unsigned long long>(port->busy_requests()),
+        static_cast<unsigned long long>(c.chunks), static_cast<unsigned long long>(c.segments),
+        static_cast<unsigned long long>(c.duplicate_chunks),
+        static_cast<unsigned long long>(c.refused_chunks),
+        static_cast<unsigned long long>(c.lost_replies),
+        static_cast<unsigned long long>(c.lost_messages),
+        static_cast<unsigned long long>(port->events_published()),
+        static_cast<unsigned long long>(c.lost_events),
+        static_cast<unsigned long long>(port->states_published()),
+        static_cast<unsigned long long>(port->setpoints_published()),
+        engine_options.check_limits ? "true" : "false",
+        static_cast<unsigned long long>(c.limit_violations));
+  }
+  if (std::FILE* f = trace_file.is_open() ? trace_file.stream() : nullptr) {
+    std::fprintf(f,
+                 "interpolator,act_part,handoff_ns,publisher_woke_ns,event_write_begin_ns,event_"
+                 "write_end_ns,"
+                 "state_write_begin_ns,state_write_end_ns,taken_ns,applied_ns\n");
+    for (const auto& h : port->handshakes()) {
+      const auto& w = h.written;
+      std::fprintf(f, "%d,%d,%lld,%lld,%lld,%lld,%lld,%lld,%lld,%lld\n", w.interpolator, w.act_part,
+                   static_cast<long long>(w.handoff_ns),
+                   static_cast<long long>(w.publisher_woke_ns),
+                   static_cast<long long>(w.event_write_begin_ns),
+                   static_cast<long long>(w.event_write_end_ns),
+                   static_cast<long long>(w.state_write_begin_ns),
+                   static_cast<long long>(w.state_write_end_ns), static_cast<long long>(h.taken_ns),
+                   static_cast<long long>(h.applied_ns));
     }
   }
-  if (!trace_path.empty()) {
-    if (std::FILE* f = std::fopen(trace_path.c_str(), "w")) {
-      std::fprintf(f,
-                   "interpolator,act_part,handoff_ns,publisher_woke_ns,event_write_begin_ns,event_write_end_ns,"
-                   "state_write_begin_ns,state_write_end_ns,taken_ns,applied_ns\n");
-      for (const auto& h : port->handshakes()) {
-        const auto& w = h.written;
-        std::fprintf(f, "%d,%d,%lld,%lld,%lld,%lld,%lld,%lld,%lld,%lld\n", w.interpolator, w.act_part,
-                     static_cast<long long>(w.handoff_ns), static_cast<long long>(w.publisher_woke_ns),
-                     static_cast<long long>(w.event_write_begin_ns), static_cast<long long>(w.event_write_end_ns),
-                     static_cast<long long>(w.state_write_begin_ns), static_cast<long long>(w.state_write_end_ns),
-                     static_cast<long long>(h.taken_ns), static_cast<long long>(h.applied_ns));
-      }
-      std::fclose(f);
-    } else {
-      std::fprintf(stderr, "tgm-service: cannot write %s: %s\n", trace_path.c_str(), std::strerror(errno));
+  for (auto [path, file] :
+       {std::pair{&stats_path, &stats_file}, std::pair{&trace_path, &trace_file}}) {
+    if (std::string why; file->is_open() && !file->finish(why)) {
+      std::fprintf(stderr, "tgm-service: %s: %s\n", path->c_str(), why.c_str());
+      exit_code = 1;
     }
   }
   stage.store("closing the DDS participant", std::memory_order_release);
   port.reset();
   stopped.store(true, std::memory_order_release);
   watchdog.join();
-  return yielded_to != 0 ? 1 : 0;
+  return exit_code;
 }
 
 }  // namespace

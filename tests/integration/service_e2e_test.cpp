@@ -929,6 +929,57 @@ TEST(ServiceProcesses, PlcScriptErrorsNameTheLineAndTheReason) {
   }
 }
 
+// --stats and --handshake-trace are written at exit. A path that cannot be written fails the
+// start (it used to be said at the end of the run, exit code 0, the figures lost); a device
+// that refuses the bytes (/dev/full) fails the exit with code 1 (it was not noticed at all).
+TEST(ServiceProcesses, ReportFilesThatCannotBeWrittenFailTheStartOrTheExit) {
+  ServiceEnv env;
+  struct Case {
+    std::vector<std::string> args;
+    int code;
+    std::string says;
+  };
+  const std::string dir = env.path("");
+  const std::string cfg = env.config();
+  const Case cases[] = {
+      {{TGM_SERVICE_BIN, "--config", cfg, "--stats", dir},
+       2,
+       "tgm-service: --stats " + dir + ": is a directory"},
+      {{TGM_SERVICE_BIN, "--config", cfg, "--handshake-trace", env.path("no/such/dir.csv")},
+       2,
+       "tgm-service: --handshake-trace " + env.path("no/such/dir.csv") +
+           ": cannot create: No such file"},
+      {{TGM_SERVICE_BIN, "--config", cfg, "--no-realtime", "--duration", "0.5", "--stats",
+        "/dev/full"},
+       1,
+       "tgm-service: /dev/full: cannot write: No space left on device"},
+      {{TGM_PLC_BIN, "--config", cfg, "--handshake-trace", dir},
+       2,
+       "tgm-plc: --handshake-trace " + dir + ": is a directory"},
+      {{TGM_PLC_BIN, "--config", cfg, "--duration", "0.5", "--handshake-trace", "/dev/full"},
+       1,
+       "tgm-plc: /dev/full: cannot write: No space left on device"},
+  };
+  for (const Case& k : cases) {
+    test::Child c;
+    ASSERT_TRUE(c.start(k.args, env.path("report.log")));
+    EXPECT_EQ(c.wait(kHang), k.code) << k.args.back() << c.log();
+    EXPECT_NE(c.log().find(k.says), std::string::npos) << c.log();
+  }
+  // A good path: written whole at exit, and no temporary file left next to it.
+  test::Child ok;
+  ASSERT_TRUE(ok.start({TGM_SERVICE_BIN, "--config", cfg, "--no-realtime", "--duration", "0.5",
+                        "--stats", env.path("stats.json")},
+                       env.path("ok.log")));
+  EXPECT_EQ(ok.wait(kHang), 0) << ok.log();
+  const std::string json = test::read_text(env.path("stats.json"));
+  EXPECT_EQ(json.rfind("{\"cycles\": ", 0), 0u) << json;
+  EXPECT_NE(json.find("\"limit_violations\": 0}\n"), std::string::npos) << json;
+  for (const auto& e : std::filesystem::directory_iterator(env.path(""))) {
+    EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << e.path();
+  }
+}
+
 TEST(ServiceProcesses, ServiceStopsCleanlyOnSigtermAndRejectsBadFlags) {
   ServiceEnv env;
   test::Child bad;
