@@ -653,6 +653,14 @@ TEST(ServiceProcesses, HmiRunSaysWhenAnMFunctionWaitsLongAndTimesOut) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());
   std::ofstream(env.path("m.ngc")) << "G90 G1 X1 F600\nM51\nG1 X2\nM2\n";
+  // A plot path that cannot be written is refused before anything is sent (it used to be said
+  // after the run).
+  test::Child no_plot;
+  ASSERT_TRUE(no_plot.start(
+      {TGM_HMI_BIN, "run", env.path("m.ngc"), "--config", env.config(), "--plot", env.path("")},
+      env.path("no_plot.log")));
+  EXPECT_EQ(no_plot.wait(kHang), 2) << no_plot.log();
+  EXPECT_EQ(no_plot.log(), env.path("") + ": error: is a directory\n");
   test::Child run;
   ASSERT_TRUE(run.start({TGM_HMI_BIN, "run", env.path("m.ngc"), "--config", env.config(),
                          "--progress-interval", "0.5", "--timeout", "7"},

@@ -59,7 +59,7 @@ constexpr std::size_t kMaxPlotPoints = std::size_t{1} << 20;
 // asks whether tgm-plc runs (the PLC's own delays are fractions of a second).
 constexpr double kLongMWait = 5.0;
 
-bool write_svg(const std::string& path, const PlotData& d, const std::string& letters, std::string& error) {
+bool write_svg(AtomicFile& out, const PlotData& d, const std::string& letters, std::string& error) {
   const double W = 900, H = 420, pad = 40;
   std::string s;
   char b[256];
@@ -102,7 +102,7 @@ bool write_svg(const std::string& path, const PlotData& d, const std::string& le
   polyline(d.speed, W / 2 + pad / 2, pad, W / 2 - 1.5 * pad, H - 2 * pad - 10, "#c62828",
            "path speed Act_Speed [mm/min] over time [s]", false);
   s += "</svg>\n";
-  return write_file_atomic(path, s, error);
+  return out.write(s.data(), s.size(), error) && out.commit(error);
 }
 
 bool stdin_has_line() {
@@ -157,6 +157,12 @@ int run_run(int argc, char** argv) {
   if (args.failed()) return 2;
   if (file.empty()) return args.usage_error("a program FILE is required");
   if (!args.distinct_files({{"FILE", file}, args.config_file()}, {{"--plot", plot_path}})) {
+    return 2;
+  }
+  // Written at the end: a path that cannot be written fails now, not after the run.
+  AtomicFile plot_file;
+  if (!plot_path.empty() && !plot_file.open(plot_path, error)) {
+    std::fprintf(stderr, "%s: error: %s\n", plot_path.c_str(), error.c_str());
     return 2;
   }
 
@@ -546,7 +552,7 @@ int run_run(int argc, char** argv) {
   }
   if (!plot_path.empty()) {
     const PlotData plot{plot_path_points.points(), plot_speed_points.points()};
-    if (!write_svg(plot_path, plot, letters, error)) {
+    if (!write_svg(plot_file, plot, letters, error)) {
       std::fprintf(stderr, "%s: error: %s\n", plot_path.c_str(), error.c_str());
       if (exit_code == 0) exit_code = 1;
     } else {
