@@ -295,10 +295,8 @@ struct AckTrace {
   const char* path;
 };
 
-}  // namespace
-
-namespace {
 int plc_main(int argc, char** argv);
+
 }  // namespace
 
 // What escapes plc_main (memory running out, a library's exception nobody foresaw) ends with
