@@ -11,6 +11,9 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "tgm/gcode.hpp"
+#include "tgm/intercode_io.hpp"
+
 namespace tgm::hmi {
 
 Args::Args(int argc, char** argv, const char* command, const char* usage)
@@ -44,6 +47,42 @@ std::optional<MachineConfig> Args::load_machine() {
   auto app = load_app();
   if (!app) return std::nullopt;
   return app->machine;
+}
+
+bool load_program(const std::string& file, const MachineConfig& machine, int ip, Program& out,
+                  std::size_t* compile_errors) {
+  if (compile_errors) *compile_errors = 0;
+  FileView input;
+  std::string error;
+  if (!input.open(file, error)) {
+    std::fprintf(stderr, "%s: error: %s\n", file.c_str(), error.c_str());
+    return false;
+  }
+  const bool intercode = file.size() > 5 && file.compare(file.size() - 5, 5, ".tgmi") == 0;
+  if (intercode) {
+    if (!decode_intercode(input.text(), out, error)) {
+      std::fprintf(stderr, "%s: error: %s\n", file.c_str(), error.c_str());
+      return false;
+    }
+    const std::string letters = machine.axis_letters(ip);
+    if (out.axis_letters != letters) {
+      std::fprintf(stderr,
+                   "%s: error: compiled for the axes %s, interpolator %d has %s: compile the "
+                   "G-code for it (tgm-hmi compile --interpolator %d)\n",
+                   file.c_str(), out.axis_letters.c_str(), ip, letters.c_str(), ip);
+      return false;
+    }
+    return true;
+  }
+  CompileResult r = compile_gcode(input.text(), CompileOptions::from_machine(machine, ip));
+  if (!r.ok()) {
+    for (const Diagnostic& d : r.errors)
+      std::fprintf(stderr, "%s\n", format_diagnostic(file, d).c_str());
+    if (compile_errors) *compile_errors = r.errors.size();
+    return false;
+  }
+  out = std::move(r.program);
+  return true;
 }
 
 void CompensationNote::print(const std::string& file) const {

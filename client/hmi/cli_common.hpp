@@ -47,6 +47,14 @@ class Args : public cli::ArgReader {
 //! several times the longest program the compiler expands (compiler.max_program_segments).
 inline constexpr std::size_t kMaxStreamedInput = std::size_t{1} << 30;
 
+//! FILE as the program of interpolator `ip` of `machine`: intercode (*.tgmi, written by
+//! `tgm-hmi compile --out`) decoded and refused when it was compiled for other axis letters
+//! (positions go by axis index: a C where this interpolator has Z would move Z), or G-code
+//! compiled. Prints every problem ("FILE: error: ..." or the compiler's diagnostics) and
+//! returns false; `compile_errors` (when given) receives the number of compiler diagnostics.
+bool load_program(const std::string& file, const MachineConfig& machine, int ip, Program& out,
+                  std::size_t* compile_errors = nullptr);
+
 //! Tool radius compensation (G41/G42) is recorded in the intercode, but no part of tgm offsets
 //! the path yet: the tool centre follows the programmed contour. A program that moves with it on
 //! gets one note naming the first such record, so the user is not misled (compile, simulate,

@@ -37,9 +37,10 @@ constexpr const char* kUsage =
     "                             [--spline POINTS,JERK] [--iir P,Q,F,MASK] [--lookahead OUT]\n"
     "                             [--stop-at T[:CODE],...] [--restart-after S] [--max-time S]\n"
     "\n"
-    "Compiles FILE and runs it through interpolator N (default 0) offline, cycle by cycle,\n"
-    "acknowledging every M-function like the PLC emulator would (plc.default_m_delay_s and\n"
-    "plc.m_delay_s of the config, or --m-ack S for all) and restarting after M0 at once.\n"
+    "Compiles FILE (G-code, or intercode written by `tgm-hmi compile --out`, *.tgmi) and runs it\n"
+    "through interpolator N (default 0) offline, cycle by cycle, acknowledging every M-function\n"
+    "like the PLC emulator would (plc.default_m_delay_s and plc.m_delay_s of the config, or\n"
+    "--m-ack S for all) and restarting after M0 at once.\n"
     "  --csv OUT        one row per cycle: time_s, line, act_part, status, run_flag, m_func,\n"
     "                   act_speed_mm_min, move_distance_mm, orig_<axis> (Orig_Position),\n"
     "                   pos_<axis> (Position, after spline / IIR), inc_<axis> (PositionInc),\n"
@@ -279,17 +280,9 @@ int run_simulate(int argc, char** argv) {
   const MachineConfig& machine = app->machine;
   const int ip_index = args.interpolator();
 
-  FileView input;
-  if (std::string err; !input.open(file, err)) {
-    std::fprintf(stderr, "%s: error: %s\n", file.c_str(), err.c_str());
-    return 2;
-  }
-  const CompileResult compiled = compile_gcode(input.text(), CompileOptions::from_machine(machine, ip_index));
-  if (!compiled.ok()) {
-    for (const auto& d : compiled.errors) std::fprintf(stderr, "%s\n", format_diagnostic(file, d).c_str());
-    return 2;
-  }
-  CompensationNote::print(compiled.program, file);
+  Program program;
+  if (!load_program(file, machine, ip_index, program)) return 2;
+  CompensationNote::print(program, file);
 
   SimulationOptions so;
   so.interpolator = ip_index;
@@ -468,7 +461,7 @@ int run_simulate(int argc, char** argv) {
       if (row_written) write_row(row);
     };
   }
-  const SimulationSummary sum = sim->run(compiled.program, on_cycle, [&](const BlockReport& b) {
+  const SimulationSummary sum = sim->run(program, on_cycle, [&](const BlockReport& b) {
     if (!blocks) return;
     std::fprintf(blocks.get(), "%d,%d,%d,%.9f,%.3f,%.3f,%.6f,%s\n", b.line, b.act_part, b.g, b.length_mm,
                  b.programmed_mm_min, b.peak_mm_min, b.duration_s, limit_factor_name(b.factor));
@@ -485,7 +478,7 @@ int run_simulate(int argc, char** argv) {
 
   const bool finished = sum.result == StepResult::kFinished;
   std::printf("program:   %s (%zu records, interpolator %d, %d us cycle)\n", file.c_str(),
-              compiled.program.segments.size(), ip_index, machine.cycle_time_us);
+              program.segments.size(), ip_index, machine.cycle_time_us);
   const std::string why =
       interrupted != 0
           ? std::string("interrupted by ") + (interrupted == SIGINT ? "SIGINT" : "SIGTERM") +

@@ -364,6 +364,46 @@ TEST_F(HmiSimulate, ASlowFeedFinishesAndItsPeakIsPrinted) {
   EXPECT_NE(r.out.find("X=0.001000 Y=0.000000 Z=0.000000"), std::string::npos) << r.out;
 }
 
+// Intercode written by `compile --out` simulates as its G-code does (the summary is the same to
+// the last digit); one compiled for other axis letters is refused (it was read as G-code and
+// gave a screen of errors about its bytes).
+TEST_F(HmiSimulate, IntercodeRunsAsItsGcodeAndOtherAxesAreRefused) {
+  const fs::path tgmi = dir_ / "example.tgmi";
+  ProcessResult r = run("compile " + kExample + " --config " + kConfig + " --out " + tgmi.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const ProcessResult from_gcode = run("simulate " + kExample + " --config " + kConfig);
+  const ProcessResult from_intercode = run("simulate " + tgmi.string() + " --config " + kConfig);
+  ASSERT_EQ(from_gcode.exit_code, 0) << from_gcode.err;
+  ASSERT_EQ(from_intercode.exit_code, 0) << from_intercode.err;
+  // The summary names the input file on its first line and the wall-clock speed on the
+  // second; the rest is the run.
+  const auto body = [](std::string out) {
+    out.erase(0, out.find('\n'));
+    const auto at = out.find(", simulated ");
+    if (at != std::string::npos) out.erase(at, out.find('\n', at) - at);
+    return out;
+  };
+  EXPECT_EQ(body(from_intercode.out), body(from_gcode.out));
+  EXPECT_NE(from_intercode.out.find(" s program time"), std::string::npos) << from_intercode.out;
+
+  std::string rotary = slurp(kConfig);
+  const auto at = rotary.find("{letter: Z}]");
+  ASSERT_NE(at, std::string::npos);
+  rotary.replace(at, 12, "{letter: C}]");
+  const fs::path rot_cfg = write("rotary.yaml", rotary);
+  const fs::path rot = dir_ / "rotary.tgmi";
+  r = run("compile " + write("p.ngc", "G90 G1 X5 F3000\nM2\n").string() + " --config " +
+          rot_cfg.string() + " --out " + rot.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  r = run("simulate " + rot.string() + " --config " + kConfig);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(
+      r.err,
+      rot.string() +
+          ": error: compiled for the axes XYC, interpolator 0 has XYZ: compile the G-code for it "
+          "(tgm-hmi compile --interpolator 0)\n");
+}
+
 // Memory running out (here a 150 MB address-space limit and a million-line program) ends with
 // words and exit code 1; it used to abort with an uncaught std::bad_alloc and a core dump.
 TEST_F(HmiSimulate, RunningOutOfMemoryIsSaidAndExitsOne) {

@@ -174,37 +174,11 @@ int run_run(int argc, char** argv) {
   const int ip = args.interpolator();
   const std::string letters = config->machine.axis_letters(ip);
   Program program;
-  {
-    FileView input;
-    if (!input.open(file, error)) {
-      std::fprintf(stderr, "%s: error: %s\n", file.c_str(), error.c_str());
-      return 2;
-    }
-    const bool intercode = file.size() > 5 && file.compare(file.size() - 5, 5, ".tgmi") == 0;
-    if (intercode) {
-      if (!decode_intercode(input.text(), program, error)) {
-        std::fprintf(stderr, "%s: error: %s\n", file.c_str(), error.c_str());
-        return 2;
-      }
-      // Intercode holds axis positions by index: compiled for other letters (a C where this
-      // interpolator has Z), it would move the wrong axes. The service checks only the count.
-      if (program.axis_letters != letters) {
-        std::fprintf(stderr,
-                     "%s: error: compiled for the axes %s, interpolator %d has %s: compile the "
-                     "G-code for it (tgm-hmi compile --interpolator %d)\n",
-                     file.c_str(), program.axis_letters.c_str(), ip, letters.c_str(), ip);
-        return 2;
-      }
-    } else {
-      CompileResult r = compile_gcode(input.text(), CompileOptions::from_machine(config->machine, ip));
-      if (!r.ok()) {
-        for (const Diagnostic& d : r.errors) std::fprintf(stderr, "%s\n", format_diagnostic(file, d).c_str());
-        std::fprintf(stderr, "%s: %zu error%s, nothing sent\n", file.c_str(), r.errors.size(),
-                     r.errors.size() == 1 ? "" : "s");
-        return 2;
-      }
-      program = std::move(r.program);
-    }
+  if (std::size_t errors = 0; !load_program(file, config->machine, ip, program, &errors)) {
+    if (errors > 0)
+      std::fprintf(stderr, "%s: %zu error%s, nothing sent\n", file.c_str(), errors,
+                   errors == 1 ? "" : "s");
+    return 2;
   }
   if (program.segments.empty()) {
     std::fprintf(stderr, "%s: the program has no records\n", file.c_str());
