@@ -53,7 +53,15 @@ bool AtomicFile::open(const std::string& path, std::string& error) {
   // A temporary name of our own, created exclusively: a fixed "<path>.tmp" truncated a user's
   // file of that name and removed it after a failed run.
   for (int k = 0;; ++k) {
-    tmp_ = path_ + ".tmp-" + std::to_string(::getpid()) + (k > 0 ? "-" + std::to_string(k) : "");
+    // (Appended piece by piece: GCC 12 at -O3 warns of an overlapping memcpy inside
+    // `"-" + std::to_string(k)`, a false -Wrestrict.)
+    tmp_ = path_;
+    tmp_ += ".tmp-";
+    tmp_ += std::to_string(::getpid());
+    if (k > 0) {
+      tmp_ += '-';
+      tmp_ += std::to_string(k);
+    }
     const int fd = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
     if (fd >= 0) {
       f_ = ::fdopen(fd, "wb");
