@@ -452,7 +452,7 @@ void DdsPort::publish_loop() {
         other != 0 && other != other_reported_) {
       other_reported_ = other;
       const std::uint64_t mine = snap != nullptr ? snap->cycle : 0;
-      const bool young = opt_.yield_window_cycles > 0 && mine < opt_.yield_window_cycles;
+      const bool young = in_yield_window(mine, opt_.yield_window_cycles);
       const bool give_way =
           gives_way(mine, service_instance_, other_cycles_.load(std::memory_order_relaxed), other,
                     opt_.yield_window_cycles);

@@ -252,8 +252,7 @@ void Engine::apply_chunks(CyclePort& port, int i, std::size_t& budget) {
     // Records hold positions by axis index: a program compiled for other letters (XYC) would
     // drive this interpolator's axes (XYZ) as if they were those. The axis count is checked
     // by the interpolator; letters only when the chunk names them.
-    const std::string_view letters =
-        std::string_view(s.letters).substr(0, s.ip.registers().number_axes);
+    const std::string_view letters = s.active_letters();
     if (!c->program.axis_letters.empty() && c->program.axis_letters != letters) {
       refuse_chunk(port, i, *c,
                    "compiled for axes " + c->program.axis_letters + ", interpolator " +
@@ -416,7 +415,7 @@ void Engine::cycle(CyclePort& port, const LatenessStats& lateness) {
     o.buffered_segments = reg.buffer_size - static_cast<std::int32_t>(s.ip.free_slots());
     o.message_counter = s.message_counter;
     o.message_text = s.message_text;
-    o.axis_letters.set(std::string_view(s.letters).substr(0, reg.number_axes));
+    o.axis_letters.set(s.active_letters());
   }
   port.publish(snapshot_);
 }

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -88,6 +89,11 @@ class Engine {
     FixedText<256> message_text;
     std::uint64_t events = 0;  // EventOut::counter of the last event queued
     std::string letters;       // the config's axis letters (Number_Axes takes the first ones)
+    //! The letters of the Number_Axes axes in use.
+    std::string_view active_letters() const {
+      return std::string_view(letters).substr(0,
+                                              static_cast<std::size_t>(ip.registers().number_axes));
+    }
   };
   Engine(std::vector<Slot> ips, const EngineOptions& o) : ips_(std::move(ips)), opt_(o) {}
   ReplyOut apply(const RequestIn& r);

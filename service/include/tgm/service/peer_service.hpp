@@ -8,6 +8,12 @@
 
 namespace tgm::service {
 
+//! True while a service that has run `mine` cycles may still give way: within the first `window`
+//! cycles (0: never).
+inline bool in_yield_window(std::uint64_t mine, std::uint64_t window) {
+  return window > 0 && mine < window;
+}
+
 //! True when this service (cycle count `mine`, instance `my_instance`) gives way to another
 //! whose last sample showed `theirs` cycles and instance `their_instance`. Only within the
 //! first `window` cycles (0: never): to one that has run a fifth of the window longer, or,
@@ -18,7 +24,7 @@ namespace tgm::service {
 //! rule still orders them, only the moments of the decisions then matter.
 inline bool gives_way(std::uint64_t mine, std::uint64_t my_instance, std::uint64_t theirs,
                       std::uint64_t their_instance, std::uint64_t window) {
-  if (window == 0 || mine >= window) return false;
+  if (!in_yield_window(mine, window)) return false;
   const std::uint64_t margin = window / 5;
   return theirs > mine + margin || (theirs + margin >= mine && their_instance < my_instance);
 }
