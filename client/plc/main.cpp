@@ -808,7 +808,7 @@ int plc_main(int argc, char** argv) {
   append_log(pending_log, stamp(), "stopping");
   flush_log();
   int exit_code = 0;
-  if (std::FILE* f = trace_file.is_open() ? trace_file.stream() : nullptr) {
+  if (std::FILE* f = trace_file.stream()) {
     auto ns = [](Clock::time_point t) {
       return static_cast<long long>(
           std::chrono::duration_cast<std::chrono::nanoseconds>(t.time_since_epoch()).count());

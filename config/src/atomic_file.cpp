@@ -151,6 +151,7 @@ bool ReportFile::open(const std::string& path, std::string& error) {
 }
 
 std::FILE* ReportFile::stream() {
+  if (!is_open()) return nullptr;
   if (memory_ == nullptr) memory_ = ::open_memstream(&text_, &size_);
   return memory_;
 }

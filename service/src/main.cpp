@@ -341,7 +341,7 @@ int service_main(int argc, char** argv) {
           ? ("; limit excesses " + std::to_string(c.limit_violations)).c_str()
           : "");
   int exit_code = yielded_to != 0 ? 1 : 0;
-  if (std::FILE* f = stats_file.is_open() ? stats_file.stream() : nullptr) {
+  if (std::FILE* f = stats_file.stream()) {
     std::fprintf(
         f,
         "{\"cycles\": %llu, \"cycle_time_us\": %d, \"interpolators\": %d,\n"
@@ -381,11 +381,11 @@ int service_main(int argc, char** argv) {
         engine_options.check_limits ? "true" : "false",
         static_cast<unsigned long long>(c.limit_violations));
   }
-  if (std::FILE* f = trace_file.is_open() ? trace_file.stream() : nullptr) {
-    std::fprintf(f,
-                 "interpolator,act_part,handoff_ns,publisher_woke_ns,event_write_begin_ns,event_"
-                 "write_end_ns,"
-                 "state_write_begin_ns,state_write_end_ns,taken_ns,applied_ns\n");
+  if (std::FILE* f = trace_file.stream()) {
+    std::fprintf(
+        f,
+        "interpolator,act_part,handoff_ns,publisher_woke_ns,event_write_begin_ns,"
+        "event_write_end_ns,state_write_begin_ns,state_write_end_ns,taken_ns,applied_ns\n");
     for (const auto& h : port->handshakes()) {
       const auto& w = h.written;
       std::fprintf(f, "%d,%d,%lld,%lld,%lld,%lld,%lld,%lld,%lld,%lld\n", w.interpolator, w.act_part,

@@ -68,6 +68,8 @@ TEST_F(AtomicFileTest, AReportNeverFinishedLeavesNothingBehind) {
 
 TEST_F(AtomicFileTest, PathsThatCannotBeWrittenFailAtOpen) {
   std::string why;
+  ReportFile none;  // nothing opened: nothing to print into
+  EXPECT_EQ(none.stream(), nullptr);
   ReportFile dir;
   EXPECT_FALSE(dir.open(dir_.string(), why));
   EXPECT_EQ(why, "is a directory");

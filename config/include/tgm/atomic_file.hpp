@@ -51,7 +51,8 @@ class ReportFile {
   ~ReportFile();
   bool open(const std::string& path, std::string& error);
   bool is_open() const { return file_.is_open(); }
-  //! Where the report is printed (null when the memory stream cannot be made).
+  //! Where the report is printed (null when nothing was opened or the memory stream cannot be
+  //! made).
   std::FILE* stream();
   bool finish(std::string& error);
 
