@@ -2,11 +2,10 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
-#include <exception>
-#include <new>
 #include <string_view>
 
 #include "commands.hpp"
+#include "tgm/cli_args.hpp"
 
 namespace {
 
@@ -61,19 +60,8 @@ int run_command(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  // Every expected problem is reported where it happens; what still escapes (memory running
-  // out on a huge input, a library's exception nobody foresaw) ends with words and exit 1, not
-  // with an abort and a core dump.
-  int code = 1;
-  try {
-    code = run_command(argc, argv);
-  } catch (const std::bad_alloc&) {
-    std::fprintf(stderr, "tgm-hmi: out of memory\n");
-    return 1;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "tgm-hmi: internal error: %s\n", e.what());
-    return 1;
-  }
+  // What escapes a subcommand (memory running out on a huge input) ends with words and exit 1.
+  const int code = tgm::cli::run_guarded("tgm-hmi", run_command, argc, argv);
   // What went to standard output (a summary, a dump, a CSV on stdout) must have arrived: a full
   // disk or a closed pipe is an error, not exit code 0 with the output lost.
   // errno names the cause only when this flush failed; an earlier write's errno is gone.

@@ -23,11 +23,9 @@
 #include <cstdarg>
 #include <cstdio>
 #include <cstdlib>
-#include <exception>
 #include <filesystem>
 #include <map>
 #include <mutex>
-#include <new>
 #include <optional>
 #include <set>
 #include <string>
@@ -299,17 +297,9 @@ int plc_main(int argc, char** argv);
 
 }  // namespace
 
-// What escapes plc_main (memory running out, a library's exception nobody foresaw) ends with
-// words and exit 1, not with an abort.
+// What escapes plc_main ends with words and exit 1 (run_guarded), not with an abort.
 int main(int argc, char** argv) {
-  try {
-    return plc_main(argc, argv);
-  } catch (const std::bad_alloc&) {
-    std::fprintf(stderr, "tgm-plc: out of memory\n");
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "tgm-plc: internal error: %s\n", e.what());
-  }
-  return 1;
+  return tgm::cli::run_guarded("tgm-plc", plc_main, argc, argv);
 }
 
 namespace {

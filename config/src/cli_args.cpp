@@ -5,7 +5,9 @@
 
 #include <cstdio>
 #include <cstring>
+#include <exception>
 #include <filesystem>
+#include <new>
 #include <system_error>
 #include <utility>
 #include <vector>
@@ -83,6 +85,20 @@ bool ArgReader::distinct_files(const std::vector<NamedFile>& inputs,
     seen.push_back(&out);
   }
   return true;
+}
+
+int run_guarded(const char* program, int (*body)(int, char**), int argc, char** argv) {
+  try {
+    return body(argc, argv);
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "%s: out of memory\n", program);
+  } catch (const std::system_error& e) {
+    // A thread that cannot start (EAGAIN: memory or the thread limit), a clock, a lock.
+    std::fprintf(stderr, "%s: the system refused: %s\n", program, e.what());
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s: internal error: %s\n", program, e.what());
+  }
+  return 1;
 }
 
 ArgReader::NamedFile ArgReader::config_file(const std::string& config_flag) {

@@ -12,10 +12,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <ctime>
-#include <exception>
-#include <new>
 #include <string>
-#include <system_error>
 #include <thread>
 #include <tuple>
 #include <vector>
@@ -77,21 +74,10 @@ int service_main(int argc, char** argv);
 
 }  // namespace
 
-// What escapes the setup (memory running out for the buffers, a library's exception nobody
-// foresaw) ends with words and exit 1, not with an abort. (Once the cycle thread runs, an
-// exception is a defect that terminates the process.)
+// What escapes the setup ends with words and exit 1 (run_guarded). Once the cycle thread runs,
+// an exception is a defect that terminates the process.
 int main(int argc, char** argv) {
-  try {
-    return service_main(argc, argv);
-  } catch (const std::bad_alloc&) {
-    std::fprintf(stderr, "tgm-service: out of memory\n");
-  } catch (const std::system_error& e) {
-    // A thread that cannot start (EAGAIN: memory or the thread limit), a clock, a lock.
-    std::fprintf(stderr, "tgm-service: the system refused: %s\n", e.what());
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "tgm-service: internal error: %s\n", e.what());
-  }
-  return 1;
+  return tgm::cli::run_guarded("tgm-service", service_main, argc, argv);
 }
 
 namespace {

@@ -6,10 +6,14 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <filesystem>
 #include <fstream>
 #include <initializer_list>
+#include <new>
+#include <stdexcept>
 #include <string>
+#include <system_error>
 #include <vector>
 
 namespace tgm::cli {
@@ -302,6 +306,28 @@ TEST(CliArgs, AnOutputMayNotBeAnInputOrAnotherOutput) {
   std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   EXPECT_EQ(text, "G1 X1 F100\n");
   fs::remove_all(dir);
+}
+
+// The last resort of every binary's main: what escapes ends with words and exit code 1.
+TEST(RunGuarded, WhatEscapesEndsWithWordsAndExitOne) {
+  const auto run = [](int (*body)(int, char**), std::string& err) {
+    testing::internal::CaptureStderr();
+    const int code = run_guarded("prog", body, 0, nullptr);
+    err = testing::internal::GetCapturedStderr();
+    return code;
+  };
+  std::string err;
+  EXPECT_EQ(run([](int, char**) { return 7; }, err), 7);
+  EXPECT_EQ(err, "");
+  EXPECT_EQ(run([](int, char**) -> int { throw std::bad_alloc(); }, err), 1);
+  EXPECT_EQ(err, "prog: out of memory\n");
+  EXPECT_EQ(
+      run([](int, char**) -> int { throw std::system_error(EAGAIN, std::generic_category()); },
+          err),
+      1);
+  EXPECT_EQ(err, "prog: the system refused: Resource temporarily unavailable\n");
+  EXPECT_EQ(run([](int, char**) -> int { throw std::runtime_error("odd"); }, err), 1);
+  EXPECT_EQ(err, "prog: internal error: odd\n");
 }
 
 }  // namespace

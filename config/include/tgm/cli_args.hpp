@@ -75,4 +75,10 @@ class ArgReader {
   bool failed_ = false;
 };
 
+//! Runs a binary's main body so that what escapes it (memory running out, a thread that cannot
+//! start, a library's exception nobody foresaw) ends with "PROGRAM: ..." on standard error and
+//! exit code 1, not with an abort and a core dump. Expected problems are reported where they
+//! happen; this is the last resort of tgm-hmi, tgm-plc and tgm-service.
+int run_guarded(const char* program, int (*body)(int, char**), int argc, char** argv);
+
 }  // namespace tgm::cli
