@@ -31,9 +31,6 @@
 #include <string>
 #include <vector>
 
-#include <yaml-cpp/depthguard.h>
-#include <yaml-cpp/yaml.h>
-
 #include "m_tracker.hpp"
 #include "tgm/atomic_file.hpp"
 #include "tgm/cli_args.hpp"
@@ -41,7 +38,7 @@
 #include "tgm/client/client.hpp"
 #include "tgm/command_stage.hpp"
 #include "tgm/dds_overrides.hpp"
-#include "tgm/file_text.hpp"
+#include "tgm/plc_script.hpp"
 #include "tgm/registers.hpp"
 #include "tgm/yaml_config.hpp"
 
@@ -105,132 +102,6 @@ constexpr const char* kUsage =
 
 std::atomic<bool> g_stop{false};
 void on_signal(int) { g_stop = true; }
-
-struct ScriptStep {
-  double at_s = 0.0;
-  int interpolator = 0;
-  std::optional<double> rel_speed;
-  std::optional<int> command;
-  bool start = false;
-  std::vector<int> refuse_ack;
-  bool done = false;
-};
-
-// The Commands of the manual's Command register: the stops and the smoothing / output stage's
-// (gear ratios, position set, IIR and spline parameters); a script sends them with zero
-// parameters.
-bool known_command(std::int32_t c) {
-  return c == 4 || c == 5 || c == 8 || c == 9 || tgm::is_stage_command(c);
-}
-
-// A script step's values are read as the command line reads numbers (cli_numbers.hpp: the whole
-// text, base 10, finite) and checked against their range: a bad one is named with its line, key
-// and text (yaml-cpp's conversion said only "bad conversion"), and a Rel_Speed or Command the
-// service would refuse is an error here rather than a refusal in the middle of the run.
-bool load_script(const std::string& path, std::vector<ScriptStep>& steps, std::string& error) {
-  // Read as a config is: bounded (a device without end, a huge file given by mistake), and a
-  // directory named as such.
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) {
-    error = path + ": is a directory, not a script";
-    return false;
-  }
-  std::string script;
-  switch (tgm::read_whole_file(path, tgm::kMaxConfigBytes, script)) {
-    case tgm::ReadResult::kRead:
-      break;
-    case tgm::ReadResult::kCannotOpen:
-      error = path + ": cannot open the script file: " + std::strerror(errno);
-      return false;
-    case tgm::ReadResult::kReadError:
-      error = path + ": cannot read the script file";
-      return false;
-    case tgm::ReadResult::kTooLarge:
-      error =
-          path + ": more than " + std::to_string(tgm::kMaxConfigBytes >> 20) + " MiB: not a script";
-      return false;
-  }
-  try {
-    const YAML::Node root = YAML::Load(script);
-    if (!root.IsSequence()) {
-      error = path + ": the script must be a list of steps";
-      return false;
-    }
-    for (const YAML::Node& n : root) {
-      const int line = n.Mark().line + 1;
-      const std::string at = path + ":" + std::to_string(line) + ": ";
-      if (!n.IsMap()) {
-        error = at + "a step must be a map";
-        return false;
-      }
-      ScriptStep s;
-      std::set<std::string> seen;
-      for (const auto& kv : n) {
-        const std::string key = kv.first.IsScalar() ? kv.first.Scalar() : "(not a name)";
-        if (!seen.insert(key).second) {  // yaml-cpp keeps both: one would be dropped unsaid
-          error = at + "'" + key + "' is given twice";
-          return false;
-        }
-        const YAML::Node& v = kv.second;
-        const std::string text = v.IsScalar() ? v.Scalar() : v.IsSequence() ? "[list]" : "{map}";
-        auto bad = [&](const std::string& what) {
-          error = at + key + " must be " + what + ", not '" + text + "'";
-          return false;
-        };
-        auto number = [&](double lo, double hi, double& out) {
-          return v.IsScalar() && tgm::parse_finite(v.Scalar(), out) && out >= lo && out <= hi;
-        };
-        auto whole = [&](long long lo, long long hi, long long& out) {
-          return v.IsScalar() && tgm::parse_integer(v.Scalar(), lo, hi, out);
-        };
-        long long k = 0;
-        double x = 0.0;
-        if (key == "at_s") {
-          if (!number(0.0, 1e9, s.at_s)) return bad("a number of seconds >= 0");
-        } else if (key == "interpolator") {
-          if (!whole(0, tgm::kMaxInterpolators - 1, k)) return bad("an interpolator 0..2");
-          s.interpolator = static_cast<int>(k);
-        } else if (key == "rel_speed") {
-          if (!number(0.01, 2.0, x)) return bad("an override 0.01..2");
-          s.rel_speed = x;
-        } else if (key == "command") {
-          if (!whole(INT32_MIN, INT32_MAX, k) || !known_command(static_cast<std::int32_t>(k))) {
-            return bad("a Command: 4, 5, 8, 9 (stops), 1024, 2048, 2049, -1 or -2");
-          }
-          s.command = static_cast<int>(k);
-        } else if (key == "start") {
-          if (text == "true" || text == "yes" || text == "on") {
-            s.start = true;
-          } else if (text != "false" && text != "no" && text != "off") {
-            return bad("true or false");
-          }
-        } else if (key == "refuse_ack") {
-          if (!v.IsSequence()) return bad("a list of M numbers");
-          for (const YAML::Node& m : v) {
-            if (!m.IsScalar() || !tgm::parse_integer(m.Scalar(), 0, INT32_MAX, k)) {
-              error = at + "refuse_ack must list M numbers >= 0, not '" +
-                      (m.IsScalar() ? m.Scalar() : std::string("[list]")) + "'";
-              return false;
-            }
-            s.refuse_ack.push_back(static_cast<int>(k));
-          }
-        } else {
-          error = at + "unknown key '" + key + "'";
-          return false;
-        }
-      }
-      steps.push_back(s);
-    }
-  } catch (const YAML::DeepRecursion& e) {
-    error = path + ":" + std::to_string(e.mark.line + 1) + ": nested more than " +
-            std::to_string(e.depth() - 1) + " levels deep";
-    return false;
-  } catch (const YAML::Exception& e) {
-    error = path + ": " + e.what();
-    return false;
-  }
-  return true;
-}
 
 template <class Params>
 std::string params_text(const Params& params) {
@@ -309,7 +180,7 @@ int plc_main(int argc, char** argv) {
   std::optional<double> rel_speed;
   std::optional<double> ack_delay;
   std::set<int> refuse;
-  std::vector<ScriptStep> script;
+  std::vector<tgm::PlcScriptStep> script;
   std::string script_path;
   std::string trace_path;
   int only = -1;
@@ -356,10 +227,13 @@ int plc_main(int argc, char** argv) {
         p = q + 1;
       }
     } else if (args.flag("--script", script_path)) {
-      std::string error;
-      if (!args.failed() && !load_script(script_path, script, error)) {
-        std::fprintf(stderr, "tgm-plc: %s\n", error.c_str());
-        return 2;
+      if (!args.failed()) {
+        tgm::PlcScriptLoad load = tgm::load_plc_script(script_path);
+        if (!load.ok()) {
+          std::fprintf(stderr, "tgm-plc: %s\n", load.error.c_str());
+          return 2;
+        }
+        script = std::move(load.steps);
       }
     } else {
       return args.fail();
@@ -388,9 +262,11 @@ int plc_main(int argc, char** argv) {
   if (only >= count)
     return args.usage_error("--interpolator " + std::to_string(only) + ": the config has " +
                             std::to_string(count));
+  std::vector<bool> script_done(script.size(), false);
   for (const auto& s : script) {
     if (s.interpolator < 0 || s.interpolator >= count) {
-      std::fprintf(stderr, "tgm-plc: %s: interpolator %d does not exist\n", script_path.c_str(), s.interpolator);
+      std::fprintf(stderr, "tgm-plc: %s:%d: interpolator %d does not exist (the config has %d)\n",
+                   script_path.c_str(), s.line, s.interpolator, count);
       return 2;
     }
   }
@@ -756,9 +632,10 @@ int plc_main(int argc, char** argv) {
         append_log(pending_log, stamp(), "tgm-service is back");
       }
       const double t = std::chrono::duration<double>(now - *found_at).count();
-      for (ScriptStep& st : script) {
-        if (st.done || t < st.at_s) continue;
-        st.done = true;
+      for (std::size_t k = 0; k < script.size(); ++k) {
+        const tgm::PlcScriptStep& st = script[k];
+        if (script_done[k] || t < st.at_s) continue;
+        script_done[k] = true;
         if (st.rel_speed) {
           append_log(
               pending_log, stamp(), "script: interpolator %d: Rel_Speed = %g: %s", st.interpolator,

@@ -1,6 +1,9 @@
 #include "tgm/file_text.hpp"
 
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
+#include <filesystem>
 
 namespace tgm {
 
@@ -29,6 +32,33 @@ ReadResult read_whole_file(const std::string& path, std::size_t limit, std::stri
     return ReadResult::kTooLarge;
   }
   return ReadResult::kRead;
+}
+
+std::string read_settings_file(const std::string& path, std::string_view kind, std::size_t limit,
+                               std::string& out) {
+  out.clear();
+  const std::string k(kind);
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) {
+    // A directory opens as a file, and reading it gives an empty text: for a config that would
+    // be every default. Say what it is.
+    return path + ": is a directory, not a " + k + " file";
+  }
+  switch (read_whole_file(path, limit, out)) {
+    case ReadResult::kRead:
+      return {};
+    case ReadResult::kCannotOpen:
+      return path + ": cannot open the " + k + " file: " + std::strerror(errno);
+    case ReadResult::kReadError:
+      return path + ": cannot read the " + k + " file";
+    case ReadResult::kTooLarge:
+      break;
+  }
+  // A whole number of MiB when it is one (the 16 MiB of a config), else bytes.
+  const std::string size = limit % (std::size_t{1} << 20) == 0
+                               ? std::to_string(limit >> 20) + " MiB"
+                               : std::to_string(limit) + " bytes";
+  return path + ": more than " + size + ": not a " + k + " file";
 }
 
 }  // namespace tgm

@@ -2,6 +2,8 @@
 
 #include "tgm/cli_numbers.hpp"
 #include "tgm/file_text.hpp"
+#include "tgm/printable.hpp"
+#include "yaml_mark.hpp"
 
 #include <yaml-cpp/depthguard.h>
 #include <yaml-cpp/yaml.h>
@@ -426,13 +428,11 @@ ConfigLoad load_config_text(const std::string& text, const std::string& path) {
     root = YAML::Load(text);
   } catch (const YAML::DeepRecursion& e) {
     // yaml-cpp's own message for this is "bad file".
-    out.errors.push_back(path + ":" + std::to_string(e.mark.line + 1) + ":" +
-                         std::to_string(e.mark.column + 1) + ": YAML syntax: nested more than " +
-                         std::to_string(e.depth() - 1) + " levels deep");
+    out.errors.push_back(printable(path + yaml_place(e.mark) + ": YAML syntax: nested more than " +
+                                   std::to_string(e.depth() - 1) + " levels deep"));
     return out;
   } catch (const YAML::Exception& e) {
-    out.errors.push_back(path + ":" + std::to_string(e.mark.line + 1) + ":" +
-                         std::to_string(e.mark.column + 1) + ": YAML syntax: " + e.msg);
+    out.errors.push_back(printable(path + yaml_place(e.mark) + ": YAML syntax: " + e.msg));
     return out;
   }
   try {
@@ -442,11 +442,13 @@ ConfigLoad load_config_text(const std::string& text, const std::string& path) {
       read_file(r, root, cfg);
     }
   } catch (const YAML::Exception& e) {
-    r.errors.push_back(path + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg);
+    r.errors.push_back(path + yaml_place(e.mark) + ": " + e.msg);
   }
   for (auto& e : locate(r, path, cfg.machine.validate())) r.errors.push_back(std::move(e));
   if (!r.errors.empty()) {
-    out.errors = std::move(r.errors);
+    // Keys and values are quoted from the file: a control character in them (an escape in a
+    // quoted scalar) is shown, not sent to the terminal.
+    for (std::string& e : r.errors) out.errors.push_back(printable(e));
     return out;
   }
   // Resolve the profiles file relative to the YAML file.
@@ -460,32 +462,16 @@ ConfigLoad load_config_text(const std::string& text, const std::string& path) {
 }
 
 ConfigLoad load_config_file(const std::string& path) {
-  ConfigLoad out;
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) {
-    // A directory opens as a file; what reading it gives is no config (an empty text would load
-    // every default): say what it is.
-    out.errors.push_back(path + ": is a directory, not a config file");
-    return out;
-  }
   // Up to a bound: a config is a few KB, and a device without end (/dev/zero) or a large file
   // given by mistake must not be read for minutes.
   std::string text;
-  switch (read_whole_file(path, kMaxConfigBytes, text)) {
-    case ReadResult::kRead:
-      return load_config_text(text, path);
-    case ReadResult::kCannotOpen:
-      out.errors.push_back(path + ": cannot open the config file");
-      break;
-    case ReadResult::kReadError:
-      out.errors.push_back(path + ": cannot read the config file");
-      break;
-    case ReadResult::kTooLarge:
-      out.errors.push_back(path + ": more than " + std::to_string(kMaxConfigBytes >> 20) +
-                           " MiB: not a config file");
-      break;
+  if (std::string error = read_settings_file(path, "config", kMaxConfigBytes, text);
+      !error.empty()) {
+    ConfigLoad out;
+    out.errors.push_back(std::move(error));
+    return out;
   }
-  return out;
+  return load_config_text(text, path);
 }
 
 std::optional<AppConfig> load_config_or_report(const std::string& path,

@@ -892,48 +892,26 @@ TEST(ServiceProcesses, ServiceAndPlcOutliveTheReaderOfTheirLog) {
   EXPECT_EQ(service.interrupt(kHang), 0);
 }
 
-// tgm-plc --script: a bad step is named by its line and the reason, before anything is sent.
+// tgm-plc --script: a bad step is named by its line and the reason, before anything is sent
+// (every case of the reader: tests/unit/plc_script_test.cpp; fuzzed: tests/fuzz).
 TEST(ServiceProcesses, PlcScriptErrorsNameTheLineAndTheReason) {
   ServiceEnv env;
   const std::vector<std::pair<std::string, std::string>> cases = {
-      {"{at_s: 1, command: 8}\n", ": the script must be a list of steps"},
       {"- {at_s: 1, command: 8}\n- {at_s: 2, comand: 9}\n", ":2: unknown key 'comand'"},
-      {"- {at_s: 1, command: 8}\n- {at_s: 2, at_s: 3, command: 9}\n", ":2: 'at_s' is given twice"},
-      {"- {at_s: -1, command: 8}\n", ":1: at_s must be a number of seconds >= 0"},
-      {"- 8\n", ":1: a step must be a map"},
-      // Values are read as the command line reads numbers and checked against their range
-      // (yaml-cpp said "bad conversion"; a Rel_Speed of 5 was refused only in the run).
-      {"- {at_s: abc}\n", ":1: at_s must be a number of seconds >= 0, not 'abc'"},
       {"- {at_s: 1, rel_speed: 5}\n", ":1: rel_speed must be an override 0.01..2, not '5'"},
-      {"- {at_s: 1}\n- {at_s: 2, command: 3}\n", ":2: command must be a Command: 4, 5, 8, 9"},
-      {"- {at_s: 1, refuse_ack: [51, x]}\n", ":1: refuse_ack must list M numbers >= 0, not 'x'"},
-      {"- {at_s: 1, start: maybe}\n", ":1: start must be true or false, not 'maybe'"},
-      // yaml-cpp's "bad file" for brackets nested past its depth limit.
-      {"- " + std::string(3000, '[') + std::string(3000, ']') + "\n", ":2: nested more than "},
+      // A directory aborted the PLC (an uncaught exception from yaml-cpp).
+      {"", ": is a directory, not a script file"},
   };
   for (std::size_t i = 0; i < cases.size(); ++i) {
-    const std::string script = env.path("script" + std::to_string(i) + ".yaml");
-    std::ofstream(script) << cases[i].first;
+    const std::string script =
+        cases[i].first.empty() ? env.path("") : env.path("script" + std::to_string(i) + ".yaml");
+    if (!cases[i].first.empty()) std::ofstream(script) << cases[i].first;
     test::Child plc;
     ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.config(), "--script", script},
                           env.path("plc" + std::to_string(i) + ".log")));
     EXPECT_EQ(plc.wait(kHang), 2) << cases[i].first;
-    EXPECT_NE(plc.log().find(script + cases[i].second), std::string::npos)
+    EXPECT_NE(plc.log().find("tgm-plc: " + script + cases[i].second), std::string::npos)
         << cases[i].first << plc.log();
-  }
-  // Files that are no script: a directory (an uncaught exception aborted the PLC), one that is
-  // not there, a device without end (read up to the config bound, 16 MiB).
-  const std::vector<std::pair<std::string, std::string>> files = {
-      {env.path(""), ": is a directory, not a script"},
-      {env.path("none.yaml"), ": cannot open the script file: No such file or directory"},
-      {"/dev/zero", ": more than 16 MiB: not a script"},
-  };
-  for (const auto& [file, says] : files) {
-    test::Child plc;
-    ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.config(), "--script", file},
-                          env.path("plc_file.log")));
-    EXPECT_EQ(plc.wait(kHang), 2) << file << plc.log();
-    EXPECT_NE(plc.log().find(file + says), std::string::npos) << file << plc.log();
   }
 }
 

@@ -259,10 +259,28 @@ TEST(Config, AxisDefaultsApplyToTheBuiltInAxesToo) {
 TEST(Config, MissingFileIsAnError) {
   const auto load = load_config_file("/nonexistent/tgm.yaml");
   ASSERT_EQ(load.errors.size(), 1u);
-  EXPECT_EQ(load.errors[0], "/nonexistent/tgm.yaml: cannot open the config file");
+  EXPECT_EQ(load.errors[0],
+            "/nonexistent/tgm.yaml: cannot open the config file: No such file or directory");
 }
 
 // A directory opens as a stream that reads nothing, which loaded every default silently.
+// A key or a value written with an escape (a quoted scalar may hold any byte) is quoted in the
+// message with the control characters shown, never sent to the operator's terminal raw.
+TEST(Config, ControlCharactersFromTheFileAreShownEscaped) {
+  const auto load = load_config_text(
+      "cycle_time_us: \"5\\e[2J00\"\n\"dds\\tx\": 1\naxis_defaults: {backlash_mm: \"\\x07\"}\n",
+      "t.yaml");
+  ASSERT_FALSE(load.config);
+  ASSERT_EQ(load.errors.size(), 3u);
+  EXPECT_NE(load.errors[0].find("t.yaml:2: dds\\tx: unknown key"), std::string::npos)
+      << load.errors[0];
+  EXPECT_EQ(load.errors[1], "t.yaml:1: cycle_time_us: must be a whole number, not '5\\x1b[2J00'");
+  EXPECT_EQ(load.errors[2], "t.yaml:3: axis_defaults.backlash_mm: must be a number, not '\\x07'");
+  for (const std::string& e : load.errors) {
+    for (const char c : e) EXPECT_GE(static_cast<unsigned char>(c), 0x20) << e;
+  }
+}
+
 TEST(Config, DirectoryIsAnErrorNotAnEmptyConfig) {
   const auto load = load_config_file(TGM_SOURCE_DIR "/config");
   EXPECT_FALSE(load.config);

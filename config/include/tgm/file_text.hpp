@@ -5,6 +5,7 @@
 
 #include <cstddef>
 #include <string>
+#include <string_view>
 
 namespace tgm {
 
@@ -17,5 +18,12 @@ enum class ReadResult {
 
 //! Reads the whole of `path` into `out`, at most `limit` bytes.
 ReadResult read_whole_file(const std::string& path, std::size_t limit, std::string& out);
+
+//! Reads a settings file (a config, a PLC script) of at most `limit` bytes into `out`. Returns
+//! "" or what went wrong, naming the path and `kind` ("config", "script"): "PATH: is a
+//! directory, not a KIND file", "PATH: cannot open the KIND file: <errno text>", "PATH: cannot
+//! read the KIND file", "PATH: more than N MiB: not a KIND file".
+std::string read_settings_file(const std::string& path, std::string_view kind, std::size_t limit,
+                               std::string& out);
 
 }  // namespace tgm

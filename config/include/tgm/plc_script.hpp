@@ -1,0 +1,42 @@
+// The timed actions of `tgm-plc --script`: a YAML list of steps, each at a time after the PLC
+// found the service. Read here, next to the config it is written like, so that the reading can
+// be tested and fuzzed without DDS.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace tgm {
+
+//! One step: what the emulated PLC does at `at_s`.
+struct PlcScriptStep {
+  double at_s = 0.0;  //!< seconds from the moment the service was found, 0..1e9
+  int interpolator = 0;
+  std::optional<double> rel_speed;  //!< Rel_Speed write, 0.01..2
+  std::optional<int> command;       //!< a Command with zero parameters (plc_script_command)
+  bool start = false;               //!< a start request as the PLC (the service refuses it)
+  std::vector<int> refuse_ack;      //!< M numbers, 1..999999, no longer acknowledged
+  int line = 0;                     //!< line of the step in the script (1-based)
+};
+
+//! The steps, or the first problem as "PATH:LINE: reason" ("PATH: reason" for the file as a
+//! whole). Text taken from the script is shown with control characters escaped.
+struct PlcScriptLoad {
+  std::vector<PlcScriptStep> steps;
+  std::string error;
+  bool ok() const { return error.empty(); }
+};
+
+//! The Commands a script may send: the stops 4, 5, 8, 9 and the smoothing / output stage's
+//! Commands (gear ratios, position set, IIR and spline parameters), with zero parameters.
+bool plc_script_command(long long code);
+
+//! Parses script text; `path` names it in messages.
+PlcScriptLoad parse_plc_script(std::string_view text, const std::string& path);
+
+//! Reads and parses a script file, bounded as a config is (kMaxConfigBytes).
+PlcScriptLoad load_plc_script(const std::string& path);
+
+}  // namespace tgm

@@ -1,0 +1,145 @@
+#include "tgm/plc_script.hpp"
+
+#include <yaml-cpp/depthguard.h>
+#include <yaml-cpp/yaml.h>
+
+#include <cstdint>
+#include <set>
+
+#include "tgm/cli_numbers.hpp"
+#include "tgm/command_stage.hpp"
+#include "tgm/file_text.hpp"
+#include "tgm/intercode.hpp"
+#include "tgm/printable.hpp"
+#include "tgm/yaml_config.hpp"
+#include "yaml_mark.hpp"
+
+namespace tgm {
+
+namespace {
+
+constexpr int kMaxMNumber = 999999;  // as the G-code compiler and --refuse-ack take them
+
+// What a node holds, for a message: a scalar as written (control characters escaped), else
+// its kind.
+std::string shown(const YAML::Node& n) {
+  if (n.IsScalar()) return printable(n.Scalar());
+  if (n.IsSequence()) return "[list]";
+  if (n.IsMap()) return "{map}";
+  return "null";
+}
+
+// One step's keys; "" or the reason (without the place).
+std::string read_step(const YAML::Node& n, PlcScriptStep& s) {
+  std::set<std::string> seen;
+  for (const auto& kv : n) {
+    const std::string key = kv.first.IsScalar() ? printable(kv.first.Scalar()) : "(not a name)";
+    if (!seen.insert(key).second) return "'" + key + "' is given twice";  // yaml-cpp keeps both
+    const YAML::Node& v = kv.second;
+    const auto bad = [&](const std::string& what) {
+      return key + " must be " + what + ", not '" + shown(v) + "'";
+    };
+    // Values are read as the command line reads numbers (cli_numbers.hpp: the whole text,
+    // base 10, finite) and checked against their range: yaml-cpp's conversion said only "bad
+    // conversion", and a Rel_Speed the service refuses is an error here, not in the run.
+    const auto number = [&](double lo, double hi, double& out) {
+      return v.IsScalar() && parse_finite(v.Scalar(), out) && out >= lo && out <= hi;
+    };
+    long long k = 0;
+    double x = 0.0;
+    if (key == "at_s") {
+      if (!number(0.0, 1e9, s.at_s)) return bad("a number of seconds 0..1e9");
+    } else if (key == "interpolator") {
+      if (!v.IsScalar() || !parse_integer(v.Scalar(), 0LL, kMaxInterpolators - 1LL, k)) {
+        return bad("an interpolator 0.." + std::to_string(kMaxInterpolators - 1));
+      }
+      s.interpolator = static_cast<int>(k);
+    } else if (key == "rel_speed") {
+      if (!number(0.01, 2.0, x)) return bad("an override 0.01..2");
+      s.rel_speed = x;
+    } else if (key == "command") {
+      if (!v.IsScalar() || !parse_integer(v.Scalar(), INT32_MIN + 0LL, INT32_MAX + 0LL, k) ||
+          !plc_script_command(k)) {
+        return bad("a Command: 4, 5, 8, 9 (stops), 1024, 2048, 2049, -1 or -2");
+      }
+      s.command = static_cast<int>(k);
+    } else if (key == "start") {
+      const std::string t = v.IsScalar() ? v.Scalar() : "";
+      if (t == "true" || t == "yes" || t == "on") {
+        s.start = true;
+      } else if (t != "false" && t != "no" && t != "off") {
+        return bad("true or false");
+      }
+    } else if (key == "refuse_ack") {
+      if (!v.IsSequence()) return bad("a list of M numbers");
+      for (const YAML::Node& m : v) {
+        if (!m.IsScalar() || !parse_integer(m.Scalar(), 1LL, kMaxMNumber + 0LL, k)) {
+          return "refuse_ack must list M numbers 1.." + std::to_string(kMaxMNumber) + ", not '" +
+                 shown(m) + "'";
+        }
+        s.refuse_ack.push_back(static_cast<int>(k));
+      }
+    } else {
+      return "unknown key '" + key + "' (known: at_s, interpolator, rel_speed, command, start, " +
+             "refuse_ack)";
+    }
+  }
+  return {};
+}
+
+}  // namespace
+
+bool plc_script_command(long long code) {
+  if (code < INT32_MIN || code > INT32_MAX) return false;
+  const auto c = static_cast<std::int32_t>(code);
+  return c == 4 || c == 5 || c == 8 || c == 9 || is_stage_command(c);
+}
+
+PlcScriptLoad parse_plc_script(std::string_view text, const std::string& path) {
+  PlcScriptLoad out;
+  try {
+    const YAML::Node root = YAML::Load(std::string(text));
+    if (!root.IsSequence()) {
+      out.error = path + ": the script must be a list of steps, e.g. - {at_s: 3, command: 8}";
+      return out;
+    }
+    for (const YAML::Node& n : root) {
+      PlcScriptStep s;
+      s.line = n.Mark().line + 1;
+      const std::string at = path + ":" + std::to_string(s.line) + ": ";
+      if (!n.IsMap()) {
+        out.error = at + "a step must be a map, e.g. {at_s: 3, command: 8}";
+        out.steps.clear();  // all or nothing: a script is not run in part
+        return out;
+      }
+      if (std::string why = read_step(n, s); !why.empty()) {
+        out.error = at + why;
+        out.steps.clear();
+        return out;
+      }
+      out.steps.push_back(std::move(s));
+    }
+  } catch (const YAML::DeepRecursion& e) {
+    // yaml-cpp's own message for this is "bad file".
+    out.error = path + yaml_place(e.mark) + ": YAML syntax: nested more than " +
+                std::to_string(e.depth() - 1) + " levels deep";
+    out.steps.clear();
+  } catch (const YAML::Exception& e) {
+    out.error = path + yaml_place(e.mark) + ": YAML syntax: " + printable(e.msg);
+    out.steps.clear();
+  }
+  return out;
+}
+
+PlcScriptLoad load_plc_script(const std::string& path) {
+  std::string text;
+  if (std::string error = read_settings_file(path, "script", kMaxConfigBytes, text);
+      !error.empty()) {
+    PlcScriptLoad out;
+    out.error = std::move(error);
+    return out;
+  }
+  return parse_plc_script(text, path);
+}
+
+}  // namespace tgm
