@@ -234,7 +234,13 @@ std::vector<std::string> locate(const Reader& r, const std::string& file,
     std::string where = file;
     if (l != r.line_of.end()) where.append(":").append(std::to_string(l->second));
     if (o == r.origin.end()) {
-      out.push_back(where + ": " + f);
+      // A value the file does not give is the built-in one: say so, or "rapid_velocity_mm_s:
+      // 250 exceeds max_velocity_mm_s 100" names a 250 the reader looks for in vain.
+      const bool built_in = r.line_of.count(key) == 0 && key.find('.') != std::string::npos;
+      out.push_back(
+          where + ": " + f +
+          (built_in ? " (" + key.substr(key.rfind('.') + 1) + " is not given: the built-in value)"
+                    : std::string()));
       continue;
     }
     const std::string id = at + ": " + reason;
@@ -281,6 +287,7 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
             AxisConfig a = defaults;
             a.letter = default_axis_letter(static_cast<int>(i));
             const std::string ap = path + ".axes[" + std::to_string(i) + "]";
+            r.note(axes[i], ap);  // the line of a finding about a value the axis does not give
             read_axis(r, axes[i], ap, a, true);
             from_defaults(r, root["axis_defaults"], axes[i], ap);
             ip.axes.push_back(a);

@@ -56,8 +56,9 @@ extern "C" void on_crash(int sig) {
 
 using tgm::fuzz::Rng;
 
-// Pieces of G-code and of trouble, inserted by the mutator (also in gcode.dict for libFuzzer).
-constexpr const char* kTokens[] = {
+// Pieces of G-code and of trouble, inserted by the mutator (also in gcode.dict for libFuzzer);
+// a target may replace them (prepare_tokens: the YAML targets).
+constexpr const char* kGcodeTokens[] = {
     "G0 ",
     "G1 ",
     "G2 ",
@@ -143,7 +144,8 @@ std::string random_bytes(Rng& r, std::size_t n, bool printable) {
   return s;
 }
 
-void mutate(Rng& r, std::string& s, const std::vector<std::string>& seeds, std::size_t max_len) {
+void mutate(Rng& r, std::string& s, const std::vector<std::string>& seeds,
+            const std::vector<std::string>& tokens, std::size_t max_len) {
   const int n = 1 + static_cast<int>(r.below(4));
   for (int k = 0; k < n; ++k) {
     const std::size_t at = r.below(s.size() + 1);
@@ -158,10 +160,7 @@ void mutate(Rng& r, std::string& s, const std::vector<std::string>& seeds, std::
         if (!s.empty()) s[r.below(s.size())] = static_cast<char>(r.next());
         break;
       case 3: {  // insert a token
-        const std::size_t t = r.below(sizeof kTokens / sizeof kTokens[0]);
-        const std::string tok =
-            kTokens[t][0] == '\0' ? std::string(1, '\0') : std::string(kTokens[t]);
-        s.insert(at, tok);
+        s.insert(at, tokens[r.below(tokens.size())]);
         break;
       }
       case 4:  // erase a range
@@ -246,6 +245,10 @@ int main(int argc, char** argv) {
   std::vector<std::string> seeds;
   for (const fs::path& f : files) seeds.push_back(read_file(f));
   tgm::fuzz::prepare_seeds(seeds);
+  std::vector<std::string> tokens;
+  for (const char* t : kGcodeTokens) tokens.push_back(t[0] == '\0' ? std::string(1, '\0') : t);
+  tgm::fuzz::prepare_tokens(tokens);
+  if (tokens.empty()) tokens.emplace_back(" ");
   if (seeds.empty()) seeds.emplace_back();
   if (!write_seeds.empty()) {
     fs::create_directories(write_seeds);
@@ -281,7 +284,7 @@ int main(int argc, char** argv) {
         break;
       default:
         s = seeds[r.below(seeds.size())];
-        mutate(r, s, seeds, static_cast<std::size_t>(max_len));
+        mutate(r, s, seeds, tokens, static_cast<std::size_t>(max_len));
         break;
     }
     go(s);

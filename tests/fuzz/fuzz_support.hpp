@@ -35,6 +35,11 @@ struct Rng : tgm::test::SplitMix64 {
 //! never call it.
 void prepare_seeds(std::vector<std::string>& seeds);
 
+//! Lets a target replace or extend the pieces the plain driver's mutator inserts (G-code words
+//! and troublesome numbers by default; the YAML targets insert YAML syntax and their keys).
+//! Every target defines it; libFuzzer builds never call it (they take a -dict file).
+void prepare_tokens(std::vector<std::string>& tokens);
+
 //! Every field `encode_intercode` stores is equal in `a` and `b`; `why` names the first that
 //! is not.
 inline bool same_program(const Program& a, const Program& b, std::string& why) {

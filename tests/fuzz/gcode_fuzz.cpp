@@ -70,6 +70,7 @@ void check(std::string_view text, const tgm::CompileOptions& opt) {
 
 namespace tgm::fuzz {
 void prepare_seeds(std::vector<std::string>&) {}
+void prepare_tokens(std::vector<std::string>&) {}
 }  // namespace tgm::fuzz
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {

@@ -134,6 +134,7 @@ struct Operator {
 }  // namespace
 
 void tgm::fuzz::prepare_seeds(std::vector<std::string>&) {}
+void tgm::fuzz::prepare_tokens(std::vector<std::string>&) {}
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string_view text(reinterpret_cast<const char*>(data), size);

@@ -281,6 +281,27 @@ TEST(Config, ControlCharactersFromTheFileAreShownEscaped) {
   }
 }
 
+// A finding about a value the file does not give says that it is the built-in one: lowering
+// an axis's max_velocity_mm_s below the built-in rapid speed named a "250" nowhere in the file.
+TEST(Config, AFindingAboutABuiltInValueSaysSo) {
+  const auto load = load_config_text(
+      "interpolators:\n  - axes:\n      - {letter: X, max_velocity_mm_s: 100}\n", "t.yaml");
+  ASSERT_FALSE(load.config);
+  ASSERT_EQ(load.errors.size(), 1u);
+  EXPECT_EQ(load.errors[0],
+            "t.yaml:3: interpolators[0].axes[0].rapid_velocity_mm_s: 250 exceeds max_velocity_mm_s "
+            "100 (rapid_velocity_mm_s is not given: the built-in value)");
+  // Given in the file, the value is named without the remark.
+  const auto given = load_config_text(
+      "interpolators:\n  - axes:\n      - {letter: X, max_velocity_mm_s: 100,\n"
+      "         rapid_velocity_mm_s: 120}\n",
+      "t.yaml");
+  ASSERT_EQ(given.errors.size(), 1u);
+  EXPECT_EQ(
+      given.errors[0],
+      "t.yaml:4: interpolators[0].axes[0].rapid_velocity_mm_s: 120 exceeds max_velocity_mm_s 100");
+}
+
 TEST(Config, DirectoryIsAnErrorNotAnEmptyConfig) {
   const auto load = load_config_file(TGM_SOURCE_DIR "/config");
   EXPECT_FALSE(load.config);

@@ -1,0 +1,49 @@
+// Fuzz target: arbitrary bytes as a tgm-plc script (--script: a YAML list of timed steps).
+//
+// Invariants: parsing never crashes, hangs or throws; it gives steps or one problem; the
+// problem names the file, a line within the text when it has one, and a reason, with no
+// control character; every step it gives is within the ranges the PLC sends (an override the
+// service would refuse, a Command it does not know, are problems here); the same text parses
+// the same way twice.
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "fuzz_support.hpp"
+#include "tgm/intercode.hpp"
+#include "tgm/plc_script.hpp"
+#include "yaml_checks.hpp"
+#include "yaml_tokens.hpp"
+
+namespace tgm::fuzz {
+void prepare_seeds(std::vector<std::string>&) {}
+void prepare_tokens(std::vector<std::string>& tokens) {
+  tokens = yaml_tokens();
+}
+}  // namespace tgm::fuzz
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  const std::string text(reinterpret_cast<const char*>(data), size);
+  const std::string path = "fuzz.yaml";
+  const tgm::PlcScriptLoad load = tgm::parse_plc_script(text, path);
+  if (!load.ok()) {
+    TGM_FUZZ_CHECK(load.steps.empty(), "steps with a problem: " + load.error);
+    tgm::fuzz::check_message(load.error, path, text);
+  }
+  for (const tgm::PlcScriptStep& s : load.steps) {
+    const std::string at = "step of line " + std::to_string(s.line) + ": ";
+    TGM_FUZZ_CHECK(s.line >= 1 && static_cast<std::size_t>(s.line) <= size + 1, at + "line");
+    TGM_FUZZ_CHECK(std::isfinite(s.at_s) && s.at_s >= 0.0 && s.at_s <= 1e9, at + "at_s");
+    TGM_FUZZ_CHECK(s.interpolator >= 0 && s.interpolator < tgm::kMaxInterpolators,
+                   at + "interpolator");
+    TGM_FUZZ_CHECK(!s.rel_speed || (*s.rel_speed >= 0.01 && *s.rel_speed <= 2.0), at + "rel_speed");
+    TGM_FUZZ_CHECK(!s.command || tgm::plc_script_command(*s.command), at + "command");
+    for (int m : s.refuse_ack) TGM_FUZZ_CHECK(m >= 1 && m <= 999999, at + "refuse_ack");
+  }
+  const tgm::PlcScriptLoad again = tgm::parse_plc_script(text, path);
+  TGM_FUZZ_CHECK(again.error == load.error && again.steps.size() == load.steps.size(),
+                 "the same text parses differently");
+  return 0;
+}
