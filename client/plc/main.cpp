@@ -455,6 +455,7 @@ int plc_main(int argc, char** argv) {
   bool events_matched = false;
   auto last_wait_log = Clock::now();
   tgm::client::SilenceWatch silence(3s);
+  tgm::dds::MalformedWatch malformed;
   flush_log();
   while (!g_stop) {
     flush_log();
@@ -621,6 +622,9 @@ int plc_main(int argc, char** argv) {
       append_log(pending_log, stamp(), "waiting for tgm-service on DDS domain %d ...",
                  config.dds.domain_id);
     }
+    if (const std::string bad = malformed.update(config.dds.domain_id, now); !bad.empty()) {
+      append_log(pending_log, stamp(), "%s", bad.c_str());
+    }
     if (found_at) {
       std::uint64_t n = 0;
       for (const Served& sv : served) n += plc->state_samples(sv.number);
@@ -671,6 +675,10 @@ int plc_main(int argc, char** argv) {
                static_cast<unsigned long long>(plc->events_received()),
                static_cast<unsigned long long>(plc->events_lost()),
                static_cast<unsigned long long>(plc->events_before_join()));
+  }
+  if (const std::uint64_t bad = tgm::dds::malformed_samples(); bad != 0) {
+    append_log(pending_log, stamp(), "malformed DDS samples were dropped (%llu failed reads)",
+               static_cast<unsigned long long>(bad));
   }
   append_log(pending_log, stamp(), "stopping");
   flush_log();

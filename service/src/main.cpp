@@ -246,6 +246,7 @@ int service_main(int argc, char** argv) {
   // Runs until a signal, the --duration or, in the first cycles, another service this one gives
   // way to (DdsPortOptions::yield_window_cycles); looked at every 100 ms.
   int sig = 0;
+  tgm::dds::MalformedWatch malformed;  // samples a participant wrote that cannot be read
   {
     const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(duration_s);
     while (port->yielded_to() == 0 &&
@@ -261,6 +262,12 @@ int service_main(int argc, char** argv) {
       sig = sigtimedwait(&signals, nullptr, &slice);
       if (sig > 0) break;
       sig = 0;
+      if (const std::string bad =
+              malformed.update(config.dds.domain_id, std::chrono::steady_clock::now());
+          !bad.empty()) {
+        std::fprintf(stderr, "tgm-service: %s\n", bad.c_str());
+        std::fflush(stderr);
+      }
     }
   }
   const std::uint64_t yielded_to = port->yielded_to();
@@ -305,7 +312,7 @@ int service_main(int argc, char** argv) {
       "tgm-service: stopping (%s) after %llu cycles: lateness p50 %.1f us, p99 %.1f us,"
       " p99.9 %.1f us, max %.1f us, missed %llu; cycle work p99.9 %.1f us, max %.1f us;"
       " %llu requests (%llu refused, %llu busy), %llu chunks, %llu segments,"
-      " %llu events (%llu lost), %llu states, %llu setpoints published%s\n",
+      " %llu events (%llu lost), %llu states, %llu setpoints published%s%s\n",
       sig > 0           ? strsignal(sig)
       : yielded_to != 0 ? "gave way to another service"
                         : "time is up",
@@ -325,6 +332,11 @@ int service_main(int argc, char** argv) {
       static_cast<unsigned long long>(port->setpoints_published()),
       engine_options.check_limits
           ? ("; limit excesses " + std::to_string(c.limit_violations)).c_str()
+          : "",
+      tgm::dds::malformed_samples() != 0
+          ? ("; malformed DDS samples dropped (" + std::to_string(tgm::dds::malformed_samples()) +
+             " failed reads)")
+                .c_str()
           : "");
   int exit_code = yielded_to != 0 ? 1 : 0;
   if (std::FILE* f = stats_file.stream()) {

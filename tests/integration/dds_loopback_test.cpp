@@ -10,9 +10,12 @@
 
 #include <atomic>
 #include <chrono>
+#include <cstring>
+#include <string>
 #include <thread>
 
 #include "dds_test_util.hpp"
+#include "raw_sample.hpp"
 #include "tgm/dds/participant.hpp"
 #include "tgm/idl_mapping.hpp"
 #include "tgm/msg/tgmPubSubTypes.h"
@@ -52,6 +55,42 @@ Program long_program(std::size_t count) {
     p.segments.push_back(s);
   }
   return p;
+}
+
+// A sample the generated code cannot read (a bool of 2: fastcdr throws BadParamException, which
+// the generated type support does not catch) terminated the reading process. It is dropped
+// (dds::CheckedType), counted, and the samples after it arrive.
+TEST(DdsLoopback, AMalformedSampleIsDroppedAndTheNextOneArrives) {
+  const auto t = test::test_topic(dds::kProgramTopic);
+  dds::Participant rogue(test::test_config(), "hmi");
+  dds::Participant service(test::test_config(), "service");
+  auto& w = rogue.writer(rogue.topic<test::RawBytesType<msg::ProgramChunkPubSubType>>(t.spec.name),
+                         t.spec.writer_profile);
+  auto& r = service.reader<msg::ProgramChunkPubSubType>(t.spec);
+  ASSERT_TRUE(dds::wait_for_match(w, 1, kHang));
+
+  std::string bad = test::chunk_with_a_bool_of_2(1, 7);
+  ASSERT_FALSE(bad.empty()) << "the generated layout of ProgramChunk changed";
+  const std::uint64_t dropped = dds::malformed_samples();
+  ASSERT_EQ(w.write(&bad), true);
+  msg::ProgramChunk chunk;
+  chunk.interpolator(1);
+  chunk.program_id(8);
+  std::string good = test::serialized<msg::ProgramChunkPubSubType>(chunk);
+  ASSERT_EQ(w.write(&good), true);
+
+  msg::ProgramChunk got;
+  bool seen = false;
+  const auto deadline = std::chrono::steady_clock::now() + kHang;
+  while (!seen && std::chrono::steady_clock::now() < deadline) {
+    while (dds::take_next(r, got)) {
+      EXPECT_EQ(got.program_id(), 8u);
+      seen = true;
+    }
+    std::this_thread::sleep_for(5ms);
+  }
+  EXPECT_TRUE(seen);
+  EXPECT_GT(dds::malformed_samples(), dropped);  // reads, not samples (Fast DDS may retry)
 }
 
 TEST(DdsLoopback, ProgramStreamDeliversEveryChunkOnceInOrder) {

@@ -100,6 +100,26 @@ Participant::Participant(const DdsConfig& config, std::string_view role, std::st
   }
 }
 
+namespace detail {
+std::atomic<std::uint64_t> g_malformed_samples{0};
+}  // namespace detail
+
+std::uint64_t malformed_samples() {
+  return detail::g_malformed_samples.load(std::memory_order_relaxed);
+}
+
+std::string MalformedWatch::update(int domain_id, std::chrono::steady_clock::time_point now) {
+  const std::uint64_t all = malformed_samples();
+  if (all == told_ || now < next_) return {};
+  told_ = all;
+  next_ = now + every_;
+  // Reads, not samples: Fast DDS may try a sample more than once (the key of a keyed topic is
+  // read from it before the sample is stored).
+  return "DDS samples that cannot be read arrive and are dropped (" + std::to_string(all) +
+         " failed read" + (all == 1 ? "" : "s") + " so far): a participant on domain " +
+         std::to_string(domain_id) + " writes tgm topics in a form this version does not know";
+}
+
 Participant::~Participant() {
   // Entities first (writers, readers, publisher, subscriber, topics), then the participant.
   participant_->delete_contained_entities();

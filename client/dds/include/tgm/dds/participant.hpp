@@ -6,14 +6,18 @@
 // taking return bool.
 #pragma once
 
+#include <atomic>
 #include <chrono>
+#include <cstdint>
 #include <initializer_list>
 #include <map>
+#include <new>
 #include <stdexcept>
 #include <string>
 #include <string_view>
 #include <vector>
 
+#include <fastcdr/exceptions/Exception.h>
 #include <fastdds/dds/core/condition/GuardCondition.hpp>
 #include <fastdds/dds/core/condition/WaitSet.hpp>
 #include <fastdds/dds/domain/DomainParticipant.hpp>
@@ -31,6 +35,51 @@
 namespace tgm::dds {
 
 namespace fdds = eprosima::fastdds::dds;
+
+//! Failed reads of samples in this process (CheckedType): each such sample is dropped. Fast
+//! DDS may try one sample more than once (to read the key of a keyed topic first), so this
+//! counts reads, not samples: 0 means none arrived.
+std::uint64_t malformed_samples();
+
+namespace detail {
+extern std::atomic<std::uint64_t> g_malformed_samples;
+}  // namespace detail
+
+//! The generated type support `PubSubType` with a deserialize() that never throws. The
+//! generated one catches only fastcdr's NotEnoughMemoryException; fastcdr also throws
+//! BadParamException (a bool that is neither 0 nor 1, an unknown encapsulation), and that
+//! escaped Fast DDS's take and terminated the process: one malformed sample from any
+//! participant on the domain stopped tgm-service. A sample that cannot be read is dropped
+//! (Fast DDS skips a sample whose deserialize() fails) and counted (malformed_samples()).
+template <class PubSubType>
+class CheckedType : public PubSubType {
+ public:
+  bool deserialize(eprosima::fastrtps::rtps::SerializedPayload_t* payload, void* data) override {
+    try {
+      if (PubSubType::deserialize(payload, data)) return true;
+    } catch (const eprosima::fastcdr::exception::Exception&) {
+    } catch (const std::bad_alloc&) {
+    }
+    detail::g_malformed_samples.fetch_add(1, std::memory_order_relaxed);
+    return false;
+  }
+};
+
+//! Tells the log when samples were dropped as malformed (CheckedType), at once the first time
+//! and then at most every `every`, so that a participant that writes nothing but bad samples
+//! cannot flood the log.
+class MalformedWatch {
+ public:
+  explicit MalformedWatch(std::chrono::steady_clock::duration every = std::chrono::seconds(10))
+      : every_(every) {}
+  //! "" or the line to log, with the failed reads so far.
+  std::string update(int domain_id, std::chrono::steady_clock::time_point now);
+
+ private:
+  std::chrono::steady_clock::duration every_;
+  std::uint64_t told_ = 0;
+  std::chrono::steady_clock::time_point next_{};
+};
 
 //! A DDS entity could not be set up; the message says which entity, which profile and why.
 class SetupError : public std::runtime_error {
@@ -54,11 +103,12 @@ class Participant {
   Participant(const Participant&) = delete;
   Participant& operator=(const Participant&) = delete;
 
-  //! Registers the generated type `PubSubType` (without type objects, see DESIGN.md section 6)
-  //! and creates the topic `name`; a second call with the same name returns the same topic.
+  //! Registers the generated type `PubSubType` (without type objects, see DESIGN.md section 6;
+  //! reading checked, CheckedType) and creates the topic `name`; a second call with the same
+  //! name returns the same topic.
   template <class PubSubType>
   fdds::Topic& topic(std::string_view name) {
-    return make_topic(name, fdds::TypeSupport(new PubSubType()));
+    return make_topic(name, fdds::TypeSupport(new CheckedType<PubSubType>()));
   }
 
   //! Creates a writer on `topic` with the XML data_writer profile `profile`. Throws SetupError.
