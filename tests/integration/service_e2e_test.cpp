@@ -510,6 +510,28 @@ TEST(ServiceProcesses, AMalformedSampleIsDroppedAndTheServiceGoesOn) {
   EXPECT_NE(env.service.log().find(who), std::string::npos) << env.service.log();
   const client::Reply r = hmi.clear(0);
   EXPECT_TRUE(r.accepted) << client::describe(r);
+
+  // The clients drop such samples too; tgm-hmi watch says so on every screen. A state whose
+  // first encapsulation byte is not 0 (fastcdr throws there as well), kept by the rogue's
+  // writer for late joiners as the service's states are.
+  auto& sw = rogue.writer(
+      rogue.topic<test::RawBytesType<msg::InterpolatorStatePubSubType>>(dds::kStateTopic.name),
+      dds::kStateTopic.writer_profile);
+  msg::InterpolatorState state;
+  state.interpolator(0);
+  std::string bad_state = test::serialized<msg::InterpolatorStatePubSubType>(state);
+  ASSERT_GT(bad_state.size(), 6u);
+  bad_state[0] = 1;
+  ASSERT_TRUE(sw.write(&bad_state));
+  test::Child watch;
+  ASSERT_TRUE(watch.start(
+      {TGM_HMI_BIN, "watch", "--count", "4", "--interval", "0.3", "--config", env.config()},
+      env.path("watch.log")));
+  EXPECT_EQ(watch.wait(kHang), 0) << watch.log();
+  EXPECT_NE(watch.log().find("DDS samples that cannot be read were dropped ("), std::string::npos)
+      << watch.log();
+  EXPECT_NE(watch.log().find("Status"), std::string::npos) << watch.log();  // and it showed states
+
   EXPECT_EQ(env.service.interrupt(kHang), 0) << env.service.log();
   EXPECT_NE(env.service.log().find("; malformed DDS samples dropped ("), std::string::npos)
       << env.service.log();

@@ -123,6 +123,13 @@ int run_watch(int argc, char** argv) {
         std::printf("message (line %d): %s\n", m.source_line(),
                     printable(m.text().c_str()).c_str());
     }
+    // Shown on every screen: a line printed once would be cleared by the next.
+    if (const std::uint64_t bad = dds::malformed_samples(); bad != 0) {
+      std::printf(
+          "DDS samples that cannot be read were dropped (%llu failed reads): a participant on "
+          "domain %d writes tgm topics in a form this version does not know\n",
+          static_cast<unsigned long long>(bad), c.config->dds.domain_id);
+    }
     if (!tty) std::printf("\n");
     std::fflush(stdout);
   }

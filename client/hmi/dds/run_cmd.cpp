@@ -317,6 +317,7 @@ int run_run(int argc, char** argv) {
   bool progress_shown = false;
   // Said once; the run goes on if the service comes back.
   client::SilenceWatch silence(3s);
+  dds::MalformedWatch malformed;
   auto clear_progress = [&] {
     if (tty && progress_shown) std::printf("\r\033[K");
     progress_shown = false;
@@ -355,6 +356,11 @@ int run_run(int argc, char** argv) {
     } else if (change == client::SilenceWatch::Change::kBack) {
       clear_progress();
       std::printf("tgm-hmi run: tgm-service is back\n");
+    }
+    if (const std::string bad = malformed.update(config->dds.domain_id, Clock::now());
+        !bad.empty()) {
+      clear_progress();
+      std::printf("tgm-hmi run: %s\n", bad.c_str());
     }
     count_events();
     for (const msg::Message& m : hmi->take_messages()) {
