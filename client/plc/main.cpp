@@ -91,7 +91,7 @@ constexpr const char* kUsage =
     "                       moment the service was found\n"
     "  --try-start          send a start request as the PLC once (the service refuses it)\n"
     "  --no-basic-params    do not send the basic parameters at start\n"
-    "  --duration S         stop by itself after S seconds\n"
+    "  --duration S         stop by itself after S seconds (at most 1e9)\n"
     "  --quiet              log only M-functions, acknowledgements and errors\n"
     "  --no-events          do not subscribe to tgm_event: see M-functions on the state only\n"
     "                       (the main loop acknowledges them all)\n"
@@ -205,8 +205,8 @@ int plc_main(int argc, char** argv) {
     }
     if (args.whole_flag("--interpolator", 0, 2, only) ||
         args.whole_flag("--rt-priority", 1, 98, rt_priority) ||
-        args.number_flag("--duration", duration_s, "a finite number of seconds > 0",
-                         [](double v) { return v > 0.0; })) {
+        args.number_flag("--duration", duration_s, "seconds, > 0 and at most 1e9",
+                         [](double v) { return v > 0.0 && v <= 1e9; })) {
       continue;
     }
     double v = 0.0;

@@ -58,7 +58,7 @@ constexpr const char* kUsage =
     "                         tgm-service on the domain and exit (code 1) if one is live\n"
     "                         (default 500, 0..10000; 0 = do not look). Of two started\n"
     "                         together, one gives way (exit code 1) in its first 10,000 cycles\n"
-    "  --duration S           stop by itself after S seconds\n"
+    "  --duration S           stop by itself after S seconds (at most 1e9)\n"
     "  --stats FILE           write lateness, handshake and counter figures as JSON at exit\n"
     "  --handshake-trace FILE write the time stamps of every M-function handshake as CSV at exit\n"
     "  --help                 this text\n";
@@ -112,8 +112,8 @@ int service_main(int argc, char** argv) {
         args.whole_flag("--dds-priority", 0, 98, dds_priority) ||
         args.whole_flag("--service-check-ms", 0, 10000, service_check_ms) ||
         args.whole_flag("--setpoint-decimation", 1, 10000, port_options.setpoint_decimation) ||
-        args.number_flag("--duration", duration_s, "a finite number of seconds > 0",
-                         [](double v) { return v > 0.0; })) {
+        args.number_flag("--duration", duration_s, "seconds, > 0 and at most 1e9",
+                         [](double v) { return v > 0.0 && v <= 1e9; })) {
       continue;
     }
     if (args.whole_flag("--chunk-budget", 1, 1'000'000, n)) {

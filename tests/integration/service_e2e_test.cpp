@@ -1034,9 +1034,18 @@ TEST(ServiceProcesses, ServiceStopsCleanlyOnSigtermAndRejectsBadFlags) {
   ASSERT_TRUE(endless.start({TGM_SERVICE_BIN, "--config", env.config(), "--duration", "inf"},
                             env.path("endless.log")));
   EXPECT_EQ(endless.wait(kHang), 2);
-  EXPECT_NE(endless.log().find("--duration must be a finite number of seconds > 0, not 'inf'"),
+  EXPECT_NE(endless.log().find("--duration must be seconds, > 0 and at most 1e9, not 'inf'"),
             std::string::npos)
       << endless.log();
+  // 1e12 s passed, and its end in nanoseconds overflowed the cast to the clock's integer: the
+  // main thread's wait became 0 and it spun on a core next to the cycle thread.
+  test::Child spinning;
+  ASSERT_TRUE(spinning.start({TGM_SERVICE_BIN, "--config", env.config(), "--duration", "1e12"},
+                             env.path("spinning.log")));
+  EXPECT_EQ(spinning.wait(kHang), 2);
+  EXPECT_NE(spinning.log().find("--duration must be seconds, > 0 and at most 1e9, not '1e12'"),
+            std::string::npos)
+      << spinning.log();
   test::Child wrapped;
   ASSERT_TRUE(wrapped.start({TGM_PLC_BIN, "--config", env.config(), "--interpolator", "4294967296"},
                             env.path("wrapped.log")));
