@@ -642,25 +642,27 @@ int plc_main(int argc, char** argv) {
         script_done[k] = true;
         if (st.rel_speed) {
           append_log(
-              pending_log, stamp(), "script: interpolator %d: Rel_Speed = %g: %s", st.interpolator,
-              *st.rel_speed,
+              pending_log, stamp(), "script line %d: interpolator %d: Rel_Speed = %g: %s", st.line,
+              st.interpolator, *st.rel_speed,
               tgm::client::describe(plc->set_rel_speed(st.interpolator, *st.rel_speed)).c_str());
         }
         if (st.command) {
-          append_log(pending_log, stamp(), "script: interpolator %d: Command %d: %s",
-                     st.interpolator, *st.command,
+          append_log(pending_log, stamp(), "script line %d: interpolator %d: Command %d: %s",
+                     st.line, st.interpolator, *st.command,
                      tgm::client::describe(plc->command(st.interpolator, *st.command)).c_str());
         }
         if (st.start) {
-          append_log(pending_log, stamp(), "script: interpolator %d: start as the PLC: %s",
-                     st.interpolator, tgm::client::describe(plc->start(st.interpolator)).c_str());
+          append_log(pending_log, stamp(), "script line %d: interpolator %d: start as the PLC: %s",
+                     st.line, st.interpolator,
+                     tgm::client::describe(plc->start(st.interpolator)).c_str());
         }
         for (int m : st.refuse_ack) {
           {
             const std::lock_guard lock(shared_mutex);
             refuse.insert(m);
           }
-          append_log(pending_log, stamp(), "script: from now on M%d is not acknowledged", m);
+          append_log(pending_log, stamp(), "script line %d: from now on M%d is not acknowledged",
+                     st.line, m);
         }
       }
     }

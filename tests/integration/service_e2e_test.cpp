@@ -971,6 +971,45 @@ TEST(ServiceProcesses, PlcScriptErrorsNameTheLineAndTheReason) {
   }
 }
 
+// tgm-plc --script runs each step once, at its time after the service was found, and logs it
+// with its line and the service's answer.
+TEST(ServiceProcesses, PlcScriptStepsRunAtTheirTimesAndAreLoggedWithTheirLine) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  client::Client hmi(env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(hmi.wait_for_state(2, kHang));
+  const std::string script = env.path("script.yaml");
+  std::ofstream(script) << "# set the override, then refuse M51\n"
+                           "- {at_s: 0.2, rel_speed: 0.45, interpolator: 2}\n"
+                           "- {at_s: 0.4, refuse_ack: [51]}\n"
+                           "- {at_s: 0.4, command: 7}\n";
+  test::Child bad;  // Command 7 is not one a script may send: refused before anything is sent
+  ASSERT_TRUE(bad.start({TGM_PLC_BIN, "--config", env.config(), "--script", script},
+                        env.path("plc_bad.log")));
+  EXPECT_EQ(bad.wait(kHang), 2);
+  EXPECT_NE(bad.log().find(script + ":4: command must be a Command"), std::string::npos)
+      << bad.log();
+  std::ofstream(script) << "# set the override, then refuse M51\n"
+                           "- {at_s: 0.2, rel_speed: 0.45, interpolator: 2}\n"
+                           "- {at_s: 0.4, refuse_ack: [51]}\n"
+                           "- {at_s: 0.4, command: 8, interpolator: 1}\n";
+  test::Child plc;
+  ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.config(), "--script", script,
+                         "--no-basic-params", "--duration", "1.5"},
+                        env.path("plc.log")));
+  EXPECT_TRUE(hmi.wait_until(
+      2, [](const msg::InterpolatorState& s) { return s.rel_speed() == 0.45; }, kHang));
+  EXPECT_EQ(plc.wait(kHang), 0) << plc.log();
+  const std::string log = plc.log();
+  for (const char* says : {"script line 2: interpolator 2: Rel_Speed = 0.45: accepted",
+                           "script line 3: from now on M51 is not acknowledged",
+                           "script line 4: interpolator 1: Command 8: "}) {
+    EXPECT_NE(log.find(says), std::string::npos) << says << "\n" << log;
+    EXPECT_EQ(log.find(says), log.rfind(says)) << "run twice: " << says;
+  }
+  EXPECT_EQ(hmi.state(0)->rel_speed(), 1.0);  // only the interpolator the step names
+}
+
 // --stats and --handshake-trace are written at exit. A path that cannot be written fails the
 // start (it used to be said at the end of the run, exit code 0, the figures lost); a device
 // that refuses the bytes (/dev/full) fails the exit with code 1 (it was not noticed at all).
