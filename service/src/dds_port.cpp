@@ -310,8 +310,16 @@ void DdsPort::take_chunks() {
     if (!dds::take_next(program_reader_, chunk_sample_)) return;
     const int i = chunk_sample_.interpolator();
     if (i < 0 || i >= opt_.interpolators) {
-      std::fprintf(stderr, "tgm-service: program chunk for interpolator %d dropped (the service hosts 0..%d)\n",
-                   i, opt_.interpolators - 1);
+      // A client configured for more interpolators, or a flood: said at once, then at most
+      // every 10 s (one line per chunk let a sender fill the log as fast as it wrote).
+      ++foreign_chunks_;
+      if (const auto now = Clock::now(); now >= foreign_note_at_) {
+        foreign_note_at_ = now + std::chrono::seconds(10);
+        std::fprintf(stderr,
+                     "tgm-service: program chunk for interpolator %d dropped (the service hosts "
+                     "0..%d; %llu such chunks so far)\n",
+                     i, opt_.interpolators - 1, static_cast<unsigned long long>(foreign_chunks_));
+      }
       continue;
     }
     ChunkIn* c = spare_;

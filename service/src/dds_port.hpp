@@ -202,6 +202,9 @@ class DdsPort final : public CyclePort {
   // receiver thread only
   std::vector<std::deque<ChunkIn*>> backlog_;
   ChunkIn* spare_ = nullptr;
+  // Chunks for an interpolator this service does not host: counted, said at most every 10 s.
+  std::uint64_t foreign_chunks_ = 0;
+  std::chrono::steady_clock::time_point foreign_note_at_{};
   tgm::msg::ProgramChunk chunk_sample_;
   // publisher -> receiver: when the event with a new M_Func was written [steady ns], 0 = none;
   // the other stamps of that write are in m_written_ (guarded by the atomic: written before the

@@ -537,6 +537,37 @@ TEST(ServiceProcesses, AMalformedSampleIsDroppedAndTheServiceGoesOn) {
       << env.service.log();
 }
 
+// Chunks for an interpolator the service does not host (a client configured for more, or a
+// flood) are dropped and said at once, then at most every 10 s: one line per chunk let a
+// sender fill the service's log as fast as it wrote.
+TEST(ServiceProcesses, ChunksForAnInterpolatorNotHostedAreSaidOnceNotPerChunk) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  client::Client hmi(env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(hmi.wait_for_state(0, kHang));
+  dds::Participant other(env.dds(), "other");
+  auto& w = other.writer<msg::ProgramChunkPubSubType>(dds::kProgramTopic);
+  ASSERT_TRUE(dds::wait_for_match(w, 1, kHang));
+  msg::ProgramChunk chunk;
+  chunk.interpolator(7);
+  chunk.end_of_program(true);
+  for (std::uint32_t k = 1; k <= 200; ++k) {
+    chunk.program_id(k);
+    ASSERT_TRUE(w.write(&chunk));
+  }
+  const std::string says =
+      "tgm-service: program chunk for interpolator 7 dropped (the service "
+      "hosts 0..2; 1 such chunks so far)";
+  for (int i = 0; i < 200 && env.service.log().find(says) == std::string::npos; ++i) {
+    std::this_thread::sleep_for(50ms);
+  }
+  std::this_thread::sleep_for(300ms);
+  const std::string log = env.service.log();
+  EXPECT_NE(log.find(says), std::string::npos) << log;
+  EXPECT_EQ(log.find("interpolator 7 dropped"), log.rfind("interpolator 7 dropped")) << log;
+  EXPECT_EQ(env.service.interrupt(kHang), 0) << env.service.log();
+}
+
 TEST(ServiceProcesses, HmiCommandAndStopSayAcceptedOrWhyNot) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());
