@@ -146,6 +146,7 @@ struct Served {
   int number = 0;
   bool found = false;
   std::uint64_t instance = 0;  // InterpolatorState.service_instance when found
+  std::uint64_t other = 0;     // another service publishing for it, when told
   std::int32_t m_part = -1;
   // A pending acknowledgement.
   std::int32_t ack_m = 0;
@@ -467,6 +468,16 @@ int plc_main(int argc, char** argv) {
     for (Served& sv : served) {
       const tgm::msg::InterpolatorState* s = plc->state(sv.number);
       if (s == nullptr) continue;
+      if (const std::uint64_t other = plc->other_service(sv.number); other != sv.other) {
+        sv.other = other;
+        if (other != 0) {
+          append_log(pending_log, stamp(),
+                     "interpolator %d: another tgm-service (instance %016llx) publishes too: "
+                     "serving %016llx only; stop one of them",
+                     sv.number, static_cast<unsigned long long>(other),
+                     static_cast<unsigned long long>(plc->service_followed(sv.number)));
+        }
+      }
       if (sv.found && s->service_instance() != sv.instance) {
         // A restarted service: its interpolators start from the defaults, and an acknowledgement
         // still due belongs to a program that is gone.

@@ -13,6 +13,7 @@
 #include <mutex>
 #include <optional>
 #include <regex>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -433,6 +434,52 @@ TEST(ServiceProcesses, ASecondServiceOnTheDomainIsRefusedOrReported) {
       0, [&](const msg::InterpolatorState& s) { return s.service_instance() != first; }, kHang))
       << env.service.log();
   EXPECT_EQ(env.service.log().find("already serves"), std::string::npos) << env.service.log();
+}
+
+// Two services on one domain that neither gives way (both started with --service-check-ms 0):
+// a client follows the first it heard and never mixes in the other's states (tgm-hmi run said
+// "tgm-service restarted" at every flip, tgm-plc logged a restart at each), and says that there
+// is another. Once the followed one stops, the other's states are taken after kServiceSwitch.
+TEST(ServiceProcesses, AClientFollowsOneOfTwoServicesAndTakesTheOtherWhenItStops) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service({"--service-check-ms", "0"}));
+  client::Client hmi(env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(hmi.wait_for_state(0, kHang));
+  const std::uint64_t first = hmi.state(0)->service_instance();
+  EXPECT_EQ(hmi.service_followed(0), first);
+  std::set<std::uint64_t> shown;
+  hmi.on_state = [&](const msg::InterpolatorState& s) {
+    if (s.interpolator() == 0) shown.insert(s.service_instance());
+  };
+  test::Child second;
+  ASSERT_TRUE(second.start(
+      {TGM_SERVICE_BIN, "--config", env.config(), "--no-realtime", "--service-check-ms", "0"},
+      env.path("second.log")));
+  const auto heard_by = std::chrono::steady_clock::now() + kHang;
+  while (hmi.other_service(0) == 0 && std::chrono::steady_clock::now() < heard_by) hmi.poll(5ms);
+  const std::uint64_t other = hmi.other_service(0);
+  ASSERT_NE(other, 0u) << second.log();
+  EXPECT_NE(other, first);
+  for (const auto until = std::chrono::steady_clock::now() + 1500ms;
+       std::chrono::steady_clock::now() < until;) {
+    hmi.poll(5ms);
+  }
+  EXPECT_EQ(shown, std::set<std::uint64_t>{first});
+  EXPECT_EQ(hmi.service_followed(0), first);
+
+  test::Child watch;
+  ASSERT_TRUE(watch.start(
+      {TGM_HMI_BIN, "watch", "--count", "4", "--interval", "0.3", "--config", env.config()},
+      env.path("watch.log")));
+  EXPECT_EQ(watch.wait(kHang), 0) << watch.log();
+  EXPECT_NE(watch.log().find("warning: another tgm-service (instance "), std::string::npos)
+      << watch.log();
+
+  EXPECT_EQ(env.service.interrupt(kHang), 0) << env.service.log();
+  EXPECT_TRUE(hmi.wait_until(
+      0, [&](const msg::InterpolatorState& s) { return s.service_instance() == other; }, kHang));
+  EXPECT_EQ(hmi.service_followed(0), other);
+  EXPECT_EQ(second.interrupt(kHang), 0) << second.log();
 }
 
 // Two services started at the same moment each look (50 ms here, shorter than discovery), see

@@ -118,6 +118,13 @@ int run_watch(int argc, char** argv) {
     }
     if (tty) std::printf("\033[H\033[2J");
     std::fputs(format_state(*c.client->state(ip), c.config->machine.axis_letters(ip)).c_str(), stdout);
+    if (const std::uint64_t other = c.client->other_service(ip); other != 0) {
+      std::printf(
+          "warning: another tgm-service (instance %016llx) publishes on DDS domain %d too; "
+          "shown: %016llx. Stop one of them.\n",
+          static_cast<unsigned long long>(other), c.config->dds.domain_id,
+          static_cast<unsigned long long>(c.client->service_followed(ip)));
+    }
     for (const auto& m : c.client->take_messages()) {
       if (m.interpolator() == ip)
         std::printf("message (line %d): %s\n", m.source_line(),

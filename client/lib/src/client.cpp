@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 
 #include "tgm/dds/topics.hpp"
@@ -66,6 +67,7 @@ Client::Client(const DdsConfig& config, Role role, const ClientOptions& options)
   }
   states_.resize(kMaxInterpolators);
   state_samples_.resize(kMaxInterpolators, 0);
+  follow_.resize(kMaxInterpolators);
 }
 
 Client::~Client() {
@@ -129,12 +131,32 @@ void Client::poll(std::chrono::nanoseconds timeout) {
     waiter_->wait(timeout);
     last_wake_ = Clock::now();
   }
+  // States: all that arrived first, so that a followed service whose state is among them counts
+  // as alive however long this client did not poll (its silence is judged by polls).
+  batch_.clear();
+  std::array<bool, kMaxInterpolators> followed_heard{};
   while (dds::take_next(state_reader_, state_scratch_)) {
     const std::size_t i = state_scratch_.interpolator();
     if (i >= states_.size()) continue;
-    states_[i] = state_scratch_;
+    followed_heard[i] =
+        followed_heard[i] || state_scratch_.service_instance() == follow_[i].instance;
+    batch_.push_back(state_scratch_);
+  }
+  const auto now = Clock::now();
+  for (const msg::InterpolatorState& s : batch_) {
+    const std::size_t i = s.interpolator();
+    Follow& f = follow_[i];
+    if (f.instance != 0 && s.service_instance() != f.instance &&
+        (followed_heard[i] || now - f.last < kServiceSwitch)) {
+      f.other = s.service_instance();  // two services on the domain: not mixed in
+      f.other_at = now;
+      continue;
+    }
+    f.instance = s.service_instance();
+    f.last = now;
+    states_[i] = s;
     ++state_samples_[i];
-    if (on_state) on_state(state_scratch_);
+    if (on_state) on_state(s);
   }
   msg::Reply reply;
   while (dds::take_next(reply_reader_, reply)) {
@@ -176,6 +198,17 @@ const msg::InterpolatorState* Client::state(int interpolator) const {
   if (interpolator < 0 || static_cast<std::size_t>(interpolator) >= states_.size()) return nullptr;
   const auto& s = states_[static_cast<std::size_t>(interpolator)];
   return s ? &*s : nullptr;
+}
+
+std::uint64_t Client::service_followed(int interpolator) const {
+  if (interpolator < 0 || static_cast<std::size_t>(interpolator) >= follow_.size()) return 0;
+  return follow_[static_cast<std::size_t>(interpolator)].instance;
+}
+
+std::uint64_t Client::other_service(int interpolator) const {
+  if (interpolator < 0 || static_cast<std::size_t>(interpolator) >= follow_.size()) return 0;
+  const Follow& f = follow_[static_cast<std::size_t>(interpolator)];
+  return f.other != 0 && Clock::now() - f.other_at < 3s ? f.other : 0;
 }
 
 std::uint64_t Client::state_samples(int interpolator) const {

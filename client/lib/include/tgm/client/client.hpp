@@ -107,8 +107,19 @@ class Client {
   //! Polls until `pred(state)` holds for the state of `interpolator`; false on timeout.
   bool wait_until(int interpolator, const std::function<bool(const msg::InterpolatorState&)>& pred,
                   std::chrono::milliseconds timeout);
-  //! Newest state of `interpolator`, null when none has arrived.
+  //! Newest state of `interpolator`, null when none has arrived. Of the service instance
+  //! followed (service_followed()): with two services on one domain (a mistake the services
+  //! report, see README) the states of the other are not mixed in.
   const msg::InterpolatorState* state(int interpolator) const;
+  //! The tgm-service instance whose states state() shows for `interpolator`: the first one
+  //! heard, kept while it publishes. Another instance's states are taken instead once the
+  //! followed one has published nothing for kServiceSwitch (a restarted service, or the one of
+  //! two that gave way). 0: no state yet.
+  std::uint64_t service_followed(int interpolator) const;
+  //! Another instance whose states for `interpolator` arrived in the last 3 s while the followed
+  //! one published (two services on one domain); 0: none.
+  std::uint64_t other_service(int interpolator) const;
+  static constexpr std::chrono::milliseconds kServiceSwitch{1000};
   //! State samples received for `interpolator` so far.
   std::uint64_t state_samples(int interpolator) const;
   //! Messages (M29 texts, errors) received since the last call.
@@ -227,6 +238,15 @@ class Client {
   std::chrono::steady_clock::time_point last_written_{};
   std::optional<dds::DataWaiter> waiter_;
   std::vector<std::optional<msg::InterpolatorState>> states_;
+  // The instance followed per interpolator (state()), and another one heard meanwhile.
+  struct Follow {
+    std::uint64_t instance = 0;
+    std::chrono::steady_clock::time_point last{};  // poll that last took a state of it
+    std::uint64_t other = 0;
+    std::chrono::steady_clock::time_point other_at{};
+  };
+  std::vector<Follow> follow_;
+  std::vector<msg::InterpolatorState> batch_;  // the states one poll() took, in order
   std::vector<std::uint64_t> state_samples_;
   std::vector<msg::Message> messages_;
   std::vector<msg::Reply> replies_;
