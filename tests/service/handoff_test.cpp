@@ -7,10 +7,26 @@
 
 #include "tgm/service/lateness.hpp"
 #include "tgm/service/latest_value.hpp"
+#include "tgm/service/port.hpp"
 #include "tgm/service/spsc_queue.hpp"
 
 namespace tgm::service {
 namespace {
+
+// The texts the ports hand over (reasons, errors, client names): cut to capacity, always
+// terminated. An empty view may carry a null data(), which the service passes for "no error":
+// copying from it was undefined (UBSan stopped the service at its first accepted reply).
+TEST(FixedText, TakesEmptyNullAndLongTexts) {
+  FixedText<8> t;
+  t.set("abc");
+  EXPECT_EQ(t.view(), "abc");
+  t.set(std::string_view{});
+  EXPECT_EQ(t.view(), "");
+  t.set("0123456789");
+  EXPECT_EQ(t.view(), "0123456");  // N - 1 characters and the terminator
+  t.set("");
+  EXPECT_EQ(t.view(), "");
+}
 
 TEST(SpscQueue, KeepsOrderAndRefusesWhenFull) {
   SpscQueue<int> q(4);
