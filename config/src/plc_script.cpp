@@ -20,10 +20,9 @@ namespace {
 
 constexpr int kMaxMNumber = 999999;  // as the G-code compiler and --refuse-ack take them
 
-// What a node holds, for a message: a scalar as written (control characters escaped), else
-// its kind.
+// What a node holds, for a message: a scalar as written, else its kind.
 std::string shown(const YAML::Node& n) {
-  if (n.IsScalar()) return printable(n.Scalar());
+  if (n.IsScalar()) return n.Scalar();
   if (n.IsSequence()) return "[list]";
   if (n.IsMap()) return "{map}";
   return "null";
@@ -33,7 +32,7 @@ std::string shown(const YAML::Node& n) {
 std::string read_step(const YAML::Node& n, PlcScriptStep& s) {
   std::set<std::string> seen;
   for (const auto& kv : n) {
-    const std::string key = kv.first.IsScalar() ? printable(kv.first.Scalar()) : "(not a name)";
+    const std::string key = kv.first.IsScalar() ? kv.first.Scalar() : "(not a name)";
     if (!seen.insert(key).second) return "'" + key + "' is given twice";  // yaml-cpp keeps both
     const YAML::Node& v = kv.second;
     const auto bad = [&](const std::string& what) {
@@ -95,7 +94,10 @@ bool plc_script_command(long long code) {
   return c == 4 || c == 5 || c == 8 || c == 9 || is_stage_command(c);
 }
 
-PlcScriptLoad parse_plc_script(std::string_view text, const std::string& path) {
+namespace {
+
+// parse_plc_script before its one exit: the first problem as it is worded.
+PlcScriptLoad read_script(std::string_view text, const std::string& path) {
   PlcScriptLoad out;
   try {
     const YAML::Node root = YAML::Load(std::string(text));
@@ -109,12 +111,10 @@ PlcScriptLoad parse_plc_script(std::string_view text, const std::string& path) {
       const std::string at = path + ":" + std::to_string(s.line) + ": ";
       if (!n.IsMap()) {
         out.error = at + "a step must be a map, e.g. {at_s: 3, command: 8}";
-        out.steps.clear();  // all or nothing: a script is not run in part
         return out;
       }
       if (std::string why = read_step(n, s); !why.empty()) {
         out.error = at + why;
-        out.steps.clear();
         return out;
       }
       out.steps.push_back(std::move(s));
@@ -123,10 +123,21 @@ PlcScriptLoad parse_plc_script(std::string_view text, const std::string& path) {
     // yaml-cpp's own message for this is "bad file".
     out.error = path + yaml_place(e.mark) + ": YAML syntax: nested more than " +
                 std::to_string(e.depth() - 1) + " levels deep";
-    out.steps.clear();
   } catch (const YAML::Exception& e) {
-    out.error = path + yaml_place(e.mark) + ": YAML syntax: " + printable(e.msg);
-    out.steps.clear();
+    out.error = path + yaml_place(e.mark) + ": YAML syntax: " + e.msg;
+  }
+  return out;
+}
+
+}  // namespace
+
+PlcScriptLoad parse_plc_script(std::string_view text, const std::string& path) {
+  PlcScriptLoad out = read_script(text, path);
+  if (!out.ok()) {
+    out.steps.clear();  // all or nothing: a script is not run in part
+    // Keys and values are quoted from the script: control characters are shown, not sent to
+    // the terminal (as the config loader does).
+    out.error = printable(out.error);
   }
   return out;
 }
