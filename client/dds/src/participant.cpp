@@ -153,8 +153,11 @@ fdds::Topic& Participant::make_topic(std::string_view name, fdds::TypeSupport ty
   return *t;
 }
 
-fdds::DataWriter& Participant::writer(fdds::Topic& topic, std::string_view profile) {
-  fdds::DataWriter* w = publisher_->create_datawriter_with_profile(&topic, std::string(profile));
+fdds::DataWriter& Participant::writer(fdds::Topic& topic, std::string_view profile,
+                                      fdds::DataWriterListener* listener,
+                                      const fdds::StatusMask& mask) {
+  fdds::DataWriter* w =
+      publisher_->create_datawriter_with_profile(&topic, std::string(profile), listener, mask);
   if (w == nullptr) {
     throw SetupError("cannot create DDS writer on topic '" + topic.get_name() +
                      "' with profile '" + std::string(profile) +

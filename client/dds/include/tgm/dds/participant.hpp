@@ -20,8 +20,10 @@
 #include <fastcdr/exceptions/Exception.h>
 #include <fastdds/dds/core/condition/GuardCondition.hpp>
 #include <fastdds/dds/core/condition/WaitSet.hpp>
+#include <fastdds/dds/core/status/StatusMask.hpp>
 #include <fastdds/dds/domain/DomainParticipant.hpp>
 #include <fastdds/dds/publisher/DataWriter.hpp>
+#include <fastdds/dds/publisher/DataWriterListener.hpp>
 #include <fastdds/dds/publisher/Publisher.hpp>
 #include <fastdds/dds/subscriber/DataReader.hpp>
 #include <fastdds/dds/subscriber/SampleInfo.hpp>
@@ -111,15 +113,20 @@ class Participant {
     return make_topic(name, fdds::TypeSupport(new CheckedType<PubSubType>()));
   }
 
-  //! Creates a writer on `topic` with the XML data_writer profile `profile`. Throws SetupError.
-  fdds::DataWriter& writer(fdds::Topic& topic, std::string_view profile);
+  //! Creates a writer on `topic` with the XML data_writer profile `profile`, and `listener`
+  //! for the statuses of `mask`. The listener is attached at creation: matches with readers the
+  //! participant already knows happen inside the creation. Throws SetupError.
+  fdds::DataWriter& writer(fdds::Topic& topic, std::string_view profile,
+                           fdds::DataWriterListener* listener = nullptr,
+                           const fdds::StatusMask& mask = fdds::StatusMask::none());
   //! Creates a reader on `topic` with the XML data_reader profile `profile`. Throws SetupError.
   fdds::DataReader& reader(fdds::Topic& topic, std::string_view profile);
 
   //! Writer on the topic `spec` with its writer profile.
   template <class PubSubType>
-  fdds::DataWriter& writer(const TopicSpec& spec) {
-    return writer(topic<PubSubType>(spec.name), spec.writer_profile);
+  fdds::DataWriter& writer(const TopicSpec& spec, fdds::DataWriterListener* listener = nullptr,
+                           const fdds::StatusMask& mask = fdds::StatusMask::none()) {
+    return writer(topic<PubSubType>(spec.name), spec.writer_profile, listener, mask);
   }
   //! Reader on the topic `spec` with its reader profile.
   template <class PubSubType>
@@ -168,15 +175,20 @@ class DataWaiter {
   std::vector<fdds::DataReader*> readers_;
 };
 
-//! Takes the next valid sample of `reader` into `sample`; false when there is none left.
-//! Samples without data (disposal, unregistration notices) are skipped.
+//! Takes the next valid sample of `reader` into `sample` and its `info`; false when there is
+//! none left. Samples without data (disposal, unregistration notices) are skipped.
 template <class T>
-bool take_next(fdds::DataReader& reader, T& sample) {
-  fdds::SampleInfo info;
+bool take_next(fdds::DataReader& reader, T& sample, fdds::SampleInfo& info) {
   while (reader.take_next_sample(&sample, &info) == eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
     if (info.valid_data) return true;
   }
   return false;
+}
+
+template <class T>
+bool take_next(fdds::DataReader& reader, T& sample) {
+  fdds::SampleInfo info;
+  return take_next(reader, sample, info);
 }
 
 }  // namespace tgm::dds
