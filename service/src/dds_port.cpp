@@ -4,6 +4,7 @@
 #include <sys/syscall.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <climits>
 #include <cstdio>
@@ -81,7 +82,8 @@ DdsPort::DdsPort(const DdsConfig& config, const DdsPortOptions& options)
       state_writer_(participant_.writer<msg::InterpolatorStatePubSubType>(dds::kStateTopic)),
       event_writer_(participant_.writer<msg::InterpolatorEventPubSubType>(dds::kEventTopic)),
       setpoint_writer_(participant_.writer<msg::SetpointsPubSubType>(dds::kSetpointsTopic)),
-      reply_writer_(participant_.writer<msg::ReplyPubSubType>(dds::kReplyTopic)),
+      reply_writer_(participant_.writer<msg::ReplyPubSubType>(
+          dds::kReplyTopic, &reply_match_listener_, fdds::StatusMask::publication_matched())),
       message_writer_(participant_.writer<msg::MessagePubSubType>(dds::kMessageTopic)),
       request_reader_(participant_.reader<msg::RequestPubSubType>(dds::kRequestTopic)),
       program_reader_(participant_.reader<msg::ProgramChunkPubSubType>(dds::kProgramTopic)),
@@ -250,7 +252,21 @@ void DdsPort::take_requests_locked() {
   msg::Request& r = request_sample_;
   // Stopping: what is still in the reader is neither executed nor answered (the service is
   // going away); a flood must not keep a callback, and so stop(), busy here.
-  while (!stopping_.load(std::memory_order_relaxed) && dds::take_next(request_reader_, r)) {
+  fdds::SampleInfo info;
+  while (!stopping_.load(std::memory_order_relaxed) && dds::take_next(request_reader_, r, info)) {
+    {
+      // The participant this client's requests come from, for publish_replies(). Bounded: a
+      // participant that never has a reply reader leaves its entries behind.
+      const GuidPrefix from =
+          eprosima::fastrtps::rtps::iHandle2GUID(info.publication_handle).guidPrefix;
+      const std::string_view name(r.client_name().c_str(), r.client_name().size());
+      const std::lock_guard lock(reply_match_mutex_);
+      if (client_participants_.size() >= 4096 &&
+          client_participants_.find(name) == client_participants_.end()) {
+        client_participants_.clear();
+      }
+      client_participants_.insert_or_assign(std::string(name), from);
+    }
     if (requests_.full()) {
       // A client sends faster than the cycles take requests. Leaving the sample in the reader
       // would lose it unseen (the reader's history is KEEP_LAST: newer requests push it out;
@@ -421,13 +437,45 @@ void DdsPort::publish_state(int i, const InterpolatorSnapshot& s, const Snapshot
   p.at = Clock::now();
 }
 
-void DdsPort::publish_loop() {
-  const Snapshot* snap = nullptr;
-  std::uint32_t seen = doorbell_.value();
-  while (true) {
-    doorbell_.wait(seen, std::chrono::milliseconds(10));
-    publisher_woke_ns_ = steady_ns();
-    seen = doorbell_.value();
+void DdsPort::ReplyMatchListener::on_publication_matched(fdds::DataWriter*,
+                                                         const fdds::PublicationMatchedStatus& s) {
+  const GuidPrefix p =
+      eprosima::fastrtps::rtps::iHandle2GUID(s.last_subscription_handle).guidPrefix;
+  const std::lock_guard lock(port_.reply_match_mutex_);
+  int& readers = port_.reply_readers_[p];
+  readers += s.current_count_change;
+  if (readers > 0) return;
+  port_.reply_readers_.erase(p);
+  std::erase_if(port_.client_participants_, [&](const auto& kv) { return kv.second == p; });
+}
+
+// The reply topic is VOLATILE: a reply written before the reply writer has matched the
+// client's reply reader never reaches it. The client waits until *its* reader has matched the
+// service's writer before it sends, but discovery is not symmetric: the service can learn of
+// that reader later (tens of milliseconds under load) and answer first. The client then said
+// "no reply" for a request the service had executed (found in the sanitizer build, session
+// 48). So a reply waits here, in order behind the earlier ones of its client, until the writer
+// has matched a reply reader of the participant the request came from, at most
+// kReplyMatchWait; the cycle thread never waits for it.
+void DdsPort::publish_replies() {
+  const auto now = std::chrono::steady_clock::now();
+  replies_to_write_.clear();
+  {
+    // Decided under the lock, written after it: Fast DDS may call the match listener while it
+    // holds the writer's own lock, which write() takes.
+    const std::lock_guard lock(reply_match_mutex_);
+    auto matched = [&](const GuidPrefix& p) { return reply_readers_.count(p) != 0; };
+    const bool stopping = stopping_.load(std::memory_order_relaxed);  // the last chance
+    for (auto it = held_replies_.begin(); it != held_replies_.end();) {
+      const bool ready = matched(it->participant);
+      if (!ready && now < it->until && !stopping) {
+        ++it;
+        continue;
+      }
+      if (!ready) ++replies_unmatched_;
+      replies_to_write_.push_back(std::move(it->reply));
+      it = held_replies_.erase(it);
+    }
     ReplyOut r;
     msg::Reply reply;
     while (replies_.pop(r)) {
@@ -438,8 +486,31 @@ void DdsPort::publish_loop() {
       reply.code(to_msg(r.code));
       reply.reason(std::string(r.reason.view()));
       reply.cycle_counter(r.cycle);
-      reply_writer_.write(&reply);
+      const auto from = client_participants_.find(r.client.view());
+      const bool hold =
+          from != client_participants_.end() && held_replies_.size() < 1024 &&
+          (!matched(from->second) ||
+           std::any_of(held_replies_.begin(), held_replies_.end(),
+                       [&](const HeldReply& h) { return h.participant == from->second; }));
+      if (hold) {
+        held_replies_.push_back({reply, from->second, now + kReplyMatchWait});
+        ++replies_held_;
+      } else {
+        replies_to_write_.push_back(reply);
+      }
     }
+  }
+  for (msg::Reply& w : replies_to_write_) reply_writer_.write(&w);
+}
+
+void DdsPort::publish_loop() {
+  const Snapshot* snap = nullptr;
+  std::uint32_t seen = doorbell_.value();
+  while (true) {
+    doorbell_.wait(seen, std::chrono::milliseconds(10));
+    publisher_woke_ns_ = steady_ns();
+    seen = doorbell_.value();
+    publish_replies();
     MessageOut m;
     msg::Message message;
     while (messages_.pop(m)) {

@@ -19,7 +19,10 @@
 #include <memory>
 #include <mutex>
 
+#include <fastdds/dds/publisher/DataWriterListener.hpp>
 #include <fastdds/dds/subscriber/DataReaderListener.hpp>
+#include <fastdds/rtps/common/GuidPrefix_t.hpp>
+#include <map>
 #include <string>
 #include <thread>
 #include <vector>
@@ -113,6 +116,12 @@ class DdsPort final : public CyclePort {
   std::uint64_t setpoints_published() const { return setpoints_published_; }
   //! Requests answered REPLY_CODE_BUSY because the request queue was full (valid after stop()).
   std::uint64_t busy_requests() const { return busy_requests_; }
+  //! Replies held back until the reply writer had matched the client's reply reader, and those
+  //! of them written after kReplyMatchWait without that match (valid after stop()).
+  std::uint64_t replies_held() const { return replies_held_; }
+  std::uint64_t replies_unmatched() const { return replies_unmatched_; }
+  //! How long a reply waits for the reply writer to match its client's reply reader.
+  static constexpr std::chrono::seconds kReplyMatchWait{2};
   const std::string& participant_name() const { return participant_.name(); }
   //! Drawn at construction, never 0: InterpolatorState / InterpolatorEvent.service_instance.
   std::uint64_t service_instance() const { return service_instance_; }
@@ -140,6 +149,9 @@ class DdsPort final : public CyclePort {
   //! Takes every tgm_state sample (the watch listener, any thread); another instance's is
   //! kept in other_latest_.
   void take_states();
+  //! Writes the replies the cycle thread handed over, each once its client's reply reader is
+  //! matched (publisher thread; see .cpp).
+  void publish_replies();
   void publish_event(const EventOut& ev);
   void publish_state(int i, const InterpolatorSnapshot& s, const Snapshot& all);
 
@@ -159,6 +171,26 @@ class DdsPort final : public CyclePort {
   // too, within the process); a deeper look than the reader's KEEP_LAST 1 per interpolator,
   // where this service's next write would hide another's sample.
   TakeListener<&DdsPort::take_states> state_watch_{*this};
+  // Counts the reply readers the reply writer matched, per participant (Fast DDS's threads).
+  class ReplyMatchListener final : public eprosima::fastdds::dds::DataWriterListener {
+   public:
+    explicit ReplyMatchListener(DdsPort& port) : port_(port) {}
+    void on_publication_matched(eprosima::fastdds::dds::DataWriter*,
+                                const eprosima::fastdds::dds::PublicationMatchedStatus& s) override;
+
+   private:
+    DdsPort& port_;
+  };
+  ReplyMatchListener reply_match_listener_{*this};
+  // Under reply_match_mutex_ (request taking, the reply writer's listener, the publisher): the
+  // matched reply readers per participant, and the participant each client's requests came
+  // from (by client name; an entry goes when its participant's last reply reader unmatches).
+  // Before the participant: the listener runs inside the reply writer's creation when the
+  // participant already knows reply readers (a crash at start while they came after it).
+  using GuidPrefix = eprosima::fastrtps::rtps::GuidPrefix_t;
+  std::mutex reply_match_mutex_;
+  std::map<GuidPrefix, int> reply_readers_;
+  std::map<std::string, GuidPrefix, std::less<>> client_participants_;
 
   DdsPortOptions opt_;
   std::uint64_t service_instance_ = 0;
@@ -199,6 +231,16 @@ class DdsPort final : public CyclePort {
   msg::Request request_sample_;
   msg::Reply busy_reply_;  // REPLY_CODE_BUSY with its reason; request fields set per answer
   std::uint64_t busy_requests_ = 0;
+  // publisher thread only: replies waiting for their client's reply reader, in order
+  struct HeldReply {
+    msg::Reply reply;
+    GuidPrefix participant;
+    std::chrono::steady_clock::time_point until;
+  };
+  std::deque<HeldReply> held_replies_;
+  std::vector<msg::Reply> replies_to_write_;
+  std::uint64_t replies_held_ = 0;
+  std::uint64_t replies_unmatched_ = 0;
   // receiver thread only
   std::vector<std::deque<ChunkIn*>> backlog_;
   ChunkIn* spare_ = nullptr;

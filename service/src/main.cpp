@@ -351,6 +351,7 @@ int service_main(int argc, char** argv) {
         " \"requests\": %llu, \"busy_requests\": %llu, \"chunks\": %llu, \"segments\": %llu,"
         " \"duplicate_chunks\": %llu,"
         " \"refused_chunks\": %llu, \"lost_replies\": %llu, \"lost_messages\": %llu,\n"
+        " \"replies_held_for_match\": %llu, \"replies_unmatched\": %llu,\n"
         " \"events_published\": %llu, \"lost_events\": %llu, \"states_published\": %llu,"
         " \"setpoints_published\": %llu,\n"
         " \"limits_checked\": %s, \"limit_violations\": %llu}\n",
@@ -372,6 +373,8 @@ int service_main(int argc, char** argv) {
         static_cast<unsigned long long>(c.refused_chunks),
         static_cast<unsigned long long>(c.lost_replies),
         static_cast<unsigned long long>(c.lost_messages),
+        static_cast<unsigned long long>(port->replies_held()),
+        static_cast<unsigned long long>(port->replies_unmatched()),
         static_cast<unsigned long long>(port->events_published()),
         static_cast<unsigned long long>(c.lost_events),
         static_cast<unsigned long long>(port->states_published()),

@@ -584,6 +584,44 @@ TEST(ServiceProcesses, AMalformedSampleIsDroppedAndTheServiceGoesOn) {
       << env.service.log();
 }
 
+// A reply written before the service's reply writer has matched the client's reply reader
+// never reaches it (the topic is VOLATILE). Discovery is not symmetric: the client's reader can
+// see the service's writer before the service sees the reader, so a client that waited for its
+// own matches could still be answered into the void, and said "no reply" for a request the
+// service had executed (sanitizer build, session 48). The service now holds such a reply until
+// the match. Here the reply reader is made only after the request was answered.
+TEST(ServiceProcesses, AReplyWaitsUntilTheClientsReplyReaderIsMatched) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  {
+    client::Client hmi(env.dds(), client::Role::kHmi);
+    ASSERT_TRUE(hmi.wait_for_state(0, kHang));
+  }
+  dds::Participant late(env.dds(), "hmi");
+  auto& w = late.writer<msg::RequestPubSubType>(dds::kRequestTopic);
+  ASSERT_TRUE(dds::wait_for_match(w, 1, kHang));
+  msg::Request req;
+  req.request_id(7);
+  req.role(msg::CLIENT_ROLE_HMI);
+  req.client_name("late-reader");
+  req.interpolator(0);
+  req.kind(msg::REQUEST_KIND_CLEAR);
+  ASSERT_TRUE(w.write(&req));
+  std::this_thread::sleep_for(300ms);  // answered within a cycle or two
+  auto& r = late.reader<msg::ReplyPubSubType>(dds::kReplyTopic);
+  msg::Reply reply;
+  bool got = false;
+  for (int i = 0; i < 100 && !got; ++i) {
+    while (!got && dds::take_next(r, reply)) {
+      got = reply.client_name() == "late-reader" && reply.request_id() == 7;
+    }
+    if (!got) std::this_thread::sleep_for(30ms);
+  }
+  ASSERT_TRUE(got) << "the reply to a request sent before the reply reader existed was lost";
+  EXPECT_TRUE(reply.accepted()) << reply.reason();
+  EXPECT_EQ(env.service.interrupt(kHang), 0) << env.service.log();
+}
+
 // Chunks for an interpolator the service does not host (a client configured for more, or a
 // flood) are dropped and said at once, then at most every 10 s: one line per chunk let a
 // sender fill the service's log as fast as it wrote.
