@@ -210,7 +210,14 @@ TEST(ServiceSoak, ProgramAfterProgramEndsWhereTheSimulationEndsAndMemoryStaysBou
               rss_warm_kb, rss_end_kb, programs,
               static_cast<double>(rss_end_kb - rss_warm_kb) / static_cast<double>(programs - 2),
               allowed_kb);
+#if defined(__SANITIZE_ADDRESS__)
+  // AddressSanitizer keeps freed blocks in its quarantine (up to 256 MB) and adds shadow memory,
+  // so the resident set grows with every allocation (+1.9 MB a program, session 48). There
+  // LeakSanitizer checks the service at its exit instead: a leak makes its exit status non-zero.
+  std::printf("soak: the RSS bound does not apply under AddressSanitizer\n");
+#else
   EXPECT_LT(rss_end_kb - rss_warm_kb, allowed_kb) << "the service's memory grew with the programs";
+#endif
 }
 
 }  // namespace
