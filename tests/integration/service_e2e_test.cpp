@@ -620,6 +620,10 @@ TEST(ServiceProcesses, AReplyWaitsUntilTheClientsReplyReaderIsMatched) {
   ASSERT_TRUE(got) << "the reply to a request sent before the reply reader existed was lost";
   EXPECT_TRUE(reply.accepted()) << reply.reason();
   EXPECT_EQ(env.service.interrupt(kHang), 0) << env.service.log();
+  // It was held, and written on the match rather than after the wait.
+  const std::string stats = test::read_text(env.stats_path());
+  EXPECT_NE(stats.find("\"replies_held_for_match\": 1,"), std::string::npos) << stats;
+  EXPECT_NE(stats.find("\"replies_unmatched\": 0,"), std::string::npos) << stats;
 }
 
 // Chunks for an interpolator the service does not host (a client configured for more, or a
