@@ -23,7 +23,8 @@ constexpr const char* kUsage =
     "  command WHAT   start, stop, clear, estop, ... or a Command code with parameters\n"
 #endif
     "\n"
-    "Every command takes --config YAML (default: config/default.yaml) and --help.\n";
+    "Every command takes --config YAML (default: config/default.yaml) and --help;\n"
+    "tgm-hmi --version prints the version.\n";
 
 }  // namespace
 
@@ -40,7 +41,7 @@ int run_command(int argc, char** argv) {
     return 0;
   }
   if (cmd == "--version") {
-    std::puts("tgm-hmi 0.1.0");
+    std::printf("tgm-hmi %s\n", tgm::cli::version());
     return 0;
   }
   // Subcommands see argv starting at their own name.

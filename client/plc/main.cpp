@@ -98,7 +98,8 @@ constexpr const char* kUsage =
     "  --handshake-trace F  write the time stamps of every acknowledgement as CSV to F at exit\n"
     "  --rt-priority N      run the emulator (all its threads) SCHED_FIFO at N, 1..98, when\n"
     "                       permitted (a real PLC task is real-time; default: normal)\n"
-    "  --help               this text\n";
+    "  --help               this text\n"
+    "  --version            print tgm-plc's version\n";
 
 std::atomic<bool> g_stop{false};
 void on_signal(int) { g_stop = true; }
@@ -196,6 +197,10 @@ int plc_main(int argc, char** argv) {
     std::string value;
     if (args.help_flag()) {
       std::printf(kUsage, tgm::kDdsOverrideHelp);
+      return 0;
+    }
+    if (args.version_flag()) {
+      std::printf("%s\n", args.version_line().c_str());
       return 0;
     }
     if (args.dds_flag(overrides) || args.flag("--config", config_path) ||

@@ -149,6 +149,16 @@ bool ArgReader::number_flag(const char* name, double& out, const char* what, boo
   return true;
 }
 
+const char* version() {
+  return TGM_VERSION;
+}
+
+bool ArgReader::version_flag() {
+  if (std::strcmp(argv_[i_], "--version") != 0) return false;
+  ++i_;
+  return true;
+}
+
 bool ArgReader::help_flag() {
   const char* arg = argv_[i_];
   if (std::strcmp(arg, "--help") != 0 && std::strcmp(arg, "-h") != 0) return false;

@@ -61,7 +61,8 @@ constexpr const char* kUsage =
     "  --duration S           stop by itself after S seconds (at most 1e9)\n"
     "  --stats FILE           write lateness, handshake and counter figures as JSON at exit\n"
     "  --handshake-trace FILE write the time stamps of every M-function handshake as CSV at exit\n"
-    "  --help                 this text\n";
+    "  --help                 this text\n"
+    "  --version              print tgm-service's version\n";
 
 std::int64_t percentile(std::vector<std::int64_t> v, double q) {
   if (v.empty()) return 0;
@@ -99,6 +100,10 @@ int service_main(int argc, char** argv) {
     long long n = 0;
     if (args.help_flag()) {
       std::printf(kUsage, tgm::kDdsOverrideHelp);
+      return 0;
+    }
+    if (args.version_flag()) {
+      std::printf("%s\n", args.version_line().c_str());
       return 0;
     }
     if (args.dds_flag(overrides) || args.flag("--config", config_path) ||

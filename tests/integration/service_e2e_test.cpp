@@ -9,6 +9,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <mutex>
 #include <optional>
@@ -20,6 +21,7 @@
 
 #include "raw_sample.hpp"
 #include "service_test_env.hpp"
+#include "tgm/cli_args.hpp"
 #include "tgm/client/client.hpp"
 #include "tgm/dds/participant.hpp"
 #include "tgm/dds/topics.hpp"
@@ -1242,6 +1244,13 @@ TEST(ServiceProcesses, ServiceStopsCleanlyOnSigtermAndRejectsBadFlags) {
   ASSERT_TRUE(help.start({TGM_PLC_BIN, "--help"}, env.path("help.log")));
   EXPECT_EQ(help.wait(kHang), 0);
   EXPECT_NE(help.log().find("--refuse-ack"), std::string::npos);
+  for (const char* bin : {TGM_PLC_BIN, TGM_SERVICE_BIN, TGM_HMI_BIN}) {
+    test::Child version;
+    ASSERT_TRUE(version.start({bin, "--version"}, env.path("version.log")));
+    EXPECT_EQ(version.wait(kHang), 0) << bin;
+    const std::string name = std::filesystem::path(bin).filename().string();
+    EXPECT_EQ(version.log(), name + " " + cli::version() + "\n") << bin;
+  }
 
   ASSERT_TRUE(env.start_service());
   client::Client hmi(env.dds(), client::Role::kHmi);

@@ -201,6 +201,27 @@ TEST(CliArgs, HelpIsConsumedAnywhere) {
   EXPECT_TRUE(p.help);
 }
 
+// --version is its own word (every binary prints "PROGRAM VERSION" and exits 0); a value or a
+// prefix of it is not taken for it.
+TEST(CliArgs, VersionIsAWordAndNamesTheProgram) {
+  const std::string v = version();
+  ASSERT_FALSE(v.empty());
+  int dots = 0;
+  for (char c : v) {
+    EXPECT_TRUE((c >= '0' && c <= '9') || c == '.') << v;
+    dots += c == '.';
+  }
+  EXPECT_EQ(dots, 2) << v;
+  for (const char* word : {"--version", "--version=1", "--versio", "-v"}) {
+    Argv a({word});
+    ArgReader r(a.argc(), a.argv(), "tgm-plc");
+    EXPECT_EQ(r.version_flag(), std::string(word) == "--version") << word;
+    EXPECT_EQ(r.more(), std::string(word) != "--version") << word;
+  }
+  Argv a({"--version"});
+  EXPECT_EQ(ArgReader(a.argc(), a.argv(), "tgm-plc").version_line(), "tgm-plc " + v);
+}
+
 // Negative numbers are words where a command takes them (Command -2, its parameters); a flag
 // read first keeps its value, so `--domain -1` is still refused as a domain, with its text.
 TEST(CliArgs, NegativeNumbersAreWordsButFlagValuesStayTheFlags) {

@@ -11,6 +11,10 @@
 
 namespace tgm::cli {
 
+//! tgm's version (the project version of the top-level CMakeLists.txt), as every binary's
+//! --version prints it: "tgm-service 0.1.0".
+const char* version();
+
 class ArgReader {
  public:
   //! `program` is the prefix of every message and names the --help to see ("tgm-plc",
@@ -34,6 +38,9 @@ class ArgReader {
   bool number_flag(const char* name, double& out, const char* what, bool (*ok)(double));
   //! Consumes --help or -h.
   bool help_flag();
+  //! Consumes --version; the caller prints version_line() and exits 0.
+  bool version_flag();
+  std::string version_line() const { return program_ + " " + version(); }
   bool help_given() const { return help_; }
   //! Consumes a positional argument if `value` is still empty.
   bool positional(std::string& value);
