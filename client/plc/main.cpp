@@ -323,8 +323,9 @@ int plc_main(int argc, char** argv) {
     if (only < 0 || only == i) served.push_back(Served{i});
   }
   append_log(
-      pending_log, stamp(), "PLC emulator on DDS domain %d as '%s', serving %zu interpolator%s",
-      config.dds.domain_id, plc->name().c_str(), served.size(), served.size() == 1 ? "" : "s");
+      pending_log, stamp(), "PLC emulator on DDS domain %d as '%s', serving %zu interpolator%s, version %s",
+      config.dds.domain_id, plc->name().c_str(), served.size(), served.size() == 1 ? "" : "s",
+      tgm::cli::version());
   if (!rt_log.empty()) append_log(pending_log, stamp(), "%s", rt_log.c_str());
 
   std::vector<AckTrace> traces;
