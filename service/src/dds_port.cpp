@@ -270,12 +270,22 @@ void DdsPort::take_requests_locked() {
     if (requests_.full()) {
       // A client sends faster than the cycles take requests. Leaving the sample in the reader
       // would lose it unseen (the reader's history is KEEP_LAST: newer requests push it out;
-      // Fast DDS 2.9 also drops samples a full KEEP_ALL reader rejects): answer it instead
-      // (busy_reply_ holds the code and the reason from the constructor on).
-      busy_reply_.request_id(r.request_id());
-      busy_reply_.client_name(r.client_name());
-      busy_reply_.interpolator(r.interpolator());
-      reply_writer_.write(&busy_reply_);
+      // Fast DDS 2.9 also drops samples a full KEEP_ALL reader rejects): answer it instead,
+      // through the publisher like every reply (publish_replies: held until the client's reply
+      // reader is matched). Only when that queue is full too, at once from here (busy_reply_
+      // holds the code and the reason from the constructor on).
+      ReplyOut busy;
+      busy.request_id = r.request_id();
+      busy.client.set(std::string_view(r.client_name().c_str(), r.client_name().size()));
+      busy.interpolator = r.interpolator();
+      busy.code = ReplyCode::kBusy;
+      busy.reason.set(busy_reply_.reason().c_str());
+      if (!busy_replies_.push(busy)) {
+        busy_reply_.request_id(r.request_id());
+        busy_reply_.client_name(r.client_name());
+        busy_reply_.interpolator(r.interpolator());
+        reply_writer_.write(&busy_reply_);
+      }
       ++busy_requests_;
       continue;
     }
@@ -478,7 +488,7 @@ void DdsPort::publish_replies() {
     }
     ReplyOut r;
     msg::Reply reply;
-    while (replies_.pop(r)) {
+    while (replies_.pop(r) || busy_replies_.pop(r)) {
       reply.request_id(r.request_id);
       reply.client_name(std::string(r.client.view()));
       reply.interpolator(static_cast<std::uint16_t>(r.interpolator));

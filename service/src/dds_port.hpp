@@ -217,6 +217,8 @@ class DdsPort final : public CyclePort {
   // threads for milliseconds) must not make the cycle thread drop answers.
   SpscQueue<ReplyOut> replies_{1024};
   SpscQueue<MessageOut> messages_{256};
+  // request taking (under request_mutex_) -> publisher: REPLY_CODE_BUSY answers
+  SpscQueue<ReplyOut> busy_replies_{256};
   // Every cycle with an event-register change, of all interpolators: 4 s of the busiest
   // program seen (a change in every other cycle) at a 1 ms cycle.
   SpscQueue<EventOut> events_{2048};
