@@ -468,6 +468,10 @@ void DdsPort::ReplyMatchListener::on_publication_matched(fdds::DataWriter*,
 // has matched a reply reader of the participant the request came from, at most
 // kReplyMatchWait; the cycle thread never waits for it.
 void DdsPort::publish_replies() {
+  // The publisher wakes every cycle; most cycles have no reply to write or to hold.
+  if (held_replies_.empty() && replies_.front() == nullptr && busy_replies_.front() == nullptr) {
+    return;
+  }
   const auto now = std::chrono::steady_clock::now();
   replies_to_write_.clear();
   {
