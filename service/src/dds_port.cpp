@@ -60,6 +60,11 @@ bool progress_changed(const Registers& a, const Registers& b) {
          a.orig_position != b.orig_position || a.position != b.position;
 }
 
+// The reason of every REPLY_CODE_BUSY answer.
+constexpr const char* kBusyReason =
+    "service busy: the request queue is full (a client sends faster than the interpolation "
+    "cycles take requests); not executed, send it again";
+
 }  // namespace
 
 void Doorbell::ring() {
@@ -105,8 +110,7 @@ DdsPort::DdsPort(const DdsConfig& config, const DdsPortOptions& options)
   m_applied_.reserve(100'000);
   busy_reply_.accepted(false);
   busy_reply_.code(msg::REPLY_CODE_BUSY);
-  busy_reply_.reason("service busy: the request queue is full (a client sends faster than the "
-                     "interpolation cycles take requests); not executed, send it again");
+  busy_reply_.reason(kBusyReason);
   m_published_.reserve(100'000);
   m_pending_.assign(n, -1);
   last_m_count_.assign(n, 0);
@@ -254,12 +258,12 @@ void DdsPort::take_requests_locked() {
   // going away); a flood must not keep a callback, and so stop(), busy here.
   fdds::SampleInfo info;
   while (!stopping_.load(std::memory_order_relaxed) && dds::take_next(request_reader_, r, info)) {
+    const std::string_view name(r.client_name().c_str(), r.client_name().size());
     {
       // The participant this client's requests come from, for publish_replies(). Bounded: a
       // participant that never has a reply reader leaves its entries behind.
       const GuidPrefix from =
           eprosima::fastrtps::rtps::iHandle2GUID(info.publication_handle).guidPrefix;
-      const std::string_view name(r.client_name().c_str(), r.client_name().size());
       const std::lock_guard lock(reply_match_mutex_);
       if (client_participants_.size() >= 4096 &&
           client_participants_.find(name) == client_participants_.end()) {
@@ -276,10 +280,10 @@ void DdsPort::take_requests_locked() {
       // holds the code and the reason from the constructor on).
       ReplyOut busy;
       busy.request_id = r.request_id();
-      busy.client.set(std::string_view(r.client_name().c_str(), r.client_name().size()));
+      busy.client.set(name);
       busy.interpolator = r.interpolator();
       busy.code = ReplyCode::kBusy;
-      busy.reason.set(busy_reply_.reason().c_str());
+      busy.reason.set(kBusyReason);
       if (!busy_replies_.push(busy)) {
         busy_reply_.request_id(r.request_id());
         busy_reply_.client_name(r.client_name());
