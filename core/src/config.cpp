@@ -1,8 +1,8 @@
 #include "tgm/config.hpp"
+#include "tgm/printable.hpp"
 #include "tgm/smoothing.hpp"
 
 #include <algorithm>
-#include <cstdio>
 #include <cmath>
 #include <set>
 #include <string>
@@ -12,12 +12,6 @@ namespace tgm {
 namespace {
 
 bool finite_positive(double v) { return std::isfinite(v) && v > 0.0; }
-
-std::string num(double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%g", v);
-  return buf;
-}
 
 // The M-numbers the manual marks "can be redefined".
 bool redefinable_m(int m) {
@@ -74,10 +68,10 @@ std::vector<std::string> MachineConfig::validate() const {
       }
       auto in_range = [&](const char* key, double v, double lo, double hi, const char* unit) {
         if (!finite_positive(v)) {
-          e.push_back(ab + "." + key + ": must be > 0, not " + num(v));
+          e.push_back(ab + "." + key + ": must be > 0, not " + number_text(v));
         } else if (v < lo || v > hi) {
-          e.push_back(ab + "." + key + ": must be " + num(lo) + ".." + num(hi) + " " + unit +
-                      ", not " + num(v));
+          e.push_back(ab + "." + key + ": must be " + number_text(lo) + ".." + number_text(hi) +
+                      " " + unit + ", not " + number_text(v));
         }
       };
       in_range("max_velocity_mm_s", a.max_velocity_mm_s, kMinVelocity, kMaxVelocity, "mm/s");
@@ -93,23 +87,24 @@ std::vector<std::string> MachineConfig::validate() const {
       if (finite_positive(a.emergency_deceleration_mm_s2) &&
           finite_positive(a.max_acceleration_mm_s2) &&
           a.emergency_deceleration_mm_s2 < a.max_acceleration_mm_s2) {
-        e.push_back(ab + ".emergency_deceleration_mm_s2: " + num(a.emergency_deceleration_mm_s2) +
-                    " is below max_acceleration_mm_s2 " + num(a.max_acceleration_mm_s2) +
-                    " (an emergency stop brakes at least as hard as a normal one)");
+        e.push_back(
+            ab + ".emergency_deceleration_mm_s2: " + number_text(a.emergency_deceleration_mm_s2) +
+            " is below max_acceleration_mm_s2 " + number_text(a.max_acceleration_mm_s2) +
+            " (an emergency stop brakes at least as hard as a normal one)");
       }
       // The range a Ratio write accepts (1e300 gave PositionInc values of -2^63).
       if (!(std::fabs(a.ratio_inc_per_mm) >= kMinRatio &&
             std::fabs(a.ratio_inc_per_mm) <= kMaxRatio)) {
         e.push_back(ab + ".ratio_inc_per_mm: |ratio| must be 1e-06..1e+09 inc/mm, not " +
-                    num(a.ratio_inc_per_mm));
+                    number_text(a.ratio_inc_per_mm));
       }
       if (!std::isfinite(a.backlash_mm) || a.backlash_mm < 0.0 || a.backlash_mm > 10.0) {
-        e.push_back(ab + ".backlash_mm: must be 0..10 mm, not " + num(a.backlash_mm));
+        e.push_back(ab + ".backlash_mm: must be 0..10 mm, not " + number_text(a.backlash_mm));
       }
       if (finite_positive(a.rapid_velocity_mm_s) && finite_positive(a.max_velocity_mm_s) &&
           a.rapid_velocity_mm_s > a.max_velocity_mm_s) {
-        e.push_back(ab + ".rapid_velocity_mm_s: " + num(a.rapid_velocity_mm_s) +
-                    " exceeds max_velocity_mm_s " + num(a.max_velocity_mm_s));
+        e.push_back(ab + ".rapid_velocity_mm_s: " + number_text(a.rapid_velocity_mm_s) +
+                    " exceeds max_velocity_mm_s " + number_text(a.max_velocity_mm_s));
       }
     }
   }
@@ -122,14 +117,14 @@ std::vector<std::string> MachineConfig::validate() const {
       e.push_back(tb + ".number: tool " + std::to_string(t.number) + " is listed twice");
     }
     if (!std::isfinite(t.radius_mm) || t.radius_mm < 0.0) {
-      e.push_back(tb + ".radius_mm: must be >= 0, not " + num(t.radius_mm));
+      e.push_back(tb + ".radius_mm: must be >= 0, not " + number_text(t.radius_mm));
     }
     if (!std::isfinite(t.length_mm)) e.push_back(tb + ".length_mm: must be a finite number");
   }
   const auto& c = compiler;
   if (!finite_positive(c.default_feed_mm_per_min)) {
     e.push_back("compiler.default_feed_mm_per_min: must be > 0, not " +
-                num(c.default_feed_mm_per_min));
+                number_text(c.default_feed_mm_per_min));
   }
   if (c.initial_tool < 0) {
     e.push_back("compiler.initial_tool: must be >= 0, not " + std::to_string(c.initial_tool));
@@ -154,7 +149,8 @@ std::vector<std::string> MachineConfig::validate() const {
                 std::to_string(s.spline_points));
   }
   if (!finite_positive(s.spline_jerk_mm_s3)) {
-    e.push_back("smoothing.spline_jerk_mm_s3: must be > 0, not " + num(s.spline_jerk_mm_s3));
+    e.push_back("smoothing.spline_jerk_mm_s3: must be > 0, not " +
+                number_text(s.spline_jerk_mm_s3));
   }
   if (s.iir_p_e6 <= 0) e.push_back("smoothing.iir_p_e6: must be > 0");
   if (s.iir_q_e6 <= 0) e.push_back("smoothing.iir_q_e6: must be > 0");
@@ -168,14 +164,15 @@ std::vector<std::string> MachineConfig::validate() const {
   }
   if (s.spline_points >= 50 && s.spline_points <= 500 && finite_positive(s.spline_jerk_mm_s3)) {
     if (s.spline_jerk_mm_s3 > 9.2e18) {
-      e.push_back("smoothing.spline_jerk_mm_s3: must be < 9.2e18, not " + num(s.spline_jerk_mm_s3));
+      e.push_back("smoothing.spline_jerk_mm_s3: must be < 9.2e18, not " +
+                  number_text(s.spline_jerk_mm_s3));
     } else if (std::llround(s.spline_jerk_mm_s3) < 1) {
       // Command -2 takes the jerk rounded to whole mm/s^3: 0.2 became 0, and the message said
       // "must be > 0 mm/s^3, not 0" of a value the file gives as 0.2.
       e.push_back(
           "smoothing.spline_jerk_mm_s3: must be at least 0.5 (Command -2 takes it rounded "
           "to whole mm/s^3), not " +
-          num(s.spline_jerk_mm_s3));
+          number_text(s.spline_jerk_mm_s3));
     } else if (const RequestResult r =
                    SplineSmoother::check(s.spline_points, std::llround(s.spline_jerk_mm_s3));
                !r.ok()) {

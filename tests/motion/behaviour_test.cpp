@@ -693,6 +693,15 @@ TEST(Requests, RefusedWithReasons) {
   EXPECT_NE(rf.reason.find("record 0 (line 1): end point of axis 0 is not a number within +-1e9 mm"),
             std::string::npos)
       << rf.reason;
+  // A start beyond that bound made the first move's length infinite (Set_Speed inf; found by
+  // RandomRequests): refused, the position kept.
+  const auto rp = ip.set_position({0.0, -2e9, 0.0});
+  EXPECT_EQ(rp.code, RequestCode::kOutOfRange);
+  EXPECT_EQ(rp.reason, "position of axis Y must be within +-1e9 mm, not -2e+09");
+  EXPECT_EQ(ip.registers().orig_position[1], 0.0);
+  EXPECT_TRUE(ip.set_position({0.0, -1e9, 0.0}).ok());
+  EXPECT_EQ(ip.registers().orig_position[1], -1e9);
+  ASSERT_TRUE(ip.set_position({}).ok());
   ProgramBuilder fast;
   fast.line({1.0, 0.0, 0.0}, 1e300);
   EXPECT_EQ(ip.load(fast.program()).code, RequestCode::kInvalid);

@@ -245,5 +245,36 @@ TEST(Commands, ExecuteRatioSplineIirAndPositionSet) {
   EXPECT_EQ(execute_command(4, p, standing(), s, o, nullptr).code, RequestCode::kUnsupported);
 }
 
+// A position set lands within the +-1e9 mm every record's end point is held to, or is refused
+// before anything changes: with an Offset of 1e15 inc and a Ratio of 1e-6 inc/mm it computed
+// -1e21 mm, and the first move from there ran for ever (RandomRequests found it through
+// Interpolator::set_position, which holds the same bound).
+TEST(Commands, APositionSetBeyondTheCoordinateBoundIsRefusedAndChangesNothing) {
+  const InterpolatorConfig cfg = three_axes(0.0);
+  SmoothingStage s(3, 500);
+  OutputStage o(cfg);
+  std::array<double, kMaxAxes> pos{};
+  Params p{};
+  p = {1000, 2000, 3000};
+  ASSERT_TRUE(execute_command(2048, p, standing(), s, o, &pos).ok());
+  const std::array<double, kMaxAxes> before = pos;
+  ASSERT_TRUE(o.write_offset(1, 1'000'000'000'000'000).ok());
+  p = {1, 1, 1'000'000};  // axis 1: 1 inc per 1e6 mm
+  ASSERT_TRUE(execute_command(1024, p, standing(), s, o, nullptr).ok());
+  p = {0, 0, 0};
+  const RequestResult r = execute_command(2049, p, standing(), s, o, &pos);
+  EXPECT_EQ(r.code, RequestCode::kOutOfRange);
+  EXPECT_EQ(r.reason,
+            "Command 2049: axis 1 would be at -1e+21 mm ((inc - Offset - Backlash) / Ratio), "
+            "outside +-1e9 mm");
+  EXPECT_EQ(pos, before);
+  for (std::size_t i = 0; i < 3; ++i) EXPECT_EQ(s.position()[i], before[i]) << "axis " << i;
+  // Within the bound it is taken: 999 inc at 1e-6 inc/mm are 9.99e8 mm.
+  p = {0, 999, 0};
+  ASSERT_TRUE(o.write_offset(1, 0).ok());
+  ASSERT_TRUE(execute_command(2048, p, standing(), s, o, &pos).ok());
+  EXPECT_DOUBLE_EQ(pos[1], 9.99e8);
+}
+
 }  // namespace
 }  // namespace tgm

@@ -1,6 +1,6 @@
 // Text from a program or from the network, made safe to print on a terminal: an M29 message
 // or a reply's reason may hold control characters (a tab, a stray carriage return, an escape
-// sequence that would recolour or clear the operator's screen).
+// sequence that would recolour or clear the operator's screen). And numbers for messages.
 #pragma once
 
 #include <cstdio>
@@ -31,6 +31,13 @@ inline std::string printable(std::string_view s) {
     }
   }
   return out;
+}
+
+//! A number as a reply or an error message shows it: six significant digits ("1e+21", "-0.5").
+inline std::string number_text(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
 }
 
 }  // namespace tgm

@@ -20,6 +20,7 @@
 #include "tgm/command_stage.hpp"
 #include "tgm/jerk_profile.hpp"
 #include "tgm/output_stage.hpp"
+#include "tgm/printable.hpp"
 #include "tgm/smoothing.hpp"
 
 namespace tgm {
@@ -3796,8 +3797,15 @@ RequestResult Interpolator::set_position(const std::array<double, kMaxAxes>& pos
   Impl& m = *impl_;
   if (m.mode != Mode::kIdle) return refuse(RequestCode::kWrongState, "set position only while standing");
   for (int i = 0; i < m.n; ++i) {
-    if (!std::isfinite(position_mm[static_cast<std::size_t>(i)])) {
-      return refuse(RequestCode::kInvalid, "position is not finite");
+    const double x = position_mm[static_cast<std::size_t>(i)];
+    if (!std::isfinite(x)) return refuse(RequestCode::kInvalid, "position is not finite");
+    // The bound every record's end point is held to: a start beyond it made the first move's
+    // length infinite (Set_Speed inf) or a runaway of 1e21 mm.
+    if (std::fabs(x) > kMaxCoordinateMm) {
+      return refuse(RequestCode::kOutOfRange,
+                    "position of axis " +
+                        std::string(1, m.cfg.axes[static_cast<std::size_t>(i)].letter) +
+                        " must be within +-1e9 mm, not " + number_text(x));
     }
   }
   if (!m.smooth->settled()) {

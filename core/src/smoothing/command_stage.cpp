@@ -1,7 +1,9 @@
 // Commands 1024, 2048, 2049, -1, -2 and Number_Axes (core/SMOOTHING.md, "Commands").
+#include <cmath>
 #include <string>
 
 #include "tgm/command_stage.hpp"
+#include "tgm/printable.hpp"
 
 namespace tgm {
 
@@ -119,7 +121,19 @@ RequestResult execute_command(std::int32_t code,
                           ": the axes are still moving behind the spline / IIR filter");
       }
       std::array<double, kMaxAxes> pos{};
-      for (int i = 0; i < output.axes(); ++i) pos[static_cast<std::size_t>(i)] = output.position_from_inc(i, p[static_cast<std::size_t>(i)]);
+      for (int i = 0; i < output.axes(); ++i) {
+        const double x = output.position_from_inc(i, p[static_cast<std::size_t>(i)]);
+        // Checked before anything changes: (inc - Offset - Backlash) / Ratio reaches 1e21 mm
+        // with an Offset of 1e15 inc and a Ratio of 1e-6 inc/mm, where every record's end point
+        // is held to +-1e9 mm (a first move from there would run for ever).
+        if (!(std::fabs(x) <= kMaxCoordinateMm)) {
+          return refuse(RequestCode::kOutOfRange,
+                        "Command " + std::to_string(code) + ": axis " + std::to_string(i) +
+                            " would be at " + number_text(x) +
+                            " mm ((inc - Offset - Backlash) / Ratio), outside +-1e9 mm");
+        }
+        pos[static_cast<std::size_t>(i)] = x;
+      }
       smoothing.reset(pos.data());
       output.reset(pos.data());
       output.update(pos.data(), 0.0);
