@@ -1792,6 +1792,31 @@ struct Interpolator::Impl {
     stop_off = false;
   }
 
+  // Drops every record not yet executed while standing (clear, a Number_Axes write): the
+  // position stays where it is, on a record's path (a stop on the trajectory) or at rest, and
+  // is where whatever is appended next starts. A Number_Axes write that kept the record's
+  // position on the path but planned the next program from the last rest point made
+  // Orig_Position jump there (RandomRequests, wide seed 10 case 40).
+  void drop_records() {
+    double p[kMaxAxes];
+    current_position(p);
+    for (int i = 0; i < n; ++i) rest[static_cast<std::size_t>(i)] = p[i];
+    on_path = false;
+    mode = Mode::kIdle;
+    paused_m0 = false;
+    resume_wait_m = false;
+    resumable_estop = false;
+    m_pending = false;
+    m_deferred_n = 0;
+    end_pending = false;
+    tail = cur;
+    base = cur;
+    complete = false;
+    st = jerk::State{};
+    reset_plan_tail();
+    lookahead_dirty = true;
+  }
+
   // Drops the program (off trajectory): the position stays where it is.
   void abandon_program() {
     double p[kMaxAxes];
@@ -3691,26 +3716,10 @@ RequestResult Interpolator::clear() {
   if (m.mode != Mode::kIdle && m.mode != Mode::kWaitM && m.mode != Mode::kDwell) {
     return refuse(RequestCode::kWrongState, "cannot clear while moving: stop first");
   }
-  double p[kMaxAxes];
-  m.current_position(p);
-  for (int i = 0; i < m.n; ++i) m.rest[static_cast<std::size_t>(i)] = p[i];
-  m.on_path = false;
-  m.mode = Mode::kIdle;
-  m.paused_m0 = false;
-  m.resume_wait_m = false;
-  m.resumable_estop = false;
-  m.m_pending = false;
-  m.m_deferred_n = 0;
-  m.end_pending = false;
-  m.tail = m.cur;
-  m.base = m.cur;
-  m.complete = false;
-  m.st = jerk::State{};
-  m.reset_plan_tail();
+  m.drop_records();
   m.reg.status = static_cast<std::int32_t>(InterpolatorStatus::kEmpty);
   m.reg.move_distance = 0.0;
   m.reg.act_part = 0;
-  m.lookahead_dirty = true;
   m.fill_registers();
   return {};
 }
@@ -3873,16 +3882,11 @@ RequestResult Interpolator::write_number_axes(int number_axes) {
   RequestResult r = check_number_axes(number_axes, m.command_context());
   if (!r.ok()) return r;
   if (number_axes == m.n) return {};
+  // Records planned for the old axis count are dropped (only the idle states get here), the
+  // position taken on the old axes.
+  m.drop_records();
   m.n = number_axes;
   m.reg.number_axes = number_axes;
-  // Records planned for the old axis count are dropped (only the idle states get here).
-  m.tail = m.cur;
-  m.base = m.cur;
-  m.complete = false;
-  m.paused_m0 = false;
-  m.resume_wait_m = false;
-  m.resumable_estop = false;
-  m.reset_plan_tail();
   if (m.reg.status != static_cast<std::int32_t>(InterpolatorStatus::kEmergencyStopped)) {
     m.reg.status = static_cast<std::int32_t>(InterpolatorStatus::kEmpty);
   }
