@@ -1651,19 +1651,7 @@ struct Interpolator::Impl {
   // New position of a standing interpolator without a program (set_position, 2048 / 2049).
   void place(const std::array<double, kMaxAxes>& position_mm) {
     ++position_set_count;
-    on_path = false;
-    paused_m0 = false;
-    resume_wait_m = false;
-    resumable_estop = false;
-    m_pending = false;
-    m_deferred_n = 0;
-    end_pending = false;
-    tail = cur;
-    base = cur;
-    complete = false;
-    for (int i = 0; i < n; ++i) rest[static_cast<std::size_t>(i)] = position_mm[static_cast<std::size_t>(i)];
-    st = jerk::State{};
-    reset_plan_tail();
+    drop_records_at(position_mm.data());
     double p[kMaxAxes];
     for (int i = 0; i < kMaxAxes; ++i) p[i] = rest[static_cast<std::size_t>(i)];
     smooth->reset(p);
@@ -1671,7 +1659,6 @@ struct Interpolator::Impl {
     ostage->update(p, 0.0);
     reg.off_trajectory = 0;
     reg.status = static_cast<std::int32_t>(InterpolatorStatus::kEmpty);
-    lookahead_dirty = true;
   }
 
   // Solves s(tau) = dist inside a calculation step for the crossing time.
@@ -1800,7 +1787,11 @@ struct Interpolator::Impl {
   void drop_records() {
     double p[kMaxAxes];
     current_position(p);
-    for (int i = 0; i < n; ++i) rest[static_cast<std::size_t>(i)] = p[i];
+    drop_records_at(p);
+  }
+  // The same with `at` [mm, n axes] as the rest point (a position set).
+  void drop_records_at(const double* at) {
+    for (int i = 0; i < n; ++i) rest[static_cast<std::size_t>(i)] = at[i];
     on_path = false;
     mode = Mode::kIdle;
     paused_m0 = false;
