@@ -36,6 +36,7 @@
 #include <vector>
 
 #include "../support/test_params.hpp"
+#include "machine_kind_arg.hpp"
 #include "random_program.hpp"
 #include "tgm/gcode.hpp"
 #include "tgm/simulation.hpp"
@@ -57,17 +58,10 @@ struct SweepCase {
 
 // --machines=wide: test::wide_machine instead of random_machine (core/MOTION_LOG.md);
 // --machines=box: test::box_machine (the whole box of limits the config accepts);
-// --machines=random is the default.
+// --machines=random is the default (machine_kind_arg.hpp).
 using Machines = test::MachineKind;
 Machines machine_kind() {
-  for (const std::string& a : ::testing::internal::GetArgvs()) {
-    if (a.rfind("--machines=", 0) != 0) continue;
-    Machines kind;
-    if (test::machine_kind_from_name(std::string_view(a).substr(11), kind)) return kind;
-    std::fprintf(stderr, "--machines must be wide, box or random, not '%s'\n", a.c_str() + 11);
-    std::exit(2);
-  }
-  return Machines::kRandom;
+  return test::machine_kind_arg();
 }
 
 // Program k of `seed`'s sweep on random_machine (or test::wide_machine, test::box_machine)
