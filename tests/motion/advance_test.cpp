@@ -490,6 +490,44 @@ TEST(Advance, AStopGivenWhileStandingIsRestartedAsWhenStepping) {
   }
 }
 
+// Standing on the path after a stop on the trajectory (Command 4 or 8), advance() skips the
+// standing cycles with the registers of stepping them: Speed 0. It fed the smoothing the position
+// of the last cruise it had skipped as the second to last step's, and Speed showed the distance
+// from there to the stop point over one calculation step (found by RandomRequests, seed 1 case 1).
+TEST(Advance, StandingOnThePathAfterAStopEqualsStepping) {
+  const MachineConfig m = MachineConfig::default_machine();
+  test::ProgramBuilder b;
+  b.line({200.0, 50.0, 0.0}, 3000.0).end();
+  for (const std::int32_t code : {4, 8}) {
+    const std::string ctx = "Command " + std::to_string(code);
+    auto ip = Interpolator::create(m, 0);
+    ASSERT_TRUE(ip);
+    ASSERT_TRUE(ip->load(b.program()).ok());
+    ASSERT_TRUE(ip->start().ok());
+    // Into the cruise, skipped in pieces of 50 cycles.
+    std::uint64_t skipped = 0;
+    for (int c = 0; c < 2000 && skipped < 200; ++c) {
+      std::uint64_t done = 0;
+      ip->advance(50, &done);
+      if (done > 1) skipped += done;
+    }
+    ASSERT_GE(skipped, 200u) << ctx << ": the cruise was not skipped";
+    ASSERT_TRUE(ip->command(code).ok()) << ctx;
+    for (int c = 0; c < 20000 && ip->registers().act_speed != 0.0; ++c) ip->step();
+    for (int c = 0; c < 100; ++c) ip->step();  // the smoothing comes to rest
+    ASSERT_EQ(ip->registers().act_speed, 0.0) << ctx;
+    auto stepped = Interpolator::create(m, 0);
+    ASSERT_TRUE(stepped);
+    stepped->copy_state_from(*ip);
+    std::uint64_t done = 0;
+    ip->advance(300, &done);
+    ASSERT_GT(done, 1u) << ctx << ": the standing cycles were not skipped";
+    for (std::uint64_t c = 0; c < done; ++c) stepped->step();
+    expect_same(ip->registers(), stepped->registers(), ctx);
+    EXPECT_EQ(ip->registers().speed[0], 0.0) << ctx;
+  }
+}
+
 // The limit check of a fast-forwarded run (the checker fed from the interpolator's cycle
 // trace) equals that of a stepped run: the same peaks and the same violations, bit for bit. Every
 // second run holds the motion to 80 % of each limit, so that the checker has excesses to report;

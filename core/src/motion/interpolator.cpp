@@ -3581,7 +3581,11 @@ StepResult Interpolator::advance(std::uint64_t max_cycles, std::uint64_t* advanc
     double last[kMaxAxes], before[kMaxAxes];
     for (int i = 0; i < kMaxAxes; ++i) last[i] = before[i] = m.rest[static_cast<std::size_t>(i)];
     m.current_position(last);
-    if (m.on_path) {
+    // A cruise ends on the path with the position of its second to last calculation step in
+    // cruise_prev_q / _s. Standing (also on the path after a stop on the trajectory) both are
+    // the position: a standing skip on the path once took a long-gone cruise's position there,
+    // and Speed showed its difference to the stop point (RandomRequests, seed 1 case 1).
+    if (m.mode == Mode::kMoving) {
       motion::geometry_position(m.R(m.cruise_prev_q).g, m.n, m.cruise_prev_s, before);
     } else {
       for (int i = 0; i < kMaxAxes; ++i) before[i] = last[i];
