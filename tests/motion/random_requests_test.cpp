@@ -24,7 +24,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 #include <random>
 #include <string>
@@ -64,7 +66,17 @@ class RequestStorm {
     auto made = Interpolator::create(machine_, 0, {}, &error);
     ASSERT_TRUE(made.has_value()) << ctx_ << ": " << error;
     ip_ = &*made;
-    ASSERT_TRUE(ip_->set_position({}).ok()) << ctx_;
+    // The twin gets the same requests and is stepped where ip_ may be advanced, and rebuilds
+    // its LookAheadBuffer table every cycle (the reference of the incremental update): after
+    // every cycle its registers must equal ip_'s to the bit.
+    InterpolatorOptions twin_options;
+    twin_options.full_lookahead_fill = true;
+    auto twin = Interpolator::create(machine_, 0, twin_options, &error);
+    ASSERT_TRUE(twin.has_value()) << ctx_ << ": " << error;
+    twin_ = &*twin;
+    ASSERT_TRUE(
+        ask("set_position", nullptr, [](Interpolator& x) { return x.set_position({}); }).ok())
+        << ctx_;
     remember();
     for (std::uint64_t c = 0; c < kChaosCycles && !::testing::Test::HasFailure(); ++c) {
       if (u() < 0.12) {
@@ -73,16 +85,26 @@ class RequestStorm {
       }
       // The PLC acknowledges a normal M-function after a while.
       const Registers& r = ip_->registers();
-      if (r.m_func != 0 && u() < 0.05) expect_reply(ip_->write_m_func(0, r.m_func), "ack");
+      if (r.m_func != 0 && u() < 0.05) {
+        const std::int32_t m = r.m_func;
+        ask("ack", nullptr, [&](Interpolator& x) { return x.write_m_func(0, m); });
+      }
+      std::uint64_t done = 1;
+      StepResult res;
       if (u() < 0.2) {
-        std::uint64_t done = 0;
-        const StepResult res = ip_->advance(1 + static_cast<std::uint64_t>(u() * 500.0), &done);
+        res = ip_->advance(1 + static_cast<std::uint64_t>(u() * 500.0), &done);
         check_cycles(res, done, "advance");
         c += done > 0 ? done - 1 : 0;
       } else {
-        check_cycles(ip_->step(), 1, "step");
+        res = ip_->step();
+        check_cycles(res, 1, "step");
       }
+      StepResult twin_res = StepResult::kWorking;
+      for (std::uint64_t k = 0; k < done; ++k) twin_res = twin_->step();
+      EXPECT_EQ(twin_res, res) << ctx_ << ", cycle " << ip_->registers().cycle;
+      expect_twin_equal();
     }
+    twin_ = nullptr;
     if (!::testing::Test::HasFailure()) recover();
     ip_ = nullptr;
     tally.accepted += tally_.accepted;
@@ -120,6 +142,43 @@ class RequestStorm {
   }
   int axis() {
     return u() < 0.9 ? static_cast<int>(rng_() % static_cast<unsigned>(axes_)) : any_int() % 13;
+  }
+
+  // Makes the request `f` of ip_ and of the twin (while there is one): both answer alike, and
+  // the answer passes expect_reply (with `before`, the registers before the request).
+  template <class F>
+  RequestResult ask(const char* what, const Registers* before, const F& f) {
+    const RequestResult r = f(*ip_);
+    if (twin_ != nullptr) {
+      const RequestResult t = f(*twin_);
+      EXPECT_TRUE(t.code == r.code && t.reason == r.reason)
+          << ctx_ << ", cycle " << ip_->registers().cycle << ": " << what << " answered "
+          << static_cast<int>(r.code) << " '" << r.reason << "', the twin "
+          << static_cast<int>(t.code) << " '" << t.reason << "'";
+    }
+    expect_reply(r, what, before);
+    return r;
+  }
+
+  // ip_'s registers equal the twin's to the bit (advance() == step(), the LookAheadBuffer's
+  // update == its rebuild); a difference is named by its offset in Registers.
+  void expect_twin_equal() {
+    const Registers& a = ip_->registers();
+    const Registers& b = twin_->registers();
+    if (std::memcmp(&a, &b, sizeof a) == 0) return;
+    const auto* pa = reinterpret_cast<const unsigned char*>(&a);
+    const auto* pb = reinterpret_cast<const unsigned char*>(&b);
+    std::size_t off = 0;
+    while (off < sizeof a && pa[off] == pb[off]) ++off;
+    std::string where = "byte " + std::to_string(off);
+    const std::size_t la = offsetof(Registers, lookahead);
+    if (off >= la && off < la + sizeof a.lookahead) {
+      where += " (LookAheadBuffer entry " + std::to_string((off - la) / sizeof(LookAheadEntry)) +
+               ", byte " + std::to_string((off - la) % sizeof(LookAheadEntry)) + ")";
+    }
+    ADD_FAILURE() << ctx_ << ", cycle " << a.cycle << ": the registers differ from the twin's at "
+                  << where << "; Status " << a.status << " / " << b.status << ", Act_Part "
+                  << a.act_part << " / " << b.act_part;
   }
 
   // A request refused (other than a partly taken append: kBufferFull) changes none of the
@@ -168,53 +227,58 @@ class RequestStorm {
           std::min<std::size_t>(total - std::min(next_, total), 1 + rng_() % 64);
       std::size_t took = 0;
       const bool complete = next_ + count == total ? u() < 0.9 : u() < 0.05;
-      expect_reply(ip_->append(p, next_, count, complete, &took), "append", &before);
+      ask("append", &before,
+          [&](Interpolator& x) { return x.append(p, next_, count, complete, &took); });
       EXPECT_LE(took, count) << ctx_;
       next_ += took;
       if (next_ >= total && u() < 0.2) next_ = 0;  // the program again
     } else if (pick < 0.33) {                      // any range, also beyond the program
       const std::size_t first = rng_() % (total + 3), count = rng_() % (total + 3);
-      expect_reply(ip_->append(p, first, count, u() < 0.5), "append (any range)", &before);
+      const bool complete = u() < 0.5;
+      ask("append (any range)", &before,
+          [&](Interpolator& x) { return x.append(p, first, count, complete); });
     } else if (pick < 0.35) {
-      expect_reply(ip_->load(p), "load", &before);
+      ask("load", &before, [&](Interpolator& x) { return x.load(p); });
     } else if (pick < 0.45) {
-      expect_reply(ip_->start(), "start", &before);
+      ask("start", &before, [&](Interpolator& x) { return x.start(); });
     } else if (pick < 0.48) {
-      expect_reply(ip_->clear(), "clear", &before);
+      ask("clear", &before, [&](Interpolator& x) { return x.clear(); });
       if (r.status == static_cast<std::int32_t>(InterpolatorStatus::kEmpty)) next_ = 0;
     } else if (pick < 0.56) {
-      static constexpr std::array<std::int32_t, 5> kStops = {4, 5, 8, 9, 0};
-      const std::int32_t code = u() < 0.9 ? kStops[rng_() % 4] : any_int();
-      expect_reply(ip_->command(code), "command", &before);
+      static constexpr std::array<std::int32_t, 4> kStops = {4, 5, 8, 9};
+      const std::int32_t code = u() < 0.9 ? kStops[rng_() % kStops.size()] : any_int();
+      ask("command", &before, [&](Interpolator& x) { return x.command(code); });
     } else if (pick < 0.66) {
       stage_command();
     } else if (pick < 0.70) {
       const double ratio =
           u() < 0.7 ? (u() < 0.5 ? -1.0 : 1.0) * std::pow(10.0, -3.0 + 9.0 * u()) : any_double();
-      expect_reply(ip_->write_ratio(axis(), ratio), "ratio", &before);
+      const int a = axis();
+      ask("ratio", &before, [&](Interpolator& x) { return x.write_ratio(a, ratio); });
     } else if (pick < 0.74) {
       const std::int64_t offset = u() < 0.7 ? static_cast<std::int64_t>(rng_() % 2000001) - 1000000
                                             : static_cast<std::int64_t>(rng_());
-      expect_reply(ip_->write_offset(axis(), offset), "offset", &before);
+      const int a = axis();
+      ask("offset", &before, [&](Interpolator& x) { return x.write_offset(a, offset); });
     } else if (pick < 0.76) {
       const int n =
           u() < 0.8 ? 1 + static_cast<int>(rng_() % static_cast<unsigned>(axes_)) : any_int() % 12;
-      expect_reply(ip_->write_number_axes(n), "Number_Axes", &before);
+      ask("Number_Axes", &before, [&](Interpolator& x) { return x.write_number_axes(n); });
     } else if (pick < 0.86) {
       const std::int32_t value = u() < 0.9 ? 0 : any_int();
       const std::int32_t acked = u() < 0.5 ? r.m_func : (u() < 0.5 ? 0 : any_int());
       const std::uint32_t count =
           u() < 0.5 ? 0u : (u() < 0.5 ? r.m_func_count : static_cast<std::uint32_t>(rng_()));
-      expect_reply(ip_->write_m_func(value, acked, count), "M_Func", &before);
+      ask("M_Func", &before, [&](Interpolator& x) { return x.write_m_func(value, acked, count); });
     } else if (pick < 0.95) {
-      expect_reply(ip_->set_rel_speed(u() < 0.85 ? 0.01 + 1.99 * u() : any_double()), "Rel_Speed",
-                   &before);
+      const double rel = u() < 0.85 ? 0.01 + 1.99 * u() : any_double();
+      ask("Rel_Speed", &before, [&](Interpolator& x) { return x.set_rel_speed(rel); });
     } else {
       std::array<double, kMaxAxes> at = r.orig_position;
       for (int i = 0; i < axes_; ++i) {
         at[static_cast<std::size_t>(i)] = u() < 0.95 ? (u() - 0.5) * 400.0 : any_double();
       }
-      expect_reply(ip_->set_position(at), "set_position", &before);
+      ask("set_position", &before, [&](Interpolator& x) { return x.set_position(at); });
     }
   }
 
@@ -253,7 +317,7 @@ class RequestStorm {
       }
     }
     const Registers before = ip_->registers();
-    expect_reply(ip_->command(code, par), "stage command", &before);
+    ask("stage command", &before, [&](Interpolator& x) { return x.command(code, par); });
   }
 
   void remember() {
@@ -386,6 +450,7 @@ class RequestStorm {
   test::Generated generated_;
   std::string ctx_;
   Interpolator* ip_ = nullptr;
+  Interpolator* twin_ = nullptr;
   std::size_t next_ = 0;
   std::array<double, kMaxAxes> last_orig_{};
   std::array<double, kMaxAxes> last_pos_{};
