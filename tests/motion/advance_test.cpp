@@ -18,6 +18,7 @@
 #include "limit_findings.hpp"
 #include "program_builder.hpp"
 #include "random_program.hpp"
+#include "same_registers.hpp"
 #include "tgm/interpolator.hpp"
 #include "tgm/simulation.hpp"
 
@@ -26,48 +27,6 @@ namespace {
 
 using test::random_machine;
 using test::random_program;
-
-// Every register, compared exactly (doubles with ==, so -0.0 == 0.0 is the only slack).
-void expect_same(const Registers& a, const Registers& b, const std::string& ctx) {
-  ASSERT_EQ(a.cycle, b.cycle) << ctx;
-  EXPECT_EQ(a.status, b.status) << ctx;
-  EXPECT_EQ(a.run_flag, b.run_flag) << ctx;
-  EXPECT_EQ(a.act_part, b.act_part) << ctx;
-  EXPECT_EQ(a.act_line, b.act_line) << ctx;
-  EXPECT_EQ(a.m_func, b.m_func) << ctx;
-  EXPECT_EQ(a.act_g_func, b.act_g_func) << ctx;
-  EXPECT_EQ(a.act_m_func, b.act_m_func) << ctx;
-  EXPECT_EQ(a.last_cont_m_func, b.last_cont_m_func) << ctx;
-  EXPECT_EQ(a.tool_number, b.tool_number) << ctx;
-  EXPECT_EQ(a.command, b.command) << ctx;
-  EXPECT_EQ(a.command_status, b.command_status) << ctx;
-  EXPECT_EQ(a.free_slots, b.free_slots) << ctx;
-  EXPECT_EQ(a.message_count, b.message_count) << ctx;
-  EXPECT_EQ(a.m_func_count, b.m_func_count) << ctx;
-  EXPECT_EQ(a.limit_factor, b.limit_factor) << ctx;
-  EXPECT_EQ(a.rel_speed, b.rel_speed) << ctx;
-  EXPECT_EQ(a.set_speed, b.set_speed) << ctx;
-  EXPECT_EQ(a.act_speed, b.act_speed) << ctx;
-  EXPECT_EQ(a.act_acceleration_mm_s2, b.act_acceleration_mm_s2) << ctx;
-  EXPECT_EQ(a.move_distance, b.move_distance) << ctx;
-  EXPECT_EQ(a.orig_position, b.orig_position) << ctx;
-  EXPECT_EQ(a.position, b.position) << ctx;
-  EXPECT_EQ(a.position_inc, b.position_inc) << ctx;
-  EXPECT_EQ(a.speed, b.speed) << ctx;
-  EXPECT_EQ(a.backlash, b.backlash) << ctx;
-  EXPECT_EQ(a.spline_deviation_mm, b.spline_deviation_mm) << ctx;
-  EXPECT_EQ(a.m_function_parameter, b.m_function_parameter) << ctx;
-  for (std::size_t e = 0; e < a.lookahead.size(); ++e) {
-    const LookAheadEntry& x = a.lookahead[e];
-    const LookAheadEntry& y = b.lookahead[e];
-    EXPECT_EQ(x.movement_type, y.movement_type) << ctx << " entry " << e;
-    EXPECT_EQ(x.movement_code, y.movement_code) << ctx << " entry " << e;
-    EXPECT_EQ(x.line, y.line) << ctx << " entry " << e;
-    EXPECT_EQ(x.tangent_deg, y.tangent_deg) << ctx << " entry " << e;
-    EXPECT_EQ(x.end_pos_mm, y.end_pos_mm) << ctx << " entry " << e;
-    EXPECT_EQ(x.all_params, y.all_params) << ctx << " entry " << e;
-  }
-}
 
 bool same_block(const BlockReport& a, const BlockReport& b) {
   return a.act_part == b.act_part && a.line == b.line && a.g == b.g && a.length_mm == b.length_mm &&
@@ -208,7 +167,7 @@ void compare_stepping(const MachineConfig& m, const test::Generated& g, int smoo
     }
     const std::string ctx = ctx0 + " cycle " + std::to_string(cycle);
     ASSERT_EQ(rs, rf) << ctx;
-    expect_same(stepped->registers(), fast->registers(), ctx);
+    test::expect_same_registers(stepped->registers(), fast->registers(), ctx);
     if (::testing::Test::HasFailure()) return;
     if (rs == StepResult::kFinished || rs == StepResult::kErrorInternal || rs == StepResult::kIdle)
       break;
@@ -461,7 +420,8 @@ TEST(Advance, SimulationSummaryEqualsStepping) {
     }
     EXPECT_EQ(s[0].factor_time_s, s[1].factor_time_s) << ctx;
     ASSERT_EQ(b[0].size(), b[1].size()) << ctx;
-    for (std::size_t i = 0; i < b[0].size(); ++i) EXPECT_TRUE(same_block(b[0][i], b[1][i])) << ctx << " block " << i;
+    for (std::size_t i = 0; i < b[0].size(); ++i)
+      EXPECT_TRUE(same_block(b[0][i], b[1][i])) << ctx << " block " << i;
   }
 }
 
@@ -523,7 +483,7 @@ TEST(Advance, StandingOnThePathAfterAStopEqualsStepping) {
     ip->advance(300, &done);
     ASSERT_GT(done, 1u) << ctx << ": the standing cycles were not skipped";
     for (std::uint64_t c = 0; c < done; ++c) stepped->step();
-    expect_same(ip->registers(), stepped->registers(), ctx);
+    test::expect_same_registers(ip->registers(), stepped->registers(), ctx);
     EXPECT_EQ(ip->registers().speed[0], 0.0) << ctx;
   }
 }
@@ -664,7 +624,8 @@ TEST(Simulation, ProgressIsReportedAndCanEndTheRun) {
     for (std::size_t i = 1; i < seen.size(); ++i) {
       EXPECT_GT(seen[i].cycles, seen[i - 1].cycles);
       EXPECT_GE(seen[i].act_part, seen[i - 1].act_part);
-      EXPECT_DOUBLE_EQ(seen[i].program_time_s, static_cast<double>(seen[i].cycles) * m.cycle_time_us * 1e-6);
+      EXPECT_DOUBLE_EQ(seen[i].program_time_s,
+                       static_cast<double>(seen[i].cycles) * m.cycle_time_us * 1e-6);
       EXPECT_EQ(seen[i].records, g.program.segments.size());
     }
     EXPECT_LT(seen.back().cycles, whole.cycles);

@@ -34,6 +34,7 @@
 #include "../support/test_params.hpp"
 #include "machine_kind_arg.hpp"
 #include "random_program.hpp"
+#include "same_registers.hpp"
 #include "tgm/command_stage.hpp"
 #include "tgm/interpolator.hpp"
 
@@ -161,24 +162,19 @@ class RequestStorm {
   }
 
   // ip_'s registers equal the twin's to the bit (advance() == step(), the LookAheadBuffer's
-  // update == its rebuild); a difference is named by its offset in Registers.
+  // update == its rebuild). A difference is named register by register where it is one
+  // (same_registers.hpp), else (-0.0 against 0.0, padding) by its first byte.
   void expect_twin_equal() {
     const Registers& a = ip_->registers();
     const Registers& b = twin_->registers();
     if (std::memcmp(&a, &b, sizeof a) == 0) return;
+    const std::string at = ctx_ + ", cycle " + std::to_string(a.cycle) + ", against the twin";
+    test::expect_same_registers(a, b, at);
     const auto* pa = reinterpret_cast<const unsigned char*>(&a);
     const auto* pb = reinterpret_cast<const unsigned char*>(&b);
     std::size_t off = 0;
     while (off < sizeof a && pa[off] == pb[off]) ++off;
-    std::string where = "byte " + std::to_string(off);
-    const std::size_t la = offsetof(Registers, lookahead);
-    if (off >= la && off < la + sizeof a.lookahead) {
-      where += " (LookAheadBuffer entry " + std::to_string((off - la) / sizeof(LookAheadEntry)) +
-               ", byte " + std::to_string((off - la) % sizeof(LookAheadEntry)) + ")";
-    }
-    ADD_FAILURE() << ctx_ << ", cycle " << a.cycle << ": the registers differ from the twin's at "
-                  << where << "; Status " << a.status << " / " << b.status << ", Act_Part "
-                  << a.act_part << " / " << b.act_part;
+    ADD_FAILURE() << at << ": the registers differ from byte " << off << " of " << sizeof a;
   }
 
   // A request refused (other than a partly taken append: kBufferFull) changes none of the

@@ -2,7 +2,9 @@
 // requests of every kind from both roles (also unknown kinds and Commands, interpolators that
 // do not exist, values that are NaN, huge or not whole), and program chunks in order, repeated,
 // with gaps, from a foreign program and undecodable, under random request and record budgets,
-// while an emulated PLC acknowledges M-functions and an HMI starts the programs.
+// while an emulated PLC acknowledges M-functions and an HMI starts the programs. (It goes on from
+// Engine.RandomRequestsAreEachAnsweredOnceAndNeverBreakTheCycle, one fixed seed of requests on a
+// streamed program with its floors per reply code: chunks, budgets, motion and the way back.)
 //
 // Oracles:
 // - every request gets exactly one reply, with its own id and interpolator, none lost, none
