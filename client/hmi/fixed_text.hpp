@@ -59,24 +59,24 @@ inline char* fixed_chars(char* first, char* last, double v, int precision) {
       ++int_part;
     }
   }  // else below 2^-37 of a unit in the last place: rounds to 0
-  char digits[32];
-  char* d = digits + sizeof digits;
-  std::uint64_t x = frac;
+  // Written in place from the end (a memcpy of a few bytes cost more than the digits).
+  std::size_t int_digits = 1;
+  for (std::uint64_t x = int_part; x >= 10u; x /= 10u) ++int_digits;
+  const std::size_t len = (negative ? 1u : 0u) + int_digits +
+                          (precision > 0 ? 1u + static_cast<std::size_t>(precision) : 0u);
+  if (static_cast<std::size_t>(last - first) < len) return last;
+  char* d = first + len;
   for (int k = 0; k < precision; ++k) {
-    *--d = static_cast<char>('0' + x % 10u);
-    x /= 10u;
+    *--d = static_cast<char>('0' + frac % 10u);
+    frac /= 10u;
   }
   if (precision > 0) *--d = '.';
-  x = int_part;
   do {
-    *--d = static_cast<char>('0' + x % 10u);
-    x /= 10u;
-  } while (x != 0);
-  const auto len = static_cast<std::size_t>(digits + sizeof digits - d) + (negative ? 1u : 0u);
-  if (static_cast<std::size_t>(last - first) < len) return last;
-  if (negative) *first++ = '-';
-  std::memcpy(first, d, static_cast<std::size_t>(digits + sizeof digits - d));
-  return first + (digits + sizeof digits - d);
+    *--d = static_cast<char>('0' + int_part % 10u);
+    int_part /= 10u;
+  } while (int_part != 0);
+  if (negative) *--d = '-';
+  return first + len;
 }
 
 }  // namespace tgm::hmi
