@@ -28,6 +28,7 @@
 #include <mutex>
 #include <optional>
 #include <set>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -155,6 +156,10 @@ struct Served {
   Clock::time_point ack_at{};
   Clock::time_point seen_at{};
   Clock::time_point woke_at{};
+  // An acknowledgement left unanswered: sent again while the state still shows that M-function.
+  std::int32_t unanswered_m = 0;
+  std::uint32_t unanswered_count = 0;
+  Clock::time_point unanswered_at{};
 };
 
 // One acknowledgement's time stamps for --handshake-trace (steady clock). `path`: "event" when
@@ -442,6 +447,13 @@ int plc_main(int argc, char** argv) {
       if (!r) {
         r.emplace();
         r->timed_out = true;
+        r->sent = true;
+        r->waited = std::chrono::duration_cast<std::chrono::milliseconds>(t - it->ack_written);
+        if (Served* sv = find_served(it->interpolator); sv != nullptr && it->normal && !at_stop) {
+          sv->unanswered_m = it->m;
+          sv->unanswered_count = it->count;
+          sv->unanswered_at = t;
+        }
       }
       trace({it->interpolator, it->part, it->woke, it->seen, it->ack_call, it->ack_written, t,
              "event"});
@@ -536,8 +548,22 @@ int plc_main(int argc, char** argv) {
           const std::int32_t spline[] = {sm.spline_points, static_cast<std::int32_t>(sm.spline_jerk_mm_s3)};
           const std::int32_t iir[] = {static_cast<std::int32_t>(sm.iir_p_e6), static_cast<std::int32_t>(sm.iir_q_e6),
                                       static_cast<std::int32_t>(sm.iir_f_e6), static_cast<std::int32_t>(sm.iir_axis_mask)};
-          const auto r2 = plc->command(sv.number, -2, spline);
-          const auto r1 = plc->command(sv.number, -1, iir);
+          // A request left unanswered is sent again, twice at most: setting the same
+          // parameters twice is harmless, and a lossy network can lose the request or its reply
+          // for longer than the timeout (30 % loss left one interpolator without them).
+          auto command = [&](std::int32_t code, std::span<const std::int32_t> params,
+                             const char* what) {
+            tgm::client::Reply r = plc->command(sv.number, code, params);
+            for (int attempt = 2; attempt <= 3 && r.timed_out; ++attempt) {
+              append_log(pending_log, stamp(),
+                         "interpolator %d: basic parameters: %s: %s; sending it again (%d of 3)",
+                         sv.number, what, tgm::client::describe(r).c_str(), attempt);
+              r = plc->command(sv.number, code, params);
+            }
+            return r;
+          };
+          const auto r2 = command(-2, spline, "Command -2");
+          const auto r1 = command(-1, iir, "Command -1");
           std::string ratio_log;
           const auto& axes = config.machine.interpolators[static_cast<std::size_t>(sv.number)].axes;
           tgm::client::Reply r1024;
@@ -545,7 +571,7 @@ int plc_main(int argc, char** argv) {
             // Ratio as counter [inc] / denominator [mm] with 1e-3 mm resolution.
             const std::int32_t ratio[] = {static_cast<std::int32_t>(a),
                                           static_cast<std::int32_t>(axes[a].ratio_inc_per_mm * 1000.0 + 0.5), 1000};
-            const auto r = plc->command(sv.number, 1024, ratio);
+            const auto r = command(1024, ratio, "Command 1024");
             if (a == 0 || (r1024.accepted && !r.accepted)) r1024 = r;  // report the first refusal
           }
           // --quiet still logs a refusal: it is an error (e.g. the interpolator was already
@@ -631,6 +657,30 @@ int plc_main(int argc, char** argv) {
                    "interpolator %d: M%d acknowledged after %.3f s: %s (cycle %llu)", sv.number, m,
                    std::chrono::duration<double>(Clock::now() - sv.seen_at).count(),
                    tgm::client::describe(r).c_str(), static_cast<unsigned long long>(r.cycle));
+        if (r.timed_out) {
+          sv.unanswered_m = m;
+          sv.unanswered_count = sv.ack_count;
+          sv.unanswered_at = Clock::now();
+        }
+      }
+      // An unanswered acknowledgement (lost on a lossy network, or its reply was): while the
+      // state still shows that M-function (same m_func_count) a second after, it is sent again.
+      // One that arrived meanwhile makes the service refuse the repeat (it names the count).
+      if (sv.unanswered_m != 0) {
+        if (s->m_func() != sv.unanswered_m || s->m_func_count() != sv.unanswered_count) {
+          sv.unanswered_m = 0;
+        } else if (Clock::now() - sv.unanswered_at >= 1s) {
+          const auto r = plc->ack_m_func(sv.number, sv.unanswered_m, sv.unanswered_count);
+          append_log(pending_log, stamp(),
+                     "interpolator %d: M%d still waits after an unanswered acknowledgement: sent "
+                     "again: %s",
+                     sv.number, sv.unanswered_m, note_reply(r).c_str());
+          if (r.timed_out) {
+            sv.unanswered_at = Clock::now();
+          } else {
+            sv.unanswered_m = 0;
+          }
+        }
       }
       log_seen();
     }

@@ -120,8 +120,12 @@ class DdsPort final : public CyclePort {
   //! of them written after kReplyMatchWait without that match (valid after stop()).
   std::uint64_t replies_held() const { return replies_held_; }
   std::uint64_t replies_unmatched() const { return replies_unmatched_; }
-  //! How long a reply waits for the reply writer to match its client's reply reader.
-  static constexpr std::chrono::seconds kReplyMatchWait{2};
+  //! How long a reply waits for the reply writer to match its client's reply reader. On a
+  //! network that loses packets that match can take seconds (a lost discovery sample is
+  //! repaired at the builtin writers' heartbeat): with 2 s, one in a few fresh `tgm-hmi
+  //! command` processes on a 20 % lossy link never got its reply (session 50). Held replies
+  //! are bounded (1024); a client that is gone only keeps its replies this long.
+  static constexpr std::chrono::seconds kReplyMatchWait{30};
   const std::string& participant_name() const { return participant_.name(); }
   //! Drawn at construction, never 0: InterpolatorState / InterpolatorEvent.service_instance.
   std::uint64_t service_instance() const { return service_instance_; }

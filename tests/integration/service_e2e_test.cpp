@@ -687,6 +687,13 @@ TEST(ServiceProcesses, HmiCommandAndStopSayAcceptedOrWhyNot) {
       {{"command", "estop"}, 0, "Command 4: accepted\n"},
       {{"command", "frob"}, 2, "tgm-hmi command: unknown command 'frob'\n"},
       {{"command", "start", "1"}, 2, "tgm-hmi command: 'start' takes no parameters\n"},
+      {{"command", "clear", "--timeout", "0"},
+       2,
+       "tgm-hmi command: --timeout must be seconds in (0, 3600], not '0'\n"},
+      {{"stop", "--timeout", "x"},
+       2,
+       "tgm-hmi stop: --timeout must be seconds in (0, 3600], not 'x'\n"},
+      {{"command", "clear", "--timeout", "20"}, 0, "clear: accepted\n"},
   };
   int k = 0;
   for (const Case& c : cases) {
@@ -698,6 +705,17 @@ TEST(ServiceProcesses, HmiCommandAndStopSayAcceptedOrWhyNot) {
     EXPECT_EQ(hmi.wait(kHang), c.code) << c.words[0] << " " << c.words.back() << "\n" << hmi.log();
     EXPECT_EQ(hmi.log().rfind(c.says, 0), 0u) << hmi.log();
   }
+  // No service on the domain: unanswered within --timeout, and it says that nothing was sent
+  // (a request that was sent but not answered may still be executed later: it says so instead).
+  env.service.interrupt();
+  test::Child hmi;
+  ASSERT_TRUE(
+      hmi.start({TGM_HMI_BIN, "command", "clear", "--timeout", "0.5", "--config", env.config()},
+                env.path("cmd-none.log")));
+  EXPECT_EQ(hmi.wait(kHang), 1) << hmi.log();
+  EXPECT_EQ(hmi.log(),
+            "tgm-hmi command: clear: no reply: no tgm-service took requests on this domain within "
+            "0.5 s (is it running, with the same domain and profiles?); nothing was sent\n");
 }
 
 // Intercode compiled for other axis letters (XYC, where interpolator 0 has XYZ) is refused

@@ -2,6 +2,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <string>
 #include <vector>
@@ -27,9 +28,10 @@ constexpr const char* kWatchUsage =
     "\n"
     "Follows the registers: prints them every S seconds (default 0.5) until Ctrl-C, or K times.\n";
 constexpr const char* kStopUsage =
-    "usage: tgm-hmi stop [--interpolator N] [--config YAML] [DDS overrides]\n"
+    "usage: tgm-hmi stop [--interpolator N] [--timeout S] [--config YAML] [DDS overrides]\n"
     "\n"
-    "Normal stop on the trajectory (Command 8); `tgm-hmi command start` resumes.\n";
+    "Normal stop on the trajectory (Command 8); `tgm-hmi command start` resumes.\n"
+    "  --timeout S   wait up to S seconds for the reply (default 3, at most 3600)\n";
 constexpr const char* kCommandUsage =
     "usage: tgm-hmi command WHAT [P0 P1 ...] [--interpolator N] [--config YAML] [DDS overrides]\n"
     "\n"
@@ -40,16 +42,29 @@ constexpr const char* kCommandUsage =
     "  stop-off                       Command 9, normal stop, off the trajectory\n"
     "  CODE [P0 .. P11]               the Command register with its parameters (the service\n"
     "                                 refuses what the HMI may not do, e.g. 1024)\n"
-    "Exit code 0 when accepted, 1 when refused or unanswered.\n";
+    "  --timeout S   wait up to S seconds for the reply (default 3, at most 3600): a lossy\n"
+    "                network can take seconds to find tgm-service and to repair a lost sample\n"
+    "Exit code 0 when accepted, 1 when refused or unanswered. Unanswered says whether the\n"
+    "request was sent at all: one that was may still be executed after the timeout.\n";
 
 struct Common {
   DdsOverrides overrides;
   std::optional<AppConfig> config;
   std::optional<client::Client> client;
+  double timeout_s = 3.0;  // reply timeout of the requests (stop, command)
 };
 
+// --timeout S of stop and command.
+bool timeout_flag(Args& args, double& out) {
+  return args.number_flag("--timeout", out, "seconds in (0, 3600]",
+                          [](double v) { return v > 0.0 && v <= 3600.0; });
+}
+
 int connect(Args& args, Common& c) {
-  return make_client(args, c.overrides, c.config, c.client);
+  client::ClientOptions options;
+  options.request_timeout =
+      std::chrono::milliseconds(static_cast<long long>(std::ceil(c.timeout_s * 1000.0)));
+  return make_client(args, c.overrides, c.config, c.client, options);
 }
 
 // "WHAT: accepted" on standard output (exit code 0), or why not on standard error (1).
@@ -148,6 +163,7 @@ int run_stop(int argc, char** argv) {
   Common c;
   while (args.more()) {
     if (args.dds_flag(c.overrides)) continue;
+    if (timeout_flag(args, c.timeout_s)) continue;
     if (args.common()) continue;
     return args.fail();
   }
@@ -163,6 +179,7 @@ int run_command(int argc, char** argv) {
   std::vector<std::string> words;
   while (args.more()) {
     if (args.dds_flag(c.overrides)) continue;
+    if (timeout_flag(args, c.timeout_s)) continue;
     if (args.common()) continue;
     // Negative numbers (Command -1 / -2, parameters) are words, not options.
     if (std::string w; args.positional(w) || args.negative_number(w)) {

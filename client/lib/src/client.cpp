@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <cstdio>
 
 #include "tgm/dds/topics.hpp"
 #include "tgm/idl_mapping.hpp"
@@ -30,7 +31,17 @@ std::string_view reply_code_name(msg::ReplyCode c) {
 }
 
 std::string describe(const Reply& r) {
-  if (r.timed_out) return "no reply (is tgm-service running on this domain?)";
+  if (r.timed_out) {
+    char waited[32];
+    std::snprintf(waited, sizeof waited, "%.1f s", static_cast<double>(r.waited.count()) / 1000.0);
+    if (!r.sent) {
+      return std::string("no reply: no tgm-service took requests on this domain within ") + waited +
+             " (is it running, with the same domain and profiles?); nothing was sent";
+    }
+    return std::string("no reply within ") + waited +
+           ": the request was sent, but whether tgm-service executed it is not known (it may "
+           "still arrive over a slow or lossy network; check the registers)";
+  }
   if (r.accepted) return "accepted";
   return "refused (" + std::string(reply_code_name(r.code)) + "): " + printable(r.reason);
 }
@@ -50,6 +61,7 @@ std::string_view status_name(std::int32_t status) {
 
 Client::Client(const DdsConfig& config, Role role, const ClientOptions& options)
     : role_(role),
+      request_timeout_(options.request_timeout),
       participant_(config, role == Role::kPlc ? "plc" : "hmi"),
       name_(participant_.name() + "-" + std::to_string(::getpid())),
       state_reader_(participant_.reader<msg::InterpolatorStatePubSubType>(dds::kStateTopic)),
@@ -224,6 +236,7 @@ std::vector<msg::Message> Client::take_messages() {
 
 Reply Client::request(msg::Request r, std::chrono::milliseconds timeout) {
   Reply out;
+  out.waited = timeout;
   const auto deadline = Clock::now() + timeout;
   // The request topic is VOLATILE: a request written before the service's reader matched is lost.
   if (!dds::wait_for_match(request_writer_, 1, timeout) ||
@@ -248,6 +261,7 @@ Reply Client::request(msg::Request r, std::chrono::milliseconds timeout) {
     return out;
   }
   last_written_ = Clock::now();
+  out.sent = true;
   while (true) {
     poll(std::chrono::nanoseconds(0));
     if (std::optional<Reply> reply = take_reply(r.request_id())) return *reply;

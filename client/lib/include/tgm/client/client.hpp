@@ -35,6 +35,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include <fastdds/dds/subscriber/DataReaderListener.hpp>
@@ -60,8 +61,13 @@ struct Reply {
   std::string reason;
   //! Cycle in which the service handled the request (InterpolatorState.cycle_counter numbering).
   std::uint64_t cycle = 0;
-  //! No reply within the timeout (no service, or it is overloaded).
+  //! No reply within the timeout.
   bool timed_out = false;
+  //! With `timed_out`: the request was written (tgm-service's request reader had matched). It
+  //! may still arrive and be executed after the timeout: a lossy network repairs late.
+  bool sent = false;
+  //! With `timed_out`: how long the reply was waited for.
+  std::chrono::milliseconds waited{0};
 };
 
 //! "accepted", "wrong role", "out of range", ...
@@ -85,6 +91,9 @@ using EventHandler = std::function<void(const Event&)>;
 struct ClientOptions {
   //! Also take the setpoints topic (every cycle; only for plotting or drives).
   bool setpoints = false;
+  //! How long start(), stop(), clear(), command(), ack_m_func() and set_rel_speed() wait for
+  //! their reply (matching included).
+  std::chrono::milliseconds request_timeout = 3s;
 };
 
 class Client {
@@ -184,8 +193,10 @@ class Client {
   std::optional<Reply> take_reply(std::uint64_t request_id);
   static constexpr std::size_t kMaxKeptReplies = 1000;
 
-  //! Sends `r` (request_id, role and client_name are filled in) and polls until its reply.
-  Reply request(msg::Request r, std::chrono::milliseconds timeout = 3s);
+  //! Sends `r` (request_id, role and client_name are filled in) and polls until its reply,
+  //! at most `timeout` (ClientOptions::request_timeout when not given).
+  Reply request(msg::Request r, std::chrono::milliseconds timeout);
+  Reply request(msg::Request r) { return request(std::move(r), request_timeout_); }
   Reply start(int interpolator);
   Reply stop(int interpolator);
   Reply clear(int interpolator);
@@ -225,6 +236,7 @@ class Client {
   // Declared before the participant so that it outlives the participant's receive threads.
   std::unique_ptr<EventListener> event_listener_;
   Role role_;
+  std::chrono::milliseconds request_timeout_;
   dds::Participant participant_;
   std::string name_;
   eprosima::fastdds::dds::DataReader& state_reader_;
