@@ -11,13 +11,19 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
 #include <vector>
 
+#include "../support/env_params.hpp"
 #include "service_test_env.hpp"
+#include "tgm/gcode.hpp"
+#include "tgm/simulation.hpp"
+#include "tgm/yaml_config.hpp"
 
 namespace tgm {
 namespace {
@@ -125,6 +131,99 @@ TEST(ServiceNetns, ManualExampleAcrossThreeNetworkNamespaces) {
   EXPECT_EQ(service.interrupt(), 0) << service.log();
   EXPECT_NE(hmi.log().find("done: 13 records"), std::string::npos) << hmi.log();
   EXPECT_EQ(test::count_of(plc.log(), "acknowledged after"), 3) << plc.log();
+  std::error_code ec;
+  if (!::testing::Test::HasFailure()) std::filesystem::remove_all(dir, ec);
+}
+
+// The same three namespaces on a network that loses packets: every process drops a share of
+// the UDP datagrams it receives at random (iptables' statistic match, in its own namespace;
+// the kernel here has no netem), 10 % by default, TGM_NETNS_LOSS_PERCENT=30 for a harder run. DDS's
+// reliable topics must carry the program, the requests and their replies, and the M-function
+// handshake through it: the manual's example ends where the offline simulation ends with every
+// M-function acknowledged once, each of a series of operator commands is answered, a second
+// run works as the first, and the service counts no lost or unmatched reply.
+TEST(ServiceNetns, ProgramRequestsAndHandshakeSurviveALossyNetwork) {
+  if (::geteuid() != 0) GTEST_SKIP() << "needs root to create network namespaces";
+  const std::string ip = ip_binary();
+  if (ip.empty() || !sh(ip + " netns list")) GTEST_SKIP() << "`ip netns` is not available";
+  Namespaces ns(ip);
+  std::string error;
+  if (!ns.create(error)) GTEST_SKIP() << "cannot create network namespaces here: " << error;
+  const std::uint64_t loss_percent = test::env_u64("TGM_NETNS_LOSS_PERCENT", 10);
+  ASSERT_LE(loss_percent, 90u) << "TGM_NETNS_LOSS_PERCENT: 0..90";
+  const std::string loss_text = std::to_string(static_cast<double>(loss_percent) / 100.0);
+  for (std::size_t i = 0; i < 3; ++i) {
+    const std::string rule = ip + " netns exec " + ns.name(i) +
+                             " iptables -A INPUT -p udp -m statistic --mode random --probability " +
+                             loss_text + " -j DROP";
+    if (!sh(rule)) GTEST_SKIP() << "iptables cannot drop packets at random here: " << rule;
+  }
+
+  const std::string dir =
+      std::filesystem::temp_directory_path() / ("tgm_netns_loss_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  test::ConfigEdits edits;
+  edits.profiles = udp_profiles(dir);
+  test::ServiceEnv env(edits);
+  const ConfigLoad load = load_config_file(env.config());
+  ASSERT_TRUE(load.config.has_value());
+  const MachineConfig& machine = load.config->machine;
+  const std::string program_path = TGM_SOURCE_DIR "/tests/programs/manual_example.ngc";
+  const CompileResult compiled =
+      compile_gcode(test::read_text(program_path), CompileOptions::from_machine(machine, 0));
+  ASSERT_TRUE(compiled.ok());
+  SimulationOptions sim_options;
+  sim_options.m_ack_s = 0.0;
+  std::optional<Simulation> sim = Simulation::create(machine, sim_options);
+  ASSERT_TRUE(sim.has_value());
+  const SimulationSummary expected = sim->run(compiled.program);
+  ASSERT_EQ(expected.result, StepResult::kFinished);
+
+  test::Child service, plc;
+  ASSERT_TRUE(service.start(ns.exec(0, {TGM_SERVICE_BIN, "--config", env.config(), "--no-realtime",
+                                        "--stats", env.stats_path()}),
+                            env.path("service.log")));
+  ASSERT_TRUE(plc.start(ns.exec(1, {TGM_PLC_BIN, "--config", env.config()}), env.path("plc.log")));
+  auto logs = [&] { return "\n--- plc:\n" + plc.log() + "\n--- service:\n" + service.log(); };
+  auto run_program = [&](const std::string& name) {
+    test::Child hmi;
+    ASSERT_TRUE(hmi.start(
+        ns.exec(2, {TGM_HMI_BIN, "run", program_path, "--config", env.config(), "--quiet"}),
+        env.path(name)));
+    ASSERT_EQ(hmi.wait(180s), 0) << hmi.log() << logs();
+    const std::string log = hmi.log();
+    EXPECT_NE(log.find("done: 13 records"), std::string::npos) << log;
+    double end[3] = {NAN, NAN, NAN};
+    if (const auto at = log.find("end position "); at != std::string::npos)
+      std::sscanf(log.c_str() + at, "end position X%lf Y%lf Z%lf", &end[0], &end[1], &end[2]);
+    for (std::size_t a = 0; a < 3; ++a) {
+      EXPECT_NEAR(end[a], expected.end_position[a], 5.1e-5) << "axis " << a << "\n" << log;
+    }
+  };
+  run_program("hmi-1.log");
+  // Operator commands, each a new HMI process (participant, discovery, request, reply).
+  constexpr int kCommands = 8;
+  for (int k = 0; k < kCommands && !::testing::Test::HasFailure(); ++k) {
+    test::Child cmd;
+    const std::string log_name = "command-" + std::to_string(k) + ".log";
+    // The timeout only bounds a hang: what is checked is that each is answered, once.
+    ASSERT_TRUE(cmd.start(
+        ns.exec(2, {TGM_HMI_BIN, "command", "clear", "--timeout", "30", "--config", env.config()}),
+        env.path(log_name)));
+    EXPECT_EQ(cmd.wait(60s), 0) << cmd.log() << logs();
+    EXPECT_EQ(test::count_of(cmd.log(), "accepted"), 1) << cmd.log();
+  }
+  run_program("hmi-2.log");
+  EXPECT_EQ(plc.interrupt(), 0);
+  EXPECT_EQ(service.interrupt(), 0) << service.log();
+  // Three normal M-functions per run, each acknowledged once.
+  EXPECT_EQ(test::count_of(plc.log(), "acknowledged after"), 6) << plc.log();
+  const std::string stats = test::read_text(env.stats_path());
+  for (const char* zero : {"\"lost_replies\": 0,", "\"replies_unmatched\": 0,"}) {
+    EXPECT_NE(stats.find(zero), std::string::npos) << stats;
+  }
+  std::printf("lossy network (%llu %% of the UDP datagrams dropped on receipt):\n%s",
+              static_cast<unsigned long long>(loss_percent), stats.c_str());
   std::error_code ec;
   if (!::testing::Test::HasFailure()) std::filesystem::remove_all(dir, ec);
 }
