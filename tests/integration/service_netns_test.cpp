@@ -17,6 +17,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "../support/env_params.hpp"
@@ -224,6 +225,75 @@ TEST(ServiceNetns, ProgramRequestsAndHandshakeSurviveALossyNetwork) {
   }
   std::printf("lossy network (%llu %% of the UDP datagrams dropped on receipt):\n%s",
               static_cast<unsigned long long>(loss_percent), stats.c_str());
+  std::error_code ec;
+  if (!::testing::Test::HasFailure()) std::filesystem::remove_all(dir, ec);
+}
+
+// The HMI's network goes down for 4 s (every datagram in and out of its namespace dropped)
+// while it streams a 40,000-record program into a 1,000-record buffer: longer than the 1 s
+// participant lease, so both sides forget each other and discover each other again. The
+// interpolator runs dry (underrun) and must go on once the link is back: every record executed
+// once, in order, ending at the programmed end point, with no refused chunk.
+TEST(ServiceNetns, AProgramStreamGoesOnAfterANetworkOutage) {
+  if (::geteuid() != 0) GTEST_SKIP() << "needs root to create network namespaces";
+  const std::string ip = ip_binary();
+  if (ip.empty() || !sh(ip + " netns list")) GTEST_SKIP() << "`ip netns` is not available";
+  Namespaces ns(ip);
+  std::string error;
+  if (!ns.create(error)) GTEST_SKIP() << "cannot create network namespaces here: " << error;
+  const std::string hmi_tables = ip + " netns exec " + ns.name(2) + " iptables ";
+  if (!sh(hmi_tables + "-L -n")) GTEST_SKIP() << "iptables is not usable here";
+
+  const std::string dir =
+      std::filesystem::temp_directory_path() / ("tgm_netns_outage_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  test::ConfigEdits edits;
+  edits.profiles = udp_profiles(dir);
+  edits.buffer_size0 = 1000;
+  test::ServiceEnv env(edits);
+  // 40,000 collinear 0.025 mm moves at the rapid-limit feed, then M2: 1 m in about 4 s.
+  constexpr int kRecords = 40'000;
+  std::string gcode = "F15000\n";
+  gcode.reserve(kRecords * 10);
+  for (int i = 0; i < kRecords; ++i) gcode += "G1 X0.025\n";
+  gcode += "M2\n";
+  const std::string program_path = env.path("long.ngc");
+  std::ofstream(program_path) << gcode;
+
+  test::Child service, hmi;
+  ASSERT_TRUE(service.start(ns.exec(0, {TGM_SERVICE_BIN, "--config", env.config(), "--no-realtime",
+                                        "--stats", env.stats_path()}),
+                            env.path("service.log")));
+  ASSERT_TRUE(hmi.start(ns.exec(2, {TGM_HMI_BIN, "run", program_path, "--config", env.config(),
+                                    "--progress-interval", "0.2"}),
+                        env.path("hmi.log")));
+  // Cut once the stream runs (the first progress line), well before its end.
+  const auto by = std::chrono::steady_clock::now() + 60s;
+  while (hmi.log().find("% line ") == std::string::npos && std::chrono::steady_clock::now() < by) {
+    std::this_thread::sleep_for(20ms);
+  }
+  ASSERT_NE(hmi.log().find("% line "), std::string::npos) << hmi.log() << service.log();
+  ASSERT_TRUE(sh(hmi_tables + "-I INPUT -j DROP") && sh(hmi_tables + "-I OUTPUT -j DROP"));
+  std::this_thread::sleep_for(4s);
+  ASSERT_TRUE(sh(hmi_tables + "-D INPUT -j DROP") && sh(hmi_tables + "-D OUTPUT -j DROP"));
+  const int code = hmi.wait(120s);
+  const std::string log = hmi.log();
+  EXPECT_EQ(code, 0) << log << "\n--- service:\n" << service.log();
+  EXPECT_NE(log.find("done: " + std::to_string(kRecords + 1) + " records"), std::string::npos)
+      << log;
+  double end_x = NAN;
+  if (const auto at = log.find("end position "); at != std::string::npos)
+    std::sscanf(log.c_str() + at, "end position X%lf", &end_x);
+  EXPECT_NEAR(end_x, 1000.0, 5.1e-5) << log;
+  // The outage was one: the HMI heard nothing for 3 s and then heard the service again.
+  EXPECT_NE(log.find("no state from tgm-service for 3 s"), std::string::npos) << log;
+  EXPECT_NE(log.find("tgm-service is back"), std::string::npos) << log;
+  EXPECT_EQ(service.interrupt(), 0) << service.log();
+  const std::string stats = test::read_text(env.stats_path());
+  EXPECT_NE(stats.find("\"segments\": " + std::to_string(kRecords + 1) + ","), std::string::npos)
+      << stats;
+  EXPECT_NE(stats.find("\"refused_chunks\": 0,"), std::string::npos) << stats;
+  std::printf("%s\n%s", log.c_str(), stats.c_str());
   std::error_code ec;
   if (!::testing::Test::HasFailure()) std::filesystem::remove_all(dir, ec);
 }
