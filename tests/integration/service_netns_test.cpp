@@ -298,5 +298,77 @@ TEST(ServiceNetns, AProgramStreamGoesOnAfterANetworkOutage) {
   if (!::testing::Test::HasFailure()) std::filesystem::remove_all(dir, ec);
 }
 
+// The PLC's network goes down for 4 s right when the interpolator starts waiting for M51: the
+// acknowledgement, due 0.5 s later, is written into the outage and left unanswered. Once the link
+// is back it must arrive (DDS repairs it, or tgm-plc sends it again while the state still shows
+// M51), and the manual's example must end where the offline simulation ends, with each of its
+// three M-functions acknowledged once.
+TEST(ServiceNetns, AnAcknowledgementCutOffByAnOutageArrivesAfterIt) {
+  if (::geteuid() != 0) GTEST_SKIP() << "needs root to create network namespaces";
+  const std::string ip = ip_binary();
+  if (ip.empty() || !sh(ip + " netns list")) GTEST_SKIP() << "`ip netns` is not available";
+  Namespaces ns(ip);
+  std::string error;
+  if (!ns.create(error)) GTEST_SKIP() << "cannot create network namespaces here: " << error;
+  const std::string plc_tables = ip + " netns exec " + ns.name(1) + " iptables ";
+  if (!sh(plc_tables + "-L -n")) GTEST_SKIP() << "iptables is not usable here";
+
+  const std::string dir =
+      std::filesystem::temp_directory_path() / ("tgm_netns_ack_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  test::ConfigEdits edits;
+  edits.profiles = udp_profiles(dir);
+  test::ServiceEnv env(edits);
+  const ConfigLoad load = load_config_file(env.config());
+  ASSERT_TRUE(load.config.has_value());
+  const std::string program_path = TGM_SOURCE_DIR "/tests/programs/manual_example.ngc";
+  const CompileResult compiled = compile_gcode(
+      test::read_text(program_path), CompileOptions::from_machine(load.config->machine, 0));
+  ASSERT_TRUE(compiled.ok());
+  std::optional<Simulation> sim = Simulation::create(load.config->machine, SimulationOptions{});
+  ASSERT_TRUE(sim.has_value());
+  const SimulationSummary expected = sim->run(compiled.program);
+
+  test::Child service, plc, hmi;
+  ASSERT_TRUE(service.start(ns.exec(0, {TGM_SERVICE_BIN, "--config", env.config(), "--no-realtime",
+                                        "--stats", env.stats_path()}),
+                            env.path("service.log")));
+  ASSERT_TRUE(plc.start(ns.exec(1, {TGM_PLC_BIN, "--config", env.config(), "--ack-delay", "0.5"}),
+                        env.path("plc.log")));
+  ASSERT_TRUE(
+      hmi.start(ns.exec(2, {TGM_HMI_BIN, "run", program_path, "--config", env.config(), "--quiet"}),
+                env.path("hmi.log")));
+  const auto by = std::chrono::steady_clock::now() + 60s;
+  while (plc.log().find("M51 normal: the interpolator waits") == std::string::npos &&
+         std::chrono::steady_clock::now() < by) {
+    std::this_thread::sleep_for(5ms);
+  }
+  ASSERT_NE(plc.log().find("M51 normal: the interpolator waits"), std::string::npos)
+      << plc.log() << hmi.log();
+  ASSERT_TRUE(sh(plc_tables + "-I INPUT -j DROP") && sh(plc_tables + "-I OUTPUT -j DROP"));
+  std::this_thread::sleep_for(4s);
+  ASSERT_TRUE(sh(plc_tables + "-D INPUT -j DROP") && sh(plc_tables + "-D OUTPUT -j DROP"));
+  const int code = hmi.wait(120s);
+  const std::string log = hmi.log();
+  EXPECT_EQ(code, 0) << log << "\n--- plc:\n" << plc.log() << "\n--- service:\n" << service.log();
+  EXPECT_NE(log.find("done: 13 records"), std::string::npos) << log;
+  double end[3] = {NAN, NAN, NAN};
+  if (const auto at = log.find("end position "); at != std::string::npos)
+    std::sscanf(log.c_str() + at, "end position X%lf Y%lf Z%lf", &end[0], &end[1], &end[2]);
+  for (std::size_t a = 0; a < 3; ++a) {
+    EXPECT_NEAR(end[a], expected.end_position[a], 5.1e-5) << "axis " << a << "\n" << log;
+  }
+  EXPECT_EQ(plc.interrupt(), 0);
+  EXPECT_EQ(service.interrupt(), 0) << service.log();
+  // Three acknowledgements applied by the service: one per M-function, none twice.
+  const std::string stats = test::read_text(env.stats_path());
+  EXPECT_NE(stats.find("\"handshake_ns\": {\"count\": 3,"), std::string::npos)
+      << stats << "\n--- plc:\n"
+      << plc.log();
+  std::printf("--- plc:\n%s\n%s", plc.log().c_str(), stats.c_str());
+  std::error_code ec;
+  if (!::testing::Test::HasFailure()) std::filesystem::remove_all(dir, ec);
+}
+
 }  // namespace
 }  // namespace tgm
