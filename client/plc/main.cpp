@@ -504,6 +504,7 @@ int plc_main(int argc, char** argv) {
                    static_cast<unsigned long long>(s->service_instance()));
         sv.found = false;
         sv.ack_m = 0;
+        sv.unanswered_m = 0;
         events_matched = false;
       }
       if (!sv.found) {
