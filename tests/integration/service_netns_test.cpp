@@ -11,11 +11,13 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -105,35 +107,98 @@ std::string udp_profiles(const std::string& dir) {
   return path;
 }
 
-TEST(ServiceNetns, ManualExampleAcrossThreeNetworkNamespaces) {
-  if (::geteuid() != 0) GTEST_SKIP() << "needs root to create network namespaces";
-  const std::string ip = ip_binary();
-  if (ip.empty() || !sh(ip + " netns list")) GTEST_SKIP() << "`ip netns` is not available";
-  Namespaces ns(ip);
-  std::string error;
-  if (!ns.create(error)) GTEST_SKIP() << "cannot create network namespaces here: " << error;
+// The three namespaces, a directory and a service environment with the UDP-only profiles
+// for one test; skipped without root, `ip netns` or the right to create namespaces.
+class ServiceNetns : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (::geteuid() != 0) GTEST_SKIP() << "needs root to create network namespaces";
+    ip_ = ip_binary();
+    if (ip_.empty() || !sh(ip_ + " netns list")) GTEST_SKIP() << "`ip netns` is not available";
+    ns_.emplace(ip_);
+    std::string error;
+    if (!ns_->create(error)) GTEST_SKIP() << "cannot create network namespaces here: " << error;
+    dir_ = (std::filesystem::temp_directory_path() /
+            ("tgm_netns_" + std::to_string(::getpid()) + "_" +
+             ::testing::UnitTest::GetInstance()->current_test_info()->name()))
+               .string();
+    std::filesystem::create_directories(dir_);
+  }
+  void TearDown() override {
+    std::error_code ec;
+    if (!dir_.empty() && !HasFailure()) std::filesystem::remove_all(dir_, ec);
+  }
+  //! Service environment (config) with the UDP-only profiles of the three namespaces.
+  test::ConfigEdits edits() const {
+    test::ConfigEdits e;
+    e.profiles = udp_profiles(dir_);
+    return e;
+  }
+  //! `iptables ARGS` in namespace i (0 service, 1 plc, 2 hmi); true on success.
+  bool iptables(std::size_t i, const std::string& args) const {
+    return sh(ip_ + " netns exec " + ns_->name(i) + " iptables " + args);
+  }
+  //! Drops every datagram in and out of namespace i for `outage`, then lets them through again.
+  void cut(std::size_t i, std::chrono::seconds outage) const {
+    ASSERT_TRUE(iptables(i, "-I INPUT -j DROP") && iptables(i, "-I OUTPUT -j DROP"));
+    std::this_thread::sleep_for(outage);
+    ASSERT_TRUE(iptables(i, "-D INPUT -j DROP") && iptables(i, "-D OUTPUT -j DROP"));
+  }
+  const Namespaces& ns() const { return *ns_; }
 
-  const std::string dir = std::filesystem::temp_directory_path() / ("tgm_netns_" + std::to_string(::getpid()));
-  std::filesystem::create_directories(dir);
-  test::ConfigEdits edits;
-  edits.profiles = udp_profiles(dir);
-  test::ServiceEnv env(edits);
+  std::string ip_;
+  std::optional<Namespaces> ns_;
+  std::string dir_;
+};
 
+constexpr const char* kManualExample = TGM_SOURCE_DIR "/tests/programs/manual_example.ngc";
+
+// Where the offline simulation of `program_path` ends, with the machine of `config_path`.
+std::array<double, kMaxAxes> simulated_end(const std::string& config_path,
+                                           const std::string& program_path) {
+  const ConfigLoad load = load_config_file(config_path);
+  EXPECT_TRUE(load.config.has_value());
+  if (!load.config) return {};
+  const MachineConfig& machine = load.config->machine;
+  const CompileResult compiled =
+      compile_gcode(test::read_text(program_path), CompileOptions::from_machine(machine, 0));
+  EXPECT_TRUE(compiled.ok());
+  std::optional<Simulation> sim = Simulation::create(machine, SimulationOptions{});
+  EXPECT_TRUE(sim.has_value());
+  if (!sim) return {};
+  const SimulationSummary s = sim->run(compiled.program);
+  EXPECT_EQ(s.result, StepResult::kFinished);
+  return s.end_position;
+}
+
+// "end position X.. Y.. Z.." of `tgm-hmi run`'s summary (NaN where missing), against `want`
+// to its four decimals.
+void expect_run_ended_at(const std::string& log, const std::array<double, kMaxAxes>& want) {
+  double end[3] = {NAN, NAN, NAN};
+  if (const auto at = log.find("end position "); at != std::string::npos)
+    std::sscanf(log.c_str() + at, "end position X%lf Y%lf Z%lf", &end[0], &end[1], &end[2]);
+  for (std::size_t a = 0; a < 3; ++a) {
+    EXPECT_NEAR(end[a], want[a], 5.1e-5) << "axis " << a << "\n" << log;
+  }
+}
+
+TEST_F(ServiceNetns, ManualExampleAcrossThreeNetworkNamespaces) {
+  test::ServiceEnv env(edits());
   test::Child service, plc, hmi;
-  ASSERT_TRUE(service.start(ns.exec(0, {TGM_SERVICE_BIN, "--config", env.config(), "--no-realtime"}),
-                            env.path("service.log")));
-  ASSERT_TRUE(plc.start(ns.exec(1, {TGM_PLC_BIN, "--config", env.config()}), env.path("plc.log")));
-  ASSERT_TRUE(hmi.start(ns.exec(2, {TGM_HMI_BIN, "run", TGM_SOURCE_DIR "/tests/programs/manual_example.ngc",
-                                    "--config", env.config()}),
-                        env.path("hmi.log")));
+  ASSERT_TRUE(
+      service.start(ns().exec(0, {TGM_SERVICE_BIN, "--config", env.config(), "--no-realtime"}),
+                    env.path("service.log")));
+  ASSERT_TRUE(
+      plc.start(ns().exec(1, {TGM_PLC_BIN, "--config", env.config()}), env.path("plc.log")));
+  ASSERT_TRUE(
+      hmi.start(ns().exec(2, {TGM_HMI_BIN, "run", kManualExample, "--config", env.config()}),
+                env.path("hmi.log")));
   const int code = hmi.wait(120s);
   EXPECT_EQ(code, 0) << hmi.log() << "\n--- plc:\n" << plc.log() << "\n--- service:\n" << service.log();
   EXPECT_EQ(plc.interrupt(), 0);
   EXPECT_EQ(service.interrupt(), 0) << service.log();
   EXPECT_NE(hmi.log().find("done: 13 records"), std::string::npos) << hmi.log();
   EXPECT_EQ(test::count_of(plc.log(), "acknowledged after"), 3) << plc.log();
-  std::error_code ec;
-  if (!::testing::Test::HasFailure()) std::filesystem::remove_all(dir, ec);
 }
 
 // The same three namespaces on a network that loses packets: every process drops a share of
@@ -143,63 +208,33 @@ TEST(ServiceNetns, ManualExampleAcrossThreeNetworkNamespaces) {
 // handshake through it: the manual's example ends where the offline simulation ends with every
 // M-function acknowledged once, each of a series of operator commands is answered, a second
 // run works as the first, and the service counts no lost or unmatched reply.
-TEST(ServiceNetns, ProgramRequestsAndHandshakeSurviveALossyNetwork) {
-  if (::geteuid() != 0) GTEST_SKIP() << "needs root to create network namespaces";
-  const std::string ip = ip_binary();
-  if (ip.empty() || !sh(ip + " netns list")) GTEST_SKIP() << "`ip netns` is not available";
-  Namespaces ns(ip);
-  std::string error;
-  if (!ns.create(error)) GTEST_SKIP() << "cannot create network namespaces here: " << error;
+TEST_F(ServiceNetns, ProgramRequestsAndHandshakeSurviveALossyNetwork) {
   const std::uint64_t loss_percent = test::env_u64("TGM_NETNS_LOSS_PERCENT", 10);
   ASSERT_LE(loss_percent, 90u) << "TGM_NETNS_LOSS_PERCENT: 0..90";
   const std::string loss_text = std::to_string(static_cast<double>(loss_percent) / 100.0);
   for (std::size_t i = 0; i < 3; ++i) {
-    const std::string rule = ip + " netns exec " + ns.name(i) +
-                             " iptables -A INPUT -p udp -m statistic --mode random --probability " +
-                             loss_text + " -j DROP";
-    if (!sh(rule)) GTEST_SKIP() << "iptables cannot drop packets at random here: " << rule;
+    const std::string rule =
+        "-A INPUT -p udp -m statistic --mode random --probability " + loss_text + " -j DROP";
+    if (!iptables(i, rule)) GTEST_SKIP() << "iptables cannot drop packets at random here: " << rule;
   }
-
-  const std::string dir =
-      std::filesystem::temp_directory_path() / ("tgm_netns_loss_" + std::to_string(::getpid()));
-  std::filesystem::create_directories(dir);
-  test::ConfigEdits edits;
-  edits.profiles = udp_profiles(dir);
-  test::ServiceEnv env(edits);
-  const ConfigLoad load = load_config_file(env.config());
-  ASSERT_TRUE(load.config.has_value());
-  const MachineConfig& machine = load.config->machine;
-  const std::string program_path = TGM_SOURCE_DIR "/tests/programs/manual_example.ngc";
-  const CompileResult compiled =
-      compile_gcode(test::read_text(program_path), CompileOptions::from_machine(machine, 0));
-  ASSERT_TRUE(compiled.ok());
-  SimulationOptions sim_options;
-  sim_options.m_ack_s = 0.0;
-  std::optional<Simulation> sim = Simulation::create(machine, sim_options);
-  ASSERT_TRUE(sim.has_value());
-  const SimulationSummary expected = sim->run(compiled.program);
-  ASSERT_EQ(expected.result, StepResult::kFinished);
+  test::ServiceEnv env(edits());
+  const auto expected = simulated_end(env.config(), kManualExample);
 
   test::Child service, plc;
-  ASSERT_TRUE(service.start(ns.exec(0, {TGM_SERVICE_BIN, "--config", env.config(), "--no-realtime",
-                                        "--stats", env.stats_path()}),
+  ASSERT_TRUE(service.start(ns().exec(0, {TGM_SERVICE_BIN, "--config", env.config(),
+                                          "--no-realtime", "--stats", env.stats_path()}),
                             env.path("service.log")));
-  ASSERT_TRUE(plc.start(ns.exec(1, {TGM_PLC_BIN, "--config", env.config()}), env.path("plc.log")));
+  ASSERT_TRUE(
+      plc.start(ns().exec(1, {TGM_PLC_BIN, "--config", env.config()}), env.path("plc.log")));
   auto logs = [&] { return "\n--- plc:\n" + plc.log() + "\n--- service:\n" + service.log(); };
   auto run_program = [&](const std::string& name) {
     test::Child hmi;
     ASSERT_TRUE(hmi.start(
-        ns.exec(2, {TGM_HMI_BIN, "run", program_path, "--config", env.config(), "--quiet"}),
+        ns().exec(2, {TGM_HMI_BIN, "run", kManualExample, "--config", env.config(), "--quiet"}),
         env.path(name)));
     ASSERT_EQ(hmi.wait(180s), 0) << hmi.log() << logs();
-    const std::string log = hmi.log();
-    EXPECT_NE(log.find("done: 13 records"), std::string::npos) << log;
-    double end[3] = {NAN, NAN, NAN};
-    if (const auto at = log.find("end position "); at != std::string::npos)
-      std::sscanf(log.c_str() + at, "end position X%lf Y%lf Z%lf", &end[0], &end[1], &end[2]);
-    for (std::size_t a = 0; a < 3; ++a) {
-      EXPECT_NEAR(end[a], expected.end_position[a], 5.1e-5) << "axis " << a << "\n" << log;
-    }
+    EXPECT_NE(hmi.log().find("done: 13 records"), std::string::npos) << hmi.log();
+    expect_run_ended_at(hmi.log(), expected);
   };
   run_program("hmi-1.log");
   // Operator commands, each a new HMI process (participant, discovery, request, reply).
@@ -208,9 +243,9 @@ TEST(ServiceNetns, ProgramRequestsAndHandshakeSurviveALossyNetwork) {
     test::Child cmd;
     const std::string log_name = "command-" + std::to_string(k) + ".log";
     // The timeout only bounds a hang: what is checked is that each is answered, once.
-    ASSERT_TRUE(cmd.start(
-        ns.exec(2, {TGM_HMI_BIN, "command", "clear", "--timeout", "30", "--config", env.config()}),
-        env.path(log_name)));
+    ASSERT_TRUE(cmd.start(ns().exec(2, {TGM_HMI_BIN, "command", "clear", "--timeout", "30",
+                                        "--config", env.config()}),
+                          env.path(log_name)));
     EXPECT_EQ(cmd.wait(60s), 0) << cmd.log() << logs();
     EXPECT_EQ(test::count_of(cmd.log(), "accepted"), 1) << cmd.log();
   }
@@ -225,8 +260,6 @@ TEST(ServiceNetns, ProgramRequestsAndHandshakeSurviveALossyNetwork) {
   }
   std::printf("lossy network (%llu %% of the UDP datagrams dropped on receipt):\n%s",
               static_cast<unsigned long long>(loss_percent), stats.c_str());
-  std::error_code ec;
-  if (!::testing::Test::HasFailure()) std::filesystem::remove_all(dir, ec);
 }
 
 // The HMI's network goes down for 4 s (every datagram in and out of its namespace dropped)
@@ -234,23 +267,11 @@ TEST(ServiceNetns, ProgramRequestsAndHandshakeSurviveALossyNetwork) {
 // participant lease, so both sides forget each other and discover each other again. The
 // interpolator runs dry (underrun) and must go on once the link is back: every record executed
 // once, in order, ending at the programmed end point, with no refused chunk.
-TEST(ServiceNetns, AProgramStreamGoesOnAfterANetworkOutage) {
-  if (::geteuid() != 0) GTEST_SKIP() << "needs root to create network namespaces";
-  const std::string ip = ip_binary();
-  if (ip.empty() || !sh(ip + " netns list")) GTEST_SKIP() << "`ip netns` is not available";
-  Namespaces ns(ip);
-  std::string error;
-  if (!ns.create(error)) GTEST_SKIP() << "cannot create network namespaces here: " << error;
-  const std::string hmi_tables = ip + " netns exec " + ns.name(2) + " iptables ";
-  if (!sh(hmi_tables + "-L -n")) GTEST_SKIP() << "iptables is not usable here";
-
-  const std::string dir =
-      std::filesystem::temp_directory_path() / ("tgm_netns_outage_" + std::to_string(::getpid()));
-  std::filesystem::create_directories(dir);
-  test::ConfigEdits edits;
-  edits.profiles = udp_profiles(dir);
-  edits.buffer_size0 = 1000;
-  test::ServiceEnv env(edits);
+TEST_F(ServiceNetns, AProgramStreamGoesOnAfterANetworkOutage) {
+  if (!iptables(2, "-L -n")) GTEST_SKIP() << "iptables is not usable here";
+  test::ConfigEdits e = edits();
+  e.buffer_size0 = 1000;
+  test::ServiceEnv env(e);
   // 40,000 collinear 0.025 mm moves at the rapid-limit feed, then M2: 1 m in about 4 s.
   constexpr int kRecords = 40'000;
   std::string gcode = "F15000\n";
@@ -261,11 +282,11 @@ TEST(ServiceNetns, AProgramStreamGoesOnAfterANetworkOutage) {
   std::ofstream(program_path) << gcode;
 
   test::Child service, hmi;
-  ASSERT_TRUE(service.start(ns.exec(0, {TGM_SERVICE_BIN, "--config", env.config(), "--no-realtime",
-                                        "--stats", env.stats_path()}),
+  ASSERT_TRUE(service.start(ns().exec(0, {TGM_SERVICE_BIN, "--config", env.config(),
+                                          "--no-realtime", "--stats", env.stats_path()}),
                             env.path("service.log")));
-  ASSERT_TRUE(hmi.start(ns.exec(2, {TGM_HMI_BIN, "run", program_path, "--config", env.config(),
-                                    "--progress-interval", "0.2"}),
+  ASSERT_TRUE(hmi.start(ns().exec(2, {TGM_HMI_BIN, "run", program_path, "--config", env.config(),
+                                      "--progress-interval", "0.2"}),
                         env.path("hmi.log")));
   // Cut once the stream runs (the first progress line), well before its end.
   const auto by = std::chrono::steady_clock::now() + 60s;
@@ -273,18 +294,13 @@ TEST(ServiceNetns, AProgramStreamGoesOnAfterANetworkOutage) {
     std::this_thread::sleep_for(20ms);
   }
   ASSERT_NE(hmi.log().find("% line "), std::string::npos) << hmi.log() << service.log();
-  ASSERT_TRUE(sh(hmi_tables + "-I INPUT -j DROP") && sh(hmi_tables + "-I OUTPUT -j DROP"));
-  std::this_thread::sleep_for(4s);
-  ASSERT_TRUE(sh(hmi_tables + "-D INPUT -j DROP") && sh(hmi_tables + "-D OUTPUT -j DROP"));
+  cut(2, 4s);
   const int code = hmi.wait(120s);
   const std::string log = hmi.log();
   EXPECT_EQ(code, 0) << log << "\n--- service:\n" << service.log();
   EXPECT_NE(log.find("done: " + std::to_string(kRecords + 1) + " records"), std::string::npos)
       << log;
-  double end_x = NAN;
-  if (const auto at = log.find("end position "); at != std::string::npos)
-    std::sscanf(log.c_str() + at, "end position X%lf", &end_x);
-  EXPECT_NEAR(end_x, 1000.0, 5.1e-5) << log;
+  expect_run_ended_at(log, {1000.0});
   // The outage was one: the HMI heard nothing for 3 s and then heard the service again.
   EXPECT_NE(log.find("no state from tgm-service for 3 s"), std::string::npos) << log;
   EXPECT_NE(log.find("tgm-service is back"), std::string::npos) << log;
@@ -294,8 +310,6 @@ TEST(ServiceNetns, AProgramStreamGoesOnAfterANetworkOutage) {
       << stats;
   EXPECT_NE(stats.find("\"refused_chunks\": 0,"), std::string::npos) << stats;
   std::printf("%s\n%s", log.c_str(), stats.c_str());
-  std::error_code ec;
-  if (!::testing::Test::HasFailure()) std::filesystem::remove_all(dir, ec);
 }
 
 // The PLC's network goes down for 4 s right when the interpolator starts waiting for M51: the
@@ -303,41 +317,20 @@ TEST(ServiceNetns, AProgramStreamGoesOnAfterANetworkOutage) {
 // is back it must arrive (DDS repairs it, or tgm-plc sends it again while the state still shows
 // M51), and the manual's example must end where the offline simulation ends, with each of its
 // three M-functions acknowledged once.
-TEST(ServiceNetns, AnAcknowledgementCutOffByAnOutageArrivesAfterIt) {
-  if (::geteuid() != 0) GTEST_SKIP() << "needs root to create network namespaces";
-  const std::string ip = ip_binary();
-  if (ip.empty() || !sh(ip + " netns list")) GTEST_SKIP() << "`ip netns` is not available";
-  Namespaces ns(ip);
-  std::string error;
-  if (!ns.create(error)) GTEST_SKIP() << "cannot create network namespaces here: " << error;
-  const std::string plc_tables = ip + " netns exec " + ns.name(1) + " iptables ";
-  if (!sh(plc_tables + "-L -n")) GTEST_SKIP() << "iptables is not usable here";
-
-  const std::string dir =
-      std::filesystem::temp_directory_path() / ("tgm_netns_ack_" + std::to_string(::getpid()));
-  std::filesystem::create_directories(dir);
-  test::ConfigEdits edits;
-  edits.profiles = udp_profiles(dir);
-  test::ServiceEnv env(edits);
-  const ConfigLoad load = load_config_file(env.config());
-  ASSERT_TRUE(load.config.has_value());
-  const std::string program_path = TGM_SOURCE_DIR "/tests/programs/manual_example.ngc";
-  const CompileResult compiled = compile_gcode(
-      test::read_text(program_path), CompileOptions::from_machine(load.config->machine, 0));
-  ASSERT_TRUE(compiled.ok());
-  std::optional<Simulation> sim = Simulation::create(load.config->machine, SimulationOptions{});
-  ASSERT_TRUE(sim.has_value());
-  const SimulationSummary expected = sim->run(compiled.program);
+TEST_F(ServiceNetns, AnAcknowledgementCutOffByAnOutageArrivesAfterIt) {
+  if (!iptables(1, "-L -n")) GTEST_SKIP() << "iptables is not usable here";
+  test::ServiceEnv env(edits());
+  const auto expected = simulated_end(env.config(), kManualExample);
 
   test::Child service, plc, hmi;
-  ASSERT_TRUE(service.start(ns.exec(0, {TGM_SERVICE_BIN, "--config", env.config(), "--no-realtime",
-                                        "--stats", env.stats_path()}),
+  ASSERT_TRUE(service.start(ns().exec(0, {TGM_SERVICE_BIN, "--config", env.config(),
+                                          "--no-realtime", "--stats", env.stats_path()}),
                             env.path("service.log")));
-  ASSERT_TRUE(plc.start(ns.exec(1, {TGM_PLC_BIN, "--config", env.config(), "--ack-delay", "0.5"}),
+  ASSERT_TRUE(plc.start(ns().exec(1, {TGM_PLC_BIN, "--config", env.config(), "--ack-delay", "0.5"}),
                         env.path("plc.log")));
-  ASSERT_TRUE(
-      hmi.start(ns.exec(2, {TGM_HMI_BIN, "run", program_path, "--config", env.config(), "--quiet"}),
-                env.path("hmi.log")));
+  ASSERT_TRUE(hmi.start(
+      ns().exec(2, {TGM_HMI_BIN, "run", kManualExample, "--config", env.config(), "--quiet"}),
+      env.path("hmi.log")));
   const auto by = std::chrono::steady_clock::now() + 60s;
   while (plc.log().find("M51 normal: the interpolator waits") == std::string::npos &&
          std::chrono::steady_clock::now() < by) {
@@ -345,19 +338,12 @@ TEST(ServiceNetns, AnAcknowledgementCutOffByAnOutageArrivesAfterIt) {
   }
   ASSERT_NE(plc.log().find("M51 normal: the interpolator waits"), std::string::npos)
       << plc.log() << hmi.log();
-  ASSERT_TRUE(sh(plc_tables + "-I INPUT -j DROP") && sh(plc_tables + "-I OUTPUT -j DROP"));
-  std::this_thread::sleep_for(4s);
-  ASSERT_TRUE(sh(plc_tables + "-D INPUT -j DROP") && sh(plc_tables + "-D OUTPUT -j DROP"));
+  cut(1, 4s);
   const int code = hmi.wait(120s);
   const std::string log = hmi.log();
   EXPECT_EQ(code, 0) << log << "\n--- plc:\n" << plc.log() << "\n--- service:\n" << service.log();
   EXPECT_NE(log.find("done: 13 records"), std::string::npos) << log;
-  double end[3] = {NAN, NAN, NAN};
-  if (const auto at = log.find("end position "); at != std::string::npos)
-    std::sscanf(log.c_str() + at, "end position X%lf Y%lf Z%lf", &end[0], &end[1], &end[2]);
-  for (std::size_t a = 0; a < 3; ++a) {
-    EXPECT_NEAR(end[a], expected.end_position[a], 5.1e-5) << "axis " << a << "\n" << log;
-  }
+  expect_run_ended_at(log, expected);
   EXPECT_EQ(plc.interrupt(), 0);
   EXPECT_EQ(service.interrupt(), 0) << service.log();
   // Three acknowledgements applied by the service: one per M-function, none twice.
@@ -366,8 +352,6 @@ TEST(ServiceNetns, AnAcknowledgementCutOffByAnOutageArrivesAfterIt) {
       << stats << "\n--- plc:\n"
       << plc.log();
   std::printf("--- plc:\n%s\n%s", plc.log().c_str(), stats.c_str());
-  std::error_code ec;
-  if (!::testing::Test::HasFailure()) std::filesystem::remove_all(dir, ec);
 }
 
 }  // namespace
