@@ -171,12 +171,9 @@ std::array<double, kMaxAxes> simulated_end(const std::string& config_path,
   return s.end_position;
 }
 
-// "end position X.. Y.. Z.." of `tgm-hmi run`'s summary (NaN where missing), against `want`
-// to its four decimals.
+// The end position of `tgm-hmi run`'s summary against `want`, to its four decimals.
 void expect_run_ended_at(const std::string& log, const std::array<double, kMaxAxes>& want) {
-  double end[3] = {NAN, NAN, NAN};
-  if (const auto at = log.find("end position "); at != std::string::npos)
-    std::sscanf(log.c_str() + at, "end position X%lf Y%lf Z%lf", &end[0], &end[1], &end[2]);
+  const std::array<double, 3> end = test::run_end_position(log);
   for (std::size_t a = 0; a < 3; ++a) {
     EXPECT_NEAR(end[a], want[a], 5.1e-5) << "axis " << a << "\n" << log;
   }

@@ -9,6 +9,7 @@
 // TGM_SOAK_SEED picks another series of programs.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <chrono>
 #include <cinttypes>
 #include <cmath>
@@ -109,14 +110,13 @@ SoakProgram soak_program(std::uint64_t seed) {
 // "done: N records" and "end position X.. Y.. Z.." of `tgm-hmi run`'s summary.
 struct RunSummary {
   long records = -1;
-  double end[3] = {NAN, NAN, NAN};
+  std::array<double, 3> end{};
 };
 RunSummary parse_summary(const std::string& log) {
   RunSummary s;
   if (const auto at = log.find("done: "); at != std::string::npos)
     std::sscanf(log.c_str() + at, "done: %ld records", &s.records);
-  if (const auto at = log.find("end position "); at != std::string::npos)
-    std::sscanf(log.c_str() + at, "end position X%lf Y%lf Z%lf", &s.end[0], &s.end[1], &s.end[2]);
+  s.end = test::run_end_position(log);
   return s;
 }
 
@@ -170,7 +170,8 @@ TEST(ServiceSoak, ProgramAfterProgramEndsWhereTheSimulationEndsAndMemoryStaysBou
     EXPECT_EQ(got.records, static_cast<long>(compiled.program.segments.size())) << log;
     for (int a = 0; a < 3; ++a) {
       // tgm-hmi prints four decimals.
-      EXPECT_NEAR(got.end[a], expected.end_position[static_cast<std::size_t>(a)], 5.1e-5)
+      const auto i = static_cast<std::size_t>(a);
+      EXPECT_NEAR(got.end[i], expected.end_position[i], 5.1e-5)
           << "program " << k << " axis " << a << "\n"
           << p.text << log;
     }

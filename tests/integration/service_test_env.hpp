@@ -6,6 +6,9 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <array>
+#include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -78,5 +81,13 @@ class ServiceEnv {
   int domain_;
   std::string profiles_;
 };
+
+//! "end position X.. Y.. Z.." of `tgm-hmi run`'s summary (four decimals); NaN where missing.
+inline std::array<double, 3> run_end_position(const std::string& log) {
+  std::array<double, 3> end = {NAN, NAN, NAN};
+  if (const auto at = log.find("end position "); at != std::string::npos)
+    std::sscanf(log.c_str() + at, "end position X%lf Y%lf Z%lf", &end[0], &end[1], &end[2]);
+  return end;
+}
 
 }  // namespace tgm::test
