@@ -160,6 +160,11 @@ struct Served {
   std::int32_t unanswered_m = 0;
   std::uint32_t unanswered_count = 0;
   Clock::time_point unanswered_at{};
+  void left_unanswered(std::int32_t m, std::uint32_t count, Clock::time_point at) {
+    unanswered_m = m;
+    unanswered_count = count;
+    unanswered_at = at;
+  }
 };
 
 // One acknowledgement's time stamps for --handshake-trace (steady clock). `path`: "event" when
@@ -450,9 +455,7 @@ int plc_main(int argc, char** argv) {
         r->sent = true;
         r->waited = std::chrono::duration_cast<std::chrono::milliseconds>(t - it->ack_written);
         if (Served* sv = find_served(it->interpolator); sv != nullptr && it->normal && !at_stop) {
-          sv->unanswered_m = it->m;
-          sv->unanswered_count = it->count;
-          sv->unanswered_at = t;
+          sv->left_unanswered(it->m, it->count, t);
         }
       }
       trace({it->interpolator, it->part, it->woke, it->seen, it->ack_call, it->ack_written, t,
@@ -658,11 +661,7 @@ int plc_main(int argc, char** argv) {
                    "interpolator %d: M%d acknowledged after %.3f s: %s (cycle %llu)", sv.number, m,
                    std::chrono::duration<double>(Clock::now() - sv.seen_at).count(),
                    tgm::client::describe(r).c_str(), static_cast<unsigned long long>(r.cycle));
-        if (r.timed_out) {
-          sv.unanswered_m = m;
-          sv.unanswered_count = sv.ack_count;
-          sv.unanswered_at = Clock::now();
-        }
+        if (r.timed_out) sv.left_unanswered(m, sv.ack_count, Clock::now());
       }
       // An unanswered acknowledgement (lost on a lossy network, or its reply was): while the
       // state still shows that M-function (same m_func_count) a second after, it is sent again.
