@@ -8,7 +8,9 @@
 // and the main loop (tgm_state). Whichever sees an M-function first claims it (MTracker, under
 // one mutex), so each is handled and logged once. An acknowledgement due at once (delay 0,
 // continuous M-functions, not refused) is written from the callback itself; everything else
-// (delayed acknowledgements, refusals, every log line) happens in the main loop.
+// (delayed acknowledgements, refusals, every log line) happens in the main loop. Neither waits
+// for a reply: the main loop collects the replies to every acknowledgement as they come, so a
+// reply lost on the network for one interpolator holds up no other's handshake.
 #include <pthread.h>
 #include <sched.h>
 #include <signal.h>
@@ -141,6 +143,12 @@ struct EventSeen {
   //! kAcked: the request id of the acknowledgement written from the callback.
   std::uint64_t request_id = 0;
   Clock::time_point woke{}, seen{}, ack_call{}, ack_written{};
+  //! The service instance that showed the M-function.
+  std::uint64_t instance = 0;
+  //! Who wrote the acknowledgement (or note): the event callback, the main loop when due, or
+  //! the main loop again after one was left unanswered.
+  enum class Via { kEvent, kLoop, kRepeat };
+  Via via = Via::kEvent;
 };
 
 // One interpolator as the PLC sees it (main loop only).
@@ -370,6 +378,7 @@ int plc_main(int argc, char** argv) {
       rec.interpolator = i;
       rec.m = e.m_func();
       rec.count = e.m_func_count();
+      rec.instance = e.service_instance();
       rec.normal = tgm::run_flag_waits_for_m(static_cast<std::uint32_t>(e.run_flag()));
       bool refused = false;
       {
@@ -406,8 +415,34 @@ int plc_main(int argc, char** argv) {
                i, m, normal ? "normal: the interpolator waits" : "continuous: motion goes on", line,
                part, params_text(params).c_str());
   };
-  // Acknowledgements written from the event callback whose reply the main loop still waits for.
+  // Acknowledgements (and notes of continuous M-functions) whose reply the main loop still
+  // waits for. None is waited for in place: a reply lost for one interpolator must not hold up
+  // the handshake of the others (a synchronous request stalled the whole loop for its 3 s).
   std::vector<EventSeen> acked;
+  // Writes the acknowledgement of `rec` from the main loop without waiting for its reply;
+  // take_acked_replies() logs the reply, or tries the write again while none could be written
+  // (no service matched yet, or the request window is full).
+  auto send_from_loop = [&](EventSeen rec, EventSeen::Via via) {
+    rec.via = via;
+    rec.ack_call = Clock::now();
+    rec.request_id = plc->send_ack_m_func(rec.interpolator, rec.m, rec.count);
+    rec.ack_written = Clock::now();
+    acked.push_back(rec);
+  };
+  // The record of an M-function the main loop acknowledges for `sv`.
+  auto loop_seen = [](const Served& sv, std::int32_t m, std::uint32_t m_count, bool normal) {
+    EventSeen rec;
+    rec.interpolator = sv.number;
+    rec.m = m;
+    rec.count = m_count;
+    rec.normal = normal;
+    rec.part = sv.m_part;
+    rec.woke = sv.woke_at;
+    rec.seen = sv.seen_at;
+    rec.instance = sv.instance;
+    rec.action = EventSeen::Action::kAcked;
+    return rec;
+  };
   std::vector<EventSeen> drained;
   drained.reserve(256);
   // Logs what the event callback handed over; returns after scheduling delayed acknowledgements.
@@ -426,8 +461,7 @@ int plc_main(int argc, char** argv) {
                    "interpolator %d: M%d: refusing to acknowledge (--refuse-ack / script)",
                    rec.interpolator, rec.m);
       } else if (!rec.normal) {  // continuous, and the callback could not write the note
-        append_log(pending_log, stamp(), "interpolator %d: M%d noted: %s", rec.interpolator, rec.m,
-                   note_reply(plc->ack_m_func(rec.interpolator, rec.m, rec.count)).c_str());
+        send_from_loop(rec, EventSeen::Via::kLoop);
       } else if (sv != nullptr) {
         sv->m_part = rec.part;
         sv->ack_m = rec.m;
@@ -440,34 +474,57 @@ int plc_main(int argc, char** argv) {
     }
     drained.clear();
   };
-  // Logs the replies to acknowledgements written from the event callback (or that none came).
+  // Logs the reply to each acknowledgement and note in `acked` once it came, or that none came
+  // within 3 s (then a normal M-function's acknowledgement is sent again while the state still
+  // shows it). One not written yet is tried again each pass for those 3 s, as a synchronous
+  // request waits for the service to match. `at_stop`: the last call, nothing is waited for.
   auto take_acked_replies = [&](bool at_stop) {
     for (auto it = acked.begin(); it != acked.end();) {
-      std::optional<tgm::client::Reply> r = plc->take_reply(it->request_id);
-      const auto t = Clock::now();
-      if (!r && !at_stop && t - it->ack_written < 3s) {
+      auto t = Clock::now();
+      if (it->request_id == 0 && !at_stop && t - it->ack_call < 3s) {
+        it->request_id = plc->send_ack_m_func(it->interpolator, it->m, it->count);
+        it->ack_written = Clock::now();
+        ++it;
+        continue;
+      }
+      std::optional<tgm::client::Reply> r;
+      if (it->request_id != 0) r = plc->take_reply(it->request_id);
+      t = Clock::now();
+      if (!r && !at_stop && it->request_id != 0 && t - it->ack_written < 3s) {
         ++it;
         continue;
       }
       if (!r) {
         r.emplace();
         r->timed_out = true;
-        r->sent = true;
-        r->waited = std::chrono::duration_cast<std::chrono::milliseconds>(t - it->ack_written);
-        if (Served* sv = find_served(it->interpolator); sv != nullptr && it->normal && !at_stop) {
+        r->sent = it->request_id != 0;
+        r->waited = std::chrono::duration_cast<std::chrono::milliseconds>(
+            t - (r->sent ? it->ack_written : it->ack_call));
+        // Only for the service that showed it: a restarted one numbers its M-functions anew.
+        if (Served* sv = find_served(it->interpolator);
+            sv != nullptr && it->normal && !at_stop && sv->instance == it->instance) {
           sv->left_unanswered(it->m, it->count, t);
         }
       }
-      trace({it->interpolator, it->part, it->woke, it->seen, it->ack_call, it->ack_written, t,
-             "event"});
-      if (it->normal) {
+      const bool from_event = it->via == EventSeen::Via::kEvent;
+      if (from_event || (it->via == EventSeen::Via::kLoop && it->normal)) {
+        trace({it->interpolator, it->part, it->woke, it->seen, it->ack_call, it->ack_written, t,
+               from_event ? "event" : "loop"});
+      }
+      if (it->via == EventSeen::Via::kRepeat) {
         append_log(pending_log, stamp(),
-                   "interpolator %d: M%d acknowledged from the event after %.3f s: %s (cycle %llu)",
-                   it->interpolator, it->m, std::chrono::duration<double>(t - it->seen).count(),
+                   "interpolator %d: M%d still waits after an unanswered acknowledgement: sent "
+                   "again: %s",
+                   it->interpolator, it->m, note_reply(*r).c_str());
+      } else if (it->normal) {
+        append_log(pending_log, stamp(),
+                   "interpolator %d: M%d acknowledged%s after %.3f s: %s (cycle %llu)",
+                   it->interpolator, it->m, from_event ? " from the event" : "",
+                   std::chrono::duration<double>(t - it->seen).count(),
                    tgm::client::describe(*r).c_str(), static_cast<unsigned long long>(r->cycle));
       } else {
-        append_log(pending_log, stamp(), "interpolator %d: M%d noted from the event: %s",
-                   it->interpolator, it->m, note_reply(*r).c_str());
+        append_log(pending_log, stamp(), "interpolator %d: M%d noted%s: %s", it->interpolator,
+                   it->m, from_event ? " from the event" : "", note_reply(*r).c_str());
       }
       it = acked.erase(it);
     }
@@ -604,7 +661,7 @@ int plc_main(int argc, char** argv) {
       }
       // A new M-function: M_Func set with an m_func_count that neither this loop nor the event
       // callback has claimed (with events, the callback usually sees it first).
-      // (ack_m_func() polls, so *s may be newer afterwards: the line logs a copy of the fields.)
+      // (The line logs a copy of the fields: it is written at the end of the pass.)
       bool seen_new = false;
       bool seen_normal = false;
       std::int32_t seen_m = 0, seen_line = 0, seen_part = 0;
@@ -635,9 +692,8 @@ int plc_main(int argc, char** argv) {
         sv.woke_at = plc->last_wake();
         if (!normal) {
           log_seen();
-          append_log(
-              pending_log, stamp(), "interpolator %d: M%d noted: %s", sv.number, s->m_func(),
-              note_reply(plc->ack_m_func(sv.number, s->m_func(), s->m_func_count())).c_str());
+          send_from_loop(loop_seen(sv, s->m_func(), s->m_func_count(), false),
+                         EventSeen::Via::kLoop);
         } else if (refused) {
           log_seen();
           append_log(pending_log, stamp(),
@@ -650,36 +706,21 @@ int plc_main(int argc, char** argv) {
         }
       }
       if (sv.ack_m != 0 && now >= sv.ack_at) {
-        const int m = sv.ack_m;
-        sv.ack_m = 0;
-        const auto ack_call = Clock::now();
-        const auto r = plc->ack_m_func(sv.number, m, sv.ack_count);
-        trace({sv.number, sv.m_part, sv.woke_at, sv.seen_at, ack_call, plc->last_request_written(),
-               Clock::now(), "loop"});
         log_seen();
-        append_log(pending_log, stamp(),
-                   "interpolator %d: M%d acknowledged after %.3f s: %s (cycle %llu)", sv.number, m,
-                   std::chrono::duration<double>(Clock::now() - sv.seen_at).count(),
-                   tgm::client::describe(r).c_str(), static_cast<unsigned long long>(r.cycle));
-        if (r.timed_out) sv.left_unanswered(m, sv.ack_count, Clock::now());
+        send_from_loop(loop_seen(sv, sv.ack_m, sv.ack_count, true), EventSeen::Via::kLoop);
+        sv.ack_m = 0;
       }
       // An unanswered acknowledgement (lost on a lossy network, or its reply was): while the
       // state still shows that M-function (same m_func_count) a second after, it is sent again.
       // One that arrived meanwhile makes the service refuse the repeat (it names the count).
+      // While the repeat waits for its reply none is sent; unanswered, it arms the next.
       if (sv.unanswered_m != 0) {
         if (s->m_func() != sv.unanswered_m || s->m_func_count() != sv.unanswered_count) {
           sv.unanswered_m = 0;
         } else if (Clock::now() - sv.unanswered_at >= 1s) {
-          const auto r = plc->ack_m_func(sv.number, sv.unanswered_m, sv.unanswered_count);
-          append_log(pending_log, stamp(),
-                     "interpolator %d: M%d still waits after an unanswered acknowledgement: sent "
-                     "again: %s",
-                     sv.number, sv.unanswered_m, note_reply(r).c_str());
-          if (r.timed_out) {
-            sv.unanswered_at = Clock::now();
-          } else {
-            sv.unanswered_m = 0;
-          }
+          send_from_loop(loop_seen(sv, sv.unanswered_m, sv.unanswered_count, true),
+                         EventSeen::Via::kRepeat);
+          sv.unanswered_m = 0;
         }
       }
       log_seen();
@@ -735,8 +776,13 @@ int plc_main(int argc, char** argv) {
     }
   }
   // Every M-function seen and every acknowledgement is logged, even when the stop came first.
+  // Replies still on their way get a moment (a stop right after an acknowledgement).
   plc->poll(std::chrono::nanoseconds(0));
   take_event_seen();
+  for (const auto until = Clock::now() + 1s; !acked.empty() && Clock::now() < until;) {
+    take_acked_replies(false);
+    if (!acked.empty()) plc->poll(5ms);
+  }
   take_acked_replies(true);
   if (events) {
     append_log(pending_log, stamp(),

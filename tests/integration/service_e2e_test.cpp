@@ -294,6 +294,91 @@ TEST(ServiceProcesses, PlcAcknowledgesFromTheEventAndLogsEachMFunctionOnce) {
   EXPECT_EQ(test::count_of(log, " 0 lost"), 1) << log;
 }
 
+// tgm-plc's handshakes with several interpolators do not wait for one another: a reply lost on
+// the network for one does not hold up the acknowledgement of the next. A stand-in service in
+// this process shows interpolators 0 and 1 both waiting (M51, M52) and answers neither
+// acknowledgement until both have arrived. A PLC that waited for each reply before writing the
+// next acknowledgement (as it did until session 51) left its first one unanswered for its 3 s
+// timeout and logged it so; this one writes both and takes both replies.
+TEST(ServiceProcesses, ThePlcAcknowledgesEachInterpolatorWithoutWaitingForAnothersReply) {
+  ServiceEnv env;  // its config and domain only: no tgm-service runs
+  dds::Participant fake(env.dds(), "service");
+  auto& states = fake.writer<msg::InterpolatorStatePubSubType>(dds::kStateTopic);
+  auto& replies = fake.writer<msg::ReplyPubSubType>(dds::kReplyTopic);
+  auto& requests = fake.reader<msg::RequestPubSubType>(dds::kRequestTopic);
+  test::Child plc;
+  ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.config(), "--no-events", "--no-basic-params",
+                         "--ack-delay", "0.1"},
+                        env.path("plc.log")));
+  ASSERT_TRUE(dds::wait_for_match(states, 1, kHang)) << plc.log();
+  ASSERT_TRUE(dds::wait_for_match(replies, 1, kHang)) << plc.log();
+  ASSERT_TRUE(dds::wait_for_match(requests, 1, kHang)) << plc.log();
+  const auto waits =
+      static_cast<std::int32_t>(static_cast<std::uint32_t>(SectionState::kWaitMFunc) |
+                                (static_cast<std::uint32_t>(SpeedState::kNoMotion) << 16));
+  std::array<msg::InterpolatorState, 2> st;
+  for (std::uint16_t i = 0; i < 2; ++i) {
+    st[i].interpolator(i);
+    st[i].number(i);
+    st[i].number_axes(3);
+    st[i].buffer_size(10000);
+    st[i].status(1);
+    st[i].act_part(2);
+    st[i].act_line(2);
+    st[i].m_func(51 + i);
+    st[i].m_func_count(1);
+    st[i].run_flag(waits);
+    st[i].service_instance(0x5eedULL);
+    st[i].axis_letters("XYZ");
+  }
+  std::vector<msg::Request> held;
+  std::array<int, 2> acks{};
+  std::uint64_t cycle = 0;
+  int answered = 0;
+  const auto deadline = std::chrono::steady_clock::now() + kHang;
+  // Until both are answered, and half a second more for the PLC to see them released.
+  auto until = deadline;
+  while (std::chrono::steady_clock::now() < until) {
+    for (auto& s : st) {
+      s.cycle_counter(cycle += 20);
+      ASSERT_TRUE(states.write(&s));
+    }
+    msg::Request rq;
+    while (dds::take_next(requests, rq)) {
+      ASSERT_EQ(rq.kind(), msg::REQUEST_KIND_WRITE_M_FUNC) << plc.log();
+      ASSERT_LT(rq.interpolator(), 2) << plc.log();
+      ++acks[rq.interpolator()];
+      held.push_back(rq);
+    }
+    if (acks[0] > 0 && acks[1] > 0) {
+      for (const msg::Request& q : held) {
+        msg::Reply r;
+        r.request_id(q.request_id());
+        r.client_name(q.client_name());
+        r.interpolator(q.interpolator());
+        r.accepted(true);
+        r.code(msg::REPLY_CODE_ACCEPTED);
+        r.cycle_counter(cycle);
+        ASSERT_TRUE(replies.write(&r));
+        st[q.interpolator()].m_func(0);
+        st[q.interpolator()].run_flag(static_cast<std::int32_t>(SectionState::kRun));
+        if (++answered == 2) until = std::chrono::steady_clock::now() + 500ms;
+      }
+      held.clear();
+    }
+    std::this_thread::sleep_for(10ms);
+  }
+  EXPECT_EQ(answered, 2) << plc.log();
+  EXPECT_EQ(plc.interrupt(), 0);
+  const std::string log = plc.log();
+  EXPECT_EQ(acks[0], 1) << log;
+  EXPECT_EQ(acks[1], 1) << log;
+  EXPECT_EQ(test::count_of(log, "interpolator 0: M51 acknowledged after"), 1) << log;
+  EXPECT_EQ(test::count_of(log, "interpolator 1: M52 acknowledged after"), 1) << log;
+  EXPECT_EQ(test::count_of(log, ": accepted (cycle"), 2) << log;
+  EXPECT_EQ(test::count_of(log, "no reply"), 0) << log;
+}
+
 // A service restarted under a running tgm-plc: the PLC sees the new instance, sets the basic
 // parameters again and handles M-functions at once. It used to ignore every sample until the new
 // service's cycle counter passed the old one's (a service that had run an hour made the PLC deaf
