@@ -36,7 +36,7 @@ std::string describe(const Reply& r) {
     std::snprintf(waited, sizeof waited, "%.1f s", static_cast<double>(r.waited.count()) / 1000.0);
     if (!r.sent) {
       return std::string("no reply: no tgm-service took requests on this domain within ") + waited +
-             " (is it running, with the same domain and profiles?); nothing was sent";
+             " (is it running, with the same domain, profiles and security?); nothing was sent";
     }
     return std::string("no reply within ") + waited +
            ": the request was sent, but whether tgm-service executed it is not known (it may "
@@ -67,8 +67,10 @@ Client::Client(const DdsConfig& config, Role role, const ClientOptions& options)
       state_reader_(participant_.reader<msg::InterpolatorStatePubSubType>(dds::kStateTopic)),
       reply_reader_(participant_.reader<msg::ReplyPubSubType>(dds::kReplyTopic)),
       message_reader_(participant_.reader<msg::MessagePubSubType>(dds::kMessageTopic)),
-      request_writer_(participant_.writer<msg::RequestPubSubType>(dds::kRequestTopic)),
-      program_writer_(participant_.writer<msg::ProgramChunkPubSubType>(dds::kProgramTopic)) {
+      request_writer_(participant_.writer<msg::RequestPubSubType>(dds::kRequestTopic)) {
+  if (role == Role::kHmi) {
+    program_writer_ = &participant_.writer<msg::ProgramChunkPubSubType>(dds::kProgramTopic);
+  }
   if (options.setpoints) {
     setpoint_reader_ = &participant_.reader<msg::SetpointsPubSubType>(dds::kSetpointsTopic);
     waiter_.emplace(std::initializer_list<fdds::DataReader*>{&state_reader_, &reply_reader_,
@@ -80,6 +82,13 @@ Client::Client(const DdsConfig& config, Role role, const ClientOptions& options)
   states_.resize(kMaxInterpolators);
   state_samples_.resize(kMaxInterpolators, 0);
   follow_.resize(kMaxInterpolators);
+}
+
+fdds::DataWriter& Client::program_writer() {
+  if (program_writer_ == nullptr) {
+    throw dds::SetupError("tgm::client::Client: only an HMI client writes the program stream");
+  }
+  return *program_writer_;
 }
 
 Client::~Client() {

@@ -210,7 +210,10 @@ class Client {
   Role role() const { return role_; }
   const std::string& name() const { return name_; }
   dds::Participant& participant() { return participant_; }
-  eprosima::fastdds::dds::DataWriter& program_writer() { return program_writer_; }
+  //! The program stream's writer. Only an HMI client has one (DESIGN.md section 1: the PLC does
+  //! not fill the buffer; with DDS Security its permissions do not allow it either): throws
+  //! dds::SetupError for a PLC client.
+  eprosima::fastdds::dds::DataWriter& program_writer();
 
  private:
   // Takes event samples in the receive thread and calls the handler (under `mutex`).
@@ -245,7 +248,7 @@ class Client {
   eprosima::fastdds::dds::DataReader* setpoint_reader_ = nullptr;
   eprosima::fastdds::dds::DataReader* event_reader_ = nullptr;
   eprosima::fastdds::dds::DataWriter& request_writer_;
-  eprosima::fastdds::dds::DataWriter& program_writer_;
+  eprosima::fastdds::dds::DataWriter* program_writer_ = nullptr;  // HMI only
   std::chrono::steady_clock::time_point last_wake_{};
   std::chrono::steady_clock::time_point last_written_{};
   std::optional<dds::DataWaiter> waiter_;
