@@ -187,7 +187,7 @@ bool ArgReader::negative_number(std::string& value) {
 }
 
 bool ArgReader::dds_flag(DdsOverrides& o) {
-  for (const char* name : {"--domain", "--profiles", "--participant-prefix"}) {
+  for (const char* name : {"--domain", "--profiles", "--participant-prefix", "--security"}) {
     std::string v;
     if (!flag(name, v)) continue;
     if (std::string error; !failed_ && o.take(name, v, error) && !error.empty()) usage_error(error);

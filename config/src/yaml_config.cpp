@@ -383,10 +383,11 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
   }
 
   if (const auto d = root["dds"]) {
-    if (r.map(d, "dds", {"domain_id", "profiles_file", "participant_prefix"})) {
+    if (r.map(d, "dds", {"domain_id", "profiles_file", "participant_prefix", "security"})) {
       r.integer(d, "dds", "domain_id", cfg.dds.domain_id);
       r.string(d, "dds", "profiles_file", cfg.dds.profiles_file);
       r.string(d, "dds", "participant_prefix", cfg.dds.participant_prefix);
+      r.string(d, "dds", "security", cfg.dds.security_dir);
       if (cfg.dds.domain_id < 0 || cfg.dds.domain_id > 232) {
         r.error(d["domain_id"], "dds.domain_id", "must be 0..232");
       }
@@ -463,6 +464,10 @@ ConfigLoad load_config_text(const std::string& text, const std::string& path) {
   if (!cfg.dds.profiles_file.empty() && fs::path(cfg.dds.profiles_file).is_relative() &&
       !path.empty()) {
     cfg.dds.profiles_file = (fs::path(path).parent_path() / cfg.dds.profiles_file).string();
+  }
+  if (!cfg.dds.security_dir.empty() && fs::path(cfg.dds.security_dir).is_relative() &&
+      !path.empty()) {
+    cfg.dds.security_dir = (fs::path(path).parent_path() / cfg.dds.security_dir).string();
   }
   out.config = std::move(cfg);
   return out;

@@ -798,9 +798,10 @@ TEST(ServiceProcesses, HmiCommandAndStopSayAcceptedOrWhyNot) {
       hmi.start({TGM_HMI_BIN, "command", "clear", "--timeout", "0.5", "--config", env.config()},
                 env.path("cmd-none.log")));
   EXPECT_EQ(hmi.wait(kHang), 1) << hmi.log();
-  EXPECT_EQ(hmi.log(),
-            "tgm-hmi command: clear: no reply: no tgm-service took requests on this domain within "
-            "0.5 s (is it running, with the same domain and profiles?); nothing was sent\n");
+  EXPECT_EQ(
+      hmi.log(),
+      "tgm-hmi command: clear: no reply: no tgm-service took requests on this domain within "
+      "0.5 s (is it running, with the same domain, profiles and security?); nothing was sent\n");
 }
 
 // Intercode compiled for other axis letters (XYC, where interpolator 0 has XYZ) is refused

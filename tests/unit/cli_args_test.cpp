@@ -270,6 +270,39 @@ TEST(CliArgs, TheProfilesFileMustBeARegularFile) {
   }
 }
 
+// --security overrides dds.security ('off' turns it off); the files of a role are checked
+// before Fast DDS sees them, and a missing one is named.
+TEST(CliArgs, SecurityOverrideAndItsFiles) {
+  DdsConfig c;
+  c.security_dir = "/etc/tgm/sec";
+  DdsOverrides o;
+  std::string error;
+  EXPECT_TRUE(o.take("--security", "off", error));
+  EXPECT_EQ(error, "");
+  o.apply(c);
+  EXPECT_EQ(c.security_dir, "");
+  EXPECT_EQ(dds_security_problem(c, "plc"), "");  // off: nothing to check
+  EXPECT_TRUE(o.take("--security", "/nonexistent/sec", error));
+  o.apply(c);
+  EXPECT_EQ(c.security_dir, "/nonexistent/sec");
+  EXPECT_EQ(dds_security_problem(c, "plc"),
+            "the DDS Security directory '/nonexistent/sec' does not exist (dds.security or "
+            "--security; config/security/tgm-security --out DIR makes one)");
+  c.security_dir = TGM_SOURCE_DIR "/config";  // a directory without the files
+  EXPECT_EQ(dds_security_problem(c, "hmi"),
+            "DDS Security: '" TGM_SOURCE_DIR
+            "/config/ca.pem' is missing (the hmi identity of "
+            "config/security/tgm-security; dds.security or --security)");
+  const auto files = dds_security_files("/s", "service");
+  EXPECT_EQ(files[0], "/s/ca.pem");
+  EXPECT_EQ(files[1], "/s/governance.p7s");
+  EXPECT_EQ(files[2], "/s/service.pem");
+  EXPECT_EQ(files[3], "/s/service.key");
+  EXPECT_EQ(files[4], "/s/service.permissions.p7s");
+  // Not a DDS flag: left to the binary.
+  EXPECT_FALSE(o.take("--secure", "x", error));
+}
+
 // An output that names an input or another output, under any spelling, is refused before
 // anything is opened; distinct files, paths not given and shared devices or pipes are not.
 TEST(CliArgs, AnOutputMayNotBeAnInputOrAnotherOutput) {

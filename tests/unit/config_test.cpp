@@ -109,6 +109,22 @@ TEST(Config, DeepNestingAndAliasBombsAreOneClearProblem) {
       << load.errors.back();
 }
 
+// dds.security names a directory relative to the YAML file, as dds.profiles_file does; unset,
+// security is off.
+TEST(Config, DdsSecurityIsADirectoryRelativeToTheFile) {
+  auto load = load_config_text("dds: {security: sec}\n", "/etc/tgm/cell1.yaml");
+  ASSERT_TRUE(load.config.has_value());
+  EXPECT_EQ(load.config->dds.security_dir, "/etc/tgm/sec");
+  load = load_config_text("dds: {security: /opt/sec}\n", "/etc/tgm/cell1.yaml");
+  ASSERT_TRUE(load.config.has_value());
+  EXPECT_EQ(load.config->dds.security_dir, "/opt/sec");
+  load = load_config_text("dds: {domain_id: 3}\n", "/etc/tgm/cell1.yaml");
+  ASSERT_TRUE(load.config.has_value());
+  EXPECT_EQ(load.config->dds.security_dir, "");
+  load = load_config_text("dds: {security: [a]}\n", "m.yaml");
+  EXPECT_FALSE(load.config.has_value());
+}
+
 TEST(Config, UnknownKeyIsAnErrorWithPathAndLine) {
   const auto load = load_config_text("cycle_time_us: 500\ncompiler:\n  defualt_feed: 3\n", "m.yaml");
   EXPECT_FALSE(load.config);

@@ -1,5 +1,7 @@
 #include "tgm/dds/participant.hpp"
 
+#include <array>
+
 #include <filesystem>
 #include <mutex>
 #include <set>
@@ -7,6 +9,8 @@
 
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 #include <fastdds/dds/domain/qos/DomainParticipantQos.hpp>
+
+#include "tgm/dds_overrides.hpp"
 
 namespace tgm::dds {
 
@@ -50,6 +54,27 @@ bool poll_until(CountFn count, int min, std::chrono::milliseconds timeout) {
   }
 }
 
+// The properties of Fast DDS's builtin security plugins: PKI-DH authentication, the
+// Access-Permissions access control and AES-GCM-GMAC cryptography, from the files of
+// dds_security_files (ca, governance, certificate, key, permissions).
+void add_security(fdds::DomainParticipantQos& qos, const std::array<std::string, 5>& files) {
+  namespace fs = std::filesystem;
+  auto uri = [](const std::string& f) {
+    std::error_code ec;
+    return "file://" + fs::absolute(f, ec).string();
+  };
+  auto& p = qos.properties().properties();
+  p.emplace_back("dds.sec.auth.plugin", "builtin.PKI-DH");
+  p.emplace_back("dds.sec.auth.builtin.PKI-DH.identity_ca", uri(files[0]));
+  p.emplace_back("dds.sec.auth.builtin.PKI-DH.identity_certificate", uri(files[2]));
+  p.emplace_back("dds.sec.auth.builtin.PKI-DH.private_key", uri(files[3]));
+  p.emplace_back("dds.sec.access.plugin", "builtin.Access-Permissions");
+  p.emplace_back("dds.sec.access.builtin.Access-Permissions.permissions_ca", uri(files[0]));
+  p.emplace_back("dds.sec.access.builtin.Access-Permissions.governance", uri(files[1]));
+  p.emplace_back("dds.sec.access.builtin.Access-Permissions.permissions", uri(files[4]));
+  p.emplace_back("dds.sec.crypto.plugin", "builtin.AES-GCM-GMAC");
+}
+
 }  // namespace
 
 void load_profiles(const std::string& path) {
@@ -85,7 +110,19 @@ Participant::Participant(const DdsConfig& config, std::string_view role, std::st
                      config.profiles_file + "'");
   }
   qos.name(name_);
+  if (!config.security_dir.empty()) {
+    if (std::string why = dds_security_problem(config, role); !why.empty()) throw SetupError(why);
+    add_security(qos, dds_security_files(config.security_dir, role));
+    secure_ = true;
+  }
   participant_ = factory->create_participant(static_cast<fdds::DomainId_t>(domain_id_), qos);
+  if (participant_ == nullptr && !config.security_dir.empty()) {
+    throw SetupError("cannot create DDS participant '" + name_ + "' on domain " +
+                     std::to_string(domain_id_) + ": DDS Security refused the " +
+                     std::string(role) + " identity or permissions in '" + config.security_dir +
+                     "' (made by another tgm-security run than its CA and governance, expired, "
+                     "or not for this domain?)");
+  }
   if (participant_ == nullptr) {
     throw SetupError("cannot create DDS participant '" + name_ + "' on domain " +
                      std::to_string(domain_id_) + " from profile '" + std::string(profile) + "'");
@@ -153,15 +190,21 @@ fdds::Topic& Participant::make_topic(std::string_view name, fdds::TypeSupport ty
   return *t;
 }
 
+std::string Participant::entity_error(std::string_view kind, const std::string& topic,
+                                      std::string_view profile) const {
+  return "cannot create DDS " + std::string(kind) + " on topic '" + topic + "' with profile '" +
+         std::string(profile) + "' (" +
+         (secure_ ? "not allowed by this identity's DDS Security permissions, " : "") +
+         "unknown profile or inconsistent QoS; see the Fast DDS log above)";
+}
+
 fdds::DataWriter& Participant::writer(fdds::Topic& topic, std::string_view profile,
                                       fdds::DataWriterListener* listener,
                                       const fdds::StatusMask& mask) {
   fdds::DataWriter* w =
       publisher_->create_datawriter_with_profile(&topic, std::string(profile), listener, mask);
   if (w == nullptr) {
-    throw SetupError("cannot create DDS writer on topic '" + topic.get_name() +
-                     "' with profile '" + std::string(profile) +
-                     "' (unknown profile or inconsistent QoS; see the Fast DDS log above)");
+    throw SetupError(entity_error("writer", topic.get_name(), profile));
   }
   return *w;
 }
@@ -169,9 +212,7 @@ fdds::DataWriter& Participant::writer(fdds::Topic& topic, std::string_view profi
 fdds::DataReader& Participant::reader(fdds::Topic& topic, std::string_view profile) {
   fdds::DataReader* r = subscriber_->create_datareader_with_profile(&topic, std::string(profile));
   if (r == nullptr) {
-    throw SetupError("cannot create DDS reader on topic '" + topic.get_name() +
-                     "' with profile '" + std::string(profile) +
-                     "' (unknown profile or inconsistent QoS; see the Fast DDS log above)");
+    throw SetupError(entity_error("reader", topic.get_name(), profile));
   }
   return *r;
 }

@@ -31,6 +31,8 @@ int make_client(Args& args, const DdsOverrides& o, std::optional<AppConfig>& con
   if (!config) return 2;
   o.apply(config->dds);
   if (std::string why = dds_profiles_problem(config->dds); !why.empty()) return args.usage_error(why);
+  if (std::string why = dds_security_problem(config->dds, "hmi"); !why.empty())
+    return args.usage_error(why);
   try {
     c.emplace(config->dds, client::Role::kHmi, options);
   } catch (const dds::SetupError& e) {
@@ -42,10 +44,11 @@ int make_client(Args& args, const DdsOverrides& o, std::optional<AppConfig>& con
 
 bool wait_for_service(client::Client& c, const AppConfig& config, int interpolator, const char* command) {
   if (c.wait_for_state(interpolator, std::chrono::seconds(10))) return true;
-  std::fprintf(stderr,
-               "tgm-hmi %s: no state of interpolator %d from tgm-service on DDS domain %d within 10 s "
-               "(is tgm-service running with the same domain and profiles?)\n",
-               command, interpolator, config.dds.domain_id);
+  std::fprintf(
+      stderr,
+      "tgm-hmi %s: no state of interpolator %d from tgm-service on DDS domain %d within 10 s "
+      "(is tgm-service running with the same domain, profiles and security?)\n",
+      command, interpolator, config.dds.domain_id);
   return false;
 }
 

@@ -171,6 +171,8 @@ int run_run(int argc, char** argv) {
   if (!config) return 2;
   overrides.apply(config->dds);
   if (std::string why = dds_profiles_problem(config->dds); !why.empty()) return args.usage_error(why);
+  if (std::string why = dds_security_problem(config->dds, "hmi"); !why.empty())
+    return args.usage_error(why);
   const int ip = args.interpolator();
   const std::string letters = config->machine.axis_letters(ip);
   Program program;

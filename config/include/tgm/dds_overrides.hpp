@@ -4,7 +4,9 @@
 // everywhere. Header-only: the binaries parse their own arguments and call these.
 #pragma once
 
+#include <array>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -17,13 +19,16 @@ namespace tgm {
 inline constexpr const char* kDdsOverrideHelp =
     "  --domain N            DDS domain id 0..232 (overrides dds.domain_id)\n"
     "  --profiles FILE       Fast DDS XML profiles (overrides dds.profiles_file)\n"
-    "  --participant-prefix P  participant names P-service, P-plc, P-hmi\n";
+    "  --participant-prefix P  participant names P-service, P-plc, P-hmi\n"
+    "  --security DIR        DDS Security material of config/security/tgm-security\n"
+    "                        (overrides dds.security; 'off' runs without)\n";
 
 //! DDS settings given on the command line (empty / -1 = not given).
 struct DdsOverrides {
   int domain_id = -1;
   std::string profiles_file;
   std::string participant_prefix;
+  std::optional<std::string> security_dir;  // "" = off
 
   //! Takes `flag` with `value` when it is one of the DDS flags; false otherwise. A bad value
   //! sets `error` (and returns true).
@@ -35,6 +40,11 @@ struct DdsOverrides {
     }
     if (flag == "--profiles") {
       profiles_file = value;
+      return true;
+    }
+    if (flag == "--security") {
+      if (value.empty()) error = "--security needs a directory (or 'off'), not an empty string";
+      security_dir = value == "off" ? std::string() : value;
       return true;
     }
     if (flag == "--participant-prefix") {
@@ -49,6 +59,7 @@ struct DdsOverrides {
     if (domain_id >= 0) c.domain_id = domain_id;
     if (!profiles_file.empty()) c.profiles_file = profiles_file;
     if (!participant_prefix.empty()) c.participant_prefix = participant_prefix;
+    if (security_dir) c.security_dir = *security_dir;
   }
 };
 
@@ -61,6 +72,36 @@ inline std::string dds_profiles_problem(const DdsConfig& c) {
   return "the DDS profiles file '" + c.profiles_file + "' " +
          (exists ? "is not a regular file" : "does not exist") +
          " (dds.profiles_file or --profiles)";
+}
+
+//! The files of DDS Security for participant `role` (service, plc, hmi) in `dir`, in the order
+//! ca, governance, identity certificate, private key, permissions.
+inline std::array<std::string, 5> dds_security_files(const std::string& dir,
+                                                     std::string_view role) {
+  namespace fs = std::filesystem;
+  const fs::path d(dir);
+  const std::string r(role);
+  return {(d / "ca.pem").string(), (d / "governance.p7s").string(), (d / (r + ".pem")).string(),
+          (d / (r + ".key")).string(), (d / (r + ".permissions.p7s")).string()};
+}
+
+//! Empty when security is off or every file participant `role` needs is there, else a reason
+//! naming the file (a config error: the binaries exit with 2 before Fast DDS refuses).
+inline std::string dds_security_problem(const DdsConfig& c, std::string_view role) {
+  if (c.security_dir.empty()) return {};
+  std::error_code ec;
+  if (!std::filesystem::is_directory(c.security_dir, ec)) {
+    return "the DDS Security directory '" + c.security_dir +
+           "' does not exist (dds.security or "
+           "--security; config/security/tgm-security --out DIR makes one)";
+  }
+  for (const std::string& f : dds_security_files(c.security_dir, role)) {
+    if (!std::filesystem::is_regular_file(f, ec)) {
+      return "DDS Security: '" + f + "' is missing (the " + std::string(role) +
+             " identity of config/security/tgm-security; dds.security or --security)";
+    }
+  }
+  return {};
 }
 
 }  // namespace tgm

@@ -19,6 +19,10 @@ struct DdsConfig {
   std::string profiles_file = "fastdds_profiles.xml";
   //! Prefix of participant names ("<prefix>-service", "<prefix>-plc", "<prefix>-hmi").
   std::string participant_prefix = "tgm";
+  //! DDS Security: the directory config/security/tgm-security wrote (CA, governance, each
+  //! role's identity and permissions); a relative path is taken relative to the YAML file.
+  //! Empty: no security (anyone on the network may join the domain).
+  std::string security_dir;
 };
 
 //! Behaviour of the PLC emulator (tgm-plc).

@@ -140,9 +140,13 @@ class Participant {
 
  private:
   fdds::Topic& make_topic(std::string_view name, fdds::TypeSupport type);
+  // Why a writer or reader (`kind`) could not be created.
+  std::string entity_error(std::string_view kind, const std::string& topic,
+                           std::string_view profile) const;
 
   std::string name_;
   int domain_id_ = 0;
+  bool secure_ = false;  // DDS Security on (dds.security)
   fdds::DomainParticipant* participant_ = nullptr;
   fdds::Publisher* publisher_ = nullptr;
   fdds::Subscriber* subscriber_ = nullptr;

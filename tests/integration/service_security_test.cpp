@@ -1,0 +1,185 @@
+// DDS Security (DESIGN.md sections 1 and 6): with the material of config/security/tgm-security
+// every process authenticates with its role's certificate, the traffic is encrypted, and the
+// permissions let each role publish and subscribe only what it needs. The service, the PLC
+// emulator and the HMI run the manual's example so; a participant without the material sees
+// nothing of them; a role's identity cannot create a writer its permissions do not name (the
+// PLC cannot write the program stream, nobody but the service can publish states or replies);
+// missing or foreign material is an error that names the file or the identity.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <optional>
+#include <string>
+
+#include "service_test_env.hpp"
+#include "tgm/client/client.hpp"
+#include "tgm/dds/participant.hpp"
+#include "tgm/dds/topics.hpp"
+#include "tgm/msg/tgmPubSubTypes.h"
+
+namespace tgm {
+namespace {
+
+using namespace std::chrono_literals;
+using test::ServiceEnv;
+
+constexpr auto kHang = 60s;
+const std::string kTool = TGM_SOURCE_DIR "/config/security/tgm-security";
+
+// Runs tgm-security --out `dir` (quietly); false when it failed.
+bool make_material(const std::string& dir, const std::string& log) {
+  const std::string cmd = "'" + kTool + "' --out '" + dir + "' >'" + log + "' 2>&1";
+  return std::system(cmd.c_str()) == 0;
+}
+
+bool have_openssl() {
+  return std::system("command -v openssl >/dev/null 2>&1") == 0;
+}
+
+class ServiceSecurity : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (!have_openssl()) GTEST_SKIP() << "no openssl command (.ci/deps installs it)";
+    sec_ = env_.path("security");
+    ASSERT_TRUE(make_material(sec_, env_.path("tgm-security.log")))
+        << test::read_text(env_.path("tgm-security.log"));
+  }
+  DdsConfig secure_dds() const {
+    DdsConfig c = env_.dds();
+    c.security_dir = sec_;
+    return c;
+  }
+  std::vector<std::string> with_security(std::vector<std::string> args) const {
+    args.insert(args.end(), {"--config", env_.config(), "--security", sec_});
+    return args;
+  }
+
+  ServiceEnv env_;
+  std::string sec_;
+};
+
+TEST_F(ServiceSecurity, TheThreeProcessesRunTheManualExampleAndOutsidersSeeNothing) {
+  ASSERT_TRUE(env_.start_service({"--security", sec_}));
+  test::Child plc;
+  ASSERT_TRUE(plc.start(with_security({TGM_PLC_BIN, "--quiet"}), env_.path("plc.log")));
+  test::Child hmi;
+  ASSERT_TRUE(hmi.start(
+      with_security({TGM_HMI_BIN, "run", TGM_SOURCE_DIR "/tests/programs/manual_example.ngc"}),
+      env_.path("hmi.log")));
+  EXPECT_EQ(hmi.wait(kHang), 0) << hmi.log() << "\n--- plc:\n" << plc.log();
+  EXPECT_NE(hmi.log().find("3 M-function waits"), std::string::npos) << hmi.log();
+  EXPECT_EQ(test::run_end_position(hmi.log())[0], 47.2495) << hmi.log();
+
+  // A client with the material gets the state at once; one without it, on the same domain at
+  // the same time, gets nothing: it cannot join (the governance allows no unauthenticated
+  // participant), and the traffic it would see is encrypted.
+  client::Client insider(secure_dds(), client::Role::kHmi);
+  ASSERT_TRUE(insider.wait_for_state(0, kHang));
+  EXPECT_EQ(insider.state(0)->status(), 3);
+  client::Client outsider(env_.dds(), client::Role::kHmi);
+  EXPECT_FALSE(outsider.wait_for_state(0, 3s)) << "an unauthenticated client read the state";
+  const client::Reply r = outsider.clear(0);
+  EXPECT_TRUE(r.timed_out && !r.sent) << client::describe(r);
+  EXPECT_EQ(insider.state(0)->status(), 3) << "the outsider's clear reached the service";
+
+  EXPECT_EQ(plc.interrupt(), 0);
+  const std::string log = plc.log();
+  EXPECT_EQ(test::count_of(log, ": accepted (cycle"), 3) << log;
+}
+
+// Write access by role, as the permissions tgm-security signs say (DESIGN.md section 1): the
+// writer is refused when it is created, so nothing of it ever reaches the network.
+TEST_F(ServiceSecurity, EachRoleCanWriteOnlyWhatItsPermissionsName) {
+  const DdsConfig c = secure_dds();
+  auto refused = [&](auto& p, auto writer) {
+    try {
+      writer(p);
+    } catch (const dds::SetupError& e) {
+      return std::string(e.what()).find(
+                 "not allowed by this identity's DDS Security permissions") != std::string::npos;
+    }
+    return false;
+  };
+  {
+    dds::Participant plc(c, "plc");
+    EXPECT_NO_THROW(plc.writer<msg::RequestPubSubType>(dds::kRequestTopic));
+    EXPECT_TRUE(refused(plc, [](dds::Participant& p) {
+      p.writer<msg::ProgramChunkPubSubType>(dds::kProgramTopic);
+    })) << "the PLC may not fill the buffer";
+    EXPECT_TRUE(refused(plc, [](dds::Participant& p) {
+      p.writer<msg::InterpolatorStatePubSubType>(dds::kStateTopic);
+    })) << "the PLC may not pose as the service";
+    EXPECT_TRUE(refused(
+        plc, [](dds::Participant& p) { p.writer<msg::ReplyPubSubType>(dds::kReplyTopic); }));
+  }
+  {
+    dds::Participant hmi(c, "hmi");
+    EXPECT_NO_THROW(hmi.writer<msg::ProgramChunkPubSubType>(dds::kProgramTopic));
+    EXPECT_NO_THROW(hmi.writer<msg::RequestPubSubType>(dds::kRequestTopic));
+    EXPECT_TRUE(refused(hmi, [](dds::Participant& p) {
+      p.writer<msg::InterpolatorEventPubSubType>(dds::kEventTopic);
+    }));
+    EXPECT_TRUE(refused(
+        hmi, [](dds::Participant& p) { p.writer<msg::MessagePubSubType>(dds::kMessageTopic); }));
+  }
+  {
+    dds::Participant service(c, "service");
+    EXPECT_NO_THROW(service.writer<msg::InterpolatorStatePubSubType>(dds::kStateTopic));
+    EXPECT_TRUE(refused(service, [](dds::Participant& p) {
+      p.writer<msg::RequestPubSubType>(dds::kRequestTopic);
+    })) << "the service answers requests, it does not make them";
+  }
+  // A role tgm-security made no identity for.
+  try {
+    dds::Participant rogue(c, "rogue");
+    ADD_FAILURE() << "a participant without an identity joined";
+  } catch (const dds::SetupError& e) {
+    EXPECT_NE(std::string(e.what()).find("rogue.pem' is missing"), std::string::npos) << e.what();
+  }
+}
+
+TEST_F(ServiceSecurity, MissingOrForeignMaterialIsAnErrorNamingIt) {
+  // No such directory: a config error (exit 2) before any DDS.
+  test::Child service;
+  ASSERT_TRUE(service.start({TGM_SERVICE_BIN, "--config", env_.config(), "--no-realtime",
+                             "--security", env_.path("nowhere")},
+                            env_.path("service.log")));
+  EXPECT_EQ(service.wait(kHang), 2) << service.log();
+  EXPECT_NE(service.log().find("the DDS Security directory '" + env_.path("nowhere") +
+                               "' does not exist"),
+            std::string::npos)
+      << service.log();
+
+  // A file of the role missing.
+  std::filesystem::remove(sec_ + "/plc.key");
+  test::Child plc;
+  ASSERT_TRUE(plc.start(with_security({TGM_PLC_BIN}), env_.path("plc.log")));
+  EXPECT_EQ(plc.wait(kHang), 2) << plc.log();
+  EXPECT_NE(plc.log().find("DDS Security: '" + sec_ + "/plc.key' is missing"), std::string::npos)
+      << plc.log();
+
+  // An identity of another installation (another CA): Fast DDS refuses it, and the HMI says
+  // which identity and where.
+  const std::string other = env_.path("other");
+  ASSERT_TRUE(make_material(other, env_.path("other.log")));
+  std::filesystem::copy_file(other + "/hmi.pem", sec_ + "/hmi.pem",
+                             std::filesystem::copy_options::overwrite_existing);
+  std::filesystem::copy_file(other + "/hmi.key", sec_ + "/hmi.key",
+                             std::filesystem::copy_options::overwrite_existing);
+  test::Child hmi;
+  ASSERT_TRUE(hmi.start(with_security({TGM_HMI_BIN, "status"}), env_.path("hmi.log")));
+  EXPECT_NE(hmi.wait(kHang), 0) << hmi.log();
+  EXPECT_NE(hmi.log().find("DDS Security refused the hmi identity or permissions in '" + sec_),
+            std::string::npos)
+      << hmi.log();
+
+  // The tool refuses to overwrite material, and says how.
+  EXPECT_FALSE(make_material(other, env_.path("again.log")));
+  EXPECT_NE(test::read_text(env_.path("again.log")).find("--force overwrites it"),
+            std::string::npos);
+}
+
+}  // namespace
+}  // namespace tgm
