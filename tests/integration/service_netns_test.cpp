@@ -198,6 +198,47 @@ TEST_F(ServiceNetns, ManualExampleAcrossThreeNetworkNamespaces) {
   EXPECT_EQ(test::count_of(plc.log(), "acknowledged after"), 3) << plc.log();
 }
 
+// The same with DDS Security, each namespace holding only its own role's material (ca.pem,
+// governance.p7s and the role's certificate, key and permissions), as each machine of a cell
+// would: authentication, access control and encryption across hosts (README, "DDS Security").
+TEST_F(ServiceNetns, ManualExampleAcrossThreeNamespacesWithDdsSecurity) {
+  if (std::system("command -v openssl >/dev/null 2>&1") != 0) GTEST_SKIP() << "no openssl";
+  test::ServiceEnv env(edits());
+  const std::string all = env.path("security");
+  ASSERT_EQ(std::system(("'" TGM_SOURCE_DIR "/config/security/tgm-security' --out '" + all +
+                         "' >/dev/null 2>&1")
+                            .c_str()),
+            0);
+  auto role_dir = [&](const std::string& role) {
+    const std::string dir = env.path(role + "-security");
+    std::filesystem::create_directories(dir);
+    for (const std::string& f : {std::string("ca.pem"), std::string("governance.p7s"),
+                                 role + ".pem", role + ".key", role + ".permissions.p7s"}) {
+      std::filesystem::copy_file(all + "/" + f, dir + "/" + f);
+    }
+    return dir;
+  };
+  test::Child service, plc, hmi;
+  ASSERT_TRUE(service.start(ns().exec(0, {TGM_SERVICE_BIN, "--config", env.config(),
+                                          "--no-realtime", "--security", role_dir("service")}),
+                            env.path("service.log")));
+  ASSERT_TRUE(plc.start(
+      ns().exec(1, {TGM_PLC_BIN, "--config", env.config(), "--security", role_dir("plc")}),
+      env.path("plc.log")));
+  ASSERT_TRUE(hmi.start(ns().exec(2, {TGM_HMI_BIN, "run", kManualExample, "--config", env.config(),
+                                      "--security", role_dir("hmi")}),
+                        env.path("hmi.log")));
+  const int code = hmi.wait(120s);
+  EXPECT_EQ(code, 0) << hmi.log() << "\n--- plc:\n"
+                     << plc.log() << "\n--- service:\n"
+                     << service.log();
+  EXPECT_EQ(plc.interrupt(), 0);
+  EXPECT_EQ(service.interrupt(), 0) << service.log();
+  EXPECT_NE(hmi.log().find("done: 13 records"), std::string::npos) << hmi.log();
+  EXPECT_EQ(test::count_of(plc.log(), "acknowledged after"), 3) << plc.log();
+  expect_run_ended_at(hmi.log(), simulated_end(env.config(), kManualExample));
+}
+
 // The same three namespaces on a network that loses packets: every process drops a share of
 // the UDP datagrams it receives at random (iptables' statistic match, in its own namespace;
 // the kernel here has no netem), 10 % by default, TGM_NETNS_LOSS_PERCENT=30 for a harder run. DDS's
