@@ -16,14 +16,24 @@ m_count=${M_COUNT:-2000}
 dds_prio=${DDS_PRIO:-0}
 svc_prio=(); plc_prio=()
 if ((dds_prio > 0)); then svc_prio=(--dds-priority "$dds_prio"); plc_prio=(--rt-priority "$dds_prio"); fi
+# SECURITY_DIR=DIR: all three processes with DDS Security (the raw ping-pong stays without).
 # SVC_ARGS / PLC_ARGS: extra options for tgm-service / tgm-plc in part 1 (word-split).
 read -r -a svc_extra <<< "${SVC_ARGS:-}"
 read -r -a plc_extra <<< "${PLC_ARGS:-}"
 domain=${DOMAIN:-91}
 tmp=$(mktemp -d)
 pids=()
+# SIGINT is the clean stop; a process that got it before it had started its own handling (a
+# failure right after its start: the signal reached the shell's child before exec) is killed
+# after 5 s rather than left serving the domain.
+stop_pid() {
+  kill -INT "$1" 2>/dev/null || return 0
+  for _ in $(seq 50); do kill -0 "$1" 2>/dev/null || break; sleep 0.1; done
+  kill -KILL "$1" 2>/dev/null || true
+  wait "$1" 2>/dev/null || true
+}
 cleanup() {
-  for p in "${pids[@]}"; do kill -INT "$p" 2>/dev/null || true; done
+  for p in "${pids[@]}"; do stop_pid "$p"; done
   wait 2>/dev/null || true
   rm -rf "$tmp"
 }
@@ -35,13 +45,14 @@ sed -e "s#profiles_file: fastdds_profiles.xml#profiles_file: $PWD/config/fastdds
     -e "s#domain_id: 0#domain_id: $domain#" \
     -e "0,/buffer_size: 10000/s//buffer_size: 100000/" config/default.yaml > "$tmp/config.yaml"
 cfg=(--config "$tmp/config.yaml")
+# SECURITY_DIR=DIR: every process with DDS Security (config/security/tgm-security --out DIR).
+[[ -n ${SECURITY_DIR:-} ]] && cfg+=(--security "$SECURITY_DIR")
 svc=$build/service/tgm-service
 plc=$build/client/tgm-plc
 hmi=$build/client/tgm-hmi
 
 stop_all() {
-  for p in "${pids[@]}"; do kill -INT "$p" 2>/dev/null || true; done
-  for p in "${pids[@]}"; do wait "$p" 2>/dev/null || true; done
+  for p in "${pids[@]}"; do stop_pid "$p"; done
   pids=()
 }
 json() { python3 -c "import json,sys; d=json.load(open('$1')); print($2)"; }

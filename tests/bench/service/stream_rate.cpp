@@ -3,7 +3,7 @@
 // library's flow control, timed from the first chunk written until the service confirms the last
 // record (InterpolatorState.next_sequence), then clears; K runs.
 //
-//   tgm_bench_stream --config YAML [--domain D] [--records N] [--runs K]
+//   tgm_bench_stream --config YAML [DDS overrides] [--records N] [--runs K]
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -13,16 +13,17 @@
 
 #include "tgm/cli_args.hpp"
 #include "tgm/client/client.hpp"
+#include "tgm/dds_overrides.hpp"
 #include "tgm/yaml_config.hpp"
 
 namespace {
 constexpr const char* kUsage =
-    "usage: tgm_bench_stream [--config YAML] [--domain D] [--records N] [--runs K]\n"
+    "usage: tgm_bench_stream [--config YAML] [DDS overrides] [--records N] [--runs K]\n"
     "Streams N plain G1 records into interpolator 0 of a running tgm-service K times and prints\n"
     "the rate of each run and the median (BENCHMARKS.md, section Service).\n"
     "  --config YAML   the service's config (default: config/default.yaml); interpolator 0's\n"
     "                  Buffer_Size must hold the N records\n"
-    "  --domain D      DDS domain, 0..232 (default: the config's)\n"
+    "  --domain, --profiles, --participant-prefix, --security: as tgm-hmi's\n"
     "  --records N     records per run, 1..100000 (default 100000)\n"
     "  --runs K        runs, 1..1000 (default 5)\n";
 }  // namespace
@@ -30,7 +31,7 @@ constexpr const char* kUsage =
 int main(int argc, char** argv) {
   using namespace std::chrono_literals;
   std::string config_path;
-  int domain = -1;
+  tgm::DdsOverrides overrides;
   long long records_flag = 100'000;
   int runs = 5;
   tgm::cli::ArgReader args(argc, argv, "tgm_bench_stream");
@@ -39,7 +40,7 @@ int main(int argc, char** argv) {
       std::fputs(kUsage, stdout);
       return 0;
     }
-    if (args.flag("--config", config_path) || args.whole_flag("--domain", 0, 232, domain) ||
+    if (args.flag("--config", config_path) || args.dds_flag(overrides) ||
         args.whole_flag("--records", 1LL, 100'000LL, records_flag) ||
         args.whole_flag("--runs", 1, 1000, runs)) {
       continue;
@@ -51,7 +52,7 @@ int main(int argc, char** argv) {
   std::optional<tgm::AppConfig> config =
       tgm::load_config_or_report(config_path, "tgm_bench_stream");
   if (!config) return 2;
-  if (domain >= 0) config->dds.domain_id = domain;
+  overrides.apply(config->dds);
   tgm::Program program;
   program.number_axes = static_cast<int>(config->machine.interpolators[0].axes.size());
   program.axis_letters = config->machine.axis_letters(0);
