@@ -90,12 +90,20 @@ DdsPort::DdsPort(const DdsConfig& config, const DdsPortOptions& options)
       reply_writer_(participant_.writer<msg::ReplyPubSubType>(
           dds::kReplyTopic, &reply_match_listener_, fdds::StatusMask::publication_matched())),
       message_writer_(participant_.writer<msg::MessagePubSubType>(dds::kMessageTopic)),
-      request_reader_(participant_.reader<msg::RequestPubSubType>(dds::kRequestTopic)),
       program_reader_(participant_.reader<msg::ProgramChunkPubSubType>(dds::kProgramTopic)),
       state_reader_(participant_.reader<msg::InterpolatorStatePubSubType>(dds::kStateTopic)),
       waiter_({&program_reader_}),
       free_chunks_(static_cast<std::size_t>(options.interpolators) * 4 *
                    dds::kProgramChunksInFlight) {
+  if (config.security_dir.empty()) {
+    request_sources_.push_back(
+        {&participant_.reader<msg::RequestPubSubType>(dds::kRequestTopic), std::nullopt});
+  } else {
+    request_sources_.push_back(
+        {&participant_.reader<msg::RequestPubSubType>(dds::kRequestPlcTopic), Role::kPlc});
+    request_sources_.push_back(
+        {&participant_.reader<msg::RequestPubSubType>(dds::kRequestHmiTopic), Role::kHmi});
+  }
   const auto n = static_cast<std::size_t>(opt_.interpolators);
   std::random_device entropy;
   while (service_instance_ == 0) {
@@ -154,7 +162,9 @@ std::uint64_t DdsPort::other_service(std::chrono::milliseconds wait) {
 
 void DdsPort::start() {
   receiver_ = std::thread([this] { receive_loop(); });
-  request_reader_.set_listener(&request_listener_, fdds::StatusMask::data_available());
+  for (const RequestSource& src : request_sources_) {
+    src.reader->set_listener(&request_listener_, fdds::StatusMask::data_available());
+  }
   publisher_ = std::thread([this] { publish_loop(); });
 }
 
@@ -164,7 +174,7 @@ void DdsPort::stop(std::atomic<const char*>* stage) {
   };
   stopping_ = true;
   at("removing the DDS request listener");
-  request_reader_.set_listener(nullptr);
+  for (const RequestSource& src : request_sources_) src.reader->set_listener(nullptr);
   state_reader_.set_listener(nullptr);
   at("waiting for a DDS request callback in progress");
   { const std::lock_guard lock(request_mutex_); }  // a callback in progress has finished
@@ -257,76 +267,78 @@ void DdsPort::take_requests_locked() {
   // Stopping: what is still in the reader is neither executed nor answered (the service is
   // going away); a flood must not keep a callback, and so stop(), busy here.
   fdds::SampleInfo info;
-  while (!stopping_.load(std::memory_order_relaxed) && dds::take_next(request_reader_, r, info)) {
-    const std::string_view name(r.client_name().c_str(), r.client_name().size());
-    {
-      // The participant this client's requests come from, for publish_replies(). Bounded: a
-      // participant that never has a reply reader leaves its entries behind.
-      const GuidPrefix from =
-          eprosima::fastrtps::rtps::iHandle2GUID(info.publication_handle).guidPrefix;
-      const std::lock_guard lock(reply_match_mutex_);
-      if (client_participants_.size() >= 4096 &&
-          client_participants_.find(name) == client_participants_.end()) {
-        client_participants_.clear();
+  for (const RequestSource& src : request_sources_) {
+    while (!stopping_.load(std::memory_order_relaxed) && dds::take_next(*src.reader, r, info)) {
+      const std::string_view name(r.client_name().c_str(), r.client_name().size());
+      {
+        // The participant this client's requests come from, for publish_replies(). Bounded: a
+        // participant that never has a reply reader leaves its entries behind.
+        const GuidPrefix from =
+            eprosima::fastrtps::rtps::iHandle2GUID(info.publication_handle).guidPrefix;
+        const std::lock_guard lock(reply_match_mutex_);
+        if (client_participants_.size() >= 4096 &&
+            client_participants_.find(name) == client_participants_.end()) {
+          client_participants_.clear();
+        }
+        client_participants_.insert_or_assign(std::string(name), from);
       }
-      client_participants_.insert_or_assign(std::string(name), from);
-    }
-    if (requests_.full()) {
-      // A client sends faster than the cycles take requests. Leaving the sample in the reader
-      // would lose it unseen (the reader's history is KEEP_LAST: newer requests push it out;
-      // Fast DDS 2.9 also drops samples a full KEEP_ALL reader rejects): answer it instead,
-      // through the publisher like every reply (publish_replies: held until the client's reply
-      // reader is matched). Only when that queue is full too, at once from here (busy_reply_
-      // holds the code and the reason from the constructor on).
-      ReplyOut busy;
-      busy.request_id = r.request_id();
-      busy.client.set(name);
-      busy.interpolator = r.interpolator();
-      busy.code = ReplyCode::kBusy;
-      busy.reason.set(kBusyReason);
-      if (!busy_replies_.push(busy)) {
-        busy_reply_.request_id(r.request_id());
-        busy_reply_.client_name(r.client_name());
-        busy_reply_.interpolator(r.interpolator());
-        reply_writer_.write(&busy_reply_);
+      if (requests_.full()) {
+        // A client sends faster than the cycles take requests. Leaving the sample in the reader
+        // would lose it unseen (the reader's history is KEEP_LAST: newer requests push it out;
+        // Fast DDS 2.9 also drops samples a full KEEP_ALL reader rejects): answer it instead,
+        // through the publisher like every reply (publish_replies: held until the client's reply
+        // reader is matched). Only when that queue is full too, at once from here (busy_reply_
+        // holds the code and the reason from the constructor on).
+        ReplyOut busy;
+        busy.request_id = r.request_id();
+        busy.client.set(name);
+        busy.interpolator = r.interpolator();
+        busy.code = ReplyCode::kBusy;
+        busy.reason.set(kBusyReason);
+        if (!busy_replies_.push(busy)) {
+          busy_reply_.request_id(r.request_id());
+          busy_reply_.client_name(r.client_name());
+          busy_reply_.interpolator(r.interpolator());
+          reply_writer_.write(&busy_reply_);
+        }
+        ++busy_requests_;
+        continue;
       }
-      ++busy_requests_;
-      continue;
-    }
-    RequestIn in;
-    in.request_id = r.request_id();
-    in.role = r.role() == msg::CLIENT_ROLE_PLC ? Role::kPlc : Role::kHmi;
-    in.client.set(r.client_name().c_str());
-    in.interpolator = r.interpolator();
-    in.kind = from_msg(r.kind());
-    in.command = r.command();
-    for (std::size_t k = 0; k < in.command_parameter.size(); ++k) {
-      in.command_parameter[k] = r.command_parameter()[k];
-    }
-    in.axis = r.axis();
-    in.value = r.value();
-    in.m_func_acknowledged = r.m_func_acknowledged();
-    in.m_func_count_acknowledged = r.m_func_count_acknowledged();
-    if (in.kind == RequestKind::kWriteMFunc && in.interpolator >= 0 &&
-        in.interpolator < opt_.interpolators) {
-      in.taken_ns = steady_ns();
-      auto& written = *m_written_ns_[static_cast<std::size_t>(in.interpolator)];
-      const std::int64_t t0 = written.exchange(0, std::memory_order_acq_rel);
-      if (t0 != 0 && handshakes_.size() < 1'000'000) {
-        const MWritten& w = m_written_[static_cast<std::size_t>(in.interpolator)];
-        // Only the stamps the atomic published: the publisher may still be writing the rest.
-        HandshakeSample h;
-        h.written.interpolator = in.interpolator;
-        h.written.act_part = w.act_part;
-        h.written.handoff_ns = w.handoff_ns;
-        h.written.publisher_woke_ns = w.publisher_woke_ns;
-        h.written.event_write_begin_ns = w.event_write_begin_ns;
-        h.round_trip_ns = in.taken_ns - t0;
-        h.taken_ns = in.taken_ns;
-        handshakes_.push_back(h);
+      RequestIn in;
+      in.request_id = r.request_id();
+      in.role = src.role ? *src.role : r.role() == msg::CLIENT_ROLE_PLC ? Role::kPlc : Role::kHmi;
+      in.client.set(r.client_name().c_str());
+      in.interpolator = r.interpolator();
+      in.kind = from_msg(r.kind());
+      in.command = r.command();
+      for (std::size_t k = 0; k < in.command_parameter.size(); ++k) {
+        in.command_parameter[k] = r.command_parameter()[k];
       }
+      in.axis = r.axis();
+      in.value = r.value();
+      in.m_func_acknowledged = r.m_func_acknowledged();
+      in.m_func_count_acknowledged = r.m_func_count_acknowledged();
+      if (in.kind == RequestKind::kWriteMFunc && in.interpolator >= 0 &&
+          in.interpolator < opt_.interpolators) {
+        in.taken_ns = steady_ns();
+        auto& written = *m_written_ns_[static_cast<std::size_t>(in.interpolator)];
+        const std::int64_t t0 = written.exchange(0, std::memory_order_acq_rel);
+        if (t0 != 0 && handshakes_.size() < 1'000'000) {
+          const MWritten& w = m_written_[static_cast<std::size_t>(in.interpolator)];
+          // Only the stamps the atomic published: the publisher may still be writing the rest.
+          HandshakeSample h;
+          h.written.interpolator = in.interpolator;
+          h.written.act_part = w.act_part;
+          h.written.handoff_ns = w.handoff_ns;
+          h.written.publisher_woke_ns = w.publisher_woke_ns;
+          h.written.event_write_begin_ns = w.event_write_begin_ns;
+          h.round_trip_ns = in.taken_ns - t0;
+          h.taken_ns = in.taken_ns;
+          handshakes_.push_back(h);
+        }
+      }
+      requests_.push(in);
     }
-    requests_.push(in);
   }
 }
 

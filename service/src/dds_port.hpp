@@ -23,6 +23,7 @@
 #include <fastdds/dds/subscriber/DataReaderListener.hpp>
 #include <fastdds/rtps/common/GuidPrefix_t.hpp>
 #include <map>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -204,7 +205,14 @@ class DdsPort final : public CyclePort {
   eprosima::fastdds::dds::DataWriter& setpoint_writer_;
   eprosima::fastdds::dds::DataWriter& reply_writer_;
   eprosima::fastdds::dds::DataWriter& message_writer_;
-  eprosima::fastdds::dds::DataReader& request_reader_;
+  // Where requests come from: tgm_request, whose samples name their role, or with DDS Security
+  // one topic per role, which only that role's permissions let write (`role` set: the request's
+  // role is the topic's, whatever the sample says).
+  struct RequestSource {
+    eprosima::fastdds::dds::DataReader* reader = nullptr;
+    std::optional<Role> role;
+  };
+  std::vector<RequestSource> request_sources_;
   eprosima::fastdds::dds::DataReader& program_reader_;
   // tgm_state as another service publishes it (this service's own samples are skipped).
   eprosima::fastdds::dds::DataReader& state_reader_;

@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <thread>
 
 #include "service_test_env.hpp"
 #include "tgm/client/client.hpp"
@@ -104,7 +105,13 @@ TEST_F(ServiceSecurity, EachRoleCanWriteOnlyWhatItsPermissionsName) {
   };
   {
     dds::Participant plc(c, "plc");
-    EXPECT_NO_THROW(plc.writer<msg::RequestPubSubType>(dds::kRequestTopic));
+    EXPECT_NO_THROW(plc.writer<msg::RequestPubSubType>(dds::kRequestPlcTopic));
+    EXPECT_TRUE(refused(plc, [](dds::Participant& p) {
+      p.writer<msg::RequestPubSubType>(dds::kRequestHmiTopic);
+    })) << "the PLC may not write on the HMI's request topic";
+    EXPECT_TRUE(refused(plc, [](dds::Participant& p) {
+      p.writer<msg::RequestPubSubType>(dds::kRequestTopic);
+    })) << "nor on the one whose samples name their role";
     EXPECT_TRUE(refused(plc, [](dds::Participant& p) {
       p.writer<msg::ProgramChunkPubSubType>(dds::kProgramTopic);
     })) << "the PLC may not fill the buffer";
@@ -117,7 +124,9 @@ TEST_F(ServiceSecurity, EachRoleCanWriteOnlyWhatItsPermissionsName) {
   {
     dds::Participant hmi(c, "hmi");
     EXPECT_NO_THROW(hmi.writer<msg::ProgramChunkPubSubType>(dds::kProgramTopic));
-    EXPECT_NO_THROW(hmi.writer<msg::RequestPubSubType>(dds::kRequestTopic));
+    EXPECT_NO_THROW(hmi.writer<msg::RequestPubSubType>(dds::kRequestHmiTopic));
+    EXPECT_TRUE(refused(
+        hmi, [](dds::Participant& p) { p.writer<msg::RequestPubSubType>(dds::kRequestPlcTopic); }));
     EXPECT_TRUE(refused(hmi, [](dds::Participant& p) {
       p.writer<msg::InterpolatorEventPubSubType>(dds::kEventTopic);
     }));
@@ -128,7 +137,7 @@ TEST_F(ServiceSecurity, EachRoleCanWriteOnlyWhatItsPermissionsName) {
     dds::Participant service(c, "service");
     EXPECT_NO_THROW(service.writer<msg::InterpolatorStatePubSubType>(dds::kStateTopic));
     EXPECT_TRUE(refused(service, [](dds::Participant& p) {
-      p.writer<msg::RequestPubSubType>(dds::kRequestTopic);
+      p.writer<msg::RequestPubSubType>(dds::kRequestPlcTopic);
     })) << "the service answers requests, it does not make them";
   }
   // A role tgm-security made no identity for.
@@ -138,6 +147,42 @@ TEST_F(ServiceSecurity, EachRoleCanWriteOnlyWhatItsPermissionsName) {
   } catch (const dds::SetupError& e) {
     EXPECT_NE(std::string(e.what()).find("rogue.pem' is missing"), std::string::npos) << e.what();
   }
+}
+
+// A request's role is its topic's: a PLC identity that writes a start request claiming to be
+// the HMI (the role field of the sample) is refused as the PLC it is. Without security the
+// field is the client's word (README, "Roles").
+TEST_F(ServiceSecurity, ARequestsRoleIsThatOfTheIdentityThatWroteIt) {
+  ASSERT_TRUE(env_.start_service({"--security", sec_}));
+  client::Client hmi(secure_dds(), client::Role::kHmi);
+  ASSERT_TRUE(hmi.wait_for_state(0, kHang));
+  dds::Participant forger(secure_dds(), "plc");
+  auto& requests = forger.writer<msg::RequestPubSubType>(dds::kRequestPlcTopic);
+  auto& replies = forger.reader<msg::ReplyPubSubType>(dds::kReplyTopic);
+  ASSERT_TRUE(dds::wait_for_match(requests, 1, kHang));
+  ASSERT_TRUE(dds::wait_for_match(replies, 1, kHang));
+  msg::Request r;
+  r.request_id(7);
+  r.client_name("forger");
+  r.role(msg::CLIENT_ROLE_HMI);
+  r.interpolator(0);
+  r.kind(msg::REQUEST_KIND_CLEAR);
+  ASSERT_TRUE(requests.write(&r));
+  std::optional<msg::Reply> reply;
+  const auto deadline = std::chrono::steady_clock::now() + kHang;
+  while (!reply && std::chrono::steady_clock::now() < deadline) {
+    msg::Reply got;
+    while (dds::take_next(replies, got)) {
+      if (got.client_name() == "forger" && got.request_id() == 7) reply = got;
+    }
+    std::this_thread::sleep_for(10ms);
+  }
+  ASSERT_TRUE(reply.has_value()) << "no reply to the forged request";
+  EXPECT_FALSE(reply->accepted());
+  EXPECT_EQ(reply->code(), msg::REPLY_CODE_WRONG_ROLE) << reply->reason();
+  // The HMI's own clear, on its own topic, is its.
+  const client::Reply mine = hmi.clear(0);
+  EXPECT_TRUE(mine.accepted) << client::describe(mine);
 }
 
 TEST_F(ServiceSecurity, MissingOrForeignMaterialIsAnErrorNamingIt) {

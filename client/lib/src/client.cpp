@@ -67,7 +67,10 @@ Client::Client(const DdsConfig& config, Role role, const ClientOptions& options)
       state_reader_(participant_.reader<msg::InterpolatorStatePubSubType>(dds::kStateTopic)),
       reply_reader_(participant_.reader<msg::ReplyPubSubType>(dds::kReplyTopic)),
       message_reader_(participant_.reader<msg::MessagePubSubType>(dds::kMessageTopic)),
-      request_writer_(participant_.writer<msg::RequestPubSubType>(dds::kRequestTopic)) {
+      request_writer_(participant_.writer<msg::RequestPubSubType>(
+          config.security_dir.empty() ? dds::kRequestTopic
+          : role == Role::kPlc        ? dds::kRequestPlcTopic
+                                      : dds::kRequestHmiTopic)) {
   if (role == Role::kHmi) {
     program_writer_ = &participant_.writer<msg::ProgramChunkPubSubType>(dds::kProgramTopic);
   }

@@ -29,6 +29,13 @@ inline constexpr TopicSpec kSetpointsTopic{"tgm_setpoints", "tgm_setpoints_write
 //! tgm::msg::Request: commands, register writes, start / stop / clear (PLC, HMI -> service).
 inline constexpr TopicSpec kRequestTopic{"tgm_request", "tgm_request_writer",
                                          "tgm_request_reader"};
+//! With DDS Security (dds.security) each role writes its requests on a topic of its own, which
+//! only that role's permissions allow: the service takes a request's role from the topic it
+//! came on, so a PLC identity cannot pass a request off as the HMI's. Same QoS profiles.
+inline constexpr TopicSpec kRequestPlcTopic{"tgm_request_plc", "tgm_request_writer",
+                                            "tgm_request_reader"};
+inline constexpr TopicSpec kRequestHmiTopic{"tgm_request_hmi", "tgm_request_writer",
+                                            "tgm_request_reader"};
 //! tgm::msg::Reply: accepted or why not (service -> PLC, HMI).
 inline constexpr TopicSpec kReplyTopic{"tgm_reply", "tgm_reply_writer", "tgm_reply_reader"};
 //! tgm::msg::ProgramChunk: intercode records (HMI -> service).
