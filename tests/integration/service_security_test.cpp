@@ -6,6 +6,7 @@
 // PLC cannot write the program stream, nobody but the service can publish states or replies);
 // missing or foreign material is an error that names the file or the identity.
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 
 #include <chrono>
 #include <cstdlib>
@@ -224,6 +225,48 @@ TEST_F(ServiceSecurity, MissingOrForeignMaterialIsAnErrorNamingIt) {
   EXPECT_FALSE(make_material(other, env_.path("again.log")));
   EXPECT_NE(test::read_text(env_.path("again.log")).find("--force overwrites it"),
             std::string::npos);
+}
+
+// tgm-security's arguments: each bad one is named (exit 2); permissions for other domains than
+// the participant's are refused by Fast DDS, and the binary says so.
+TEST_F(ServiceSecurity, TheToolsArgumentsAndTheDomainsItsPermissionsAllow) {
+  auto tool = [&](const std::string& args, const std::string& log) {
+    const int rc = std::system(("'" + kTool + "' " + args + " >'" + log + "' 2>&1").c_str());
+    return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+  };
+  const std::string log = env_.path("tool.log");
+  const std::string dir = env_.path("narrow");
+  EXPECT_EQ(tool("", log), 2);
+  EXPECT_NE(test::read_text(log).find("--out DIR is required"), std::string::npos);
+  EXPECT_EQ(tool("--out " + dir + " --days 0", log), 2);
+  EXPECT_NE(test::read_text(log).find("--days takes 1..36500, not '0'"), std::string::npos);
+  EXPECT_EQ(tool("--out " + dir + " --domains 9-3", log), 2);
+  EXPECT_NE(test::read_text(log).find("--domains takes MIN-MAX within 0..232, not '9-3'"),
+            std::string::npos);
+  EXPECT_EQ(tool("--out " + dir + " --bogus", log), 2);
+  EXPECT_NE(test::read_text(log).find("unknown argument '--bogus'"), std::string::npos);
+  EXPECT_EQ(tool("--help", log), 0);
+  EXPECT_NE(test::read_text(log).find("usage: tgm-security --out DIR"), std::string::npos);
+
+  // Permissions for domains 0-99: the test's domain (100..199) is not among them, and no topic
+  // may be read or written there.
+  ASSERT_EQ(tool("--out " + dir + " --domains 0-99", log), 0) << test::read_text(log);
+  DdsConfig c = env_.dds();
+  c.security_dir = dir;
+  ASSERT_GE(c.domain_id, 100);
+  try {
+    client::Client hmi(c, client::Role::kHmi);
+    ADD_FAILURE() << "a client worked on a domain its permissions do not name";
+  } catch (const dds::SetupError& e) {
+    EXPECT_NE(std::string(e.what()).find(
+                  "not allowed by this identity's DDS Security permissions for this topic on "
+                  "domain " +
+                  std::to_string(c.domain_id) + " (tgm-security --domains)"),
+              std::string::npos)
+        << e.what();
+  }
+  c.domain_id = 99;  // within them
+  EXPECT_NO_THROW(client::Client(c, client::Role::kHmi));
 }
 
 }  // namespace

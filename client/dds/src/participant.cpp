@@ -194,7 +194,10 @@ std::string Participant::entity_error(std::string_view kind, const std::string& 
                                       std::string_view profile) const {
   return "cannot create DDS " + std::string(kind) + " on topic '" + topic + "' with profile '" +
          std::string(profile) + "' (" +
-         (secure_ ? "not allowed by this identity's DDS Security permissions, " : "") +
+         (secure_ ? "not allowed by this identity's DDS Security permissions for this topic on "
+                    "domain " +
+                        std::to_string(domain_id_) + " (tgm-security --domains), "
+                  : std::string()) +
          "unknown profile or inconsistent QoS; see the Fast DDS log above)";
 }
 
