@@ -21,6 +21,10 @@ constexpr const char* kUsage =
     "  watch          follow the registers\n"
     "  stop           normal stop on the trajectory\n"
     "  command WHAT   start, stop, clear, estop, ... or a Command code with parameters\n"
+    "\n"
+    "The commands over DDS take the DDS overrides of the config's dds section:\n"
+    "  --domain N, --profiles FILE, --participant-prefix P, --security DIR (DDS Security\n"
+    "  material of tgm-security; 'off' runs without)\n"
 #endif
     "\n"
     "Every command takes --config YAML (default: config/default.yaml) and --help;\n"
