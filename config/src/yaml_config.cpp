@@ -459,15 +459,12 @@ ConfigLoad load_config_text(const std::string& text, const std::string& path) {
     for (std::string& e : r.errors) out.errors.push_back(printable(e));
     return out;
   }
-  // Resolve the profiles file relative to the YAML file.
+  // The profiles file and the security directory are relative to the YAML file.
   namespace fs = std::filesystem;
-  if (!cfg.dds.profiles_file.empty() && fs::path(cfg.dds.profiles_file).is_relative() &&
-      !path.empty()) {
-    cfg.dds.profiles_file = (fs::path(path).parent_path() / cfg.dds.profiles_file).string();
-  }
-  if (!cfg.dds.security_dir.empty() && fs::path(cfg.dds.security_dir).is_relative() &&
-      !path.empty()) {
-    cfg.dds.security_dir = (fs::path(path).parent_path() / cfg.dds.security_dir).string();
+  for (std::string* p : {&cfg.dds.profiles_file, &cfg.dds.security_dir}) {
+    if (!p->empty() && fs::path(*p).is_relative() && !path.empty()) {
+      *p = (fs::path(path).parent_path() / *p).string();
+    }
   }
   out.config = std::move(cfg);
   return out;

@@ -116,7 +116,7 @@ Participant::Participant(const DdsConfig& config, std::string_view role, std::st
     secure_ = true;
   }
   participant_ = factory->create_participant(static_cast<fdds::DomainId_t>(domain_id_), qos);
-  if (participant_ == nullptr && !config.security_dir.empty()) {
+  if (participant_ == nullptr && secure_) {
     throw SetupError("cannot create DDS participant '" + name_ + "' on domain " +
                      std::to_string(domain_id_) + ": DDS Security refused the " +
                      std::string(role) + " identity or permissions in '" + config.security_dir +

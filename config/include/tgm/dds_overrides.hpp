@@ -104,4 +104,11 @@ inline std::string dds_security_problem(const DdsConfig& c, std::string_view rol
   return {};
 }
 
+//! dds_profiles_problem, then dds_security_problem for the participant of `role`: what the
+//! binaries check before any DDS entity exists (a problem is a config error, exit 2).
+inline std::string dds_config_problem(const DdsConfig& c, std::string_view role) {
+  if (std::string why = dds_profiles_problem(c); !why.empty()) return why;
+  return dds_security_problem(c, role);
+}
+
 }  // namespace tgm
