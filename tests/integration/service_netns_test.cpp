@@ -202,13 +202,10 @@ TEST_F(ServiceNetns, ManualExampleAcrossThreeNetworkNamespaces) {
 // governance.p7s and the role's certificate, key and permissions), as each machine of a cell
 // would: authentication, access control and encryption across hosts (README, "DDS Security").
 TEST_F(ServiceNetns, ManualExampleAcrossThreeNamespacesWithDdsSecurity) {
-  if (std::system("command -v openssl >/dev/null 2>&1") != 0) GTEST_SKIP() << "no openssl";
+  if (!test::have_openssl()) GTEST_SKIP() << "no openssl";
   test::ServiceEnv env(edits());
   const std::string all = env.path("security");
-  ASSERT_EQ(std::system(("'" TGM_SOURCE_DIR "/config/security/tgm-security' --out '" + all +
-                         "' >/dev/null 2>&1")
-                            .c_str()),
-            0);
+  ASSERT_TRUE(test::make_security_material(all));
   auto role_dir = [&](const std::string& role) {
     const std::string dir = env.path(role + "-security");
     std::filesystem::create_directories(dir);

@@ -28,24 +28,12 @@ using namespace std::chrono_literals;
 using test::ServiceEnv;
 
 constexpr auto kHang = 60s;
-const std::string kTool = TGM_SOURCE_DIR "/config/security/tgm-security";
-
-// Runs tgm-security --out `dir` (quietly); false when it failed.
-bool make_material(const std::string& dir, const std::string& log) {
-  const std::string cmd = "'" + kTool + "' --out '" + dir + "' >'" + log + "' 2>&1";
-  return std::system(cmd.c_str()) == 0;
-}
-
-bool have_openssl() {
-  return std::system("command -v openssl >/dev/null 2>&1") == 0;
-}
-
 class ServiceSecurity : public ::testing::Test {
  protected:
   void SetUp() override {
-    if (!have_openssl()) GTEST_SKIP() << "no openssl command (.ci/deps installs it)";
+    if (!test::have_openssl()) GTEST_SKIP() << "no openssl command (.ci/deps installs it)";
     sec_ = env_.path("security");
-    ASSERT_TRUE(make_material(sec_, env_.path("tgm-security.log")))
+    ASSERT_TRUE(test::make_security_material(sec_, env_.path("tgm-security.log")))
         << test::read_text(env_.path("tgm-security.log"));
   }
   DdsConfig secure_dds() const {
@@ -209,7 +197,7 @@ TEST_F(ServiceSecurity, MissingOrForeignMaterialIsAnErrorNamingIt) {
   // An identity of another installation (another CA): Fast DDS refuses it, and the HMI says
   // which identity and where.
   const std::string other = env_.path("other");
-  ASSERT_TRUE(make_material(other, env_.path("other.log")));
+  ASSERT_TRUE(test::make_security_material(other, env_.path("other.log")));
   std::filesystem::copy_file(other + "/hmi.pem", sec_ + "/hmi.pem",
                              std::filesystem::copy_options::overwrite_existing);
   std::filesystem::copy_file(other + "/hmi.key", sec_ + "/hmi.key",
@@ -222,7 +210,7 @@ TEST_F(ServiceSecurity, MissingOrForeignMaterialIsAnErrorNamingIt) {
       << hmi.log();
 
   // The tool refuses to overwrite material, and says how.
-  EXPECT_FALSE(make_material(other, env_.path("again.log")));
+  EXPECT_FALSE(test::make_security_material(other, env_.path("again.log")));
   EXPECT_NE(test::read_text(env_.path("again.log")).find("--force overwrites it"),
             std::string::npos);
 }
@@ -231,7 +219,8 @@ TEST_F(ServiceSecurity, MissingOrForeignMaterialIsAnErrorNamingIt) {
 // the participant's are refused by Fast DDS, and the binary says so.
 TEST_F(ServiceSecurity, TheToolsArgumentsAndTheDomainsItsPermissionsAllow) {
   auto tool = [&](const std::string& args, const std::string& log) {
-    const int rc = std::system(("'" + kTool + "' " + args + " >'" + log + "' 2>&1").c_str());
+    const int rc =
+        std::system(("'" + test::kSecurityTool + "' " + args + " >'" + log + "' 2>&1").c_str());
     return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
   };
   const std::string log = env_.path("tool.log");

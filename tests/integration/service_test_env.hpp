@@ -9,6 +9,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -88,6 +89,20 @@ inline std::array<double, 3> run_end_position(const std::string& log) {
   if (const auto at = log.find("end position "); at != std::string::npos)
     std::sscanf(log.c_str() + at, "end position X%lf Y%lf Z%lf", &end[0], &end[1], &end[2]);
   return end;
+}
+
+//! config/security/tgm-security, which makes DDS Security material.
+inline const std::string kSecurityTool = TGM_SOURCE_DIR "/config/security/tgm-security";
+
+//! The openssl command tgm-security needs is there.
+inline bool have_openssl() {
+  return std::system("command -v openssl >/dev/null 2>&1") == 0;
+}
+
+//! Runs tgm-security --out `dir`, its output to `log`; false when it failed.
+inline bool make_security_material(const std::string& dir, const std::string& log = "/dev/null") {
+  const std::string cmd = "'" + kSecurityTool + "' --out '" + dir + "' >'" + log + "' 2>&1";
+  return std::system(cmd.c_str()) == 0;
 }
 
 }  // namespace tgm::test
