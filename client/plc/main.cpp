@@ -25,6 +25,7 @@
 #include <cstdarg>
 #include <cstdio>
 #include <cstdlib>
+#include <deque>
 #include <filesystem>
 #include <map>
 #include <mutex>
@@ -149,6 +150,24 @@ struct EventSeen {
   //! the main loop again after one was left unanswered.
   enum class Via { kEvent, kLoop, kRepeat };
   Via via = Via::kEvent;
+};
+
+// A request of the PLC's own (Rel_Speed, the basic parameters, --try-start, a script action),
+// written without waiting for its reply so that the main loop keeps serving M-functions and
+// signals meanwhile. One at a time per interpolator, in order (main loop only).
+struct SetupRequest {
+  tgm::msg::Request request;
+  std::string what;           // the log line before ": <reply>"
+  bool quiet_ok = false;      // under --quiet, logged only when refused or unanswered
+  int attempts = 1;           // written this often at most while unanswered (basic parameters: 3)
+  int attempt = 0;            // the attempt written last
+  std::uint64_t id = 0;       // request_id once written
+  Clock::time_point since{};  // when this attempt was first tried, or written
+};
+struct SetupQueue {
+  std::deque<SetupRequest> items;
+  int total = 0, accepted = 0;
+  bool report = false;  // "setup done" is due once the items are answered
 };
 
 // One interpolator as the PLC sees it (main loop only).
@@ -346,6 +365,73 @@ int plc_main(int argc, char** argv) {
       tgm::cli::version());
   if (!rt_log.empty()) append_log(pending_log, stamp(), "%s", rt_log.c_str());
 
+  // The PLC's own requests per interpolator (SetupRequest), pumped once per main-loop pass.
+  std::map<int, SetupQueue> setup;
+  auto queue_request = [&](int interpolator, tgm::msg::Request request, std::string what,
+                           bool quiet_ok, int attempts) {
+    SetupQueue& q = setup[interpolator];
+    q.items.push_back(SetupRequest{std::move(request), std::move(what), quiet_ok, attempts});
+    ++q.total;
+  };
+  // Writes the next request of each queue, logs the replies that came, and writes an
+  // unanswered one again after 3 s (the clients' request timeout) while it has attempts left.
+  // A request that cannot be written (no service matched, the request window full) is tried
+  // for 3 s. `stopping`: nothing is written any more, replies are still taken; `final`: what
+  // is left is logged as not answered.
+  auto pump_setup = [&](bool stopping, bool final) {
+    for (auto& [number, q] : setup) {
+      while (!q.items.empty()) {
+        SetupRequest& r = q.items.front();
+        const auto now = Clock::now();
+        if (r.id == 0 && stopping && !final) break;
+        if (r.id == 0 && !stopping) {
+          if (r.since == Clock::time_point{}) {
+            r.since = now;
+            ++r.attempt;
+          }
+          r.id = plc->send(r.request);
+          if (r.id != 0) {
+            r.since = now;
+            break;
+          }
+          if (now - r.since < 3s) break;
+        } else if (r.id != 0) {
+          if (std::optional<tgm::client::Reply> reply = plc->take_reply(r.id)) {
+            if (reply->accepted) ++q.accepted;
+            if (!quiet || !r.quiet_ok || !reply->accepted) {
+              append_log(pending_log, stamp(), "%s: %s", r.what.c_str(),
+                         tgm::client::describe(*reply).c_str());
+            }
+            q.items.pop_front();
+            continue;
+          }
+          if (now - r.since < 3s && !final) break;
+        }
+        tgm::client::Reply none;
+        none.timed_out = true;
+        none.sent = r.id != 0;
+        none.waited = std::chrono::duration_cast<std::chrono::milliseconds>(now - r.since);
+        if (r.attempt < r.attempts && !stopping) {
+          append_log(pending_log, stamp(), "%s: %s; sending it again (%d of %d)", r.what.c_str(),
+                     tgm::client::describe(none).c_str(), r.attempt + 1, r.attempts);
+          r.id = 0;
+          r.since = Clock::time_point{};
+          continue;
+        }
+        append_log(pending_log, stamp(), "%s: %s", r.what.c_str(),
+                   !final      ? tgm::client::describe(none).c_str()
+                   : r.id != 0 ? "no reply before the stop"
+                               : "not sent before the stop");
+        q.items.pop_front();
+      }
+      if (q.items.empty() && q.report) {
+        q.report = false;
+        append_log(pending_log, stamp(), "interpolator %d: setup done (%d of %d requests accepted)",
+                   number, q.accepted, q.total);
+      }
+    }
+  };
+
   std::vector<AckTrace> traces;
   if (!trace_path.empty()) traces.reserve(100'000);
   auto trace = [&](const AckTrace& t) {
@@ -542,6 +628,7 @@ int plc_main(int argc, char** argv) {
     plc->poll(5ms);
     take_event_seen();
     take_acked_replies(false);
+    pump_setup(false, false);
     const auto now = Clock::now();
     for (Served& sv : served) {
       const tgm::msg::InterpolatorState* s = plc->state(sv.number);
@@ -566,6 +653,13 @@ int plc_main(int argc, char** argv) {
         sv.ack_m = 0;
         sv.unanswered_m = 0;
         events_matched = false;
+        if (SetupQueue& q = setup[sv.number]; !q.items.empty()) {
+          append_log(pending_log, stamp(),
+                     "interpolator %d: %zu requests of the PLC's own dropped: they were for the "
+                     "service before its restart",
+                     sv.number, q.items.size());
+          q = SetupQueue{};
+        }
       }
       if (!sv.found) {
         sv.instance = s->service_instance();
@@ -587,10 +681,15 @@ int plc_main(int argc, char** argv) {
         }
         // Basic parameters (the manual: the PLC sets them): Rel_Speed and the Command
         // structure with the config's smoothing and gear ratios.
+        SetupQueue& queue = setup[sv.number];
+        queue = SetupQueue{};
+        queue.report = true;
+        char what[160];
         if (rel_speed) {
-          append_log(pending_log, stamp(), "interpolator %d: Rel_Speed = %g: %s", sv.number,
-                     *rel_speed,
-                     tgm::client::describe(plc->set_rel_speed(sv.number, *rel_speed)).c_str());
+          std::snprintf(what, sizeof what, "interpolator %d: Rel_Speed = %g", sv.number,
+                        *rel_speed);
+          queue_request(sv.number, tgm::client::rel_speed_request(sv.number, *rel_speed), what,
+                        false, 1);
         }
         // The basic parameters go by axis index (gear ratios, the IIR axis mask): from a config
         // whose axes are not the service's they would set the wrong axes.
@@ -612,50 +711,33 @@ int plc_main(int argc, char** argv) {
           // A request left unanswered is sent again, twice at most: setting the same
           // parameters twice is harmless, and a lossy network can lose the request or its reply
           // for longer than the timeout (30 % loss left one interpolator without them).
-          auto command = [&](std::int32_t code, std::span<const std::int32_t> params,
-                             const char* what) {
-            tgm::client::Reply r = plc->command(sv.number, code, params);
-            for (int attempt = 2; attempt <= 3 && r.timed_out; ++attempt) {
-              append_log(pending_log, stamp(),
-                         "interpolator %d: basic parameters: %s: %s; sending it again (%d of 3)",
-                         sv.number, what, tgm::client::describe(r).c_str(), attempt);
-              r = plc->command(sv.number, code, params);
-            }
-            return r;
-          };
-          const auto r2 = command(-2, spline, "Command -2");
-          const auto r1 = command(-1, iir, "Command -1");
-          std::string ratio_log;
+          // --quiet still logs a refusal: it is an error (e.g. the interpolator was already
+          // running a program when the PLC came up).
+          std::snprintf(what, sizeof what,
+                        "interpolator %d: basic parameters: Command -2 (spline %d points)",
+                        sv.number, sm.spline_points);
+          queue_request(sv.number, tgm::client::command_request(sv.number, -2, spline), what, true,
+                        3);
+          std::snprintf(what, sizeof what,
+                        "interpolator %d: basic parameters: Command -1 (IIR mask 0x%x)", sv.number,
+                        sm.iir_axis_mask);
+          queue_request(sv.number, tgm::client::command_request(sv.number, -1, iir), what, true, 3);
           const auto& axes = config.machine.interpolators[static_cast<std::size_t>(sv.number)].axes;
-          tgm::client::Reply r1024;
           for (std::size_t a = 0; a < axes.size(); ++a) {
             // Ratio as counter [inc] / denominator [mm] with 1e-3 mm resolution.
             const std::int32_t ratio[] = {static_cast<std::int32_t>(a),
                                           static_cast<std::int32_t>(axes[a].ratio_inc_per_mm * 1000.0 + 0.5), 1000};
-            const auto r = command(1024, ratio, "Command 1024");
-            if (a == 0 || (r1024.accepted && !r.accepted)) r1024 = r;  // report the first refusal
-          }
-          // --quiet still logs a refusal: it is an error (e.g. the interpolator was already
-          // running a program when the PLC came up).
-          if (!quiet || !r2.accepted) {
-            append_log(pending_log, stamp(),
-                       "interpolator %d: basic parameters: Command -2 (spline %d points): %s",
-                       sv.number, sm.spline_points, tgm::client::describe(r2).c_str());
-          }
-          if (!quiet || !r1.accepted) {
-            append_log(pending_log, stamp(),
-                       "interpolator %d: basic parameters: Command -1 (IIR mask 0x%x): %s",
-                       sv.number, sm.iir_axis_mask, tgm::client::describe(r1).c_str());
-          }
-          if (!quiet || !r1024.accepted) {
-            append_log(pending_log, stamp(),
-                       "interpolator %d: basic parameters: Command 1024 (gear ratio, %zu axes): %s",
-                       sv.number, axes.size(), tgm::client::describe(r1024).c_str());
+            std::snprintf(what, sizeof what,
+                          "interpolator %d: basic parameters: Command 1024 (gear ratio of axis %c)",
+                          sv.number, config.machine.axis_letters(sv.number)[a]);
+            queue_request(sv.number, tgm::client::command_request(sv.number, 1024, ratio), what,
+                          true, 3);
           }
         }
         if (try_start) {
-          append_log(pending_log, stamp(), "interpolator %d: trying to start as the PLC: %s",
-                     sv.number, tgm::client::describe(plc->start(sv.number)).c_str());
+          std::snprintf(what, sizeof what, "interpolator %d: trying to start as the PLC",
+                        sv.number);
+          queue_request(sv.number, tgm::client::start_request(sv.number), what, false, 1);
         }
         if (!found_at) found_at = Clock::now();
       }
@@ -748,21 +830,25 @@ int plc_main(int argc, char** argv) {
         const tgm::PlcScriptStep& st = script[k];
         if (script_done[k] || t < st.at_s) continue;
         script_done[k] = true;
+        char what[160];
         if (st.rel_speed) {
-          append_log(
-              pending_log, stamp(), "script line %d: interpolator %d: Rel_Speed = %g: %s", st.line,
-              st.interpolator, *st.rel_speed,
-              tgm::client::describe(plc->set_rel_speed(st.interpolator, *st.rel_speed)).c_str());
+          std::snprintf(what, sizeof what, "script line %d: interpolator %d: Rel_Speed = %g",
+                        st.line, st.interpolator, *st.rel_speed);
+          queue_request(st.interpolator,
+                        tgm::client::rel_speed_request(st.interpolator, *st.rel_speed), what, false,
+                        1);
         }
         if (st.command) {
-          append_log(pending_log, stamp(), "script line %d: interpolator %d: Command %d: %s",
-                     st.line, st.interpolator, *st.command,
-                     tgm::client::describe(plc->command(st.interpolator, *st.command)).c_str());
+          std::snprintf(what, sizeof what, "script line %d: interpolator %d: Command %d", st.line,
+                        st.interpolator, *st.command);
+          queue_request(st.interpolator, tgm::client::command_request(st.interpolator, *st.command),
+                        what, false, 1);
         }
         if (st.start) {
-          append_log(pending_log, stamp(), "script line %d: interpolator %d: start as the PLC: %s",
-                     st.line, st.interpolator,
-                     tgm::client::describe(plc->start(st.interpolator)).c_str());
+          std::snprintf(what, sizeof what, "script line %d: interpolator %d: start as the PLC",
+                        st.line, st.interpolator);
+          queue_request(st.interpolator, tgm::client::start_request(st.interpolator), what, false,
+                        1);
         }
         for (int m : st.refuse_ack) {
           {
@@ -779,11 +865,20 @@ int plc_main(int argc, char** argv) {
   // Replies still on their way get a moment (a stop right after an acknowledgement).
   plc->poll(std::chrono::nanoseconds(0));
   take_event_seen();
-  for (const auto until = Clock::now() + 1s; !acked.empty() && Clock::now() < until;) {
+  auto setup_written = [&] {
+    for (const auto& [number, q] : setup) {
+      if (!q.items.empty() && q.items.front().id != 0) return true;
+    }
+    return false;
+  };
+  for (const auto until = Clock::now() + 1s;
+       (!acked.empty() || setup_written()) && Clock::now() < until;) {
     take_acked_replies(false);
-    if (!acked.empty()) plc->poll(5ms);
+    pump_setup(true, false);
+    if (!acked.empty() || setup_written()) plc->poll(5ms);
   }
   take_acked_replies(true);
+  pump_setup(true, true);
   if (events) {
     append_log(pending_log, stamp(),
                "events: %llu received, %llu lost, %llu written before the PLC joined",

@@ -393,10 +393,10 @@ TEST(ServiceProcesses, PlcServesARestartedServiceAtOnceAndSeesEqualMFunctionsApa
   // The PLC sets the basic parameters of each interpolator as it finds it: a program started
   // before that would have them refused.
   auto wait_found = [&](int n) {
-    for (int i = 0; i < 200 && test::count_of(plc.log(), ": found (") < n; ++i) {
+    for (int i = 0; i < 200 && test::count_of(plc.log(), ": setup done (") < n; ++i) {
       std::this_thread::sleep_for(50ms);
     }
-    return test::count_of(plc.log(), ": found (");
+    return test::count_of(plc.log(), ": setup done (");
   };
   ASSERT_EQ(wait_found(3), 3) << plc.log();
   auto run = [&](const char* log) {
@@ -420,7 +420,9 @@ TEST(ServiceProcesses, PlcServesARestartedServiceAtOnceAndSeesEqualMFunctionsApa
   EXPECT_EQ(plc.interrupt(), 0);
   const std::string log = plc.log();
   EXPECT_EQ(test::count_of(log, "tgm-service restarted (instance"), 3) << log;
-  EXPECT_EQ(test::count_of(log, "Command 1024 (gear ratio, 3 axes): accepted"), 6) << log;
+  // Commands -2, -1 and 1024 for each of the 3 axes, each accepted, from both services.
+  EXPECT_EQ(test::count_of(log, "Command 1024 (gear ratio of axis Z): accepted"), 6) << log;
+  EXPECT_EQ(test::count_of(log, ": setup done (5 of 5 requests accepted)"), 6) << log;
   EXPECT_EQ(test::count_of(log, "M1001 continuous"), 4) << log;
   EXPECT_EQ(test::count_of(log, "M1001 noted"), 4) << log;
   EXPECT_EQ(test::count_of(log, "M50 acknowledged"), 2) << log;
@@ -866,7 +868,7 @@ TEST(ServiceProcesses, HmiRunRefusesProgramsOfOtherAxisLetters) {
             env.path(cfg) + ") has XYC: give tgm-plc the service's config") != std::string::npos,
         rotary_plc)
         << plc.log();
-    EXPECT_EQ(plc.log().find("Command 1024 (gear ratio, 3 axes): accepted") != std::string::npos,
+    EXPECT_EQ(plc.log().find("Command 1024 (gear ratio of axis Z): accepted") != std::string::npos,
               !rotary_plc)
         << plc.log();
   }

@@ -141,7 +141,8 @@ TEST(ServiceSoak, ProgramAfterProgramEndsWhereTheSimulationEndsAndMemoryStaysBou
   // The PLC sets the basic parameters of each interpolator it finds, which only a standing
   // interpolator takes: let it find all of them before the first program starts.
   const auto found_by = std::chrono::steady_clock::now() + 30s;
-  while (test::count_of(plc.log(), ": found (") < static_cast<int>(machine.interpolators.size()) &&
+  while (test::count_of(plc.log(), ": setup done (") <
+             static_cast<int>(machine.interpolators.size()) &&
          std::chrono::steady_clock::now() < found_by) {
     std::this_thread::sleep_for(20ms);
   }

@@ -364,17 +364,38 @@ msg::Request m_func_ack(int interpolator, std::int32_t m, std::uint32_t count) {
 }
 }  // namespace
 
-Reply Client::start(int i) { return request(make(i, msg::REQUEST_KIND_START)); }
-Reply Client::stop(int i) { return request(make(i, msg::REQUEST_KIND_STOP)); }
-Reply Client::clear(int i) { return request(make(i, msg::REQUEST_KIND_CLEAR)); }
+msg::Request start_request(int interpolator) {
+  return make(interpolator, msg::REQUEST_KIND_START);
+}
 
-Reply Client::command(int i, std::int32_t code, std::span<const std::int32_t> params) {
-  msg::Request r = make(i, msg::REQUEST_KIND_COMMAND);
+msg::Request command_request(int interpolator, std::int32_t code,
+                             std::span<const std::int32_t> params) {
+  msg::Request r = make(interpolator, msg::REQUEST_KIND_COMMAND);
   r.command(code);
   for (std::size_t k = 0; k < params.size() && k < r.command_parameter().size(); ++k) {
     r.command_parameter()[k] = params[k];
   }
-  return request(r);
+  return r;
+}
+
+msg::Request rel_speed_request(int interpolator, double rel_speed) {
+  msg::Request r = make(interpolator, msg::REQUEST_KIND_WRITE_REL_SPEED);
+  r.value(rel_speed);
+  return r;
+}
+
+Reply Client::start(int i) {
+  return request(start_request(i));
+}
+Reply Client::stop(int i) {
+  return request(make(i, msg::REQUEST_KIND_STOP));
+}
+Reply Client::clear(int i) {
+  return request(make(i, msg::REQUEST_KIND_CLEAR));
+}
+
+Reply Client::command(int i, std::int32_t code, std::span<const std::int32_t> params) {
+  return request(command_request(i, code, params));
 }
 
 Reply Client::ack_m_func(int i, std::int32_t m, std::uint32_t count) {
@@ -386,9 +407,7 @@ std::uint64_t Client::send_ack_m_func(int i, std::int32_t m, std::uint32_t count
 }
 
 Reply Client::set_rel_speed(int i, double rel_speed) {
-  msg::Request r = make(i, msg::REQUEST_KIND_WRITE_REL_SPEED);
-  r.value(rel_speed);
-  return request(r);
+  return request(rel_speed_request(i, rel_speed));
 }
 
 // ---- ProgramSender ----

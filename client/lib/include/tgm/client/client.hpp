@@ -77,6 +77,13 @@ std::string describe(const Reply& r);
 //! "empty", "running", "ended", "ready", "emergency ramp", "emergency stopped", "underrun".
 std::string_view status_name(std::int32_t status);
 
+//! Requests as start(), command() and set_rel_speed() send them, for Client::send() (which
+//! does not wait for the reply).
+msg::Request start_request(int interpolator);
+msg::Request command_request(int interpolator, std::int32_t code,
+                             std::span<const std::int32_t> params = {});
+msg::Request rel_speed_request(int interpolator, double rel_speed);
+
 //! One event sample as the event callback gets it.
 struct Event {
   msg::InterpolatorEvent sample;
