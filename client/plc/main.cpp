@@ -44,6 +44,7 @@
 #include "tgm/dds_overrides.hpp"
 #include "tgm/plc_script.hpp"
 #include "tgm/registers.hpp"
+#include "tgm/systemd_notify.hpp"
 #include "tgm/yaml_config.hpp"
 
 namespace {
@@ -103,7 +104,11 @@ constexpr const char* kUsage =
     "  --rt-priority N      run the emulator (all its threads) SCHED_FIFO at N, 1..98, when\n"
     "                       permitted (a real PLC task is real-time; default: normal)\n"
     "  --help               this text\n"
-    "  --version            print tgm-plc's version\n";
+    "  --version            print tgm-plc's version\n"
+    "\n"
+    "Under systemd (a unit of Type=notify, see config/systemd/tgm-plc.service) it reports\n"
+    "READY=1 once its DDS entities exist, what it serves in STATUS=, and STOPPING=1; with\n"
+    "WatchdogSec= it pings the watchdog from its main loop.\n";
 
 std::atomic<bool> g_stop{false};
 void on_signal(int) { g_stop = true; }
@@ -621,9 +626,31 @@ int plc_main(int argc, char** argv) {
   auto last_wait_log = Clock::now();
   tgm::client::SilenceWatch silence(3s);
   tgm::dds::MalformedWatch malformed;
+  // systemd (Type=notify): ready once the DDS entities exist; the watchdog is pinged while the
+  // main loop turns (a hung loop acknowledges nothing and is restarted).
+  const tgm::SystemdNotifier notifier = tgm::SystemdNotifier::from_environment();
+  if (!notifier.problem().empty())
+    append_log(pending_log, stamp(), "%s", notifier.problem().c_str());
+  notifier.ready("waiting for tgm-service on DDS domain " + std::to_string(config.dds.domain_id));
+  tgm::WatchdogGate gate(notifier.watchdog_us());
+  std::uint64_t passes = 0;
+  auto say_serving = [&] {
+    std::string text = "serving interpolator";
+    if (served.size() != 1) text += 's';
+    for (std::size_t k = 0; k < served.size(); ++k) {
+      text += (k == 0 ? " " : ", ") + std::to_string(served[k].number);
+    }
+    notifier.status(text + " on DDS domain " + std::to_string(config.dds.domain_id));
+  };
   flush_log();
   while (!g_stop) {
     flush_log();
+    if (notifier.watchdog_us() > 0 &&
+        gate.due(++passes, std::chrono::duration_cast<std::chrono::microseconds>(
+                               Clock::now().time_since_epoch())
+                               .count())) {
+      notifier.watchdog();
+    }
     if (duration_s > 0.0 && stamp() >= duration_s) break;
     plc->poll(5ms);
     take_event_seen();
@@ -666,6 +693,7 @@ int plc_main(int argc, char** argv) {
         sv.found = true;
         append_log(pending_log, stamp(), "interpolator %d: found (status %d %s)", sv.number,
                    s->status(), std::string(tgm::client::status_name(s->status())).c_str());
+        say_serving();
         // Events are VOLATILE: those written before the event reader matched never arrive.
         // Match before the first request, so that whatever this PLC causes from here on is seen
         // as an event (the state carries it either way: the fall-back when no match comes).
@@ -822,8 +850,10 @@ int plc_main(int argc, char** argv) {
       if (change == tgm::client::SilenceWatch::Change::kSilent) {
         append_log(pending_log, stamp(),
                    "no state from tgm-service for 3 s (stopped, or the network is down): waiting");
+        notifier.status("no state from tgm-service for 3 s: waiting");
       } else if (change == tgm::client::SilenceWatch::Change::kBack) {
         append_log(pending_log, stamp(), "tgm-service is back");
+        say_serving();
       }
       const double t = std::chrono::duration<double>(now - *found_at).count();
       for (std::size_t k = 0; k < script.size(); ++k) {
@@ -861,6 +891,7 @@ int plc_main(int argc, char** argv) {
       }
     }
   }
+  notifier.stopping();
   // Every M-function seen and every acknowledgement is logged, even when the stop came first.
   // Replies still on their way get a moment (a stop right after an acknowledgement).
   plc->poll(std::chrono::nanoseconds(0));

@@ -1,6 +1,7 @@
 #include "dds_port.hpp"
 
 #include <linux/futex.h>
+#include <pthread.h>
 #include <sys/syscall.h>
 #include <unistd.h>
 
@@ -161,11 +162,17 @@ std::uint64_t DdsPort::other_service(std::chrono::milliseconds wait) {
 }
 
 void DdsPort::start() {
-  receiver_ = std::thread([this] { receive_loop(); });
+  receiver_ = std::thread([this] {
+    pthread_setname_np(pthread_self(), "tgm-receive");
+    receive_loop();
+  });
   for (const RequestSource& src : request_sources_) {
     src.reader->set_listener(&request_listener_, fdds::StatusMask::data_available());
   }
-  publisher_ = std::thread([this] { publish_loop(); });
+  publisher_ = std::thread([this] {
+    pthread_setname_np(pthread_self(), "tgm-publish");
+    publish_loop();
+  });
 }
 
 void DdsPort::stop(std::atomic<const char*>* stage) {

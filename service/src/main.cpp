@@ -24,6 +24,7 @@
 #include "tgm/dds_overrides.hpp"
 #include "tgm/service/engine.hpp"
 #include "tgm/service/rt_loop.hpp"
+#include "tgm/systemd_notify.hpp"
 #include "tgm/yaml_config.hpp"
 
 namespace {
@@ -62,7 +63,11 @@ constexpr const char* kUsage =
     "  --stats FILE           write lateness, handshake and counter figures as JSON at exit\n"
     "  --handshake-trace FILE write the time stamps of every M-function handshake as CSV at exit\n"
     "  --help                 this text\n"
-    "  --version              print tgm-service's version\n";
+    "  --version              print tgm-service's version\n"
+    "\n"
+    "Under systemd (a unit of Type=notify, see config/systemd/tgm-service.service) it reports\n"
+    "READY=1 once its cycle runs, its state in STATUS=, and STOPPING=1; with WatchdogSec= it\n"
+    "pings the watchdog only while the cycle thread makes progress.\n";
 
 std::int64_t percentile(std::vector<std::int64_t> v, double q) {
   if (v.empty()) return 0;
@@ -204,6 +209,11 @@ int service_main(int argc, char** argv) {
       }
     }
   }
+  // systemd (Type=notify): a set but unusable $NOTIFY_SOCKET is said, not fatal.
+  const tgm::SystemdNotifier notifier = tgm::SystemdNotifier::from_environment();
+  if (!notifier.problem().empty()) {
+    std::fprintf(stderr, "tgm-service: %s\n", notifier.problem().c_str());
+  }
   std::unique_ptr<tgm::service::DdsPort> port;
   try {
     port = std::make_unique<tgm::service::DdsPort>(config.dds, port_options);
@@ -215,6 +225,8 @@ int service_main(int argc, char** argv) {
   // same axes: refuse to start next to a live one (a dead one publishes nothing, so a restart
   // after a crash is not held up by its participant lease).
   if (service_check_ms > 0) {
+    notifier.status("looking for another tgm-service on DDS domain " +
+                    std::to_string(config.dds.domain_id));
     std::printf("tgm-service: looking %lld ms for another tgm-service on DDS domain %d\n",
                 service_check_ms, config.dds.domain_id);
     std::fflush(stdout);
@@ -243,6 +255,8 @@ int service_main(int argc, char** argv) {
   std::atomic<bool> stop{false};
   tgm::service::RtLoop loop(*engine, *port, period_ns);
   std::thread cycle_thread([&] {
+    // Named for top -H, perf and gdb (and found by that name in the watchdog test).
+    pthread_setname_np(pthread_self(), "tgm-cycle");
     const std::string rt_log = tgm::service::make_realtime(rt);
     std::printf("tgm-service: %s\n", rt_log.c_str());
     std::fflush(stdout);
@@ -250,15 +264,51 @@ int service_main(int argc, char** argv) {
   });
 
   // Runs until a signal, the --duration or, in the first cycles, another service this one gives
-  // way to (DdsPortOptions::yield_window_cycles); looked at every 100 ms.
+  // way to (DdsPortOptions::yield_window_cycles); looked at every 100 ms, or four times per
+  // systemd watchdog interval when that is shorter.
   int sig = 0;
   tgm::dds::MalformedWatch malformed;  // samples a participant wrote that cannot be read
   {
     const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(duration_s);
+    const std::string serving = std::to_string(engine->count()) + " interpolator" +
+                                (engine->count() == 1 ? "" : "s") + ", cycle " +
+                                std::to_string(config.machine.cycle_time_us) + " us, DDS domain " +
+                                std::to_string(config.dds.domain_id);
+    bool ready = false;
+    tgm::WatchdogGate gate(notifier.watchdog_us());
+    long slice_ns = 100'000'000;
+    if (notifier.watchdog_us() > 0) {
+      slice_ns =
+          std::clamp<long>(static_cast<long>(notifier.watchdog_us() * 250), 1'000'000, slice_ns);
+    }
+    bool said_stall = false;
     while (port->yielded_to() == 0 &&
            (duration_s <= 0.0 || std::chrono::steady_clock::now() < until)) {
+      if (notifier.enabled()) {
+        const std::uint64_t cycles = loop.heartbeat();
+        // Ready once the cycle has run: the interpolators answer and publish from then on.
+        if (!ready && cycles > 0) ready = notifier.ready("serving " + serving);
+        const auto now_us = std::chrono::duration_cast<std::chrono::microseconds>(
+                                std::chrono::steady_clock::now().time_since_epoch())
+                                .count();
+        if (ready && gate.due(cycles, now_us)) notifier.watchdog();
+        // A stalled cycle thread is restarted by systemd: say so while it can still be read.
+        if (notifier.watchdog_us() > 0 && gate.stalled_us() >= notifier.watchdog_us() / 2) {
+          if (!said_stall) {
+            std::fprintf(stderr,
+                         "tgm-service: the cycle thread has not run for %.1f s: no watchdog "
+                         "ping to systemd (WatchdogSec=%.1f s)\n",
+                         static_cast<double>(gate.stalled_us()) / 1e6,
+                         static_cast<double>(notifier.watchdog_us()) / 1e6);
+            std::fflush(stderr);
+            said_stall = true;
+          }
+        } else {
+          said_stall = false;
+        }
+      }
       timespec slice{};
-      slice.tv_nsec = 100'000'000;
+      slice.tv_nsec = slice_ns;
       if (duration_s > 0.0) {
         const auto left = std::chrono::duration_cast<std::chrono::nanoseconds>(
             until - std::chrono::steady_clock::now());
@@ -277,12 +327,14 @@ int service_main(int argc, char** argv) {
     }
   }
   const std::uint64_t yielded_to = port->yielded_to();
+  notifier.stopping();
   // The stop can wait on other threads (the cycle, Fast DDS callbacks, the participant's
   // shutdown). A watchdog says where it is when that takes long, and a second signal ends the
   // process at once: an operator is never left with a service that ignores Ctrl-C.
   std::atomic<const char*> stage{"joining the cycle thread"};
   std::atomic<bool> stopped{false};
   std::thread watchdog([&] {
+    pthread_setname_np(pthread_self(), "tgm-stopping");
     const auto begin = std::chrono::steady_clock::now();
     auto report = begin + std::chrono::seconds(5);
     while (!stopped.load(std::memory_order_acquire)) {

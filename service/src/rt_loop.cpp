@@ -90,6 +90,7 @@ void RtLoop::run(const std::atomic<bool>& stop) {
     // The percentile walks the histogram: every 64 cycles is plenty for a published value.
     if ((stats_.cycles & 63u) == 1u) stats_.p999_ns = hist_.quantile_ns(0.999);
     engine_.cycle(port_, stats_);
+    heartbeat_.store(stats_.cycles, std::memory_order_relaxed);
     work_.record(now_ns() - woke);
     deadline += period_ns_;
   }

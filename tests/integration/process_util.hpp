@@ -34,8 +34,10 @@ class Child {
       ::waitpid(pid_, &st, 0);
     }
   }
-  //! Starts `args[0]` with `args`; stdout and stderr go to `log_path`.
-  bool start(const std::vector<std::string>& args, const std::string& log_path) {
+  //! Starts `args[0]` with `args`; stdout and stderr go to `log_path`. `extra_env`
+  //! ("NAME=value") is added to this process's environment.
+  bool start(const std::vector<std::string>& args, const std::string& log_path,
+             const std::vector<std::string>& extra_env = {}) {
     log_ = log_path;
     posix_spawn_file_actions_t fa;
     posix_spawn_file_actions_init(&fa);
@@ -45,7 +47,11 @@ class Child {
     std::vector<char*> argv;
     for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
     argv.push_back(nullptr);
-    const int rc = posix_spawn(&pid_, argv[0], &fa, nullptr, argv.data(), environ);
+    std::vector<char*> envp;
+    for (char** e = environ; *e != nullptr; ++e) envp.push_back(*e);
+    for (const auto& e : extra_env) envp.push_back(const_cast<char*>(e.c_str()));
+    envp.push_back(nullptr);
+    const int rc = posix_spawn(&pid_, argv[0], &fa, nullptr, argv.data(), envp.data());
     posix_spawn_file_actions_destroy(&fa);
     if (rc != 0) pid_ = -1;
     return rc == 0;

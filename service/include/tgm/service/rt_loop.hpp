@@ -40,6 +40,8 @@ class RtLoop {
   //! Time the engine's cycle() took (the work of a cycle, without the wake-up) [ns].
   const LatenessHistogram& work_histogram() const { return work_; }
   const LatenessStats& stats() const { return stats_; }
+  //! Cycles run so far; any thread may read it while run() runs (the systemd watchdog does).
+  std::uint64_t heartbeat() const { return heartbeat_.load(std::memory_order_relaxed); }
 
  private:
   Engine& engine_;
@@ -48,6 +50,7 @@ class RtLoop {
   LatenessHistogram hist_;
   LatenessHistogram work_;
   LatenessStats stats_;
+  std::atomic<std::uint64_t> heartbeat_{0};
 };
 
 }  // namespace tgm::service
