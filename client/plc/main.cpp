@@ -106,7 +106,7 @@ constexpr const char* kUsage =
     "  --help               this text\n"
     "  --version            print tgm-plc's version\n"
     "\n"
-    "Under systemd (a unit of Type=notify, see config/systemd/tgm-plc.service) it reports\n"
+    "Under systemd (Type=notify: the installed lib/systemd/system/tgm-plc.service) it says\n"
     "READY=1 once its DDS entities exist, what it serves in STATUS=, and STOPPING=1; with\n"
     "WatchdogSec= it pings the watchdog from its main loop.\n";
 

@@ -65,7 +65,7 @@ constexpr const char* kUsage =
     "  --help                 this text\n"
     "  --version              print tgm-service's version\n"
     "\n"
-    "Under systemd (a unit of Type=notify, see config/systemd/tgm-service.service) it reports\n"
+    "Under systemd (Type=notify: the installed lib/systemd/system/tgm-service.service) it says\n"
     "READY=1 once its cycle runs, its state in STATUS=, and STOPPING=1; with WatchdogSec= it\n"
     "pings the watchdog only while the cycle thread makes progress.\n";
 
