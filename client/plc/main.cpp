@@ -680,13 +680,14 @@ int plc_main(int argc, char** argv) {
         sv.ack_m = 0;
         sv.unanswered_m = 0;
         events_matched = false;
-        if (SetupQueue& q = setup[sv.number]; !q.items.empty()) {
+        SetupQueue& q = setup[sv.number];
+        if (!q.items.empty()) {
           append_log(pending_log, stamp(),
                      "interpolator %d: %zu requests of the PLC's own dropped: they were for the "
                      "service before its restart",
                      sv.number, q.items.size());
-          q = SetupQueue{};
         }
+        q = SetupQueue{};
       }
       if (!sv.found) {
         sv.instance = s->service_instance();
@@ -709,9 +710,8 @@ int plc_main(int argc, char** argv) {
         }
         // Basic parameters (the manual: the PLC sets them): Rel_Speed and the Command
         // structure with the config's smoothing and gear ratios.
-        SetupQueue& queue = setup[sv.number];
-        queue = SetupQueue{};
-        queue.report = true;
+        // Queued behind what a script queued for it before it was found, if anything.
+        setup[sv.number].report = true;
         char what[160];
         if (rel_speed) {
           std::snprintf(what, sizeof what, "interpolator %d: Rel_Speed = %g", sv.number,
