@@ -51,28 +51,6 @@ void num(std::string& out, double v) {
   out.append(buf, r.ptr);
 }
 
-void json_string(std::string& out, std::string_view s) {
-  out.push_back('"');
-  for (unsigned char c : s) {
-    switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\n': out += "\\n"; break;
-      case '\r': out += "\\r"; break;
-      case '\t': out += "\\t"; break;
-      default:
-        if (c < 0x20) {
-          char buf[8];
-          std::snprintf(buf, sizeof buf, "\\u%04x", c);
-          out += buf;
-        } else {
-          out.push_back(static_cast<char>(c));
-        }
-    }
-  }
-  out.push_back('"');
-}
-
 // Side-table lookups of the dumps, safe for any record.
 char axis_letter(const Program& p, int i) {
   return i < static_cast<int>(p.axis_letters.size()) ? p.axis_letters[static_cast<std::size_t>(i)]
@@ -413,7 +391,7 @@ void dump_jsonl(const Program& p, std::string& out) {
     }
     if (s.type == SegmentType::kMessage) {
       out += ",\"text\":";
-      json_string(out, message_of(p, s));
+      append_json_string(out, message_of(p, s));
     }
     out += ",\"tool\":";
     out += std::to_string(s.tool);

@@ -18,15 +18,21 @@ namespace {
 using namespace std::chrono_literals;
 
 constexpr const char* kStatusUsage =
-    "usage: tgm-hmi status [--interpolator N | --all] [--config YAML] [DDS overrides]\n"
+    "usage: tgm-hmi status [--interpolator N | --all] [--json] [--config YAML] [DDS overrides]\n"
     "\n"
     "Prints every register of the interpolator once (the state is TRANSIENT_LOCAL: a new reader\n"
     "gets the current one at once).\n"
-    "  --all   every interpolator the service hosts\n";
+    "  --all    every interpolator the service hosts\n"
+    "  --json   one line of JSON per interpolator (JSON Lines): the IDL's field names, units in\n"
+    "           the key where the register has one, per-axis values keyed by axis letter,\n"
+    "           numbers that are not finite as null; for scripts and monitoring\n";
 constexpr const char* kWatchUsage =
-    "usage: tgm-hmi watch [--interpolator N] [--interval S] [--count K] [--config YAML] [DDS overrides]\n"
+    "usage: tgm-hmi watch [--interpolator N] [--interval S] [--count K] [--json] [--config YAML]\n"
+    "                     [DDS overrides]\n"
     "\n"
-    "Follows the registers: prints them every S seconds (default 0.5) until Ctrl-C, or K times.\n";
+    "Follows the registers: prints them every S seconds (default 0.5) until Ctrl-C, or K times.\n"
+    "  --json   one line of JSON per sample (see tgm-hmi status --help), nothing else on\n"
+    "           standard output; warnings go to standard error\n";
 constexpr const char* kStopUsage =
     "usage: tgm-hmi stop [--interpolator N] [--timeout S] [--config YAML] [DDS overrides]\n"
     "\n"
@@ -83,9 +89,10 @@ int run_status(int argc, char** argv) {
   Args args(argc, argv, "status", kStatusUsage);
   Common c;
   bool all = false;
+  bool json = false;
   while (args.more()) {
     if (args.dds_flag(c.overrides)) continue;
-    if (args.boolean("--all", all)) continue;
+    if (args.boolean("--all", all) || args.boolean("--json", json)) continue;
     if (args.common()) continue;
     return args.fail();
   }
@@ -98,10 +105,18 @@ int run_status(int argc, char** argv) {
   if (all) c.client->poll(200ms);  // the other instances arrive together
   for (int i = first; i <= last; ++i) {
     if (i != first && !c.client->wait_for_state(i, 2s)) {
-      std::printf("Interpolator %d: no state\n", i);
+      if (json) {
+        std::fprintf(stderr, "tgm-hmi status: interpolator %d: no state\n", i);
+      } else {
+        std::printf("Interpolator %d: no state\n", i);
+      }
       continue;
     }
-    std::fputs(format_state(*c.client->state(i), c.config->machine.axis_letters(i)).c_str(), stdout);
+    const std::string letters = c.config->machine.axis_letters(i);
+    std::fputs((json ? format_state_json(*c.client->state(i), letters)
+                     : format_state(*c.client->state(i), letters))
+                   .c_str(),
+               stdout);
   }
   return 0;
 }
@@ -111,8 +126,10 @@ int run_watch(int argc, char** argv) {
   Common c;
   double interval = 0.5;
   long long count = 0;
+  bool json = false;
   while (args.more()) {
     if (args.dds_flag(c.overrides)) continue;
+    if (args.boolean("--json", json)) continue;
     if (args.number_flag("--interval", interval, "seconds > 0", [](double v) { return v > 0.0; }))
       continue;
     if (args.whole_flag("--count", 1, 1'000'000'000, count)) continue;
@@ -125,11 +142,38 @@ int run_watch(int argc, char** argv) {
   install_signal_flag();
   const int ip = args.interpolator();
   if (!wait_for_service(*c.client, *c.config, ip, "watch")) return 1;
-  const bool tty = ::isatty(1) != 0;
+  const bool tty = !json && ::isatty(1) != 0;
+  std::uint64_t malformed_said = 0, other_said = 0;
   for (long long k = 0; !g_interrupted && (count == 0 || k < count); ++k) {
     if (k > 0) {
       const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(interval);
       while (!g_interrupted && std::chrono::steady_clock::now() < until) c.client->poll(10ms);
+    }
+    if (json) {
+      // Standard output stays JSON Lines: the rest goes to standard error, once per change.
+      std::fputs(
+          format_state_json(*c.client->state(ip), c.config->machine.axis_letters(ip)).c_str(),
+          stdout);
+      std::fflush(stdout);
+      if (const std::uint64_t bad = dds::malformed_samples(); bad != malformed_said) {
+        malformed_said = bad;
+        std::fprintf(stderr,
+                     "tgm-hmi watch: DDS samples that cannot be read were dropped (%llu failed "
+                     "reads) on domain %d\n",
+                     static_cast<unsigned long long>(bad), c.config->dds.domain_id);
+      }
+      if (const std::uint64_t other = c.client->other_service(ip); other != other_said) {
+        other_said = other;
+        if (other != 0) {
+          std::fprintf(stderr,
+                       "tgm-hmi watch: another tgm-service (instance %016llx) publishes on DDS "
+                       "domain %d too; shown: %016llx. Stop one of them.\n",
+                       static_cast<unsigned long long>(other), c.config->dds.domain_id,
+                       static_cast<unsigned long long>(c.client->service_followed(ip)));
+        }
+      }
+      // Messages: the newest is in the state (message_text, message_counter).
+      continue;
     }
     if (tty) std::printf("\033[H\033[2J");
     std::fputs(format_state(*c.client->state(ip), c.config->machine.axis_letters(ip)).c_str(), stdout);

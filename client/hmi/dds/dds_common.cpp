@@ -2,6 +2,9 @@
 
 #include <signal.h>
 
+#include <algorithm>
+#include <charconv>
+#include <cmath>
 #include <cstdarg>
 #include <cstdio>
 #include <type_traits>
@@ -146,6 +149,164 @@ std::string format_state(const msg::InterpolatorState& s, const std::string& con
   if (s.message_counter() > 0)
     append_line(out, "  last message (%u): %s", s.message_counter(),
                 printable(s.message_text().c_str()).c_str());
+  return out;
+}
+
+}  // namespace tgm::hmi
+
+namespace tgm::hmi {
+
+namespace {
+// JSON pieces of format_state_json. A number that is not finite (a state from a foreign or
+// broken writer) is null: JSON has no NaN.
+void json_key(std::string& out, const char* key) {
+  if (out.back() != '{') out += ',';
+  append_json_string(out, key);
+  out += ':';
+}
+void json_number(std::string& out, double v) {
+  if (!std::isfinite(v)) {
+    out += "null";
+    return;
+  }
+  char buf[32];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  out.append(buf, r.ptr);
+}
+void json_number(std::string& out, long long v) {
+  out += std::to_string(v);
+}
+void json_number(std::string& out, unsigned long long v) {
+  out += std::to_string(v);
+}
+template <class T>
+void json_field(std::string& out, const char* key, T v) {
+  json_key(out, key);
+  if constexpr (std::is_floating_point_v<T>) {
+    json_number(out, static_cast<double>(v));
+  } else if constexpr (std::is_same_v<T, bool>) {
+    out += v ? "true" : "false";
+  } else if constexpr (std::is_signed_v<T>) {
+    json_number(out, static_cast<long long>(v));
+  } else {
+    json_number(out, static_cast<unsigned long long>(v));
+  }
+}
+// {"A": 1.5, ...}: the M-function addresses that are set.
+template <class Params>
+void json_params(std::string& out, const char* key, const Params& p) {
+  json_key(out, key);
+  out += '{';
+  for (std::size_t k = 0; k < kParamLetters && k < p.size(); ++k) {
+    if (is_not_set(p[k])) continue;
+    const char letter[2] = {static_cast<char>('A' + k), '\0'};
+    json_field(out, letter, p[k]);
+  }
+  out += '}';
+}
+}  // namespace
+
+std::string format_state_json(const msg::InterpolatorState& s, const std::string& config_letters) {
+  const std::string letters =
+      s.axis_letters().size() == 0 ? config_letters : s.axis_letters().to_string();
+  const int n = std::max(1, std::min<int>(s.number_axes(), kMaxAxes));
+  std::string out = "{";
+  // {"X": v, "Y": v, ...} over the axes in use.
+  auto axes = [&](const char* key, const auto& values) {
+    json_key(out, key);
+    out += '{';
+    for (int i = 0; i < n; ++i) {
+      const char letter[2] = {
+          i < static_cast<int>(letters.size()) ? letters[static_cast<std::size_t>(i)] : '?', '\0'};
+      json_field(out, letter, values[static_cast<std::size_t>(i)]);
+    }
+    out += '}';
+  };
+  json_field(out, "number", s.number());
+  json_field(out, "status", s.status());
+  json_key(out, "status_name");
+  append_json_string(out, client::status_name(s.status()));
+  json_field(out, "number_axes", s.number_axes());
+  json_key(out, "axis_letters");
+  append_json_string(out, letters.substr(0, static_cast<std::size_t>(n)));
+  json_field(out, "buffer_size", s.buffer_size());
+  json_field(out, "command", s.command());
+  json_key(out, "command_parameter");
+  out += '[';
+  for (std::size_t k = 0; k < s.command_parameter().size(); ++k) {
+    if (k > 0) out += ',';
+    json_number(out, static_cast<long long>(s.command_parameter()[k]));
+  }
+  out += ']';
+  json_field(out, "command_status", s.command_status());
+  json_field(out, "run_flag", static_cast<std::uint32_t>(s.run_flag()));
+  json_field(out, "act_part", s.act_part());
+  json_field(out, "act_line", s.act_line());
+  json_field(out, "act_g_func", s.act_g_func());
+  json_field(out, "act_m_func", s.act_m_func());
+  json_field(out, "m_func", s.m_func());
+  json_field(out, "last_cont_m_func", s.last_cont_m_func());
+  json_field(out, "m_func_count", s.m_func_count());
+  json_field(out, "tool_number", s.tool_number());
+  json_field(out, "rel_speed", s.rel_speed());
+  json_field(out, "set_speed_mm_min", s.set_speed());
+  json_field(out, "act_speed_mm_min", s.act_speed());
+  json_field(out, "act_acceleration_mm_s2", s.act_acceleration_mm_s2());
+  json_field(out, "move_distance_mm", s.move_distance());
+  json_field(out, "limit_factor", static_cast<int>(s.limit_factor()));
+  json_field(out, "off_trajectory", static_cast<bool>(s.off_trajectory()));
+  axes("orig_position_mm", s.orig_position());
+  axes("position_mm", s.position());
+  axes("position_inc", s.position_inc());
+  axes("backlash_inc", s.backlash());
+  axes("offset_inc", s.offset());
+  axes("speed_mm_s", s.speed());
+  axes("ratio_inc_per_mm", s.ratio());
+  json_params(out, "m_function_parameter", s.m_function_parameter());
+  json_key(out, "look_ahead_buffer");
+  out += '[';
+  for (std::size_t e = 0; e < s.look_ahead_buffer().size(); ++e) {
+    const auto& l = s.look_ahead_buffer()[e];
+    if (e > 0) out += ',';
+    if (l.movement_type() == 0) {
+      out += "null";
+      continue;
+    }
+    out += '{';
+    json_field(out, "movement_type", l.movement_type());
+    json_field(out, "movement_code", l.movement_code());
+    json_field(out, "line", l.line());
+    json_field(out, "plane", l.plane());
+    json_field(out, "tool", l.tool());
+    axes("end_pos_mm", l.end_pos());
+    json_field(out, "radius_mm", l.radius());
+    json_field(out, "tangent_deg", l.tangent());
+    json_field(out, "start_angle_deg", l.start_angle());
+    json_field(out, "end_angle_deg", l.end_angle());
+    json_params(out, "all_params", l.all_params());
+    out += '}';
+  }
+  out += ']';
+  json_field(out, "program_id", s.program_id());
+  json_field(out, "next_sequence", s.next_sequence());
+  json_field(out, "buffered_segments", s.buffered_segments());
+  json_field(out, "free_buffer_slots", s.free_buffer_slots());
+  // 64 random bits: a string, so that no JSON reader rounds it to a double.
+  char instance[20];
+  std::snprintf(instance, sizeof instance, "%016llx",
+                static_cast<unsigned long long>(s.service_instance()));
+  json_key(out, "service_instance");
+  append_json_string(out, instance);
+  json_field(out, "cycle_counter", s.cycle_counter());
+  json_field(out, "cycle_time_us", s.cycle_time_us());
+  json_field(out, "lateness_last_ns", s.lateness_last_ns());
+  json_field(out, "lateness_max_ns", s.lateness_max_ns());
+  json_field(out, "lateness_p999_ns", s.lateness_p999_ns());
+  json_field(out, "missed_cycles", s.missed_cycles());
+  json_field(out, "message_counter", s.message_counter());
+  json_key(out, "message_text");
+  append_json_string(out, s.message_text().to_string());
+  out += "}\n";
   return out;
 }
 

@@ -26,5 +26,8 @@ bool wait_for_service(client::Client& c, const AppConfig& config, int interpolat
 //! The registers of one interpolator as readable lines, the axes named by the service's
 //! letters (`config_letters` when the state has none).
 std::string format_state(const msg::InterpolatorState& s, const std::string& config_letters);
+//! The same as one line of JSON (JSON Lines): the IDL's field names, units in the key where
+//! the register has one, per-axis values keyed by letter, not-finite numbers as null.
+std::string format_state_json(const msg::InterpolatorState& s, const std::string& config_letters);
 
 }  // namespace tgm::hmi

@@ -33,6 +33,41 @@ inline std::string printable(std::string_view s) {
   return out;
 }
 
+//! Appends `s` as a JSON string: quotes, backslashes and control characters escaped, the rest
+//! (UTF-8 included) as it is.
+inline void append_json_string(std::string& out, std::string_view s) {
+  out.push_back('"');
+  for (const char ch : s) {
+    const auto c = static_cast<unsigned char>(ch);
+    switch (c) {
+      case '"':
+        out += "\\\"";
+        break;
+      case '\\':
+        out += "\\\\";
+        break;
+      case '\n':
+        out += "\\n";
+        break;
+      case '\r':
+        out += "\\r";
+        break;
+      case '\t':
+        out += "\\t";
+        break;
+      default:
+        if (c < 0x20) {
+          char buf[8];
+          std::snprintf(buf, sizeof buf, "\\u%04x", c);
+          out += buf;
+        } else {
+          out.push_back(ch);
+        }
+    }
+  }
+  out.push_back('"');
+}
+
 //! A number as a reply or an error message shows it: six significant digits ("1e+21", "-0.5").
 inline std::string number_text(double v) {
   char buf[32];
