@@ -381,15 +381,15 @@ int plc_main(int argc, char** argv) {
   // Writes the next request of each queue, logs the replies that came, and writes an
   // unanswered one again after 3 s (the clients' request timeout) while it has attempts left.
   // A request that cannot be written (no service matched, the request window full) is tried
-  // for 3 s. `stopping`: nothing is written any more, replies are still taken; `final`: what
-  // is left is logged as not answered.
-  auto pump_setup = [&](bool stopping, bool final) {
+  // for 3 s. Without `write` nothing is written (nor written again), replies are still
+  // taken; `final`: what is left is logged as not answered.
+  auto pump_setup = [&](bool write, bool final) {
     for (auto& [number, q] : setup) {
       while (!q.items.empty()) {
         SetupRequest& r = q.items.front();
         const auto now = Clock::now();
-        if (r.id == 0 && stopping && !final) break;
-        if (r.id == 0 && !stopping) {
+        if (r.id == 0 && !write && !final) break;
+        if (r.id == 0 && write) {
           if (r.since == Clock::time_point{}) {
             r.since = now;
             ++r.attempt;
@@ -416,7 +416,8 @@ int plc_main(int argc, char** argv) {
         none.timed_out = true;
         none.sent = r.id != 0;
         none.waited = std::chrono::duration_cast<std::chrono::milliseconds>(now - r.since);
-        if (r.attempt < r.attempts && !stopping) {
+        if (!write && !final) break;  // written again, or given up, once writing resumes
+        if (r.attempt < r.attempts && write) {
           append_log(pending_log, stamp(), "%s: %s; sending it again (%d of %d)", r.what.c_str(),
                      tgm::client::describe(none).c_str(), r.attempt + 1, r.attempts);
           r.id = 0;
@@ -623,6 +624,9 @@ int plc_main(int argc, char** argv) {
 
   std::optional<Clock::time_point> found_at;
   bool events_matched = false;
+  // The first requests wait for the event topic's match until then (see the find).
+  bool awaiting_match = false;
+  Clock::time_point event_match_by{};
   auto last_wait_log = Clock::now();
   tgm::client::SilenceWatch silence(3s);
   tgm::dds::MalformedWatch malformed;
@@ -655,7 +659,23 @@ int plc_main(int argc, char** argv) {
     plc->poll(5ms);
     take_event_seen();
     take_acked_replies(false);
-    pump_setup(false, false);
+    // The first requests wait for the event topic's match (at most 2 s after the find, see
+    // there), without holding up the loop.
+    bool hold_writes = false;
+    if (awaiting_match) {
+      events_matched = plc->wait_for_event_match(std::chrono::milliseconds(0));
+      if (events_matched) {
+        awaiting_match = false;
+      } else if (Clock::now() >= event_match_by) {
+        append_log(pending_log, stamp(),
+                   "the event topic has not matched 2 s after tgm-service was found: "
+                   "M-functions are seen in the state until it does");
+        awaiting_match = false;
+      } else {
+        hold_writes = true;
+      }
+    }
+    pump_setup(!hold_writes, false);
     const auto now = Clock::now();
     for (Served& sv : served) {
       const tgm::msg::InterpolatorState* s = plc->state(sv.number);
@@ -698,15 +718,9 @@ int plc_main(int argc, char** argv) {
         // Events are VOLATILE: those written before the event reader matched never arrive.
         // Match before the first request, so that whatever this PLC causes from here on is seen
         // as an event (the state carries it either way: the fall-back when no match comes).
-        if (events && !events_matched) {
-          events_matched = plc->wait_for_event_match(2s);
-          if (!events_matched) {
-            append_log(
-                pending_log, stamp(),
-                "interpolator %d: the event topic has not matched after 2 s: M-functions are "
-                "seen in the state until it does",
-                sv.number);
-          }
+        if (events && !events_matched && !awaiting_match) {
+          awaiting_match = true;
+          event_match_by = Clock::now() + 2s;
         }
         // Basic parameters (the manual: the PLC sets them): Rel_Speed and the Command
         // structure with the config's smoothing and gear ratios.
@@ -905,11 +919,11 @@ int plc_main(int argc, char** argv) {
   for (const auto until = Clock::now() + 1s;
        (!acked.empty() || setup_written()) && Clock::now() < until;) {
     take_acked_replies(false);
-    pump_setup(true, false);
+    pump_setup(false, false);
     if (!acked.empty() || setup_written()) plc->poll(5ms);
   }
   take_acked_replies(true);
-  pump_setup(true, true);
+  pump_setup(false, true);
   if (events) {
     append_log(pending_log, stamp(),
                "events: %llu received, %llu lost, %llu written before the PLC joined",
