@@ -649,12 +649,7 @@ int plc_main(int argc, char** argv) {
   flush_log();
   while (!g_stop) {
     flush_log();
-    if (notifier.watchdog_us() > 0 &&
-        gate.due(++passes, std::chrono::duration_cast<std::chrono::microseconds>(
-                               Clock::now().time_since_epoch())
-                               .count())) {
-      notifier.watchdog();
-    }
+    if (gate.due(++passes)) notifier.watchdog();
     if (duration_s > 0.0 && stamp() >= duration_s) break;
     plc->poll(5ms);
     take_event_seen();

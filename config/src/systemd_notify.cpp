@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <chrono>
 #include <cstddef>
 #include <cstdlib>
 #include <cstring>
@@ -132,11 +133,16 @@ bool WatchdogGate::due(std::uint64_t counter, std::int64_t now_us) {
     last_change_us_ = now_us;
   }
   stalled_us_ = now_us - last_change_us_;
-  const std::int64_t half = interval_us_ / 2;
-  if (interval_us_ <= 0 || stalled_us_ >= half) return false;
-  if (last_ping_us_ >= 0 && now_us - last_ping_us_ < half) return false;
+  if (interval_us_ <= 0 || stalled()) return false;
+  if (last_ping_us_ >= 0 && now_us - last_ping_us_ < interval_us_ / 2) return false;
   last_ping_us_ = now_us;
   return true;
+}
+
+bool WatchdogGate::due(std::uint64_t counter) {
+  return due(counter, std::chrono::duration_cast<std::chrono::microseconds>(
+                          std::chrono::steady_clock::now().time_since_epoch())
+                          .count());
 }
 
 }  // namespace tgm

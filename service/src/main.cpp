@@ -288,12 +288,9 @@ int service_main(int argc, char** argv) {
         const std::uint64_t cycles = loop.heartbeat();
         // Ready once the cycle has run: the interpolators answer and publish from then on.
         if (!ready && cycles > 0) ready = notifier.ready("serving " + serving);
-        const auto now_us = std::chrono::duration_cast<std::chrono::microseconds>(
-                                std::chrono::steady_clock::now().time_since_epoch())
-                                .count();
-        if (ready && gate.due(cycles, now_us)) notifier.watchdog();
+        if (ready && gate.due(cycles)) notifier.watchdog();
         // A stalled cycle thread is restarted by systemd: say so while it can still be read.
-        if (notifier.watchdog_us() > 0 && gate.stalled_us() >= notifier.watchdog_us() / 2) {
+        if (gate.stalled()) {
           if (!said_stall) {
             std::fprintf(stderr,
                          "tgm-service: the cycle thread has not run for %.1f s: no watchdog "

@@ -155,9 +155,11 @@ TEST(WatchdogGate, StopsPingingOnceTheCounterStandsStillForHalfAnInterval) {
     if (gate.due(counter, t)) pings.push_back(t);
     if (t == 1'400'000) {
       EXPECT_EQ(gate.stalled_us(), 400'000);
+      EXPECT_FALSE(gate.stalled());
     }
     if (t == 2'900'000) {
       EXPECT_EQ(gate.stalled_us(), 1'900'000);
+      EXPECT_TRUE(gate.stalled());
     }
   }
   // 1.0 s is the last move: a ping at 1.0 s, none from 1.5 s (stalled half the interval) until

@@ -55,8 +55,12 @@ class WatchdogGate {
   explicit WatchdogGate(std::int64_t interval_us) : interval_us_(interval_us) {}
   //! True when a ping is due now (`now_us` on any monotonic clock).
   bool due(std::uint64_t counter, std::int64_t now_us);
+  //! The same at the steady clock's now.
+  bool due(std::uint64_t counter);
   //! How long the counter has stood still at the last due() [us].
   std::int64_t stalled_us() const { return stalled_us_; }
+  //! The counter had stood still for half an interval at the last due(): no more pings.
+  bool stalled() const { return interval_us_ > 0 && stalled_us_ >= interval_us_ / 2; }
 
  private:
   std::int64_t interval_us_;
