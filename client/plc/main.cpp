@@ -388,7 +388,6 @@ int plc_main(int argc, char** argv) {
       while (!q.items.empty()) {
         SetupRequest& r = q.items.front();
         const auto now = Clock::now();
-        if (r.id == 0 && !write && !final) break;
         if (r.id == 0 && write) {
           if (r.since == Clock::time_point{}) {
             r.since = now;
@@ -412,11 +411,12 @@ int plc_main(int argc, char** argv) {
           }
           if (now - r.since < 3s && !final) break;
         }
+        // Not written, or unanswered for 3 s: written again, or given up, once writing resumes.
+        if (!write && !final) break;
         tgm::client::Reply none;
         none.timed_out = true;
         none.sent = r.id != 0;
         none.waited = std::chrono::duration_cast<std::chrono::milliseconds>(now - r.since);
-        if (!write && !final) break;  // written again, or given up, once writing resumes
         if (r.attempt < r.attempts && write) {
           append_log(pending_log, stamp(), "%s: %s; sending it again (%d of %d)", r.what.c_str(),
                      tgm::client::describe(none).c_str(), r.attempt + 1, r.attempts);
