@@ -26,19 +26,16 @@ namespace {
 using namespace std::chrono_literals;
 constexpr auto kHang = 60s;
 
-// Runs tgm-hmi with `args`; its standard output alone (standard error to a file of its own),
-// split into lines. The exit code in `code`.
+// Runs tgm-hmi with `args`; its standard output alone (standard error to NAME.err), split
+// into lines. The exit code in `code`.
 std::vector<std::string> hmi_stdout(test::ServiceEnv& env, const std::string& name,
                                     const std::vector<std::string>& args, int& code) {
-  std::string cmd = "exec '" TGM_HMI_BIN "'";
+  std::string cmd = "'" TGM_HMI_BIN "'";
   for (const auto& a : args) cmd += " '" + a + "'";
-  cmd += " 2>'" + env.path(name + ".err") + "'";
-  test::Child hmi;
-  code = -1;
-  if (!hmi.start({"/bin/sh", "-c", cmd}, env.path(name + ".out"))) return {};
-  code = hmi.wait(kHang);
+  const test::ShellRun run = test::run_shell(cmd, env.path(""), name);
+  code = run.exit_code;
   std::vector<std::string> lines;
-  std::istringstream in(hmi.log());
+  std::istringstream in(run.out);
   for (std::string line; std::getline(in, line);) lines.push_back(line);
   return lines;
 }

@@ -106,6 +106,25 @@ inline std::string read_text(const std::string& path) {
   return ss.str();
 }
 
+//! How a shell command ended and what it printed.
+struct ShellRun {
+  int exit_code = -1;  // -1: killed by a signal, or the shell could not run
+  std::string out, err;
+};
+
+//! Runs `command` through the shell, standard input from /dev/null, standard output and error
+//! kept apart in `dir`/`name`.out and .err.
+inline ShellRun run_shell(const std::string& command, const std::string& dir,
+                          const std::string& name) {
+  const std::string out = dir + "/" + name + ".out", err = dir + "/" + name + ".err";
+  const int status = std::system((command + " >'" + out + "' 2>'" + err + "' </dev/null").c_str());
+  ShellRun r;
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  r.out = read_text(out);
+  r.err = read_text(err);
+  return r;
+}
+
 //! Replaces the first occurrence of `from` (which must exist) in `text`.
 inline bool replace_first(std::string& text, const std::string& from, const std::string& to) {
   const auto p = text.find(from);

@@ -97,28 +97,15 @@ pid_t thread_named(pid_t pid, const std::string& name) {
   return -1;
 }
 
-std::string run_and_capture(const std::string& command, int& exit_code) {
-  std::string out;
-  std::FILE* p = ::popen((command + " 2>&1").c_str(), "r");
-  if (p == nullptr) {
-    exit_code = -1;
-    return out;
-  }
-  char buf[512];
-  while (std::fgets(buf, sizeof buf, p) != nullptr) out += buf;
-  const int st = ::pclose(p);
-  exit_code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-  return out;
-}
-
 // Each installed unit, with its ExecStart pointed at the binary of this build, passes
 // `systemd-analyze verify` without a word (an unknown key or a bad value is a warning there).
 TEST(ServiceSystemd, TheUnitsPassSystemdAnalyzeVerify) {
-  int code = 0;
-  const std::string version = run_and_capture("systemd-analyze --version", code);
-  ASSERT_EQ(code, 0) << "systemd-analyze is missing (.ci/deps installs systemd): " << version;
   const std::string dir = testing::TempDir() + "tgm-units-" + std::to_string(::getpid());
   std::filesystem::create_directories(dir);
+  const tgm::test::ShellRun version =
+      tgm::test::run_shell("systemd-analyze --version", dir, "version");
+  ASSERT_EQ(version.exit_code, 0) << "systemd-analyze is missing (.ci/deps installs systemd): "
+                                  << version.out << version.err;
   const std::string build_bins[] = {TGM_SERVICE_BIN, TGM_PLC_BIN};
   const char* units[] = {"tgm-service", "tgm-plc"};
   for (int k = 0; k < 2; ++k) {
@@ -133,9 +120,10 @@ TEST(ServiceSystemd, TheUnitsPassSystemdAnalyzeVerify) {
     EXPECT_NE(unit.find("WatchdogSec="), std::string::npos) << unit;
     const std::string path = dir + "/" + units[k] + ".service";
     std::ofstream(path) << unit;
-    const std::string out = run_and_capture("systemd-analyze verify --man=no " + path, code);
-    EXPECT_EQ(code, 0) << out;
-    EXPECT_EQ(out, "") << units[k] << ":\n" << out;
+    const tgm::test::ShellRun verify =
+        tgm::test::run_shell("systemd-analyze verify --man=no " + path, dir, units[k]);
+    EXPECT_EQ(verify.exit_code, 0) << verify.out << verify.err;
+    EXPECT_EQ(verify.out + verify.err, "") << units[k] << ":\n" << verify.out << verify.err;
   }
   std::filesystem::remove_all(dir);
 }
@@ -146,8 +134,7 @@ TEST(ServiceSystemd, TheServiceSaysReadyPingsTheWatchdogAndSaysStopping) {
   tgm::test::ServiceEnv env;
   NotifySocket sock(env.path("notify"));
   ASSERT_TRUE(sock.bound());
-  ASSERT_TRUE(env.service.start({TGM_SERVICE_BIN, "--config", env.config(), "--no-realtime"},
-                                env.path("service.log"), {sock.env(), "WATCHDOG_USEC=2000000"}));
+  ASSERT_TRUE(env.start_service({}, {sock.env(), "WATCHDOG_USEC=2000000"}));
   const int ready = sock.wait_for("READY=1", 20s);
   ASSERT_GE(ready, 0) << sock.text() << env.service.log();
   EXPECT_EQ(sock.received()[static_cast<std::size_t>(ready)],
@@ -169,8 +156,7 @@ TEST(ServiceSystemd, AStalledCycleThreadGetsNoWatchdogPings) {
   tgm::test::ServiceEnv env;
   NotifySocket sock(env.path("notify"));
   ASSERT_TRUE(sock.bound());
-  ASSERT_TRUE(env.service.start({TGM_SERVICE_BIN, "--config", env.config(), "--no-realtime"},
-                                env.path("service.log"), {sock.env(), "WATCHDOG_USEC=1000000"}));
+  ASSERT_TRUE(env.start_service({}, {sock.env(), "WATCHDOG_USEC=1000000"}));
   const int ready = sock.wait_for("READY=1", 20s);
   ASSERT_GE(ready, 0) << sock.text() << env.service.log();
   ASSERT_GE(sock.wait_for("WATCHDOG=1", 5s, static_cast<std::size_t>(ready)), 0) << sock.text();

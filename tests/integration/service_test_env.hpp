@@ -52,11 +52,13 @@ class ServiceEnv {
   ServiceEnv(const ServiceEnv&) = delete;
   ServiceEnv& operator=(const ServiceEnv&) = delete;
 
-  //! Starts tgm-service (no real-time scheduling: tests share the machine) with extra args.
-  bool start_service(std::vector<std::string> extra = {}) {
+  //! Starts tgm-service (no real-time scheduling: tests share the machine) with extra args and
+  //! extra environment ("NAME=value").
+  bool start_service(std::vector<std::string> extra = {},
+                     const std::vector<std::string>& extra_env = {}) {
     std::vector<std::string> args{TGM_SERVICE_BIN, "--config", config_, "--no-realtime", "--stats", stats_path()};
     args.insert(args.end(), extra.begin(), extra.end());
-    return service.start(args, path("service.log"));
+    return service.start(args, path("service.log"), extra_env);
   }
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
   std::string stats_path() const { return path("service_stats.json"); }
