@@ -425,6 +425,39 @@ TEST(Advance, SimulationSummaryEqualsStepping) {
   }
 }
 
+// A program that ends inside start() (only M2, a move of no length before it, or an M0 pause
+// whose restart runs into the end) is finished after the first cycle. The fast-forward took the
+// ended interpolator for a standing one and skipped to the time limit: `tgm-hmi simulate` said
+// "finished" after 500 s of program time for a file holding only M30.
+TEST(Advance, AProgramThatEndsAtItsStartTakesOneCycle) {
+  const MachineConfig m = MachineConfig::default_machine();
+  const MParams none{};
+  std::vector<std::pair<std::string, Program>> programs;
+  programs.emplace_back("only the end", test::ProgramBuilder().end().program());
+  programs.emplace_back("a line of no length",
+                        test::ProgramBuilder().line({0.0, 0.0, 0.0}, 100.0).end().program());
+  programs.emplace_back("a dwell of 0 s", test::ProgramBuilder().dwell(0.0).end().program());
+  programs.emplace_back("an M0 pause",
+                        test::ProgramBuilder().m(0, MKind::kProgramStop, &none).end().program());
+  for (const auto& [what, program] : programs) {
+    SimulationOptions o;
+    const auto s = run_stepped_and_fast(m, o, program);
+    ASSERT_EQ(s[0].result, StepResult::kFinished) << what << ": " << s[0].error;
+    EXPECT_EQ(s[1].result, StepResult::kFinished) << what << ": " << s[1].error;
+    EXPECT_LE(s[0].cycles, 2u) << what;
+    EXPECT_EQ(s[0].cycles, s[1].cycles) << what;
+    EXPECT_FALSE(s[1].time_limit_reached) << what;
+  }
+  // advance() itself: an ended interpolator takes one cycle per call, as step() does.
+  auto ip = Interpolator::create(m, 0);
+  ASSERT_TRUE(ip);
+  ASSERT_TRUE(ip->load(programs[0].second).ok());
+  ASSERT_TRUE(ip->start().ok());
+  std::uint64_t done = 0;
+  EXPECT_EQ(ip->advance(1000, &done), StepResult::kFinished);
+  EXPECT_EQ(done, 1u);
+}
+
 // A stop given while the motion already stands after an earlier one cancels the pending restart
 // and is restarted after its own wait. The fast-forward skipped such a standstill to the next
 // stop or to the time limit, as it knew of no restart to stop at (sweep seed 1 program 50).

@@ -2910,6 +2910,9 @@ struct Interpolator::Impl {
         pass_time(max);
         return max;
       case Mode::kIdle:
+        // An ended program is not a standstill to skip: the caller stops at the first cycle
+        // that reports it (a program that ended inside start() ran to the time limit).
+        if (reg.status == static_cast<std::int32_t>(InterpolatorStatus::kEnded)) return 0;
         if (opt.resume_after_underrun &&
             reg.status == static_cast<std::int32_t>(InterpolatorStatus::kUnderrun) && cur < tail) {
           return 0;

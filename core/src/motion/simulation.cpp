@@ -150,8 +150,9 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
   // A start() given by the emulated operator: the next call runs one cycle, so that the PLC
   // emulation sees the registers it left (a restart into an M wait whose acknowledgement was
   // not yet armed let advance() skip the wait to the time limit: wide stop sweep seed 169
-  // program 127, a feed hold given in the cycle after the motion reached an M-function).
-  bool started = false;
+  // program 127, a feed hold given in the cycle after the motion reached an M-function). The
+  // start above is one too: a program that pauses at an M0 inside it stands from the start.
+  bool started = true;
   const std::uint64_t max_cycles = static_cast<std::uint64_t>(opt_.max_time_s / T) + 1;
   const bool batch = opt_.fast_forward && !on_cycle;
   std::array<std::uint64_t, 11> factor_cycles{};
