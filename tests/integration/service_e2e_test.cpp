@@ -962,6 +962,33 @@ TEST(ServiceProcesses, HmiRunSaysWhenAnMFunctionWaitsLongAndTimesOut) {
   EXPECT_NEAR(hmi.state(0)->orig_position()[0], 1.0, 1e-9);  // stopped at the M-function
 }
 
+// An M0 program stop pauses the program (Status 4) until the operator starts it again:
+// tgm-hmi run says so and, with --m0-continue or when standard input is not a terminal,
+// starts it again itself. The M0 is not a LookAheadBuffer section, and tgm-hmi run looked for
+// it there: it waited at every M0 for ever.
+TEST(ServiceProcesses, HmiRunContinuesAfterAnM0ProgramStop) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  std::ofstream(env.path("m0.ngc")) << "M0\nG90 G1 X1 F600\nM0\nG1 X2\nM2\n";
+  const std::vector<std::vector<std::string>> flags = {{"--m0-continue", "0.2"}, {}};
+  for (const auto& extra : flags) {
+    std::vector<std::string> args = {TGM_HMI_BIN,  "run",     env.path("m0.ngc"), "--config",
+                                     env.config(), "--quiet", "--timeout",        "30"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    const std::string ctx = extra.empty() ? "no flag" : "--m0-continue 0.2";
+    test::Child run;
+    ASSERT_TRUE(run.start(args, env.path("run.log"))) << ctx;
+    ASSERT_EQ(run.wait(kHang), 0) << ctx << ": " << run.log();
+    const std::string log = run.log();
+    EXPECT_NE(log.find("M0 program stop at line 1: continuing shortly\n"), std::string::npos)
+        << ctx << ": " << log;
+    EXPECT_NE(log.find("M0 program stop at line 3: continuing shortly\n"), std::string::npos)
+        << ctx << ": " << log;
+    EXPECT_EQ(log.find("stopped by a stop command"), std::string::npos) << ctx << ": " << log;
+    EXPECT_NE(log.find("end position X2.0000"), std::string::npos) << ctx << ": " << log;
+  }
+}
+
 TEST(ServiceProcesses, LateJoiningHmiSeesTheCurrentStateAtOnce) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());

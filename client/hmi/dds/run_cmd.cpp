@@ -440,8 +440,12 @@ int run_run(int argc, char** argv) {
       continue;
     }
     if (status == InterpolatorStatus::kReady) {
-      const auto& l0 = st->look_ahead_buffer()[0];
-      const bool at_m0 = l0.movement_type() == 2 && l0.movement_code() == 0;
+      // Paused at an M0: Act_Part is that record. (An M0 is not a LookAheadBuffer section, and
+      // Act_M_Func 0 does not tell it from a stop, so the program itself says it.)
+      const std::int32_t part = st->act_part();
+      const bool at_m0 =
+          part >= 1 && static_cast<std::size_t>(part) <= program.segments.size() &&
+          program.segments[static_cast<std::size_t>(part) - 1].m_kind == MKind::kProgramStop;
       if (at_m0) {
         if (!m0_wait) {
           m0_wait = true;
