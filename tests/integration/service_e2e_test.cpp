@@ -9,6 +9,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <mutex>
@@ -986,6 +987,15 @@ TEST(ServiceProcesses, HmiRunContinuesAfterAnM0ProgramStop) {
         << ctx << ": " << log;
     EXPECT_EQ(log.find("stopped by a stop command"), std::string::npos) << ctx << ": " << log;
     EXPECT_NE(log.find("end position X2.0000"), std::string::npos) << ctx << ": " << log;
+    // The lateness is the service's since it started; the missed cycles also this run's own.
+    const auto missed = log.find("missed cycles ");
+    ASSERT_NE(missed, std::string::npos) << log;
+    unsigned long long total = 0, during = 0;
+    ASSERT_EQ(std::sscanf(log.c_str() + missed, "missed cycles %llu (%llu during this run)", &total,
+                          &during),
+              2)
+        << log;
+    EXPECT_LE(during, total) << log;
   }
 }
 

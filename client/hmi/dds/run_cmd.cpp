@@ -301,6 +301,7 @@ int run_run(int argc, char** argv) {
   std::uint32_t m_wait_count = 0;  // m_func_count of the M-function waiting now; 0 = none
   Clock::time_point m_wait_since{};
   std::uint64_t start_cycle = 0;
+  std::uint64_t missed_before = 0;  // the service's missed cycles when this run started
   std::uint64_t fresh_after = 0;  // ignore states from before our last start request
   // From the state (the fall-back), and from the events (used when the event topic matched).
   WaitCount state_waits, event_waits;
@@ -405,6 +406,7 @@ int run_run(int argc, char** argv) {
       }
       started = true;
       start_cycle = r.cycle;
+      missed_before = st->missed_cycles();
       fresh_after = r.cycle;
       first_cycle = r.cycle;
       continue;
@@ -524,7 +526,8 @@ int run_run(int argc, char** argv) {
         "done: %llu records, %d lines in %.3f s (%llu cycles), distance %.3f mm, "
         "%llu M-function wait%s (%.3f s)%s, %zu message%s\n"
         "  end position%s\n"
-        "  service cycle lateness: max %.1f us, p99.9 %.1f us, missed cycles %llu\n",
+        "  service cycle lateness since it started: max %.1f us, p99.9 %.1f us, missed cycles "
+        "%llu (%llu during this run)\n",
         static_cast<unsigned long long>(sender.total()), last_line, program_s,
         static_cast<unsigned long long>(st->cycle_counter() - start_cycle), st->move_distance(),
         static_cast<unsigned long long>(waits.waits), waits.waits == 1 ? "" : "s",
@@ -535,7 +538,9 @@ int run_run(int argc, char** argv) {
         messages, messages == 1 ? "" : "s", dro.c_str(),
         static_cast<double>(st->lateness_max_ns()) / 1e3,
         static_cast<double>(st->lateness_p999_ns()) / 1e3,
-        static_cast<unsigned long long>(st->missed_cycles()));
+        static_cast<unsigned long long>(st->missed_cycles()),
+        static_cast<unsigned long long>(st->missed_cycles() -
+                                        std::min(missed_before, st->missed_cycles())));
   }
   if (!plot_path.empty()) {
     const PlotData plot{plot_path_points.points(), plot_speed_points.points()};
