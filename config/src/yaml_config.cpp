@@ -32,15 +32,41 @@ class Reader {
   // axis_defaults, the key path it was written at (validate() names the axis's own path).
   std::map<std::string, int> line_of;
   std::map<std::string, std::string> origin;
+  // Key paths already reported: validate() says nothing more about them.
+  std::set<std::string> rejected;
+
+  // yaml-cpp marks an empty value ("key:" and nothing) where the next token starts, often
+  // lines further down; such a value is placed at its key instead. Called once on the root.
+  void index_empty_values(const YAML::Node& n) {
+    if (n.IsMap()) {
+      for (const auto& kv : n) {
+        if (kv.second.IsNull()) empty_values_.emplace_back(kv.second, kv.first.Mark());
+        index_empty_values(kv.second);
+      }
+    } else if (n.IsSequence()) {
+      for (const auto& v : n) index_empty_values(v);
+    }
+  }
+
+  int line(const YAML::Node& n) const {
+    if (!n.IsDefined()) return -1;
+    if (n.IsNull()) {
+      for (const auto& [value, mark] : empty_values_) {
+        if (value.is(n)) return mark.line;
+      }
+    }
+    return n.Mark().line;
+  }
 
   void note(const YAML::Node& n, const std::string& path) {
-    if (n.IsDefined() && n.Mark().line >= 0) line_of[path] = n.Mark().line + 1;
+    if (const int l = line(n); l >= 0) line_of[path] = l + 1;
   }
 
   void error(const YAML::Node& n, const std::string& path, const std::string& reason) {
     std::string where = file_;
-    if (n.IsDefined() && n.Mark().line >= 0) where += ":" + std::to_string(n.Mark().line + 1);
+    if (const int l = line(n); l >= 0) where += ":" + std::to_string(l + 1);
     errors.push_back(where + ": " + path + ": " + reason);
+    rejected.insert(path);
   }
 
   // Checks that `n` is a map whose keys are all in `known`, each given once.
@@ -128,15 +154,17 @@ class Reader {
     }
   }
 
-  void string(const YAML::Node& parent, const std::string& path, const char* key,
+  //! False when the key is there but not a string (said).
+  bool string(const YAML::Node& parent, const std::string& path, const char* key,
               std::string& out) {
     const auto n = parent[key];
-    if (!n) return;
+    if (!n) return true;
     if (!n.IsScalar()) {
       error(n, join(path, key), "must be a string");
-      return;
+      return false;
     }
     out = n.Scalar();
+    return true;
   }
 
   static std::string text(const YAML::Node& n) {
@@ -160,6 +188,7 @@ class Reader {
 
  private:
   std::string file_;
+  std::vector<std::pair<YAML::Node, YAML::Mark>> empty_values_;
 };
 
 const std::set<std::string> kAxisKeys = {"letter",
@@ -179,8 +208,9 @@ void read_axis(Reader& r, const YAML::Node& n, const std::string& path, AxisConf
   if (!r.map(n, path, keys)) return;
   if (letter_allowed && n["letter"]) {
     std::string s;
-    r.string(n, path, "letter", s);
-    if (s.size() != 1) {
+    if (!r.string(n, path, "letter", s)) {
+      // said
+    } else if (s.size() != 1) {
       r.error(n["letter"], path + ".letter", "must be one letter, not '" + s + "'");
     } else {
       a.letter = static_cast<char>(std::toupper(static_cast<unsigned char>(s[0])));
@@ -220,6 +250,7 @@ std::vector<std::string> locate(const Reader& r, const std::string& file,
     const std::size_t colon = f.find(": ");
     const std::string key = colon == std::string::npos ? f : f.substr(0, colon);
     const std::string reason = colon == std::string::npos ? "" : f.substr(colon + 2);
+    if (r.rejected.count(key)) continue;  // the reader said what is wrong with it
     const auto o = r.origin.find(key);
     const std::string at = o != r.origin.end() ? o->second : key;
     // A finding about more than one key (the IIR and spline checks of Command -1 / -2, the
@@ -334,8 +365,9 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
                "max_program_segments", "max_call_depth"})) {
       if (c["distance_mode"]) {
         std::string mode;
-        r.string(c, "compiler", "distance_mode", mode);
-        if (mode == "G90" || mode == "g90") {
+        if (!r.string(c, "compiler", "distance_mode", mode)) {
+          // said
+        } else if (mode == "G90" || mode == "g90") {
           m.compiler.start_incremental = false;
         } else if (mode == "G91" || mode == "g91") {
           m.compiler.start_incremental = true;
@@ -447,6 +479,7 @@ ConfigLoad load_config_text(const std::string& text, const std::string& path) {
     if (root.IsNull()) {
       // An empty file means: all defaults.
     } else {
+      r.index_empty_values(root);
       read_file(r, root, cfg);
     }
   } catch (const YAML::Exception& e) {

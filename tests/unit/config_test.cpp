@@ -342,6 +342,41 @@ TEST(Config, KeyGivenTwiceIsAnErrorWithItsLine) {
   EXPECT_TRUE(load.config) << load.errors.front();
 }
 
+// A key with no value ("key:" and nothing after it) is named at its own line. yaml-cpp marks
+// such a value where the next token starts, which may be lines further down: the line after a
+// comment block, or the next section. And a value the reader rejected is said once: validate()
+// used to add its own finding about the built-in value left in its place.
+TEST(Config, AnEmptyValueIsNamedAtItsKeysLineAndOnce) {
+  struct Case {
+    const char* text;
+    std::string error;
+  };
+  const std::vector<Case> cases = {
+      {"cycle_time_us:\n\n# a comment\n\nsmoothing:\n  spline_points: 0\n",
+       "m.yaml:1: cycle_time_us: must be a whole number, not 'null'"},
+      {"compiler:\n  initial_tool: 1\n  distance_mode:\n# more\n  max_call_depth: 16\n",
+       "m.yaml:3: compiler.distance_mode: must be a string"},
+      {"interpolators:\n  - buffer_size: 2000\n    axes:\n\ntools: []\n",
+       "m.yaml:3: interpolators[0].axes: a list of 1..10 axes is required"},
+      {"interpolators:\n  - axes:\n      - {letter: X, backlash_mm: }\n      - {letter: }\n",
+       "m.yaml:3: interpolators[0].axes[0].backlash_mm: must be a number, not 'null'"},
+      {"tools:\n\ncompiler:\n  initial_tool: 1\n",
+       "m.yaml:1: tools: must be a list of {number, radius_mm, length_mm}"},
+  };
+  for (const Case& c : cases) {
+    const auto load = load_config_text(c.text, "m.yaml");
+    EXPECT_FALSE(load.config) << c.text;
+    ASSERT_FALSE(load.errors.empty()) << c.text;
+    EXPECT_EQ(load.errors[0], c.error) << c.text;
+    if (std::string(c.text).find("letter: }") != std::string::npos) {
+      ASSERT_EQ(load.errors.size(), 2u) << c.text;
+      EXPECT_EQ(load.errors[1], "m.yaml:4: interpolators[0].axes[1].letter: must be a string");
+    } else {
+      EXPECT_EQ(load.errors.size(), 1u) << c.text << load.errors.back();
+    }
+  }
+}
+
 // Every other check of MachineConfig::validate, each named with its key, its value and the
 // reason, and with the line of the YAML that set it. Line coverage (session 44) showed that no
 // test had given any of these values.
