@@ -2,6 +2,7 @@
 
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <limits>
 
@@ -12,7 +13,60 @@ namespace tgm {
 namespace {
 
 constexpr char kMagic[4] = {'T', 'G', 'M', 'I'};
-constexpr std::uint16_t kVersion = 2;  // 2: records store only what changed
+// 2: records store only what changed. 3: a CRC-32 trailer (version 2 files are still read).
+constexpr std::uint16_t kVersion = 3;
+constexpr std::uint16_t kVersionWithoutChecksum = 2;
+constexpr std::size_t kHeaderBytes = IntercodeEncoder::kCountOffset + 8;
+
+// CRC-32 (IEEE 802.3, reflected, polynomial 0xEDB88320), table driven. `state` starts at
+// 0xFFFFFFFF; the checksum is the final state inverted.
+struct Crc32Table {
+  std::uint32_t t[256];
+  constexpr Crc32Table() : t() {
+    for (std::uint32_t i = 0; i < 256; ++i) {
+      std::uint32_t c = i;
+      for (int k = 0; k < 8; ++k) c = (c & 1u) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
+      t[i] = c;
+    }
+  }
+};
+constexpr Crc32Table kCrcTable;
+
+std::uint32_t crc_update(std::uint32_t state, const char* data, std::size_t n) {
+  for (std::size_t i = 0; i < n; ++i) {
+    state = kCrcTable.t[(state ^ static_cast<unsigned char>(data[i])) & 0xFFu] ^ (state >> 8);
+  }
+  return state;
+}
+
+// The checksum a version 3 file carries in its last 4 bytes: the CRC-32 of every byte before
+// them, the header's record count (8 bytes at kCountOffset) hashed last, so that a streaming
+// writer, which fixes the count when everything else is written, computes it in one pass.
+std::uint32_t file_checksum(std::string_view file) {
+  const std::size_t body_end = file.size() - 4;
+  std::uint32_t c = crc_update(0xFFFFFFFFu, file.data(), IntercodeEncoder::kCountOffset);
+  c = crc_update(c, file.data() + kHeaderBytes, body_end - kHeaderBytes);
+  c = crc_update(c, file.data() + IntercodeEncoder::kCountOffset, 8);
+  return ~c;
+}
+
+}  // namespace
+
+std::uint32_t crc32(std::string_view bytes) {
+  return ~crc_update(0xFFFFFFFFu, bytes.data(), bytes.size());
+}
+
+bool reseal_intercode(std::string& file) {
+  if (file.size() < kHeaderBytes + 4 || std::memcmp(file.data(), kMagic, 4) != 0) return false;
+  std::uint16_t version = 0;
+  std::memcpy(&version, file.data() + 4, sizeof version);
+  if (version != kVersion) return false;
+  const std::uint32_t c = file_checksum(file);
+  std::memcpy(file.data() + file.size() - 4, &c, sizeof c);
+  return true;
+}
+
+namespace {
 
 template <typename T>
 void put(std::string& out, T v) {
@@ -38,6 +92,7 @@ class In {
     return true;
   }
   bool at_end() const { return pos_ == b_.size(); }
+  void skip(std::size_t n) { pos_ += n; }
   std::size_t pos() const { return pos_; }
 
  private:
@@ -96,6 +151,7 @@ std::string_view segment_type_name(SegmentType t) {
 IntercodeEncoder::IntercodeEncoder(std::string& out, int number_axes,
                                    std::string_view axis_letters, bool streaming)
     : out_(out), count_offset_(0), streaming_(streaming), n_(number_axes) {
+  const std::size_t start = out_.size();
   out_.append(kMagic, 4);
   put<std::uint16_t>(out_, kVersion);
   put<std::uint8_t>(out_, static_cast<std::uint8_t>(n_));
@@ -105,6 +161,7 @@ IntercodeEncoder::IntercodeEncoder(std::string& out, int number_axes,
   }
   out_.append(letters, kMaxAxes);
   count_offset_ = out_.size();
+  crc_ = crc_update(crc_, out_.data() + start, count_offset_ - start);
   put<std::uint64_t>(out_, 0);  // record count, fixed by finish()
 }
 
@@ -178,6 +235,7 @@ void IntercodeEncoder::add(const Segment& s) {
   }
   if (s.type == SegmentType::kMessage) w(s.aux);
   out_.append(buf, k);
+  crc_ = crc_update(crc_, buf, k);
   prev_modes_ = modes;
   prev_tool_ = s.tool;
   prev_line_ = s.line;
@@ -189,6 +247,7 @@ void IntercodeEncoder::add(const Segment& s) {
 void IntercodeEncoder::finish(const std::vector<MParams>& params,
                               const std::vector<std::string>& messages) {
   if (!streaming_) std::memcpy(out_.data() + count_offset_, &count_, sizeof count_);
+  const std::size_t tables = out_.size();
   put<std::uint32_t>(out_, static_cast<std::uint32_t>(params.size()));
   put<std::uint32_t>(out_, static_cast<std::uint32_t>(messages.size()));
   for (const MParams& mp : params) {
@@ -198,6 +257,11 @@ void IntercodeEncoder::finish(const std::vector<MParams>& params,
     put<std::uint32_t>(out_, static_cast<std::uint32_t>(m.size()));
     out_ += m;
   }
+  std::uint32_t c = crc_update(crc_, out_.data() + tables, out_.size() - tables);
+  char count[sizeof count_];
+  std::memcpy(count, &count_, sizeof count_);
+  c = ~crc_update(c, count, sizeof count);
+  put<std::uint32_t>(out_, c);
 }
 
 void encode_intercode(const Program& p, std::string& out) {
@@ -207,7 +271,8 @@ void encode_intercode(const Program& p, std::string& out) {
   enc.finish(p.params, p.messages);
 }
 
-bool decode_intercode(std::string_view bytes, Program& out, std::string& error) {
+bool decode_intercode(std::string_view file, Program& out, std::string& error) {
+  std::string_view bytes = file;  // without the checksum
   In in(bytes);
   auto fail = [&](const std::string& why) {
     error = "intercode at byte " + std::to_string(in.pos()) + ": " + why;
@@ -219,7 +284,27 @@ bool decode_intercode(std::string_view bytes, Program& out, std::string& error) 
   }
   std::uint16_t version = 0;
   std::uint8_t n = 0;
-  if (!in.get(version) || version != kVersion) return fail("unsupported version");
+  if (!in.get(version)) return fail("truncated header");
+  if (version == kVersion) {
+    // The checksum first: a damaged file must not be read as another program.
+    if (file.size() < kHeaderBytes + 4) return fail("truncated header");
+    std::uint32_t stored = 0;
+    std::memcpy(&stored, file.data() + file.size() - 4, sizeof stored);
+    if (const std::uint32_t c = file_checksum(file); c != stored) {
+      char why[160];
+      std::snprintf(why, sizeof why,
+                    "checksum mismatch: the file is damaged or was changed (CRC-32 %08x, the "
+                    "file says %08x); compile the program again",
+                    static_cast<unsigned>(c), static_cast<unsigned>(stored));
+      error = why;
+      return false;
+    }
+    bytes = file.substr(0, file.size() - 4);
+    in = In(bytes);
+    in.skip(6);
+  } else if (version != kVersionWithoutChecksum) {
+    return fail("unsupported version " + std::to_string(version) + " (this build reads 2 and 3)");
+  }
   if (!in.get(n) || n < 1 || n > kMaxAxes) return fail("axis count must be 1..10");
   std::string letters;
   if (!in.bytes(kMaxAxes, letters)) return fail("truncated header");

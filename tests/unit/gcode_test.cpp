@@ -4,8 +4,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <limits>
+#include <random>
 #include <sstream>
 
 #include "tgm/gcode.hpp"
@@ -651,11 +653,11 @@ TEST(Intercode, DecodeRefusesOutOfRangeValuesAndMissingSideTableEntries) {
 
 TEST(Intercode, RecordsStoreOnlyWhatChanged) {
   // Header 25 bytes; first move: type, flags, axis mask, tool (initial tool 1), X, feed = 24;
-  // then X only = 12 each; the table counts 8.
+  // then X only = 12 each; the table counts 8; the checksum 4.
   const Program p = compile_ok("G90 G1 X1 F100\nX2\nX3\n");
   std::string bytes;
   encode_intercode(p, bytes);
-  EXPECT_EQ(bytes.size(), 25u + 24u + 12u + 12u + 8u);
+  EXPECT_EQ(bytes.size(), 25u + 24u + 12u + 12u + 8u + 4u);
 }
 
 TEST(Intercode, LineNumberOverflowIsAnErrorNotUndefinedBehaviour) {
@@ -668,13 +670,14 @@ TEST(Intercode, LineNumberOverflowIsAnErrorNotUndefinedBehaviour) {
   p.segments = {s, s};
   std::string bytes;
   encode_intercode(p, bytes);
-  ASSERT_EQ(bytes.size(), 25u + 8u + 8u + 8u);  // each record: type, flags, mask, line
+  ASSERT_EQ(bytes.size(), 25u + 8u + 8u + 8u + 4u);  // each record: type, flags, mask, line
   Program q;
   std::string err;
   ASSERT_TRUE(decode_intercode(bytes, q, err)) << err;
   EXPECT_EQ(q.segments[1].line, std::numeric_limits<std::int32_t>::max());
   bytes[34] = static_cast<char>(bytes[34] & ~0x08);  // second record: "line = previous + 1"
   bytes.erase(37, 4);
+  ASSERT_TRUE(reseal_intercode(bytes));
   EXPECT_FALSE(decode_intercode(bytes, q, err));
   EXPECT_NE(err.find("line number overflows in record 1"), std::string::npos) << err;
 }
@@ -692,7 +695,91 @@ TEST(Intercode, DecodeRejectsEveryTruncation) {
   Program q;
   std::string err;
   EXPECT_FALSE(decode_intercode(bytes + "x", q, err));
-  EXPECT_NE(err.find("trailing bytes"), std::string::npos);
+  EXPECT_NE(err.find("checksum mismatch"), std::string::npos) << err;
+  // With a checksum that fits, the extra byte itself is named.
+  std::string longer = bytes;
+  longer.insert(longer.size() - 4, "x");
+  ASSERT_TRUE(reseal_intercode(longer));
+  EXPECT_FALSE(decode_intercode(longer, q, err));
+  EXPECT_NE(err.find("trailing bytes"), std::string::npos) << err;
+}
+
+// The checksum is the CRC-32 of IEEE 802.3 (zlib's crc32): its check value, and the value of a
+// second string computed bit by bit here, the polynomial straight from the standard.
+TEST(Intercode, ChecksumIsTheStandardCrc32) {
+  EXPECT_EQ(crc32("123456789"), 0xCBF43926u);
+  EXPECT_EQ(crc32(""), 0u);
+  std::mt19937 rng(5);
+  std::string text(1000, '\0');
+  for (char& c : text) c = static_cast<char>(rng());
+  std::uint32_t c = 0xFFFFFFFFu;
+  for (const char ch : text) {
+    c ^= static_cast<unsigned char>(ch);
+    for (int k = 0; k < 8; ++k) c = (c >> 1) ^ (0xEDB88320u & (0u - (c & 1u)));
+  }
+  EXPECT_EQ(crc32(text), ~c);
+}
+
+// A file with any byte changed is refused as damaged, never run as another program: a byte of
+// the first record's X flipped used to make a 100 mm move one of -0.0015 mm.
+TEST(Intercode, EveryChangedByteIsRefusedAsDamaged) {
+  const Program p = compile_ok("G90 G1 X100 F1000\nG2 X102 I1\nM3 S1\nM29 (x)\nM30\n");
+  std::string bytes;
+  encode_intercode(p, bytes);
+  Program q;
+  std::string err;
+  ASSERT_TRUE(decode_intercode(bytes, q, err)) << err;
+  std::mt19937 rng(11);
+  for (std::size_t i = 0; i < bytes.size(); ++i) {
+    std::string bad = bytes;
+    bad[i] = static_cast<char>(bad[i] ^ static_cast<char>(1 + rng() % 255));
+    EXPECT_FALSE(decode_intercode(bad, q, err)) << "byte " << i;
+    if (i >= 6) {
+      EXPECT_NE(err.find("checksum mismatch: the file is damaged"), std::string::npos)
+          << i << ": " << err;
+    }
+  }
+}
+
+// The streaming writer of `tgm-hmi compile` (the buffer emptied as it goes, the record count
+// written at the end) makes the same bytes as encode_intercode, the checksum included.
+TEST(Intercode, StreamingEncoderMakesTheSameFile) {
+  const Program p = compile_ok("G90 G1 X1 F100\nG2 X3 I1\nM3 S1\nM29 (x)\nG4 P1\nG0 Z5\nM30\n");
+  std::string whole;
+  encode_intercode(p, whole);
+  std::string buffer, file;
+  IntercodeEncoder enc(buffer, p.number_axes, p.axis_letters, /*streaming=*/true);
+  for (const Segment& sg : p.segments) {
+    enc.add(sg);
+    file += buffer;
+    buffer.clear();
+  }
+  const std::uint64_t count = enc.records();
+  enc.finish(p.params, p.messages);
+  file += buffer;
+  std::memcpy(file.data() + IntercodeEncoder::kCountOffset, &count, sizeof count);
+  EXPECT_EQ(file, whole);
+  // Appended behind other bytes, the header is where the encoder put it.
+  std::string behind = "xyz";
+  encode_intercode(p, behind);
+  EXPECT_EQ(behind.substr(3), whole);
+}
+
+// Version 2 files (before the checksum) are still read.
+TEST(Intercode, VersionTwoFilesWithoutAChecksumAreRead) {
+  const Program p = compile_ok("G90 G1 X1 F100\nG2 X3 I1\nM3 S1\n");
+  std::string bytes;
+  encode_intercode(p, bytes);
+  std::string v2 = bytes.substr(0, bytes.size() - 4);
+  v2[4] = 2;
+  Program q;
+  std::string err;
+  ASSERT_TRUE(decode_intercode(v2, q, err)) << err;
+  EXPECT_EQ(q.segments.size(), p.segments.size());
+  EXPECT_EQ(q.segments[1].end, p.segments[1].end);
+  v2[4] = 4;
+  EXPECT_FALSE(decode_intercode(v2, q, err));
+  EXPECT_NE(err.find("unsupported version 4"), std::string::npos) << err;
 }
 
 }  // namespace

@@ -14,7 +14,8 @@ namespace tgm {
 
 //! Appends the binary intercode of `p` to `out` (little-endian, versioned, compact: a record
 //! stores the configured axes and modal fields that differ from the record before it, and only
-//! the fields its type uses).
+//! the fields its type uses; version 3 ends in a CRC-32 of the file, so that a damaged file is
+//! refused instead of being run as another program).
 void encode_intercode(const Program& p, std::string& out);
 
 //! Writes binary intercode record by record, for programs too long to hold as `Segment`s.
@@ -48,11 +49,21 @@ class IntercodeEncoder {
   std::uint8_t prev_modes_ = 0;  // G17, G40, no M kind
   double prev_feed_ = 0.0;
   double prev_comp_radius_ = 0.0;
+  std::uint32_t crc_ = 0xFFFFFFFFu;  // of what was appended so far, but the record count
 };
 
-//! Parses binary intercode. On failure returns false and says why in `error`; never reads out
-//! of bounds and never accepts NaN, unknown record types or dangling side-table indices.
+//! Parses binary intercode (version 3, checksum checked first, or version 2, which has none). On
+//! failure returns false and says why in `error`; never reads out of bounds and never accepts
+//! NaN, unknown record types or dangling side-table indices.
 bool decode_intercode(std::string_view bytes, Program& out, std::string& error);
+
+//! CRC-32 (IEEE 802.3, as zlib's crc32) of `bytes`.
+std::uint32_t crc32(std::string_view bytes);
+
+//! Writes the checksum that a version 3 file's other bytes call for into its last 4 bytes (for
+//! tests and fuzzers that change a file on purpose). False, and nothing changed, when `file` is
+//! not version 3 intercode long enough to have one.
+bool reseal_intercode(std::string& file);
 
 //! One JSON object per record, '\n'-terminated (see README "Intercode dump").
 void dump_jsonl(const Program& p, std::string& out);
