@@ -397,7 +397,7 @@ void Engine::cycle(CyclePort& port, const LatenessStats& lateness) {
       const std::string_view text = s.ip.message_text(reg.message_slot);
       ++s.message_counter;
       s.message_text.set(text);
-      send_message(port, i, MessageOut::Severity::kInfo, text, reg.act_line);
+      send_message(port, i, MessageOut::Severity::kInfo, text, s.ip.message_line(reg.message_slot));
     }
     InterpolatorSnapshot& o = snapshot_.ip[static_cast<std::size_t>(i)];
     // o still holds the previous cycle: queue the event (the first cycle always has one).

@@ -500,6 +500,11 @@ TEST(Messages, M29TextIsPublished) {
   ASSERT_TRUE(ip.start().ok());
   ASSERT_GT(run_until(ip, [](const Registers& g) { return g.message_count == 1; }), 0);
   EXPECT_EQ(ip.message_text(ip.registers().message_slot), "tool check");
+  // The message's own line, not that of the record executing when it comes out.
+  EXPECT_EQ(ip.message_line(ip.registers().message_slot), b.program().segments[1].line);
+  EXPECT_NE(ip.registers().act_line, b.program().segments[1].line);
+  EXPECT_EQ(ip.message_line(-1), 0);
+  EXPECT_EQ(ip.message_line(1 << 20), 0);
 }
 
 TEST(LimitFactors, EachBlockSaysWhatLimitedIt) {

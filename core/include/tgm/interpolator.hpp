@@ -219,6 +219,9 @@ class Interpolator {
   bool takes_records() const;
   //! Text of an M29 message by Registers::message_slot ("" when the slot is empty).
   std::string_view message_text(std::int32_t slot) const;
+  //! Source line of that M29 (0 when the slot is empty). Act_Line when the message comes out is
+  //! the record executing then, which is a later one: an M29 is passed, not executed.
+  std::int32_t message_line(std::int32_t slot) const;
   //! Corner events of the last step (empty unless recording).
   std::span<const CornerEvent> corner_events() const;
   //! Motion records completed during the last step.

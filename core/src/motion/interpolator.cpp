@@ -332,6 +332,7 @@ struct Interpolator::Impl {
   std::vector<Rec> rec;
   std::vector<MParams> par;
   std::vector<std::string> msg;
+  std::vector<std::int32_t> msg_line;  // source line of each message slot's M29
   std::size_t msg_next = 0;
   std::uint64_t tail = 0;     // next q to write
   std::uint64_t cur = 0;      // record being executed (== tail: none)
@@ -723,6 +724,7 @@ struct Interpolator::Impl {
     }
     if (sg.type == SegmentType::kMessage) {
       msg[msg_next] = p.messages[static_cast<std::size_t>(sg.aux)];
+      msg_line[msg_next] = sg.line;
       r.msg_slot = static_cast<std::int32_t>(msg_next);
       msg_next = (msg_next + 1) % kMessageRing;
     }
@@ -3515,6 +3517,7 @@ std::optional<Interpolator> Interpolator::create(const MachineConfig& machine, i
     m.grow_rings(0);
   }
   m.msg.resize(kMessageRing);
+  m.msg_line.assign(kMessageRing, 0);
   m.dq_a.init(m.cap + 1);
   m.dq_j.init(m.cap + 1);
   m.dq_wg.init(m.cap + 1);
@@ -3904,6 +3907,11 @@ bool Interpolator::takes_records() const {
 std::string_view Interpolator::message_text(std::int32_t slot) const {
   if (slot < 0 || static_cast<std::size_t>(slot) >= impl_->msg.size()) return {};
   return impl_->msg[static_cast<std::size_t>(slot)];
+}
+
+std::int32_t Interpolator::message_line(std::int32_t slot) const {
+  if (slot < 0 || static_cast<std::size_t>(slot) >= impl_->msg_line.size()) return 0;
+  return impl_->msg_line[static_cast<std::size_t>(slot)];
 }
 
 std::span<const CornerEvent> Interpolator::corner_events() const {
