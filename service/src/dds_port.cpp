@@ -557,6 +557,8 @@ void DdsPort::publish_loop() {
                                                                       : msg::SEVERITY_INFO);
       message.text(std::string(m.text.view()));
       message.source_line(m.source_line);
+      message.program_id(m.program_id);
+      message.cycle(m.cycle);
       message_writer_.write(&message);
     }
     if (stopping_) break;
@@ -596,6 +598,8 @@ void DdsPort::publish_loop() {
       message.severity(msg::SEVERITY_ERROR);
       message.text(text);
       message.source_line(0);
+      message.program_id(0);
+      message.cycle(mine);
       message_writer_.write(&message);
     }
     // Events first, every one queued, in order: they are small and the PLC acts on them

@@ -226,16 +226,19 @@ void Engine::refuse_chunk(CyclePort& port, int i, const ChunkIn& c, std::string_
   if (s.refused_program == c.program_id) return;  // one message per refused program
   s.refused_program = c.program_id;
   send_message(port, i, MessageOut::Severity::kError,
-               "program " + std::to_string(c.program_id) + " refused: " + std::string(why), 0);
+               "program " + std::to_string(c.program_id) + " refused: " + std::string(why), 0,
+               c.program_id);
 }
 
 void Engine::send_message(CyclePort& port, int i, MessageOut::Severity severity,
-                          std::string_view text, std::int32_t line) {
+                          std::string_view text, std::int32_t line, std::uint32_t program_id) {
   MessageOut m;
   m.interpolator = i;
   m.severity = severity;
   m.text.set(text);
   m.source_line = line;
+  m.program_id = program_id;
+  m.cycle = cycles_;
   if (!port.message(m)) ++counters_.lost_messages;
 }
 
@@ -351,7 +354,7 @@ void Engine::check_limits(CyclePort& port, int i) {
   const std::uint64_t found = s.checker->violation_count() - counted_before;
   counters_.limit_violations += found;
   auto send = [&](std::string_view text, std::int32_t line) {
-    send_message(port, i, MessageOut::Severity::kWarning, text, line);
+    send_message(port, i, MessageOut::Severity::kWarning, text, line, s.program_id);
   };
   // The checker keeps the first LimitChecker::kMaxStored excesses in detail.
   const auto& stored = s.checker->violations();
@@ -397,7 +400,8 @@ void Engine::cycle(CyclePort& port, const LatenessStats& lateness) {
       const std::string_view text = s.ip.message_text(reg.message_slot);
       ++s.message_counter;
       s.message_text.set(text);
-      send_message(port, i, MessageOut::Severity::kInfo, text, s.ip.message_line(reg.message_slot));
+      send_message(port, i, MessageOut::Severity::kInfo, text, s.ip.message_line(reg.message_slot),
+                   s.program_id);
     }
     InterpolatorSnapshot& o = snapshot_.ip[static_cast<std::size_t>(i)];
     // o still holds the previous cycle: queue the event (the first cycle always has one).

@@ -986,7 +986,11 @@ TEST(ServiceProcesses, HmiRunContinuesAfterAnM0ProgramStop) {
         << ctx << ": " << log;
     EXPECT_NE(log.find("M0 program stop at line 4: continuing shortly\n"), std::string::npos)
         << ctx << ": " << log;
-    EXPECT_NE(log.find("M29 (line 3): half way\n"), std::string::npos) << ctx << ": " << log;
+    // Once: the second run does not show the first one's message, which the topic keeps for
+    // late readers.
+    const auto m29 = log.find("M29 (line 3): half way\n");
+    EXPECT_NE(m29, std::string::npos) << ctx << ": " << log;
+    EXPECT_EQ(log.find("M29 (line 3)", m29 + 1), std::string::npos) << ctx << ": " << log;
     EXPECT_EQ(log.find("stopped by a stop command"), std::string::npos) << ctx << ": " << log;
     EXPECT_NE(log.find("end position X2.0000"), std::string::npos) << ctx << ": " << log;
     // The lateness is the service's since it started; the missed cycles also this run's own.

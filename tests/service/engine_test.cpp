@@ -282,6 +282,7 @@ TEST(Engine, ChunksOfAProgramDroppedByAnOffTrajectoryStopAreRefused) {
   EXPECT_EQ(port.last.ip[0].reg.off_trajectory, 1);
   EXPECT_EQ(port.last.ip[0].next_sequence, 500u);
   ASSERT_EQ(port.messages.size(), 1u);  // one message per refused program
+  EXPECT_EQ(port.messages[0].program_id, 9u);
   EXPECT_NE(port.messages[0].text.view().find(
                 "program 9 refused: program 9 was dropped by an off-trajectory stop"),
             std::string_view::npos)
@@ -419,9 +420,16 @@ TEST(Engine, NormalMFunctionWaitsForTheAckAndResumesInTheSameCycle) {
   while (port.last.ip[0].reg.status != 3 && cycles++ < 20000) e.cycle(port, {});
   EXPECT_EQ(port.last.ip[0].reg.status, 3);
   // The M29 text went out as a message and into the state.
-  bool found = false;
-  for (const auto& m : port.messages) found = found || m.text.view() == "hello from M29";
-  EXPECT_TRUE(found);
+  // It names its program, its own line and the cycle it went out in.
+  const MessageOut* m29 = nullptr;
+  for (const auto& m : port.messages) {
+    if (m.text.view() == "hello from M29") m29 = &m;
+  }
+  ASSERT_NE(m29, nullptr);
+  EXPECT_EQ(m29->program_id, 9u);
+  EXPECT_EQ(m29->source_line, 1);
+  EXPECT_GT(m29->cycle, 0u);
+  EXPECT_LT(m29->cycle, e.cycles());
   EXPECT_EQ(port.last.ip[0].message_text.view(), "hello from M29");
   EXPECT_EQ(port.last.ip[0].message_counter, 1u);
 }

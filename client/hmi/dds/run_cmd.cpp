@@ -260,6 +260,9 @@ int run_run(int argc, char** argv) {
   }
   // The service this run talks to: a restarted one has lost the program.
   const std::uint64_t instance = st->service_instance();
+  // Messages about the service written before this run (the topic keeps the last ones for late
+  // readers) are not this run's.
+  const std::uint64_t run_from_cycle = st->cycle_counter();
   if (st->status() == 1 || st->status() == 6) {
     std::fprintf(stderr, "tgm-hmi run: interpolator %d is busy (status %d %s); stop it first (tgm-hmi stop)\n", ip,
                  st->status(), std::string(client::status_name(st->status())).c_str());
@@ -369,6 +372,8 @@ int run_run(int argc, char** argv) {
     count_events();
     for (const msg::Message& m : hmi->take_messages()) {
       if (m.interpolator() != ip) continue;
+      // Another program's messages (an earlier run's M29 texts and warnings) are not shown.
+      if (m.program_id() != 0 ? m.program_id() != program_id : m.cycle() < run_from_cycle) continue;
       clear_progress();
       const bool err = m.severity() == msg::SEVERITY_ERROR;
       std::printf("%s (line %d): %s\n",
@@ -377,7 +382,7 @@ int run_run(int argc, char** argv) {
                                                           : "M29",
                   m.source_line(), printable(m.text().c_str()).c_str());
       ++messages;
-      if (err && std::string(m.text().c_str()).find(std::to_string(program_id)) != std::string::npos) exit_code = 1;
+      if (err && m.program_id() == program_id) exit_code = 1;
     }
     if (exit_code != 0) break;
     if (g_interrupted) {

@@ -101,8 +101,9 @@ class Engine {
   void apply_chunks(CyclePort& port, int i, std::size_t& budget);
   void refuse_chunk(CyclePort& port, int i, const ChunkIn& c, std::string_view why);
   //! Sends a message of interpolator i to the HMIs (counted as lost when the port drops it).
+  //! `program_id`: the program the message belongs to (0: none).
   void send_message(CyclePort& port, int i, MessageOut::Severity severity, std::string_view text,
-                    std::int32_t line);
+                    std::int32_t line, std::uint32_t program_id);
   //! Feeds interpolator i's cycle to its limit checker and reports new excesses.
   void check_limits(CyclePort& port, int i);
 

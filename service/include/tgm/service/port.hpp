@@ -94,6 +94,8 @@ struct MessageOut {
   Severity severity = Severity::kInfo;
   FixedText<256> text;
   std::int32_t source_line = 0;
+  std::uint32_t program_id = 0;  //!< the program it belongs to; 0 = none
+  std::uint64_t cycle = 0;       //!< the service cycle it was sent in
 };
 
 //! A program chunk, already decoded on the receiving thread. The cycle thread applies it in
