@@ -18,6 +18,7 @@
 #include <set>
 #include <string>
 #include <thread>
+#include <tuple>
 #include <vector>
 
 #include "raw_sample.hpp"
@@ -460,6 +461,36 @@ TEST(ServiceProcesses, HmiRunEndsWithAClearErrorWhenTheServiceRestarts) {
   ASSERT_TRUE(env.start_service());
   EXPECT_EQ(hmi.wait(kHang), 1) << hmi.log();
   EXPECT_NE(hmi.log().find("tgm-service restarted during the run"), std::string::npos) << hmi.log();
+}
+
+// An emergency stop ends the run with exit code 1 and names the Command, 4 or 5. The Command
+// register is back at 0 when the ramp has ended, and the run said "Command 0". (The second run
+// clears what the first stop left.)
+TEST(ServiceProcesses, HmiRunNamesTheEmergencyStopThatEndedIt) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  std::ofstream(env.path("long.ngc")) << "G1 X200 F1000\nM2\n";  // 12 s
+  for (const auto& [what, code, off] :
+       {std::tuple{"estop", 4, ""}, std::tuple{"estop-off", 5, ", off trajectory"}}) {
+    test::Child hmi;
+    ASSERT_TRUE(
+        hmi.start({TGM_HMI_BIN, "run", env.path("long.ngc"), "--config", env.config(), "--quiet"},
+                  env.path("hmi.log")));
+    {
+      client::Client watch(env.dds(), client::Role::kHmi);
+      ASSERT_TRUE(watch.wait_until(
+          0, [](const msg::InterpolatorState& s) { return s.status() == 1; }, kHang))
+          << hmi.log();
+    }
+    test::Child estop;
+    ASSERT_TRUE(estop.start({TGM_HMI_BIN, "command", what, "--config", env.config()},
+                            env.path("estop.log")));
+    EXPECT_EQ(estop.wait(kHang), 0) << estop.log();
+    EXPECT_EQ(hmi.wait(kHang), 1) << hmi.log();
+    const std::string said =
+        "tgm-hmi run: emergency stop (Command " + std::to_string(code) + ")" + off + " at line 1\n";
+    EXPECT_NE(hmi.log().find(said), std::string::npos) << what << ": " << hmi.log();
+  }
 }
 
 // A second tgm-service on a live service's domain would take the same requests and programs:

@@ -437,7 +437,9 @@ int run_run(int argc, char** argv) {
     if (status == InterpolatorStatus::kEmergencyStopped || status == InterpolatorStatus::kEmergencyRamp) {
       if (status == InterpolatorStatus::kEmergencyRamp) continue;
       clear_progress();
-      std::fprintf(stderr, "tgm-hmi run: emergency stop (Command %d)%s at line %d\n", st->command(),
+      // The Command register is back at 0 once the ramp has ended: the trajectory tells 4 from 5.
+      const int code = st->command() != 0 ? st->command() : st->off_trajectory() ? 5 : 4;
+      std::fprintf(stderr, "tgm-hmi run: emergency stop (Command %d)%s at line %d\n", code,
                    st->off_trajectory() ? ", off trajectory" : "", st->act_line());
       exit_code = 1;
       break;
