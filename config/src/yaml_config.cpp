@@ -494,6 +494,15 @@ ConfigLoad load_config_text(const std::string& text, const std::string& path) {
   }
   // The profiles file and the security directory are relative to the YAML file.
   namespace fs = std::filesystem;
+  // A config that names no profiles file takes the one beside it, or else the one shipped with
+  // tgm: a machine config written elsewhere (/etc/tgm/mill.yaml) was refused for a missing
+  // fastdds_profiles.xml it never asked for.
+  if (!(root.IsMap() && root["dds"].IsMap() && root["dds"]["profiles_file"])) {
+    std::error_code ec;
+    const fs::path beside = fs::path(path).parent_path() / cfg.dds.profiles_file;
+    if (path.empty() || !fs::exists(beside, ec))
+      cfg.dds.profiles_file = shipped_config_file(cfg.dds.profiles_file);
+  }
   for (std::string* p : {&cfg.dds.profiles_file, &cfg.dds.security_dir}) {
     if (!p->empty() && fs::path(*p).is_relative() && !path.empty()) {
       *p = (fs::path(path).parent_path() / *p).string();
@@ -536,12 +545,16 @@ std::optional<AppConfig> load_config_or_report(const std::string& path,
 }
 
 std::string default_config_path() {
-  namespace fs = std::filesystem;
   if (const char* env = std::getenv("TGM_CONFIG"); env && *env) return env;
-  const fs::path installed = fs::path(TGM_INSTALL_CONFIG_DIR) / "default.yaml";
+  return shipped_config_file("default.yaml");
+}
+
+std::string shipped_config_file(const std::string& name) {
+  namespace fs = std::filesystem;
+  const fs::path installed = fs::path(TGM_INSTALL_CONFIG_DIR) / name;
   std::error_code ec;
   if (fs::exists(installed, ec)) return installed.string();
-  return (fs::path(TGM_SOURCE_CONFIG_DIR) / "default.yaml").string();
+  return (fs::path(TGM_SOURCE_CONFIG_DIR) / name).string();
 }
 
 }  // namespace tgm

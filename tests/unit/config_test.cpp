@@ -8,6 +8,7 @@
 #include <fstream>
 #include <string>
 
+#include "tgm/dds_overrides.hpp"
 #include "tgm/yaml_config.hpp"
 
 namespace tgm {
@@ -123,6 +124,33 @@ TEST(Config, DdsSecurityIsADirectoryRelativeToTheFile) {
   EXPECT_EQ(load.config->dds.security_dir, "");
   load = load_config_text("dds: {security: [a]}\n", "m.yaml");
   EXPECT_FALSE(load.config.has_value());
+}
+
+// A config that does not name a profiles file takes fastdds_profiles.xml beside it, or else the
+// one shipped with tgm. A machine config kept elsewhere was refused for a missing
+// fastdds_profiles.xml it never asked for. One that names a file gets that file.
+TEST(Config, AnUnnamedProfilesFileIsTheOneBesideOrTheShippedOne) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("tgm_profiles_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string yaml = (dir / "mill.yaml").string();
+  auto load = load_config_text("cycle_time_us: 500\n", yaml);
+  ASSERT_TRUE(load.config.has_value());
+  EXPECT_EQ(load.config->dds.profiles_file, shipped_config_file("fastdds_profiles.xml"));
+  EXPECT_TRUE(fs::is_regular_file(load.config->dds.profiles_file))
+      << load.config->dds.profiles_file;
+  EXPECT_TRUE(dds_profiles_problem(load.config->dds).empty());
+  std::ofstream(dir / "fastdds_profiles.xml") << "<profiles/>\n";
+  load = load_config_text("dds: {domain_id: 3}\n", yaml);
+  ASSERT_TRUE(load.config.has_value());
+  EXPECT_EQ(load.config->dds.profiles_file, (dir / "fastdds_profiles.xml").string());
+  load = load_config_text("dds: {profiles_file: qos.xml}\n", yaml);
+  ASSERT_TRUE(load.config.has_value());
+  EXPECT_EQ(load.config->dds.profiles_file, (dir / "qos.xml").string());
+  EXPECT_NE(dds_profiles_problem(load.config->dds).find("qos.xml' does not exist"),
+            std::string::npos);
+  fs::remove_all(dir);
 }
 
 TEST(Config, UnknownKeyIsAnErrorWithPathAndLine) {

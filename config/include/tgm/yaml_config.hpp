@@ -15,7 +15,8 @@ namespace tgm {
 //! DDS settings shared by every process.
 struct DdsConfig {
   int domain_id = 0;
-  //! Fast DDS XML profiles file; a relative path is taken relative to the YAML file.
+  //! Fast DDS XML profiles file; a relative path is taken relative to the YAML file. Not given
+  //! in the file: fastdds_profiles.xml beside it, or else the one shipped with tgm.
   std::string profiles_file = "fastdds_profiles.xml";
   //! Prefix of participant names ("<prefix>-service", "<prefix>-plc", "<prefix>-hmi").
   std::string participant_prefix = "tgm";
@@ -68,5 +69,9 @@ std::optional<AppConfig> load_config_or_report(const std::string& path, const st
 //! The config file used when none is given: $TGM_CONFIG, then the installed
 //! <prefix>/share/tgm/default.yaml, then config/default.yaml of the source tree.
 std::string default_config_path();
+
+//! A file shipped with tgm's configs (default.yaml, fastdds_profiles.xml): the installed
+//! <prefix>/share/tgm/NAME when there is one, else config/NAME of the source tree.
+std::string shipped_config_file(const std::string& name);
 
 }  // namespace tgm
