@@ -486,7 +486,7 @@ int plc_main(int argc, char** argv) {
       rec.action = rec.request_id != 0 ? EventSeen::Action::kAcked
                    : refused           ? EventSeen::Action::kRefused
                                        : EventSeen::Action::kScheduled;
-      rec.line = e.act_line();
+      rec.line = e.m_func_line() != 0 ? e.m_func_line() : e.act_line();
       rec.part = e.act_part();
       rec.params = e.m_function_parameter();
       rec.woke = ev.received;
@@ -804,7 +804,7 @@ int plc_main(int argc, char** argv) {
         seen_new = true;
         seen_normal = normal;
         seen_m = s->m_func();
-        seen_line = s->act_line();
+        seen_line = s->m_func_line() != 0 ? s->m_func_line() : s->act_line();
         seen_part = s->act_part();
         seen_params = s->m_function_parameter();
         sv.seen_at = now;

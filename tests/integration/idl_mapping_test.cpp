@@ -471,6 +471,7 @@ Registers random_registers(std::uint32_t seed) {
   r.free_slots = integer(rng);
   r.message_count = 7;
   r.m_func_count = 4'000'000'000u + static_cast<std::uint32_t>(integer(rng) + 100000);  // > 2^31
+  r.m_func_line = integer(rng);
   r.off_trajectory = 1;
   r.act_acceleration_mm_s2 = real(rng);
   r.limit_factor = LimitFactor::kStopCommand;
@@ -526,6 +527,7 @@ void expect_same_registers(const Registers& a, const Registers& b) {
   EXPECT_EQ(a.free_slots, b.free_slots);
   EXPECT_EQ(a.message_count, b.message_count);
   EXPECT_EQ(a.m_func_count, b.m_func_count);
+  EXPECT_EQ(a.m_func_line, b.m_func_line);
   EXPECT_EQ(a.off_trajectory, b.off_trajectory);
   EXPECT_EQ(a.act_acceleration_mm_s2, b.act_acceleration_mm_s2);
   EXPECT_EQ(a.limit_factor, b.limit_factor);
@@ -601,6 +603,8 @@ TEST(IdlMapping, EventCarriesTheEventRegistersOfTheState) {
     EXPECT_EQ(wire.command_status(), state.command_status());
     EXPECT_EQ(wire.m_func_count(), state.m_func_count());
     EXPECT_EQ(wire.m_func_count(), r.m_func_count);
+    EXPECT_EQ(wire.m_func_line(), state.m_func_line());
+    EXPECT_EQ(wire.m_func_line(), r.m_func_line);
     EXPECT_EQ(wire.m_function_parameter(), state.m_function_parameter());
     EXPECT_TRUE(is_not_set(wire.m_function_parameter()[3]));
 
@@ -623,6 +627,7 @@ TEST(IdlMapping, EventCarriesTheEventRegistersOfTheState) {
     expected.command = r.command;
     expected.command_status = r.command_status;
     expected.m_func_count = r.m_func_count;
+    expected.m_func_line = r.m_func_line;
     expected.m_function_parameter = r.m_function_parameter;
     expect_same_registers(expected, applied);
   }

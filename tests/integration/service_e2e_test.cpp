@@ -294,6 +294,28 @@ TEST(ServiceProcesses, PlcAcknowledgesFromTheEventAndLogsEachMFunctionOnce) {
   EXPECT_EQ(test::count_of(log, "acknowledged"), 3) << log;
   EXPECT_EQ(test::count_of(log, ": accepted (cycle"), 3) << log;
   EXPECT_EQ(test::count_of(log, " 0 lost"), 1) << log;
+  EXPECT_EQ(test::count_of(log, "M51 normal: the interpolator waits (line 3, part 2)"), 1) << log;
+  EXPECT_EQ(test::count_of(log, "M50 normal: the interpolator waits (line 11, part 10)"), 1) << log;
+}
+
+// tgm-plc logs a continuous M-function with its own line. It is handed over as the record after
+// it starts, and the log named that record's line (the state's act_line).
+TEST(ServiceProcesses, PlcLogsAContinuousMFunctionAtItsOwnLine) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  test::Child plc;
+  ASSERT_TRUE(
+      plc.start({TGM_PLC_BIN, "--config", env.config(), "--ack-delay", "0"}, env.path("plc.log")));
+  std::ofstream(env.path("c.ngc")) << "G90 G1 X1 F600\nM1005\nG4 P0.1\nM51\nG1 X2\nM2\n";
+  test::Child hmi;
+  ASSERT_TRUE(
+      hmi.start({TGM_HMI_BIN, "run", env.path("c.ngc"), "--config", env.config(), "--quiet"},
+                env.path("hmi.log")));
+  EXPECT_EQ(hmi.wait(kHang), 0) << hmi.log() << "\n--- plc:\n" << plc.log();
+  EXPECT_EQ(plc.interrupt(), 0);
+  const std::string log = plc.log();
+  EXPECT_EQ(test::count_of(log, "M1005 continuous: motion goes on (line 2, part 3)"), 1) << log;
+  EXPECT_EQ(test::count_of(log, "M51 normal: the interpolator waits (line 4, part 4)"), 1) << log;
 }
 
 // tgm-plc's handshakes with several interpolators do not wait for one another: a reply lost on

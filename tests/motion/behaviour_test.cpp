@@ -416,6 +416,9 @@ TEST(MFunctions, ContinuousDoesNotStop) {
     return g.last_cont_m_func == 1234;
   });
   EXPECT_EQ(ip.registers().m_func, 1234);
+  // Handed over as the line after it starts: m_func_line is the M's own line, Act_Line not.
+  EXPECT_EQ(ip.registers().m_func_line, b.program().segments[1].line);
+  EXPECT_EQ(ip.registers().act_line, b.program().segments[2].line);
   EXPECT_NEAR(ip.registers().act_speed, 3000.0, 1e-6);
   run_until(ip, [&](const Registers& g) {
     if (g.orig_position[0] > 45.0 && g.orig_position[0] < 55.0) min_speed_mid = std::min(min_speed_mid, g.act_speed);

@@ -136,7 +136,8 @@ std::string format_state(const msg::InterpolatorState& s, const std::string& con
   append_line(out, "  program %u: next_sequence %llu, buffered %d, free %d", s.program_id(),
               static_cast<unsigned long long>(s.next_sequence()), s.buffered_segments(),
               s.free_buffer_slots());
-  append_line(out, "  M-functions handed over %u; service instance %016llx", s.m_func_count(),
+  append_line(out, "  M-functions handed over %u (the last from line %d); service instance %016llx",
+              s.m_func_count(), s.m_func_line(),
               static_cast<unsigned long long>(s.service_instance()));
   append_line(out,
               "  cycle %llu of %d us, lateness last %.1f us, max %.1f us, p99.9 %.1f us, missed "
@@ -247,6 +248,7 @@ std::string format_state_json(const msg::InterpolatorState& s, const std::string
   json_field(out, "m_func", s.m_func());
   json_field(out, "last_cont_m_func", s.last_cont_m_func());
   json_field(out, "m_func_count", s.m_func_count());
+  json_field(out, "m_func_line", s.m_func_line());
   json_field(out, "tool_number", s.tool_number());
   json_field(out, "rel_speed", s.rel_speed());
   json_field(out, "set_speed_mm_min", s.set_speed());

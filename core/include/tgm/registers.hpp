@@ -161,6 +161,9 @@ struct Registers {
   //! M-functions handed to M_Func since creation (normal and continuous): the PLC tells two
   //! successive M-functions apart by it, also two equal ones whose M_Func never changes.
   std::uint32_t m_func_count = 0;
+  //! Source line of the M-function last handed to M_Func (0 = none). A continuous one is handed
+  //! over when the record after it starts, so Act_Line is then that record's line.
+  std::int32_t m_func_line = 0;
   //! 1 after Command 5 / 9: the program was abandoned; a new program or a position set is needed.
   std::int32_t off_trajectory = 0;
   //! Path acceleration [mm/s^2] at the end of the cycle.
@@ -187,6 +190,7 @@ struct EventRegisters {
   std::int32_t command = 0;
   std::int32_t command_status = 0;
   std::uint32_t m_func_count = 0;
+  std::int32_t m_func_line = 0;
   std::array<double, kMFunctionParameters> m_function_parameter{};
 };
 
@@ -203,6 +207,7 @@ inline EventRegisters event_registers(const Registers& r) {
   e.command = r.command;
   e.command_status = r.command_status;
   e.m_func_count = r.m_func_count;
+  e.m_func_line = r.m_func_line;
   e.m_function_parameter = r.m_function_parameter;
   return e;
 }

@@ -426,6 +426,7 @@ struct Interpolator::Impl {
   static constexpr std::size_t kMaxDeferredM = 64;
   std::array<MParams, SmoothingStage::kEventCapacity + kMaxDeferredM + 1> ev_par{};
   std::size_t ev_par_next = 0;
+  std::array<std::int32_t, SmoothingStage::kEventCapacity + kMaxDeferredM + 1> ev_line{};  // by tag
   // At most one M-function reaches M_Func per cycle: a PLC reading the registers once a cycle
   // sees each of two M records with nothing between them (they would otherwise leave the
   // smoothing in the same calculation step, the second overwriting the first). The later ones
@@ -1491,6 +1492,7 @@ struct Interpolator::Impl {
     if (kind != kEvMessage) {
       e.tag = ev_par_next;
       ev_par[ev_par_next] = par[ring_index(q)];
+      ev_line[ev_par_next] = S(q).line;
       ev_par_next = (ev_par_next + 1) % ev_par.size();
     }
     if (!smooth->push_event_next(e)) apply_event(e);  // 256 events inside the spline: at once
@@ -1528,6 +1530,7 @@ struct Interpolator::Impl {
         reg.m_func = e.value;
         reg.act_m_func = e.value;
         reg.m_func_count += 1;
+        reg.m_func_line = ev_line[static_cast<std::size_t>(e.tag)];
         copy_params_from(ev_par[static_cast<std::size_t>(e.tag)]);
         m_pending = false;
         wait_m_first = mode == Mode::kWaitM;
@@ -1537,6 +1540,7 @@ struct Interpolator::Impl {
         reg.act_m_func = e.value;
         reg.last_cont_m_func = e.value;
         reg.m_func_count += 1;
+        reg.m_func_line = ev_line[static_cast<std::size_t>(e.tag)];
         copy_params_from(ev_par[static_cast<std::size_t>(e.tag)]);
         break;
       case kEvMessage:

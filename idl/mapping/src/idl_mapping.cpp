@@ -330,6 +330,7 @@ void to_idl(const Registers& r, std::uint16_t interpolator, msg::InterpolatorSta
   out.act_acceleration_mm_s2(r.act_acceleration_mm_s2);
   out.limit_factor(static_cast<std::uint8_t>(r.limit_factor));
   out.m_func_count(r.m_func_count);
+  out.m_func_line(r.m_func_line);
   out.free_buffer_slots(r.free_slots);
   out.cycle_counter(r.cycle);
   out.message_counter(r.message_count);
@@ -371,6 +372,7 @@ void from_idl(const msg::InterpolatorState& in, Registers& out) {
   out.act_acceleration_mm_s2 = in.act_acceleration_mm_s2();
   out.limit_factor = static_cast<LimitFactor>(in.limit_factor());
   out.m_func_count = in.m_func_count();
+  out.m_func_line = in.m_func_line();
   out.free_slots = in.free_buffer_slots();
   out.cycle = in.cycle_counter();
   out.message_count = in.message_counter();
@@ -389,6 +391,7 @@ void to_event(const EventRegisters& r, std::uint16_t interpolator, msg::Interpol
   out.command(r.command);
   out.command_status(r.command_status);
   out.m_func_count(r.m_func_count);
+  out.m_func_line(r.m_func_line);
   out.m_function_parameter() = r.m_function_parameter;
 }
 
@@ -404,6 +407,7 @@ void from_event(const msg::InterpolatorEvent& in, Registers& out) {
   out.command = in.command();
   out.command_status = in.command_status();
   out.m_func_count = in.m_func_count();
+  out.m_func_line = in.m_func_line();
   out.m_function_parameter = in.m_function_parameter();
 }
 
