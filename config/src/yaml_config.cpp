@@ -551,8 +551,14 @@ std::string default_config_path() {
 
 std::string shipped_config_file(const std::string& name) {
   namespace fs = std::filesystem;
-  const fs::path installed = fs::path(TGM_INSTALL_CONFIG_DIR) / name;
   std::error_code ec;
+  // Beside the running binary first (P/bin/../share/tgm): an installation made with
+  // `cmake --install --prefix P`, or moved, finds its own files, not the configured prefix's.
+  if (const fs::path exe = fs::read_symlink("/proc/self/exe", ec); !ec && exe.has_parent_path()) {
+    const fs::path beside = exe.parent_path().parent_path() / "share" / "tgm" / name;
+    if (fs::exists(beside, ec)) return beside.string();
+  }
+  const fs::path installed = fs::path(TGM_INSTALL_CONFIG_DIR) / name;
   if (fs::exists(installed, ec)) return installed.string();
   return (fs::path(TGM_SOURCE_CONFIG_DIR) / name).string();
 }

@@ -128,6 +128,35 @@ TEST(ServiceSystemd, TheUnitsPassSystemdAnalyzeVerify) {
   std::filesystem::remove_all(dir);
 }
 
+// `cmake --install --prefix P` to a prefix other than the configured one makes a self-contained
+// installation: the units start P/bin's binaries, and a binary there reads P/share/tgm's default
+// config (it ran /usr/local's, or the source tree's, and the units named the configured prefix).
+TEST(ServiceSystemd, AnInstallationToAnotherPrefixUsesItsOwnFiles) {
+  const std::string prefix = testing::TempDir() + "tgm-prefix-" + std::to_string(::getpid());
+  std::filesystem::remove_all(prefix);
+  const tgm::test::ShellRun install = tgm::test::run_shell(
+      std::string(TGM_CMAKE) + " --install " + TGM_BUILD_DIR + " --prefix " + prefix,
+      testing::TempDir(), "install");
+  ASSERT_EQ(install.exit_code, 0) << install.out << install.err;
+  for (const char* unit : {"tgm-service", "tgm-plc"}) {
+    const std::string text =
+        tgm::test::read_text(prefix + "/lib/systemd/system/" + unit + ".service");
+    EXPECT_NE(text.find("ExecStart=" + prefix + "/bin/" + unit + " "), std::string::npos) << text;
+  }
+  // The installed default config, changed so that its use shows.
+  const std::string config = prefix + "/share/tgm/default.yaml";
+  std::string yaml = tgm::test::read_text(config);
+  ASSERT_TRUE(tgm::test::replace_first(yaml, "cycle_time_us: 500", "cycle_time_us: 1000")) << yaml;
+  std::ofstream(config) << yaml;
+  std::ofstream(prefix + "/p.ngc") << "G1 X1 F600\nM2\n";
+  const tgm::test::ShellRun run = tgm::test::run_shell(
+      "env -u TGM_CONFIG " + prefix + "/bin/tgm-hmi simulate " + prefix + "/p.ngc", prefix,
+      "simulate");
+  EXPECT_EQ(run.exit_code, 0) << run.out << run.err;
+  EXPECT_NE(run.out.find("interpolator 0, 1000 us cycle"), std::string::npos) << run.out << run.err;
+  std::filesystem::remove_all(prefix);
+}
+
 // READY=1 once the cycle runs, with what it serves in STATUS=; watchdog pings while it runs;
 // STOPPING=1 last, at the clean stop.
 TEST(ServiceSystemd, TheServiceSaysReadyPingsTheWatchdogAndSaysStopping) {

@@ -66,12 +66,12 @@ ConfigLoad load_config_file(const std::string& path);
 //! <path> has N problems" to stderr, returns nullopt.
 std::optional<AppConfig> load_config_or_report(const std::string& path, const std::string& program);
 
-//! The config file used when none is given: $TGM_CONFIG, then the installed
-//! <prefix>/share/tgm/default.yaml, then config/default.yaml of the source tree.
+//! The config file used when none is given: $TGM_CONFIG, then shipped_config_file("default.yaml").
 std::string default_config_path();
 
-//! A file shipped with tgm's configs (default.yaml, fastdds_profiles.xml): the installed
-//! <prefix>/share/tgm/NAME when there is one, else config/NAME of the source tree.
+//! A file shipped with tgm's configs (default.yaml, fastdds_profiles.xml): share/tgm/NAME of
+//! the installation the running binary belongs to (BIN/../share/tgm), else of the configured
+//! <prefix>, else config/NAME of the source tree.
 std::string shipped_config_file(const std::string& name);
 
 }  // namespace tgm
