@@ -64,7 +64,11 @@ class Reader {
 
   void error(const YAML::Node& n, const std::string& path, const std::string& reason) {
     std::string where = file_;
-    if (const int l = line(n); l >= 0) where += ":" + std::to_string(l + 1);
+    if (const int l = line(n); l >= 0) {
+      // Appended piece by piece: GCC 12 at -O3 warns (-Wrestrict, falsely) on ":" + to_string().
+      where += ':';
+      where += std::to_string(l + 1);
+    }
     errors.push_back(where + ": " + path + ": " + reason);
     rejected.insert(path);
   }
