@@ -79,6 +79,7 @@ TEST(HmiJson, StatusWritesOneObjectPerLineWithEveryValueReadable) {
   s.message_text(text);
   s.message_counter(4);
   s.m_func_line(11);
+  s.program_stop(true);
   std::atomic<bool> done{false};
   std::thread writer([&] {
     while (!done) {
@@ -103,6 +104,8 @@ TEST(HmiJson, StatusWritesOneObjectPerLineWithEveryValueReadable) {
   EXPECT_EQ(j["act_line"].as<int>(), 12);
   EXPECT_EQ(j["m_func"].as<int>(), 51);
   EXPECT_EQ(j["m_func_line"].as<int>(), 11);
+  EXPECT_TRUE(j["program_stop"].as<bool>());
+  EXPECT_FALSE(j["off_trajectory"].as<bool>());
   EXPECT_EQ(j["run_flag"].as<std::uint32_t>(), 0x00020005u);
   EXPECT_EQ(j["service_instance"].as<std::string>(), "fedcba9876543210");
   EXPECT_EQ(j["cycle_counter"].as<std::uint64_t>(), 123456789012ULL);

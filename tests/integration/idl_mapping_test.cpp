@@ -473,6 +473,7 @@ Registers random_registers(std::uint32_t seed) {
   r.m_func_count = 4'000'000'000u + static_cast<std::uint32_t>(integer(rng) + 100000);  // > 2^31
   r.m_func_line = integer(rng);
   r.off_trajectory = 1;
+  r.program_stop = 1;
   r.act_acceleration_mm_s2 = real(rng);
   r.limit_factor = LimitFactor::kStopCommand;
   return r;
@@ -529,6 +530,7 @@ void expect_same_registers(const Registers& a, const Registers& b) {
   EXPECT_EQ(a.m_func_count, b.m_func_count);
   EXPECT_EQ(a.m_func_line, b.m_func_line);
   EXPECT_EQ(a.off_trajectory, b.off_trajectory);
+  EXPECT_EQ(a.program_stop, b.program_stop);
   EXPECT_EQ(a.act_acceleration_mm_s2, b.act_acceleration_mm_s2);
   EXPECT_EQ(a.limit_factor, b.limit_factor);
 }

@@ -1056,6 +1056,27 @@ TEST(ServiceProcesses, HmiRunContinuesAfterAnM0ProgramStop) {
         << log;
     EXPECT_LE(during, total) << log;
   }
+  // While the program stands at an M0, tgm-hmi status says so: the register program_stop tells
+  // that Status 4 from a stop command's.
+  test::Child run;
+  ASSERT_TRUE(run.start({TGM_HMI_BIN, "run", env.path("m0.ngc"), "--config", env.config(),
+                         "--quiet", "--m0-continue", "3"},
+                        env.path("run.log")));
+  {
+    client::Client watch(env.dds(), client::Role::kHmi);
+    ASSERT_TRUE(watch.wait_until(
+        0, [](const msg::InterpolatorState& s) { return s.program_stop() && s.status() == 4; },
+        kHang))
+        << run.log();
+  }
+  test::Child status;
+  ASSERT_TRUE(
+      status.start({TGM_HMI_BIN, "status", "--config", env.config()}, env.path("status.log")));
+  EXPECT_EQ(status.wait(kHang), 0) << status.log();
+  EXPECT_NE(status.log().find("Status 4 (ready, at an M0 program stop: start continues)"),
+            std::string::npos)
+      << status.log();
+  EXPECT_EQ(run.wait(kHang), 0) << run.log();
 }
 
 TEST(ServiceProcesses, LateJoiningHmiSeesTheCurrentStateAtOnce) {

@@ -433,13 +433,26 @@ TEST(MFunctions, ProgramStopPausesUntilStart) {
   b.line({10.0, 0.0, 0.0}, 3000.0).m(0, MKind::kProgramStop).line({20.0, 0.0, 0.0}, 3000.0).end();
   ASSERT_TRUE(ip.load(b.program()).ok());
   ASSERT_TRUE(ip.start().ok());
+  EXPECT_EQ(ip.registers().program_stop, 0);
   ASSERT_GT(run_until(ip, [](const Registers& g) { return g.status == 4; }), 0);
   EXPECT_EQ(ip.registers().orig_position[0], 10.0);
   EXPECT_EQ(run_flag_section(ip.registers().run_flag), SectionState::kStop);
+  EXPECT_EQ(ip.registers().program_stop, 1);  // what tells this Status 4 from a stop's
   for (int i = 0; i < 100; ++i) EXPECT_EQ(ip.step(), StepResult::kWaiting);
   ASSERT_TRUE(ip.start().ok());
+  ip.step();
+  EXPECT_EQ(ip.registers().program_stop, 0);
   ASSERT_GT(run_until(ip, [](const Registers& g) { return g.status == 3; }), 0);
   EXPECT_EQ(ip.registers().orig_position[0], 20.0);
+  // A stop command's Status 4 is not a program stop.
+  Interpolator stopped = make();
+  ASSERT_TRUE(stopped.load(b.program()).ok());
+  ASSERT_TRUE(stopped.start().ok());
+  for (int i = 0; i < 50; ++i) stopped.step();
+  ASSERT_TRUE(stopped.command(8).ok());
+  ASSERT_GT(run_until(stopped, [](const Registers& g) { return g.status == 4; }), 0);
+  EXPECT_LT(stopped.registers().orig_position[0], 10.0);
+  EXPECT_EQ(stopped.registers().program_stop, 0);
 }
 
 TEST(MFunctions, DwellWaitsItsTime) {

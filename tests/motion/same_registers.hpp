@@ -29,6 +29,7 @@ inline void expect_same_registers(const Registers& a, const Registers& b, const 
   EXPECT_EQ(a.message_count, b.message_count) << ctx;
   EXPECT_EQ(a.m_func_count, b.m_func_count) << ctx;
   EXPECT_EQ(a.m_func_line, b.m_func_line) << ctx;
+  EXPECT_EQ(a.program_stop, b.program_stop) << ctx;
   EXPECT_EQ(a.limit_factor, b.limit_factor) << ctx;
   EXPECT_EQ(a.rel_speed, b.rel_speed) << ctx;
   EXPECT_EQ(a.set_speed, b.set_speed) << ctx;

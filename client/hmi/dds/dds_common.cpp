@@ -96,8 +96,9 @@ std::string format_state(const msg::InterpolatorState& s, const std::string& con
     out += t + '\n';
   };
   const auto rf = static_cast<std::uint32_t>(s.run_flag());
-  append_line(out, "Interpolator %d: Status %d (%s), Number_Axes %d, Buffer_Size %d", s.number(),
-              s.status(), std::string(client::status_name(s.status())).c_str(), s.number_axes(),
+  append_line(out, "Interpolator %d: Status %d (%s%s), Number_Axes %d, Buffer_Size %d", s.number(),
+              s.status(), std::string(client::status_name(s.status())).c_str(),
+              s.program_stop() ? ", at an M0 program stop: start continues" : "", s.number_axes(),
               s.buffer_size());
   append_line(out, "  Command %d, Command_Status %d, Run_Flag 0x%08x (section %u, speed %u)",
               s.command(), s.command_status(), rf, rf & 0xFFFFu, rf >> 16);
@@ -257,6 +258,7 @@ std::string format_state_json(const msg::InterpolatorState& s, const std::string
   json_field(out, "move_distance_mm", s.move_distance());
   json_field(out, "limit_factor", static_cast<int>(s.limit_factor()));
   json_field(out, "off_trajectory", static_cast<bool>(s.off_trajectory()));
+  json_field(out, "program_stop", static_cast<bool>(s.program_stop()));
   axes("orig_position_mm", s.orig_position());
   axes("position_mm", s.position());
   axes("position_inc", s.position_inc());

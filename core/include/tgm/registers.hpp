@@ -166,6 +166,9 @@ struct Registers {
   std::int32_t m_func_line = 0;
   //! 1 after Command 5 / 9: the program was abandoned; a new program or a position set is needed.
   std::int32_t off_trajectory = 0;
+  //! 1 while the program stands at an M0 program stop (Status 4, as after a stop command): the
+  //! operator's start continues it.
+  std::int32_t program_stop = 0;
   //! Path acceleration [mm/s^2] at the end of the cycle.
   double act_acceleration_mm_s2 = 0.0;
   //! What limits the path speed right now.

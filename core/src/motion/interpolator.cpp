@@ -3362,6 +3362,7 @@ struct Interpolator::Impl {
   }
 
   void fill_registers() {
+    reg.program_stop = paused_m0 ? 1 : 0;
     double p[kMaxAxes] = {};
     current_position(p);
     const auto& pos = smooth->position();

@@ -327,6 +327,7 @@ void to_idl(const Registers& r, std::uint16_t interpolator, msg::InterpolatorSta
   }
   out.act_line(r.act_line);
   out.off_trajectory(r.off_trajectory != 0);
+  out.program_stop(r.program_stop != 0);
   out.act_acceleration_mm_s2(r.act_acceleration_mm_s2);
   out.limit_factor(static_cast<std::uint8_t>(r.limit_factor));
   out.m_func_count(r.m_func_count);
@@ -369,6 +370,7 @@ void from_idl(const msg::InterpolatorState& in, Registers& out) {
   }
   out.act_line = in.act_line();
   out.off_trajectory = in.off_trajectory() ? 1 : 0;
+  out.program_stop = in.program_stop() ? 1 : 0;
   out.act_acceleration_mm_s2 = in.act_acceleration_mm_s2();
   out.limit_factor = static_cast<LimitFactor>(in.limit_factor());
   out.m_func_count = in.m_func_count();
