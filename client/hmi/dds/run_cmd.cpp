@@ -449,12 +449,8 @@ int run_run(int argc, char** argv) {
       continue;
     }
     if (status == InterpolatorStatus::kReady) {
-      // Paused at an M0: Act_Part is that record. (An M0 is not a LookAheadBuffer section, and
-      // Act_M_Func 0 does not tell it from a stop, so the program itself says it.)
-      const std::int32_t part = st->act_part();
-      const bool at_m0 =
-          part >= 1 && static_cast<std::size_t>(part) <= program.segments.size() &&
-          program.segments[static_cast<std::size_t>(part) - 1].m_kind == MKind::kProgramStop;
+      // Standing at an M0 (program_stop), not stopped by a stop command: start continues it.
+      const bool at_m0 = st->program_stop();
       if (at_m0) {
         if (!m0_wait) {
           m0_wait = true;
