@@ -136,6 +136,13 @@ std::string note_reply(const tgm::client::Reply& r) {
   return tgm::client::describe(r);
 }
 
+// The source line of the M-function a state or event sample hands over: m_func_line, or when it
+// is 0 (none recorded) the executing record's.
+template <typename Sample>
+std::int32_t m_func_line_of(const Sample& s) {
+  return s.m_func_line() != 0 ? s.m_func_line() : s.act_line();
+}
+
 // An M-function the event callback claimed, for the main loop to log and, unless it was
 // acknowledged from the callback, to acknowledge or refuse.
 struct EventSeen {
@@ -486,7 +493,7 @@ int plc_main(int argc, char** argv) {
       rec.action = rec.request_id != 0 ? EventSeen::Action::kAcked
                    : refused           ? EventSeen::Action::kRefused
                                        : EventSeen::Action::kScheduled;
-      rec.line = e.m_func_line() != 0 ? e.m_func_line() : e.act_line();
+      rec.line = m_func_line_of(e);
       rec.part = e.act_part();
       rec.params = e.m_function_parameter();
       rec.woke = ev.received;
@@ -804,7 +811,7 @@ int plc_main(int argc, char** argv) {
         seen_new = true;
         seen_normal = normal;
         seen_m = s->m_func();
-        seen_line = s->m_func_line() != 0 ? s->m_func_line() : s->act_line();
+        seen_line = m_func_line_of(*s);
         seen_part = s->act_part();
         seen_params = s->m_function_parameter();
         sv.seen_at = now;
