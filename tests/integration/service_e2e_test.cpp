@@ -1079,6 +1079,39 @@ TEST(ServiceProcesses, HmiRunContinuesAfterAnM0ProgramStop) {
   EXPECT_EQ(run.wait(kHang), 0) << run.log();
 }
 
+// The message topic hands a late reader the last 32 messages. tgm-hmi watch printed them as if
+// they had just been written ("message (line 2): ..." at every start); it marks them as earlier
+// now, and shows a message written while it watches as news.
+TEST(ServiceProcesses, WatchMarksMessagesFromBeforeItBegan) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  std::ofstream(env.path("m29.ngc")) << "G90 G1 X1 F3000\nM29 (first text)\nM2\n";
+  test::Child run;
+  ASSERT_TRUE(
+      run.start({TGM_HMI_BIN, "run", env.path("m29.ngc"), "--config", env.config(), "--quiet"},
+                env.path("run.log")));
+  ASSERT_EQ(run.wait(kHang), 0) << run.log();
+  test::Child watch;
+  ASSERT_TRUE(watch.start({TGM_HMI_BIN, "watch", "--interval", "0.25", "--config", env.config()},
+                          env.path("watch.log")));
+  // A second program while watch runs: its text is news.
+  std::ofstream(env.path("m29b.ngc")) << "G90 G1 X2 F3000\nG1 X3\nM29 (second text)\nM2\n";
+  std::this_thread::sleep_for(1s);
+  test::Child again;
+  ASSERT_TRUE(
+      again.start({TGM_HMI_BIN, "run", env.path("m29b.ngc"), "--config", env.config(), "--quiet"},
+                  env.path("again.log")));
+  ASSERT_EQ(again.wait(kHang), 0) << again.log();
+  std::this_thread::sleep_for(1s);  // a few more screens, then Ctrl-C
+  ASSERT_EQ(watch.interrupt(kHang), 0) << watch.log();
+  const std::string log = watch.log();
+  EXPECT_NE(log.find("earlier message (line 2, "), std::string::npos) << log;
+  EXPECT_NE(log.find(" s before watch began): first text\n"), std::string::npos) << log;
+  EXPECT_EQ(log.find("\nmessage (line 2)"), std::string::npos) << log;
+  EXPECT_NE(log.find("\nmessage (line 3): second text\n"), std::string::npos) << log;
+  EXPECT_EQ(log.find("earlier message (line 3"), std::string::npos) << log;
+}
+
 TEST(ServiceProcesses, LateJoiningHmiSeesTheCurrentStateAtOnce) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <deque>
 #include <string>
 #include <vector>
 
@@ -31,6 +32,9 @@ constexpr const char* kWatchUsage =
     "                     [DDS overrides]\n"
     "\n"
     "Follows the registers: prints them every S seconds (default 0.5) until Ctrl-C, or K times.\n"
+    "Messages (M29 texts, warnings, errors) follow the registers; those written before watch\n"
+    "began (the service keeps the last 32) are marked 'earlier', with their age. On a terminal\n"
+    "the newest 5 stay on every screen.\n"
     "  --json   one line of JSON per sample (see tgm-hmi status --help), nothing else on\n"
     "           standard output; warnings go to standard error\n";
 constexpr const char* kStopUsage =
@@ -121,6 +125,25 @@ int run_status(int argc, char** argv) {
   return 0;
 }
 
+// "message (line 2): text", or for one written before `began_cycle` "earlier message (line 2,
+// 12.5 s before watch began): text". Warnings and errors are named as such.
+static std::string message_line(const msg::Message& m, std::uint64_t began_cycle,
+                                std::int32_t cycle_time_us) {
+  const char* kind = m.severity() == msg::SEVERITY_ERROR     ? "error"
+                     : m.severity() == msg::SEVERITY_WARNING ? "warning"
+                                                             : "message";
+  char head[160];
+  if (m.cycle() < began_cycle) {
+    const double ago_s =
+        static_cast<double>(began_cycle - m.cycle()) * static_cast<double>(cycle_time_us) * 1e-6;
+    std::snprintf(head, sizeof head, "earlier %s (line %d, %.1f s before watch began)", kind,
+                  m.source_line(), ago_s);
+  } else {
+    std::snprintf(head, sizeof head, "%s (line %d)", kind, m.source_line());
+  }
+  return std::string(head) + ": " + printable(m.text().c_str());
+}
+
 int run_watch(int argc, char** argv) {
   Args args(argc, argv, "watch", kWatchUsage);
   Common c;
@@ -144,6 +167,12 @@ int run_watch(int argc, char** argv) {
   if (!wait_for_service(*c.client, *c.config, ip, "watch")) return 1;
   const bool tty = !json && ::isatty(1) != 0;
   std::uint64_t malformed_said = 0, other_said = 0;
+  // The message topic keeps the last 32 messages for late readers: those written before the
+  // first state seen here are history, and said so (they used to look like news).
+  const std::uint64_t began_cycle = c.client->state(ip)->cycle_counter();
+  const std::int32_t cycle_time_us = c.client->state(ip)->cycle_time_us();
+  constexpr std::size_t kMessagesShown = 5;
+  std::deque<std::string> recent;  // on a terminal: shown on every screen, newest last
   for (long long k = 0; !g_interrupted && (count == 0 || k < count); ++k) {
     if (k > 0) {
       const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(interval);
@@ -185,10 +214,16 @@ int run_watch(int argc, char** argv) {
           static_cast<unsigned long long>(c.client->service_followed(ip)));
     }
     for (const auto& m : c.client->take_messages()) {
-      if (m.interpolator() == ip)
-        std::printf("message (line %d): %s\n", m.source_line(),
-                    printable(m.text().c_str()).c_str());
+      if (m.interpolator() != ip) continue;
+      std::string line = message_line(m, began_cycle, cycle_time_us);
+      if (!tty) {
+        std::printf("%s\n", line.c_str());
+        continue;
+      }
+      recent.push_back(std::move(line));
+      if (recent.size() > kMessagesShown) recent.pop_front();
     }
+    for (const std::string& line : recent) std::printf("%s\n", line.c_str());
     // Shown on every screen: a line printed once would be cleared by the next.
     if (const std::uint64_t bad = dds::malformed_samples(); bad != 0) {
       std::printf(
