@@ -967,9 +967,10 @@ std::size_t Compiler::execute_block(std::size_t index, bool relex) {
         const int a0 = pa.first, a1 = pa.second;
         if (a0 >= n_axes_ || a1 >= n_axes_) {
           error(b.line, motion_word ? motion_word->column : 1,
-                "arc in plane G" + std::to_string(static_cast<int>(plane_)) +
-                    " needs axes " + std::to_string(a0) + " and " + std::to_string(a1) +
-                    ", but this interpolator has " + std::to_string(n_axes_) + " axes");
+                "arc in plane G" + std::to_string(static_cast<int>(plane_)) + " needs axes " +
+                    std::to_string(a0) + " and " + std::to_string(a1) +
+                    ", but this interpolator has only " + std::to_string(n_axes_) +
+                    (n_axes_ == 1 ? " axis (" : " axes (") + opt_.axis_letters + ")");
           ok = false;
         } else {
           const auto i0 = static_cast<std::size_t>(a0), i1 = static_cast<std::size_t>(a1);

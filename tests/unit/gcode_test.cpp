@@ -438,8 +438,13 @@ TEST(GcodeErrors, ArcGeometry) {
   CompileOptions two = options();
   two.axis_letters = "XY";
   EXPECT_THAT(errors_of("G18 G2 X1 I1\n", two),
-              ElementsAre("1:5: arc in plane G18 needs axes 2 and 0, but this interpolator has 2 "
-                          "axes"));
+              ElementsAre("1:5: arc in plane G18 needs axes 2 and 0, but this interpolator has "
+                          "only 2 axes (XY)"));
+  CompileOptions one = options();
+  one.axis_letters = "X";
+  EXPECT_THAT(errors_of("G2 X1 I1\n", one),
+              ElementsAre("1:1: arc in plane G17 needs axes 0 and 1, but this interpolator has "
+                          "only 1 axis (X)"));
 }
 
 TEST(GcodeErrors, LabelsAndFlowControl) {
