@@ -87,13 +87,15 @@ constexpr const char* kUsage =
     "config)\n"
     "  --script YAML        timed actions, a list of maps:\n"
     "                         - {at_s: 1.5, rel_speed: 0.5}       Rel_Speed write\n"
-    "                         - {at_s: 3, command: 8}             Command: 4/5/8/9 stops (also\n"
-    "                                                             1024 2048 2049 -1 -2, zero\n"
-    "                                                             parameters)\n"
+    "                         - {at_s: 3, command: 8}             Command: 4/5/8/9 stops, or\n"
+    "                                                             1024 2048 2049 -1 -2 with\n"
+    "                           parameters: [0, 2000, 1]          Command_Parameter[0..] (the\n"
+    "                                                             rest 0)\n"
     "                         - {at_s: 4, start: true}            try to start (refused)\n"
     "                         - {at_s: 0, refuse_ack: [51]}       stop acknowledging M51\n"
-    "                       each may name `interpolator: N` (default 0); at_s counts from the\n"
-    "                       moment the service was found\n"
+    "                       each may name `interpolator: N` (default 0) and needs at least\n"
+    "                       one action (several run in the order above); at_s counts from\n"
+    "                       the moment the service was found (default 0)\n"
     "  --try-start          send a start request as the PLC once (the service refuses it)\n"
     "  --no-basic-params    do not send the basic parameters at start\n"
     "  --duration S         stop by itself after S seconds (at most 1e9)\n"
@@ -323,6 +325,25 @@ int plc_main(int argc, char** argv) {
       std::fprintf(stderr, "tgm-plc: %s:%d: interpolator %d does not exist (the config has %d)\n",
                    script_path.c_str(), s.line, s.interpolator, count);
       return 2;
+    }
+    // What the service would refuse in any state (a ratio of 0 mm, spline points out of
+    // range) is said now, not in the middle of the run. A standing, idle interpolator with all
+    // its configured axes is the context that allows the most.
+    if (s.command) {
+      const int axes = static_cast<int>(
+          config.machine.interpolators[static_cast<std::size_t>(s.interpolator)].axes.size());
+      tgm::CommandContext most;
+      most.number_axes = axes;
+      most.configured_axes = axes;
+      if (const tgm::RequestResult r = tgm::check_command(*s.command, s.parameters, most);
+          !r.ok()) {
+        const std::string named = r.reason.rfind("Command ", 0) == 0
+                                      ? r.reason
+                                      : "Command " + std::to_string(*s.command) + ": " + r.reason;
+        std::fprintf(stderr, "tgm-plc: %s:%d: interpolator %d: %s\n", script_path.c_str(), s.line,
+                     s.interpolator, named.c_str());
+        return 2;
+      }
     }
   }
 
@@ -876,7 +897,7 @@ int plc_main(int argc, char** argv) {
         const tgm::PlcScriptStep& st = script[k];
         if (script_done[k] || t < st.at_s) continue;
         script_done[k] = true;
-        char what[160];
+        char what[320];
         if (st.rel_speed) {
           std::snprintf(what, sizeof what, "script line %d: interpolator %d: Rel_Speed = %g",
                         st.line, st.interpolator, *st.rel_speed);
@@ -885,9 +906,18 @@ int plc_main(int argc, char** argv) {
                         1);
         }
         if (st.command) {
-          std::snprintf(what, sizeof what, "script line %d: interpolator %d: Command %d", st.line,
-                        st.interpolator, *st.command);
-          queue_request(st.interpolator, tgm::client::command_request(st.interpolator, *st.command),
+          // The parameters up to the last one that is not 0, as the script gave them.
+          std::size_t shown = st.parameters.size();
+          while (shown > 0 && st.parameters[shown - 1] == 0) --shown;
+          std::string params;
+          for (std::size_t i = 0; i < shown; ++i) {
+            params += (i == 0 ? " [" : ", ") + std::to_string(st.parameters[i]);
+          }
+          if (shown > 0) params += "]";
+          std::snprintf(what, sizeof what, "script line %d: interpolator %d: Command %d%s", st.line,
+                        st.interpolator, *st.command, params.c_str());
+          queue_request(st.interpolator,
+                        tgm::client::command_request(st.interpolator, *st.command, st.parameters),
                         what, false, 1);
         }
         if (st.start) {

@@ -31,6 +31,7 @@ std::string shown(const YAML::Node& n) {
 // One step's keys; "" or the reason (without the place).
 std::string read_step(const YAML::Node& n, PlcScriptStep& s) {
   std::set<std::string> seen;
+  bool given_parameters = false;
   for (const auto& kv : n) {
     const std::string key = kv.first.IsScalar() ? kv.first.Scalar() : "(not a name)";
     if (!seen.insert(key).second) return "'" + key + "' is given twice";  // yaml-cpp keeps both
@@ -62,6 +63,20 @@ std::string read_step(const YAML::Node& n, PlcScriptStep& s) {
         return bad("a Command: 4, 5, 8, 9 (stops), 1024, 2048, 2049, -1 or -2");
       }
       s.command = static_cast<int>(k);
+    } else if (key == "parameters") {
+      if (!v.IsSequence()) return bad("a list of Command parameters");
+      if (v.size() > s.parameters.size()) {
+        return "parameters takes at most " + std::to_string(s.parameters.size()) +
+               " values (Command_Parameter[0..11]), not " + std::to_string(v.size());
+      }
+      std::size_t i = 0;
+      for (const YAML::Node& p : v) {
+        if (!p.IsScalar() || !parse_integer(p.Scalar(), INT32_MIN + 0LL, INT32_MAX + 0LL, k)) {
+          return "parameters must list 32-bit integers, not '" + shown(p) + "'";
+        }
+        s.parameters[i++] = static_cast<std::int32_t>(k);
+      }
+      given_parameters = true;
     } else if (key == "start") {
       const std::string t = v.IsScalar() ? v.Scalar() : "";
       if (t == "true" || t == "yes" || t == "on") {
@@ -79,10 +94,11 @@ std::string read_step(const YAML::Node& n, PlcScriptStep& s) {
         s.refuse_ack.push_back(static_cast<int>(k));
       }
     } else {
-      return "unknown key '" + key + "' (known: at_s, interpolator, rel_speed, command, start, " +
-             "refuse_ack)";
+      return "unknown key '" + key + "' (known: at_s, interpolator, rel_speed, command, " +
+             "parameters, start, refuse_ack)";
     }
   }
+  if (given_parameters && !s.command) return "parameters belong to a command: give command too";
   return {};
 }
 
@@ -115,6 +131,13 @@ PlcScriptLoad read_script(std::string_view text, const std::string& path) {
       }
       if (std::string why = read_step(n, s); !why.empty()) {
         out.error = at + why;
+        return out;
+      }
+      // A step that does nothing is a mistake (an action left out, `start: false`, an empty
+      // refuse_ack list): said rather than run as a silent no-op.
+      if (!s.rel_speed && !s.command && !s.start && s.refuse_ack.empty()) {
+        out.error = at + "the step does nothing: give it rel_speed, command, start: true or " +
+                    "refuse_ack [M, ...]";
         return out;
       }
       out.steps.push_back(std::move(s));

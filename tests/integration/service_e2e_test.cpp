@@ -1333,6 +1333,15 @@ TEST(ServiceProcesses, PlcScriptErrorsNameTheLineAndTheReason) {
   const std::vector<std::pair<std::string, std::string>> cases = {
       {"- {at_s: 1, command: 8}\n- {at_s: 2, comand: 9}\n", ":2: unknown key 'comand'"},
       {"- {at_s: 1, rel_speed: 5}\n", ":1: rel_speed must be an override 0.01..2, not '5'"},
+      // What the service refuses in any state is said at the start, with the config's axes
+      // (the default machine has three), not refused in the middle of the run.
+      {"- {at_s: 1, command: 1024}\n",
+       ":1: interpolator 0: Command 1024: numerator (Command_Parameter[1]) must not be 0 inc"},
+      {"- {at_s: 1, command: 1024, parameters: [3, 2000, 1]}\n",
+       ":1: interpolator 0: Command 1024: axis (Command_Parameter[0]) must be 0..2, not 3"},
+      {"- {at_s: 1, command: -2, parameters: [20, 1000000], interpolator: 2}\n",
+       ":1: interpolator 2: Command -2: Spline points (Command_Parameter[0]) must be 0 (off) or "
+       "50..500, not 20"},
       // A directory aborted the PLC (an uncaught exception from yaml-cpp).
       {"", ": is a directory, not a script file"},
   };
@@ -1370,7 +1379,8 @@ TEST(ServiceProcesses, PlcScriptStepsRunAtTheirTimesAndAreLoggedWithTheirLine) {
   std::ofstream(script) << "# set the override, then refuse M51\n"
                            "- {at_s: 0.2, rel_speed: 0.45, interpolator: 2}\n"
                            "- {at_s: 0.4, refuse_ack: [51]}\n"
-                           "- {at_s: 0.4, command: 8, interpolator: 1}\n";
+                           "- {at_s: 0.4, command: 8, interpolator: 1}\n"
+                           "- {at_s: 0.5, command: 1024, parameters: [1, 2500, 2]}\n";
   test::Child plc;
   ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.config(), "--script", script,
                          "--no-basic-params", "--duration", "1.5"},
@@ -1381,11 +1391,16 @@ TEST(ServiceProcesses, PlcScriptStepsRunAtTheirTimesAndAreLoggedWithTheirLine) {
   const std::string log = plc.log();
   for (const char* says : {"script line 2: interpolator 2: Rel_Speed = 0.45: accepted",
                            "script line 3: from now on M51 is not acknowledged",
-                           "script line 4: interpolator 1: Command 8: "}) {
+                           "script line 4: interpolator 1: Command 8: ",
+                           "script line 5: interpolator 0: Command 1024 [1, 2500, 2]: accepted"}) {
     EXPECT_NE(log.find(says), std::string::npos) << says << "\n" << log;
     EXPECT_EQ(log.find(says), log.rfind(says)) << "run twice: " << says;
   }
   EXPECT_EQ(hmi.state(0)->rel_speed(), 1.0);  // only the interpolator the step names
+  // The Command went with its parameters: Y's ratio is 2500 inc / 2 mm.
+  EXPECT_TRUE(hmi.wait_until(
+      0, [](const msg::InterpolatorState& s) { return s.ratio()[1] == 1250.0; }, kHang))
+      << hmi.state(0)->ratio()[1];
 }
 
 // --stats and --handshake-trace are written at exit. A path that cannot be written fails the

@@ -4,6 +4,9 @@
 
 #include <unistd.h>
 
+#include <array>
+#include <climits>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -22,10 +25,12 @@ TEST(PlcScript, EveryKindOfStepIsRead) {
       "- {at_s: 1.5, rel_speed: 0.5, interpolator: 2}\n"
       "- at_s: 3\n"
       "  command: 8\n"
-      "- {at_s: 4, start: yes, command: -2}\n",
+      "- {at_s: 4, start: yes, command: -2}\n"
+      "- {at_s: 5, command: 1024, parameters: [1, -2147483648, 2147483647]}\n"
+      "- {at_s: 6, command: 2048, parameters: [1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12]}\n",
       "s.yaml");
   ASSERT_TRUE(load.ok()) << load.error;
-  ASSERT_EQ(load.steps.size(), 4u);
+  ASSERT_EQ(load.steps.size(), 6u);
   const PlcScriptStep& a = load.steps[0];
   EXPECT_EQ(a.line, 2);
   EXPECT_EQ(a.at_s, 0.0);
@@ -40,6 +45,12 @@ TEST(PlcScript, EveryKindOfStepIsRead) {
   EXPECT_EQ(load.steps[2].interpolator, 0);
   EXPECT_TRUE(load.steps[3].start);
   EXPECT_EQ(load.steps[3].command, -2);
+  EXPECT_EQ(load.steps[3].parameters, (std::array<std::int32_t, 12>{}));  // none given: all 0
+  EXPECT_EQ(load.steps[4].command, 1024);
+  EXPECT_EQ(load.steps[4].parameters,
+            (std::array<std::int32_t, 12>{1, INT32_MIN, INT32_MAX, 0, 0, 0, 0, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(load.steps[5].parameters,
+            (std::array<std::int32_t, 12>{1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12}));
 }
 
 // A bad step is named by its line and the reason, and nothing of the script is kept: a script
@@ -51,14 +62,21 @@ TEST(PlcScript, AProblemNamesTheLineAndKeepsNoStep) {
       {"- {at_s: 1, command: 8}\n- {at_s: 2, at_s: 3, command: 9}\n",
        "s.yaml:2: 'at_s' is given twice"},
       {"- {at_s: -1, command: 8}\n", "s.yaml:1: at_s must be a number of seconds 0..1e9, not '-1'"},
-      {"- {at_s: 1}\n- 8\n", "s.yaml:2: a step must be a map"},
+      {"- {at_s: 1, command: 8}\n- 8\n", "s.yaml:2: a step must be a map"},
+      // A step without an action did nothing, silently.
+      {"- {at_s: 1, command: 8}\n- {at_s: 2}\n",
+       "s.yaml:2: the step does nothing: give it rel_speed, command, start: true or refuse_ack"},
+      {"- {at_s: 2, start: false}\n", "s.yaml:1: the step does nothing"},
+      {"- {at_s: 2, refuse_ack: []}\n", "s.yaml:1: the step does nothing"},
+      {"- {}\n", "s.yaml:1: the step does nothing"},
       // Values are read as the command line reads numbers and checked against their range
       // (yaml-cpp said "bad conversion"; a Rel_Speed of 5 was refused only in the run).
       {"- {at_s: abc}\n", "s.yaml:1: at_s must be a number of seconds 0..1e9, not 'abc'"},
       {"- {at_s: 1, rel_speed: 5}\n", "s.yaml:1: rel_speed must be an override 0.01..2, not '5'"},
       {"- {at_s: 1, rel_speed: [1]}\n",
        "s.yaml:1: rel_speed must be an override 0.01..2, not '[list]'"},
-      {"- {at_s: 1}\n- {at_s: 2, command: 3}\n", "s.yaml:2: command must be a Command: 4, 5, 8, 9"},
+      {"- {at_s: 1, start: on}\n- {at_s: 2, command: 3}\n",
+       "s.yaml:2: command must be a Command: 4, 5, 8, 9"},
       {"- {at_s: 1, command: 4294967304}\n", "s.yaml:1: command must be a Command"},
       {"- {at_s: 1, interpolator: 3}\n", "s.yaml:1: interpolator must be an interpolator 0..2"},
       {"- {at_s: 1, refuse_ack: [51, x]}\n",
@@ -66,6 +84,17 @@ TEST(PlcScript, AProblemNamesTheLineAndKeepsNoStep) {
       {"- {at_s: 1, refuse_ack: [0]}\n", "s.yaml:1: refuse_ack must list M numbers 1..999999"},
       {"- {at_s: 1, refuse_ack: 51}\n", "s.yaml:1: refuse_ack must be a list of M numbers"},
       {"- {at_s: 1, start: maybe}\n", "s.yaml:1: start must be true or false, not 'maybe'"},
+      // Command parameters: with a command, at most twelve, each a 32-bit integer.
+      {"- {at_s: 1, parameters: [1, 2, 3]}\n",
+       "s.yaml:1: parameters belong to a command: give command too"},
+      {"- {at_s: 1, command: -2, parameters: 200}\n",
+       "s.yaml:1: parameters must be a list of Command parameters, not '200'"},
+      {"- {at_s: 1, command: -2, parameters: [1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13]}\n",
+       "s.yaml:1: parameters takes at most 12 values (Command_Parameter[0..11]), not 13"},
+      {"- {at_s: 1, command: -2, parameters: [200, 1e6]}\n",
+       "s.yaml:1: parameters must list 32-bit integers, not '1e6'"},
+      {"- {at_s: 1, command: -2, parameters: [2147483648]}\n",
+       "s.yaml:1: parameters must list 32-bit integers, not '2147483648'"},
       {"- {at_s: 1, [a]: 2}\n", "s.yaml:1: unknown key '(not a name)'"},
       // Text from the script is quoted with its control characters shown.
       {"- {at_s: \"1\\e[2J\"}\n",

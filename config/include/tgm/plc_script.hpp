@@ -3,6 +3,8 @@
 // be tested and fuzzed without DDS.
 #pragma once
 
+#include <array>
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -15,7 +17,9 @@ struct PlcScriptStep {
   double at_s = 0.0;  //!< seconds from the moment the service was found, 0..1e9
   int interpolator = 0;
   std::optional<double> rel_speed;  //!< Rel_Speed write, 0.01..2
-  std::optional<int> command;       //!< a Command with zero parameters (plc_script_command)
+  std::optional<int> command;       //!< a Command (plc_script_command)
+  //! Its Command_Parameter[0..11] (`parameters: [..]`, 32-bit integers); the rest are 0.
+  std::array<std::int32_t, 12> parameters{};
   bool start = false;               //!< a start request as the PLC (the service refuses it)
   std::vector<int> refuse_ack;      //!< M numbers, 1..999999, no longer acknowledged
   int line = 0;                     //!< line of the step in the script (1-based)
