@@ -29,6 +29,21 @@
 
 namespace {
 
+// "0-3,6" for the CPUs in `set`.
+std::string cpu_list(const cpu_set_t& set) {
+  std::string out;
+  for (int c = 0; c < CPU_SETSIZE; ++c) {
+    if (!CPU_ISSET(static_cast<unsigned>(c), &set)) continue;
+    int last = c;
+    while (last + 1 < CPU_SETSIZE && CPU_ISSET(static_cast<unsigned>(last + 1), &set)) ++last;
+    if (!out.empty()) out += ",";
+    out += std::to_string(c);
+    if (last > c) out += "-" + std::to_string(last);
+    c = last;
+  }
+  return out.empty() ? "(none)" : out;
+}
+
 constexpr const char* kUsage =
     "usage: tgm-service [--config YAML] [OPTIONS]\n"
     "\n"
@@ -42,7 +57,8 @@ constexpr const char* kUsage =
     "%s"
     "  --no-realtime          do not try SCHED_FIFO / mlockall\n"
     "  --rt-priority N        SCHED_FIFO priority of the cycle thread, 1..99 (default 80)\n"
-    "  --cpu N                pin the cycle thread to CPU N (default: not pinned)\n"
+    "  --cpu N                pin the cycle thread to CPU N, one this process may run on\n"
+    "                         (default: not pinned)\n"
 
     "  --dds-priority N       SCHED_FIFO priority of every DDS thread (Fast DDS's, receiver,\n"
     "                         publisher), 1..98 and below --rt-priority; default 0 = normal\n"
@@ -185,6 +201,19 @@ int service_main(int argc, char** argv) {
 
   if (dds_priority >= rt.priority)
     return args.usage_error("--dds-priority must be below --rt-priority");
+  // A pin the kernel would refuse (a CPU the machine does not have, or one outside this
+  // process's affinity: isolcpus, a cgroup's cpuset) is an error now; the cycle thread used to
+  // log the refusal and run unpinned, a real-time setup that silently was not one.
+  if (rt.cpu >= 0) {
+    cpu_set_t allowed;
+    CPU_ZERO(&allowed);
+    if (sched_getaffinity(0, sizeof allowed, &allowed) == 0 &&
+        (rt.cpu >= CPU_SETSIZE || !CPU_ISSET(static_cast<unsigned>(rt.cpu), &allowed))) {
+      return args.usage_error("--cpu " + std::to_string(rt.cpu) + ": this process may run on " +
+                              (CPU_COUNT(&allowed) == 1 ? "CPU " : "CPUs ") + cpu_list(allowed) +
+                              " only");
+    }
+  }
   if (dds_priority > 0 && rt.realtime) {
     // Threads inherit the policy of their creator: set it here, before the participant and the
     // port's threads exist, so Fast DDS's receive / event threads and ours run at it.

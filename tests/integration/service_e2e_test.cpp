@@ -1460,6 +1460,16 @@ TEST(ServiceProcesses, ServiceStopsCleanlyOnSigtermAndRejectsBadFlags) {
   ASSERT_TRUE(bad.start({TGM_SERVICE_BIN, "--config", env.config(), "--bogus", "1"}, env.path("bad.log")));
   EXPECT_EQ(bad.wait(kHang), 2);
   EXPECT_NE(bad.log().find("unknown option '--bogus'"), std::string::npos) << bad.log();
+  // A CPU the process may not run on (1023: no test machine has it; the kernel refuses the pin)
+  // is refused at the start. The cycle thread used to log the refusal and run unpinned.
+  test::Child unpinned;
+  ASSERT_TRUE(unpinned.start({TGM_SERVICE_BIN, "--config", env.config(), "--no-realtime", "--cpu",
+                              "1023", "--duration", "5"},
+                             env.path("unpinned.log")));
+  EXPECT_EQ(unpinned.wait(kHang), 2) << unpinned.log();
+  EXPECT_NE(unpinned.log().find("tgm-service: --cpu 1023: this process may run on CPU"),
+            std::string::npos)
+      << unpinned.log();
   // Numbers: the whole text, within range, finite (one reader for every binary, cli_numbers.hpp).
   // `--duration inf` used to be a run without end; 2^32 used to wrap to interpolator 0.
   test::Child endless;
