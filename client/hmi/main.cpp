@@ -65,6 +65,9 @@ int run_command(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // compile and simulate: a few large blocks (the program, the record ring) that reuse the
+  // pages of each other rather than fault in fresh ones.
+  tgm::cli::prefer_heap_for_large_blocks();
   // What escapes a subcommand (memory running out on a huge input) ends with words and exit 1.
   const int code = tgm::cli::run_guarded("tgm-hmi", run_command, argc, argv);
   // What went to standard output (a summary, a dump, a CSV on stdout) must have arrived: a full

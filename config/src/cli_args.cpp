@@ -3,6 +3,8 @@
 #include "tgm/cli_numbers.hpp"
 #include "tgm/yaml_config.hpp"
 
+#include <malloc.h>
+
 #include <cstdio>
 #include <cstring>
 #include <exception>
@@ -99,6 +101,11 @@ int run_guarded(const char* program, int (*body)(int, char**), int argc, char** 
     std::fprintf(stderr, "%s: internal error: %s\n", program, e.what());
   }
   return 1;
+}
+
+void prefer_heap_for_large_blocks() {
+  mallopt(M_MMAP_THRESHOLD, 32 << 20);  // glibc's largest on 64-bit
+  mallopt(M_TRIM_THRESHOLD, 256 << 20);
 }
 
 ArgReader::NamedFile ArgReader::config_file(const std::string& config_flag) {

@@ -30,6 +30,7 @@
 #include <vector>
 
 #include "../motion/program_builder.hpp"
+#include "tgm/cli_args.hpp"
 #include "tgm/gcode.hpp"
 #include "tgm/interpolator.hpp"
 #include "tgm/limit_checker.hpp"
@@ -508,4 +509,25 @@ void BM_AppendWorst(benchmark::State& state) {
 }
 BENCHMARK(BM_AppendWorst)->Arg(0)->Arg(1)->Iterations(50)->Unit(benchmark::kMillisecond);
 
-BENCHMARK_MAIN();
+// The allocator as tgm-hmi sets it (large blocks from the heap, reused rather than faulted in
+// afresh: tgm::cli::prefer_heap_for_large_blocks), unless --glibc-default-malloc is given, which
+// measures with glibc's defaults (every block over 128 kB mapped afresh) for comparison.
+int main(int argc, char** argv) {
+  bool glibc_default = false;
+  int kept = 1;
+  for (int i = 1; i < argc; ++i) {
+    if (std::string(argv[i]) == "--glibc-default-malloc") {
+      glibc_default = true;
+    } else {
+      argv[kept++] = argv[i];
+    }
+  }
+  argc = kept;
+  if (!glibc_default) tgm::cli::prefer_heap_for_large_blocks();
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::AddCustomContext("malloc", glibc_default ? "glibc default" : "heap (as tgm-hmi)");
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}

@@ -88,4 +88,12 @@ class ArgReader {
 //! happen; this is the last resort of tgm-hmi, tgm-plc and tgm-service.
 int run_guarded(const char* program, int (*body)(int, char**), int argc, char** argv);
 
+//! Has glibc take blocks up to 32 MiB from the heap and keep freed memory there, instead of
+//! mapping each block over 128 kB afresh and unmapping it when freed. A block taken again then
+//! reuses pages already touched: on a virtual machine a page fault costs microseconds, and
+//! `tgm-hmi simulate` of 63,000 short chords spent 40 % of its time faulting in its record
+//! ring (tests/bench/BENCHMARKS.md, session 54). For offline tools: a process that must not
+//! fault on its cycle (tgm-service) locks and pre-faults its memory instead.
+void prefer_heap_for_large_blocks();
+
 }  // namespace tgm::cli
