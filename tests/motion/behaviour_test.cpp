@@ -468,6 +468,49 @@ TEST(MFunctions, DwellWaitsItsTime) {
   EXPECT_NEAR(t1 - t0, 0.5, 1e-9);
 }
 
+// A stop during a dwell takes effect at once (the motion stands), and the start that resumes
+// dwells the rest: the G4 stands its whole time, the time stopped not counted. The rest used to
+// be dropped, so a feed hold during a spindle's run-up cut the run-up short. Command 8 and 4
+// (on the trajectory) resume; Command 9 drops the program, the dwell with it.
+TEST(MFunctions, AStopDuringADwellKeepsTheRestOfItForTheStart) {
+  ProgramBuilder b;
+  b.line({10.0, 0.0, 0.0}, 3000.0);
+  b.dwell(1.0);
+  b.line({20.0, 0.0, 0.0}, 3000.0).end();
+  const int cycles_per_s = 1'000'000 / machine().cycle_time_us;
+  for (const std::int32_t stop : {8, 4}) {
+    const std::string ctx = "Command " + std::to_string(stop);
+    Interpolator ip = make();
+    ASSERT_TRUE(ip.load(b.program()).ok());
+    ASSERT_TRUE(ip.start().ok());
+    ASSERT_GT(run_until(ip, [](const Registers& g) { return g.act_g_func == 4; }), 0) << ctx;
+    int dwelt = 1;  // the cycle the dwell began in
+    for (int i = 0; i < cycles_per_s / 5; ++i, ++dwelt) ip.step();
+    ASSERT_TRUE(ip.command(stop).ok()) << ctx;
+    EXPECT_EQ(ip.registers().status, stop == 8 ? 4 : 7) << ctx;
+    for (int i = 0; i < cycles_per_s / 2; ++i) {
+      ip.step();
+      ASSERT_EQ(ip.registers().orig_position[0], 10.0) << ctx;
+    }
+    ASSERT_TRUE(ip.start().ok()) << ctx;
+    const int rest = run_until(ip, [](const Registers& g) { return g.orig_position[0] > 10.0; });
+    ASSERT_GT(rest, 0) << ctx;
+    // The cycle in which the motion leaves counts as the dwell's last: within two cycles of 1 s.
+    EXPECT_NEAR(dwelt + rest, cycles_per_s, 2) << ctx << ": dwelt " << dwelt << " + " << rest;
+    ASSERT_GT(run_until(ip, [](const Registers& g) { return g.status == 3; }), 0) << ctx;
+    EXPECT_EQ(ip.registers().orig_position[0], 20.0) << ctx;
+  }
+  Interpolator off = make();
+  ASSERT_TRUE(off.load(b.program()).ok());
+  ASSERT_TRUE(off.start().ok());
+  ASSERT_GT(run_until(off, [](const Registers& g) { return g.act_g_func == 4; }), 0);
+  ASSERT_TRUE(off.command(9).ok());
+  EXPECT_EQ(off.registers().status, 0);
+  EXPECT_FALSE(off.start().ok());
+  for (int i = 0; i < cycles_per_s * 2; ++i) off.step();
+  EXPECT_EQ(off.registers().orig_position[0], 10.0);
+}
+
 // Coming to rest at a stop point cuts the last of the braking (up to 1e-8 mm, a residual speed
 // and a deceleration of up to J dt). A move that started in the very next calculation step added
 // its jerk to that cut in the same differentiation window: G4 P0 between a rapid and a move at

@@ -365,6 +365,8 @@ struct Interpolator::Impl {
   bool wait_m_first = false;
   bool paused_m0 = false;
   bool resume_wait_m = false;
+  // A stop during a dwell (Command 8 / 4) keeps dwell_left: start dwells the rest.
+  bool resume_dwell = false;
   bool stop_off = false;       // Command 9 / 5 in progress
   bool resumable_estop = false;
   std::uint64_t hard_stop_count = 0;
@@ -1802,6 +1804,7 @@ struct Interpolator::Impl {
     mode = Mode::kIdle;
     paused_m0 = false;
     resume_wait_m = false;
+    resume_dwell = false;
     resumable_estop = false;
     m_pending = false;
     m_deferred_n = 0;
@@ -1822,6 +1825,7 @@ struct Interpolator::Impl {
     on_path = false;
     paused_m0 = false;
     resume_wait_m = false;
+    resume_dwell = false;
     tail = cur;
     complete = false;
     reset_plan_tail();
@@ -3708,6 +3712,9 @@ RequestResult Interpolator::start() {
   } else if (m.resume_wait_m) {
     m.resume_wait_m = false;
     m.mode = Mode::kWaitM;
+  } else if (m.resume_dwell) {
+    m.resume_dwell = false;
+    m.mode = Mode::kDwell;
   } else if (m.on_path) {
     m.mode = Mode::kMoving;
   } else {
@@ -3754,9 +3761,9 @@ RequestResult Interpolator::command(std::int32_t code) {
       }
       // Standing (idle, dwell, M wait): the stop takes effect at once.
       if (m.mode == Mode::kWaitM) m.resume_wait_m = true;
-      if (m.mode == Mode::kDwell) {
-        ++m.cur;  // the rest of the dwell is dropped
-      }
+      // The rest of a dwell is kept for the start that resumes (it used to be dropped: a stop
+      // and start cut a G4 short, the spindle's run-up or a chip break with it).
+      if (m.mode == Mode::kDwell) m.resume_dwell = true;
       const bool had_program = m.reg.status != static_cast<std::int32_t>(InterpolatorStatus::kEmpty);
       m.mode = Mode::kIdle;
       if (emergency) {
