@@ -32,6 +32,8 @@ class Args : public cli::ArgReader {
   std::optional<AppConfig> load_app();
   //! The --interpolator value (0 when not given); valid after load_machine().
   int interpolator() const { return interpolator_; }
+  //! True when --interpolator was given.
+  bool interpolator_given() const { return !interpolator_text_.empty(); }
   const std::string& config_path() const { return config_path_; }
   //! The config file that load_app() reads, named for distinct_files().
   NamedFile config_file() const { return ArgReader::config_file(config_path_); }

@@ -153,6 +153,17 @@ TEST(HmiJson, StatusAndWatchShowTheRealServicesRegisters) {
     if (i == 0) instance = j["service_instance"].as<std::string>();
     EXPECT_EQ(j["service_instance"].as<std::string>(), instance);
   }
+  // --all with --interpolator N showed every interpolator, the N silently ignored.
+  const auto both = hmi_stdout(
+      env, "both", {"status", "--json", "--all", "--interpolator", "1", "--config", env.config()},
+      code);
+  EXPECT_EQ(code, 2);
+  EXPECT_TRUE(both.empty());
+  EXPECT_NE(
+      test::read_text(env.path("both.err"))
+          .find("tgm-hmi status: --all shows every interpolator: give it or --interpolator N"),
+      std::string::npos)
+      << test::read_text(env.path("both.err"));
   const YAML::Node j0 = YAML::Load(all[0]);
   EXPECT_EQ(j0["status_name"].as<std::string>(), "ended");
   EXPECT_NEAR(j0["orig_position_mm"]["X"].as<double>(), 12.5, 1e-9);

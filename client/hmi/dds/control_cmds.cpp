@@ -102,6 +102,9 @@ int run_status(int argc, char** argv) {
   }
   if (args.help()) return 0;
   if (args.failed()) return 2;
+  if (all && args.interpolator_given()) {
+    return args.usage_error("--all shows every interpolator: give it or --interpolator N");
+  }
   if (const int rc = connect(args, c); rc != 0) return rc;
   const int first = all ? 0 : args.interpolator();
   const int last = all ? static_cast<int>(c.config->machine.interpolators.size()) - 1 : first;
