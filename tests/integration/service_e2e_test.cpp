@@ -985,6 +985,37 @@ TEST(ServiceProcesses, HmiTimesTheProgramByTheServicesCycle) {
   EXPECT_NE(status.log().find(" of 1000 us, lateness"), std::string::npos) << status.log();
 }
 
+// A program that another HMI stops and clears is gone: tgm-hmi run said nothing and waited on
+// for good (the state's program id goes to 0, and run looked only at states of its own
+// program). It says so now and exits 1. A clear while the program waits for its M-function
+// (no PLC here) is refused: stop first.
+TEST(ServiceProcesses, HmiRunEndsWhenAnotherHmiClearsItsProgram) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  std::ofstream(env.path("m.ngc")) << "G90 G1 X1 F600\nM51\nG1 X2\nM2\n";
+  test::Child run;
+  ASSERT_TRUE(run.start({TGM_HMI_BIN, "run", env.path("m.ngc"), "--config", env.config(), "--quiet",
+                         "--timeout", "60"},
+                        env.path("run.log")));
+  client::Client hmi(env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(hmi.wait_until(
+      0, [](const msg::InterpolatorState& s) { return s.m_func() == 51; }, kHang))
+      << run.log();
+  const client::Reply refused = hmi.clear(0);
+  EXPECT_FALSE(refused.accepted);
+  EXPECT_EQ(refused.reason, "cannot clear while waiting for an M-function: stop first")
+      << client::describe(refused);
+  ASSERT_TRUE(hmi.stop(0).accepted);
+  ASSERT_TRUE(hmi.wait_until(
+      0, [](const msg::InterpolatorState& s) { return s.status() == 4; }, kHang));
+  const client::Reply cleared = hmi.clear(0);
+  ASSERT_TRUE(cleared.accepted) << client::describe(cleared);
+  EXPECT_EQ(run.wait(kHang), 1) << run.log();
+  EXPECT_NE(run.log().find("tgm-hmi run: the program was cleared by someone else at line 2\n"),
+            std::string::npos)
+      << run.log();
+}
+
 // Without a PLC an M-function waits for ever: the progress line says for how long and asks
 // for tgm-plc, and --timeout stops the interpolator and exits 1.
 TEST(ServiceProcesses, HmiRunSaysWhenAnMFunctionWaitsLongAndTimesOut) {

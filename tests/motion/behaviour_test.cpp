@@ -511,6 +511,34 @@ TEST(MFunctions, AStopDuringADwellKeepsTheRestOfItForTheStart) {
   EXPECT_EQ(off.registers().orig_position[0], 10.0);
 }
 
+// Clear drops a program only when it does not run: while it stands in an M-function wait or a
+// dwell it is refused as while moving (it dropped the program under the PLC executing the
+// M-function, M_Func still set). After a stop it clears.
+TEST(MFunctions, ClearIsRefusedWhileAProgramWaitsOrDwells) {
+  ProgramBuilder b;
+  b.line({5.0, 0.0, 0.0}, 3000.0);
+  b.m(51, MKind::kNormal);
+  b.dwell(1.0);
+  b.line({10.0, 0.0, 0.0}, 3000.0).end();
+  Interpolator ip = make();
+  ASSERT_TRUE(ip.load(b.program()).ok());
+  ASSERT_TRUE(ip.start().ok());
+  ASSERT_GT(run_until(ip, [](const Registers& g) { return g.m_func == 51; }), 0);
+  RequestResult r = ip.clear();
+  EXPECT_EQ(r.code, RequestCode::kWrongState);
+  EXPECT_EQ(r.reason, "cannot clear while waiting for an M-function: stop first");
+  ASSERT_TRUE(ip.write_m_func(0).ok());
+  ASSERT_GT(run_until(ip, [](const Registers& g) { return g.act_g_func == 4; }), 0);
+  r = ip.clear();
+  EXPECT_EQ(r.code, RequestCode::kWrongState);
+  EXPECT_EQ(r.reason, "cannot clear during a dwell: stop first");
+  EXPECT_EQ(ip.registers().status, 1);
+  ASSERT_TRUE(ip.command(8).ok());
+  ASSERT_TRUE(ip.clear().ok());
+  EXPECT_EQ(ip.registers().status, 0);
+  EXPECT_FALSE(ip.start().ok());
+}
+
 // Coming to rest at a stop point cuts the last of the braking (up to 1e-8 mm, a residual speed
 // and a deceleration of up to J dt). A move that started in the very next calculation step added
 // its jerk to that cut in the same differentiation window: G4 P0 between a rapid and a move at

@@ -416,7 +416,21 @@ int run_run(int argc, char** argv) {
       first_cycle = r.cycle;
       continue;
     }
-    if (!started || !ours || st->cycle_counter() <= fresh_after) continue;
+    if (!started || st->cycle_counter() <= fresh_after) continue;
+    if (!ours) {
+      // A clear (by another HMI, after a stop) sets the state's program to 0; another program
+      // can only be loaded after that. Either way this one is gone: waiting on for it hung.
+      clear_progress();
+      if (st->program_id() == 0) {
+        std::fprintf(stderr, "tgm-hmi run: the program was cleared by someone else at line %d\n",
+                     st->act_line());
+      } else {
+        std::fprintf(stderr, "tgm-hmi run: the program was replaced by program %u\n",
+                     static_cast<unsigned>(st->program_id()));
+      }
+      exit_code = 1;
+      break;
+    }
     const bool m_waiting = run_flag_waits_for_m(static_cast<std::uint32_t>(st->run_flag()));
     state_waits.see(m_waiting, st->act_part(), st->cycle_counter());
     // How long this M-function has waited, for the operator: the PLC acknowledges it.
@@ -430,7 +444,15 @@ int run_run(int argc, char** argv) {
     if (status == InterpolatorStatus::kEnded && sender.all_confirmed()) break;
     if (status == InterpolatorStatus::kEmpty) {
       clear_progress();
-      std::fprintf(stderr, "tgm-hmi run: the program was cleared by someone else\n");
+      // Command 9 drops the program and leaves the state's program id: off the trajectory.
+      if (st->off_trajectory()) {
+        std::fprintf(stderr,
+                     "tgm-hmi run: normal stop off the trajectory (Command 9) at line %d: the "
+                     "program was dropped\n",
+                     st->act_line());
+      } else {
+        std::fprintf(stderr, "tgm-hmi run: the program was cleared by someone else\n");
+      }
       exit_code = 1;
       break;
     }

@@ -165,7 +165,8 @@ class Interpolator {
   RequestResult load(const Program& program);
   //! Starts or resumes (Status 4, 7 after Command 4, 8, or a pause at M0).
   RequestResult start();
-  //! Drops every record not yet executed; only while standing. Status becomes 0.
+  //! Drops every record not yet executed; only while no program runs (not while moving,
+  //! dwelling or waiting for an M-function: stop first). Status becomes 0.
   RequestResult clear();
   //! Command register: 4 / 5 emergency stop on / off trajectory, 8 / 9 normal stop on / off
   //! trajectory. Other codes are refused with kUnsupported here: they take parameters (below).

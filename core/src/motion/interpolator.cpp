@@ -3726,8 +3726,15 @@ RequestResult Interpolator::start() {
 
 RequestResult Interpolator::clear() {
   Impl& m = *impl_;
-  if (m.mode != Mode::kIdle && m.mode != Mode::kWaitM && m.mode != Mode::kDwell) {
-    return refuse(RequestCode::kWrongState, "cannot clear while moving: stop first");
+  // A program that runs is stopped first, also while it stands in a dwell or an M-function
+  // wait: a clear there dropped it under the feet of the PLC executing the M-function (M_Func
+  // still set) and of the HMI following it (tgm-hmi run waited on for good).
+  if (m.mode != Mode::kIdle) {
+    return refuse(RequestCode::kWrongState,
+                  m.mode == Mode::kWaitM
+                      ? "cannot clear while waiting for an M-function: stop first"
+                  : m.mode == Mode::kDwell ? "cannot clear during a dwell: stop first"
+                                           : "cannot clear while moving: stop first");
   }
   m.drop_records();
   m.reg.status = static_cast<std::int32_t>(InterpolatorStatus::kEmpty);
