@@ -1173,7 +1173,8 @@ TEST(ServiceProcesses, LateJoiningHmiSeesTheCurrentStateAtOnce) {
                           R"(  PositionInc \[inc\]    ( [A-Z] -?\d+)+)",
                           R"(  Speed \[mm/s\]         ( [A-Z] -?\d+\.\d{3})+)",
                           R"(  Ratio \[inc/mm\]       ( [A-Z] [-+.e\d]+)+)",
-                          R"(  Offset \[inc\]         ( [A-Z] -?\d+)+)"}) {
+                          R"(  Offset \[inc\]         ( [A-Z] -?\d+)+)",
+                          R"(  Backlash \[inc\]       ( [A-Z] -?\d+)+)"}) {
     EXPECT_TRUE(std::regex_search(status.log(), std::regex(std::string("(^|\n)") + row + "\n")))
         << row << "\n"
         << status.log();

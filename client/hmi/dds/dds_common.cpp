@@ -116,6 +116,7 @@ std::string format_state(const msg::InterpolatorState& s, const std::string& con
   axes("  Speed [mm/s]         ", 3, [&](std::size_t i) { return s.speed()[i]; });
   axes("  Ratio [inc/mm]       ", -1, [&](std::size_t i) { return s.ratio()[i]; });
   axes("  Offset [inc]         ", 0, [&](std::size_t i) { return s.offset()[i]; });
+  axes("  Backlash [inc]       ", 0, [&](std::size_t i) { return s.backlash()[i]; });
   std::string params;
   for (std::size_t k = 0; k < kParamLetters; ++k) {
     if (is_not_set(s.m_function_parameter()[k])) continue;
