@@ -318,6 +318,7 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
         if (!axes || !axes.IsSequence()) {
           r.error(axes ? axes : n, path + ".axes", "a list of 1..10 axes is required");
         } else {
+          r.note(axes, path + ".axes");  // an empty list is named at its line
           for (std::size_t i = 0; i < axes.size(); ++i) {
             AxisConfig a = defaults;
             a.letter = default_axis_letter(static_cast<int>(i));

@@ -61,8 +61,10 @@ std::vector<std::string> MachineConfig::validate() const {
                              L != 'I' && L != 'J' && L != 'K' && L != 'L' && L != 'M' &&
                              L != 'N' && L != 'P' && L != 'R' && L != 'T';
       if (!letter_ok) {
-        e.push_back(ab + ".letter: '" + std::string(1, L) +
-                    "' is not an axis letter (D F G I J K L M N P R T are G-code words)");
+        e.push_back(ab + ".letter: '" + std::string(1, L) + "' is not an axis letter " +
+                    (L >= 'A' && L <= 'Z'
+                         ? "(D F G I J K L M N P R T are G-code words)"
+                         : "(A..Z, except the G-code words D F G I J K L M N P R T)"));
       } else if (!seen.insert(L).second) {
         e.push_back(ab + ".letter: '" + std::string(1, L) + "' is used by two axes");
       }

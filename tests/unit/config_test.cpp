@@ -464,6 +464,27 @@ TEST(Config, EveryOtherBadValueIsNamedWithItsKeyAndLine) {
     EXPECT_TRUE(has_error(load.errors, want)) << "missing: " << want;
   }
   EXPECT_EQ(load.errors.size(), 3u);
+
+  // An empty list of axes is named at its own line, as given (it was said to be "not given:
+  // the built-in value", without a line); a letter that is not one of A..Z says what is.
+  load = load_config_text(
+      "interpolators:\n"
+      "  - axes: [{letter: X}]\n"
+      "  - buffer_size: 1000\n"
+      "    axes: []\n"
+      "  - axes: [{letter: 1}]\n",
+      "m.yaml");
+  EXPECT_FALSE(load.config);
+  for (const char* want :
+       {"m.yaml:4: interpolators[1].axes: between 1 and 10 axes are needed, not 0",
+        "m.yaml:5: interpolators[2].axes[0].letter: '1' is not an axis letter (A..Z, except the "
+        "G-code words D F G I J K L M N P R T)"}) {
+    EXPECT_TRUE(has_error(load.errors, want)) << "missing: " << want;
+  }
+  EXPECT_EQ(load.errors.size(), 2u);
+  for (const std::string& e : load.errors) {
+    EXPECT_EQ(e.find("not given"), std::string::npos) << e;
+  }
 }
 
 }  // namespace
