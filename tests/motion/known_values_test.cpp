@@ -351,6 +351,38 @@ TEST(KnownValues, FortyMFunctionsInARowReachMFuncOnePerCycle) {
   EXPECT_EQ(ip->registers().orig_position[0], 20.0);
 }
 
+// A hundred in a row: 64 wait, and beyond that the oldest waiting ones reach M_Func in the same
+// cycle. A PLC reading once a cycle misses some, but every one it sees comes in program order
+// with its own count (the k-th handed over is M1000+k). The newest used to be handed over at
+// once: M1100 reached M_Func before M1002.
+TEST(KnownValues, MoreMFunctionsInARowThanWaitKeepTheirOrder) {
+  ProgramBuilder b;
+  b.line({10.0, 0.0, 0.0}, 3000.0);
+  for (int k = 0; k < 100; ++k) b.m(1001 + k, MKind::kContinuous);
+  b.line({20.0, 0.0, 0.0}, 3000.0).end();
+  auto ip = Interpolator::create(machine(), 0);
+  ASSERT_TRUE(ip);
+  ASSERT_TRUE(ip->load(b.program()).ok());
+  ASSERT_TRUE(ip->start().ok());
+  const std::vector<HandedOver> seen = hand_overs(*ip, [](const Registers&) {});
+  ASSERT_GE(seen.size(), 65u);
+  for (std::size_t k = 0; k < seen.size(); ++k) {
+    EXPECT_EQ(seen[k].m, 1000 + static_cast<int>(seen[k].count)) << k;
+    if (k > 0) {
+      EXPECT_GT(seen[k].count, seen[k - 1].count) << k;
+    }
+  }
+  EXPECT_EQ(seen.back().m, 1100);
+  EXPECT_EQ(seen.back().count, 100u);
+  // The last 64 one per cycle.
+  for (std::size_t k = seen.size() - 64; k < seen.size(); ++k) {
+    EXPECT_EQ(seen[k].count, seen[k - 1].count + 1) << k;
+    EXPECT_EQ(seen[k].cycle, seen[k - 1].cycle + 1) << k;
+  }
+  EXPECT_EQ(ip->registers().status, 3);
+  EXPECT_EQ(ip->registers().last_cont_m_func, 1100);
+}
+
 // A PLC's note of a continuous M-function (M_Func = 0) that arrives after the next, normal
 // M-function is shown must not acknowledge that one: the write names the M-function it means.
 TEST(KnownValues, LateNoteOfAContinuousMFunctionDoesNotReleaseTheNextOne) {

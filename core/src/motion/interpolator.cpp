@@ -433,7 +433,8 @@ struct Interpolator::Impl {
   // sees each of two M records with nothing between them (they would otherwise leave the
   // smoothing in the same calculation step, the second overwriting the first). The later ones
   // wait here, in order, and are handed over one per cycle at the cycle's start (beyond
-  // kMaxDeferredM in a row, the later ones reach M_Func in the same cycle: core/MOTION.md).
+  // kMaxDeferredM in a row, the oldest waiting ones reach M_Func in the same cycle, still in
+  // program order: core/MOTION.md).
   bool m_announced = false;  // an M-function reached M_Func in this cycle
   std::array<SmoothingEvent, kMaxDeferredM> m_deferred{};
   int m_deferred_n = 0;
@@ -1504,8 +1505,19 @@ struct Interpolator::Impl {
   // another one in the same cycle waits for the next (m_deferred).
   void apply_event(const SmoothingEvent& e) {
     const bool is_m = e.kind == kEvNormalM || e.kind == kEvContinuousM;
-    if (is_m && (m_announced || m_deferred_n > 0) &&
-        m_deferred_n < static_cast<int>(m_deferred.size())) {
+    if (is_m && (m_announced || m_deferred_n > 0)) {
+      if (m_deferred_n == static_cast<int>(m_deferred.size())) {
+        // Full (more than kMaxDeferredM M-functions in a row): the oldest waiting one reaches
+        // M_Func now, in this cycle after the one already there, and the new one queues
+        // behind the rest. M_Func shows them in program order and m_func_count counts each;
+        // a PLC reading once a cycle misses those overwritten in the cycle. (The new one used
+        // to be handed over at once, ahead of the 64 queued before it.)
+        const SmoothingEvent oldest = m_deferred[0];
+        for (std::size_t i = 1; i < m_deferred.size(); ++i) m_deferred[i - 1] = m_deferred[i];
+        m_deferred.back() = e;
+        hand_over(oldest);
+        return;
+      }
       m_deferred[static_cast<std::size_t>(m_deferred_n++)] = e;
       return;
     }
