@@ -483,6 +483,21 @@ int plc_main(int argc, char** argv) {
   tgm::plc::MTracker tracker;
   std::vector<EventSeen> event_seen;
   event_seen.reserve(256);
+  // More than 64 M-functions in a row share cycles in M_Func (core/MOTION.md): between two
+  // consecutive events (none lost) m_func_count then rises by more than one, and the ones
+  // between were overwritten within a cycle. Noted by the callback, logged by the main loop.
+  struct Overwritten {
+    int interpolator = 0;
+    std::uint32_t unseen = 0;      // how many
+    std::int32_t m = 0, line = 0;  // the M-function shown after them
+  };
+  struct LastEvent {
+    std::uint64_t instance = 0, counter = 0;
+    std::uint32_t m_count = 0;
+  };
+  std::array<LastEvent, tgm::kMaxInterpolators> last_event{};
+  std::vector<Overwritten> overwritten;
+  overwritten.reserve(16);
   if (events) {
     std::array<bool, tgm::kMaxInterpolators> serves{};
     for (const Served& sv : served) serves[static_cast<std::size_t>(sv.number)] = true;
@@ -503,6 +518,12 @@ int plc_main(int argc, char** argv) {
       bool refused = false;
       {
         const std::lock_guard lock(shared_mutex);
+        LastEvent& last = last_event[static_cast<std::size_t>(i)];
+        if (last.instance == e.service_instance() && last.counter != 0 &&
+            e.event_counter() == last.counter + 1 && e.m_func_count() > last.m_count + 1) {
+          overwritten.push_back({i, e.m_func_count() - last.m_count - 1, rec.m, m_func_line_of(e)});
+        }
+        last = {e.service_instance(), e.event_counter(), e.m_func_count()};
         if (!tracker.claim(i, e.service_instance(), e.m_func_count(), rec.m)) return;
         refused = rec.normal && refuse.count(rec.m) != 0;
       }
@@ -566,11 +587,22 @@ int plc_main(int argc, char** argv) {
   std::vector<EventSeen> drained;
   drained.reserve(256);
   // Logs what the event callback handed over; returns after scheduling delayed acknowledgements.
+  std::vector<Overwritten> overwritten_drained;
   auto take_event_seen = [&] {
     {
       const std::lock_guard lock(shared_mutex);
       drained.swap(event_seen);
+      overwritten_drained.swap(overwritten);
     }
+    for (const Overwritten& o : overwritten_drained) {
+      append_log(pending_log, stamp(),
+                 "interpolator %d: %u M-function%s before M%d (line %d) reached M_Func in the "
+                 "same cycle and %s overwritten: more than 64 in a row (core/MOTION.md); not "
+                 "seen here",
+                 o.interpolator, o.unseen, o.unseen == 1 ? "" : "s", o.m, o.line,
+                 o.unseen == 1 ? "was" : "were");
+    }
+    overwritten_drained.clear();
     for (const EventSeen& rec : drained) {
       log_m(rec.interpolator, rec.m, rec.normal, rec.line, rec.part, rec.params);
       Served* sv = find_served(rec.interpolator);

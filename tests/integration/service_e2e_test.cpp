@@ -312,10 +312,36 @@ TEST(ServiceProcesses, PlcLogsAContinuousMFunctionAtItsOwnLine) {
       hmi.start({TGM_HMI_BIN, "run", env.path("c.ngc"), "--config", env.config(), "--quiet"},
                 env.path("hmi.log")));
   EXPECT_EQ(hmi.wait(kHang), 0) << hmi.log() << "\n--- plc:\n" << plc.log();
+  // A hundred in a row: beyond the 64 that wait a cycle each, 35 are overwritten in M_Func
+  // within the first cycle (core/MOTION.md). The PLC sees the rest in program order and says
+  // how many it could not see, and before which one (it said nothing).
+  std::ofstream hundred(env.path("h.ngc"));
+  hundred << "G90 G1 X3 F600\n";
+  for (int k = 0; k < 100; ++k) hundred << "M" << 2001 + k << "\n";
+  hundred << "G1 X4\nM2\n";
+  hundred.close();
+  test::Child again;
+  ASSERT_TRUE(
+      again.start({TGM_HMI_BIN, "run", env.path("h.ngc"), "--config", env.config(), "--quiet"},
+                  env.path("again.log")));
+  EXPECT_EQ(again.wait(kHang), 0) << again.log() << "\n--- plc:\n" << plc.log();
   EXPECT_EQ(plc.interrupt(), 0);
   const std::string log = plc.log();
   EXPECT_EQ(test::count_of(log, "M1005 continuous: motion goes on (line 2, part 3)"), 1) << log;
   EXPECT_EQ(test::count_of(log, "M51 normal: the interpolator waits (line 4, part 4)"), 1) << log;
+  EXPECT_EQ(test::count_of(log,
+                           "interpolator 0: 35 M-functions before M2036 (line 37) reached "
+                           "M_Func in the same cycle and were overwritten"),
+            1)
+      << log;
+  // Each of the rest once (their order is the core's test: the PLC logs an M-function seen on
+  // the state and one seen on the event topic as each arrives).
+  EXPECT_EQ(test::count_of(log, "M2036 continuous: motion goes on (line 37,"), 1) << log;
+  for (int m = 2001; m <= 2100; ++m) {
+    EXPECT_EQ(test::count_of(log, "M" + std::to_string(m) + " continuous"), m >= 2036 ? 1 : 0)
+        << "M" << m << "\n"
+        << log;
+  }
 }
 
 // tgm-plc's handshakes with several interpolators do not wait for one another: a reply lost on
