@@ -45,7 +45,8 @@ constexpr const char* kUsage =
     "  --csv OUT        one row per cycle: time_s, line, act_part, status, run_flag, m_func,\n"
     "                   act_speed_mm_min, move_distance_mm, orig_<axis> (Orig_Position),\n"
     "                   pos_<axis> (Position, after spline / IIR), inc_<axis> (PositionInc),\n"
-    "                   speed_<axis> (after smoothing), limit_factor\n"
+    "                   backlash_<axis> (Backlash [inc]), speed_<axis> (after smoothing),\n"
+    "                   limit_factor\n"
     "  --csv-every N    only every N-th cycle (1..1000000, default 1) in the CSV, plus each\n"
     "                   cycle where status, run_flag or m_func changes and the last one\n"
     "  --spline POINTS,JERK  Command -2 before the start: points 50..500 (0 = off), jerk limit\n"
@@ -349,6 +350,7 @@ int run_simulate(int argc, char** argv) {
     for (char l : letters) std::fprintf(csv.get(), ",orig_%c", l);
     for (char l : letters) std::fprintf(csv.get(), ",pos_%c", l);
     for (char l : letters) std::fprintf(csv.get(), ",inc_%c", l);
+    for (char l : letters) std::fprintf(csv.get(), ",backlash_%c", l);
     for (char l : letters) std::fprintf(csv.get(), ",speed_%c", l);
     std::fputs(",limit_factor\n", csv.get());
   }
@@ -418,7 +420,7 @@ int run_simulate(int argc, char** argv) {
     long long line = 0, act_part = 0, status = 0, run_flag = 0, m_func = 0;
     double act_speed = 0.0, move_distance = 0.0;
     std::array<double, kMaxAxes> orig{}, pos{}, speed{};
-    std::array<std::int64_t, kMaxAxes> inc{};
+    std::array<std::int64_t, kMaxAxes> inc{}, backlash{};
     LimitFactor factor = LimitFactor::kNone;
   };
   CsvRow row;
@@ -433,6 +435,9 @@ int run_simulate(int argc, char** argv) {
     for (int i = 0; i < n; ++i) w.col(x.orig[static_cast<std::size_t>(i)], 9);
     for (int i = 0; i < n; ++i) w.col(x.pos[static_cast<std::size_t>(i)], 9);
     for (int i = 0; i < n; ++i) w.col(static_cast<long long>(x.inc[static_cast<std::size_t>(i)]));
+    for (int i = 0; i < n; ++i) {
+      w.col(static_cast<long long>(x.backlash[static_cast<std::size_t>(i)]));
+    }
     for (int i = 0; i < n; ++i) w.col(x.speed[static_cast<std::size_t>(i)], 6);
     w.put(',');
     w.text(limit_factor_name(x.factor));
@@ -456,6 +461,7 @@ int run_simulate(int argc, char** argv) {
       row.orig = r.orig_position;
       row.pos = r.position;
       row.inc = r.position_inc;
+      row.backlash = r.backlash;
       row.speed = r.speed;
       row.factor = r.limit_factor;
       any_row = true;

@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -64,7 +65,8 @@ TEST_F(HmiSimulate, ManualExampleWritesEveryColumnAndEndsCleanUnderTheChecker) {
   ASSERT_GT(rows.size(), 100u);
   EXPECT_EQ(rows[0],
             "time_s,line,act_part,status,run_flag,m_func,act_speed_mm_min,move_distance_mm,"
-            "orig_X,orig_Y,orig_Z,pos_X,pos_Y,pos_Z,inc_X,inc_Y,inc_Z,speed_X,speed_Y,speed_Z,limit_factor");
+            "orig_X,orig_Y,orig_Z,pos_X,pos_Y,pos_Z,inc_X,inc_Y,inc_Z,backlash_X,backlash_Y,"
+            "backlash_Z,speed_X,speed_Y,speed_Z,limit_factor");
   // One row per cycle, every column filled, factors by name, the last row where the program ends.
   const double cycles = number_before(r.out, " cycles");
   EXPECT_EQ(static_cast<double>(rows.size() - 1), cycles);
@@ -75,11 +77,11 @@ TEST_F(HmiSimulate, ManualExampleWritesEveryColumnAndEndsCleanUnderTheChecker) {
   double last_t = 0.0;
   for (std::size_t i = 1; i < rows.size(); ++i) {
     const auto f = split(rows[i], ',');
-    ASSERT_EQ(f.size(), 21u) << rows[i];
+    ASSERT_EQ(f.size(), 24u) << rows[i];
     // Each number as printf's %.6f / %d / %.9f writes it (the writer formats with to_chars).
-    for (std::size_t k = 0; k < 20; ++k) {
-      const bool integer = (k >= 1 && k <= 5) || (k >= 14 && k <= 16);
-      const int decimals = (k == 0 || k == 6 || k >= 17) ? 6 : 9;
+    for (std::size_t k = 0; k < 23; ++k) {
+      const bool integer = (k >= 1 && k <= 5) || (k >= 14 && k <= 19);
+      const int decimals = (k == 0 || k == 6 || k >= 20) ? 6 : 9;
       char expect[64];
       if (integer) {
         std::snprintf(expect, sizeof expect, "%lld", std::atoll(f[k].c_str()));
@@ -91,7 +93,8 @@ TEST_F(HmiSimulate, ManualExampleWritesEveryColumnAndEndsCleanUnderTheChecker) {
     const double t = std::atof(f[0].c_str());
     ASSERT_NEAR(t - last_t, 0.0005, 1e-9) << "row " << i;
     last_t = t;
-    ASSERT_TRUE(names.count(f[20])) << f[20];
+    ASSERT_TRUE(names.count(f[23])) << f[23];
+    for (std::size_t k = 17; k < 20; ++k) ASSERT_EQ(f[k], "0") << "no backlash configured";
   }
   const auto last = split(rows.back(), ',');
   EXPECT_EQ(last[3], "3");  // Status: ended
@@ -187,6 +190,44 @@ Table read_table(const fs::path& csv) {
     t.rows.push_back(std::move(row));
   }
   return t;
+}
+
+// The Backlash register is in the CSV (backlash_<axis>): LinuxCNC's convention, half the
+// configured backlash towards the last direction of motion, 0 before the first, ramped at a
+// reversal; in every row PositionInc = round(Position x Ratio) + Backlash (no Offset here).
+// Y turns round (ratio -2000), so its increments run against its millimetres.
+TEST_F(HmiSimulate, TheCsvShowsTheBacklashOfEveryAxis) {
+  const fs::path cfg = write("backlash.yaml",
+                             "axis_defaults: {backlash_mm: 0.05}\n"
+                             "interpolators:\n"
+                             "  - axes: [{letter: X}, {letter: Y, ratio_inc_per_mm: -2000}, "
+                             "{letter: Z}]\n");
+  const fs::path prog = write("zigzag.ngc", "G90 G1 X1 Y1 F600\nG1 X0 Y0\nG1 X0.5 Y-0.5\nM2\n");
+  const fs::path csv = dir_ / "backlash.csv";
+  const ProcessResult r =
+      run("simulate " + prog.string() + " --config " + cfg.string() + " --csv " + csv.string());
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  const Table t = read_table(csv);
+  ASSERT_GT(t.rows.size(), 100u);
+  const std::array<double, 3> ratio = {1000.0, -2000.0, 1000.0};
+  std::set<double> seen_x, seen_y;
+  for (std::size_t i = 0; i < t.rows.size(); ++i) {
+    for (std::size_t a = 0; a < 3; ++a) {
+      const std::string l(1, "XYZ"[a]);
+      const double pos = t.rows[i][t.col("pos_" + l)];
+      const double inc = t.rows[i][t.col("inc_" + l)];
+      const double backlash = t.rows[i][t.col("backlash_" + l)];
+      ASSERT_EQ(inc, std::round(pos * ratio[a]) + backlash) << "row " << i << " axis " << l;
+    }
+    seen_x.insert(t.rows[i][t.col("backlash_X")]);
+    seen_y.insert(t.rows[i][t.col("backlash_Y")]);
+    ASSERT_EQ(t.rows[i][t.col("backlash_Z")], 0.0) << "Z never moves";
+  }
+  // Both signs of half the backlash, 0.025 mm: 25 inc on X, 50 inc the other way on Y.
+  EXPECT_TRUE(seen_x.count(25.0) && seen_x.count(-25.0));
+  EXPECT_TRUE(seen_y.count(-50.0) && seen_y.count(50.0));
+  EXPECT_EQ(t.rows.back()[t.col("backlash_X")], 25.0);  // last moved in +X
+  EXPECT_EQ(t.rows.back()[t.col("backlash_Y")], 50.0);  // last moved in -Y: -0.025 x -2000
 }
 
 // --spline and --iir as the README gives them reach the interpolator as Command -2 and -1
