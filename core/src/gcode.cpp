@@ -298,12 +298,22 @@ void Compiler::lex() {
   std::size_t begin = 0;
   std::int32_t line = 1;
   const std::size_t n = src_.size();
+  // A UTF-8 byte-order mark (Windows editors write one) is no part of the program: it was
+  // "unexpected byte 0xEF" and cost the first line.
+  if (src_.size() >= 3 && src_.compare(0, 3, "\xEF\xBB\xBF") == 0) begin = 3;
   blocks_.reserve(n / 16 + 1);
   words_.reserve(64);
   while (begin < n) {
     const void* nl = std::memchr(src_.data() + begin, '\n', n - begin);
-    const std::size_t end = nl ? static_cast<std::size_t>(static_cast<const char*>(nl) - src_.data())
-                               : n;
+    std::size_t end = nl ? static_cast<std::size_t>(static_cast<const char*>(nl) - src_.data()) : n;
+    // A carriage return that a line feed does not follow ends a line too (old Mac line ends,
+    // or a file pieced together from both): it was read as a blank, and a whole CR file as
+    // one line of contradicting words. The CR of a CR LF pair stays the line's last blank.
+    if (end - begin > 1) {
+      if (const void* cr = std::memchr(src_.data() + begin, '\r', end - begin - 1)) {
+        end = static_cast<std::size_t>(static_cast<const char*>(cr) - src_.data());
+      }
+    }
     const std::size_t before = blocks_.size();
     lex_line(begin, end, line);
     // While the program runs straight down, each line executes as soon as it is lexed, with

@@ -140,6 +140,34 @@ TEST(Gcode, CommentsAndTapeMarkersAreIgnored) {
   EXPECT_DOUBLE_EQ(p.segments[0].end[1], 2.0);
 }
 
+// Line ends of every kind: LF, CR LF (Windows), CR alone (old Mac; it was read as a blank, and
+// a CR file as one line of contradicting words) and a mix; a UTF-8 byte-order mark before the
+// first line is skipped (it was "unexpected byte 0xEF"). Lines are numbered as editors do.
+TEST(Gcode, EveryKindOfLineEndAndAByteOrderMark) {
+  const std::string lf = "G90 G1 X1 F100\nG1 X2\n\nG1 X3\nM30\n";
+  for (const std::string& text :
+       {lf, std::string("G90 G1 X1 F100\r\nG1 X2\r\n\r\nG1 X3\r\nM30\r\n"),
+        std::string("G90 G1 X1 F100\rG1 X2\r\rG1 X3\rM30\r"),
+        std::string("G90 G1 X1 F100\r\nG1 X2\r\rG1 X3\nM30"), std::string("\xEF\xBB\xBF") + lf}) {
+    const Program p = compile_ok(text);
+    ASSERT_EQ(p.segments.size(), 4u);
+    for (std::size_t k = 0; k < 3; ++k) {
+      EXPECT_DOUBLE_EQ(p.segments[k].end[0], static_cast<double>(k + 1));
+    }
+    EXPECT_EQ(p.segments[0].line, 1);
+    EXPECT_EQ(p.segments[1].line, 2);
+    EXPECT_EQ(p.segments[2].line, 4);
+    EXPECT_EQ(p.segments[3].line, 5);
+  }
+  // Errors keep their columns: the mark is not one, nor is the CR of a CR LF.
+  EXPECT_THAT(errors_of("\xEF\xBB\xBFG1 X1 Q2\r\n"),
+              ::testing::ElementsAre("1:7: unknown word 'Q2'"));
+  EXPECT_THAT(errors_of("G90\rG1 X1 Q2\r"), ::testing::ElementsAre("2:7: unknown word 'Q2'"));
+  // A mark anywhere else is a byte like any other.
+  EXPECT_THAT(errors_of("G90\n\xEF\xBB\xBFG1 X1\n"),
+              ::testing::ElementsAre("2:1: unexpected byte 0xEF"));
+}
+
 TEST(Gcode, DistanceModesAndModalMotion) {
   const Program p = compile_ok("G90 G1 X10 Y10 F100\nX20\nG91 X5 Y-5\nG0 Z3\n");
   ASSERT_EQ(p.segments.size(), 4u);
