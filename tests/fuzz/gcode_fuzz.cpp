@@ -28,8 +28,12 @@ void check(std::string_view text, const tgm::CompileOptions& opt) {
   const tgm::CompileResult r = tgm::compile_gcode(text, opt);
   if (!r.ok()) {
     TGM_FUZZ_CHECK(r.program.segments.empty(), "a program with errors produced records");
+    // Lines end at LF, and at a CR that no LF follows (unless it is the text's last byte).
     std::size_t lines = 1;
-    for (char c : text) lines += c == '\n' ? 1 : 0;
+    for (std::size_t i = 0; i < text.size(); ++i) {
+      const bool lone_cr = text[i] == '\r' && i + 1 < text.size() && text[i + 1] != '\n';
+      lines += text[i] == '\n' || lone_cr ? 1 : 0;
+    }
     for (const tgm::Diagnostic& d : r.errors) {
       TGM_FUZZ_CHECK(d.line >= 1 && static_cast<std::size_t>(d.line) <= lines + 1,
                      "diagnostic line " + std::to_string(d.line));
