@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <utility>
 #include <vector>
 
 #include "program_builder.hpp"
@@ -329,16 +330,22 @@ TEST(KnownValues, EqualAdjacentMFunctionsAreCountedApart) {
 
 // Forty continuous M-functions in a row (setting outputs, say) reach M_Func one per cycle, in
 // order, each counted; the motion goes on meanwhile.
-TEST(KnownValues, FortyMFunctionsInARowReachMFuncOnePerCycle) {
+// Runs a line, `count` continuous M-functions M1001, M1002, ... and a line on; the hand-overs
+// and the registers at the end.
+std::pair<std::vector<HandedOver>, Registers> continuous_in_a_row(int count) {
   ProgramBuilder b;
   b.line({10.0, 0.0, 0.0}, 3000.0);
-  for (int k = 0; k < 40; ++k) b.m(1001 + k, MKind::kContinuous);
+  for (int k = 0; k < count; ++k) b.m(1001 + k, MKind::kContinuous);
   b.line({20.0, 0.0, 0.0}, 3000.0).end();
   auto ip = Interpolator::create(machine(), 0);
-  ASSERT_TRUE(ip);
-  ASSERT_TRUE(ip->load(b.program()).ok());
-  ASSERT_TRUE(ip->start().ok());
-  const std::vector<HandedOver> seen = hand_overs(*ip, [](const Registers&) {});
+  EXPECT_TRUE(ip);
+  if (!ip || !ip->load(b.program()).ok() || !ip->start().ok()) return {};
+  std::vector<HandedOver> seen = hand_overs(*ip, [](const Registers&) {});
+  return {std::move(seen), ip->registers()};
+}
+
+TEST(KnownValues, FortyMFunctionsInARowReachMFuncOnePerCycle) {
+  const auto [seen, end] = continuous_in_a_row(40);
   ASSERT_EQ(seen.size(), 40u);
   for (std::size_t k = 0; k < seen.size(); ++k) {
     EXPECT_EQ(seen[k].count, k + 1);  // one at a time
@@ -347,8 +354,8 @@ TEST(KnownValues, FortyMFunctionsInARowReachMFuncOnePerCycle) {
       EXPECT_EQ(seen[k].cycle, seen[k - 1].cycle + 1);
     }
   }
-  EXPECT_EQ(ip->registers().status, 3);
-  EXPECT_EQ(ip->registers().orig_position[0], 20.0);
+  EXPECT_EQ(end.status, 3);
+  EXPECT_EQ(end.orig_position[0], 20.0);
 }
 
 // A hundred in a row: 64 wait, and beyond that the oldest waiting ones reach M_Func in the same
@@ -356,15 +363,7 @@ TEST(KnownValues, FortyMFunctionsInARowReachMFuncOnePerCycle) {
 // with its own count (the k-th handed over is M1000+k). The newest used to be handed over at
 // once: M1100 reached M_Func before M1002.
 TEST(KnownValues, MoreMFunctionsInARowThanWaitKeepTheirOrder) {
-  ProgramBuilder b;
-  b.line({10.0, 0.0, 0.0}, 3000.0);
-  for (int k = 0; k < 100; ++k) b.m(1001 + k, MKind::kContinuous);
-  b.line({20.0, 0.0, 0.0}, 3000.0).end();
-  auto ip = Interpolator::create(machine(), 0);
-  ASSERT_TRUE(ip);
-  ASSERT_TRUE(ip->load(b.program()).ok());
-  ASSERT_TRUE(ip->start().ok());
-  const std::vector<HandedOver> seen = hand_overs(*ip, [](const Registers&) {});
+  const auto [seen, end] = continuous_in_a_row(100);
   ASSERT_GE(seen.size(), 65u);
   for (std::size_t k = 0; k < seen.size(); ++k) {
     EXPECT_EQ(seen[k].m, 1000 + static_cast<int>(seen[k].count)) << k;
@@ -379,8 +378,8 @@ TEST(KnownValues, MoreMFunctionsInARowThanWaitKeepTheirOrder) {
     EXPECT_EQ(seen[k].count, seen[k - 1].count + 1) << k;
     EXPECT_EQ(seen[k].cycle, seen[k - 1].cycle + 1) << k;
   }
-  EXPECT_EQ(ip->registers().status, 3);
-  EXPECT_EQ(ip->registers().last_cont_m_func, 1100);
+  EXPECT_EQ(end.status, 3);
+  EXPECT_EQ(end.last_cont_m_func, 1100);
 }
 
 // A PLC's note of a continuous M-function (M_Func = 0) that arrives after the next, normal
