@@ -36,9 +36,13 @@ std::string cpu_list(const cpu_set_t& set) {
     if (!CPU_ISSET(static_cast<unsigned>(c), &set)) continue;
     int last = c;
     while (last + 1 < CPU_SETSIZE && CPU_ISSET(static_cast<unsigned>(last + 1), &set)) ++last;
-    if (!out.empty()) out += ",";
+    // Appended piece by piece: GCC 12 at -O3 warns (-Wrestrict, falsely) on "-" + to_string().
+    if (!out.empty()) out += ',';
     out += std::to_string(c);
-    if (last > c) out += "-" + std::to_string(last);
+    if (last > c) {
+      out += '-';
+      out += std::to_string(last);
+    }
     c = last;
   }
   return out.empty() ? "(none)" : out;
