@@ -31,7 +31,6 @@ std::string shown(const YAML::Node& n) {
 // One step's keys; "" or the reason (without the place).
 std::string read_step(const YAML::Node& n, PlcScriptStep& s) {
   std::set<std::string> seen;
-  bool given_parameters = false;
   for (const auto& kv : n) {
     const std::string key = kv.first.IsScalar() ? kv.first.Scalar() : "(not a name)";
     if (!seen.insert(key).second) return "'" + key + "' is given twice";  // yaml-cpp keeps both
@@ -76,7 +75,6 @@ std::string read_step(const YAML::Node& n, PlcScriptStep& s) {
         }
         s.parameters[i++] = static_cast<std::int32_t>(k);
       }
-      given_parameters = true;
     } else if (key == "start") {
       const std::string t = v.IsScalar() ? v.Scalar() : "";
       if (t == "true" || t == "yes" || t == "on") {
@@ -98,7 +96,8 @@ std::string read_step(const YAML::Node& n, PlcScriptStep& s) {
              "parameters, start, refuse_ack)";
     }
   }
-  if (given_parameters && !s.command) return "parameters belong to a command: give command too";
+  if (seen.count("parameters") != 0 && !s.command)
+    return "parameters belong to a command: give command too";
   return {};
 }
 
