@@ -856,6 +856,17 @@ TEST(ServiceProcesses, HmiCommandAndStopSayAcceptedOrWhyNot) {
       {{"command", "estop"}, 0, "Command 4: accepted\n"},
       {{"command", "frob"}, 2, "tgm-hmi command: unknown command 'frob'\n"},
       {{"command", "start", "1"}, 2, "tgm-hmi command: 'start' takes no parameters\n"},
+      {{"command", "2048", "0", "1.5"},
+       2,
+       "tgm-hmi command: Command_Parameter[1] '1.5' is not a whole number\n"},
+      {{"command", "2048", "0", "99999999999"},
+       2,
+       "tgm-hmi command: Command_Parameter[1] '99999999999' does not fit its 32-bit register "
+       "(-2147483648..2147483647)\n"},
+      {{"command", "20000000"},
+       2,
+       "tgm-hmi command: Command code 20000000 is out of range (the Command codes lie in "
+       "-2..2049)\n"},
       {{"command", "clear", "--timeout", "0"},
        2,
        "tgm-hmi command: --timeout must be seconds in (0, 3600], not '0'\n"},

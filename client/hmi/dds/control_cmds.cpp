@@ -2,6 +2,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <climits>
 #include <cmath>
 #include <cstdio>
 #include <deque>
@@ -280,13 +281,22 @@ int run_command(int argc, char** argv) {
   if (what == "start" || what == "stop" || what == "clear" || what == "estop" || what == "estop-off" ||
       what == "stop-off") {
     if (words.size() > 1) return args.usage_error("'" + what + "' takes no parameters");
-  } else if (parse_integer(what, -1'000'000, 1'000'000, code)) {
+  } else if (parse_integer(what, LLONG_MIN, LLONG_MAX, code)) {
+    if (code < -1'000'000 || code > 1'000'000)
+      return args.usage_error("Command code " + what +
+                              " is out of range (the Command codes lie in -2..2049)");
     is_code = true;
     if (words.size() > 13) return args.usage_error("at most 12 Command parameters");
     for (std::size_t k = 1; k < words.size(); ++k) {
       long long v = 0;
-      if (!parse_integer(words[k], INT32_MIN, INT32_MAX, v))
-        return args.usage_error("parameter '" + words[k] + "' is not an integer");
+      if (!parse_integer(words[k], INT32_MIN, INT32_MAX, v)) {
+        const std::string where =
+            "Command_Parameter[" + std::to_string(k - 1) + "] '" + words[k] + "'";
+        return args.usage_error(
+            parse_integer(words[k], LLONG_MIN, LLONG_MAX, v)
+                ? where + " does not fit its 32-bit register (-2147483648..2147483647)"
+                : where + " is not a whole number");
+      }
       params.push_back(static_cast<std::int32_t>(v));
     }
   } else {
