@@ -68,7 +68,8 @@ constexpr const char* kUsage =
     "                   emergency stop, both on the trajectory (a feed hold, an emergency "
     "button);\n"
     "                   the emulated operator restarts once the motion stands\n"
-    "  --restart-after S  seconds from the standstill after a stop to the restart (default 0.5)\n"
+    "  --restart-after S  with --stop-at: seconds from the standstill after a stop to the\n"
+    "                   restart (default 0.5)\n"
     "  --max-time S     give up after S seconds of program time (default 86400, up to 1e9)\n"
     "  --progress-interval S  when standard error is not a terminal, a progress line there\n"
     "                   every S seconds (default 10); on a terminal the line is redrawn\n"
@@ -177,7 +178,7 @@ int run_simulate(int argc, char** argv) {
   Args args(argc, argv, "simulate", kUsage);
   std::string file, csv_path, blocks_path, spline_text, iir_text, la_path, stop_text;
   bool check_limits = false, quiet = false;
-  double rel = 1.0, m_ack = -1.0, interval_s = 10.0, restart_s = 0.5;
+  double rel = 1.0, m_ack = -1.0, interval_s = 10.0, restart_s = -1.0;  // restart: -1 = not given
   double max_time_s = SimulationOptions{}.max_time_s;
   double share = 0.0;       // 0: --limit-share not given (the full limits, checker as asked)
   long long csv_every = 0;  // 0: not given (every cycle)
@@ -219,6 +220,11 @@ int run_simulate(int argc, char** argv) {
   if (args.failed()) return 2;
   if (file.empty()) return args.usage_error("a G-code FILE is required");
   if (csv_every > 0 && csv_path.empty()) return args.usage_error("--csv-every needs --csv OUT");
+  if (restart_s >= 0.0 && stop_text.empty()) {
+    return args.usage_error(
+        "--restart-after needs --stop-at T (it times the restart after each stop)");
+  }
+  if (restart_s < 0.0) restart_s = 0.5;
   if (!args.distinct_files(
           {{"FILE", file}, args.config_file()},
           {{"--csv", csv_path}, {"--lookahead", la_path}, {"--blocks", blocks_path}})) {

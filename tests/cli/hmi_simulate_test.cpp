@@ -499,6 +499,7 @@ TEST_F(HmiSimulate, BadInputIsAUsageErrorAndWritesNothing) {
       {"simulate " + ok + " --csv out.csv --csv-every 1000001", "not '1000001'"},
       {"simulate " + ok + " --csv out.csv --csv-every x", "not 'x'"},
       {"simulate " + ok + " --csv-every 10", "--csv-every needs --csv OUT"},
+      {"simulate " + ok + " --restart-after 2", "--restart-after needs --stop-at T"},
       // An empty value is not the flag left out.
       {"simulate " + ok + " --csv out.csv --csv-every ''",
        "--csv-every needs a value, not an empty string"},
