@@ -873,6 +873,12 @@ TEST(ServiceProcesses, HmiCommandAndStopSayAcceptedOrWhyNot) {
       {{"stop", "--timeout", "x"},
        2,
        "tgm-hmi stop: --timeout must be seconds in (0, 3600], not 'x'\n"},
+      {{"status", "--wait", "0"},
+       2,
+       "tgm-hmi status: --wait must be seconds in (0, 3600], not '0'\n"},
+      {{"watch", "--wait", "4000"},
+       2,
+       "tgm-hmi watch: --wait must be seconds in (0, 3600], not '4000'\n"},
       {{"command", "clear", "--timeout", "20"}, 0, "clear: accepted\n"},
   };
   int k = 0;
@@ -897,6 +903,18 @@ TEST(ServiceProcesses, HmiCommandAndStopSayAcceptedOrWhyNot) {
       hmi.log(),
       "tgm-hmi command: clear: no reply: no tgm-service took requests on this domain within "
       "0.5 s (is it running, with the same domain, profiles and security?); nothing was sent\n");
+  // status and watch wait --wait S for the service's state (default 10 s), then exit 1.
+  for (const char* what : {"status", "watch"}) {
+    test::Child view;
+    ASSERT_TRUE(view.start({TGM_HMI_BIN, what, "--wait", "0.5", "--config", env.config()},
+                           env.path(std::string(what) + "-none.log")));
+    EXPECT_EQ(view.wait(kHang), 1) << view.log();
+    EXPECT_EQ(view.log(), "tgm-hmi " + std::string(what) +
+                              ": no state of interpolator 0 from tgm-service on DDS domain " +
+                              std::to_string(env.domain()) +
+                              " within 0.5 s (is tgm-service running with the same domain, "
+                              "profiles and security?)\n");
+  }
 }
 
 // Intercode compiled for other axis letters (XYC, where interpolator 0 has XYZ) is refused

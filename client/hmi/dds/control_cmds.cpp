@@ -20,24 +20,28 @@ namespace {
 using namespace std::chrono_literals;
 
 constexpr const char* kStatusUsage =
-    "usage: tgm-hmi status [--interpolator N | --all] [--json] [--config YAML] [DDS overrides]\n"
+    "usage: tgm-hmi status [--interpolator N | --all] [--json] [--wait S] [--config YAML]\n"
+    "                      [DDS overrides]\n"
     "\n"
     "Prints every register of the interpolator once (the state is TRANSIENT_LOCAL: a new reader\n"
     "gets the current one at once).\n"
     "  --all    every interpolator the service hosts\n"
     "  --json   one line of JSON per interpolator (JSON Lines): the IDL's field names, units in\n"
     "           the key where the register has one, per-axis values keyed by axis letter,\n"
-    "           numbers that are not finite as null; for scripts and monitoring\n";
+    "           numbers that are not finite as null; for scripts and monitoring\n"
+    "  --wait S wait up to S seconds for the service's state (default 10, at most 3600);\n"
+    "           none by then: exit code 1\n";
 constexpr const char* kWatchUsage =
-    "usage: tgm-hmi watch [--interpolator N] [--interval S] [--count K] [--json] [--config YAML]\n"
-    "                     [DDS overrides]\n"
+    "usage: tgm-hmi watch [--interpolator N] [--interval S] [--count K] [--json] [--wait S]\n"
+    "                     [--config YAML] [DDS overrides]\n"
     "\n"
     "Follows the registers: prints them every S seconds (default 0.5) until Ctrl-C, or K times.\n"
     "Messages (M29 texts, warnings, errors) follow the registers; those written before watch\n"
     "began (the service keeps the last 32) are marked 'earlier', with their age. On a terminal\n"
     "the newest 5 stay on every screen.\n"
     "  --json   one line of JSON per sample (see tgm-hmi status --help), nothing else on\n"
-    "           standard output; warnings go to standard error\n";
+    "           standard output; warnings go to standard error\n"
+    "  --wait S wait up to S seconds for the service's first state (default 10, at most 3600)\n";
 constexpr const char* kStopUsage =
     "usage: tgm-hmi stop [--interpolator N] [--timeout S] [--config YAML] [DDS overrides]\n"
     "\n"
@@ -64,6 +68,12 @@ struct Common {
   std::optional<client::Client> client;
   double timeout_s = 3.0;  // reply timeout of the requests (stop, command)
 };
+
+// --wait S of status and watch: how long to wait for the service's state.
+bool wait_flag(Args& args, double& out) {
+  return args.number_flag("--wait", out, "seconds in (0, 3600]",
+                          [](double v) { return v > 0.0 && v <= 3600.0; });
+}
 
 // --timeout S of stop and command.
 bool timeout_flag(Args& args, double& out) {
@@ -95,9 +105,11 @@ int run_status(int argc, char** argv) {
   Common c;
   bool all = false;
   bool json = false;
+  double wait_s = 10.0;
   while (args.more()) {
     if (args.dds_flag(c.overrides)) continue;
     if (args.boolean("--all", all) || args.boolean("--json", json)) continue;
+    if (wait_flag(args, wait_s)) continue;
     if (args.common()) continue;
     return args.fail();
   }
@@ -109,7 +121,7 @@ int run_status(int argc, char** argv) {
   if (const int rc = connect(args, c); rc != 0) return rc;
   const int first = all ? 0 : args.interpolator();
   const int last = all ? static_cast<int>(c.config->machine.interpolators.size()) - 1 : first;
-  if (!wait_for_service(*c.client, *c.config, first, "status")) return 1;
+  if (!wait_for_service(*c.client, *c.config, first, "status", wait_s)) return 1;
   if (all) c.client->poll(200ms);  // the other instances arrive together
   for (int i = first; i <= last; ++i) {
     if (i != first && !c.client->wait_for_state(i, 2s)) {
@@ -154,9 +166,11 @@ int run_watch(int argc, char** argv) {
   double interval = 0.5;
   long long count = 0;
   bool json = false;
+  double wait_s = 10.0;
   while (args.more()) {
     if (args.dds_flag(c.overrides)) continue;
     if (args.boolean("--json", json)) continue;
+    if (wait_flag(args, wait_s)) continue;
     if (args.number_flag("--interval", interval, "seconds > 0", [](double v) { return v > 0.0; }))
       continue;
     if (args.whole_flag("--count", 1, 1'000'000'000, count)) continue;
@@ -168,7 +182,7 @@ int run_watch(int argc, char** argv) {
   if (const int rc = connect(args, c); rc != 0) return rc;
   install_signal_flag();
   const int ip = args.interpolator();
-  if (!wait_for_service(*c.client, *c.config, ip, "watch")) return 1;
+  if (!wait_for_service(*c.client, *c.config, ip, "watch", wait_s)) return 1;
   const bool tty = !json && ::isatty(1) != 0;
   std::uint64_t malformed_said = 0, other_said = 0;
   // The message topic keeps the last 32 messages for late readers: those written before the

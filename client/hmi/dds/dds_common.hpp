@@ -21,7 +21,8 @@ int make_client(Args& args, const DdsOverrides& o, std::optional<AppConfig>& con
                 std::optional<client::Client>& c, const client::ClientOptions& options = {});
 
 //! Waits for the state of `interpolator`; prints a clear error when there is none.
-bool wait_for_service(client::Client& c, const AppConfig& config, int interpolator, const char* command);
+bool wait_for_service(client::Client& c, const AppConfig& config, int interpolator,
+                      const char* command, double wait_s = 10.0);
 
 //! The registers of one interpolator as readable lines, the axes named by the service's
 //! letters (`config_letters` when the state has none).
