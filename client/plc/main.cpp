@@ -82,7 +82,8 @@ constexpr const char* kUsage =
     "%s"
     "  --interpolator N     serve only interpolator N (default: every configured one)\n"
     "  --rel-speed R        write Rel_Speed = R (0.01..2) at start\n"
-    "  --refuse-ack M[,M]   never acknowledge these M numbers (the interpolator keeps waiting)\n"
+    "  --refuse-ack M[,M]   never acknowledge these normal M-functions (1..999; the interpolator\n"
+    "                       keeps waiting)\n"
     "  --ack-delay S        acknowledge every normal M-function after S seconds (overrides "
     "config)\n"
     "  --script YAML        timed actions, a list of maps:\n"
@@ -277,9 +278,11 @@ int plc_main(int argc, char** argv) {
       for (std::size_t p = 0; p <= value.size();) {
         const std::size_t q = std::min(value.find(',', p), value.size());
         int m = 0;
-        if (!tgm::parse_integer(value.substr(p, q - p), 1, 999999, m))
-          return args.usage_error("--refuse-ack takes M numbers 1..999999 like 51,50, not '" +
-                                  value + "'");
+        if (!tgm::parse_integer(value.substr(p, q - p), 1, 999, m))
+          return args.usage_error(
+              "--refuse-ack takes normal M-functions 1..999 like 51,50 (the interpolator waits "
+              "only for those), not '" +
+              value + "'");
         refuse.insert(m);
         p = q + 1;
       }

@@ -18,7 +18,9 @@ namespace tgm {
 
 namespace {
 
-constexpr int kMaxMNumber = 999999;  // as the G-code compiler and --refuse-ack take them
+// The interpolator waits only for normal M-functions (below 1000): refusing a continuous one
+// would do nothing, so it is refused here as it is by --refuse-ack.
+constexpr int kMaxNormalM = 999;
 
 // What a node holds, for a message: a scalar as written, else its kind.
 std::string shown(const YAML::Node& n) {
@@ -85,9 +87,9 @@ std::string read_step(const YAML::Node& n, PlcScriptStep& s) {
     } else if (key == "refuse_ack") {
       if (!v.IsSequence()) return bad("a list of M numbers");
       for (const YAML::Node& m : v) {
-        if (!m.IsScalar() || !parse_integer(m.Scalar(), 1LL, kMaxMNumber + 0LL, k)) {
-          return "refuse_ack must list M numbers 1.." + std::to_string(kMaxMNumber) + ", not '" +
-                 shown(m) + "'";
+        if (!m.IsScalar() || !parse_integer(m.Scalar(), 1LL, kMaxNormalM + 0LL, k)) {
+          return "refuse_ack must list normal M-functions 1.." + std::to_string(kMaxNormalM) +
+                 " (the interpolator waits only for those), not '" + shown(m) + "'";
         }
         s.refuse_ack.push_back(static_cast<int>(k));
       }

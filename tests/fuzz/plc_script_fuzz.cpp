@@ -40,7 +40,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
                    at + "interpolator");
     TGM_FUZZ_CHECK(!s.rel_speed || (*s.rel_speed >= 0.01 && *s.rel_speed <= 2.0), at + "rel_speed");
     TGM_FUZZ_CHECK(!s.command || tgm::plc_script_command(*s.command), at + "command");
-    for (int m : s.refuse_ack) TGM_FUZZ_CHECK(m >= 1 && m <= 999999, at + "refuse_ack");
+    for (int m : s.refuse_ack) TGM_FUZZ_CHECK(m >= 1 && m <= 999, at + "refuse_ack");
     TGM_FUZZ_CHECK(s.rel_speed || s.command || s.start || !s.refuse_ack.empty(),
                    at + "a step without an action");
   }

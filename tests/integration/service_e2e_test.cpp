@@ -1492,6 +1492,31 @@ TEST(ServiceProcesses, PlcScriptStepsRunAtTheirTimesAndAreLoggedWithTheirLine) {
       << hmi.state(0)->ratio()[1];
 }
 
+// tgm-plc refuses flags that could not do what they say, before it joins DDS: refusing to
+// acknowledge a continuous M-function (the interpolator does not wait for one) did nothing.
+TEST(ServiceProcesses, PlcFlagsThatCannotWorkAreUsageErrors) {
+  const std::string cfg = std::string(TGM_SOURCE_DIR) + "/config/default.yaml";
+  const std::string refuse =
+      "tgm-plc: --refuse-ack takes normal M-functions 1..999 like 51,50 (the interpolator waits "
+      "only for those), not '";
+  const std::pair<std::vector<std::string>, std::string> cases[] = {
+      {{"--refuse-ack", "51,1001"}, refuse + "51,1001'\n"},
+      {{"--refuse-ack", "0"}, refuse + "0'\n"},
+      {{"--refuse-ack", "51,"}, refuse + "51,'\n"},
+      {{"--ack-delay", "-1"}, "tgm-plc: --ack-delay must be 0..3600 s, not '-1'\n"},
+  };
+  const std::string dir = ::testing::TempDir();
+  int k = 0;
+  for (const auto& [flags, says] : cases) {
+    std::vector<std::string> args{TGM_PLC_BIN, "--config", cfg};
+    args.insert(args.end(), flags.begin(), flags.end());
+    test::Child plc;
+    ASSERT_TRUE(plc.start(args, dir + "/plc-flags" + std::to_string(k++) + ".log"));
+    EXPECT_EQ(plc.wait(kHang), 2) << plc.log();
+    EXPECT_EQ(plc.log(), says + "(see tgm-plc --help)\n");
+  }
+}
+
 // --stats and --handshake-trace are written at exit. A path that cannot be written fails the
 // start (it used to be said at the end of the run, exit code 0, the figures lost); a device
 // that refuses the bytes (/dev/full) fails the exit with code 1 (it was not noticed at all).

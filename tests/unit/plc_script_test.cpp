@@ -21,7 +21,7 @@ namespace {
 TEST(PlcScript, EveryKindOfStepIsRead) {
   const PlcScriptLoad load = parse_plc_script(
       "# comment\n"
-      "- {at_s: 0, refuse_ack: [51, 999999]}\n"
+      "- {at_s: 0, refuse_ack: [51, 999]}\n"
       "- {at_s: 1.5, rel_speed: 0.5, interpolator: 2}\n"
       "- at_s: 3\n"
       "  command: 8\n"
@@ -34,7 +34,7 @@ TEST(PlcScript, EveryKindOfStepIsRead) {
   const PlcScriptStep& a = load.steps[0];
   EXPECT_EQ(a.line, 2);
   EXPECT_EQ(a.at_s, 0.0);
-  EXPECT_EQ(a.refuse_ack, (std::vector<int>{51, 999999}));
+  EXPECT_EQ(a.refuse_ack, (std::vector<int>{51, 999}));
   EXPECT_FALSE(a.rel_speed || a.command || a.start);
   EXPECT_EQ(load.steps[1].line, 3);
   EXPECT_EQ(load.steps[1].interpolator, 2);
@@ -80,8 +80,13 @@ TEST(PlcScript, AProblemNamesTheLineAndKeepsNoStep) {
       {"- {at_s: 1, command: 4294967304}\n", "s.yaml:1: command must be a Command"},
       {"- {at_s: 1, interpolator: 3}\n", "s.yaml:1: interpolator must be an interpolator 0..2"},
       {"- {at_s: 1, refuse_ack: [51, x]}\n",
-       "s.yaml:1: refuse_ack must list M numbers 1..999999, not 'x'"},
-      {"- {at_s: 1, refuse_ack: [0]}\n", "s.yaml:1: refuse_ack must list M numbers 1..999999"},
+       "s.yaml:1: refuse_ack must list normal M-functions 1..999 (the interpolator waits only for "
+       "those), not 'x'"},
+      {"- {at_s: 1, refuse_ack: [0]}\n",
+       "s.yaml:1: refuse_ack must list normal M-functions 1..999"},
+      {"- {at_s: 1, refuse_ack: [1001]}\n",
+       "s.yaml:1: refuse_ack must list normal M-functions 1..999 (the interpolator waits only for "
+       "those), not '1001'"},
       {"- {at_s: 1, refuse_ack: 51}\n", "s.yaml:1: refuse_ack must be a list of M numbers"},
       {"- {at_s: 1, start: maybe}\n", "s.yaml:1: start must be true or false, not 'maybe'"},
       // Command parameters: with a command, at most twelve, each a 32-bit integer.
