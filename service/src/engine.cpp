@@ -216,6 +216,7 @@ ReplyOut Engine::apply(const RequestIn& r) {
     Slot& s = ips_[static_cast<std::size_t>(r.interpolator)];
     s.program_id = 0;
     s.next_sequence = 0;
+    s.dropped_by_set = false;
   }
   return out;
 }
@@ -244,6 +245,13 @@ void Engine::send_message(CyclePort& port, int i, MessageOut::Severity severity,
 
 void Engine::apply_chunks(CyclePort& port, int i, std::size_t& budget) {
   Slot& s = ips_[static_cast<std::size_t>(i)];
+  // A position set (Command 2048/2049: with its request or in the step of an earlier cycle)
+  // drops the loaded program, as an off-trajectory stop does. The rest of its stream loaded
+  // behind it and a start ran that tail from the new position (session 55).
+  if (s.ip.position_sets() != s.sets_seen) {
+    s.sets_seen = s.ip.position_sets();
+    s.dropped_by_set = s.program_id != 0;
+  }
   while (budget > 0) {
     ChunkIn* c = port.front_chunk(i);
     if (c == nullptr) return;
@@ -269,14 +277,14 @@ void Engine::apply_chunks(CyclePort& port, int i, std::size_t& budget) {
     // program's stream must not become a program of its own, which would start where the axes
     // stand; streamed again from its first record, it loads again.
     const bool other = c->program_id != s.program_id;
-    if (other || s.ip.registers().off_trajectory != 0) {
+    if (other || s.ip.registers().off_trajectory != 0 || s.dropped_by_set) {
       if (c->sequence_number != 0 || c->applied != 0) {
-        refuse_chunk(
-            port, i, *c,
-            other ? "chunk " + std::to_string(c->sequence_number) +
-                        " of a program that is not loaded (cleared?)"
-                  : "program " + std::to_string(s.program_id) +
-                        " was dropped by an off-trajectory stop (Command 5/9): stream it again");
+        const char* by = s.dropped_by_set ? " was dropped by a position set (Command 2048/2049)"
+                                          : " was dropped by an off-trajectory stop (Command 5/9)";
+        refuse_chunk(port, i, *c,
+                     other ? "chunk " + std::to_string(c->sequence_number) +
+                                 " of a program that is not loaded (cleared?)"
+                           : "program " + std::to_string(s.program_id) + by + ": stream it again");
         port.pop_chunk(i);
         continue;
       }
@@ -289,6 +297,7 @@ void Engine::apply_chunks(CyclePort& port, int i, std::size_t& budget) {
       }
       s.program_id = c->program_id;
       s.next_sequence = 0;
+      s.dropped_by_set = false;
       s.refused_program = 0;
       s.limit_messages = 0;
     }

@@ -1073,6 +1073,37 @@ TEST(ServiceProcesses, HmiRunEndsWhenAnotherHmiClearsItsProgram) {
       << run.log();
 }
 
+// A position set (Command 2048, the PLC's) while the program stands after a stop drops the
+// program: tgm-hmi run said "cleared by someone else". It names the set now and exits 1, and
+// nothing of the program is left to start (Engine.ChunksOfAProgramDroppedByAPositionSetAreRefused).
+TEST(ServiceProcesses, HmiRunEndsWhenAPositionSetDropsItsProgram) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  std::ofstream(env.path("m.ngc")) << "G90 G1 X1 F600\nM51\nG1 X2\nM2\n";
+  test::Child run;
+  ASSERT_TRUE(run.start({TGM_HMI_BIN, "run", env.path("m.ngc"), "--config", env.config(), "--quiet",
+                         "--timeout", "60"},
+                        env.path("run.log")));
+  client::Client hmi(env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(hmi.wait_until(
+      0, [](const msg::InterpolatorState& s) { return s.m_func() == 51; }, kHang))
+      << run.log();
+  ASSERT_TRUE(hmi.stop(0).accepted);
+  ASSERT_TRUE(hmi.wait_until(
+      0, [](const msg::InterpolatorState& s) { return s.status() == 4; }, kHang));
+  client::Client plc(env.dds(), client::Role::kPlc);
+  ASSERT_TRUE(plc.wait_for_state(0, kHang));
+  const std::int32_t x_inc[] = {5000};  // X = 5 mm at the default 1000 inc/mm
+  const client::Reply set = plc.command(0, 2048, x_inc);
+  ASSERT_TRUE(set.accepted) << client::describe(set);
+  EXPECT_EQ(run.wait(kHang), 1) << run.log();
+  EXPECT_NE(run.log().find("tgm-hmi run: a position set (Command 2048/2049, by the PLC) at line 2 "
+                           "dropped the program\n"),
+            std::string::npos)
+      << run.log();
+  EXPECT_FALSE(hmi.start(0).accepted);  // nothing left to run
+}
+
 // Without a PLC an M-function waits for ever: the progress line says for how long and asks
 // for tgm-plc, and --timeout stops the interpolator and exits 1.
 TEST(ServiceProcesses, HmiRunSaysWhenAnMFunctionWaitsLongAndTimesOut) {

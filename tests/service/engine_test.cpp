@@ -303,6 +303,50 @@ TEST(Engine, ChunksOfAProgramDroppedByAnOffTrajectoryStopAreRefused) {
   EXPECT_EQ(port.last.ip[0].next_sequence, q.segments.size());
 }
 
+// A position set (Command 2048) of a program stopped on the trajectory drops the program, as
+// an off-trajectory stop does: the rest of its stream must not load behind it and start from
+// the new position. Streamed again from its first record, it loads again.
+TEST(Engine, ChunksOfAProgramDroppedByAPositionSetAreRefused) {
+  Engine e = make_engine();
+  MockPort port;
+  const Program p = line_program(999);
+  port.add_chunk(0, p, 0, 500, 9, false);
+  e.cycle(port, {});
+  port.add_request(Role::kHmi, RequestKind::kStart);
+  for (int c = 0; c < 400; ++c) e.cycle(port, {});
+  port.add_request(Role::kHmi, RequestKind::kCommand).command = 8;
+  int cycles = 0;
+  do {
+    e.cycle(port, {});
+  } while (port.last.ip[0].reg.act_speed != 0.0 && cycles++ < 2000);
+  ASSERT_EQ(port.last.ip[0].reg.act_speed, 0.0);
+  ASSERT_EQ(port.last.ip[0].next_sequence, 500u);
+  RequestIn& set = port.add_request(Role::kPlc, RequestKind::kCommand);
+  set.command = 2048;
+  set.command_parameter[0] = 5000;  // X = 5 mm
+  e.cycle(port, {});
+  ASSERT_EQ(port.replies.back().code, ReplyCode::kAccepted) << port.replies.back().reason.view();
+  EXPECT_EQ(port.last.ip[0].reg.status, static_cast<std::int32_t>(InterpolatorStatus::kEmpty));
+  port.add_chunk(0, p, 500, 499, 9, false);
+  port.add_chunk(0, p, 999, 1, 9, true);
+  e.cycle(port, {});
+  EXPECT_TRUE(port.chunks[0].empty());
+  EXPECT_EQ(port.last.ip[0].reg.status, static_cast<std::int32_t>(InterpolatorStatus::kEmpty));
+  ASSERT_EQ(port.messages.size(), 1u);  // one message per refused program
+  EXPECT_EQ(port.messages[0].text.view(),
+            "program 9 refused: program 9 was dropped by a position set (Command 2048/2049): "
+            "stream it again");
+  port.add_request(Role::kHmi, RequestKind::kStart);
+  e.cycle(port, {});
+  EXPECT_EQ(port.replies.back().code, ReplyCode::kWrongState);
+  // Streamed again from its first record, the same program loads at the new position.
+  port.add_chunk(0, p, 0, p.segments.size(), 9, true);
+  e.cycle(port, {});
+  EXPECT_EQ(port.last.ip[0].program_id, 9u);
+  EXPECT_EQ(port.last.ip[0].reg.status, static_cast<std::int32_t>(InterpolatorStatus::kReady));
+  EXPECT_EQ(port.last.ip[0].next_sequence, p.segments.size());
+}
+
 TEST(Engine, DuplicatesAreDroppedGapsAndForeignProgramsRefused) {
   Engine e = make_engine();
   MockPort port;

@@ -451,7 +451,12 @@ int run_run(int argc, char** argv) {
                      "program was dropped\n",
                      st->act_line());
       } else {
-        std::fprintf(stderr, "tgm-hmi run: the program was cleared by someone else\n");
+        // The state still names this program: a position set (Command 2048/2049, the PLC's)
+        // dropped it; a clear would have set the state's program to 0 (handled above).
+        std::fprintf(stderr,
+                     "tgm-hmi run: a position set (Command 2048/2049, by the PLC) at line %d "
+                     "dropped the program\n",
+                     st->act_line());
       }
       exit_code = 1;
       break;
