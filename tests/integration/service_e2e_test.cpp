@@ -1042,6 +1042,24 @@ TEST(ServiceProcesses, HmiTimesTheProgramByTheServicesCycle) {
   EXPECT_NE(status.log().find(" of 1000 us, lateness"), std::string::npos) << status.log();
 }
 
+// tgm-hmi run of a program that waits for M51 at line 2 (no PLC here), until it waits.
+void run_until_m51(ServiceEnv& env, test::Child& run, client::Client& hmi) {
+  std::ofstream(env.path("m.ngc")) << "G90 G1 X1 F600\nM51\nG1 X2\nM2\n";
+  ASSERT_TRUE(run.start({TGM_HMI_BIN, "run", env.path("m.ngc"), "--config", env.config(), "--quiet",
+                         "--timeout", "60"},
+                        env.path("run.log")));
+  ASSERT_TRUE(hmi.wait_until(
+      0, [](const msg::InterpolatorState& s) { return s.m_func() == 51; }, kHang))
+      << run.log();
+}
+
+// A normal stop, until the interpolator stands with its program (Status 4).
+void stop_until_standing(client::Client& hmi) {
+  ASSERT_TRUE(hmi.stop(0).accepted);
+  ASSERT_TRUE(hmi.wait_until(
+      0, [](const msg::InterpolatorState& s) { return s.status() == 4; }, kHang));
+}
+
 // A program that another HMI stops and clears is gone: tgm-hmi run said nothing and waited on
 // for good (the state's program id goes to 0, and run looked only at states of its own
 // program). It says so now and exits 1. A clear while the program waits for its M-function
@@ -1049,22 +1067,14 @@ TEST(ServiceProcesses, HmiTimesTheProgramByTheServicesCycle) {
 TEST(ServiceProcesses, HmiRunEndsWhenAnotherHmiClearsItsProgram) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());
-  std::ofstream(env.path("m.ngc")) << "G90 G1 X1 F600\nM51\nG1 X2\nM2\n";
   test::Child run;
-  ASSERT_TRUE(run.start({TGM_HMI_BIN, "run", env.path("m.ngc"), "--config", env.config(), "--quiet",
-                         "--timeout", "60"},
-                        env.path("run.log")));
   client::Client hmi(env.dds(), client::Role::kHmi);
-  ASSERT_TRUE(hmi.wait_until(
-      0, [](const msg::InterpolatorState& s) { return s.m_func() == 51; }, kHang))
-      << run.log();
+  ASSERT_NO_FATAL_FAILURE(run_until_m51(env, run, hmi));
   const client::Reply refused = hmi.clear(0);
   EXPECT_FALSE(refused.accepted);
   EXPECT_EQ(refused.reason, "cannot clear while waiting for an M-function: stop first")
       << client::describe(refused);
-  ASSERT_TRUE(hmi.stop(0).accepted);
-  ASSERT_TRUE(hmi.wait_until(
-      0, [](const msg::InterpolatorState& s) { return s.status() == 4; }, kHang));
+  ASSERT_NO_FATAL_FAILURE(stop_until_standing(hmi));
   const client::Reply cleared = hmi.clear(0);
   ASSERT_TRUE(cleared.accepted) << client::describe(cleared);
   EXPECT_EQ(run.wait(kHang), 1) << run.log();
@@ -1079,18 +1089,10 @@ TEST(ServiceProcesses, HmiRunEndsWhenAnotherHmiClearsItsProgram) {
 TEST(ServiceProcesses, HmiRunEndsWhenAPositionSetDropsItsProgram) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());
-  std::ofstream(env.path("m.ngc")) << "G90 G1 X1 F600\nM51\nG1 X2\nM2\n";
   test::Child run;
-  ASSERT_TRUE(run.start({TGM_HMI_BIN, "run", env.path("m.ngc"), "--config", env.config(), "--quiet",
-                         "--timeout", "60"},
-                        env.path("run.log")));
   client::Client hmi(env.dds(), client::Role::kHmi);
-  ASSERT_TRUE(hmi.wait_until(
-      0, [](const msg::InterpolatorState& s) { return s.m_func() == 51; }, kHang))
-      << run.log();
-  ASSERT_TRUE(hmi.stop(0).accepted);
-  ASSERT_TRUE(hmi.wait_until(
-      0, [](const msg::InterpolatorState& s) { return s.status() == 4; }, kHang));
+  ASSERT_NO_FATAL_FAILURE(run_until_m51(env, run, hmi));
+  ASSERT_NO_FATAL_FAILURE(stop_until_standing(hmi));
   client::Client plc(env.dds(), client::Role::kPlc);
   ASSERT_TRUE(plc.wait_for_state(0, kHang));
   const std::int32_t x_inc[] = {5000};  // X = 5 mm at the default 1000 inc/mm

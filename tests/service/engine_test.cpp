@@ -256,14 +256,20 @@ TEST(Engine, ChunksWaitWhileTheEmergencyRampRuns) {
 // waited for the ramp, and every later one, is refused with the reason once the program has
 // been dropped; the rest of the stream does not become a program of its own, and a new
 // program loads as usual.
-TEST(Engine, ChunksOfAProgramDroppedByAnOffTrajectoryStopAreRefused) {
-  Engine e = make_engine();
-  MockPort port;
-  const Program p = line_program(999);
+// Streams the first 500 records of p as program 9, starts it and runs 400 cycles: the
+// program moves with the rest of its stream still to come.
+void start_first_half(Engine& e, MockPort& port, const Program& p) {
   port.add_chunk(0, p, 0, 500, 9, false);
   e.cycle(port, {});
   port.add_request(Role::kHmi, RequestKind::kStart);
   for (int c = 0; c < 400; ++c) e.cycle(port, {});
+}
+
+TEST(Engine, ChunksOfAProgramDroppedByAnOffTrajectoryStopAreRefused) {
+  Engine e = make_engine();
+  MockPort port;
+  const Program p = line_program(999);
+  start_first_half(e, port, p);
   port.add_request(Role::kPlc, RequestKind::kCommand).command = 5;
   e.cycle(port, {});
   port.add_chunk(0, p, 500, 300, 9, false);
@@ -310,10 +316,7 @@ TEST(Engine, ChunksOfAProgramDroppedByAPositionSetAreRefused) {
   Engine e = make_engine();
   MockPort port;
   const Program p = line_program(999);
-  port.add_chunk(0, p, 0, 500, 9, false);
-  e.cycle(port, {});
-  port.add_request(Role::kHmi, RequestKind::kStart);
-  for (int c = 0; c < 400; ++c) e.cycle(port, {});
+  start_first_half(e, port, p);
   port.add_request(Role::kHmi, RequestKind::kCommand).command = 8;
   int cycles = 0;
   do {
