@@ -485,10 +485,24 @@ int run_simulate(int argc, char** argv) {
   const int interrupted = sum.result == StepResult::kFinished ? 0 : static_cast<int>(g_signal);
   if (csv_out && !row_written) write_row(row);  // the last cycle
   if (csv_out) csv_out->flush();
-  bool io_ok = true;
-  for (File* f : {&csv, &blocks, &la}) {
-    if (*f && (std::fflush(f->get()) != 0 || std::ferror(f->get()))) io_ok = false;
+  // Which output failed and why, said after the summary (the figures are still right).
+  std::string io_error;
+  const std::pair<const char*, const std::string*> names[] = {
+      {"--csv", &csv_path}, {"--blocks", &blocks_path}, {"--lookahead", &la_path}};
+  const File* files[] = {&csv, &blocks, &la};
+  for (std::size_t k = 0; k < 3; ++k) {
+    if (!*files[k]) continue;
+    errno = 0;
+    const bool flushed = std::fflush(files[k]->get()) == 0;
+    const int why = errno;
+    if (!flushed || std::ferror(files[k]->get())) {
+      io_error += std::string("tgm-hmi simulate: cannot write ") + names[k].first + " " +
+                  *names[k].second + ": " +
+                  (!flushed && why != 0 ? std::strerror(why) : "a write failed") +
+                  " (the file is incomplete)\n";
+    }
   }
+  const bool io_ok = io_error.empty();
 
   const bool finished = sum.result == StepResult::kFinished;
   std::printf("program:   %s (%zu records, interpolator %d, %d us cycle)\n", file.c_str(),
@@ -571,7 +585,7 @@ int run_simulate(int argc, char** argv) {
   }
   std::printf("\n");
   if (!io_ok) {
-    std::fprintf(stderr, "tgm-hmi simulate: error writing the output files\n");
+    std::fputs(io_error.c_str(), stderr);
     return 1;
   }
   if (interrupted != 0) return 128 + interrupted;

@@ -394,6 +394,29 @@ TEST_F(HmiSimulate, TimeLimitIsNamedAndMaxTimeRaisesIt) {
   EXPECT_NEAR(number_before(r.out, " mm/min, "), 600.0, 1e-6) << r.out;
 }
 
+// An output file the disk does not take: the summary is still printed, then each file that
+// failed is named with the reason, and the exit code is 1 (it said "error writing the output
+// files", naming none).
+TEST_F(HmiSimulate, AnOutputThatCannotBeWrittenIsNamedWithTheReason) {
+  const fs::path prog = write("line.ngc", "G90 G1 X6 F600\nM2\n");
+  const fs::path csv = dir_ / "ok.csv";
+  const ProcessResult r = run("simulate " + prog.string() + " --config " + kConfig + " --csv " +
+                              csv.string() + " --blocks /dev/full --quiet");
+  EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
+  EXPECT_NE(r.out.find("result:    finished\n"), std::string::npos) << r.out;
+  EXPECT_EQ(r.err,
+            "tgm-hmi simulate: cannot write --blocks /dev/full: No space left on device (the file "
+            "is incomplete)\n");
+  // The CSV is written whole: as a run without the failing output writes it.
+  const fs::path again = dir_ / "again.csv";
+  ASSERT_EQ(run("simulate " + prog.string() + " --config " + kConfig + " --csv " + again.string() +
+                " --quiet")
+                .exit_code,
+            0);
+  EXPECT_GT(lines(slurp(csv)).size(), 1000u);
+  EXPECT_EQ(slurp(csv), slurp(again));
+}
+
 // A feed of 0.001 mm/min: 0.001 mm take 60 s, and the summary prints the peak with its digits
 // (it printed 0.0 mm/min).
 TEST_F(HmiSimulate, ASlowFeedFinishesAndItsPeakIsPrinted) {
