@@ -216,7 +216,6 @@ ReplyOut Engine::apply(const RequestIn& r) {
     Slot& s = ips_[static_cast<std::size_t>(r.interpolator)];
     s.program_id = 0;
     s.next_sequence = 0;
-    s.dropped_by_set = false;
   }
   return out;
 }
@@ -245,13 +244,6 @@ void Engine::send_message(CyclePort& port, int i, MessageOut::Severity severity,
 
 void Engine::apply_chunks(CyclePort& port, int i, std::size_t& budget) {
   Slot& s = ips_[static_cast<std::size_t>(i)];
-  // A position set (Command 2048/2049: with its request or in the step of an earlier cycle)
-  // drops the loaded program, as an off-trajectory stop does. The rest of its stream loaded
-  // behind it and a start ran that tail from the new position (session 55).
-  if (s.ip.position_sets() != s.sets_seen) {
-    s.sets_seen = s.ip.position_sets();
-    s.dropped_by_set = s.program_id != 0;
-  }
   while (budget > 0) {
     ChunkIn* c = port.front_chunk(i);
     if (c == nullptr) return;
@@ -276,11 +268,15 @@ void Engine::apply_chunks(CyclePort& port, int i, std::size_t& budget) {
     // loaded one after an off-trajectory stop (Command 5/9) dropped it. The rest of a dropped
     // program's stream must not become a program of its own, which would start where the axes
     // stand; streamed again from its first record, it loads again.
+    // A position set (Command 2048/2049) since the program loaded dropped it the same way: the
+    // rest of its stream loaded behind the set, and a start ran that tail from the new
+    // position (session 55).
     const bool other = c->program_id != s.program_id;
-    if (other || s.ip.registers().off_trajectory != 0 || s.dropped_by_set) {
+    const bool set_dropped = s.program_id != 0 && s.ip.position_sets() != s.sets_at_load;
+    if (other || s.ip.registers().off_trajectory != 0 || set_dropped) {
       if (c->sequence_number != 0 || c->applied != 0) {
-        const char* by = s.dropped_by_set ? " was dropped by a position set (Command 2048/2049)"
-                                          : " was dropped by an off-trajectory stop (Command 5/9)";
+        const char* by = set_dropped ? " was dropped by a position set (Command 2048/2049)"
+                                     : " was dropped by an off-trajectory stop (Command 5/9)";
         refuse_chunk(port, i, *c,
                      other ? "chunk " + std::to_string(c->sequence_number) +
                                  " of a program that is not loaded (cleared?)"
@@ -297,7 +293,7 @@ void Engine::apply_chunks(CyclePort& port, int i, std::size_t& budget) {
       }
       s.program_id = c->program_id;
       s.next_sequence = 0;
-      s.dropped_by_set = false;
+      s.sets_at_load = s.ip.position_sets();
       s.refused_program = 0;
       s.limit_messages = 0;
     }

@@ -81,8 +81,7 @@ class Engine {
     std::optional<LimitChecker> checker;  // EngineOptions::check_limits
     int limit_messages = 0;               // excesses reported for the current program
     std::uint64_t position_sets = 0;      // Interpolator::position_sets() the checker has seen
-    std::uint64_t sets_seen = 0;          // Interpolator::position_sets() apply_chunks has seen
-    bool dropped_by_set = false;          // program_id was dropped by a position set
+    std::uint64_t sets_at_load = 0;       // Interpolator::position_sets() when program_id loaded
     std::uint32_t program_id = 0;
     std::uint64_t next_sequence = 0;
     std::uint32_t refused_program = 0;  // last program id a refusal message was sent for
