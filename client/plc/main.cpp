@@ -278,11 +278,10 @@ int plc_main(int argc, char** argv) {
       for (std::size_t p = 0; p <= value.size();) {
         const std::size_t q = std::min(value.find(',', p), value.size());
         int m = 0;
-        if (!tgm::parse_integer(value.substr(p, q - p), 1, 999, m))
+        if (!tgm::parse_integer(value.substr(p, q - p), 1, tgm::kMaxNormalM, m))
           return args.usage_error(
-              "--refuse-ack takes normal M-functions 1..999 like 51,50 (the interpolator waits "
-              "only for those), not '" +
-              value + "'");
+              "--refuse-ack takes normal M-functions 1.." + std::to_string(tgm::kMaxNormalM) +
+              " like 51,50 (the interpolator waits only for those), not '" + value + "'");
         refuse.insert(m);
         p = q + 1;
       }

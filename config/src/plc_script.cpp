@@ -18,10 +18,6 @@ namespace tgm {
 
 namespace {
 
-// The interpolator waits only for normal M-functions (below 1000): refusing a continuous one
-// would do nothing, so it is refused here as it is by --refuse-ack.
-constexpr int kMaxNormalM = 999;
-
 // What a node holds, for a message: a scalar as written, else its kind.
 std::string shown(const YAML::Node& n) {
   if (n.IsScalar()) return n.Scalar();
@@ -86,6 +82,7 @@ std::string read_step(const YAML::Node& n, PlcScriptStep& s) {
       }
     } else if (key == "refuse_ack") {
       if (!v.IsSequence()) return bad("a list of M numbers");
+      // Refusing a continuous M-function would do nothing: the interpolator does not wait for it.
       for (const YAML::Node& m : v) {
         if (!m.IsScalar() || !parse_integer(m.Scalar(), 1LL, kMaxNormalM + 0LL, k)) {
           return "refuse_ack must list normal M-functions 1.." + std::to_string(kMaxNormalM) +

@@ -53,6 +53,9 @@ enum class MKind : std::uint8_t {
   kProgramEnd = 4,   //!< M2 / M30: end of program (Status 3)
 };
 
+//! The largest normal M-function: the interpolator waits for M1..M999 only (M1000 is neither).
+inline constexpr int kMaxNormalM = 999;
+
 //! Active plane of circular interpolation; the values are the G-numbers (LookAheadBuffer Plane).
 enum class Plane : std::uint8_t { kXY = 17, kXZ = 18, kYZ = 19 };
 
