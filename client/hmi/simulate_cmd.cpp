@@ -487,17 +487,19 @@ int run_simulate(int argc, char** argv) {
   if (csv_out) csv_out->flush();
   // Which output failed and why, said after the summary (the figures are still right).
   std::string io_error;
-  const std::pair<const char*, const std::string*> names[] = {
-      {"--csv", &csv_path}, {"--blocks", &blocks_path}, {"--lookahead", &la_path}};
-  const File* files[] = {&csv, &blocks, &la};
-  for (std::size_t k = 0; k < 3; ++k) {
-    if (!*files[k]) continue;
+  const struct {
+    const char* flag;
+    const std::string& path;
+    const File& file;
+  } outputs[] = {
+      {"--csv", csv_path, csv}, {"--blocks", blocks_path, blocks}, {"--lookahead", la_path, la}};
+  for (const auto& o : outputs) {
+    if (!o.file) continue;
     errno = 0;
-    const bool flushed = std::fflush(files[k]->get()) == 0;
+    const bool flushed = std::fflush(o.file.get()) == 0;
     const int why = errno;
-    if (!flushed || std::ferror(files[k]->get())) {
-      io_error += std::string("tgm-hmi simulate: cannot write ") + names[k].first + " " +
-                  *names[k].second + ": " +
+    if (!flushed || std::ferror(o.file.get())) {
+      io_error += std::string("tgm-hmi simulate: cannot write ") + o.flag + " " + o.path + ": " +
                   (!flushed && why != 0 ? std::strerror(why) : "a write failed") +
                   " (the file is incomplete)\n";
     }
