@@ -105,7 +105,7 @@ int run_status(int argc, char** argv) {
   Common c;
   bool all = false;
   bool json = false;
-  double wait_s = 10.0;
+  double wait_s = kServiceWaitS;
   while (args.more()) {
     if (args.dds_flag(c.overrides)) continue;
     if (args.boolean("--all", all) || args.boolean("--json", json)) continue;
@@ -166,7 +166,7 @@ int run_watch(int argc, char** argv) {
   double interval = 0.5;
   long long count = 0;
   bool json = false;
-  double wait_s = 10.0;
+  double wait_s = kServiceWaitS;
   while (args.more()) {
     if (args.dds_flag(c.overrides)) continue;
     if (args.boolean("--json", json)) continue;
