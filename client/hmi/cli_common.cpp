@@ -153,4 +153,21 @@ bool progress_interval_flag(Args& args, double& out) {
                           [](double v) { return v > 0.0 && v <= 86400.0; });
 }
 
+namespace {
+bool g_stdout_reported = false;
+}  // namespace
+
+bool write_stdout(std::string_view text, const char* command, const char* what) {
+  if (std::fwrite(text.data(), 1, text.size(), stdout) == text.size() && std::fflush(stdout) == 0) {
+    return true;
+  }
+  std::fprintf(stderr, "tgm-hmi %s: cannot write %s: %s\n", command, what, std::strerror(errno));
+  g_stdout_reported = true;
+  return false;
+}
+
+bool stdout_failure_reported() {
+  return g_stdout_reported;
+}
+
 }  // namespace tgm::hmi

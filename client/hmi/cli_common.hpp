@@ -110,4 +110,10 @@ class FileView {
 //! day (a bad value is reported through `args`).
 bool progress_interval_flag(Args& args, double& out);
 
+//! Writes `text` to standard output and flushes it. On failure prints "tgm-hmi CMD: cannot
+//! write WHAT: reason" and returns false; main() then does not report standard output again.
+bool write_stdout(std::string_view text, const char* command, const char* what);
+//! True once write_stdout() has reported a failure.
+bool stdout_failure_reported();
+
 }  // namespace tgm::hmi

@@ -1,8 +1,6 @@
 // tgm-hmi compile: G-code text -> binary intercode and/or a dump.
-#include <cerrno>
-#include <cstdio>
 #include <cstdint>
-#include <cstring>
+#include <cstdio>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -124,10 +122,7 @@ int run_compile(int argc, char** argv) {
     } else {
       dump_text(result.program, s);
     }
-    if (std::fwrite(s.data(), 1, s.size(), stdout) != s.size() || std::fflush(stdout) != 0) {
-      std::fprintf(stderr, "tgm-hmi compile: cannot write the dump: %s\n", std::strerror(errno));
-      return 1;
-    }
+    if (!write_stdout(s, "compile", "the dump")) return 1;
   }
   if (dump.empty()) {
     std::fprintf(stderr, "%s: %llu records (%zu M-functions, %zu messages)%s%s\n", file.c_str(),

@@ -4,6 +4,7 @@
 #include <cstring>
 #include <string_view>
 
+#include "cli_common.hpp"
 #include "commands.hpp"
 #include "tgm/cli_args.hpp"
 
@@ -73,8 +74,9 @@ int main(int argc, char** argv) {
   // What went to standard output (a summary, a dump, a CSV on stdout) must have arrived: a full
   // disk or a closed pipe is an error, not exit code 0 with the output lost.
   // errno names the cause only when this flush failed; an earlier write's errno is gone.
+  // A subcommand that reported its own failed write (with what it was writing) is not repeated.
   const bool flush_failed = std::fflush(stdout) != 0;
-  if (flush_failed || std::ferror(stdout)) {
+  if ((flush_failed || std::ferror(stdout)) && !tgm::hmi::stdout_failure_reported()) {
     std::fprintf(stderr, "tgm-hmi: cannot write standard output%s%s\n", flush_failed ? ": " : "",
                  flush_failed ? std::strerror(errno) : "");
     return code != 0 ? code : 1;

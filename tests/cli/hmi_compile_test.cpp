@@ -258,19 +258,31 @@ TEST_F(HmiCompile, BadConfigNamesTheKey) {
 }
 
 // Standard output that cannot be written (a full disk: /dev/full) fails the command, whatever it
-// printed there: a summary, a dump, the help.
+// printed there: a summary, a dump, the help. The failure is said once, with its reason (the
+// dump's used to be followed by a second, reasonless "cannot write standard output").
 TEST_F(HmiCompile, StandardOutputThatIsLostIsAnError) {
   const fs::path err = dir_ / "err";
   for (const std::string& args :
        {std::string("--help"),
         "simulate " + std::string(test::kManualExample) + " --config " + kConfig,
-        "compile " + std::string(test::kManualExample) + " --config " + kConfig + " --dump text"}) {
+        "compile " + std::string(test::kManualExample) + " --config " + kConfig + " --dump text",
+        "compile " + std::string(test::kManualExample) + " --config " + kConfig +
+            " --dump jsonl"}) {
     const std::string cmd =
         std::string(TGM_HMI) + " " + args + " >/dev/full 2>" + err.string() + " </dev/null";
     const int status = std::system(cmd.c_str());
     ASSERT_TRUE(WIFEXITED(status)) << args;
     EXPECT_EQ(WEXITSTATUS(status), 1) << args;
-    EXPECT_NE(slurp(err).find("No space left on device"), std::string::npos) << args << slurp(err);
+    const std::string said = slurp(err);
+    const std::size_t at = said.find("No space left on device");
+    EXPECT_NE(at, std::string::npos) << args << said;
+    EXPECT_EQ(said.find("cannot write", said.find("cannot write") + 1), std::string::npos)
+        << args << said;
+    if (args.rfind("compile", 0) == 0) {
+      EXPECT_NE(said.find("tgm-hmi compile: cannot write the dump: No space left on device\n"),
+                std::string::npos)
+          << said;
+    }
   }
 }
 
