@@ -1012,7 +1012,7 @@ std::size_t Compiler::execute_block(std::size_t index, bool relex) {
               error(b.line, wr->column,
                     "an R arc cannot have its end at its start (use I/J/K for a full circle)");
               ok = false;
-            } else if (0.5 * d - r > std::max(0.005, 0.001 * r)) {
+            } else if (0.5 * d - r > arc_radius_tolerance_mm(r)) {
               // Short of half the chord by more than the arc tolerance. Within it (R rounded
               // by a CAM post) the arc is the half circle over the chord, as in rs274.
               error(b.line, wr->column,
@@ -1039,7 +1039,7 @@ std::size_t Compiler::execute_block(std::size_t index, bool relex) {
             if (r0 < 1e-9) {
               error(b.line, (wo0 ? wo0 : wo1)->column, "arc centre is at the start point (radius 0)");
               ok = false;
-            } else if (std::fabs(r1 - r0) > std::max(0.005, 0.001 * r0)) {
+            } else if (std::fabs(r1 - r0) > arc_radius_tolerance_mm(r0)) {
               error(b.line, (wo0 ? wo0 : wo1)->column,
                     "arc end radius " + fmt_mm(r1) + " differs from start radius " + fmt_mm(r0) +
                         " by " + fmt_mm(std::fabs(r1 - r0)) +

@@ -759,6 +759,55 @@ TEST(Requests, BadRecordsAreNamedWithRecordLineAndReason) {
   EXPECT_EQ(ip->registers().free_slots, m.interpolators[0].buffer_size);
 }
 
+// An arc record that does not start on its circle ran as a spiral from wherever it started: a
+// program compiled from machine zero and loaded where the machine stood elsewhere turned its
+// first arc into 3.9 mm of spiral. It is refused with the record, the radii and where the
+// interpolator stands; nothing is loaded. The same arc from that point loads and runs.
+TEST(Requests, AnArcThatDoesNotStartOnItsCircleIsRefused) {
+  Interpolator ip = make();
+  ProgramBuilder a;
+  a.line({20.0, 5.0, -2.0}, 6000.0).end();
+  ASSERT_TRUE(ip.load(a.program()).ok());
+  ASSERT_TRUE(ip.start().ok());
+  ASSERT_GT(run_until(ip, [](const Registers& g) { return g.status == 3; }), 0);
+
+  ProgramBuilder from_zero;  // a half circle from 0 to X10 around X5
+  from_zero.arc(false, {10.0, 0.0, 0.0}, {5.0, 0.0}, 2000.0).end();
+  auto r = ip.load(from_zero.program());
+  EXPECT_EQ(r.code, RequestCode::kInvalid);
+  EXPECT_EQ(r.reason,
+            "record 0 (line 1): arc does not start on its circle (radius 15.8114 mm at the "
+            "start, 5 mm at the end): compiled to start elsewhere than X20 Y5, where the "
+            "interpolator stands");
+  EXPECT_EQ(ip.registers().status, 3);
+  EXPECT_EQ(ip.registers().free_slots, machine().interpolators[0].buffer_size);
+
+  // A later arc is held to the end of the record before it.
+  ProgramBuilder gap(3, {20.0, 5.0, -2.0});
+  gap.line({30.0, 5.0, -2.0}, 2000.0).arc(false, {40.0, 5.0, -2.0}, {25.0, 5.0}, 2000.0).end();
+  Program gapped = gap.program();
+  gapped.segments[1].center = {35.0, 5.0};  // 5 mm from its start, 5 from its end: fine
+  EXPECT_TRUE(ip.load(gapped).ok());
+  ASSERT_TRUE(ip.clear().ok());
+  gapped.segments[1].center = {32.0, 5.0};  // 2 mm from its start, 8 from its end
+  r = ip.load(gapped);
+  EXPECT_EQ(r.code, RequestCode::kInvalid);
+  EXPECT_EQ(r.reason,
+            "record 1 (line 2): arc does not start on its circle (radius 2 mm at the start, 8 mm "
+            "at the end): the record before it ends elsewhere");
+
+  // Within the compiler's tolerance (0.1 % of the radius) an arc still loads.
+  ProgramBuilder here(3, {20.0, 5.0, -2.0});
+  here.arc(false, {30.0, 5.0, -2.0}, {25.0, 5.0}, 2000.0).end();
+  Program near = here.program();
+  near.segments[0].end[0] = 30.004;  // 5.004 mm from the centre, 5 from the start
+  ASSERT_TRUE(ip.load(near).ok());
+  ASSERT_TRUE(ip.start().ok());
+  ASSERT_GT(run_until(ip, [](const Registers& g) { return g.status == 3; }), 0);
+  EXPECT_NEAR(ip.registers().orig_position[0], 30.004, 1e-9);
+  EXPECT_NEAR(ip.registers().orig_position[1], 5.0, 1e-9);
+}
+
 TEST(Requests, RefusedWithReasons) {
   Interpolator ip = make();
   EXPECT_EQ(ip.start().code, RequestCode::kWrongState);

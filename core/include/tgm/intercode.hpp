@@ -6,6 +6,7 @@
 // need (M-function parameters, message texts) so that a record stays small.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <string>
@@ -27,6 +28,13 @@ inline constexpr double kMaxFeedMmPerMin = 1.0e6;
 //! An arc whose end lies closer than this to its start ends at its start [mm]: a full circle
 //! with I/J/K, an error with R (the compiler and the interpolator hold to the same rule).
 inline constexpr double kFullCircleMm = 1.0e-9;
+//! How far the end of an arc of start radius r may lie off its circle [mm]: max(0.005 mm,
+//! 0.1 % of r). The compiler refuses an I/J/K arc beyond it; the interpolator refuses an arc
+//! record that starts further off the circle through its end (a program compiled to start at
+//! another point than the one the interpolator stands at: it would run as a spiral).
+inline double arc_radius_tolerance_mm(double r) {
+  return std::max(0.005, 0.001 * r);
+}
 //! Value of a register or parameter that does not apply ("greater than 10^38" in the manual).
 inline constexpr double kNotSet = 1.0e39;
 

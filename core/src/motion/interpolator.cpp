@@ -662,6 +662,34 @@ struct Interpolator::Impl {
     return why;
   }
 
+  // What is wrong with arc record i of p starting at `start` (a motion record's start is where
+  // the record before it ends; the first record's is where the interpolator stands): empty when
+  // it starts on its circle within the compiler's tolerance. Run from any other point, the arc
+  // would turn into a spiral towards its end: a program compiled from another start point.
+  std::string arc_start_problem(const Program& p, std::size_t i, const double* start,
+                                bool first_motion) const {
+    const Segment& sg = p.segments[i];
+    const PlaneAxes pa = plane_axes(sg.plane);
+    const auto f = static_cast<std::size_t>(pa.first), s2 = static_cast<std::size_t>(pa.second);
+    const double r0 = std::hypot(start[f] - sg.center[0], start[s2] - sg.center[1]);
+    const double r1 = std::hypot(sg.end[f] - sg.center[0], sg.end[s2] - sg.center[1]);
+    const double allowed = arc_radius_tolerance_mm(r0);
+    if (std::fabs(r1 - r0) <= allowed * (1.0 + 1e-9)) return {};
+    // Short enough for a DDS reason (255 characters) with the service's prefix: only the plane
+    // axes' position, which is all the radius depends on.
+    std::string why = "record " + std::to_string(i) + " (line " + std::to_string(sg.line) +
+                      "): arc does not start on its circle (radius " + number_text(r0) +
+                      " mm at the start, " + number_text(r1) + " mm at the end): ";
+    if (!first_motion) return why + "the record before it ends elsewhere";
+    why += "compiled to start elsewhere than ";
+    for (const std::size_t a : {f, s2}) {
+      why.push_back(a < p.axis_letters.size() ? p.axis_letters[a] : static_cast<char>('0' + a));
+      why += number_text(start[a]);
+      why.push_back(a == f ? ' ' : ',');
+    }
+    return why + " where the interpolator stands";
+  }
+
   // The problem of one record: `what`, then `detail` and `rest` when detail >= 0 (an axis, a
   // plane). No string is made for a good record: this runs for every record appended, one per
   // cycle on a program of short chords.
@@ -3653,14 +3681,24 @@ RequestResult Interpolator::append(const Program& program, std::size_t first, st
   }
   const std::size_t free = m.cap - static_cast<std::size_t>(m.tail - m.cur);
   const std::size_t take = std::min(free, count);
-  for (std::size_t i = first; i < first + take; ++i) {
-    std::string why = m.validate(program, i);
-    if (!why.empty()) return refuse(RequestCode::kInvalid, why);
-  }
   const auto status = static_cast<InterpolatorStatus>(m.reg.status);
   const bool fresh = m.mode == Mode::kIdle && m.cur >= m.tail && !m.paused_m0 &&
                      (status == InterpolatorStatus::kEmpty || status == InterpolatorStatus::kEnded ||
                       (status == InterpolatorStatus::kEmergencyStopped && m.reg.off_trajectory));
+  // Where each motion record starts, as store() will plan it: a new program where the
+  // interpolator stands, more records of one where the records before them end.
+  const double* start = fresh ? m.rest.data() : m.pt_end.data();
+  bool first_motion = fresh;
+  for (std::size_t i = first; i < first + take; ++i) {
+    std::string why = m.validate(program, i);
+    const Segment& sg = program.segments[i];
+    if (why.empty() && sg.is_arc()) why = m.arc_start_problem(program, i, start, first_motion);
+    if (!why.empty()) return refuse(RequestCode::kInvalid, why);
+    if (sg.is_motion()) {
+      start = sg.end.data();
+      first_motion = false;
+    }
+  }
   if (fresh) {
     m.base = m.tail;
     m.reg.move_distance = 0.0;
