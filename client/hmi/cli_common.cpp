@@ -49,8 +49,12 @@ std::optional<MachineConfig> Args::load_machine() {
   return app->machine;
 }
 
+bool is_intercode_file(const std::string& file) {
+  return file.size() > 5 && file.compare(file.size() - 5, 5, ".tgmi") == 0;
+}
+
 bool load_program(const std::string& file, const MachineConfig& machine, int ip, Program& out,
-                  std::size_t* compile_errors) {
+                  std::size_t* compile_errors, const std::array<double, kMaxAxes>* start_mm) {
   if (compile_errors) *compile_errors = 0;
   FileView input;
   std::string error;
@@ -58,8 +62,7 @@ bool load_program(const std::string& file, const MachineConfig& machine, int ip,
     std::fprintf(stderr, "%s: error: %s\n", file.c_str(), error.c_str());
     return false;
   }
-  const bool intercode = file.size() > 5 && file.compare(file.size() - 5, 5, ".tgmi") == 0;
-  if (intercode) {
+  if (is_intercode_file(file)) {
     if (!decode_intercode(input.text(), out, error)) {
       std::fprintf(stderr, "%s: error: %s\n", file.c_str(), error.c_str());
       return false;
@@ -74,7 +77,9 @@ bool load_program(const std::string& file, const MachineConfig& machine, int ip,
     }
     return true;
   }
-  CompileResult r = compile_gcode(input.text(), CompileOptions::from_machine(machine, ip));
+  CompileOptions options = CompileOptions::from_machine(machine, ip);
+  if (start_mm) options.start_mm = *start_mm;
+  CompileResult r = compile_gcode(input.text(), options);
   if (!r.ok()) {
     for (const Diagnostic& d : r.errors)
       std::fprintf(stderr, "%s\n", format_diagnostic(file, d).c_str());

@@ -1,6 +1,7 @@
 // Command-line plumbing shared by the tgm-hmi subcommands: flags, config loading, file I/O.
 #pragma once
 
+#include <array>
 #include <cstdio>
 #include <optional>
 #include <string>
@@ -54,8 +55,14 @@ inline constexpr std::size_t kMaxStreamedInput = std::size_t{1} << 30;
 //! (positions go by axis index: a C where this interpolator has Z would move Z), or G-code
 //! compiled. Prints every problem ("FILE: error: ..." or the compiler's diagnostics) and
 //! returns false; `compile_errors` (when given) receives the number of compiler diagnostics.
+//! G-code is compiled from `start_mm` (machine mm; default machine zero), the point the program
+//! starts at: G91 moves are relative to it, axes a G90 line does not name stay there.
 bool load_program(const std::string& file, const MachineConfig& machine, int ip, Program& out,
-                  std::size_t* compile_errors = nullptr);
+                  std::size_t* compile_errors = nullptr,
+                  const std::array<double, kMaxAxes>* start_mm = nullptr);
+
+//! True when FILE is read as intercode (*.tgmi) rather than compiled.
+bool is_intercode_file(const std::string& file);
 
 //! Tool radius compensation (G41/G42) is recorded in the intercode, but no part of tgm offsets
 //! the path yet: the tool centre follows the programmed contour. A program that moves with it on

@@ -1106,6 +1106,60 @@ TEST(ServiceProcesses, HmiRunEndsWhenAPositionSetDropsItsProgram) {
   EXPECT_FALSE(hmi.start(0).accepted);  // nothing left to run
 }
 
+// A program runs from where the interpolator stands. tgm-hmi run compiled every program from
+// machine zero: a G91 program's moves were not relative to the machine's position, a G90 line
+// drove the axes it does not name to 0 (Z down after a retract: the G0 below went to Z0), and a
+// first arc ran as a spiral. Intercode (compiled from zero) that starts with an arc off its
+// circle from here is refused by the interpolator, with the reason, and nothing runs.
+TEST(ServiceProcesses, HmiRunStartsTheProgramWhereTheInterpolatorStands) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  std::ofstream(env.path("to.ngc")) << "G90 G1 X20 Y5 Z-2 F6000\nM2\n";
+  std::ofstream(env.path("inc.ngc")) << "G91 G1 X10 F6000\nG2 X10 I5\nM2\n";
+  std::ofstream(env.path("abs.ngc")) << "G90 G0 X0 Y0\nM2\n";
+  std::ofstream(env.path("arc.ngc")) << "G91 G2 X10 I5 F2000\nM2\n";
+  auto run = [&](const std::string& file, int code) {
+    test::Child c;
+    EXPECT_TRUE(c.start({TGM_HMI_BIN, "run", env.path(file), "--config", env.config(),
+                         "--progress-interval", "100"},
+                        env.path(file + ".log")));
+    EXPECT_EQ(c.wait(kHang), code) << file << ": " << c.log();
+    return c.log();
+  };
+  auto ends_at = [](const std::string& log, std::array<double, 3> want) {
+    const std::array<double, 3> got = test::run_end_position(log);
+    for (std::size_t a = 0; a < 3; ++a) EXPECT_NEAR(got[a], want[a], 1e-4) << a << ": " << log;
+  };
+  ends_at(run("to.ngc", 0), {20.0, 5.0, -2.0});
+  std::string log = run("inc.ngc", 0);
+  EXPECT_NE(log.find("inc.ngc: compiled from where interpolator 0 stands: X20 Y5 Z-2\n"),
+            std::string::npos)
+      << log;
+  ends_at(log, {40.0, 5.0, -2.0});
+  ends_at(run("abs.ngc", 0), {0.0, 0.0, -2.0});
+  ends_at(run("to.ngc", 0), {20.0, 5.0, -2.0});
+
+  test::Child compile;
+  ASSERT_TRUE(compile.start({TGM_HMI_BIN, "compile", env.path("arc.ngc"), "--config", env.config(),
+                             "--out", env.path("arc.tgmi")},
+                            env.path("compile.log")));
+  ASSERT_EQ(compile.wait(kHang), 0) << compile.log();
+  log = run("arc.tgmi", 1);
+  EXPECT_NE(log.find("arc.tgmi: note: intercode compiled from machine zero; interpolator 0 "
+                     "stands at X20 Y5 Z-2, where its first move starts\n"),
+            std::string::npos)
+      << log;
+  EXPECT_NE(log.find("refused: record 0 (line 1): arc does not start on its circle (radius "
+                     "15.8114 mm at the start, 5 mm at the end): compiled to start elsewhere "
+                     "than X20 Y5, where the interpolator stands\n"),
+            std::string::npos)
+      << log;
+  client::Client hmi(env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(hmi.wait_for_state(0, kHang));
+  EXPECT_EQ(hmi.state(0)->orig_position()[0], 20.0);  // it did not move
+  EXPECT_EQ(hmi.state(0)->status(), 0);
+}
+
 // Without a PLC an M-function waits for ever: the progress line says for how long and asks
 // for tgm-plc, and --timeout stops the interpolator and exits 1.
 TEST(ServiceProcesses, HmiRunSaysWhenAnMFunctionWaitsLongAndTimesOut) {

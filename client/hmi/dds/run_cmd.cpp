@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -267,6 +268,44 @@ int run_run(int argc, char** argv) {
     std::fprintf(stderr, "tgm-hmi run: interpolator %d is busy (status %d %s); stop it first (tgm-hmi stop)\n", ip,
                  st->status(), std::string(client::status_name(st->status())).c_str());
     return 1;
+  }
+  // A G-code program runs from where the interpolator stands, as on any CNC: G91 moves are
+  // relative to that point and the axes a G90 line does not name stay where they are. It was
+  // compiled from machine zero above, so that bad input is reported before any DDS traffic; from
+  // any other point it is compiled again (before the clear: an error there leaves the service
+  // untouched). Intercode holds absolute positions compiled from machine zero.
+  std::array<double, kMaxAxes> here{};
+  bool away = false;
+  std::string here_text;
+  for (int a = 0; a < program.number_axes; ++a) {
+    const auto k = static_cast<std::size_t>(a);
+    here[k] = st->orig_position()[k];
+    away = away || here[k] != 0.0;
+    if (a > 0) here_text.push_back(' ');
+    here_text.push_back(program.axis_letters[k]);
+    here_text += number_text(here[k]);
+  }
+  if (away && is_intercode_file(file)) {
+    std::fprintf(stderr,
+                 "%s: note: intercode compiled from machine zero; interpolator %d stands at %s, "
+                 "where its first move starts\n",
+                 file.c_str(), ip, here_text.c_str());
+  } else if (away) {
+    Program from_here;
+    if (std::size_t errors = 0;
+        !load_program(file, config->machine, ip, from_here, &errors, &here)) {
+      if (errors > 0)
+        std::fprintf(
+            stderr,
+            "%s: %zu error%s compiled from where interpolator %d stands (%s), nothing sent\n",
+            file.c_str(), errors, errors == 1 ? "" : "s", ip, here_text.c_str());
+      return 2;
+    }
+    program = std::move(from_here);
+    if (!quiet) {
+      std::fprintf(stderr, "%s: compiled from where interpolator %d stands: %s\n", file.c_str(), ip,
+                   here_text.c_str());
+    }
   }
   if (st->status() != 0) {
     const client::Reply r = hmi->clear(ip);
