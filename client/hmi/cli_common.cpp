@@ -1,6 +1,9 @@
 #include "cli_common.hpp"
 
+#include <algorithm>
+#include <cctype>
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -47,6 +50,39 @@ std::optional<MachineConfig> Args::load_machine() {
   auto app = load_app();
   if (!app) return std::nullopt;
   return app->machine;
+}
+
+bool parse_start(const std::string& text, const std::string& letters,
+                 std::array<double, kMaxAxes>& out, std::string& why) {
+  out = {};
+  std::string named;
+  for (std::size_t at = 0; at <= text.size();) {
+    const std::size_t comma = std::min(text.find(',', at), text.size());
+    const std::string item = text.substr(at, comma - at);
+    at = comma + 1;
+    if (item.empty()) {
+      why = "an empty item in '" + text + "' (AXIS<mm> items, comma-separated)";
+      return false;
+    }
+    const char letter = static_cast<char>(std::toupper(static_cast<unsigned char>(item[0])));
+    const std::size_t axis = letters.find(letter);
+    if (axis == std::string::npos) {
+      why = "'" + item + "' does not start with an axis letter of " + letters;
+      return false;
+    }
+    if (named.find(letter) != std::string::npos) {
+      why = std::string(1, letter) + " is given twice";
+      return false;
+    }
+    named.push_back(letter);
+    double v = 0.0;
+    if (!parse_finite(item.substr(1), v) || std::fabs(v) > kMaxCoordinateMm) {
+      why = "'" + item + "': " + std::string(1, letter) + " takes a number of mm within +-1e9";
+      return false;
+    }
+    out[axis] = v;
+  }
+  return true;
 }
 
 bool is_intercode_file(const std::string& file) {

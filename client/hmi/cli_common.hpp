@@ -61,6 +61,12 @@ bool load_program(const std::string& file, const MachineConfig& machine, int ip,
                   std::size_t* compile_errors = nullptr,
                   const std::array<double, kMaxAxes>* start_mm = nullptr);
 
+//! Reads a start point as "X20,Y5,Z-2" into `out`: axis letters of `letters` (either case),
+//! each at most once, numbers within +-1e9 mm; the axes not named stand at 0. False with the
+//! reason in `why`.
+bool parse_start(const std::string& text, const std::string& letters,
+                 std::array<double, kMaxAxes>& out, std::string& why);
+
 //! True when FILE is read as intercode (*.tgmi) rather than compiled.
 bool is_intercode_file(const std::string& file);
 

@@ -37,6 +37,7 @@ constexpr const char* kUsage =
     "[--blocks OUT]\n"
     "                             [--spline POINTS,JERK] [--iir P,Q,F,MASK] [--lookahead OUT]\n"
     "                             [--stop-at T[:CODE],...] [--restart-after S] [--max-time S]\n"
+    "                             [--start X..,Y..]\n"
     "\n"
     "Compiles FILE (G-code, or intercode written by `tgm-hmi compile --out`, *.tgmi) and runs it\n"
     "through interpolator N (default 0) offline, cycle by cycle, acknowledging every M-function\n"
@@ -58,6 +59,9 @@ constexpr const char* kUsage =
     "                   act_part and the 8 entries; kNotSet values as null)\n"
     "  --blocks OUT     one row per executed motion block: line, length, programmed and peak\n"
     "                   speed, duration and the factor that limited its speed\n"
+    "  --start X20,Y5   where the machine stands when the program starts [mm] (default:\n"
+    "                   zero): the program is compiled from there, as `tgm-hmi run` compiles\n"
+    "                   from where the interpolator stands (axes not named: 0)\n"
     "  --rel-speed R    feed override 0.01..2 (default 1)\n"
     "  --check-limits   differentiate Orig_Position per cycle and fail on any per-axis velocity,\n"
     "                   acceleration, jerk or corner-step excess (listed with cycle and line)\n"
@@ -176,7 +180,7 @@ File open_out(const std::string& path) {
 
 int run_simulate(int argc, char** argv) {
   Args args(argc, argv, "simulate", kUsage);
-  std::string file, csv_path, blocks_path, spline_text, iir_text, la_path, stop_text;
+  std::string file, csv_path, blocks_path, spline_text, iir_text, la_path, stop_text, start_text;
   bool check_limits = false, quiet = false;
   double rel = 1.0, m_ack = -1.0, interval_s = 10.0, restart_s = -1.0;  // restart: -1 = not given
   double max_time_s = SimulationOptions{}.max_time_s;
@@ -202,6 +206,7 @@ int run_simulate(int argc, char** argv) {
       continue;
     }
     if (args.flag("--stop-at", stop_text)) continue;
+    if (args.flag("--start", start_text)) continue;
     if (args.number_flag("--restart-after", restart_s, "seconds 0..3600",
                          [](double v) { return v >= 0.0 && v <= 3600.0; })) {
       continue;
@@ -289,8 +294,13 @@ int run_simulate(int argc, char** argv) {
   const MachineConfig& machine = app->machine;
   const int ip_index = args.interpolator();
 
+  std::array<double, kMaxAxes> start{};
+  if (std::string why;
+      !start_text.empty() && !parse_start(start_text, machine.axis_letters(ip_index), start, why)) {
+    return args.usage_error("--start: " + why);
+  }
   Program program;
-  if (!load_program(file, machine, ip_index, program)) return 2;
+  if (!load_program(file, machine, ip_index, program, nullptr, &start)) return 2;
   CompensationNote::print(program, file);
 
   SimulationOptions so;
@@ -308,6 +318,7 @@ int run_simulate(int argc, char** argv) {
   so.stops = stops;
   so.stop_restart_s = restart_s;
   so.max_time_s = max_time_s;
+  so.start_mm = start;
   const auto wall0 = std::chrono::steady_clock::now();
   // Progress on standard error (standard output is the summary): redrawn on a terminal from
   // half a second on, a plain line every interval_s otherwise.

@@ -192,6 +192,42 @@ Table read_table(const fs::path& csv) {
   return t;
 }
 
+// --start: the program is compiled and run from that point, as tgm-hmi run does from where the
+// interpolator stands. An incremental program run from X20 Y5 Z-2 takes the same path as its
+// absolute twin written for that point: the same time to the cycle and the same end; a G90
+// line leaves the axes it does not name where they stand.
+TEST_F(HmiSimulate, StartRunsTheProgramFromThatPoint) {
+  const fs::path inc = write("inc.ngc", "G91 G1 X10 F6000\nG2 X10 I5\nM2\n");
+  const fs::path abs =
+      write("abs.ngc", "G90 G0 X20 Y5 Z-2\nG4 P0.1\nG1 X30 F6000\nG2 X40 Y5 I5 J0\nM2\n");
+  const ProcessResult from = run("simulate " + inc.string() + " --config " + kConfig +
+                                 " --start X20,y5,Z-2 --blocks " + (dir_ / "inc.csv").string());
+  const ProcessResult twin = run("simulate " + abs.string() + " --config " + kConfig +
+                                 " --blocks " + (dir_ / "abs.csv").string());
+  ASSERT_EQ(from.exit_code, 0) << from.out << from.err;
+  ASSERT_EQ(twin.exit_code, 0) << twin.out << twin.err;
+  EXPECT_NE(from.out.find("X=40.000000 Y=5.000000 Z=-2.000000"), std::string::npos) << from.out;
+  // The twin's first block is the rapid to the start point, which ends in a dwell; the rest
+  // are the same blocks.
+  const Table a = read_table(dir_ / "inc.csv"), b = read_table(dir_ / "abs.csv");
+  ASSERT_EQ(a.rows.size(), 2u) << slurp(dir_ / "inc.csv");
+  ASSERT_EQ(b.rows.size(), 3u) << slurp(dir_ / "abs.csv");
+  // A block's duration counts whole calculation steps (100 us here): the twin's first one
+  // starts after the dwell, one step later in its cycle.
+  for (const auto& [column, within] : {std::pair<const char*, double>{"length_mm", 1e-9},
+                                       {"peak_mm_min", 1e-9},
+                                       {"duration_s", 1e-4 + 1e-9}}) {
+    for (std::size_t k = 0; k < 2; ++k) {
+      EXPECT_NEAR(a.rows[k][a.col(column)], b.rows[k + 1][b.col(column)], within) << column << k;
+    }
+  }
+  const fs::path g90 = write("g90.ngc", "G90 G0 X1 Y2\nM2\n");
+  const ProcessResult held =
+      run("simulate " + g90.string() + " --config " + kConfig + " --start Z-7.5");
+  ASSERT_EQ(held.exit_code, 0) << held.out << held.err;
+  EXPECT_NE(held.out.find("X=1.000000 Y=2.000000 Z=-7.500000"), std::string::npos) << held.out;
+}
+
 // The Backlash register is in the CSV (backlash_<axis>): LinuxCNC's convention, half the
 // configured backlash towards the last direction of motion, 0 before the first, ramped at a
 // reversal; in every row PositionInc = round(Position x Ratio) + Backlash (no Offset here).
@@ -528,6 +564,11 @@ TEST_F(HmiSimulate, BadInputIsAUsageErrorAndWritesNothing) {
        "--csv-every needs a value, not an empty string"},
       {"simulate " + ok + " --rel-speed=", "--rel-speed needs a value, not an empty string"},
       {"simulate /nonexistent.ngc --config " + kConfig, "/nonexistent.ngc: error: cannot open"},
+      {"simulate " + ok + " --start Q5", "--start: 'Q5' does not start with an axis letter of XYZ"},
+      {"simulate " + ok + " --start X1,x2", "--start: X is given twice"},
+      {"simulate " + ok + " --start Y", "--start: 'Y': Y takes a number of mm within +-1e9"},
+      {"simulate " + ok + " --start Z2e9", "--start: 'Z2e9': Z takes a number of mm within +-1e9"},
+      {"simulate " + ok + " --start X1,,Y2", "--start: an empty item in 'X1,,Y2'"},
   };
   for (const auto& [args, message] : cases) {
     r = run(args);

@@ -50,6 +50,10 @@ struct SimulationOptions {
   //! takes effect at once, as on the machine; one given after the end does nothing.
   std::vector<std::pair<double, std::int32_t>> stops;
   double stop_restart_s = 0.5;
+  //! Where the interpolator stands when the program starts [mm] (set_position, as Command
+  //! 2048 would; machine zero by default): compile the program from the same point
+  //! (CompileOptions::start_mm), as tgm-hmi run compiles from where the machine stands.
+  std::array<double, kMaxAxes> start_mm{};
   //! Run the limit checker (records corner events).
   bool check_limits = false;
   //! The part of each limit the checker holds the motion to (LimitChecker::create).

@@ -62,6 +62,12 @@ std::optional<Simulation> Simulation::create(const MachineConfig& machine, const
     if (error) *error = "stop_restart_s must be 0..3600 s";
     return std::nullopt;
   }
+  if (options.start_mm != std::array<double, kMaxAxes>{}) {
+    if (const auto placed = ip->set_position(options.start_mm); !placed.ok()) {
+      if (error) *error = "start position: " + placed.reason;
+      return std::nullopt;
+    }
+  }
   for (const auto& [code, parameter] : options.commands) {
     const auto c = ip->command(code, parameter);
     if (!c.ok()) {
