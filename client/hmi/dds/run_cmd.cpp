@@ -291,9 +291,8 @@ int run_run(int argc, char** argv) {
                  "where its first move starts\n",
                  file.c_str(), ip, here_text.c_str());
   } else if (away) {
-    Program from_here;
-    if (std::size_t errors = 0;
-        !load_program(file, config->machine, ip, from_here, &errors, &here)) {
+    program = Program{};  // a long program is not held twice
+    if (std::size_t errors = 0; !load_program(file, config->machine, ip, program, &errors, &here)) {
       if (errors > 0)
         std::fprintf(
             stderr,
@@ -301,7 +300,6 @@ int run_run(int argc, char** argv) {
             file.c_str(), errors, errors == 1 ? "" : "s", ip, here_text.c_str());
       return 2;
     }
-    program = std::move(from_here);
     if (!quiet) {
       std::fprintf(stderr, "%s: compiled from where interpolator %d stands: %s\n", file.c_str(), ip,
                    here_text.c_str());
