@@ -2,6 +2,7 @@
 
 #include "tgm/cli_numbers.hpp"
 #include "tgm/file_text.hpp"
+#include "tgm/intercode.hpp"
 #include "tgm/printable.hpp"
 #include "yaml_mark.hpp"
 
@@ -395,6 +396,11 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
             if (!Reader::scalar_int(list[i], v)) {
               r.error(list[i], "compiler.plc_redefined_m[" + std::to_string(i) + "]",
                       "must be a whole number");
+            } else if (v < 0 || v > kMaxNormalM) {
+              // Not wrapped into an int: 4294967298 was read as M2.
+              r.error(list[i], "compiler.plc_redefined_m[" + std::to_string(i) + "]",
+                      "M" + std::to_string(v) +
+                          " cannot be redefined (only M2-M9, M17, M29, M30, M99)");
             } else {
               m.compiler.plc_redefined_m.push_back(static_cast<int>(v));
             }
@@ -446,8 +452,13 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
             long long mnum = 0;
             double sec = 0;
             const std::string key = "plc.m_delay_s." + kv.first.as<std::string>("?");
-            if (!Reader::scalar_int(kv.first, mnum) || mnum < 0) {
-              r.error(kv.first, key, "key must be an M-number");
+            // Only a normal M-function waits for the PLC's acknowledgement: a delay for M0
+            // (the operator's) or a continuous one did nothing, and a key beyond int wrapped
+            // round (4294967347 delayed M51).
+            if (!Reader::scalar_int(kv.first, mnum) || mnum < 1 || mnum > kMaxNormalM) {
+              r.error(kv.first, key,
+                      "key must be a normal M-function 1.." + std::to_string(kMaxNormalM) +
+                          " (the ones the PLC acknowledges)");
             } else if (!Reader::scalar_double(kv.second, sec) || sec < 0 || sec > 3600) {
               r.error(kv.second, key, "must be 0..3600 s");
             } else {

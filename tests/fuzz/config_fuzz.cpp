@@ -56,8 +56,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
                        c.plc.default_m_delay_s <= 3600.0,
                    "plc.default_m_delay_s");
     for (const auto& [mnum, s] : c.plc.m_delay_s) {
-      TGM_FUZZ_CHECK(mnum >= 0 && std::isfinite(s) && s >= 0.0 && s <= 3600.0,
-                     "plc.m_delay_s." + std::to_string(mnum));
+      TGM_FUZZ_CHECK(
+          mnum >= 1 && mnum <= tgm::kMaxNormalM && std::isfinite(s) && s >= 0.0 && s <= 3600.0,
+          "plc.m_delay_s." + std::to_string(mnum));
     }
   }
 

@@ -262,6 +262,28 @@ TEST(Config, WholeNumbersAreDecimalAndNeverWrapRound) {
       has_error(load.errors, "cycle_time_us: must be a whole number, not '99999999999999999999'"));
   load = load_config_text("cycle_time_us: 0x1F4\n", "m.yaml");
   EXPECT_TRUE(has_error(load.errors, "cycle_time_us: must be a whole number, not '0x1F4'"));
+  // M-numbers as keys and list items too: 2^32 + 2 was redefined M2, 2^32 + 51 delayed M51.
+  load = load_config_text("compiler: {plc_redefined_m: [4294967298]}\n", "m.yaml");
+  EXPECT_FALSE(load.config);
+  EXPECT_TRUE(has_error(load.errors,
+                        "m.yaml:1: compiler.plc_redefined_m[0]: M4294967298 cannot be redefined "
+                        "(only M2-M9, M17, M29, M30, M99)"));
+  load = load_config_text("plc:\n  m_delay_s: {4294967347: 1}\n", "m.yaml");
+  EXPECT_FALSE(load.config);
+  EXPECT_TRUE(has_error(load.errors,
+                        "m.yaml:2: plc.m_delay_s.4294967347: key must be a normal M-function "
+                        "1..999 (the ones the PLC acknowledges)"));
+  // Nor one that never waits for the PLC: M0 (the operator's) and continuous ones.
+  for (const char* m : {"0", "1001", "-3"}) {
+    load = load_config_text("plc:\n  m_delay_s: {" + std::string(m) + ": 1}\n", "m.yaml");
+    EXPECT_FALSE(load.config) << m;
+    EXPECT_TRUE(has_error(load.errors, "plc.m_delay_s." + std::string(m) +
+                                           ": key must be a normal M-function 1..999"))
+        << m;
+  }
+  load = load_config_text("plc:\n  m_delay_s: {1: 1, 999: 2}\n", "m.yaml");
+  ASSERT_TRUE(load.config) << load.errors.front();
+  EXPECT_DOUBLE_EQ(load.config->plc.m_delay_s.at(999), 2.0);
   load = load_config_text("compiler: {max_call_depth: 010}\n", "m.yaml");  // not octal 8
   ASSERT_TRUE(load.config) << load.errors.front();
   EXPECT_EQ(load.config->machine.compiler.max_call_depth, 10);
