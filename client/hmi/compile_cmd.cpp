@@ -125,10 +125,11 @@ int run_compile(int argc, char** argv) {
     if (!write_stdout(s, "compile", "the dump")) return 1;
   }
   if (dump.empty()) {
-    std::fprintf(stderr, "%s: %llu records (%zu M-functions, %zu messages)%s%s\n", file.c_str(),
-                 static_cast<unsigned long long>(encoder->records()), result.program.params.size(),
-                 result.program.messages.size(), out_path.empty() ? "" : " written to ",
-                 out_path.c_str());
+    const unsigned long long records = encoder->records();
+    const std::size_t ms = result.program.params.size(), texts = result.program.messages.size();
+    std::fprintf(stderr, "%s: %llu record%s (%zu M-function%s, %zu message%s)%s%s\n", file.c_str(),
+                 records, records == 1 ? "" : "s", ms, ms == 1 ? "" : "s", texts,
+                 texts == 1 ? "" : "s", out_path.empty() ? "" : " written to ", out_path.c_str());
   }
   compensation.print(file);
   return 0;

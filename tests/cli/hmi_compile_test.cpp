@@ -100,6 +100,18 @@ TEST_F(HmiCompile, LongProgramStreamsInPiecesAndDecodes) {
   EXPECT_NEAR(p.segments[40001].end[0], 20000 * 0.2 + 20000 * 0.1, 1e-6);
 }
 
+// The summary counts in words that agree with the counts ("1 M-functions" before).
+TEST_F(HmiCompile, TheSummaryCountsRecordsMFunctionsAndMessages) {
+  const fs::path one = write("one.ngc", "M2\n");
+  ProcessResult r = run("compile " + one.string() + " --config " + kConfig);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err, one.string() + ": 1 record (1 M-function, 0 messages)\n");
+  const fs::path more = write("more.ngc", "G1 X1 F100\nM29 (a)\nM29 (b)\nM3\nM2\n");
+  r = run("compile " + more.string() + " --config " + kConfig);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err, more.string() + ": 5 records (2 M-functions, 2 messages)\n");
+}
+
 TEST_F(HmiCompile, ErrorsAreAllListedWithFileLineColumnAndNothingIsWritten) {
   const fs::path prog = write("bad.ngc", "G90\nG1 X1 Q2\nG7\nG25 L4\n");
   const fs::path out = dir_ / "bad.tgmi";

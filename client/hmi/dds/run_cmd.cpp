@@ -366,8 +366,9 @@ int run_run(int argc, char** argv) {
     if (tty && progress_shown) std::printf("\r\033[K");
     progress_shown = false;
   };
-  std::printf("tgm-hmi run: %s: %zu records for interpolator %d (program %u), DDS domain %d\n", file.c_str(),
-              program.segments.size(), ip, program_id, config->dds.domain_id);
+  std::printf("tgm-hmi run: %s: %zu record%s for interpolator %d (program %u), DDS domain %d\n",
+              file.c_str(), program.segments.size(), program.segments.size() == 1 ? "" : "s", ip,
+              program_id, config->dds.domain_id);
   std::fflush(stdout);
 
   while (true) {
@@ -590,12 +591,13 @@ int run_run(int argc, char** argv) {
       dro += b;
     }
     std::printf(
-        "done: %llu records, %d lines in %.3f s (%llu cycles), distance %.3f mm, "
+        "done: %llu record%s, %d line%s in %.3f s (%llu cycles), distance %.3f mm, "
         "%llu M-function wait%s (%.3f s)%s, %zu message%s\n"
         "  end position%s\n"
         "  service cycle lateness since it started: max %.1f us, p99.9 %.1f us, missed cycles "
         "%llu (%llu during this run)\n",
-        static_cast<unsigned long long>(sender.total()), last_line, program_s,
+        static_cast<unsigned long long>(sender.total()), sender.total() == 1 ? "" : "s", last_line,
+        last_line == 1 ? "" : "s", program_s,
         static_cast<unsigned long long>(st->cycle_counter() - start_cycle), st->move_distance(),
         static_cast<unsigned long long>(waits.waits), waits.waits == 1 ? "" : "s",
         static_cast<double>(waits.cycles) * cycle_s,
