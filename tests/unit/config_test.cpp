@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <utility>
 
 #include "tgm/dds_overrides.hpp"
 #include "tgm/yaml_config.hpp"
@@ -248,40 +249,35 @@ TEST(Config, NonNumbersAndBadSyntaxAreErrors) {
 
 // Whole numbers are base 10, and one that does not fit its field is an error, not wrapped round.
 TEST(Config, WholeNumbersAreDecimalAndNeverWrapRound) {
-  auto load = load_config_text("cycle_time_us: 4294967796\n", "m.yaml");  // 2^32 + 500
-  EXPECT_FALSE(load.config);
-  EXPECT_TRUE(has_error(load.errors,
-                        "m.yaml:1: cycle_time_us: must be a whole number from -2147483648 to "
-                        "2147483647, not '4294967796'"));
-  load = load_config_text("smoothing: {iir_axis_mask: -1}\n", "m.yaml");
-  EXPECT_FALSE(load.config);
-  EXPECT_TRUE(has_error(load.errors,
-                        "smoothing.iir_axis_mask: must be a whole number from 0 to 4294967295"));
-  load = load_config_text("cycle_time_us: 99999999999999999999\n", "m.yaml");
-  EXPECT_TRUE(
-      has_error(load.errors, "cycle_time_us: must be a whole number, not '99999999999999999999'"));
-  load = load_config_text("cycle_time_us: 0x1F4\n", "m.yaml");
-  EXPECT_TRUE(has_error(load.errors, "cycle_time_us: must be a whole number, not '0x1F4'"));
-  // M-numbers as keys and list items too: 2^32 + 2 was redefined M2, 2^32 + 51 delayed M51.
-  load = load_config_text("compiler: {plc_redefined_m: [4294967298]}\n", "m.yaml");
-  EXPECT_FALSE(load.config);
-  EXPECT_TRUE(has_error(load.errors,
-                        "m.yaml:1: compiler.plc_redefined_m[0]: M4294967298 cannot be redefined "
-                        "(only M2-M9, M17, M29, M30, M99)"));
-  load = load_config_text("plc:\n  m_delay_s: {4294967347: 1}\n", "m.yaml");
-  EXPECT_FALSE(load.config);
-  EXPECT_TRUE(has_error(load.errors,
-                        "m.yaml:2: plc.m_delay_s.4294967347: key must be a normal M-function "
-                        "1..999 (the ones the PLC acknowledges)"));
-  // Nor one that never waits for the PLC: M0 (the operator's) and continuous ones.
-  for (const char* m : {"0", "1001", "-3"}) {
-    load = load_config_text("plc:\n  m_delay_s: {" + std::string(m) + ": 1}\n", "m.yaml");
-    EXPECT_FALSE(load.config) << m;
-    EXPECT_TRUE(has_error(load.errors, "plc.m_delay_s." + std::string(m) +
-                                           ": key must be a normal M-function 1..999"))
-        << m;
+  // M-numbers as keys and list items too: 2^32 + 2 redefined M2, 2^32 + 51 delayed M51.
+  // A delay for one that never waits for the PLC (M0, the operator's; continuous ones) is
+  // refused as well.
+  const std::pair<std::string, std::string> refused[] = {
+      {"cycle_time_us: 4294967796\n",  // 2^32 + 500
+       "m.yaml:1: cycle_time_us: must be a whole number from -2147483648 to 2147483647, not "
+       "'4294967796'"},
+      {"smoothing: {iir_axis_mask: -1}\n",
+       "smoothing.iir_axis_mask: must be a whole number from 0 to 4294967295"},
+      {"cycle_time_us: 99999999999999999999\n",
+       "cycle_time_us: must be a whole number, not '99999999999999999999'"},
+      {"cycle_time_us: 0x1F4\n", "cycle_time_us: must be a whole number, not '0x1F4'"},
+      {"compiler: {plc_redefined_m: [4294967298]}\n",
+       "m.yaml:1: compiler.plc_redefined_m[0]: M4294967298 cannot be redefined (only M2-M9, M17, "
+       "M29, M30, M99)"},
+      {"plc:\n  m_delay_s: {4294967347: 1}\n",
+       "m.yaml:2: plc.m_delay_s.4294967347: key must be a normal M-function 1..999 (the ones the "
+       "PLC acknowledges)"},
+      {"plc:\n  m_delay_s: {0: 1}\n", "plc.m_delay_s.0: key must be a normal M-function 1..999"},
+      {"plc:\n  m_delay_s: {1001: 1}\n",
+       "plc.m_delay_s.1001: key must be a normal M-function 1..999"},
+      {"plc:\n  m_delay_s: {-3: 1}\n", "plc.m_delay_s.-3: key must be a normal M-function 1..999"},
+  };
+  for (const auto& [text, error] : refused) {
+    const ConfigLoad refusal = load_config_text(text, "m.yaml");
+    EXPECT_FALSE(refusal.config) << text;
+    EXPECT_TRUE(has_error(refusal.errors, error)) << text;
   }
-  load = load_config_text("plc:\n  m_delay_s: {1: 1, 999: 2}\n", "m.yaml");
+  ConfigLoad load = load_config_text("plc:\n  m_delay_s: {1: 1, 999: 2}\n", "m.yaml");
   ASSERT_TRUE(load.config) << load.errors.front();
   EXPECT_DOUBLE_EQ(load.config->plc.m_delay_s.at(999), 2.0);
   load = load_config_text("compiler: {max_call_depth: 010}\n", "m.yaml");  // not octal 8
