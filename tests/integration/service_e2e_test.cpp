@@ -1149,6 +1149,7 @@ TEST(ServiceProcesses, HmiRunStartsTheProgramWhereTheInterpolatorStands) {
                      "stands at X20 Y5 Z-2, where its first move starts\n"),
             std::string::npos)
       << log;
+  EXPECT_NE(log.find("ERROR: program "), std::string::npos) << log;  // no "(line 0)"
   EXPECT_NE(log.find("refused: record 0 (line 1): arc does not start on its circle (radius "
                      "15.8114 mm at the start, 5 mm at the end): compiled to start elsewhere "
                      "than X20 Y5, where the interpolator stands\n"),

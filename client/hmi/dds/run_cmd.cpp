@@ -414,11 +414,15 @@ int run_run(int argc, char** argv) {
       if (m.program_id() != 0 ? m.program_id() != program_id : m.cycle() < run_from_cycle) continue;
       clear_progress();
       const bool err = m.severity() == msg::SEVERITY_ERROR;
-      std::printf("%s (line %d): %s\n",
+      // A message about the program as a whole (a refused chunk) has no line: "(line 0)" was
+      // printed for it.
+      const std::string where =
+          m.source_line() > 0 ? " (line " + std::to_string(m.source_line()) + ")" : "";
+      std::printf("%s%s: %s\n",
                   err                                     ? "ERROR"
                   : m.severity() == msg::SEVERITY_WARNING ? "warning"
                                                           : "M29",
-                  m.source_line(), printable(m.text().c_str()).c_str());
+                  where.c_str(), printable(m.text().c_str()).c_str());
       ++messages;
       if (err && m.program_id() == program_id) exit_code = 1;
     }
