@@ -796,6 +796,21 @@ TEST(Requests, AnArcThatDoesNotStartOnItsCircleIsRefused) {
             "record 1 (line 2): arc does not start on its circle (radius 2 mm at the start, 8 mm "
             "at the end): the record before it ends elsewhere");
 
+  // A program streamed in pieces: its first arc, in the second piece behind an M-function, is
+  // still held to where the interpolator stands.
+  ASSERT_TRUE(ip.clear().ok());
+  ProgramBuilder pieces;
+  pieces.m(51, MKind::kNormal).arc(false, {10.0, 0.0, 0.0}, {5.0, 0.0}, 2000.0).end();
+  ASSERT_TRUE(ip.append(pieces.program(), 0, 1, false).ok());
+  r = ip.append(pieces.program(), 1, 2, true);
+  EXPECT_EQ(r.code, RequestCode::kInvalid);
+  EXPECT_NE(r.reason.find("record 1 (line 2): arc does not start on its circle (radius 15.8114 "
+                          "mm at the start, 5 mm at the end): compiled to start elsewhere than "
+                          "X20 Y5, where the interpolator stands"),
+            std::string::npos)
+      << r.reason;
+  ASSERT_TRUE(ip.clear().ok());
+
   // Within the compiler's tolerance (0.1 % of the radius) an arc still loads.
   ProgramBuilder here(3, {20.0, 5.0, -2.0});
   here.arc(false, {30.0, 5.0, -2.0}, {25.0, 5.0}, 2000.0).end();

@@ -3686,9 +3686,10 @@ RequestResult Interpolator::append(const Program& program, std::size_t first, st
                      (status == InterpolatorStatus::kEmpty || status == InterpolatorStatus::kEnded ||
                       (status == InterpolatorStatus::kEmergencyStopped && m.reg.off_trajectory));
   // Where each motion record starts, as store() will plan it: a new program where the
-  // interpolator stands, more records of one where the records before them end.
+  // interpolator stands, more records of one where the records before them end (where it
+  // stands while none of them moved).
   const double* start = fresh ? m.rest.data() : m.pt_end.data();
-  bool first_motion = fresh;
+  bool first_motion = fresh || !m.pt_have_motion;
   for (std::size_t i = first; i < first + take; ++i) {
     std::string why = m.validate(program, i);
     const Segment& sg = program.segments[i];
