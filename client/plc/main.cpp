@@ -317,6 +317,8 @@ int plc_main(int argc, char** argv) {
   overrides.apply(config.dds);
   if (std::string why = tgm::dds_config_problem(config.dds, "plc"); !why.empty())
     return args.usage_error(why);
+  if (std::string why = tgm::dds::profiles_load_problem(config.dds); !why.empty())
+    return args.usage_error(why);
   const int count = static_cast<int>(config.machine.interpolators.size());
   if (only >= count)
     return args.usage_error("--interpolator " + std::to_string(only) + ": the config has " +

@@ -178,6 +178,8 @@ int service_main(int argc, char** argv) {
   overrides.apply(config.dds);
   if (std::string why = tgm::dds_config_problem(config.dds, "service"); !why.empty())
     return args.usage_error(why);
+  if (std::string why = tgm::dds::profiles_load_problem(config.dds); !why.empty())
+    return args.usage_error(why);
 
   std::string error;
   auto engine = tgm::service::Engine::create(config.machine, engine_options, &error);

@@ -1605,6 +1605,34 @@ TEST(ServiceProcesses, PlcFlagsThatCannotWorkAreUsageErrors) {
   }
 }
 
+// A profiles file that Fast DDS rejects is a bad config like a missing one: every binary says
+// so with exit code 2 before it joins DDS (it was exit code 1, as if DDS could not be set up).
+TEST(ServiceProcesses, AProfilesFileFastDdsRejectsIsAConfigError) {
+  const std::string cfg = std::string(TGM_SOURCE_DIR) + "/config/default.yaml";
+  const std::string dir = ::testing::TempDir();
+  const std::string bad = dir + "/rejected-profiles.xml";
+  std::ofstream(bad) << "<dds><profiles>\n";  // not closed
+  const std::string says =
+      "DDS profiles file '" + bad + "' was rejected by Fast DDS (Fast DDS return code 1)";
+  const std::pair<std::vector<std::string>, std::string> cases[] = {
+      {{TGM_SERVICE_BIN, "--no-realtime", "--duration", "5"}, "tgm-service: "},
+      {{TGM_PLC_BIN, "--duration", "5"}, "tgm-plc: "},
+      {{TGM_HMI_BIN, "status", "--wait", "1"}, "tgm-hmi status: "},
+      {{TGM_HMI_BIN, "run", std::string(TGM_SOURCE_DIR) + "/tests/programs/manual_example.ngc"},
+       "tgm-hmi run: "},
+  };
+  int k = 0;
+  for (const auto& [head, who] : cases) {
+    std::vector<std::string> args = head;
+    for (const std::string& a : {std::string("--config"), cfg, std::string("--profiles"), bad})
+      args.push_back(a);
+    test::Child c;
+    ASSERT_TRUE(c.start(args, dir + "/profiles" + std::to_string(k++) + ".log"));
+    EXPECT_EQ(c.wait(kHang), 2) << who << c.log();
+    EXPECT_NE(c.log().find(who + says), std::string::npos) << c.log();
+  }
+}
+
 // --stats and --handshake-trace are written at exit. A path that cannot be written fails the
 // start (it used to be said at the end of the run, exit code 0, the figures lost); a device
 // that refuses the bytes (/dev/full) fails the exit with code 1 (it was not noticed at all).

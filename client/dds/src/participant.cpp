@@ -96,6 +96,16 @@ void load_profiles(const std::string& path) {
   loaded.insert(key);
 }
 
+std::string profiles_load_problem(const DdsConfig& config) {
+  if (config.profiles_file.empty()) return {};
+  try {
+    load_profiles(config.profiles_file);
+  } catch (const SetupError& e) {
+    return e.what();
+  }
+  return {};
+}
+
 Participant::Participant(const DdsConfig& config, std::string_view role, std::string_view profile)
     : name_(config.participant_prefix + "-" + std::string(role)), domain_id_(config.domain_id) {
   if (config.domain_id < 0 || config.domain_id > 232) {

@@ -175,6 +175,8 @@ int run_run(int argc, char** argv) {
   overrides.apply(config->dds);
   if (std::string why = dds_config_problem(config->dds, "hmi"); !why.empty())
     return args.usage_error(why);
+  if (std::string why = dds::profiles_load_problem(config->dds); !why.empty())
+    return args.usage_error(why);
   const int ip = args.interpolator();
   const std::string letters = config->machine.axis_letters(ip);
   Program program;
