@@ -315,9 +315,7 @@ int plc_main(int argc, char** argv) {
   if (!loaded) return 2;
   tgm::AppConfig config = *loaded;
   overrides.apply(config.dds);
-  if (std::string why = tgm::dds_config_problem(config.dds, "plc"); !why.empty())
-    return args.usage_error(why);
-  if (std::string why = tgm::dds::profiles_load_problem(config.dds); !why.empty())
+  if (std::string why = tgm::dds::config_problem(config.dds, "plc"); !why.empty())
     return args.usage_error(why);
   const int count = static_cast<int>(config.machine.interpolators.size());
   if (only >= count)

@@ -176,9 +176,7 @@ int service_main(int argc, char** argv) {
   if (!loaded) return 2;
   tgm::AppConfig config = *loaded;
   overrides.apply(config.dds);
-  if (std::string why = tgm::dds_config_problem(config.dds, "service"); !why.empty())
-    return args.usage_error(why);
-  if (std::string why = tgm::dds::profiles_load_problem(config.dds); !why.empty())
+  if (std::string why = tgm::dds::config_problem(config.dds, "service"); !why.empty())
     return args.usage_error(why);
 
   std::string error;

@@ -96,7 +96,8 @@ void load_profiles(const std::string& path) {
   loaded.insert(key);
 }
 
-std::string profiles_load_problem(const DdsConfig& config) {
+std::string config_problem(const DdsConfig& config, std::string_view role) {
+  if (std::string why = dds_config_problem(config, role); !why.empty()) return why;
   if (config.profiles_file.empty()) return {};
   try {
     load_profiles(config.profiles_file);

@@ -33,9 +33,7 @@ int make_client(Args& args, const DdsOverrides& o, std::optional<AppConfig>& con
   config = args.load_app();
   if (!config) return 2;
   o.apply(config->dds);
-  if (std::string why = dds_config_problem(config->dds, "hmi"); !why.empty())
-    return args.usage_error(why);
-  if (std::string why = dds::profiles_load_problem(config->dds); !why.empty())
+  if (std::string why = dds::config_problem(config->dds, "hmi"); !why.empty())
     return args.usage_error(why);
   try {
     c.emplace(config->dds, client::Role::kHmi, options);

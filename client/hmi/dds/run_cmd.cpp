@@ -173,9 +173,7 @@ int run_run(int argc, char** argv) {
   std::optional<AppConfig> config = args.load_app();
   if (!config) return 2;
   overrides.apply(config->dds);
-  if (std::string why = dds_config_problem(config->dds, "hmi"); !why.empty())
-    return args.usage_error(why);
-  if (std::string why = dds::profiles_load_problem(config->dds); !why.empty())
+  if (std::string why = dds::config_problem(config->dds, "hmi"); !why.empty())
     return args.usage_error(why);
   const int ip = args.interpolator();
   const std::string letters = config->machine.axis_letters(ip);

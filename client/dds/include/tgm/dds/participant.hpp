@@ -93,10 +93,11 @@ class SetupError : public std::runtime_error {
 //! Throws SetupError when the file is missing or Fast DDS rejects it.
 void load_profiles(const std::string& path);
 
-//! load_profiles(config.profiles_file) as a check before any DDS entity exists: empty when the
-//! file loads (or none is named), else why not. A file Fast DDS rejects is a config error, which
-//! the binaries report as such (exit code 2), not as a failure to set up DDS.
-std::string profiles_load_problem(const DdsConfig& config);
+//! What the binaries check before any DDS entity exists, as config errors (exit code 2):
+//! tgm::dds_config_problem for the participant of `role`, then load_profiles of
+//! `config.profiles_file` (a file Fast DDS rejects is a bad config, not a failure to set up
+//! DDS). Empty when all is well.
+std::string config_problem(const DdsConfig& config, std::string_view role);
 
 //! One DomainParticipant with one Publisher and one Subscriber. Owns every entity it creates;
 //! the destructor deletes them all (delete_contained_entities), then the participant.
