@@ -399,8 +399,7 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
             } else if (v < 0 || v > kMaxNormalM) {
               // Not wrapped into an int: 4294967298 was read as M2.
               r.error(list[i], "compiler.plc_redefined_m[" + std::to_string(i) + "]",
-                      "M" + std::to_string(v) +
-                          " cannot be redefined (only M2-M9, M17, M29, M30, M99)");
+                      redefine_m_problem(v));
             } else {
               m.compiler.plc_redefined_m.push_back(static_cast<int>(v));
             }

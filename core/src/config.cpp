@@ -13,12 +13,15 @@ namespace {
 
 bool finite_positive(double v) { return std::isfinite(v) && v > 0.0; }
 
-// The M-numbers the manual marks "can be redefined".
-bool redefinable_m(int m) {
-  return m == 2 || (m >= 3 && m <= 9) || m == 17 || m == 29 || m == 30 || m == 99;
-}
-
 }  // namespace
+
+std::string redefine_m_problem(long long m) {
+  // The M-numbers the manual marks "can be redefined".
+  if (m == 2 || (m >= 3 && m <= 9) || m == 17 || m == 29 || m == 30 || m == 99) return {};
+  std::string why = "M";  // appended, not "M" + ...: GCC 12 warns falsely (-Wrestrict)
+  why += std::to_string(m);
+  return why + " cannot be redefined (only M2-M9, M17, M29, M30, M99)";
+}
 
 char default_axis_letter(int i) {
   static constexpr char kLetters[kMaxAxes + 1] = "XYZABCUVWE";
@@ -132,10 +135,8 @@ std::vector<std::string> MachineConfig::validate() const {
     e.push_back("compiler.initial_tool: must be >= 0, not " + std::to_string(c.initial_tool));
   }
   for (std::size_t i = 0; i < c.plc_redefined_m.size(); ++i) {
-    if (!redefinable_m(c.plc_redefined_m[i])) {
-      e.push_back("compiler.plc_redefined_m[" + std::to_string(i) + "]: M" +
-                  std::to_string(c.plc_redefined_m[i]) +
-                  " cannot be redefined (only M2-M9, M17, M29, M30, M99)");
+    if (std::string why = redefine_m_problem(c.plc_redefined_m[i]); !why.empty()) {
+      e.push_back("compiler.plc_redefined_m[" + std::to_string(i) + "]: " + why);
     }
   }
   if (c.max_program_segments < 1 || c.max_program_segments > 1'000'000'000) {

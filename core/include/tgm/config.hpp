@@ -107,6 +107,10 @@ struct MachineConfig {
   static MachineConfig default_machine();
 };
 
+//! Why M`m` cannot be listed in compiler.plc_redefined_m: empty for the M-numbers the manual
+//! marks "can be redefined" (M2-M9, M17, M29, M30, M99), else "M<m> cannot be redefined (...)".
+std::string redefine_m_problem(long long m);
+
 //! Default letter of axis `i` (X Y Z A B C U V W E).
 char default_axis_letter(int i);
 
