@@ -56,10 +56,7 @@ bool parse_start(const std::string& text, const std::string& letters,
                  std::array<double, kMaxAxes>& out, std::string& why) {
   out = {};
   std::string named;
-  for (std::size_t at = 0; at <= text.size();) {
-    const std::size_t comma = std::min(text.find(',', at), text.size());
-    const std::string item = text.substr(at, comma - at);
-    at = comma + 1;
+  for (const std::string& item : comma_items(text)) {
     if (item.empty()) {
       why = "an empty item in '" + text + "' (AXIS<mm> items, comma-separated)";
       return false;

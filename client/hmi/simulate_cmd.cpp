@@ -243,9 +243,8 @@ int run_simulate(int argc, char** argv) {
   }
   // --stop-at T[:CODE],...: each item a time [s] and optionally :8 or :4.
   std::vector<std::pair<double, std::int32_t>> stops;
-  for (std::size_t at = 0; !stop_text.empty() && at <= stop_text.size();) {
-    const std::size_t comma = std::min(stop_text.find(',', at), stop_text.size());
-    const std::string item = stop_text.substr(at, comma - at);
+  for (const std::string& item :
+       stop_text.empty() ? std::vector<std::string>{} : comma_items(stop_text)) {
     const std::size_t colon = item.find(':');
     double t = 0.0;
     const std::string code_text = colon == std::string::npos ? "8" : item.substr(colon + 1);
@@ -255,22 +254,16 @@ int run_simulate(int argc, char** argv) {
           "--stop-at takes TIME[:8|:4] items (seconds >= 0, comma-separated), not '" + item + "'");
     }
     stops.emplace_back(t, code_text == "8" ? 8 : 4);
-    at = comma + 1;
   }
   // Integer lists for the Command_Parameter registers.
-  auto int_list = [](const std::string& text, std::size_t count, std::array<std::int32_t, kCommandParameters>& out) {
-    std::size_t at = 0;
+  auto int_list = [](const std::string& text, std::size_t count,
+                     std::array<std::int32_t, kCommandParameters>& out) {
+    const std::vector<std::string> items = comma_items(text);
+    if (items.size() != count) return false;
     for (std::size_t k = 0; k < count; ++k) {
-      const std::size_t comma = text.find(',', at);
-      if ((k + 1 < count) != (comma != std::string::npos)) return false;
       long long v = 0;
-      if (!parse_integer(
-              text.substr(at, comma == std::string::npos ? std::string::npos : comma - at),
-              INT32_MIN, INT32_MAX, v)) {
-        return false;
-      }
+      if (!parse_integer(items[k], INT32_MIN, INT32_MAX, v)) return false;
       out[k] = static_cast<std::int32_t>(v);
-      at = comma + 1;
     }
     return true;
   };

@@ -275,15 +275,13 @@ int plc_main(int argc, char** argv) {
                                 [](double x) { return x >= 0.0 && x <= 3600.0; })) {
       ack_delay = v;
     } else if (args.flag("--refuse-ack", value)) {
-      for (std::size_t p = 0; p <= value.size();) {
-        const std::size_t q = std::min(value.find(',', p), value.size());
+      for (const std::string& item : tgm::comma_items(value)) {
         int m = 0;
-        if (!tgm::parse_integer(value.substr(p, q - p), 1, tgm::kMaxNormalM, m))
+        if (!tgm::parse_integer(item, 1, tgm::kMaxNormalM, m))
           return args.usage_error(
               "--refuse-ack takes normal M-functions 1.." + std::to_string(tgm::kMaxNormalM) +
               " like 51,50 (the interpolator waits only for those), not '" + value + "'");
         refuse.insert(m);
-        p = q + 1;
       }
     } else if (args.flag("--script", script_path)) {
       if (!args.failed()) {

@@ -5,10 +5,12 @@
 // without end). Header-only, like dds_overrides.hpp; the binaries word their own messages.
 #pragma once
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <string>
+#include <vector>
 
 namespace tgm {
 
@@ -39,6 +41,18 @@ inline bool parse_finite(const std::string& text, double& out) {
   if (*end != '\0' || !std::isfinite(v)) return false;
   out = v;
   return true;
+}
+
+//! The comma-separated items of a list argument ("51,50"), empty ones kept so that the caller
+//! refuses them: "1,,2" is three items, "" one.
+inline std::vector<std::string> comma_items(const std::string& text) {
+  std::vector<std::string> items;
+  for (std::size_t at = 0; at <= text.size();) {
+    const std::size_t comma = std::min(text.find(',', at), text.size());
+    items.push_back(text.substr(at, comma - at));
+    at = comma + 1;
+  }
+  return items;
 }
 
 }  // namespace tgm
