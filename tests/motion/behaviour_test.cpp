@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <random>
 #include <span>
 #include <string>
@@ -905,6 +906,47 @@ TEST(Requests, ANumberAxesWriteAfterAStopKeepsThePositionForTheNextProgram) {
   });
   EXPECT_NEAR(ip.registers().orig_position[0], stop[0] + 5.0, 1e-9);
   EXPECT_NEAR(ip.registers().orig_position[1], stop[1], 1e-9);
+}
+
+// Dropping a program (a clear, a Number_Axes write, a position set) leaves nothing of its section
+// in the registers. After a clear they showed its line, G and M (M30 after a program that ended)
+// and its feed beside Act_Part 0, and kept showing them through the first cycles of the next
+// program. The tool in the spindle and the stored last continuous M-function stay.
+TEST(Requests, DroppingAProgramDropsItsSectionRegisters) {
+  const std::function<RequestResult(Interpolator&)> drops[] = {
+      [](Interpolator& ip) { return ip.clear(); },
+      [](Interpolator& ip) { return ip.write_number_axes(2); },
+      [](Interpolator& ip) { return ip.set_position({}); },
+  };
+  for (std::size_t k = 0; k < std::size(drops); ++k) {
+    SCOPED_TRACE(k);
+    Interpolator ip = make();
+    ProgramBuilder b;
+    b.line({10.0, 0.0, 0.0}, 3000.0)
+        .m(1005, MKind::kContinuous)
+        .line({20.0, 0.0, 0.0}, 1500.0)
+        .end();
+    ASSERT_TRUE(ip.load(b.program()).ok());
+    ASSERT_TRUE(ip.start().ok());
+    run_until(ip, [](const Registers& r) {
+      return r.status == static_cast<std::int32_t>(InterpolatorStatus::kEnded);
+    });
+    const Registers& r = ip.registers();
+    ASSERT_EQ(r.act_m_func, 2);
+    ASSERT_EQ(r.act_g_func, 1);
+    ASSERT_GT(r.act_line, 0);
+    ASSERT_EQ(r.set_speed, 1500.0);
+    const std::int32_t tool = r.tool_number;
+    ASSERT_TRUE(drops[k](ip).ok());
+    EXPECT_EQ(r.act_part, 0);
+    EXPECT_EQ(r.act_line, 0);
+    EXPECT_EQ(r.act_g_func, 0);
+    EXPECT_EQ(r.act_m_func, 0);
+    EXPECT_EQ(r.set_speed, 0.0);
+    EXPECT_EQ(r.move_distance, 0.0);
+    EXPECT_EQ(r.tool_number, tool);
+    EXPECT_EQ(r.last_cont_m_func, 1005);
+  }
 }
 
 // The config accepts axis limits in kMin*..kMax* (config.hpp); every corner of that box runs

@@ -1849,6 +1849,16 @@ struct Interpolator::Impl {
     m_pending = false;
     m_deferred_n = 0;
     end_pending = false;
+    // Nothing executes now: the registers of the dropped program's section go with it (after a
+    // clear, Act_Part 0 stood beside that program's line, G, M and feed, so a panel showed "M30"
+    // at the first line of the next program). Tool_Number (the tool in the spindle) and
+    // Last_Cont_M_Func (a "stored value", the manual) stay.
+    reg.move_distance = 0.0;
+    reg.act_part = 0;
+    reg.act_line = 0;
+    reg.act_g_func = 0;
+    reg.act_m_func = 0;
+    reg.set_speed = 0.0;
     tail = cur;
     base = cur;
     complete = false;
@@ -3789,8 +3799,6 @@ RequestResult Interpolator::clear() {
   }
   m.drop_records();
   m.reg.status = static_cast<std::int32_t>(InterpolatorStatus::kEmpty);
-  m.reg.move_distance = 0.0;
-  m.reg.act_part = 0;
   m.fill_registers();
   return {};
 }
