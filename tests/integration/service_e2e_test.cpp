@@ -488,14 +488,21 @@ TEST(ServiceProcesses, PlcServesARestartedServiceAtOnceAndSeesEqualMFunctionsApa
 
 // `tgm-hmi run` under a service that stops mid-program and comes back: it says when the state
 // falls silent, and used to wait for ever after the restart (the new service's state is not its
-// program's); it ends with exit code 1 and says why.
+// program's); it ends with exit code 1 and says why. While the state is silent its log gets no
+// more progress lines (it got the last "running" one every second). `tgm-hmi watch` beside it
+// says the same silence and the return (it showed the last state as if it were news).
 TEST(ServiceProcesses, HmiRunEndsWithAClearErrorWhenTheServiceRestarts) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());
   std::ofstream(env.path("long.ngc")) << "G1 X200 F1000\nM2\n";  // 12 s
   test::Child hmi;
-  ASSERT_TRUE(hmi.start({TGM_HMI_BIN, "run", env.path("long.ngc"), "--config", env.config()},
+  ASSERT_TRUE(hmi.start({TGM_HMI_BIN, "run", env.path("long.ngc"), "--config", env.config(),
+                         "--progress-interval", "0.2"},
                         env.path("hmi.log")));
+  test::Child watcher;
+  ASSERT_TRUE(
+      watcher.start({TGM_HMI_BIN, "watch", "--json", "--interval", "0.2", "--config", env.config()},
+                    env.path("watch.log")));
   {
     client::Client watch(env.dds(), client::Role::kHmi);
     ASSERT_TRUE(watch.wait_until(
@@ -508,9 +515,26 @@ TEST(ServiceProcesses, HmiRunEndsWithAClearErrorWhenTheServiceRestarts) {
     std::this_thread::sleep_for(50ms);
   }
   EXPECT_NE(hmi.log().find("no state from tgm-service for 3 s"), std::string::npos) << hmi.log();
+  std::this_thread::sleep_for(1500ms);  // 7 progress intervals
+  {
+    const std::string log = hmi.log();
+    const auto notice = log.find("no state from tgm-service");
+    ASSERT_NE(notice, std::string::npos) << log;
+    EXPECT_EQ(log.find("% line ", notice), std::string::npos) << log;
+  }
   ASSERT_TRUE(env.start_service());
   EXPECT_EQ(hmi.wait(kHang), 1) << hmi.log();
   EXPECT_NE(hmi.log().find("tgm-service restarted during the run"), std::string::npos) << hmi.log();
+  for (int i = 0; i < 200 && watcher.log().find("tgm-service is back") == std::string::npos; ++i) {
+    std::this_thread::sleep_for(50ms);
+  }
+  EXPECT_EQ(watcher.interrupt(), 0);
+  const std::string watched = watcher.log();
+  const auto silent = watched.find(
+      "tgm-hmi watch: no state from tgm-service for 3 s (stopped, or the network is down)");
+  EXPECT_NE(silent, std::string::npos) << watched;
+  EXPECT_NE(watched.find("tgm-hmi watch: tgm-service is back", silent), std::string::npos)
+      << watched;
 }
 
 // An emergency stop ends the run with exit code 1 and names the Command, 4 or 5. The Command

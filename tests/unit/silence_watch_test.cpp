@@ -18,9 +18,15 @@ TEST(SilenceWatch, SaysOnceWhenTheStateStopsAndOnceWhenItComesBack) {
   EXPECT_EQ(w.update(7, t0), Change::kNone);  // the first call takes the count
   EXPECT_EQ(w.update(9, t0 + 1s), Change::kNone);
   EXPECT_EQ(w.update(9, t0 + 4s), Change::kNone);  // 3 s since the last new sample, not more
+  EXPECT_FALSE(w.silent());
   EXPECT_EQ(w.update(9, t0 + 4s + 1ms), Change::kSilent);
+  EXPECT_TRUE(w.silent());
   EXPECT_EQ(w.update(9, t0 + 10s), Change::kNone);  // said once
+  EXPECT_TRUE(w.silent());
+  EXPECT_EQ(w.since_last(t0 + 10s), 9s);
   EXPECT_EQ(w.update(10, t0 + 11s), Change::kBack);
+  EXPECT_FALSE(w.silent());
+  EXPECT_EQ(w.since_last(t0 + 11s + 5ms), 5ms);
   EXPECT_EQ(w.update(11, t0 + 12s), Change::kNone);
   EXPECT_EQ(w.update(11, t0 + 15s + 1ms), Change::kSilent);  // a second silence is said again
 }

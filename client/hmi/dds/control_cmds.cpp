@@ -11,6 +11,7 @@
 
 #include "commands.hpp"
 #include "dds_common.hpp"
+#include "tgm/client/silence_watch.hpp"
 #include "tgm/printable.hpp"
 
 namespace tgm::hmi {
@@ -191,12 +192,30 @@ int run_watch(int argc, char** argv) {
   const std::int32_t cycle_time_us = c.client->state(ip)->cycle_time_us();
   constexpr std::size_t kMessagesShown = 5;
   std::deque<std::string> recent;  // on a terminal: shown on every screen, newest last
+  // A service that stops publishing leaves its last state here: watch kept showing it, "running"
+  // at a standstill, without a word.
+  client::SilenceWatch silence(3s);
   for (long long k = 0; !g_interrupted && (count == 0 || k < count); ++k) {
     if (k > 0) {
       const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(interval);
       while (!g_interrupted && std::chrono::steady_clock::now() < until) c.client->poll(10ms);
     }
+    const auto now = std::chrono::steady_clock::now();
+    const auto change = silence.update(c.client->state_samples(ip), now);
+    const std::string stale =
+        silence.silent()
+            ? "no state from tgm-service for " +
+                  std::to_string(
+                      std::chrono::duration_cast<std::chrono::seconds>(silence.since_last(now))
+                          .count()) +
+                  " s (stopped, or the network is down): the registers shown are the last received"
+            : std::string();
     if (json) {
+      if (change == client::SilenceWatch::Change::kSilent) {
+        std::fprintf(stderr, "tgm-hmi watch: %s\n", stale.c_str());
+      } else if (change == client::SilenceWatch::Change::kBack) {
+        std::fprintf(stderr, "tgm-hmi watch: tgm-service is back\n");
+      }
       // Standard output stays JSON Lines: the rest goes to standard error, once per change.
       std::fputs(
           format_state_json(*c.client->state(ip), c.config->machine.axis_letters(ip)).c_str(),
@@ -224,6 +243,7 @@ int run_watch(int argc, char** argv) {
     }
     if (tty) std::printf("\033[H\033[2J");
     std::fputs(format_state(*c.client->state(ip), c.config->machine.axis_letters(ip)).c_str(), stdout);
+    if (!stale.empty()) std::printf("%s\n", stale.c_str());
     if (const std::uint64_t other = c.client->other_service(ip); other != 0) {
       std::printf(
           "warning: another tgm-service (instance %016llx) publishes on DDS domain %d too; "

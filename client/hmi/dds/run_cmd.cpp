@@ -546,7 +546,13 @@ int run_run(int argc, char** argv) {
     }
     // Progress.
     const auto now = Clock::now();
-    if (!quiet && (tty ? now - last_line_at >= 100ms : now - last_line_at >= std::chrono::duration<double>(interval_s))) {
+    // While the service is silent the registers are stale: a log gets no more lines of them
+    // (it got the same "running" line every interval for as long as the service was gone), a
+    // terminal says for how long nothing came in place of the status.
+    const bool stale = silence.silent();
+    if (!quiet && !(stale && !tty) &&
+        (tty ? now - last_line_at >= 100ms
+             : now - last_line_at >= std::chrono::duration<double>(interval_s))) {
       last_line_at = now;
       const double pct = 100.0 * static_cast<double>(std::max(st->act_part(), 0)) /
                          static_cast<double>(program.segments.size());
@@ -568,9 +574,18 @@ int run_run(int argc, char** argv) {
         if (waited >= kLongMWait)
           wait += " for " + std::to_string(static_cast<int>(waited)) + " s (is tgm-plc running?)";
       }
-      std::printf("%s[%s] %5.1f%% line %d/%d%s F%.0f %s%s%s", tty ? "\r\033[K" : "", bar, pct, st->act_line(), last_line,
-                  dro.c_str(), st->act_speed(), std::string(client::status_name(st->status())).c_str(), wait.c_str(),
-                  tty ? "" : "\n");
+      std::string shown(client::status_name(st->status()));
+      if (stale) {
+        shown =
+            "no state for " +
+            std::to_string(
+                std::chrono::duration_cast<std::chrono::seconds>(silence.since_last(now)).count()) +
+            " s";
+        wait.clear();
+      }
+      std::printf("%s[%s] %5.1f%% line %d/%d%s F%.0f %s%s%s", tty ? "\r\033[K" : "", bar, pct,
+                  st->act_line(), last_line, dro.c_str(), st->act_speed(), shown.c_str(),
+                  wait.c_str(), tty ? "" : "\n");
       std::fflush(stdout);
       progress_shown = true;
     }

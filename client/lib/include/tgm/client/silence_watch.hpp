@@ -28,6 +28,12 @@ class SilenceWatch {
     silent_ = true;
     return Change::kSilent;
   }
+  //! True from the update that said kSilent until one that says kBack.
+  bool silent() const { return silent_; }
+  //! Time from the last new sample to `now` (0 before the first update).
+  std::chrono::steady_clock::duration since_last(std::chrono::steady_clock::time_point now) const {
+    return started_ ? now - at_ : std::chrono::steady_clock::duration{};
+  }
 
  private:
   std::chrono::steady_clock::duration limit_;
