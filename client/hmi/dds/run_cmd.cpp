@@ -357,6 +357,9 @@ int run_run(int argc, char** argv) {
     events.clear();
   };
   std::size_t messages = 0;
+  // The source line where the program last stood: a program that is dropped takes its section
+  // registers with it (Act_Line 0), and the run says where it was.
+  int line_seen = 0;
   int exit_code = 0;
   bool progress_shown = false;
   // Said once; the run goes on if the service comes back.
@@ -465,7 +468,7 @@ int run_run(int argc, char** argv) {
       clear_progress();
       if (st->program_id() == 0) {
         std::fprintf(stderr, "tgm-hmi run: the program was cleared by someone else at line %d\n",
-                     st->act_line());
+                     line_seen);
       } else {
         std::fprintf(stderr, "tgm-hmi run: the program was replaced by program %u\n",
                      static_cast<unsigned>(st->program_id()));
@@ -483,6 +486,7 @@ int run_run(int argc, char** argv) {
       m_wait_since = Clock::now();
     }
     const auto status = static_cast<InterpolatorStatus>(st->status());
+    if (status != InterpolatorStatus::kEmpty) line_seen = st->act_line();
     if (status == InterpolatorStatus::kEnded && sender.all_confirmed()) break;
     if (status == InterpolatorStatus::kEmpty) {
       clear_progress();
@@ -491,14 +495,14 @@ int run_run(int argc, char** argv) {
         std::fprintf(stderr,
                      "tgm-hmi run: normal stop off the trajectory (Command 9) at line %d: the "
                      "program was dropped\n",
-                     st->act_line());
+                     line_seen);
       } else {
         // The state still names this program: a position set (Command 2048/2049, the PLC's)
         // dropped it; a clear would have set the state's program to 0 (handled above).
         std::fprintf(stderr,
                      "tgm-hmi run: a position set (Command 2048/2049, by the PLC) at line %d "
                      "dropped the program\n",
-                     st->act_line());
+                     line_seen);
       }
       exit_code = 1;
       break;
