@@ -82,6 +82,32 @@ bool parse_start(const std::string& text, const std::string& letters,
   return true;
 }
 
+std::string point_text(const std::array<double, kMaxAxes>& p, const std::string& letters,
+                       char sep) {
+  std::string out;
+  for (std::size_t i = 0; i < letters.size() && i < p.size(); ++i) {
+    char buf[48];
+    std::snprintf(buf, sizeof buf, "%.6f", p[i]);
+    std::string v = buf;
+    v.erase(v.find_last_not_of('0') + 1);
+    if (v.back() == '.') v.pop_back();
+    if (v == "-0") v = "0";
+    if (i > 0) out.push_back(sep);
+    out.push_back(letters[i]);
+    out += v;
+  }
+  return out;
+}
+
+bool same_point(const std::array<double, kMaxAxes>& a, const std::array<double, kMaxAxes>& b,
+                int n) {
+  for (int i = 0; i < n; ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    if (!(std::fabs(a[k] - b[k]) <= kSamePointMm)) return false;
+  }
+  return true;
+}
+
 bool is_intercode_file(const std::string& file) {
   return file.size() > 5 && file.compare(file.size() - 5, 5, ".tgmi") == 0;
 }

@@ -67,6 +67,19 @@ bool load_program(const std::string& file, const MachineConfig& machine, int ip,
 bool parse_start(const std::string& text, const std::string& letters,
                  std::array<double, kMaxAxes>& out, std::string& why);
 
+//! A point as "X20 Y5.25 Z-2" (`sep` ' ') or as parse_start reads it, "X20,Y5.25,Z-2" (`sep`
+//! ','): the first letters.size() axes, at most 6 decimals, trailing zeros dropped, so that
+//! what is printed reads back within kSamePointMm.
+std::string point_text(const std::array<double, kMaxAxes>& p, const std::string& letters,
+                       char sep = ' ');
+
+//! How far two start points may lie apart and still be one [mm]: the rounding of point_text.
+inline constexpr double kSamePointMm = 1e-6;
+
+//! True when the first `n` axes of `a` and `b` lie within kSamePointMm of each other.
+bool same_point(const std::array<double, kMaxAxes>& a, const std::array<double, kMaxAxes>& b,
+                int n);
+
 //! True when FILE is read as intercode (*.tgmi) rather than compiled.
 bool is_intercode_file(const std::string& file);
 

@@ -16,7 +16,7 @@ namespace {
 
 constexpr const char* kUsage =
     "usage: tgm-hmi compile FILE [--config YAML] [--interpolator N] [--dump jsonl|text]\n"
-    "                            [--out FILE]\n"
+    "                            [--out FILE] [--start X..,Y..]\n"
     "\n"
     "Compiles a G-code program into intercode for interpolator N (default 0).\n"
     "  --config YAML     machine config (default: $TGM_CONFIG or config/default.yaml)\n"
@@ -24,6 +24,11 @@ constexpr const char* kUsage =
     "  --dump jsonl      print one JSON object per record to standard output\n"
     "  --dump text       print one readable line per record\n"
     "  --out FILE        write the binary intercode to FILE (only when there is no error)\n"
+    "  --start X20,Y5    where the machine will stand when the program starts [mm] (default:\n"
+    "                    zero; axes not named: 0): G91 moves and the axes a G90 line does not\n"
+    "                    name start there. The file records it, and `tgm-hmi run` runs the\n"
+    "                    file only from there (`tgm-hmi run` compiles G-code from where the\n"
+    "                    interpolator stands by itself)\n"
     "\n"
     "Errors go to standard error as FILE:LINE:COL: error: reason, all of them; the exit\n"
     "code is then 2 and nothing is written.\n";
@@ -34,10 +39,11 @@ int run_compile(int argc, char** argv) {
   Args args(argc, argv, "compile", kUsage);
   std::string dump;
   std::string out_path;
-  std::string file;
+  std::string file, start_text;
   while (args.more()) {
     if (args.flag("--dump", dump)) continue;
     if (args.flag("--out", out_path)) continue;
+    if (args.flag("--start", start_text)) continue;
     if (args.common()) continue;
     if (args.positional(file)) continue;
     return args.fail();
@@ -60,7 +66,11 @@ int run_compile(int argc, char** argv) {
     return 2;
   }
   const std::string_view text = input.text();
-  const CompileOptions options = CompileOptions::from_machine(*machine, args.interpolator());
+  CompileOptions options = CompileOptions::from_machine(*machine, args.interpolator());
+  if (std::string why; !start_text.empty() &&
+                       !parse_start(start_text, options.axis_letters, options.start_mm, why)) {
+    return args.usage_error("--start: " + why);
+  }
 
   // Without a dump the records are encoded as they come and written out in 1 MiB pieces: a long
   // program is never held in memory. The output only replaces --out when there is no error.
@@ -78,7 +88,7 @@ int run_compile(int argc, char** argv) {
   if (dump.empty()) {
     bytes.reserve(2u << 20);
     encoder.emplace(bytes, static_cast<int>(options.axis_letters.size()), options.axis_letters,
-                    /*streaming=*/true);
+                    options.start_mm, /*streaming=*/true);
     result = compile_gcode(text, options, [&](const Segment& s) {
       encoder->add(s);
       compensation.observe(s);
@@ -127,9 +137,14 @@ int run_compile(int argc, char** argv) {
   if (dump.empty()) {
     const unsigned long long records = encoder->records();
     const std::size_t ms = result.program.params.size(), texts = result.program.messages.size();
-    std::fprintf(stderr, "%s: %llu record%s (%zu M-function%s, %zu message%s)%s%s\n", file.c_str(),
-                 records, records == 1 ? "" : "s", ms, ms == 1 ? "" : "s", texts,
-                 texts == 1 ? "" : "s", out_path.empty() ? "" : " written to ", out_path.c_str());
+    const std::string from =
+        start_text.empty()
+            ? std::string()
+            : ", compiled from " + point_text(options.start_mm, options.axis_letters);
+    std::fprintf(stderr, "%s: %llu record%s (%zu M-function%s, %zu message%s%s)%s%s\n",
+                 file.c_str(), records, records == 1 ? "" : "s", ms, ms == 1 ? "" : "s", texts,
+                 texts == 1 ? "" : "s", from.c_str(), out_path.empty() ? "" : " written to ",
+                 out_path.c_str());
   }
   compensation.print(file);
   return 0;

@@ -61,7 +61,8 @@ constexpr const char* kUsage =
     "                   speed, duration and the factor that limited its speed\n"
     "  --start X20,Y5   where the machine stands when the program starts [mm] (default:\n"
     "                   zero): the program is compiled from there, as `tgm-hmi run` compiles\n"
-    "                   from where the interpolator stands (axes not named: 0)\n"
+    "                   from where the interpolator stands (axes not named: 0); a .tgmi\n"
+    "                   file starts where it was compiled from (tgm-hmi compile --start)\n"
     "  --rel-speed R    feed override 0.01..2 (default 1)\n"
     "  --check-limits   differentiate Orig_Position per cycle and fail on any per-axis velocity,\n"
     "                   acceleration, jerk or corner-step excess (listed with cycle and line)\n"
@@ -294,6 +295,19 @@ int run_simulate(int argc, char** argv) {
   }
   Program program;
   if (!load_program(file, machine, ip_index, program, nullptr, &start)) return 2;
+  // Intercode runs from the point it was compiled from, as `tgm-hmi run` runs it.
+  if (is_intercode_file(file)) {
+    if (!start_text.empty() && !same_point(start, program.start_mm, program.number_axes)) {
+      std::fprintf(
+          stderr,
+          "%s: error: compiled from %s, not from --start %s: tgm-hmi run runs it only from "
+          "there (or with --from-here from anywhere); leave --start out\n",
+          file.c_str(), point_text(program.start_mm, program.axis_letters).c_str(),
+          point_text(start, program.axis_letters).c_str());
+      return 2;
+    }
+    start = program.start_mm;
+  }
   CompensationNote::print(program, file);
 
   SimulationOptions so;

@@ -1172,6 +1172,9 @@ CompileResult Compiler::run() {
   pos_ = opt_.start_mm;
   program_.number_axes = n_axes_;
   program_.axis_letters = opt_.axis_letters;
+  for (int i = 0; i < n_axes_; ++i) {
+    program_.start_mm[static_cast<std::size_t>(i)] = opt_.start_mm[static_cast<std::size_t>(i)];
+  }
   // Enough for every real program, and a stop for loops that expand to nothing.
   max_executed_ = static_cast<std::uint64_t>(opt_.compiler.max_program_segments) * 10 + 1'000'000;
 

@@ -13,8 +13,11 @@ namespace tgm {
 namespace {
 
 constexpr char kMagic[4] = {'T', 'G', 'M', 'I'};
-// 2: records store only what changed. 3: a CRC-32 trailer (version 2 files are still read).
-constexpr std::uint16_t kVersion = 3;
+// 2: records store only what changed. 3: a CRC-32 trailer. 4: the start point after the header
+// (number_axes doubles). Versions 2 and 3 are still read, as compiled from machine zero (the
+// only point `tgm-hmi compile` compiled from before version 4).
+constexpr std::uint16_t kVersion = 4;
+constexpr std::uint16_t kVersionWithoutStart = 3;
 constexpr std::uint16_t kVersionWithoutChecksum = 2;
 constexpr std::size_t kHeaderBytes = IntercodeEncoder::kCountOffset + 8;
 
@@ -60,7 +63,7 @@ bool reseal_intercode(std::string& file) {
   if (file.size() < kHeaderBytes + 4 || std::memcmp(file.data(), kMagic, 4) != 0) return false;
   std::uint16_t version = 0;
   std::memcpy(&version, file.data() + 4, sizeof version);
-  if (version != kVersion) return false;
+  if (version != kVersion && version != kVersionWithoutStart) return false;
   const std::uint32_t c = file_checksum(file);
   std::memcpy(file.data() + file.size() - 4, &c, sizeof c);
   return true;
@@ -148,8 +151,8 @@ std::string_view segment_type_name(SegmentType t) {
   return "?";
 }
 
-IntercodeEncoder::IntercodeEncoder(std::string& out, int number_axes,
-                                   std::string_view axis_letters, bool streaming)
+IntercodeEncoder::IntercodeEncoder(std::string& out, int number_axes, std::string_view axis_letters,
+                                   const std::array<double, kMaxAxes>& start_mm, bool streaming)
     : out_(out), count_offset_(0), streaming_(streaming), n_(number_axes) {
   const std::size_t start = out_.size();
   out_.append(kMagic, 4);
@@ -163,6 +166,9 @@ IntercodeEncoder::IntercodeEncoder(std::string& out, int number_axes,
   count_offset_ = out_.size();
   crc_ = crc_update(crc_, out_.data() + start, count_offset_ - start);
   put<std::uint64_t>(out_, 0);  // record count, fixed by finish()
+  const std::size_t start_at = out_.size();
+  for (int i = 0; i < n_; ++i) put<double>(out_, start_mm[static_cast<std::size_t>(i)]);
+  crc_ = crc_update(crc_, out_.data() + start_at, out_.size() - start_at);
 }
 
 namespace {
@@ -266,7 +272,7 @@ void IntercodeEncoder::finish(const std::vector<MParams>& params,
 
 void encode_intercode(const Program& p, std::string& out) {
   out.reserve(out.size() + 64 + p.segments.size() * (20 + 8 * static_cast<std::size_t>(p.number_axes) + 8));
-  IntercodeEncoder enc(out, p.number_axes, p.axis_letters);
+  IntercodeEncoder enc(out, p.number_axes, p.axis_letters, p.start_mm);
   for (const Segment& s : p.segments) enc.add(s);
   enc.finish(p.params, p.messages);
 }
@@ -285,7 +291,7 @@ bool decode_intercode(std::string_view file, Program& out, std::string& error) {
   std::uint16_t version = 0;
   std::uint8_t n = 0;
   if (!in.get(version)) return fail("truncated header");
-  if (version == kVersion) {
+  if (version == kVersion || version == kVersionWithoutStart) {
     // The checksum first: a damaged file must not be read as another program.
     if (file.size() < kHeaderBytes + 4) return fail("truncated header");
     std::uint32_t stored = 0;
@@ -303,7 +309,7 @@ bool decode_intercode(std::string_view file, Program& out, std::string& error) {
     in = In(bytes);
     in.skip(6);
   } else if (version != kVersionWithoutChecksum) {
-    return fail("unsupported version " + std::to_string(version) + " (this build reads 2 and 3)");
+    return fail("unsupported version " + std::to_string(version) + " (this build reads 2 to 4)");
   }
   if (!in.get(n) || n < 1 || n > kMaxAxes) return fail("axis count must be 1..10");
   std::string letters;
@@ -315,6 +321,13 @@ bool decode_intercode(std::string_view file, Program& out, std::string& error) {
   Program p;
   p.number_axes = n;
   p.axis_letters = letters.substr(0, n);
+  if (version == kVersion) {
+    for (int i = 0; i < n; ++i) {
+      double& v = p.start_mm[static_cast<std::size_t>(i)];
+      if (!in.get(v)) return fail("truncated header");
+      if (!std::isfinite(v)) return fail("non-finite start point");
+    }
+  }
   p.segments.resize(count);
   auto finite = [](double v) { return std::isfinite(v); };
   // The state the delta fields apply to, as the encoder starts it.

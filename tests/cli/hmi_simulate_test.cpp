@@ -228,6 +228,38 @@ TEST_F(HmiSimulate, StartRunsTheProgramFromThatPoint) {
   EXPECT_NE(held.out.find("X=1.000000 Y=2.000000 Z=-7.500000"), std::string::npos) << held.out;
 }
 
+// Intercode compiled from a point (`compile --start`) simulates from there, as the G-code does
+// with the same --start; a --start elsewhere is refused (the file would not run as compiled), and
+// the same point given again is taken.
+TEST_F(HmiSimulate, IntercodeStartsWhereItWasCompiledFrom) {
+  const fs::path inc = write("inc.ngc", "G91 G1 X10 F6000\nG2 X10 I5\nM2\n");
+  const fs::path tgmi = dir_ / "inc.tgmi";
+  ProcessResult r = run("compile " + inc.string() + " --config " + kConfig +
+                        " --start X20,Y5,Z-2 --out " + tgmi.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(
+      r.err.find("3 records (1 M-function, 0 messages, compiled from X20 Y5 Z-2) written to "),
+      std::string::npos)
+      << r.err;
+  const ProcessResult gcode =
+      run("simulate " + inc.string() + " --config " + kConfig + " --start X20,Y5,Z-2");
+  const ProcessResult intercode = run("simulate " + tgmi.string() + " --config " + kConfig);
+  ASSERT_EQ(gcode.exit_code, 0) << gcode.out << gcode.err;
+  ASSERT_EQ(intercode.exit_code, 0) << intercode.out << intercode.err;
+  EXPECT_NE(intercode.out.find("X=40.000000 Y=5.000000 Z=-2.000000"), std::string::npos)
+      << intercode.out;
+  EXPECT_EQ(number_before(intercode.out, " s program time"),
+            number_before(gcode.out, " s program time"));
+  r = run("simulate " + tgmi.string() + " --config " + kConfig + " --start X20");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.err, tgmi.string() +
+                       ": error: compiled from X20 Y5 Z-2, not from --start X20 Y0 Z0: tgm-hmi run "
+                       "runs it only from there (or with --from-here from anywhere); leave "
+                       "--start out\n");
+  r = run("simulate " + tgmi.string() + " --config " + kConfig + " --start z-2,X20,Y5");
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+}
+
 // The Backlash register is in the CSV (backlash_<axis>): LinuxCNC's convention, half the
 // configured backlash towards the last direction of motion, 0 before the first, ramped at a
 // reversal; in every row PositionInc = round(Position x Ratio) + Backlash (no Offset here).

@@ -46,6 +46,9 @@ inline bool same_program(const Program& a, const Program& b, std::string& why) {
   if (a.number_axes != b.number_axes) return why = "number_axes", false;
   if (a.segments.size() != b.segments.size()) return why = "segment count", false;
   const auto n = static_cast<std::size_t>(a.number_axes);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (a.start_mm[i] != b.start_mm[i]) return why = "start_mm[" + std::to_string(i) + "]", false;
+  }
   for (std::size_t k = 0; k < a.segments.size(); ++k) {
     const Segment& x = a.segments[k];
     const Segment& y = b.segments[k];
@@ -85,6 +88,10 @@ inline bool same_program(const Program& a, const Program& b, std::string& why) {
 
 //! The decoder's promise: no NaN anywhere, finite numbers in the records.
 inline bool all_finite(const Program& p, std::string& why) {
+  for (int i = 0; i < p.number_axes; ++i) {
+    if (!std::isfinite(p.start_mm[static_cast<std::size_t>(i)]))
+      return why = "non-finite start", false;
+  }
   for (std::size_t k = 0; k < p.segments.size(); ++k) {
     const Segment& s = p.segments[k];
     bool ok = std::isfinite(s.center[0]) && std::isfinite(s.center[1]) &&

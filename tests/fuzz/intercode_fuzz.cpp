@@ -35,6 +35,7 @@ void prepare_seeds(std::vector<std::string>& seeds) {
   Program p;
   p.number_axes = 4;
   p.axis_letters = "XYZA";
+  p.start_mm = {0.5, -1.25, 2, 90};
   Segment s;
   s.type = SegmentType::kLinear;
   s.line = 1;

@@ -1133,8 +1133,9 @@ TEST(ServiceProcesses, HmiRunEndsWhenAPositionSetDropsItsProgram) {
 // A program runs from where the interpolator stands. tgm-hmi run compiled every program from
 // machine zero: a G91 program's moves were not relative to the machine's position, a G90 line
 // drove the axes it does not name to 0 (Z down after a retract: the G0 below went to Z0), and a
-// first arc ran as a spiral. Intercode (compiled from zero) that starts with an arc off its
-// circle from here is refused by the interpolator, with the reason, and nothing runs.
+// first arc ran as a spiral. Intercode runs only from the point it was compiled from, unless
+// --from-here; one that starts with an arc off its circle from here is then refused by the
+// interpolator, with the reason, and nothing runs.
 TEST(ServiceProcesses, HmiRunStartsTheProgramWhereTheInterpolatorStands) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());
@@ -1142,11 +1143,12 @@ TEST(ServiceProcesses, HmiRunStartsTheProgramWhereTheInterpolatorStands) {
   std::ofstream(env.path("inc.ngc")) << "G91 G1 X10 F6000\nG2 X10 I5\nM2\n";
   std::ofstream(env.path("abs.ngc")) << "G90 G0 X0 Y0\nM2\n";
   std::ofstream(env.path("arc.ngc")) << "G91 G2 X10 I5 F2000\nM2\n";
-  auto run = [&](const std::string& file, int code) {
+  auto run = [&](const std::string& file, int code, const std::string& flag = "") {
     test::Child c;
-    EXPECT_TRUE(c.start({TGM_HMI_BIN, "run", env.path(file), "--config", env.config(),
-                         "--progress-interval", "100"},
-                        env.path(file + ".log")));
+    std::vector<std::string> argv{
+        TGM_HMI_BIN, "run", env.path(file), "--config", env.config(), "--progress-interval", "100"};
+    if (!flag.empty()) argv.push_back(flag);
+    EXPECT_TRUE(c.start(argv, env.path(file + ".log")));
     EXPECT_EQ(c.wait(kHang), code) << file << ": " << c.log();
     return c.log();
   };
@@ -1168,11 +1170,19 @@ TEST(ServiceProcesses, HmiRunStartsTheProgramWhereTheInterpolatorStands) {
                              "--out", env.path("arc.tgmi")},
                             env.path("compile.log")));
   ASSERT_EQ(compile.wait(kHang), 0) << compile.log();
-  log = run("arc.tgmi", 1);
-  EXPECT_NE(log.find("arc.tgmi: note: intercode compiled from machine zero; interpolator 0 "
-                     "stands at X20 Y5 Z-2, where its first move starts\n"),
+  // Intercode compiled from zero is refused where the interpolator stands elsewhere (a note said
+  // where its first move would start, and the run went on), with what to do.
+  log = run("arc.tgmi", 2);
+  EXPECT_NE(log.find("arc.tgmi: error: compiled from X0 Y0 Z0, interpolator 0 stands at X20 Y5 "
+                     "Z-2: the program would not run as compiled"),
             std::string::npos)
       << log;
+  EXPECT_NE(log.find("tgm-hmi compile FILE --start X20,Y5,Z-2 --out ...), run the G-code "
+                     "itself, or pass --from-here\n"),
+            std::string::npos)
+      << log;
+  // --from-here runs it from there: the interpolator refuses the arc, which would be a spiral.
+  log = run("arc.tgmi", 1, "--from-here");
   EXPECT_NE(log.find("ERROR: program "), std::string::npos) << log;  // no "(line 0)"
   EXPECT_NE(log.find("refused: record 0 (line 1): arc does not start on its circle (radius "
                      "15.8114 mm at the start, 5 mm at the end): compiled to start elsewhere "
@@ -1183,6 +1193,15 @@ TEST(ServiceProcesses, HmiRunStartsTheProgramWhereTheInterpolatorStands) {
   ASSERT_TRUE(hmi.wait_for_state(0, kHang));
   EXPECT_EQ(hmi.state(0)->orig_position()[0], 20.0);  // it did not move
   EXPECT_EQ(hmi.state(0)->status(), 0);
+  // Compiled from where the interpolator stands, the file runs, as the G-code does.
+  test::Child here;
+  ASSERT_TRUE(here.start({TGM_HMI_BIN, "compile", env.path("arc.ngc"), "--config", env.config(),
+                          "--start", "X20,Y5,Z-2", "--out", env.path("here.tgmi")},
+                         env.path("here.log")));
+  ASSERT_EQ(here.wait(kHang), 0) << here.log();
+  EXPECT_NE(here.log().find("compiled from X20 Y5 Z-2) written to "), std::string::npos)
+      << here.log();
+  ends_at(run("here.tgmi", 0), {30.0, 5.0, -2.0});
 }
 
 // Without a PLC an M-function waits for ever: the progress line says for how long and asks

@@ -685,12 +685,12 @@ TEST(Intercode, DecodeRefusesOutOfRangeValuesAndMissingSideTableEntries) {
 }
 
 TEST(Intercode, RecordsStoreOnlyWhatChanged) {
-  // Header 25 bytes; first move: type, flags, axis mask, tool (initial tool 1), X, feed = 24;
-  // then X only = 12 each; the table counts 8; the checksum 4.
+  // Header 25 bytes and the start point 3 x 8; first move: type, flags, axis mask, tool
+  // (initial tool 1), X, feed = 24; then X only = 12 each; the table counts 8; the checksum 4.
   const Program p = compile_ok("G90 G1 X1 F100\nX2\nX3\n");
   std::string bytes;
   encode_intercode(p, bytes);
-  EXPECT_EQ(bytes.size(), 25u + 24u + 12u + 12u + 8u + 4u);
+  EXPECT_EQ(bytes.size(), 25u + 24u + 24u + 12u + 12u + 8u + 4u);
 }
 
 TEST(Intercode, LineNumberOverflowIsAnErrorNotUndefinedBehaviour) {
@@ -703,13 +703,13 @@ TEST(Intercode, LineNumberOverflowIsAnErrorNotUndefinedBehaviour) {
   p.segments = {s, s};
   std::string bytes;
   encode_intercode(p, bytes);
-  ASSERT_EQ(bytes.size(), 25u + 8u + 8u + 8u + 4u);  // each record: type, flags, mask, line
+  ASSERT_EQ(bytes.size(), 25u + 24u + 8u + 8u + 8u + 4u);  // each record: type, flags, mask, line
   Program q;
   std::string err;
   ASSERT_TRUE(decode_intercode(bytes, q, err)) << err;
   EXPECT_EQ(q.segments[1].line, std::numeric_limits<std::int32_t>::max());
-  bytes[34] = static_cast<char>(bytes[34] & ~0x08);  // second record: "line = previous + 1"
-  bytes.erase(37, 4);
+  bytes[58] = static_cast<char>(bytes[58] & ~0x08);  // second record: "line = previous + 1"
+  bytes.erase(61, 4);
   ASSERT_TRUE(reseal_intercode(bytes));
   EXPECT_FALSE(decode_intercode(bytes, q, err));
   EXPECT_NE(err.find("line number overflows in record 1"), std::string::npos) << err;
@@ -781,7 +781,7 @@ TEST(Intercode, StreamingEncoderMakesTheSameFile) {
   std::string whole;
   encode_intercode(p, whole);
   std::string buffer, file;
-  IntercodeEncoder enc(buffer, p.number_axes, p.axis_letters, /*streaming=*/true);
+  IntercodeEncoder enc(buffer, p.number_axes, p.axis_letters, p.start_mm, /*streaming=*/true);
   for (const Segment& sg : p.segments) {
     enc.add(sg);
     file += buffer;
@@ -798,21 +798,65 @@ TEST(Intercode, StreamingEncoderMakesTheSameFile) {
   EXPECT_EQ(behind.substr(3), whole);
 }
 
-// Version 2 files (before the checksum) are still read.
-TEST(Intercode, VersionTwoFilesWithoutAChecksumAreRead) {
+// The point a program was compiled from is in the file (version 4), the G91 records' ends
+// relative to it; the streaming writer of `tgm-hmi compile` writes it too.
+TEST(Intercode, TheStartPointTravelsWithTheFile) {
+  CompileOptions o;
+  o.start_mm = {20.0, 5.25, -2.0};
+  const CompileResult r = compile_gcode("G91 G1 X10 F100\nG2 X10 I5\nM2\n", o);
+  ASSERT_TRUE(r.ok());
+  EXPECT_EQ(r.program.start_mm, o.start_mm);
+  EXPECT_EQ(r.program.segments[0].end[0], 30.0);
+  std::string bytes;
+  encode_intercode(r.program, bytes);
+  Program q;
+  std::string err;
+  ASSERT_TRUE(decode_intercode(bytes, q, err)) << err;
+  EXPECT_EQ(q.start_mm, o.start_mm);
+  std::string streamed;
+  IntercodeEncoder enc(streamed, 3, "XYZ", o.start_mm, /*streaming=*/true);
+  for (const Segment& sg : r.program.segments) enc.add(sg);
+  const std::uint64_t count = enc.records();
+  enc.finish(r.program.params, r.program.messages);
+  std::memcpy(streamed.data() + IntercodeEncoder::kCountOffset, &count, sizeof count);
+  EXPECT_EQ(streamed, bytes);
+  // A start point that is not a number is refused, as a coordinate is.
+  std::string bad = bytes;
+  const double nan = std::nan("");
+  std::memcpy(bad.data() + IntercodeEncoder::kCountOffset + 8 + 8, &nan, sizeof nan);
+  ASSERT_TRUE(reseal_intercode(bad));
+  EXPECT_FALSE(decode_intercode(bad, q, err));
+  EXPECT_NE(err.find("non-finite start point"), std::string::npos) << err;
+}
+
+// Version 3 files (before the start point) and version 2 files (before the checksum) are still
+// read, as compiled from machine zero, the only point `tgm-hmi compile` compiled from then.
+TEST(Intercode, VersionTwoAndThreeFilesAreReadAsCompiledFromZero) {
   const Program p = compile_ok("G90 G1 X1 F100\nG2 X3 I1\nM3 S1\n");
   std::string bytes;
   encode_intercode(p, bytes);
-  std::string v2 = bytes.substr(0, bytes.size() - 4);
-  v2[4] = 2;
+  ASSERT_EQ(bytes[4], 4);
+  // Version 3: the same without the start point's 3 doubles after the header.
+  std::string v3 = bytes;
+  v3.erase(IntercodeEncoder::kCountOffset + 8, 3 * sizeof(double));
+  v3[4] = 3;
+  ASSERT_TRUE(reseal_intercode(v3));
   Program q;
+  q.start_mm[0] = 7.0;
   std::string err;
+  ASSERT_TRUE(decode_intercode(v3, q, err)) << err;
+  EXPECT_EQ(q.segments.size(), p.segments.size());
+  EXPECT_EQ(q.segments[1].end, p.segments[1].end);
+  EXPECT_EQ(q.start_mm, (std::array<double, kMaxAxes>{}));
+  // Version 2: version 3 without the checksum.
+  std::string v2 = v3.substr(0, v3.size() - 4);
+  v2[4] = 2;
   ASSERT_TRUE(decode_intercode(v2, q, err)) << err;
   EXPECT_EQ(q.segments.size(), p.segments.size());
   EXPECT_EQ(q.segments[1].end, p.segments[1].end);
-  v2[4] = 4;
+  v2[4] = 5;
   EXPECT_FALSE(decode_intercode(v2, q, err));
-  EXPECT_NE(err.find("unsupported version 4"), std::string::npos) << err;
+  EXPECT_NE(err.find("unsupported version 5 (this build reads 2 to 4)"), std::string::npos) << err;
 }
 
 }  // namespace

@@ -46,6 +46,11 @@ constexpr const char* kUsage =
     "  --timeout S           give up (stop the interpolator, exit 1) after S seconds (default "
     "none)\n"
     "  --quiet               no progress display, only messages and the summary\n"
+    "  --from-here           run a .tgmi file from where the interpolator stands although it\n"
+    "                        was compiled from another point (its first move goes from here)\n"
+    "\n"
+    "A G-code FILE is compiled from where the interpolator stands. A .tgmi file runs only from\n"
+    "the point it was compiled from (tgm-hmi compile --start), unless --from-here.\n"
     "\n"
     "Ctrl-C stops the interpolator (normal stop on the trajectory) and exits with 130.\n";
 
@@ -141,10 +146,11 @@ int run_run(int argc, char** argv) {
   Args args(argc, argv, "run", kUsage);
   DdsOverrides overrides;
   std::string file, plot_path, error;
-  bool quiet = false;
+  bool quiet = false, from_here = false;
   double interval_s = 1.0, m0_s = -1.0, timeout_s = 0.0;
   while (args.more()) {
     if (args.dds_flag(overrides)) continue;
+    if (args.boolean("--from-here", from_here)) continue;
     if (args.flag("--plot", plot_path)) continue;
     if (progress_interval_flag(args, interval_s)) continue;
     if (args.number_flag("--m0-continue", m0_s, "seconds >= 0", [](double v) { return v >= 0.0; }))
@@ -273,23 +279,38 @@ int run_run(int argc, char** argv) {
   // relative to that point and the axes a G90 line does not name stay where they are. It was
   // compiled from machine zero above, so that bad input is reported before any DDS traffic; from
   // any other point it is compiled again (before the clear: an error there leaves the service
-  // untouched). Intercode holds absolute positions compiled from machine zero.
+  // untouched). Intercode holds absolute positions compiled from the point its file records
+  // (`tgm-hmi compile --start`; machine zero before format version 4): from anywhere else its
+  // first move and the axes its first G90 lines do not name go elsewhere than compiled (a note
+  // said so, and the run went on), so it runs from there only, or with --from-here.
   std::array<double, kMaxAxes> here{};
   bool away = false;
-  std::string here_text;
   for (int a = 0; a < program.number_axes; ++a) {
     const auto k = static_cast<std::size_t>(a);
     here[k] = st->orig_position()[k];
     away = away || here[k] != 0.0;
-    if (a > 0) here_text.push_back(' ');
-    here_text.push_back(program.axis_letters[k]);
-    here_text += number_text(here[k]);
   }
-  if (away && is_intercode_file(file)) {
-    std::fprintf(stderr,
-                 "%s: note: intercode compiled from machine zero; interpolator %d stands at %s, "
-                 "where its first move starts\n",
-                 file.c_str(), ip, here_text.c_str());
+  const std::string here_text = point_text(here, program.axis_letters);
+  if (is_intercode_file(file)) {
+    if (same_point(here, program.start_mm, program.number_axes)) {
+      // Runs as compiled.
+    } else if (!from_here) {
+      std::fprintf(stderr,
+                   "%s: error: compiled from %s, interpolator %d stands at %s: the program would "
+                   "not run as compiled (its first move and the axes its first G90 lines do not "
+                   "name start from %s). Compile the G-code from here (tgm-hmi compile FILE "
+                   "--start %s --out ...), run the G-code itself, or pass --from-here\n",
+                   file.c_str(), point_text(program.start_mm, program.axis_letters).c_str(), ip,
+                   here_text.c_str(), point_text(program.start_mm, program.axis_letters).c_str(),
+                   point_text(here, program.axis_letters, ',').c_str());
+      return 2;
+    } else if (!quiet) {
+      std::fprintf(stderr,
+                   "%s: note: compiled from %s, runs from where interpolator %d stands (%s): its "
+                   "first move starts here\n",
+                   file.c_str(), point_text(program.start_mm, program.axis_letters).c_str(), ip,
+                   here_text.c_str());
+    }
   } else if (away) {
     program = Program{};  // a long program is not held twice
     if (std::size_t errors = 0; !load_program(file, config->machine, ip, program, &errors, &here)) {

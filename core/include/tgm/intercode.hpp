@@ -145,6 +145,10 @@ struct Program {
   int number_axes = 3;
   //! Axis letters, one per configured axis.
   std::string axis_letters = "XYZ";
+  //! Machine position the program was compiled from [mm] (CompileOptions::start_mm): its G91
+  //! moves, arcs and the axes its first G90 moves do not name start there, so it runs as
+  //! compiled only from there.
+  std::array<double, kMaxAxes> start_mm{};
 };
 
 }  // namespace tgm

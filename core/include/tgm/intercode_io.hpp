@@ -14,8 +14,9 @@ namespace tgm {
 
 //! Appends the binary intercode of `p` to `out` (little-endian, versioned, compact: a record
 //! stores the configured axes and modal fields that differ from the record before it, and only
-//! the fields its type uses; version 3 ends in a CRC-32 of the file, so that a damaged file is
-//! refused instead of being run as another program).
+//! the fields its type uses; since version 3 it ends in a CRC-32 of the file, so that a damaged
+//! file is refused instead of being run as another program; version 4 holds the point the
+//! program was compiled from, `Program::start_mm`).
 void encode_intercode(const Program& p, std::string& out);
 
 //! Writes binary intercode record by record, for programs too long to hold as `Segment`s.
@@ -26,9 +27,10 @@ class IntercodeEncoder {
   static constexpr std::size_t kCountOffset = 4 + 2 + 1 + kMaxAxes;
 
   //! Appends the header to `out`; `out` must outlive the encoder. A `streaming` encoder's caller
-  //! empties `out` as it goes and writes the record count at kCountOffset itself.
+  //! empties `out` as it goes and writes the record count at kCountOffset itself. `start_mm`:
+  //! the point the program was compiled from (finite; the first `number_axes` are written).
   IntercodeEncoder(std::string& out, int number_axes, std::string_view axis_letters,
-                   bool streaming = false);
+                   const std::array<double, kMaxAxes>& start_mm, bool streaming = false);
   //! Appends one record.
   void add(const Segment& s);
   //! Appends the side tables and, unless streaming, fixes the record count in the header.
@@ -52,17 +54,18 @@ class IntercodeEncoder {
   std::uint32_t crc_ = 0xFFFFFFFFu;  // of what was appended so far, but the record count
 };
 
-//! Parses binary intercode (version 3, checksum checked first, or version 2, which has none). On
-//! failure returns false and says why in `error`; never reads out of bounds and never accepts
-//! NaN, unknown record types or dangling side-table indices.
+//! Parses binary intercode (versions 3 and 4, checksum checked first, or version 2, which has
+//! none; versions 2 and 3 were always compiled from machine zero, and read so). On failure
+//! returns false and says why in `error`; never reads out of bounds and never accepts NaN,
+//! unknown record types or dangling side-table indices.
 bool decode_intercode(std::string_view bytes, Program& out, std::string& error);
 
 //! CRC-32 (IEEE 802.3, as zlib's crc32) of `bytes`.
 std::uint32_t crc32(std::string_view bytes);
 
-//! Writes the checksum that a version 3 file's other bytes call for into its last 4 bytes (for
-//! tests and fuzzers that change a file on purpose). False, and nothing changed, when `file` is
-//! not version 3 intercode long enough to have one.
+//! Writes the checksum that a version 3 or 4 file's other bytes call for into its last 4 bytes
+//! (for tests and fuzzers that change a file on purpose). False, and nothing changed, when
+//! `file` is not such intercode long enough to have one.
 bool reseal_intercode(std::string& file);
 
 //! One JSON object per record, '\n'-terminated (see README "Intercode dump").
