@@ -24,6 +24,7 @@ TEST(SilenceWatch, SaysOnceWhenTheStateStopsAndOnceWhenItComesBack) {
   EXPECT_EQ(w.update(9, t0 + 10s), Change::kNone);  // said once
   EXPECT_TRUE(w.silent());
   EXPECT_EQ(w.since_last(t0 + 10s), 9s);
+  EXPECT_EQ(w.seconds_since_last(t0 + 10s + 999ms), 9);
   EXPECT_EQ(w.update(10, t0 + 11s), Change::kBack);
   EXPECT_FALSE(w.silent());
   EXPECT_EQ(w.since_last(t0 + 11s + 5ms), 5ms);

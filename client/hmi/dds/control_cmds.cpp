@@ -204,10 +204,7 @@ int run_watch(int argc, char** argv) {
     const auto change = silence.update(c.client->state_samples(ip), now);
     const std::string stale =
         silence.silent()
-            ? "no state from tgm-service for " +
-                  std::to_string(
-                      std::chrono::duration_cast<std::chrono::seconds>(silence.since_last(now))
-                          .count()) +
+            ? "no state from tgm-service for " + std::to_string(silence.seconds_since_last(now)) +
                   " s (stopped, or the network is down): the registers shown are the last received"
             : std::string();
     if (json) {

@@ -297,9 +297,9 @@ int run_run(int argc, char** argv) {
     } else if (!from_here) {
       std::fprintf(stderr,
                    "%s: error: compiled from %s, interpolator %d stands at %s: the program would "
-                   "not run as compiled (its first move and the axes its first G90 lines do not "
-                   "name start from %s). Compile the G-code from here (tgm-hmi compile FILE "
-                   "--start %s --out ...), run the G-code itself, or pass --from-here\n",
+                   "not run as compiled (its moves were planned from %s). Compile the G-code "
+                   "from here (tgm-hmi compile FILE --start %s --out ...), run the G-code itself, "
+                   "or pass --from-here\n",
                    file.c_str(), point_text(program.start_mm, program.axis_letters).c_str(), ip,
                    here_text.c_str(), point_text(program.start_mm, program.axis_letters).c_str(),
                    point_text(here, program.axis_letters, ',').c_str());
@@ -601,11 +601,7 @@ int run_run(int argc, char** argv) {
       }
       std::string shown(client::status_name(st->status()));
       if (stale) {
-        shown =
-            "no state for " +
-            std::to_string(
-                std::chrono::duration_cast<std::chrono::seconds>(silence.since_last(now)).count()) +
-            " s";
+        shown = "no state for " + std::to_string(silence.seconds_since_last(now)) + " s";
         wait.clear();
       }
       std::printf("%s[%s] %5.1f%% line %d/%d%s F%.0f %s%s%s", tty ? "\r\033[K" : "", bar, pct,

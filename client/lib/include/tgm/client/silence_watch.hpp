@@ -34,6 +34,10 @@ class SilenceWatch {
   std::chrono::steady_clock::duration since_last(std::chrono::steady_clock::time_point now) const {
     return started_ ? now - at_ : std::chrono::steady_clock::duration{};
   }
+  //! since_last in whole seconds, for "no state for N s".
+  std::int64_t seconds_since_last(std::chrono::steady_clock::time_point now) const {
+    return std::chrono::duration_cast<std::chrono::seconds>(since_last(now)).count();
+  }
 
  private:
   std::chrono::steady_clock::duration limit_;
