@@ -1811,7 +1811,12 @@ TEST(ServiceProcesses, ServiceStopsCleanlyOnSigtermAndRejectsBadFlags) {
   ASSERT_TRUE(hmi.wait_for_state(0, kHang));
   test::Child plc;
   ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.config()}, env.path("plc.log")));
-  std::this_thread::sleep_for(300ms);
+  // Running, its handlers in place (a fixed 300 ms was too short under AddressSanitizer: the
+  // SIGTERM came before the handler and the PLC died of it, exit 143).
+  for (int i = 0; i < 400 && plc.log().find(": setup done (") == std::string::npos; ++i) {
+    std::this_thread::sleep_for(25ms);
+  }
+  ASSERT_NE(plc.log().find(": setup done ("), std::string::npos) << plc.log();
   // SIGTERM as from systemd or docker stop: both exit 0 and say so.
   EXPECT_EQ(plc.interrupt(10s, SIGTERM), 0) << plc.log();
   EXPECT_EQ(env.service.interrupt(10s, SIGTERM), 0) << env.service.log();
