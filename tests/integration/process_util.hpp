@@ -92,6 +92,18 @@ class Child {
     ss << f.rdbuf();
     return ss.str();
   }
+  //! Waits up to `limit` until the log holds `text`, reading it every `poll`; false if it
+  //! never came.
+  bool wait_for_log(const std::string& text,
+                    std::chrono::milliseconds limit = std::chrono::seconds(10),
+                    std::chrono::milliseconds poll = std::chrono::milliseconds(25)) const {
+    const auto until = std::chrono::steady_clock::now() + limit;
+    while (log().find(text) == std::string::npos) {
+      if (std::chrono::steady_clock::now() >= until) return false;
+      std::this_thread::sleep_for(poll);
+    }
+    return true;
+  }
 
  private:
   pid_t pid_ = -1;

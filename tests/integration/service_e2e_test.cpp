@@ -510,10 +510,7 @@ TEST(ServiceProcesses, HmiRunEndsWithAClearErrorWhenTheServiceRestarts) {
         << hmi.log();
   }
   ASSERT_EQ(env.service.interrupt(), 0);
-  for (int i = 0; i < 200 && hmi.log().find("no state from tgm-service") == std::string::npos;
-       ++i) {
-    std::this_thread::sleep_for(50ms);
-  }
+  hmi.wait_for_log("no state from tgm-service");
   EXPECT_NE(hmi.log().find("no state from tgm-service for 3 s"), std::string::npos) << hmi.log();
   std::this_thread::sleep_for(1500ms);  // 7 progress intervals
   {
@@ -525,9 +522,7 @@ TEST(ServiceProcesses, HmiRunEndsWithAClearErrorWhenTheServiceRestarts) {
   ASSERT_TRUE(env.start_service());
   EXPECT_EQ(hmi.wait(kHang), 1) << hmi.log();
   EXPECT_NE(hmi.log().find("tgm-service restarted during the run"), std::string::npos) << hmi.log();
-  for (int i = 0; i < 200 && watcher.log().find("tgm-service is back") == std::string::npos; ++i) {
-    std::this_thread::sleep_for(50ms);
-  }
+  watcher.wait_for_log("tgm-service is back");
   EXPECT_EQ(watcher.interrupt(), 0);
   const std::string watched = watcher.log();
   const auto silent = watched.find(
@@ -745,9 +740,7 @@ TEST(ServiceProcesses, AMalformedSampleIsDroppedAndTheServiceGoesOn) {
   const std::string says = "tgm-service: DDS samples that cannot be read arrive and are dropped (";
   const std::string who = "so far): a participant on domain " + std::to_string(env.domain()) +
                           " writes tgm topics in a form this version does not know";
-  for (int i = 0; i < 200 && env.service.log().find(who) == std::string::npos; ++i) {
-    std::this_thread::sleep_for(50ms);
-  }
+  env.service.wait_for_log(who);
   EXPECT_NE(env.service.log().find(says), std::string::npos) << env.service.log();
   EXPECT_NE(env.service.log().find(who), std::string::npos) << env.service.log();
   const client::Reply r = hmi.clear(0);
@@ -842,9 +835,7 @@ TEST(ServiceProcesses, ChunksForAnInterpolatorNotHostedAreSaidOnceNotPerChunk) {
   const std::string says =
       "tgm-service: program chunk for interpolator 7 dropped (the service "
       "hosts 0..2; 1 such chunks so far)";
-  for (int i = 0; i < 200 && env.service.log().find(says) == std::string::npos; ++i) {
-    std::this_thread::sleep_for(50ms);
-  }
+  env.service.wait_for_log(says);
   std::this_thread::sleep_for(300ms);
   const std::string log = env.service.log();
   EXPECT_NE(log.find(says), std::string::npos) << log;
@@ -1813,9 +1804,7 @@ TEST(ServiceProcesses, ServiceStopsCleanlyOnSigtermAndRejectsBadFlags) {
   ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.config()}, env.path("plc.log")));
   // Running, its handlers in place (a fixed 300 ms was too short under AddressSanitizer: the
   // SIGTERM came before the handler and the PLC died of it, exit 143).
-  for (int i = 0; i < 400 && plc.log().find(": setup done (") == std::string::npos; ++i) {
-    std::this_thread::sleep_for(25ms);
-  }
+  plc.wait_for_log(": setup done (");
   ASSERT_NE(plc.log().find(": setup done ("), std::string::npos) << plc.log();
   // SIGTERM as from systemd or docker stop: both exit 0 and say so.
   EXPECT_EQ(plc.interrupt(10s, SIGTERM), 0) << plc.log();

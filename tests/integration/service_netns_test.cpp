@@ -328,10 +328,7 @@ TEST_F(ServiceNetns, AProgramStreamGoesOnAfterANetworkOutage) {
                                       "--progress-interval", "0.2"}),
                         env.path("hmi.log")));
   // Cut once the stream runs (the first progress line), well before its end.
-  const auto by = std::chrono::steady_clock::now() + 60s;
-  while (hmi.log().find("% line ") == std::string::npos && std::chrono::steady_clock::now() < by) {
-    std::this_thread::sleep_for(20ms);
-  }
+  hmi.wait_for_log("% line ", 60s, 20ms);
   ASSERT_NE(hmi.log().find("% line "), std::string::npos) << hmi.log() << service.log();
   cut(2, 4s);
   const int code = hmi.wait(120s);
@@ -370,11 +367,7 @@ TEST_F(ServiceNetns, AnAcknowledgementCutOffByAnOutageArrivesAfterIt) {
   ASSERT_TRUE(hmi.start(
       ns().exec(2, {TGM_HMI_BIN, "run", kManualExample, "--config", env.config(), "--quiet"}),
       env.path("hmi.log")));
-  const auto by = std::chrono::steady_clock::now() + 60s;
-  while (plc.log().find("M51 normal: the interpolator waits") == std::string::npos &&
-         std::chrono::steady_clock::now() < by) {
-    std::this_thread::sleep_for(5ms);
-  }
+  plc.wait_for_log("M51 normal: the interpolator waits", 60s, 5ms);
   ASSERT_NE(plc.log().find("M51 normal: the interpolator waits"), std::string::npos)
       << plc.log() << hmi.log();
   cut(1, 4s);
