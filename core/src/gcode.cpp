@@ -524,6 +524,15 @@ void Compiler::check_block_static(Block& b) {
   }
   auto has = [&](char L) { return by_letter[L - 'A'] != nullptr; };
   auto word = [&](char L) { return by_letter[L - 'A']; };
+  auto check_tool = [&] {
+    if (const Word* t = word('T');
+        t && (!integral(t->value) || t->value < 0 || t->value > kMaxTool)) {
+      error(b.line, t->column,
+            "tool T must be a whole number 0.." + std::to_string(kMaxTool) + ", not " +
+                fmt_num(t->value));
+      b.valid = false;
+    }
+  };
   auto gnum = [&](GGroup grp) {
     const Word* p = g_of[static_cast<std::size_t>(grp)];
     return p ? static_cast<int>(p->value) : -1;
@@ -577,6 +586,8 @@ void Compiler::check_block_static(Block& b) {
         }
       }
     }
+    // T on an M line selects the tool as well (M6 T2), so it obeys the tool's range.
+    check_tool();
     if (!plc && m == 99) {
       if (!has('F')) {
         error(b.line, m_word->column, "M99 needs F<mm/min>, the new default feed");
@@ -619,10 +630,7 @@ void Compiler::check_block_static(Block& b) {
     error(b.line, f->column, "feed F must be > 0 and <= 1000000 mm/min, not " + fmt_num(f->value));
     b.valid = false;
   }
-  if (const Word* t = word('T'); t && (!integral(t->value) || t->value < 0 || t->value > 99999)) {
-    error(b.line, t->column, "tool T must be a whole number 0..99999, not " + fmt_num(t->value));
-    b.valid = false;
-  }
+  check_tool();
   if (const Word* d = word('D'); d && d->value < 0) {
     error(b.line, d->column, "compensation radius D must be >= 0, not " + fmt_num(d->value));
     b.valid = false;
@@ -848,7 +856,7 @@ std::size_t Compiler::execute_block(std::size_t index, bool relex) {
       if (by_letter[k] && L != 'N' && L != 'P') params[static_cast<std::size_t>(k)] = by_letter[k]->value;
     }
     // T on an M line (M6 T2) both selects the tool and is a parameter.
-    if (const Word* t = word('T'); t && integral(t->value) && t->value >= 0) {
+    if (const Word* t = word('T')) {
       tool_ = static_cast<int>(t->value);
       s.tool = tool_;
     }

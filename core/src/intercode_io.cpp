@@ -383,7 +383,8 @@ bool decode_intercode(std::string_view file, Program& out, std::string& error) {
     if (!ok) return fail("truncated " + rec);
     if (!finite(s.compensation_radius_mm) || !finite(s.feed_mm_per_min) || !finite(s.center[0]) ||
         !finite(s.center[1]) || !finite(s.radius) || !finite(s.dwell_s) || s.feed_mm_per_min < 0 ||
-        s.radius < 0 || s.dwell_s < 0 || s.turns < 0 || s.compensation_radius_mm < 0) {
+        s.radius < 0 || s.dwell_s < 0 || s.turns < 0 || s.compensation_radius_mm < 0 ||
+        s.tool < 0 || s.tool > kMaxTool) {
       return fail("value out of range in " + rec);
     }
     prev = s;

@@ -757,6 +757,12 @@ TEST(Requests, BadRecordsAreNamedWithRecordLineAndReason) {
   d.line({1.0, 0.0}, 100.0).dwell(-1.0);
   r = ip->load(d.program());
   EXPECT_EQ(r.reason, "record 1 (line 2): dwell must be 0..1e6 s");
+  ProgramBuilder e(2);  // Tool_Number shows what the record says: a tool the compiler refuses
+  e.line({1.0, 0.0}, 100.0);
+  Program pe = e.program();
+  pe.segments[0].tool = -3;
+  r = ip->load(pe);
+  EXPECT_EQ(r.reason, "record 0 (line 1): tool number must be 0..99999");
   EXPECT_EQ(ip->registers().free_slots, m.interpolators[0].buffer_size);
 }
 

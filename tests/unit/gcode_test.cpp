@@ -389,6 +389,14 @@ TEST(GcodeErrors, NumbersMissingNotFiniteOrOutOfRange) {
               ElementsAre("1:7: feed F must be > 0 and <= 1000000 mm/min, not 0"));
   EXPECT_THAT(errors_of("G4 P-1\n"), ElementsAre("1:4: dwell P must be 0..100000 s, not -1"));
   EXPECT_THAT(errors_of("T1.5\n"), ElementsAre("1:1: tool T must be a whole number 0..99999, not 1.5"));
+  // On an M line T selects the tool too (M6 T2), so the same range holds there: T-1 passed as a
+  // parameter and left the tool unchanged without a word, T99999999 became the tool.
+  EXPECT_THAT(errors_of("M6 T-1\n"),
+              ElementsAre("1:4: tool T must be a whole number 0..99999, not -1"));
+  EXPECT_THAT(errors_of("M6 T99999999\n"),
+              ElementsAre("1:4: tool T must be a whole number 0..99999, not 99999999"));
+  EXPECT_THAT(errors_of("M1006 T2.5\n"),
+              ElementsAre("1:7: tool T must be a whole number 0..99999, not 2.5"));
   EXPECT_THAT(errors_of("G26 L1 K0\nM2\nG29 L1\nM17\n"),
               ElementsAre("1:8: count K must be a whole number 1..1000000000, not 0"));
 }
@@ -666,6 +674,10 @@ TEST(Intercode, DecodeRefusesOutOfRangeValuesAndMissingSideTableEntries) {
        "value out of range in record 3"},
       {"negative turns", [](Program& p) { p.segments[3].turns = -1; },
        "value out of range in record 3"},
+      {"negative tool", [](Program& p) { p.segments[2].tool = -1; },
+       "value out of range in record 2"},
+      {"tool beyond the T range", [](Program& p) { p.segments[0].tool = kMaxTool + 1; },
+       "value out of range in record 0"},
       {"M without parameters", [](Program& p) { p.params.clear(); },
        "an M record at line 3 names a missing parameter set"},
       {"message without text", [](Program& p) { p.segments[4].aux = 7; },

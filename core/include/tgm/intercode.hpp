@@ -25,6 +25,8 @@ inline constexpr int kParamLetters = 26;
 //! so lengths, squares and products of any accepted record stay finite.
 inline constexpr double kMaxCoordinateMm = 1.0e9;
 inline constexpr double kMaxFeedMmPerMin = 1.0e6;
+//! Largest tool number a T word may select.
+inline constexpr int kMaxTool = 99999;
 //! An arc whose end lies closer than this to its start ends at its start [mm]: a full circle
 //! with I/J/K, an error with R (the compiler and the interpolator hold to the same rule).
 inline constexpr double kFullCircleMm = 1.0e-9;

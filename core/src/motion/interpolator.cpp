@@ -700,6 +700,7 @@ struct Interpolator::Impl {
   };
   RecordProblem record_problem(const Program& p, const Segment& sg) const {
     if (static_cast<int>(sg.type) > 6) return {"unknown record type"};
+    if (sg.tool < 0 || sg.tool > kMaxTool) return {"tool number must be 0..99999"};
     for (int a = 0; a < n; ++a) {
       if (!(std::fabs(sg.end[a]) <= kMaxCoordinateMm))
         return {"end point of axis ", a, " is not a number within +-1e9 mm"};
