@@ -609,6 +609,13 @@ void Compiler::check_block_static(Block& b) {
       error(b.line, m_word->column, "M29 needs its message text in parentheses: M29 (text)");
       b.valid = false;
     }
+    if (!plc && m == 29 && b.has_comment && b.comment_length > kMaxMessageBytes) {
+      error(b.line, m_word->column,
+            "M29 message is " + std::to_string(b.comment_length) + " bytes long; at most " +
+                std::to_string(kMaxMessageBytes) +
+                " reach the HMI (split it over several M29 lines)");
+      b.valid = false;
+    }
     return;
   }
 

@@ -413,6 +413,9 @@ bool decode_intercode(std::string_view file, Program& out, std::string& error) {
   for (auto& m : p.messages) {
     std::uint32_t len = 0;
     if (!in.get(len) || !in.bytes(len, m)) return fail("truncated message table");
+    if (m.size() > kMaxMessageBytes) {
+      return fail("a message is longer than " + std::to_string(kMaxMessageBytes) + " bytes");
+    }
   }
   if (!in.at_end()) return fail("trailing bytes after the message table");
   out = std::move(p);

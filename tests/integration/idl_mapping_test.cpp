@@ -299,6 +299,51 @@ TEST(IdlMapping, CoreSideErrors) {
   EXPECT_EQ(mapping::fill_chunk(sample_program(), 100, {}, chunk, next), MapStatus::kBadIndex);
 }
 
+// What cannot be sent is found before anything is: a long program whose record 400 holds a
+// message beyond the bound streamed its first 399 records, which the service ran, and then
+// stopped with the machine moving. program_problem names that record at once; fill_chunk names
+// it too (it said the chunk's first record).
+TEST(IdlMapping, ProgramProblemNamesTheRecordBeforeAnythingIsSent) {
+  Program p;
+  p.number_axes = 1;
+  p.axis_letters = "X";
+  for (int i = 0; i < 500; ++i) {
+    Segment s;
+    s.type = SegmentType::kLinear;
+    s.line = i + 1;
+    s.end[0] = i;
+    s.feed_mm_per_min = 100.0;
+    p.segments.push_back(s);
+  }
+  std::size_t index = 99;
+  EXPECT_EQ(mapping::program_problem(p, index), MapStatus::kOk);
+  p.segments[400].type = SegmentType::kMessage;
+  p.segments[400].aux = 0;
+  p.messages.emplace_back(mapping::kMaxTextLength, 'x');
+  EXPECT_EQ(mapping::program_problem(p, index), MapStatus::kOk);
+  p.messages[0].push_back('y');
+  EXPECT_EQ(mapping::program_problem(p, index), MapStatus::kTextTooLong);
+  EXPECT_EQ(index, 400u);
+  p.segments[7].aux = 3;  // a G1 pointing into a side table: found first
+  EXPECT_EQ(mapping::program_problem(p, index), MapStatus::kBadAux);
+  EXPECT_EQ(index, 7u);
+  p.segments[7].aux = -1;
+  p.axis_letters = "XX";
+  EXPECT_EQ(mapping::program_problem(p, index), MapStatus::kBadAxisLetters);
+  EXPECT_EQ(index, 0u);
+  p.axis_letters = "X";
+
+  // The chunker stops at the same record and says which one.
+  msg::ProgramChunk chunk;
+  std::size_t next = 0, first = 0;
+  MapStatus st = MapStatus::kOk;
+  while ((st = mapping::fill_chunk(p, first, {}, chunk, next)) == MapStatus::kOk && next < 500)
+    first = next;
+  EXPECT_EQ(st, MapStatus::kTextTooLong);
+  EXPECT_EQ(next, 400u);
+  EXPECT_TRUE(chunk.segments().empty());
+}
+
 TEST(IdlMapping, WireSideErrorsLeaveTheProgramUnchanged) {
   const Program p = sample_program();
   std::vector<msg::ProgramChunk> chunks;

@@ -763,6 +763,14 @@ TEST(Requests, BadRecordsAreNamedWithRecordLineAndReason) {
   pe.segments[0].tool = -3;
   r = ip->load(pe);
   EXPECT_EQ(r.reason, "record 0 (line 1): tool number must be 0..99999");
+  ProgramBuilder f(2);
+  f.line({1.0, 0.0}, 100.0);
+  Program pf = f.program();
+  pf.messages.emplace_back(kMaxMessageBytes + 1, 'm');
+  pf.segments[0].type = SegmentType::kMessage;
+  pf.segments[0].aux = 0;
+  r = ip->load(pf);
+  EXPECT_EQ(r.reason, "record 0 (line 1): message longer than 255 bytes");
   EXPECT_EQ(ip->registers().free_slots, m.interpolators[0].buffer_size);
 }
 

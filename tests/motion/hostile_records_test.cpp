@@ -51,7 +51,8 @@ Program hostile_program(std::mt19937_64& rng) {
     s.turns = hostile(rng, 6) ? pick(rng, std::array<std::int32_t, 3>{-1, 1000, INT_MAX})
                               : pick(rng, std::array<std::int32_t, 3>{0, 0, 1});
     s.aux = hostile(rng, 6) ? pick(rng, std::array<std::int32_t, 3>{-1, 5, INT_MIN}) : 0;
-    s.tool = pick(rng, std::array<std::int32_t, 3>{0, 1, -7});
+    s.tool = hostile(rng, 40) ? pick(rng, std::array<std::int32_t, 3>{-7, kMaxTool + 1, INT_MIN})
+                              : pick(rng, std::array<std::int32_t, 3>{0, 1, kMaxTool});
     // Near the previous end mostly (ordinary moves), anywhere sometimes.
     for (int a = 0; a < 3; ++a) {
       const auto ua = static_cast<std::size_t>(a);

@@ -348,6 +348,7 @@ TEST(Gcode, NestedLoopsRearmTheirCounters) {
 // --- Errors: every class with its exact message ---------------------------------------------
 
 using ::testing::ElementsAre;
+using ::testing::IsEmpty;
 
 TEST(GcodeErrors, UnknownWordAndCharacter) {
   EXPECT_THAT(errors_of("G1 X1 Q5\n"), ElementsAre("1:7: unknown word 'Q5'"));
@@ -427,6 +428,13 @@ TEST(GcodeErrors, MissingWords) {
               ElementsAre("1:1: G54 needs axis words: the zero-point shift per axis"));
   EXPECT_THAT(errors_of("M29\n"),
               ElementsAre("1:1: M29 needs its message text in parentheses: M29 (text)"));
+  // The text reaches the HMIs through a topic of 255 bytes: a longer one compiled, simulated, and
+  // stopped `tgm-hmi run` part-way through the program. Bytes, not characters: "ü" is two.
+  EXPECT_THAT(errors_of("M29 (" + std::string(255, 'x') + ")\n"), IsEmpty());
+  EXPECT_THAT(errors_of("M29 (" + std::string(128, 'x') + std::string(64, ' ') + "\xc3\xbc" +
+                        std::string(62, 'x') + ")\n"),
+              ElementsAre("1:1: M29 message is 256 bytes long; at most 255 reach the HMI (split it "
+                          "over several M29 lines)"));
   EXPECT_THAT(errors_of("M99\n"), ElementsAre("1:1: M99 needs F<mm/min>, the new default feed"));
   EXPECT_THAT(errors_of("G90 G2 X10\n"), ElementsAre("1:5: arc needs a centre: I/J offsets or R"));
   EXPECT_THAT(errors_of("X5\n"),
@@ -678,6 +686,9 @@ TEST(Intercode, DecodeRefusesOutOfRangeValuesAndMissingSideTableEntries) {
        "value out of range in record 2"},
       {"tool beyond the T range", [](Program& p) { p.segments[0].tool = kMaxTool + 1; },
        "value out of range in record 0"},
+      {"message beyond the topic's bound",
+       [](Program& p) { p.messages[0].assign(kMaxMessageBytes + 1, 'm'); },
+       "a message is longer than 255 bytes"},
       {"M without parameters", [](Program& p) { p.params.clear(); },
        "an M record at line 3 names a missing parameter set"},
       {"message without text", [](Program& p) { p.segments[4].aux = 7; },

@@ -326,6 +326,13 @@ int run_run(int argc, char** argv) {
                    here_text.c_str());
     }
   }
+  // What the program stream cannot carry is found before the clear: a sender that found it
+  // later left a half-sent program running (a 300-byte M29 text at line 19,970 stopped the
+  // stream with the machine moving).
+  if (const std::string why = client::program_problem(program); !why.empty()) {
+    std::fprintf(stderr, "%s: error: %s; nothing sent\n", file.c_str(), why.c_str());
+    return 2;
+  }
   if (st->status() != 0) {
     const client::Reply r = hmi->clear(ip);
     if (!r.accepted) {

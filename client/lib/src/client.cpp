@@ -412,15 +412,36 @@ Reply Client::set_rel_speed(int i, double rel_speed) {
 
 // ---- ProgramSender ----
 
+namespace {
+
+// "record 12 (line 14): " for a record of `program`, "" past its end.
+std::string record_text(const Program& program, std::size_t index) {
+  if (index >= program.segments.size()) return {};
+  return "record " + std::to_string(index) + " (line " +
+         std::to_string(program.segments[index].line) + "): ";
+}
+
+}  // namespace
+
 ProgramSender::ProgramSender(Client& client, const Program& program, int interpolator,
                              std::uint32_t program_id)
     : client_(client),
       program_(program),
       interpolator_(interpolator),
       program_id_(program_id),
-      total_(program.segments.size()) {}
+      total_(program.segments.size()) {
+  error_ = program_problem(program);
+}
+
+std::string program_problem(const Program& program) {
+  std::size_t index = 0;
+  const mapping::MapStatus st = mapping::program_problem(program, index);
+  if (st == mapping::MapStatus::kOk) return {};
+  return record_text(program, index) + std::string(mapping::to_string(st));
+}
 
 bool ProgramSender::pump() {
+  if (!error_.empty()) return false;  // nothing of a program that cannot be sent whole
   const msg::InterpolatorState* s = client_.state(interpolator_);
   if (s == nullptr) return true;
   if (s->program_id() == program_id_) confirmed_ = std::max<std::uint64_t>(confirmed_, s->next_sequence());
@@ -437,7 +458,7 @@ bool ProgramSender::pump() {
     const mapping::MapStatus st =
         mapping::fill_chunk(program_, next_, {static_cast<std::uint16_t>(interpolator_), program_id_}, chunk_, end);
     if (st != mapping::MapStatus::kOk) {
-      error_ = "record " + std::to_string(next_) + ": " + std::string(mapping::to_string(st));
+      error_ = record_text(program_, end) + std::string(mapping::to_string(st));
       return false;
     }
     const std::uint64_t in_flight = next_ - confirmed_;

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -25,6 +26,8 @@ inline constexpr int kParamLetters = 26;
 //! so lengths, squares and products of any accepted record stay finite.
 inline constexpr double kMaxCoordinateMm = 1.0e9;
 inline constexpr double kMaxFeedMmPerMin = 1.0e6;
+//! Longest M29 message text [bytes of UTF-8]: what the message topic carries to the HMIs.
+inline constexpr std::size_t kMaxMessageBytes = 255;
 //! Largest tool number a T word may select.
 inline constexpr int kMaxTool = 99999;
 //! An arc whose end lies closer than this to its start ends at its start [mm]: a full circle

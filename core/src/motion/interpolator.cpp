@@ -732,6 +732,10 @@ struct Interpolator::Impl {
         (sg.aux < 0 || sg.aux >= static_cast<std::int32_t>(p.messages.size()))) {
       return {"message index out of range"};
     }
+    if (sg.type == SegmentType::kMessage &&
+        p.messages[static_cast<std::size_t>(sg.aux)].size() > kMaxMessageBytes) {
+      return {"message longer than 255 bytes"};
+    }
     return {};
   }
 

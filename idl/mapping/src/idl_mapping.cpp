@@ -11,6 +11,7 @@ static_assert(TGM_PARAM_LETTERS == kParamLetters);
 static_assert(TGM_COMMAND_PARAMETERS == kCommandParameters);
 static_assert(TGM_M_FUNCTION_PARAMETERS == kMFunctionParameters);
 static_assert(TGM_LOOK_AHEAD_ENTRIES == kLookAheadEntries);
+static_assert(TGM_MAX_TEXT == kMaxMessageBytes);
 
 namespace {
 
@@ -113,11 +114,15 @@ MapStatus to_idl(const Segment& in, const MParams* params, const std::string* me
   return MapStatus::kOk;
 }
 
-MapStatus to_idl(const Program& program, std::size_t index, msg::Segment& out) {
+namespace {
+
+// The side-table entries of record `index` of `program` (null when it has none).
+MapStatus payload_of(const Program& program, std::size_t index, const MParams*& params,
+                     const std::string*& message) {
+  params = nullptr;
+  message = nullptr;
   if (index >= program.segments.size()) return MapStatus::kBadIndex;
   const Segment& s = program.segments[index];
-  const MParams* params = nullptr;
-  const std::string* message = nullptr;
   if (s.aux >= 0) {
     const auto aux = static_cast<std::size_t>(s.aux);
     if (s.type == SegmentType::kMFunction && aux < program.params.size()) {
@@ -130,7 +135,34 @@ MapStatus to_idl(const Program& program, std::size_t index, msg::Segment& out) {
   } else if (s.type == SegmentType::kMessage) {
     return MapStatus::kBadAux;  // a message record always has its text
   }
-  return to_idl(s, params, message, out);
+  return MapStatus::kOk;
+}
+
+}  // namespace
+
+MapStatus to_idl(const Program& program, std::size_t index, msg::Segment& out) {
+  const MParams* params = nullptr;
+  const std::string* message = nullptr;
+  if (const MapStatus st = payload_of(program, index, params, message); st != MapStatus::kOk)
+    return st;
+  return to_idl(program.segments[index], params, message, out);
+}
+
+MapStatus program_problem(const Program& program, std::size_t& index) {
+  index = 0;
+  if (program.number_axes < 1 || program.number_axes > kMaxAxes) return MapStatus::kBadAxisCount;
+  if (!valid_axis_letters(program.axis_letters, program.number_axes))
+    return MapStatus::kBadAxisLetters;
+  for (; index < program.segments.size(); ++index) {
+    const MParams* params = nullptr;
+    const std::string* message = nullptr;
+    if (const MapStatus st = payload_of(program, index, params, message); st != MapStatus::kOk)
+      return st;
+    if (message != nullptr && message->size() > kMaxTextLength) return MapStatus::kTextTooLong;
+    if (static_cast<int>(program.segments[index].type) > static_cast<int>(SegmentType::kMessage))
+      return MapStatus::kBadType;
+  }
+  return MapStatus::kOk;
 }
 
 MapStatus from_idl(const msg::Segment& in, Segment& out, SegmentPayload& payload) {
@@ -199,6 +231,7 @@ MapStatus fill_chunk(const Program& program, std::size_t first, const ChunkHeade
     msg::Segment& s = segs.emplace_back();
     if (const MapStatus st = to_idl(program, i, s); st != MapStatus::kOk) {
       segs.clear();
+      next = i;  // the record that cannot be sent
       return st;
     }
     bytes += msg::Segment::getCdrSerializedSize(s, bytes);

@@ -81,10 +81,17 @@ struct ChunkHeader {
 
 //! Fills `out` with records of `program` starting at `first`: at most kMaxChunkSegments and at
 //! most kChunkByteBudget bytes serialized (at least one record). `next` receives the index after
-//! the last record taken; `end_of_program` is set on the chunk that takes the last record.
-//! An empty program gives one empty chunk with `end_of_program`.
+//! the last record taken (on error: the record that cannot be sent); `end_of_program` is set on
+//! the chunk that takes the last record. An empty program gives one empty chunk with
+//! `end_of_program`.
 MapStatus fill_chunk(const Program& program, std::size_t first, const ChunkHeader& header,
                      msg::ProgramChunk& out, std::size_t& next);
+
+//! What keeps `program` from being sent, checked before its first record goes out (a sender
+//! that finds it later has sent part of a program that may already run): kOk, or the reason
+//! and in `index` the record (0 for the program's own axis count and letters). Cheap: no record
+//! is serialized.
+MapStatus program_problem(const Program& program, std::size_t& index);
 
 //! The whole program as chunks (convenient for small programs and tests; a streaming sender
 //! calls fill_chunk as flow control allows). On error `chunks` is empty.
