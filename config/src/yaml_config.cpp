@@ -393,6 +393,7 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
           m.compiler.plc_redefined_m.clear();
           for (std::size_t i = 0; i < list.size(); ++i) {
             long long v = 0;
+            r.note(list[i], "compiler.plc_redefined_m[" + std::to_string(i) + "]");
             if (!Reader::scalar_int(list[i], v)) {
               r.error(list[i], "compiler.plc_redefined_m[" + std::to_string(i) + "]",
                       "must be a whole number");

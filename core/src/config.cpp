@@ -1,4 +1,5 @@
 #include "tgm/config.hpp"
+#include "tgm/intercode.hpp"
 #include "tgm/printable.hpp"
 #include "tgm/smoothing.hpp"
 
@@ -117,7 +118,10 @@ std::vector<std::string> MachineConfig::validate() const {
   for (std::size_t i = 0; i < tools.size(); ++i) {
     const auto& t = tools[i];
     const std::string tb = "tools[" + std::to_string(i) + "]";
-    if (t.number < 0) e.push_back(tb + ".number: must be >= 0, not " + std::to_string(t.number));
+    if (t.number < 0 || t.number > kMaxTool) {
+      e.push_back(tb + ".number: must be 0.." + std::to_string(kMaxTool) +
+                  " (what a T word selects), not " + std::to_string(t.number));
+    }
     if (!tool_numbers.insert(t.number).second) {
       e.push_back(tb + ".number: tool " + std::to_string(t.number) + " is listed twice");
     }
@@ -131,12 +135,17 @@ std::vector<std::string> MachineConfig::validate() const {
     e.push_back("compiler.default_feed_mm_per_min: must be > 0, not " +
                 number_text(c.default_feed_mm_per_min));
   }
-  if (c.initial_tool < 0) {
-    e.push_back("compiler.initial_tool: must be >= 0, not " + std::to_string(c.initial_tool));
+  if (c.initial_tool < 0 || c.initial_tool > kMaxTool) {
+    e.push_back("compiler.initial_tool: must be 0.." + std::to_string(kMaxTool) + ", not " +
+                std::to_string(c.initial_tool));
   }
+  std::set<int> redefined;
   for (std::size_t i = 0; i < c.plc_redefined_m.size(); ++i) {
     if (std::string why = redefine_m_problem(c.plc_redefined_m[i]); !why.empty()) {
       e.push_back("compiler.plc_redefined_m[" + std::to_string(i) + "]: " + why);
+    } else if (!redefined.insert(c.plc_redefined_m[i]).second) {
+      e.push_back("compiler.plc_redefined_m[" + std::to_string(i) + "]: M" +
+                  std::to_string(c.plc_redefined_m[i]) + " is listed twice");
     }
   }
   if (c.max_program_segments < 1 || c.max_program_segments > 1'000'000'000) {

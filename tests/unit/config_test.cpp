@@ -95,7 +95,7 @@ TEST(Config, DeepNestingAndAliasBombsAreOneClearProblem) {
   EXPECT_NE(load.errors[0].find(": YAML syntax: nested more than "), std::string::npos)
       << load.errors[0];
   EXPECT_NE(load.errors[0].find(" levels deep"), std::string::npos) << load.errors[0];
-  std::string bomb = "compiler:\n  plc_redefined_m: &a [5, 5, 5, 5, 5, 5, 5, 5, 5, 5]\n";
+  std::string bomb = "compiler:\n  plc_redefined_m: &a [2, 3, 4, 5, 6, 7, 8, 9, 17, 29]\n";
   std::string prev = "a";
   for (char c = 'b'; c <= 'h'; ++c) {
     bomb += std::string("x") + c + ": &" + c + " [";
@@ -455,7 +455,7 @@ TEST(Config, EveryOtherBadValueIsNamedWithItsKeyAndLine) {
         "m.yaml:7: tools[0].radius_mm: must be >= 0, not -1",
         "m.yaml:8: tools[1].number: tool 4 is listed twice",
         "m.yaml:10: compiler.default_feed_mm_per_min: must be > 0, not 0",
-        "m.yaml:11: compiler.initial_tool: must be >= 0, not -2",
+        "m.yaml:11: compiler.initial_tool: must be 0..99999, not -2",
         "m.yaml:12: compiler.max_program_segments: must be 1..1000000000, not 0",
         "m.yaml:13: compiler.max_call_depth: must be 1..16, not 17",
         "m.yaml:15: smoothing.spline_points: must be 0 (off) or 50..500, not 20",
@@ -463,6 +463,23 @@ TEST(Config, EveryOtherBadValueIsNamedWithItsKeyAndLine) {
     EXPECT_TRUE(has_error(load.errors, want)) << "missing: " << want;
   }
   EXPECT_EQ(load.errors.size(), 11u);
+
+  // Tools a T word cannot select (T is 0..99999), and an M-number redefined twice.
+  load = load_config_text(
+      "tools:\n"
+      "  - {number: 100000, radius_mm: 1, length_mm: 1}\n"
+      "compiler:\n"
+      "  initial_tool: 123456\n"
+      "  plc_redefined_m: [6, 7, 6]\n",
+      "m.yaml");
+  EXPECT_FALSE(load.config);
+  for (const char* want :
+       {"m.yaml:2: tools[0].number: must be 0..99999 (what a T word selects), not 100000",
+        "m.yaml:4: compiler.initial_tool: must be 0..99999, not 123456",
+        "m.yaml:5: compiler.plc_redefined_m[2]: M6 is listed twice"}) {
+    EXPECT_TRUE(has_error(load.errors, want)) << "missing: " << want;
+  }
+  EXPECT_EQ(load.errors.size(), 3u);
 
   // Four interpolators; smoothing defaults that Command -1 / -2 would refuse.
   load = load_config_text(
