@@ -142,7 +142,7 @@ bool load_program(const std::string& file, const MachineConfig& machine, int ip,
   if (!r.ok()) {
     for (const Diagnostic& d : r.errors)
       std::fprintf(stderr, "%s\n", format_diagnostic(file, d).c_str());
-    if (compile_errors) *compile_errors = r.errors.size();
+    if (compile_errors) *compile_errors = r.error_count();
     return false;
   }
   out = std::move(r.program);

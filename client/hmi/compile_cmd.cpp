@@ -106,7 +106,7 @@ int run_compile(int argc, char** argv) {
       std::fprintf(stderr, "%s\n", format_diagnostic(file, d).c_str());
     }
     std::fprintf(stderr, "%s: %zu error%s, no intercode written\n", file.c_str(),
-                 result.errors.size(), result.errors.size() == 1 ? "" : "s");
+                 result.error_count(), result.error_count() == 1 ? "" : "s");
     return 2;
   }
   if (out.is_open()) {

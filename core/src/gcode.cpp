@@ -1216,6 +1216,7 @@ CompileResult Compiler::run() {
                               return a.line == b.line && a.column == b.column && a.reason == b.reason;
                             }),
                 errors_.end());
+  result.errors_not_shown = suppressed_;
   if (suppressed_ > 0) {
     errors_.push_back({errors_.back().line, errors_.back().column,
                        std::to_string(suppressed_) + " further errors not shown"});

@@ -584,6 +584,11 @@ TEST(GcodeErrors, ErrorsPastTheLimitAreCountedInOneLastEntry) {
   ASSERT_EQ(errs.size(), 10'001u);
   EXPECT_EQ(errs[9'999], "10000:1: unknown word 'Q1'");
   EXPECT_EQ(errs.back(), "10000:1: 3 further errors not shown");
+  // The count says all of them (tgm-hmi compile's "10001 errors" counted the note as one).
+  const CompileResult r = compile_gcode(text, options());
+  EXPECT_EQ(r.errors_not_shown, 3u);
+  EXPECT_EQ(r.error_count(), 10'003u);
+  EXPECT_EQ(compile_gcode("Q1\nQ2\n", options()).error_count(), 2u);
 }
 
 TEST(GcodeErrors, UncalledSubroutinesAreCheckedToo) {

@@ -39,7 +39,13 @@ struct CompileOptions {
 struct CompileResult {
   Program program;
   std::vector<Diagnostic> errors;
+  //! Errors beyond the first 10,000: `errors` then ends with one saying how many.
+  std::size_t errors_not_shown = 0;
   bool ok() const { return errors.empty(); }
+  //! Every error found, those not shown included.
+  std::size_t error_count() const {
+    return errors_not_shown > 0 ? errors.size() - 1 + errors_not_shown : errors.size();
+  }
 };
 
 //! Receives each record as the compiler makes it, in program order.
