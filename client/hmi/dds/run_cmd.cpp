@@ -326,11 +326,13 @@ int run_run(int argc, char** argv) {
                    here_text.c_str());
     }
   }
-  // What the program stream cannot carry is found before the clear: a sender that found it
-  // later left a half-sent program running (a 300-byte M29 text at line 19,970 stopped the
-  // stream with the machine moving).
-  if (const std::string why = client::program_problem(program); !why.empty()) {
-    std::fprintf(stderr, "%s: error: %s; nothing sent\n", file.c_str(), why.c_str());
+  // What the program stream cannot carry is found before the clear (the sender checks the
+  // whole program when it is made): one that found it later left a half-sent program running
+  // (a 300-byte M29 text at line 19,970 stopped the stream with the machine moving).
+  const std::uint32_t program_id = client::new_program_id();
+  client::ProgramSender sender(*hmi, program, ip, program_id);
+  if (!sender.error().empty()) {
+    std::fprintf(stderr, "%s: error: %s; nothing sent\n", file.c_str(), sender.error().c_str());
     return 2;
   }
   if (st->status() != 0) {
@@ -359,8 +361,6 @@ int run_run(int argc, char** argv) {
     };
   }
 
-  const std::uint32_t program_id = client::new_program_id();
-  client::ProgramSender sender(*hmi, program, ip, program_id);
   const bool tty = ::isatty(1) != 0;
   const auto t0 = Clock::now();
   auto last_line_at = t0;

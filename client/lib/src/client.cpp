@@ -430,14 +430,10 @@ ProgramSender::ProgramSender(Client& client, const Program& program, int interpo
       interpolator_(interpolator),
       program_id_(program_id),
       total_(program.segments.size()) {
-  error_ = program_problem(program);
-}
-
-std::string program_problem(const Program& program) {
   std::size_t index = 0;
-  const mapping::MapStatus st = mapping::program_problem(program, index);
-  if (st == mapping::MapStatus::kOk) return {};
-  return record_text(program, index) + std::string(mapping::to_string(st));
+  if (const mapping::MapStatus st = mapping::program_problem(program, index);
+      st != mapping::MapStatus::kOk)
+    error_ = record_text(program, index) + std::string(mapping::to_string(st));
 }
 
 bool ProgramSender::pump() {

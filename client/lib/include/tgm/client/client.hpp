@@ -292,8 +292,9 @@ class Client {
 class ProgramSender {
  public:
   //! `program` must outlive the sender. `program_id` must be non-zero and new for the service.
-  //! A program that cannot be sent whole (`program_problem`) is not sent at all: `error()` says
-  //! why from the start, and pump() returns false before writing anything.
+  //! A program that cannot be sent whole (`mapping::program_problem`) is not sent at all:
+  //! `error()` says why from the start ("record 12 (line 14): message text longer than 255
+  //! characters"), and pump() returns false before writing anything.
   ProgramSender(Client& client, const Program& program, int interpolator, std::uint32_t program_id);
   //! Writes what the window allows. False (with `error()`) when a chunk cannot be built or written.
   bool pump();
@@ -319,10 +320,6 @@ class ProgramSender {
   msg::ProgramChunk chunk_;
   std::string error_;
 };
-
-//! Why `program` cannot go out on the program stream ("record 12 (line 14): message text longer
-//! than 255 characters"), empty when it can. A sender checks this before sending anything.
-std::string program_problem(const Program& program);
 
 //! A fresh non-zero program id (time and process based).
 std::uint32_t new_program_id();
