@@ -532,34 +532,80 @@ TEST(ServiceProcesses, HmiRunEndsWithAClearErrorWhenTheServiceRestarts) {
       << watched;
 }
 
-// An emergency stop ends the run with exit code 1 and names the Command, 4 or 5. The Command
-// register is back at 0 when the ramp has ended, and the run said "Command 0". (The second run
-// clears what the first stop left.)
-TEST(ServiceProcesses, HmiRunNamesTheEmergencyStopThatEndedIt) {
+// An emergency stop off the trajectory (Command 5) drops the program: the run ends with exit
+// code 1 and names it. The Command register is back at 0 when the ramp has ended, and the run
+// once said "Command 0".
+TEST(ServiceProcesses, HmiRunEndsAtAnEmergencyStopOffTheTrajectory) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());
   std::ofstream(env.path("long.ngc")) << "G1 X200 F1000\nM2\n";  // 12 s
-  for (const auto& [what, code, off] :
-       {std::tuple{"estop", 4, ""}, std::tuple{"estop-off", 5, ", off trajectory"}}) {
-    test::Child hmi;
-    ASSERT_TRUE(
-        hmi.start({TGM_HMI_BIN, "run", env.path("long.ngc"), "--config", env.config(), "--quiet"},
-                  env.path("hmi.log")));
-    {
-      client::Client watch(env.dds(), client::Role::kHmi);
-      ASSERT_TRUE(watch.wait_until(
-          0, [](const msg::InterpolatorState& s) { return s.status() == 1; }, kHang))
-          << hmi.log();
-    }
-    test::Child estop;
-    ASSERT_TRUE(estop.start({TGM_HMI_BIN, "command", what, "--config", env.config()},
-                            env.path("estop.log")));
-    EXPECT_EQ(estop.wait(kHang), 0) << estop.log();
-    EXPECT_EQ(hmi.wait(kHang), 1) << hmi.log();
-    const std::string said =
-        "tgm-hmi run: emergency stop (Command " + std::to_string(code) + ")" + off + " at line 1\n";
-    EXPECT_NE(hmi.log().find(said), std::string::npos) << what << ": " << hmi.log();
+  test::Child hmi;
+  ASSERT_TRUE(
+      hmi.start({TGM_HMI_BIN, "run", env.path("long.ngc"), "--config", env.config(), "--quiet"},
+                env.path("hmi.log")));
+  {
+    client::Client watch(env.dds(), client::Role::kHmi);
+    ASSERT_TRUE(watch.wait_until(
+        0, [](const msg::InterpolatorState& s) { return s.status() == 1; }, kHang))
+        << hmi.log();
   }
+  test::Child estop;
+  ASSERT_TRUE(estop.start({TGM_HMI_BIN, "command", "estop-off", "--config", env.config()},
+                          env.path("estop.log")));
+  EXPECT_EQ(estop.wait(kHang), 0) << estop.log();
+  EXPECT_EQ(hmi.wait(kHang), 1) << hmi.log();
+  EXPECT_NE(hmi.log().find("tgm-hmi run: emergency stop (Command 5), off trajectory at line 1: "
+                           "the program was dropped\n"),
+            std::string::npos)
+      << hmi.log();
+}
+
+// An emergency stop on the trajectory (Command 4) is resumed by start, so `run` follows on and
+// streams the rest. It used to end there with exit code 1: a program longer than the buffer
+// then resumed into an underrun, the records beyond the buffer never sent.
+TEST(ServiceProcesses, HmiRunStreamsOnAfterAnEmergencyStopOnTheTrajectory) {
+  test::ConfigEdits edits;
+  edits.buffer_size0 = 1000;
+  ServiceEnv env(edits);
+  ASSERT_TRUE(env.start_service());
+  // 5,000 collinear 0.1 mm moves at F6000: 500 mm in about 5 s, five buffers' worth.
+  constexpr int kRecords = 5000;
+  {
+    std::ofstream g(env.path("long.ngc"));
+    g << "F6000\n";
+    for (int i = 0; i < kRecords; ++i) g << "G1 X0.1\n";
+    g << "M2\n";
+  }
+  test::Child hmi;
+  ASSERT_TRUE(
+      hmi.start({TGM_HMI_BIN, "run", env.path("long.ngc"), "--config", env.config(), "--quiet"},
+                env.path("hmi.log")));
+  client::Client watch(env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(watch.wait_until(
+      0, [](const msg::InterpolatorState& s) { return s.status() == 1 && s.act_part() > 100; },
+      kHang))
+      << hmi.log();
+  test::Child estop;
+  ASSERT_TRUE(estop.start({TGM_HMI_BIN, "command", "estop", "--config", env.config()},
+                          env.path("estop.log")));
+  EXPECT_EQ(estop.wait(kHang), 0) << estop.log();
+  ASSERT_TRUE(hmi.wait_for_log("emergency stop (Command 4) at line ", kHang)) << hmi.log();
+  ASSERT_TRUE(watch.wait_until(
+      0, [](const msg::InterpolatorState& s) { return s.status() == 7; }, kHang));
+  // Records are still to be sent, and the run is still there to send them.
+  EXPECT_LT(watch.state(0)->next_sequence(), static_cast<std::uint64_t>(kRecords));
+  EXPECT_EQ(watch.state(0)->off_trajectory(), false);
+  EXPECT_EQ(hmi.wait(std::chrono::milliseconds(0)), -1) << hmi.log();  // not ended
+  test::Child start;
+  ASSERT_TRUE(start.start({TGM_HMI_BIN, "command", "start", "--config", env.config()},
+                          env.path("start.log")));
+  EXPECT_EQ(start.wait(kHang), 0) << start.log();
+  EXPECT_EQ(hmi.wait(kHang), 0) << hmi.log();
+  ASSERT_TRUE(watch.wait_until(
+      0, [](const msg::InterpolatorState& s) { return s.status() == 3; }, kHang));
+  // Every record executed once: the count and the end point.
+  EXPECT_EQ(watch.state(0)->next_sequence(), static_cast<std::uint64_t>(kRecords + 1));
+  EXPECT_NEAR(watch.state(0)->orig_position()[0], 0.1 * kRecords, 1e-6);
 }
 
 // A second tgm-service on a live service's domain would take the same requests and programs:

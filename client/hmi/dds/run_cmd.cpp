@@ -535,15 +535,31 @@ int run_run(int argc, char** argv) {
       exit_code = 1;
       break;
     }
-    if (status == InterpolatorStatus::kEmergencyStopped || status == InterpolatorStatus::kEmergencyRamp) {
-      if (status == InterpolatorStatus::kEmergencyRamp) continue;
-      clear_progress();
+    if (status == InterpolatorStatus::kEmergencyRamp) continue;
+    if (status == InterpolatorStatus::kEmergencyStopped) {
       // The Command register is back at 0 once the ramp has ended: the trajectory tells 4 from 5.
-      const int code = st->command() != 0 ? st->command() : st->off_trajectory() ? 5 : 4;
-      std::fprintf(stderr, "tgm-hmi run: emergency stop (Command %d)%s at line %d\n", code,
-                   st->off_trajectory() ? ", off trajectory" : "", st->act_line());
-      exit_code = 1;
-      break;
+      if (st->off_trajectory()) {
+        clear_progress();
+        std::fprintf(stderr,
+                     "tgm-hmi run: emergency stop (Command 5), off trajectory at line %d: the "
+                     "program was dropped\n",
+                     st->act_line());
+        exit_code = 1;
+        break;
+      }
+      // Command 4 stops on the trajectory and start resumes it, so the run follows on and keeps
+      // streaming, as after a normal stop. It used to end here: a program longer than the buffer
+      // then resumed into an underrun, its records beyond the buffer never sent.
+      if (!stop_reported) {
+        stop_reported = true;
+        clear_progress();
+        std::printf(
+            "emergency stop (Command 4) at line %d, on the trajectory; `tgm-hmi command start` "
+            "resumes, Ctrl-C ends the run\n",
+            st->act_line());
+        std::fflush(stdout);
+      }
+      continue;
     }
     if (status == InterpolatorStatus::kUnderrun && st->buffered_segments() > 0) {
       fresh_after = hmi->start(ip).cycle;  // the buffer ran empty and got more: go on
