@@ -55,6 +55,10 @@ std::uint32_t file_checksum(std::string_view file) {
 
 }  // namespace
 
+bool has_intercode_magic(std::string_view bytes) {
+  return bytes.size() >= 4 && std::memcmp(bytes.data(), kMagic, 4) == 0;
+}
+
 std::uint32_t crc32(std::string_view bytes) {
   return ~crc_update(0xFFFFFFFFu, bytes.data(), bytes.size());
 }

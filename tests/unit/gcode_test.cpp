@@ -358,6 +358,21 @@ TEST(GcodeErrors, UnknownWordAndCharacter) {
   EXPECT_THAT(errors_of("G1 X1 \xff\n"), ElementsAre("1:7: unexpected byte 0xFF"));
 }
 
+// A 0x00 byte anywhere makes the text a binary file: one error at the first, where it lies (lines
+// counted as the lexer counts them), and nothing else, where every line of binary gave errors.
+TEST(GcodeErrors, ABinaryFileIsOneErrorAtItsFirstZeroByte) {
+  using namespace std::string_literals;
+  EXPECT_THAT(errors_of("G1 X1 F100\nG1 Q2\nG1 X2\0\0\n\x01\x02 G7\n"s),
+              ElementsAre("3:6: a 0x00 byte: this is a binary file, not G-code text"));
+  EXPECT_THAT(errors_of("G90\rG91\r\n\0"s),
+              ElementsAre("3:1: a 0x00 byte: this is a binary file, not G-code text"));
+  // Intercode given as G-code.
+  std::string bytes;
+  encode_intercode(compile_ok("G90 G1 X1 F100\nM2\n"), bytes);
+  EXPECT_THAT(errors_of(bytes),
+              ElementsAre(::testing::EndsWith(": this is binary intercode, not G-code text")));
+}
+
 TEST(GcodeErrors, UnknownGAndMNumbers) {
   EXPECT_THAT(errors_of("G7\n"), ElementsAre("1:1: unknown G-code G7"));
   EXPECT_THAT(errors_of("G91.1\n"), ElementsAre("1:1: unknown G-code G91.1"));

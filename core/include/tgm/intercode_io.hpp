@@ -60,6 +60,10 @@ class IntercodeEncoder {
 //! unknown record types or dangling side-table indices.
 bool decode_intercode(std::string_view bytes, Program& out, std::string& error);
 
+//! True when `bytes` begin as binary intercode does (its magic, "TGMI"). No G-code text begins
+//! so: a T word needs a number. Callers decide by this, not by a file's name.
+bool has_intercode_magic(std::string_view bytes);
+
 //! CRC-32 (IEEE 802.3, as zlib's crc32) of `bytes`.
 std::uint32_t crc32(std::string_view bytes);
 
