@@ -108,20 +108,24 @@ bool same_point(const std::array<double, kMaxAxes>& a, const std::array<double, 
   return true;
 }
 
-bool is_intercode_file(const std::string& file) {
-  return file.size() > 5 && file.compare(file.size() - 5, 5, ".tgmi") == 0;
+bool is_intercode(const std::string& file, std::string_view bytes) {
+  return has_intercode_magic(bytes) ||
+         (file.size() > 5 && file.compare(file.size() - 5, 5, ".tgmi") == 0);
 }
 
 bool load_program(const std::string& file, const MachineConfig& machine, int ip, Program& out,
-                  std::size_t* compile_errors, const std::array<double, kMaxAxes>* start_mm) {
+                  std::size_t* compile_errors, const std::array<double, kMaxAxes>* start_mm,
+                  bool* intercode) {
   if (compile_errors) *compile_errors = 0;
+  if (intercode) *intercode = false;
   FileView input;
   std::string error;
   if (!input.open(file, error)) {
     std::fprintf(stderr, "%s: error: %s\n", file.c_str(), error.c_str());
     return false;
   }
-  if (is_intercode_file(file)) {
+  if (is_intercode(file, input.text())) {
+    if (intercode) *intercode = true;
     if (!decode_intercode(input.text(), out, error)) {
       std::fprintf(stderr, "%s: error: %s\n", file.c_str(), error.c_str());
       return false;

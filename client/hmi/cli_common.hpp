@@ -50,16 +50,18 @@ class Args : public cli::ArgReader {
 //! several times the longest program the compiler expands (compiler.max_program_segments).
 inline constexpr std::size_t kMaxStreamedInput = std::size_t{1} << 30;
 
-//! FILE as the program of interpolator `ip` of `machine`: intercode (*.tgmi, written by
+//! FILE as the program of interpolator `ip` of `machine`: intercode (is_intercode: written by
 //! `tgm-hmi compile --out`) decoded and refused when it was compiled for other axis letters
 //! (positions go by axis index: a C where this interpolator has Z would move Z), or G-code
 //! compiled. Prints every problem ("FILE: error: ..." or the compiler's diagnostics) and
 //! returns false; `compile_errors` (when given) receives the number of compiler diagnostics.
 //! G-code is compiled from `start_mm` (machine mm; default machine zero), the point the program
 //! starts at: G91 moves are relative to it, axes a G90 line does not name stay there.
+//! `intercode` (when given) says which of the two FILE was.
 bool load_program(const std::string& file, const MachineConfig& machine, int ip, Program& out,
                   std::size_t* compile_errors = nullptr,
-                  const std::array<double, kMaxAxes>* start_mm = nullptr);
+                  const std::array<double, kMaxAxes>* start_mm = nullptr,
+                  bool* intercode = nullptr);
 
 //! Reads a start point as "X20,Y5,Z-2" into `out`: axis letters of `letters` (either case),
 //! each at most once, numbers within +-1e9 mm; the axes not named stand at 0. False with the
@@ -80,8 +82,10 @@ inline constexpr double kSamePointMm = 1e-6;
 bool same_point(const std::array<double, kMaxAxes>& a, const std::array<double, kMaxAxes>& b,
                 int n);
 
-//! True when FILE is read as intercode (*.tgmi) rather than compiled.
-bool is_intercode_file(const std::string& file);
+//! True when FILE, whose content is `bytes`, is read as intercode rather than compiled: it
+//! begins with intercode's magic (whatever its name), or it is named *.tgmi (and is then refused
+//! if it is not intercode).
+bool is_intercode(const std::string& file, std::string_view bytes);
 
 //! Tool radius compensation (G41/G42) is recorded in the intercode, but no part of tgm offsets
 //! the path yet: the tool centre follows the programmed contour. A program that moves with it on

@@ -18,7 +18,8 @@ constexpr const char* kUsage =
     "usage: tgm-hmi compile FILE [--config YAML] [--interpolator N] [--dump jsonl|text]\n"
     "                            [--out FILE] [--start X..,Y..]\n"
     "\n"
-    "Compiles a G-code program into intercode for interpolator N (default 0).\n"
+    "Compiles a G-code program into intercode for interpolator N (default 0). Given\n"
+    "intercode (what --out writes), it checks it and dumps it, copies it or sums it up.\n"
     "  --config YAML     machine config (default: $TGM_CONFIG or config/default.yaml)\n"
     "  --interpolator N  which interpolator's axes and letters to compile for (0..2)\n"
     "  --dump jsonl      print one JSON object per record to standard output\n"
@@ -32,6 +33,56 @@ constexpr const char* kUsage =
     "\n"
     "Errors go to standard error as FILE:LINE:COL: error: reason, all of them; the exit\n"
     "code is then 2 and nothing is written.\n";
+
+// FILE is intercode already (`compile --out` wrote it, whatever its name now): decoded with
+// the checks `run` and `simulate` make, then dumped, written to --out (a checked copy) or
+// summed up. It was compiled from G-code parsed as such: 277 errors of binary garbage.
+int inspect_intercode(Args& args, const std::string& file, std::string_view text,
+                      const std::string& dump, const std::string& out_path,
+                      const std::string& start_text) {
+  if (!start_text.empty()) {
+    return args.usage_error("--start applies to G-code; " + file +
+                            " is intercode, which records the point it was compiled from");
+  }
+  Program program;
+  if (std::string why; !decode_intercode(text, program, why)) {
+    std::fprintf(stderr, "%s: error: %s\n", file.c_str(), why.c_str());
+    return 2;
+  }
+  if (!out_path.empty()) {
+    std::string bytes, io_error;
+    encode_intercode(program, bytes);
+    AtomicFile out;
+    if (!out.open(out_path, io_error) || !out.write(bytes.data(), bytes.size(), io_error) ||
+        !out.commit(io_error)) {
+      std::fprintf(stderr, "%s: error: %s\n", out_path.c_str(), io_error.c_str());
+      return 1;
+    }
+  }
+  if (!dump.empty()) {
+    std::string s;
+    if (dump == "jsonl") {
+      dump_jsonl(program, s);
+    } else {
+      dump_text(program, s);
+    }
+    if (!write_stdout(s, "compile", "the dump")) return 1;
+  } else {
+    const std::size_t records = program.segments.size(), ms = program.params.size(),
+                      texts = program.messages.size();
+    std::fprintf(stderr,
+                 "%s: intercode for the axes %s, compiled from %s: %zu record%s (%zu M-function%s, "
+                 "%zu message%s)%s%s\n",
+                 file.c_str(), program.axis_letters.c_str(),
+                 point_text(program.start_mm, program.axis_letters).c_str(), records,
+                 records == 1 ? "" : "s", ms, ms == 1 ? "" : "s", texts, texts == 1 ? "" : "s",
+                 out_path.empty() ? "" : " written to ", out_path.c_str());
+  }
+  CompensationNote compensation;
+  compensation.observe(program);
+  compensation.print(file);
+  return 0;
+}
 
 }  // namespace
 
@@ -66,6 +117,8 @@ int run_compile(int argc, char** argv) {
     return 2;
   }
   const std::string_view text = input.text();
+  if (is_intercode(file, text))
+    return inspect_intercode(args, file, text, dump, out_path, start_text);
   CompileOptions options = CompileOptions::from_machine(*machine, args.interpolator());
   if (std::string why; !start_text.empty() &&
                        !parse_start(start_text, options.axis_letters, options.start_mm, why)) {

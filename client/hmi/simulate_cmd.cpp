@@ -294,9 +294,10 @@ int run_simulate(int argc, char** argv) {
     return args.usage_error("--start: " + why);
   }
   Program program;
-  if (!load_program(file, machine, ip_index, program, nullptr, &start)) return 2;
+  bool intercode = false;
+  if (!load_program(file, machine, ip_index, program, nullptr, &start, &intercode)) return 2;
   // Intercode runs from the point it was compiled from, as `tgm-hmi run` runs it.
-  if (is_intercode_file(file)) {
+  if (intercode) {
     if (!start_text.empty() && !same_point(start, program.start_mm, program.number_axes)) {
       std::fprintf(
           stderr,

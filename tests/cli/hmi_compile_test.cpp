@@ -4,6 +4,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -210,6 +211,75 @@ TEST_F(HmiCompile, BadCommandLinesAndFilesAreUsageErrors) {
   EXPECT_EQ(r.err,
             "/dev/zero: more than 16 MiB: not a config file\n"
             "tgm-hmi compile: the config /dev/zero has 1 problem\n");
+}
+
+// Intercode is known by its content: `compile` checks it and dumps it, copies it or sums it up
+// (it was parsed as G-code: 277 errors of binary garbage for the manual's example), and
+// `simulate` runs it under any name. A damaged file is refused; --start is the G-code's.
+TEST_F(HmiCompile, IntercodeGivenAsTheProgramIsReadAsIntercode) {
+  const fs::path tgmi = dir_ / "ex.tgmi";
+  ProcessResult r = run("compile " + std::string(test::kManualExample) + " --config " + kConfig +
+                        " --out " + tgmi.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string bytes = slurp(tgmi);
+  const fs::path renamed = write("ex.bin", bytes);
+  const std::string note =
+      ":4: note: G42 (tool radius compensation, radius 3 mm) is recorded in the intercode but "
+      "not applied: the tool centre follows the programmed contour\n";
+  r = run("compile " + renamed.string() + " --config " + kConfig);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err, renamed.string() +
+                       ": intercode for the axes XYZ, compiled from X0 Y0 Z0: 13 records (4 "
+                       "M-functions, 0 messages)\n" +
+                       renamed.string() + note);
+  // The dump is the one of the G-code it came from.
+  const ProcessResult from_gcode = run("compile " + std::string(test::kManualExample) +
+                                       " --config " + kConfig + " --dump jsonl");
+  r = run("compile " + renamed.string() + " --config " + kConfig + " --dump jsonl");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_FALSE(r.out.empty());
+  EXPECT_EQ(r.out, from_gcode.out);
+  // --out writes a checked copy.
+  const fs::path copy = dir_ / "copy.tgmi";
+  r = run("compile " + renamed.string() + " --config " + kConfig + " --out " + copy.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(slurp(copy), bytes);
+  // Simulated under the other name, it ends where the G-code does.
+  const ProcessResult sim_bin = run("simulate " + renamed.string() + " --config " + kConfig);
+  const ProcessResult sim_ngc =
+      run("simulate " + std::string(test::kManualExample) + " --config " + kConfig);
+  ASSERT_EQ(sim_bin.exit_code, 0) << sim_bin.err;
+  const auto end_line = [](const std::string& out) {
+    const auto at = out.find("end:");
+    return at == std::string::npos ? std::string() : out.substr(at, out.find('\n', at) - at);
+  };
+  EXPECT_NE(end_line(sim_ngc.out), "");
+  EXPECT_EQ(end_line(sim_bin.out), end_line(sim_ngc.out));
+  // Damaged, and with --start.
+  std::string damaged = bytes;
+  damaged[40] = static_cast<char>(damaged[40] ^ 0x5A);
+  const fs::path bad = write("bad.bin", damaged);
+  r = run("compile " + bad.string() + " --config " + kConfig);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.err.find(bad.string() + ": error: checksum mismatch"), 0u) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  r = run("compile " + renamed.string() + " --config " + kConfig + " --start X1");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--start applies to G-code; " + renamed.string() + " is intercode"),
+            std::string::npos)
+      << r.err;
+}
+
+// Any other binary file is one error, at its first 0x00 byte.
+TEST_F(HmiCompile, ABinaryFileIsOneError) {
+  std::string blob = "G1 X1 F100\n";
+  for (int i = 0; i < 4096; ++i) blob.push_back(static_cast<char>((i * 37) & 0xFF));
+  const fs::path prog = write("blob.ngc", blob);
+  const ProcessResult r = run("compile " + prog.string() + " --config " + kConfig);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.err, prog.string() +
+                       ":2:1: error: a 0x00 byte: this is a binary file, not G-code text\n" +
+                       prog.string() + ": 1 error, no intercode written\n");
 }
 
 // A typo that names the program as an output (`--out prog.ngc`, `--csv prog.ngc`, through a

@@ -184,7 +184,9 @@ int run_run(int argc, char** argv) {
   const int ip = args.interpolator();
   const std::string letters = config->machine.axis_letters(ip);
   Program program;
-  if (std::size_t errors = 0; !load_program(file, config->machine, ip, program, &errors)) {
+  bool intercode = false;
+  if (std::size_t errors = 0;
+      !load_program(file, config->machine, ip, program, &errors, nullptr, &intercode)) {
     if (errors > 0)
       std::fprintf(stderr, "%s: %zu error%s, nothing sent\n", file.c_str(), errors,
                    errors == 1 ? "" : "s");
@@ -291,7 +293,7 @@ int run_run(int argc, char** argv) {
     away = away || here[k] != 0.0;
   }
   const std::string here_text = point_text(here, program.axis_letters);
-  if (is_intercode_file(file)) {
+  if (intercode) {
     if (same_point(here, program.start_mm, program.number_axes)) {
       // Runs as compiled.
     } else if (!from_here) {
