@@ -238,4 +238,8 @@ bool stdout_failure_reported() {
   return g_stdout_reported;
 }
 
+void stdout_failure_handled() {
+  g_stdout_reported = true;
+}
+
 }  // namespace tgm::hmi

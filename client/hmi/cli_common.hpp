@@ -143,7 +143,10 @@ bool progress_interval_flag(Args& args, double& out);
 //! Writes `text` to standard output and flushes it. On failure prints "tgm-hmi CMD: cannot
 //! write WHAT: reason" and returns false; main() then does not report standard output again.
 bool write_stdout(std::string_view text, const char* command, const char* what);
-//! True once write_stdout() has reported a failure.
+//! True once write_stdout() has reported a failure, or a command took one as handled.
 bool stdout_failure_reported();
+//! A command dealt with a failed write to standard output itself (said why, or ended because
+//! its reader had gone): main() does not report it again.
+void stdout_failure_handled();
 
 }  // namespace tgm::hmi

@@ -608,6 +608,51 @@ TEST(ServiceProcesses, HmiRunStreamsOnAfterAnEmergencyStopOnTheTrajectory) {
   EXPECT_NEAR(watch.state(0)->orig_position()[0], 0.1 * kRecords, 1e-6);
 }
 
+// A reader of standard output that goes away (`| head`) no longer kills `run` by SIGPIPE: it
+// died and left a program longer than the buffer to run dry in an underrun. It follows and
+// streams on to the end, and says at exit that its output was lost (exit code 1). `watch` ends
+// cleanly when its reader has gone (it died by SIGPIPE too, exit code 141).
+TEST(ServiceProcesses, RunAndWatchOutliveTheReaderOfTheirOutput) {
+  test::ConfigEdits edits;
+  edits.buffer_size0 = 1000;
+  ServiceEnv env(edits);
+  ASSERT_TRUE(env.start_service());
+  constexpr int kRecords = 5000;  // 0.1 mm each at F6000: about 5 s, five buffers' worth
+  {
+    std::ofstream g(env.path("long.ngc"));
+    g << "F6000\n";
+    for (int i = 0; i < kRecords; ++i) g << "G1 X0.1\n";
+    g << "M2\n";
+  }
+  const std::string hmi = "'" TGM_HMI_BIN "'", cfg = " --config '" + env.config() + "'";
+  const test::ShellRun run = test::run_shell(
+      "((" + hmi + " run '" + env.path("long.ngc") + "'" + cfg + " --progress-interval 0.1 2>'" +
+          env.path("run.err") + "'; echo $? >'" + env.path("run.rc") +
+          "') | head -n 2)",  // (run_shell's redirections go to the whole)
+      env.path(""), "run_head");
+  EXPECT_EQ(std::count(run.out.begin(), run.out.end(), '\n'), 2) << run.out;
+  const std::string run_err = test::read_text(env.path("run.err"));
+  EXPECT_EQ(test::read_text(env.path("run.rc")), "1\n") << run_err;
+  EXPECT_NE(run_err.find("tgm-hmi: cannot write standard output"), std::string::npos) << run_err;
+  client::Client watch(env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(watch.wait_until(
+      0, [](const msg::InterpolatorState& s) { return s.status() == 3; }, kHang))
+      << run_err;
+  EXPECT_EQ(watch.state(0)->next_sequence(), static_cast<std::uint64_t>(kRecords + 1));
+  EXPECT_NEAR(watch.state(0)->orig_position()[0], 0.1 * kRecords, 1e-6);
+
+  for (const char* json : {" --json", ""}) {
+    const test::ShellRun w = test::run_shell("((" + hmi + " watch --interval 0.05" + json + cfg +
+                                                 " 2>'" + env.path("watch.err") + "'; echo $? >'" +
+                                                 env.path("watch.rc") + "') | head -n 1)",
+                                             env.path(""), "watch_head");
+    EXPECT_EQ(std::count(w.out.begin(), w.out.end(), '\n'), 1) << w.out;
+    EXPECT_EQ(test::read_text(env.path("watch.rc")), "0\n")
+        << json << test::read_text(env.path("watch.err"));
+    EXPECT_EQ(test::read_text(env.path("watch.err")), "") << json;
+  }
+}
+
 // A second tgm-service on a live service's domain would take the same requests and programs:
 // it looks for another service's state before serving and exits 1 naming its instance, and the
 // first goes on. Two that started within each other's wait (here: --service-check-ms 0) both

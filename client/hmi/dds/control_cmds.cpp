@@ -1,10 +1,12 @@
 // tgm-hmi status / watch / stop / start / clear / command: one-shot views and requests.
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
 #include <climits>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <deque>
 #include <string>
 #include <vector>
@@ -96,6 +98,18 @@ int report(const char* command, const std::string& what, const client::Reply& r)
     return 0;
   }
   std::fprintf(stderr, "tgm-hmi %s: %s: %s\n", command, what.c_str(), client::describe(r).c_str());
+  return 1;
+}
+
+// Flushes what watch wrote: -1 while standard output takes it, else the exit code: 0 when its
+// reader has gone (`watch --json | head -n 1`; SIGPIPE is ignored, and watch died of it), 1 on
+// any other write error, which is said.
+int flush_watch_output() {
+  if (std::fflush(stdout) == 0 && !std::ferror(stdout)) return -1;
+  const int err = errno;
+  stdout_failure_handled();
+  if (err == EPIPE) return 0;
+  std::fprintf(stderr, "tgm-hmi watch: cannot write to standard output: %s\n", std::strerror(err));
   return 1;
 }
 
@@ -217,7 +231,7 @@ int run_watch(int argc, char** argv) {
       std::fputs(
           format_state_json(*c.client->state(ip), c.config->machine.axis_letters(ip)).c_str(),
           stdout);
-      std::fflush(stdout);
+      if (const int rc = flush_watch_output(); rc >= 0) return rc;
       if (const std::uint64_t bad = dds::malformed_samples(); bad != malformed_said) {
         malformed_said = bad;
         std::fprintf(stderr,
@@ -267,7 +281,7 @@ int run_watch(int argc, char** argv) {
           static_cast<unsigned long long>(bad), c.config->dds.domain_id);
     }
     if (!tty) std::printf("\n");
-    std::fflush(stdout);
+    if (const int rc = flush_watch_output(); rc >= 0) return rc;
   }
   return 0;
 }

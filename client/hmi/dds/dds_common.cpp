@@ -26,6 +26,9 @@ void install_signal_flag() {
   sa.sa_handler = on_signal;
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
+  struct sigaction ignore {};
+  ignore.sa_handler = SIG_IGN;
+  sigaction(SIGPIPE, &ignore, nullptr);
 }
 
 int make_client(Args& args, const DdsOverrides& o, std::optional<AppConfig>& config,

@@ -13,6 +13,10 @@ namespace tgm::hmi {
 
 //! Set by SIGINT / SIGTERM once install_signal_flag() ran.
 extern std::atomic<bool> g_interrupted;
+//! For the commands that follow a running interpolator (run, watch): SIGINT and SIGTERM set
+//! g_interrupted, and SIGPIPE is ignored, so that a reader of standard output that goes away
+//! (`tgm-hmi run prog.ngc | head`) no longer kills the process: `run` then follows and streams on
+//! (it died and left the program to run dry in an underrun), `watch` ends cleanly.
 void install_signal_flag();
 
 //! Loads the config, applies the overrides and creates an HMI client; prints why not.
