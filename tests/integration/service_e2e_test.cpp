@@ -610,8 +610,8 @@ TEST(ServiceProcesses, HmiRunStreamsOnAfterAnEmergencyStopOnTheTrajectory) {
 
 // A reader of standard output that goes away (`| head`) no longer kills `run` by SIGPIPE: it
 // died and left a program longer than the buffer to run dry in an underrun. It follows and
-// streams on to the end, and says at exit that its output was lost (exit code 1). `watch` ends
-// cleanly when its reader has gone (it died by SIGPIPE too, exit code 141).
+// streams on to the end, and says at exit that its output was lost (exit code 1). SIGHUP, the
+// same. `watch` ends cleanly when its reader has gone (it died by SIGPIPE too, exit code 141).
 TEST(ServiceProcesses, RunAndWatchOutliveTheReaderOfTheirOutput) {
   test::ConfigEdits edits;
   edits.buffer_size0 = 1000;
@@ -640,6 +640,23 @@ TEST(ServiceProcesses, RunAndWatchOutliveTheReaderOfTheirOutput) {
       << run_err;
   EXPECT_EQ(watch.state(0)->next_sequence(), static_cast<std::uint64_t>(kRecords + 1));
   EXPECT_NEAR(watch.state(0)->orig_position()[0], 0.1 * kRecords, 1e-6);
+
+  // A closed terminal or SSH session (SIGHUP) killed it the same way (exit code 129).
+  test::Child hup;
+  ASSERT_TRUE(hup.start({TGM_HMI_BIN, "run", env.path("long.ngc"), "--config", env.config()},
+                        env.path("hup.log")));
+  ASSERT_TRUE(watch.wait_until(
+      0,
+      [](const msg::InterpolatorState& s) {
+        return s.status() == 1 && s.act_part() > 100 && s.next_sequence() < kRecords;
+      },
+      kHang))
+      << hup.log();
+  EXPECT_EQ(hup.interrupt(kHang, SIGHUP), 0) << hup.log();
+  ASSERT_TRUE(watch.wait_until(
+      0, [](const msg::InterpolatorState& s) { return s.status() == 3; }, kHang));
+  EXPECT_EQ(watch.state(0)->next_sequence(), static_cast<std::uint64_t>(kRecords + 1));
+  EXPECT_NEAR(watch.state(0)->orig_position()[0], 0.2 * kRecords, 1e-6);  // G91: from 500 mm on
 
   for (const char* json : {" --json", ""}) {
     const test::ShellRun w = test::run_shell("((" + hmi + " watch --interval 0.05" + json + cfg +

@@ -195,7 +195,7 @@ int run_watch(int argc, char** argv) {
   if (args.help()) return 0;
   if (args.failed()) return 2;
   if (const int rc = connect(args, c); rc != 0) return rc;
-  install_signal_flag();
+  install_signal_flag(Hangup::kInterrupt);
   const int ip = args.interpolator();
   if (!wait_for_service(*c.client, *c.config, ip, "watch", wait_s)) return 1;
   const bool tty = !json && ::isatty(1) != 0;

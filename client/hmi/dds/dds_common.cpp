@@ -21,7 +21,7 @@ namespace {
 void on_signal(int) { g_interrupted = true; }
 }  // namespace
 
-void install_signal_flag() {
+void install_signal_flag(Hangup hangup) {
   struct sigaction sa{};
   sa.sa_handler = on_signal;
   sigaction(SIGINT, &sa, nullptr);
@@ -29,6 +29,7 @@ void install_signal_flag() {
   struct sigaction ignore {};
   ignore.sa_handler = SIG_IGN;
   sigaction(SIGPIPE, &ignore, nullptr);
+  sigaction(SIGHUP, hangup == Hangup::kIgnore ? &ignore : &sa, nullptr);
 }
 
 int make_client(Args& args, const DdsOverrides& o, std::optional<AppConfig>& config,

@@ -13,11 +13,15 @@ namespace tgm::hmi {
 
 //! Set by SIGINT / SIGTERM once install_signal_flag() ran.
 extern std::atomic<bool> g_interrupted;
+//! What SIGHUP (the terminal or the SSH session closed) does: end the command as SIGINT does,
+//! or nothing.
+enum class Hangup { kInterrupt, kIgnore };
 //! For the commands that follow a running interpolator (run, watch): SIGINT and SIGTERM set
 //! g_interrupted, and SIGPIPE is ignored, so that a reader of standard output that goes away
 //! (`tgm-hmi run prog.ngc | head`) no longer kills the process: `run` then follows and streams on
-//! (it died and left the program to run dry in an underrun), `watch` ends cleanly.
-void install_signal_flag();
+//! (it died and left the program to run dry in an underrun), `watch` ends cleanly. `run` ignores
+//! SIGHUP for the same reason: a dropped SSH session killed it half-way through the program.
+void install_signal_flag(Hangup hangup);
 
 //! Loads the config, applies the overrides and creates an HMI client; prints why not.
 //! Returns the exit code on failure (2 config, 1 DDS), 0 on success.

@@ -54,7 +54,9 @@ constexpr const char* kUsage =
     "A G-code FILE is compiled from where the interpolator stands. A .tgmi file runs only from\n"
     "the point it was compiled from (tgm-hmi compile --start), unless --from-here.\n"
     "\n"
-    "Ctrl-C stops the interpolator (normal stop on the trajectory) and exits with 130.\n";
+    "Ctrl-C (or SIGTERM) stops the interpolator (normal stop on the trajectory) and exits with\n"
+    "130. A closed terminal or SSH session (SIGHUP), or a reader of its output that goes away,\n"
+    "does not end the run: it follows the program to its end.\n";
 
 struct PlotData {
   std::vector<std::pair<double, double>> path;      // Position of the first two axes [mm]
@@ -202,7 +204,7 @@ int run_run(int argc, char** argv) {
   std::int32_t last_line = 0;
   for (const Segment& s : program.segments) last_line = std::max(last_line, s.line);
 
-  install_signal_flag();
+  install_signal_flag(Hangup::kIgnore);
   // M-function waits are counted from the event topic (RELIABLE, every change of the handshake
   // registers): a wait the PLC acknowledges at once lasts a cycle or two, which the state
   // (KEEP_LAST 1, taken every 2 ms) often does not show. The event callback only queues what
