@@ -75,7 +75,8 @@ constexpr const char* kUsage =
     "It sees M-functions on the small event topic first: an acknowledgement due at once\n"
     "(delay 0, continuous) is written from the event callback, the rest from the main loop.\n"
     "The basic parameters go by axis index: when the config's axis letters are not those the\n"
-    "service publishes, none are sent and the log says why. Stops cleanly on SIGINT / SIGTERM.\n"
+    "service publishes, none are sent and the log says why. Stops cleanly on SIGINT / SIGTERM\n"
+    "(SIGHUP, a closed terminal, is ignored).\n"
     "\n"
     "  --config YAML        machine config (default: $TGM_CONFIG, the installed or the in-tree\n"
     "                       config/default.yaml)\n"
@@ -352,8 +353,10 @@ int plc_main(int argc, char** argv) {
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
   // A log reader that goes away must not end the emulator: the interpolators would wait for
-  // their M-function acknowledgements for good. Its writes fail with EPIPE instead.
+  // their M-function acknowledgements for good. Its writes fail with EPIPE instead. A closed
+  // terminal or SSH session (SIGHUP) neither.
   ::signal(SIGPIPE, SIG_IGN);
+  ::signal(SIGHUP, SIG_IGN);
 
   std::string rt_log;
   if (rt_priority > 0) {

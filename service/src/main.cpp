@@ -53,8 +53,9 @@ constexpr const char* kUsage =
     "\n"
     "Hosts the configured interpolators (1..3), runs their cycle every cycle_time_us with\n"
     "absolute deadlines and serves state, setpoints, requests and the program stream over DDS.\n"
-    "Stops cleanly on SIGINT / SIGTERM (exit code 0); a stop that takes longer than 5 s says\n"
-    "what it waits for, and a second SIGINT / SIGTERM while stopping exits at once (code 1).\n"
+    "Stops cleanly on SIGINT / SIGTERM (exit code 0; SIGHUP, a closed terminal, is ignored); a\n"
+    "stop that takes longer than 5 s says what it waits for, and a second SIGINT / SIGTERM\n"
+    "while stopping exits at once (code 1).\n"
     "\n"
     "  --config YAML          machine config (default: $TGM_CONFIG, the installed or the\n"
     "                         in-tree config/default.yaml)\n"
@@ -202,6 +203,9 @@ int service_main(int argc, char** argv) {
   // A log reader that goes away (a closed pipe, a restarted journal) must not end the service
   // and stop the machines with it: its writes fail with EPIPE and the log is lost, nothing more.
   ::signal(SIGPIPE, SIG_IGN);
+  // Nor must a closed terminal or SSH session it was started from (SIGHUP killed it, and the
+  // machines stood still with it). It rereads nothing: SIGINT / SIGTERM stop it.
+  ::signal(SIGHUP, SIG_IGN);
 
   if (dds_priority >= rt.priority)
     return args.usage_error("--dds-priority must be below --rt-priority");

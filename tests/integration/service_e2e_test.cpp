@@ -1915,6 +1915,16 @@ TEST(ServiceProcesses, ServiceStopsCleanlyOnSigtermAndRejectsBadFlags) {
   // Running, its handlers in place (a fixed 300 ms was too short under AddressSanitizer: the
   // SIGTERM came before the handler and the PLC died of it, exit 143).
   ASSERT_TRUE(plc.wait_for_log(": setup done (")) << plc.log();
+  // A closed terminal (SIGHUP) ends neither: both died of it, and the machines with the service.
+  const std::uint64_t before = hmi.state(0)->cycle_counter();
+  ::kill(plc.pid(), SIGHUP);
+  ::kill(env.service.pid(), SIGHUP);
+  std::this_thread::sleep_for(500ms);
+  EXPECT_EQ(plc.wait(0ms), -1) << plc.log();
+  EXPECT_EQ(env.service.wait(0ms), -1) << env.service.log();
+  EXPECT_TRUE(hmi.wait_until(
+      0, [&](const msg::InterpolatorState& s) { return s.cycle_counter() > before + 1000; },
+      kHang));
   // SIGTERM as from systemd or docker stop: both exit 0 and say so.
   EXPECT_EQ(plc.interrupt(10s, SIGTERM), 0) << plc.log();
   EXPECT_EQ(env.service.interrupt(10s, SIGTERM), 0) << env.service.log();
