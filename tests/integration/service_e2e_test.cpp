@@ -606,6 +606,38 @@ TEST(ServiceProcesses, HmiRunStreamsOnAfterAnEmergencyStopOnTheTrajectory) {
   EXPECT_NEAR(watch.state(0)->orig_position()[0], 0.1 * kRecords, 1e-6);
 }
 
+// On a terminal, an M0 waits for Enter. The end of the terminal's input (Ctrl-D, or a closed
+// SSH session, which no longer ends the run) was taken for Enter and the program ran on past
+// its M0 at once; now the M0 waits for a start, here from another HMI, and the run follows on.
+TEST(ServiceProcesses, HmiRunKeepsAnM0WhenTheTerminalInputEnds) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  std::ofstream(env.path("m0.ngc")) << "G91 G1 X10 F3000\nM0\nG1 X10\nM2\n";
+  // script(1) gives the run a terminal whose input ends at once (its own is /dev/null).
+  test::Child hmi;
+  ASSERT_TRUE(hmi.start(
+      {"/usr/bin/script", "-qfc",
+       "'" TGM_HMI_BIN "' run '" + env.path("m0.ngc") + "' --config '" + env.config() + "'",
+       "/dev/null"},
+      env.path("hmi.log")));
+  client::Client watch(env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(watch.wait_until(
+      0, [](const msg::InterpolatorState& s) { return s.status() == 4 && s.program_stop(); },
+      kHang))
+      << hmi.log();
+  ASSERT_TRUE(hmi.wait_for_log("waits for `tgm-hmi command start`", kHang)) << hmi.log();
+  std::this_thread::sleep_for(1500ms);
+  watch.poll(50ms);
+  EXPECT_EQ(watch.state(0)->status(), 4) << hmi.log();
+  EXPECT_NEAR(watch.state(0)->orig_position()[0], 10.0, 1e-9);
+  const client::Reply start = watch.start(0);
+  EXPECT_TRUE(start.accepted) << client::describe(start);
+  EXPECT_EQ(hmi.wait(kHang), 0) << hmi.log();
+  ASSERT_TRUE(watch.wait_until(
+      0, [](const msg::InterpolatorState& s) { return s.status() == 3; }, kHang));
+  EXPECT_NEAR(watch.state(0)->orig_position()[0], 20.0, 1e-9);
+}
+
 // A reader of standard output that goes away (`| head`) no longer kills `run` by SIGPIPE: it
 // died and left a program longer than the buffer to run dry in an underrun. It follows and
 // streams on to the end, and says at exit that its output was lost (exit code 1). SIGHUP, the

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -117,11 +118,18 @@ bool write_svg(AtomicFile& out, const PlotData& d, const std::string& letters, s
   return out.write(s.data(), s.size(), error) && out.commit(error);
 }
 
-bool stdin_has_line() {
+// What the operator's terminal holds for an M0 wait.
+enum class StdinLine { kNone, kLine, kClosed };
+StdinLine stdin_line() {
   pollfd p{0, POLLIN, 0};
-  if (::poll(&p, 1, 0) <= 0) return false;
+  if (::poll(&p, 1, 0) <= 0) return StdinLine::kNone;
   char buf[256];
-  return ::read(0, buf, sizeof buf) >= 0;
+  const ssize_t got = ::read(0, buf, sizeof buf);
+  if (got > 0) return StdinLine::kLine;
+  if (got < 0 && (errno == EINTR || errno == EAGAIN)) return StdinLine::kNone;
+  // End of input (Ctrl-D, or the terminal hung up: EIO) is no operator pressing Enter. It was
+  // taken for one: a closed SSH session let the program run on past its M0.
+  return StdinLine::kClosed;
 }
 
 // M-function waits seen in a stream of samples (state or events): each record whose section
@@ -368,6 +376,10 @@ int run_run(int argc, char** argv) {
   }
 
   const bool tty = ::isatty(1) != 0;
+  // Taken once: a terminal that hangs up is no terminal any more for isatty(), and an M0 wait
+  // then ran out after the 1 s meant for runs without one.
+  const bool stdin_tty = ::isatty(0) != 0;
+  bool stdin_closed = false;
   const auto t0 = Clock::now();
   auto last_line_at = t0;
   bool started = false, m0_wait = false, stop_reported = false;
@@ -580,23 +592,46 @@ int run_run(int argc, char** argv) {
           m0_since = Clock::now();
           clear_progress();
           std::printf("M0 program stop at line %d: %s\n", st->act_line(),
-                      m0_s >= 0 || !::isatty(0) ? "continuing shortly" : "press Enter to continue");
+                      m0_s >= 0 || !stdin_tty ? "continuing shortly"
+                      : stdin_closed          ? "`tgm-hmi command start` continues"
+                                              : "press Enter to continue");
           std::fflush(stdout);
         }
-        const double wait = m0_s >= 0 ? m0_s : ::isatty(0) ? -1.0 : 1.0;
-        const bool go = wait < 0 ? stdin_has_line()
-                                 : Clock::now() - m0_since >= std::chrono::duration<double>(wait);
+        const double wait = m0_s >= 0 ? m0_s : stdin_tty ? -1.0 : 1.0;
+        bool go = false;
+        if (wait >= 0) {
+          go = Clock::now() - m0_since >= std::chrono::duration<double>(wait);
+        } else if (!stdin_closed) {
+          const StdinLine line = stdin_line();
+          go = line == StdinLine::kLine;
+          if (line == StdinLine::kClosed) {
+            stdin_closed = true;
+            clear_progress();
+            std::printf(
+                "tgm-hmi run: the terminal's input ended (Ctrl-D, or the terminal closed): the "
+                "M0 program stop at line %d waits for `tgm-hmi command start`\n",
+                st->act_line());
+            std::fflush(stdout);
+          }
+        }
         if (go) {
           m0_wait = false;
           fresh_after = hmi->start(ip).cycle;
         }
-      } else if (!stop_reported) {
-        stop_reported = true;
-        clear_progress();
-        std::printf("stopped by a stop command at line %d; `tgm-hmi command start` resumes\n", st->act_line());
+      } else {
+        m0_wait = false;
+        if (!stop_reported) {
+          stop_reported = true;
+          clear_progress();
+          std::printf("stopped by a stop command at line %d; `tgm-hmi command start` resumes\n",
+                      st->act_line());
+        }
       }
     } else {
       stop_reported = false;
+      // Resumed by another HMI's start: the next M0 is a new wait, with its own time and words
+      // (the next one went on at once after a timed wait, or without a word on a terminal).
+      m0_wait = false;
     }
     // Progress.
     const auto now = Clock::now();
