@@ -295,8 +295,29 @@ TEST(Stops, EmergencyStopOffTrajectoryRefusesStart) {
   ASSERT_TRUE(ip.command(5).ok());
   ASSERT_GT(run_until(ip, [](const Registers& g) { return g.status == 7; }), 0);
   EXPECT_EQ(ip.registers().off_trajectory, 1);
-  EXPECT_EQ(ip.start().code, RequestCode::kWrongState);
+  const RequestResult refused = ip.start();
+  EXPECT_EQ(refused.code, RequestCode::kWrongState);
+  EXPECT_EQ(refused.reason,
+            "off trajectory (Command 5, or an emergency stop with nothing loaded): load a new "
+            "program or set the position");
   EXPECT_EQ(ip.command(1024).code, RequestCode::kUnsupported);
+}
+
+// Command 4 with nothing loaded leaves no trajectory to resume: Status 7 off the trajectory, as
+// after Command 5, and the next program loads as a new one. It stood on a trajectory of nothing:
+// the program was taken as more records of it, and start refused it.
+TEST(Stops, EmergencyStopWithNothingLoadedLeavesNoTrajectory) {
+  Interpolator ip = make();
+  ASSERT_TRUE(ip.command(4).ok());
+  EXPECT_EQ(ip.registers().status, 7);
+  EXPECT_EQ(ip.registers().off_trajectory, 1);
+  EXPECT_EQ(ip.start().code, RequestCode::kWrongState);
+  ProgramBuilder b;
+  b.line({5.0, 0.0, 0.0}, 6000.0).end();
+  ASSERT_TRUE(ip.load(b.program()).ok());
+  ASSERT_TRUE(ip.start().ok());
+  ASSERT_GT(run_until(ip, [](const Registers& g) { return g.status == 3; }), 0);
+  EXPECT_EQ(ip.registers().orig_position[0], 5.0);
 }
 
 // A stop given while the motion brakes for a corner still keeps the corner. X runs at 150 mm/s

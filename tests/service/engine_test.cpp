@@ -309,6 +309,25 @@ TEST(Engine, ChunksOfAProgramDroppedByAnOffTrajectoryStopAreRefused) {
   EXPECT_EQ(port.last.ip[0].next_sequence, q.segments.size());
 }
 
+// An emergency stop (Command 4) with nothing loaded leaves no trajectory: the next program's
+// stream loads without a clear and runs. Its first chunk was refused ("interpolator 0 still
+// holds program 0 (status 7): clear it first").
+TEST(Engine, AProgramLoadsAfterAnEmergencyStopWithNothingLoaded) {
+  Engine e = make_engine();
+  MockPort port;
+  port.add_request(Role::kPlc, RequestKind::kCommand).command = 4;
+  e.cycle(port, {});
+  EXPECT_EQ(port.last.ip[0].reg.status,
+            static_cast<std::int32_t>(InterpolatorStatus::kEmergencyStopped));
+  EXPECT_EQ(port.last.ip[0].reg.off_trajectory, 1);
+  const Program p = line_program(20);
+  run_to_end(e, port, p, 11, 20000);
+  EXPECT_TRUE(port.messages.empty()) << port.messages[0].text.view();
+  EXPECT_EQ(port.last.ip[0].program_id, 11u);
+  EXPECT_EQ(port.last.ip[0].reg.status, static_cast<std::int32_t>(InterpolatorStatus::kEnded));
+  EXPECT_EQ(port.last.ip[0].reg.orig_position[0], p.segments.back().end[0]);
+}
+
 // A position set (Command 2048) of a program stopped on the trajectory drops the program, as
 // an off-trajectory stop does: the rest of its stream must not load behind it and start from
 // the new position. Streamed again from its first record, it loads again.

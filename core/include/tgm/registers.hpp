@@ -164,7 +164,8 @@ struct Registers {
   //! Source line of the M-function last handed to M_Func (0 = none). A continuous one is handed
   //! over when the record after it starts, so Act_Line is then that record's line.
   std::int32_t m_func_line = 0;
-  //! 1 after Command 5 / 9: the program was abandoned; a new program or a position set is needed.
+  //! 1 after Command 5 / 9 (or Command 4 with nothing loaded): the program was abandoned; a new
+  //! program or a position set is needed.
   std::int32_t off_trajectory = 0;
   //! 1 while the program stands at an M0 program stop (Status 4, as after a stop command): the
   //! operator's start continues it.

@@ -3760,7 +3760,9 @@ RequestResult Interpolator::start() {
       return refuse(RequestCode::kWrongState, "program ended: clear and load a new program");
     case InterpolatorStatus::kEmergencyStopped:
       if (!m.resumable_estop) {
-        return refuse(RequestCode::kWrongState, "off trajectory after Command 5: load a new program or set the position");
+        return refuse(RequestCode::kWrongState,
+                      "off trajectory (Command 5, or an emergency stop with nothing loaded): load "
+                      "a new program or set the position");
       }
       break;
     default:
@@ -3843,7 +3845,11 @@ RequestResult Interpolator::command(std::int32_t code) {
       } else if (m.reg.status == static_cast<std::int32_t>(InterpolatorStatus::kRunning)) {
         m.reg.status = static_cast<std::int32_t>(InterpolatorStatus::kReady);
       }
-      if (off) m.abandon_program();
+      // An emergency stop with nothing loaded leaves no trajectory to resume: off it, as after
+      // Command 5. It stood on one, and a program streamed in next was taken as more records of
+      // none: start refused it ("off trajectory after Command 5"), and the service refused the
+      // stream until a clear ("still holds program 0").
+      if (off || (emergency && !had_program)) m.abandon_program();
       m.reg.command = 0;
       m.reg.command_status = 0;
       m.fill_registers();
