@@ -39,6 +39,15 @@ using test::ServiceEnv;
 
 constexpr auto kHang = 60s;
 
+// A G-code program of `records` collinear G1 X0.1 moves (G91, the default config's) at `feed`
+// mm/min, then M2.
+void write_tenth_steps(const std::string& path, int records, int feed) {
+  std::ofstream g(path);
+  g << "F" << feed << "\n";
+  for (int i = 0; i < records; ++i) g << "G1 X0.1\n";
+  g << "M2\n";
+}
+
 Program compile(const std::string& gcode, const std::string& config_path) {
   const ConfigLoad load = load_config_file(config_path);
   EXPECT_TRUE(load.config.has_value());
@@ -568,14 +577,9 @@ TEST(ServiceProcesses, HmiRunStreamsOnAfterAnEmergencyStopOnTheTrajectory) {
   edits.buffer_size0 = 1000;
   ServiceEnv env(edits);
   ASSERT_TRUE(env.start_service());
-  // 5,000 collinear 0.1 mm moves at F3000: 500 mm in about 10 s, five buffers' worth.
+  // 500 mm in about 10 s, five buffers' worth.
   constexpr int kRecords = 5000;
-  {
-    std::ofstream g(env.path("long.ngc"));
-    g << "F3000\n";
-    for (int i = 0; i < kRecords; ++i) g << "G1 X0.1\n";
-    g << "M2\n";
-  }
+  write_tenth_steps(env.path("long.ngc"), kRecords, 3000);
   test::Child hmi;
   ASSERT_TRUE(
       hmi.start({TGM_HMI_BIN, "run", env.path("long.ngc"), "--config", env.config(), "--quiet"},
@@ -647,13 +651,8 @@ TEST(ServiceProcesses, RunAndWatchOutliveTheReaderOfTheirOutput) {
   edits.buffer_size0 = 1000;
   ServiceEnv env(edits);
   ASSERT_TRUE(env.start_service());
-  constexpr int kRecords = 5000;  // 0.1 mm each at F6000: about 5 s, five buffers' worth
-  {
-    std::ofstream g(env.path("long.ngc"));
-    g << "F6000\n";
-    for (int i = 0; i < kRecords; ++i) g << "G1 X0.1\n";
-    g << "M2\n";
-  }
+  constexpr int kRecords = 5000;  // about 5 s, five buffers' worth
+  write_tenth_steps(env.path("long.ngc"), kRecords, 6000);
   const std::string hmi = "'" TGM_HMI_BIN "'", cfg = " --config '" + env.config() + "'";
   const test::ShellRun run = test::run_shell(
       "((" + hmi + " run '" + env.path("long.ngc") + "'" + cfg + " --progress-interval 0.1 2>'" +
