@@ -36,7 +36,7 @@ constexpr const char* kUsage =
 
 // FILE is intercode already (`compile --out` wrote it, whatever its name now): decoded with
 // the checks `run` and `simulate` make, then dumped, written to --out (a checked copy) or
-// summed up. It was compiled from G-code parsed as such: 277 errors of binary garbage.
+// summed up. It used to be lexed as G-code: 277 errors of binary garbage.
 int inspect_intercode(Args& args, const std::string& file, std::string_view text,
                       const std::string& dump, const std::string& out_path,
                       const std::string& start_text) {
