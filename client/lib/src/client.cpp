@@ -393,6 +393,12 @@ Reply Client::stop(int i) {
 Reply Client::clear(int i) {
   return request(make(i, msg::REQUEST_KIND_CLEAR));
 }
+Reply Client::start(int i, std::chrono::milliseconds timeout) {
+  return request(start_request(i), timeout);
+}
+Reply Client::clear(int i, std::chrono::milliseconds timeout) {
+  return request(make(i, msg::REQUEST_KIND_CLEAR), timeout);
+}
 
 Reply Client::command(int i, std::int32_t code, std::span<const std::int32_t> params) {
   return request(command_request(i, code, params));

@@ -207,6 +207,10 @@ class Client {
   Reply start(int interpolator);
   Reply stop(int interpolator);
   Reply clear(int interpolator);
+  //! start / clear waiting at most `timeout` for the reply (a first request on a lossy network
+  //! waits for the discovery of the request and reply endpoints as well).
+  Reply start(int interpolator, std::chrono::milliseconds timeout);
+  Reply clear(int interpolator, std::chrono::milliseconds timeout);
   //! Command register with Command_Parameter[0..11] (missing parameters are 0).
   Reply command(int interpolator, std::int32_t code, std::span<const std::int32_t> params = {});
   //! M_Func = 0, acknowledging M-function `m` (0: whichever is shown) with m_func_count `count`
