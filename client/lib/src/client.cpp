@@ -385,13 +385,13 @@ msg::Request rel_speed_request(int interpolator, double rel_speed) {
 }
 
 Reply Client::start(int i) {
-  return request(start_request(i));
+  return start(i, request_timeout_);
 }
 Reply Client::stop(int i) {
   return request(make(i, msg::REQUEST_KIND_STOP));
 }
 Reply Client::clear(int i) {
-  return request(make(i, msg::REQUEST_KIND_CLEAR));
+  return clear(i, request_timeout_);
 }
 Reply Client::start(int i, std::chrono::milliseconds timeout) {
   return request(start_request(i), timeout);
