@@ -36,6 +36,7 @@ namespace {
 
 using namespace std::chrono_literals;
 using test::ServiceEnv;
+namespace fdds = eprosima::fastdds::dds;
 
 constexpr auto kHang = 60s;
 
@@ -640,6 +641,135 @@ TEST(ServiceProcesses, HmiRunKeepsAnM0WhenTheTerminalInputEnds) {
   ASSERT_TRUE(watch.wait_until(
       0, [](const msg::InterpolatorState& s) { return s.status() == 3; }, kHang));
   EXPECT_NEAR(watch.state(0)->orig_position()[0], 20.0, 1e-9);
+}
+
+// A stand-in for tgm-service on the test's domain: the endpoints a client matches (state,
+// event, request, reply, program), one interpolator's state as the test sets it, and requests
+// taken but answered only when the test says so. What a frozen service or one cut off after
+// its state arrived looks like to a client.
+// `pred` polled every 10 ms until it holds; false after `limit`.
+template <class Pred>
+bool eventually(Pred pred, std::chrono::milliseconds limit) {
+  const auto until = std::chrono::steady_clock::now() + limit;
+  while (!pred()) {
+    if (std::chrono::steady_clock::now() >= until) return false;
+    std::this_thread::sleep_for(10ms);
+  }
+  return true;
+}
+
+struct SilentService {
+  explicit SilentService(const DdsConfig& c)
+      : p(c, "silent"),
+        state_w(p.writer<msg::InterpolatorStatePubSubType>(dds::kStateTopic)),
+        event_w(p.writer<msg::InterpolatorEventPubSubType>(dds::kEventTopic)),
+        reply_w(p.writer<msg::ReplyPubSubType>(dds::kReplyTopic)),
+        request_r(p.reader<msg::RequestPubSubType>(dds::kRequestTopic)),
+        program_r(p.reader<msg::ProgramChunkPubSubType>(dds::kProgramTopic)) {
+    state.interpolator(0);
+    state.service_instance(0x5117E47);
+    state.number_axes(3);
+    state.buffer_size(1000);
+    state.free_buffer_slots(1000);
+    state.cycle_time_us(500);
+    state.rel_speed(1.0);
+  }
+  void publish() {
+    state.cycle_counter(state.cycle_counter() + 1);
+    state_w.write(&state);
+  }
+  // The next request, publishing the state every 10 ms meanwhile; nullopt after `limit`.
+  std::optional<msg::Request> next_request(std::chrono::milliseconds limit) {
+    const auto until = std::chrono::steady_clock::now() + limit;
+    msg::Request r;
+    while (std::chrono::steady_clock::now() < until) {
+      if (dds::take_next(request_r, r)) return r;
+      publish();
+      std::this_thread::sleep_for(10ms);
+    }
+    return std::nullopt;
+  }
+  void accept(const msg::Request& r) {
+    msg::Reply rep;
+    rep.request_id(r.request_id());
+    rep.client_name(r.client_name());
+    rep.interpolator(r.interpolator());
+    rep.accepted(true);
+    rep.code(msg::REPLY_CODE_ACCEPTED);
+    rep.cycle_counter(state.cycle_counter());
+    reply_w.write(&rep);
+  }
+
+  dds::Participant p;
+  fdds::DataWriter& state_w;
+  fdds::DataWriter& event_w;
+  fdds::DataWriter& reply_w;
+  fdds::DataReader& request_r;
+  fdds::DataReader& program_r;
+  msg::InterpolatorState state;
+};
+
+// Ctrl-C is taken while `run` and `watch` wait for the service: they ignored it until their
+// wait ran out (10 s for the first state, 30 s for the reply to run's clear or start), then
+// said "no state" or "no reply" and exited 1, with the run's start possibly still carried out.
+TEST(ServiceProcesses, RunAndWatchTakeCtrlCWhileTheyWaitForTheService) {
+  ServiceEnv env;
+  std::ofstream(env.path("p.ngc")) << "G91 G1 X10 F3000\nM2\n";
+  const std::vector<std::string> run = {TGM_HMI_BIN, "run", env.path("p.ngc"), "--config",
+                                        env.config()};
+  SilentService service(env.dds());
+  // No state yet: the client's state reader matching means the signal flag is set up.
+  for (const std::vector<std::string>& args :
+       {run, std::vector<std::string>{TGM_HMI_BIN, "watch", "--config", env.config()}}) {
+    test::Child hmi;
+    ASSERT_TRUE(hmi.start(args, env.path("wait.log")));
+    ASSERT_TRUE(dds::wait_for_match(service.state_w, 1, kHang)) << hmi.log();
+    EXPECT_EQ(hmi.interrupt(kHang), 130) << hmi.log();
+    EXPECT_NE(hmi.log().find("interrupted while waiting for the state of interpolator 0"),
+              std::string::npos)
+        << hmi.log();
+    ASSERT_TRUE(eventually([&] { return !dds::wait_for_match(service.state_w, 1, 0ms); }, kHang));
+  }
+
+  // A state that needs a clear (an ended program); the clear is taken and not answered.
+  service.state.status(3);
+  {
+    test::Child hmi;
+    ASSERT_TRUE(hmi.start(run, env.path("clear.log")));
+    const std::optional<msg::Request> clear = service.next_request(kHang);
+    ASSERT_TRUE(clear.has_value()) << hmi.log();
+    EXPECT_EQ(clear->kind(), msg::REQUEST_KIND_CLEAR);
+    EXPECT_EQ(hmi.interrupt(kHang), 130) << hmi.log();
+    EXPECT_NE(hmi.log().find("clearing interpolator 0: interrupted after"), std::string::npos)
+        << hmi.log();
+    EXPECT_NE(hmi.log().find("the request was sent"), std::string::npos) << hmi.log();
+  }
+
+  // The clear answered, the program taken whole: the start is taken and not answered. A start
+  // that was sent may still be carried out, so the run stops as at any Ctrl-C.
+  test::Child hmi;
+  ASSERT_TRUE(hmi.start(run, env.path("start.log")));
+  std::optional<msg::Request> r = service.next_request(kHang);
+  ASSERT_TRUE(r.has_value() && r->kind() == msg::REQUEST_KIND_CLEAR) << hmi.log();
+  service.state.status(0);
+  service.publish();
+  service.accept(*r);
+  msg::ProgramChunk chunk;
+  ASSERT_TRUE(eventually([&] { return dds::take_next(service.program_r, chunk); }, kHang))
+      << hmi.log();
+  service.state.program_id(chunk.program_id());
+  service.state.next_sequence(1000);
+  service.state.status(4);
+  r = service.next_request(kHang);
+  ASSERT_TRUE(r.has_value()) << hmi.log();
+  EXPECT_EQ(r->kind(), msg::REQUEST_KIND_START);
+  EXPECT_EQ(hmi.interrupt(kHang), 130) << hmi.log();
+  EXPECT_NE(hmi.log().find("interrupted: start: interrupted after"), std::string::npos)
+      << hmi.log();
+  EXPECT_NE(hmi.log().find("normal stop:"), std::string::npos) << hmi.log();
+  r = service.next_request(kHang);
+  ASSERT_TRUE(r.has_value());
+  EXPECT_EQ(r->kind(), msg::REQUEST_KIND_STOP);
 }
 
 // A reader of standard output that goes away (`| head`) no longer kills `run` by SIGPIPE: it

@@ -136,7 +136,8 @@ int run_status(int argc, char** argv) {
   if (const int rc = connect(args, c); rc != 0) return rc;
   const int first = all ? 0 : args.interpolator();
   const int last = all ? static_cast<int>(c.config->machine.interpolators.size()) - 1 : first;
-  if (!wait_for_service(*c.client, *c.config, first, "status", wait_s)) return 1;
+  if (const int rc = wait_for_service(*c.client, *c.config, first, "status", wait_s); rc != 0)
+    return rc;
   if (all) c.client->poll(200ms);  // the other instances arrive together
   for (int i = first; i <= last; ++i) {
     if (i != first && !c.client->wait_for_state(i, 2s)) {
@@ -197,7 +198,8 @@ int run_watch(int argc, char** argv) {
   if (const int rc = connect(args, c); rc != 0) return rc;
   install_signal_flag(Hangup::kInterrupt);
   const int ip = args.interpolator();
-  if (!wait_for_service(*c.client, *c.config, ip, "watch", wait_s)) return 1;
+  if (const int rc = wait_for_service(*c.client, *c.config, ip, "watch", wait_s); rc != 0)
+    return rc;
   const bool tty = !json && ::isatty(1) != 0;
   std::uint64_t malformed_said = 0, other_said = 0;
   // The message topic keeps the last 32 messages for late readers: those written before the

@@ -48,16 +48,21 @@ int make_client(Args& args, const DdsOverrides& o, std::optional<AppConfig>& con
   return 0;
 }
 
-bool wait_for_service(client::Client& c, const AppConfig& config, int interpolator,
-                      const char* command, double wait_s) {
+int wait_for_service(client::Client& c, const AppConfig& config, int interpolator,
+                     const char* command, double wait_s) {
   const auto wait = std::chrono::milliseconds(static_cast<long long>(std::ceil(wait_s * 1000.0)));
-  if (c.wait_for_state(interpolator, wait)) return true;
+  if (c.wait_for_state(interpolator, wait, &g_interrupted)) return 0;
+  if (g_interrupted) {
+    std::fprintf(stderr, "tgm-hmi %s: interrupted while waiting for the state of interpolator %d\n",
+                 command, interpolator);
+    return 130;
+  }
   std::fprintf(
       stderr,
       "tgm-hmi %s: no state of interpolator %d from tgm-service on DDS domain %d within %g s "
       "(is tgm-service running with the same domain, profiles and security?)\n",
       command, interpolator, config.dds.domain_id, wait_s);
-  return false;
+  return 1;
 }
 
 namespace {

@@ -31,9 +31,10 @@ int make_client(Args& args, const DdsOverrides& o, std::optional<AppConfig>& con
 //! How long status, watch and run wait for the service's state by default [s].
 inline constexpr double kServiceWaitS = 10.0;
 
-//! Waits for the state of `interpolator`; prints a clear error when there is none.
-bool wait_for_service(client::Client& c, const AppConfig& config, int interpolator,
-                      const char* command, double wait_s = kServiceWaitS);
+//! Waits for the state of `interpolator`; prints a clear error when there is none. Returns the
+//! exit code: 0 with the state, 1 without it, 130 when interrupted (g_interrupted) first.
+int wait_for_service(client::Client& c, const AppConfig& config, int interpolator,
+                     const char* command, double wait_s = kServiceWaitS);
 
 //! The registers of one interpolator as readable lines, the axes named by the service's
 //! letters (`config_letters` when the state has none).

@@ -56,7 +56,8 @@ constexpr const char* kUsage =
     "the point it was compiled from (tgm-hmi compile --start), unless --from-here.\n"
     "\n"
     "Ctrl-C (or SIGTERM) stops the interpolator (normal stop on the trajectory) and exits with\n"
-    "130. A closed terminal or SSH session (SIGHUP), or a reader of its output that goes away,\n"
+    "130, also while it waits for the service (its state, or the reply to the clear or the\n"
+    "start). A closed terminal or SSH session (SIGHUP), or a reader of its output that goes away,\n"
     "does not end the run: it follows the program to its end.\n";
 
 struct PlotData {
@@ -241,7 +242,7 @@ int run_run(int argc, char** argv) {
     std::fprintf(stderr, "tgm-hmi run: %s\n", e.what());
     return 1;
   }
-  if (!wait_for_service(*hmi, *config, ip, "run")) return 1;
+  if (const int rc = wait_for_service(*hmi, *config, ip, "run"); rc != 0) return rc;
   try {
     hmi->on_event([&](const client::Event& ev) {
       const msg::InterpolatorEvent& e = ev.sample;
@@ -357,10 +358,10 @@ int run_run(int argc, char** argv) {
     return 2;
   }
   if (st->status() != 0) {
-    const client::Reply r = hmi->clear(ip, kFirstRequestTimeout);
+    const client::Reply r = hmi->clear(ip, kFirstRequestTimeout, &g_interrupted);
     if (!r.accepted) {
       std::fprintf(stderr, "tgm-hmi run: clearing interpolator %d: %s\n", ip, client::describe(r).c_str());
-      return 1;
+      return r.cancelled ? 130 : 1;
     }
   }
 
@@ -501,7 +502,15 @@ int run_run(int argc, char** argv) {
     if (!started && ours &&
         (sender.all_confirmed() || sender.confirmed() >= static_cast<std::uint64_t>(st->buffer_size() / 2) ||
          st->free_buffer_slots() == 0)) {
-      const client::Reply r = hmi->start(ip, kFirstRequestTimeout);
+      const client::Reply r = hmi->start(ip, kFirstRequestTimeout, &g_interrupted);
+      if (r.cancelled) {
+        // A start that was sent may still be carried out: stop as at any Ctrl-C.
+        clear_progress();
+        std::printf("tgm-hmi run: interrupted: start: %s; normal stop: %s\n",
+                    client::describe(r).c_str(), client::describe(hmi->stop(ip)).c_str());
+        exit_code = 130;
+        break;
+      }
       if (!r.accepted) {
         std::fprintf(stderr, "tgm-hmi run: start: %s\n", client::describe(r).c_str());
         exit_code = 1;

@@ -34,6 +34,13 @@ std::string describe(const Reply& r) {
   if (r.timed_out) {
     char waited[32];
     std::snprintf(waited, sizeof waited, "%.1f s", static_cast<double>(r.waited.count()) / 1000.0);
+    if (r.cancelled) {
+      return std::string("interrupted after ") + waited +
+             (r.sent
+                  ? " waiting for the reply: the request was sent, whether tgm-service executed it "
+                    "is not known (check the registers)"
+                  : " waiting for tgm-service to take requests; nothing was sent");
+    }
     if (!r.sent) {
       return std::string("no reply: no tgm-service took requests on this domain within ") + waited +
              " (is it running, with the same domain, profiles and security?); nothing was sent";
@@ -201,19 +208,21 @@ void Client::poll(std::chrono::nanoseconds timeout) {
   }
 }
 
-bool Client::wait_for_state(int interpolator, std::chrono::milliseconds timeout) {
-  return wait_until(interpolator, [](const msg::InterpolatorState&) { return true; }, timeout);
+bool Client::wait_for_state(int interpolator, std::chrono::milliseconds timeout,
+                            const std::atomic<bool>* cancel) {
+  return wait_until(
+      interpolator, [](const msg::InterpolatorState&) { return true; }, timeout, cancel);
 }
 
 bool Client::wait_until(int interpolator,
                         const std::function<bool(const msg::InterpolatorState&)>& pred,
-                        std::chrono::milliseconds timeout) {
+                        std::chrono::milliseconds timeout, const std::atomic<bool>* cancel) {
   const auto deadline = Clock::now() + timeout;
   while (true) {
     poll(std::chrono::nanoseconds(0));
     if (const auto* s = state(interpolator); s != nullptr && pred(*s)) return true;
     const auto now = Clock::now();
-    if (now >= deadline) return false;
+    if (now >= deadline || (cancel != nullptr && cancel->load())) return false;
     poll(std::min<std::chrono::nanoseconds>(deadline - now, 20ms));
   }
 }
@@ -246,25 +255,40 @@ std::vector<msg::Message> Client::take_messages() {
   return out;
 }
 
-Reply Client::request(msg::Request r, std::chrono::milliseconds timeout) {
+Reply Client::request(msg::Request r, std::chrono::milliseconds timeout,
+                      const std::atomic<bool>* cancel) {
   Reply out;
   out.waited = timeout;
-  const auto deadline = Clock::now() + timeout;
-  // The request topic is VOLATILE: a request written before the service's reader matched is lost.
-  if (!dds::wait_for_match(request_writer_, 1, timeout) ||
-      !dds::wait_for_match(reply_reader_, 1, std::chrono::duration_cast<std::chrono::milliseconds>(
-                                                 std::max(deadline - Clock::now(), Clock::duration(0))))) {
+  const auto start = Clock::now();
+  const auto deadline = start + timeout;
+  // Ends the wait when the time is up or the caller cancels (then `waited` is the time spent).
+  const auto give_up = [&] {
+    if (cancel != nullptr && cancel->load()) {
+      out.cancelled = true;
+      out.waited = std::chrono::duration_cast<std::chrono::milliseconds>(Clock::now() - start);
+    } else if (Clock::now() < deadline) {
+      return false;
+    }
     out.timed_out = true;
-    return out;
-  }
+    return true;
+  };
+  // The request topic is VOLATILE: a request written before the service's reader matched is
+  // lost. Matched in slices of 20 ms, so that a cancel is seen.
+  const auto matched = [&](auto& endpoint) {
+    while (!dds::wait_for_match(
+        endpoint, 1,
+        std::chrono::duration_cast<std::chrono::milliseconds>(
+            std::clamp<Clock::duration>(deadline - Clock::now(), Clock::duration(0), 20ms)))) {
+      if (give_up()) return false;
+    }
+    return true;
+  };
+  if (!matched(request_writer_) || !matched(reply_reader_)) return out;
   // A free place in the window (kRequestsInFlight), waiting for replies to earlier send()s.
   while (!take_slot()) {
-    const auto now = Clock::now();
-    if (now >= deadline) {
-      out.timed_out = true;
-      return out;
-    }
-    poll(std::min<std::chrono::nanoseconds>(deadline - now, 20ms));
+    if (give_up()) return out;
+    poll(std::min<std::chrono::nanoseconds>(
+        std::max<Clock::duration>(deadline - Clock::now(), Clock::duration(0)), 20ms));
   }
   fill(r);
   if (!request_writer_.write(&r)) {
@@ -277,12 +301,9 @@ Reply Client::request(msg::Request r, std::chrono::milliseconds timeout) {
   while (true) {
     poll(std::chrono::nanoseconds(0));
     if (std::optional<Reply> reply = take_reply(r.request_id())) return *reply;
-    const auto now = Clock::now();
-    if (now >= deadline) {
-      out.timed_out = true;
-      return out;
-    }
-    poll(std::min<std::chrono::nanoseconds>(deadline - now, 20ms));
+    if (give_up()) return out;
+    poll(std::min<std::chrono::nanoseconds>(
+        std::max<Clock::duration>(deadline - Clock::now(), Clock::duration(0)), 20ms));
   }
 }
 
@@ -393,11 +414,11 @@ Reply Client::stop(int i) {
 Reply Client::clear(int i) {
   return clear(i, request_timeout_);
 }
-Reply Client::start(int i, std::chrono::milliseconds timeout) {
-  return request(start_request(i), timeout);
+Reply Client::start(int i, std::chrono::milliseconds timeout, const std::atomic<bool>* cancel) {
+  return request(start_request(i), timeout, cancel);
 }
-Reply Client::clear(int i, std::chrono::milliseconds timeout) {
-  return request(make(i, msg::REQUEST_KIND_CLEAR), timeout);
+Reply Client::clear(int i, std::chrono::milliseconds timeout, const std::atomic<bool>* cancel) {
+  return request(make(i, msg::REQUEST_KIND_CLEAR), timeout, cancel);
 }
 
 Reply Client::command(int i, std::int32_t code, std::span<const std::int32_t> params) {

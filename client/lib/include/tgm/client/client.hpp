@@ -68,6 +68,9 @@ struct Reply {
   bool sent = false;
   //! With `timed_out`: how long the reply was waited for.
   std::chrono::milliseconds waited{0};
+  //! With `timed_out`: the wait was given up because the caller's cancel flag was set (Ctrl-C),
+  //! not because the time ran out. `sent` says whether the request went out.
+  bool cancelled = false;
 };
 
 //! "accepted", "wrong role", "out of range", ...
@@ -118,11 +121,14 @@ class Client {
   std::chrono::steady_clock::time_point last_wake() const { return last_wake_; }
   //! When the last request() returned from the write() of its request.
   std::chrono::steady_clock::time_point last_request_written() const { return last_written_; }
-  //! Polls until the state of `interpolator` is known; false on timeout.
-  bool wait_for_state(int interpolator, std::chrono::milliseconds timeout);
-  //! Polls until `pred(state)` holds for the state of `interpolator`; false on timeout.
+  //! Polls until the state of `interpolator` is known; false on timeout, or within 20 ms of a
+  //! `cancel` flag becoming true.
+  bool wait_for_state(int interpolator, std::chrono::milliseconds timeout,
+                      const std::atomic<bool>* cancel = nullptr);
+  //! Polls until `pred(state)` holds for the state of `interpolator`; false on timeout or
+  //! cancel, as wait_for_state.
   bool wait_until(int interpolator, const std::function<bool(const msg::InterpolatorState&)>& pred,
-                  std::chrono::milliseconds timeout);
+                  std::chrono::milliseconds timeout, const std::atomic<bool>* cancel = nullptr);
   //! Newest state of `interpolator`, null when none has arrived. Of the service instance
   //! followed (service_followed()): with two services on one domain (a mistake the services
   //! report, see README) the states of the other are not mixed in.
@@ -201,16 +207,21 @@ class Client {
   static constexpr std::size_t kMaxKeptReplies = 1000;
 
   //! Sends `r` (request_id, role and client_name are filled in) and polls until its reply,
-  //! at most `timeout` (ClientOptions::request_timeout when not given).
-  Reply request(msg::Request r, std::chrono::milliseconds timeout);
+  //! at most `timeout` (ClientOptions::request_timeout when not given). A `cancel` flag that
+  //! becomes true ends the wait within one poll (20 ms): the reply is then `timed_out` and
+  //! `cancelled`.
+  Reply request(msg::Request r, std::chrono::milliseconds timeout,
+                const std::atomic<bool>* cancel = nullptr);
   Reply request(msg::Request r) { return request(std::move(r), request_timeout_); }
   Reply start(int interpolator);
   Reply stop(int interpolator);
   Reply clear(int interpolator);
   //! start / clear waiting at most `timeout` for the reply (a first request on a lossy network
-  //! waits for the discovery of the request and reply endpoints as well).
-  Reply start(int interpolator, std::chrono::milliseconds timeout);
-  Reply clear(int interpolator, std::chrono::milliseconds timeout);
+  //! waits for the discovery of the request and reply endpoints as well), or until `cancel`.
+  Reply start(int interpolator, std::chrono::milliseconds timeout,
+              const std::atomic<bool>* cancel = nullptr);
+  Reply clear(int interpolator, std::chrono::milliseconds timeout,
+              const std::atomic<bool>* cancel = nullptr);
   //! Command register with Command_Parameter[0..11] (missing parameters are 0).
   Reply command(int interpolator, std::int32_t code, std::span<const std::int32_t> params = {});
   //! M_Func = 0, acknowledging M-function `m` (0: whichever is shown) with m_func_count `count`
