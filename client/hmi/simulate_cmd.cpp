@@ -59,6 +59,8 @@ constexpr const char* kUsage =
     "                   act_part and the 8 entries; kNotSet values as null)\n"
     "  --blocks OUT     one row per executed motion block: line, length, programmed and peak\n"
     "                   speed, duration and the factor that limited its speed\n"
+    "                   (OUT of --csv, --blocks or --lookahead may be - for standard output;\n"
+    "                   the summary then goes to standard error)\n"
     "  --start X20,Y5   where the machine stands when the program starts [mm] (default:\n"
     "                   zero): the program is compiled from there, as `tgm-hmi run` compiles\n"
     "                   from where the interpolator stands (axes not named: 0); a .tgmi\n"
@@ -171,7 +173,19 @@ class CsvWriter {
   char* p_ = buf_.data();
 };
 
+// "-" is standard output (a copy of its descriptor, so that closing the file leaves it open).
 File open_out(const std::string& path) {
+  if (path == "-") {
+    std::fflush(stdout);
+    const int fd = ::dup(1);
+    File f(fd >= 0 ? ::fdopen(fd, "w") : nullptr);
+    if (!f) {
+      std::fprintf(stderr, "tgm-hmi simulate: error: cannot write standard output: %s\n",
+                   std::strerror(errno));
+      if (fd >= 0) ::close(fd);
+    }
+    return f;
+  }
   File f(std::fopen(path.c_str(), "w"));
   if (!f) std::fprintf(stderr, "%s: error: cannot write: %s\n", path.c_str(), std::strerror(errno));
   return f;
@@ -525,86 +539,115 @@ int run_simulate(int argc, char** argv) {
   }
   const bool io_ok = io_error.empty();
 
+  // With an output on standard output ("-") the summary goes to standard error.
+  std::FILE* const report =
+      csv_path == "-" || blocks_path == "-" || la_path == "-" ? stderr : stdout;
   const bool finished = sum.result == StepResult::kFinished;
-  std::printf("program:   %s (%zu records, interpolator %d, %d us cycle)\n", file.c_str(),
-              program.segments.size(), ip_index, machine.cycle_time_us);
+  std::fprintf(report, "program:   %s (%zu records, interpolator %d, %d us cycle)\n", file.c_str(),
+               program.segments.size(), ip_index, machine.cycle_time_us);
   const std::string why =
       interrupted != 0
           ? std::string("interrupted by ") + (interrupted == SIGINT ? "SIGINT" : "SIGTERM") +
                 (csv_every > 1 ? " (the output files hold the run up to here)"
                                : " (the output files hold every cycle up to here)")
           : sum.error + (sum.time_limit_reached ? " (--max-time S raises it)" : "");
-  std::printf("result:    %s%s%s\n", finished ? "finished" : "NOT finished", why.empty() ? "" : ": ", why.c_str());
-  std::printf("time:      %.4f s program time, %llu cycles, simulated %.0fx faster than real time\n",
-              sum.program_time_s, static_cast<unsigned long long>(sum.cycles),
-              wall > 0.0 ? sum.program_time_s / wall : 0.0);
+  std::fprintf(report, "result:    %s%s%s\n", finished ? "finished" : "NOT finished",
+               why.empty() ? "" : ": ", why.c_str());
+  std::fprintf(
+      report,
+      "time:      %.4f s program time, %llu cycles, simulated %.0fx faster than real time\n",
+      sum.program_time_s, static_cast<unsigned long long>(sum.cycles),
+      wall > 0.0 ? sum.program_time_s / wall : 0.0);
   // Below 1 mm/min with three significant digits (F0.001 printed as 0.0).
-  std::printf(
+  std::fprintf(
+      report,
       sum.peak_speed_mm_min >= 1.0 || sum.peak_speed_mm_min == 0.0
           ? "distance:  %.4f mm, peak path speed %.1f mm/min, %llu M-functions acknowledged\n"
           : "distance:  %.4f mm, peak path speed %.3g mm/min, %llu M-functions acknowledged\n",
       sum.distance_mm, sum.peak_speed_mm_min, static_cast<unsigned long long>(sum.m_functions));
   if (!stops.empty()) {
-    std::printf(
+    std::fprintf(
+        report,
         "stops:     %llu of %zu given before the end, each restarted %.3f s after the standstill\n",
         static_cast<unsigned long long>(sum.stops), stops.size(), restart_s);
   }
-  std::printf("end:      ");
-  for (int i = 0; i < n; ++i) std::printf(" %c=%.6f", letters[static_cast<std::size_t>(i)], sum.end_position[static_cast<std::size_t>(i)]);
-  std::printf("  (Position after smoothing:");
+  std::fprintf(report, "end:      ");
+  for (int i = 0; i < n; ++i)
+    std::fprintf(report, " %c=%.6f", letters[static_cast<std::size_t>(i)],
+                 sum.end_position[static_cast<std::size_t>(i)]);
+  std::fprintf(report, "  (Position after smoothing:");
   for (int i = 0; i < n; ++i) {
-    std::printf(" %c=%.6f", letters[static_cast<std::size_t>(i)], sum.end_position_smoothed[static_cast<std::size_t>(i)]);
+    std::fprintf(report, " %c=%.6f", letters[static_cast<std::size_t>(i)],
+                 sum.end_position_smoothed[static_cast<std::size_t>(i)]);
   }
-  std::printf(")\n");
+  std::fprintf(report, ")\n");
   {
     const SmoothingStage& sm = sim->interpolator().smoothing();
     const SplineStats& ss = sm.spline().stats();
     if (sm.spline().delay_steps() > 0) {
-      std::printf("spline:    %d points (%.1f ms delay), jerk limit %.0f mm/s^3, %llu flagged steps, %llu passes, "
-                  "contour deviation max %.6f mm\n",
-                  sm.spline().delay_steps(), sm.spline().delay_steps() * sm.calc_step_s() * 1e3,
-                  sm.spline().jerk_limit_mm_s3(), static_cast<unsigned long long>(ss.flagged_steps),
-                  static_cast<unsigned long long>(ss.passes), ss.max_mm);
+      std::fprintf(report,
+                   "spline:    %d points (%.1f ms delay), jerk limit %.0f mm/s^3, %llu flagged "
+                   "steps, %llu passes, "
+                   "contour deviation max %.6f mm\n",
+                   sm.spline().delay_steps(), sm.spline().delay_steps() * sm.calc_step_s() * 1e3,
+                   sm.spline().jerk_limit_mm_s3(),
+                   static_cast<unsigned long long>(ss.flagged_steps),
+                   static_cast<unsigned long long>(ss.passes), ss.max_mm);
     }
     if (sm.iir().mask() != 0) {
-      std::printf("iir:       p %.6g q %.6g f %.6g ms, zeta %.3f, axis mask 0x%x\n", static_cast<double>(sm.iir().params().p_e6) * 1e-6,
-                  static_cast<double>(sm.iir().params().q_e6) * 1e-6, static_cast<double>(sm.iir().params().f_e6) * 1e-6, sm.iir().zeta(), sm.iir().mask());
+      std::fprintf(report, "iir:       p %.6g q %.6g f %.6g ms, zeta %.3f, axis mask 0x%x\n",
+                   static_cast<double>(sm.iir().params().p_e6) * 1e-6,
+                   static_cast<double>(sm.iir().params().q_e6) * 1e-6,
+                   static_cast<double>(sm.iir().params().f_e6) * 1e-6, sm.iir().zeta(),
+                   sm.iir().mask());
     }
   }
   const auto& axes = machine.interpolators[static_cast<std::size_t>(ip_index)].axes;
   if (!check_limits) {
-    std::printf("axis peaks and violations: not checked (--check-limits differentiates every cycle)\n");
+    std::fprintf(
+        report,
+        "axis peaks and violations: not checked (--check-limits differentiates every cycle)\n");
   } else {
-    if (share < 1.0) std::printf("limits checked at %g x the configured ones (--limit-share)\n", share);
-    std::printf("axis   |v| peak / limit [mm/s]   |a| peak / limit [mm/s^2]   |j| peak / limit [mm/s^3]   corner step / tol [mm/s]\n");
+    if (share < 1.0)
+      std::fprintf(report, "limits checked at %g x the configured ones (--limit-share)\n", share);
+    std::fprintf(report,
+                 "axis   |v| peak / limit [mm/s]   |a| peak / limit [mm/s^2]   |j| peak / limit "
+                 "[mm/s^3]   corner step / tol [mm/s]\n");
     for (int i = 0; i < n; ++i) {
       const auto ui = static_cast<std::size_t>(i);
       const AxisConfig& a = axes[ui];
-      std::printf("%c      %9.3f / %-9.3f      %10.1f / %-10.1f      %11.0f / %-11.0f      %7.3f / %.3f\n",
-                  a.letter, sum.peaks[ui].velocity_mm_s, a.max_velocity_mm_s, sum.peaks[ui].acceleration_mm_s2,
-                  a.max_acceleration_mm_s2, sum.peaks[ui].jerk_mm_s3, a.max_jerk_mm_s3,
-                  sum.peaks[ui].corner_step_mm_s, a.corner_velocity_tolerance_mm_s);
+      std::fprintf(
+          report,
+          "%c      %9.3f / %-9.3f      %10.1f / %-10.1f      %11.0f / %-11.0f      %7.3f / %.3f\n",
+          a.letter, sum.peaks[ui].velocity_mm_s, a.max_velocity_mm_s,
+          sum.peaks[ui].acceleration_mm_s2, a.max_acceleration_mm_s2, sum.peaks[ui].jerk_mm_s3,
+          a.max_jerk_mm_s3, sum.peaks[ui].corner_step_mm_s, a.corner_velocity_tolerance_mm_s);
     }
     if (std::any_of(stops.begin(), stops.end(), [](const auto& st) { return st.second == 4; })) {
-      std::printf(
+      std::fprintf(
+          report,
           "(peaks include the emergency ramp, which is held to the emergency deceleration and\n"
           " the jerk scaled by the same ratio, not to the limits above)\n");
     }
-    std::printf("violations: %llu\n", static_cast<unsigned long long>(sum.violation_count));
+    std::fprintf(report, "violations: %llu\n",
+                 static_cast<unsigned long long>(sum.violation_count));
     std::size_t shown = 0;
     for (const auto& v : sum.violations) {
       if (++shown > 20) break;
-      std::printf("  cycle %llu line %d axis %c %s %.6g > %.6g\n", static_cast<unsigned long long>(v.cycle), v.line,
-                  letters[static_cast<std::size_t>(v.axis)], limit_quantity_name(v.quantity), v.value, v.limit);
+      std::fprintf(report, "  cycle %llu line %d axis %c %s %.6g > %.6g\n",
+                   static_cast<unsigned long long>(v.cycle), v.line,
+                   letters[static_cast<std::size_t>(v.axis)], limit_quantity_name(v.quantity),
+                   v.value, v.limit);
     }
   }
-  std::printf("limited by (time):");
+  std::fprintf(report, "limited by (time):");
   for (std::size_t k = 1; k < sum.factor_time_s.size(); ++k) {
     if (sum.factor_time_s[k] > 0.0) {
-      std::printf(" %s %.3f s", limit_factor_name(static_cast<LimitFactor>(k)), sum.factor_time_s[k]);
+      std::fprintf(report, " %s %.3f s", limit_factor_name(static_cast<LimitFactor>(k)),
+                   sum.factor_time_s[k]);
     }
   }
-  std::printf("\n");
+  std::fprintf(report, "\n");
   if (!io_ok) {
     std::fputs(io_error.c_str(), stderr);
     return 1;

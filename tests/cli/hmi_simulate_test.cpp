@@ -145,6 +145,30 @@ TEST_F(HmiSimulate, CsvEveryKeepsTheNthCyclesTheEventsAndTheLast) {
   EXPECT_EQ(split(some.back(), ',')[3], "3");  // the program's end
 }
 
+// `--csv -` wrote a file named "-" and the summary to standard output. "-" is standard output
+// now, for any one of the outputs, and the summary goes to standard error.
+TEST_F(HmiSimulate, AnOutputNamedDashIsStandardOutputAndTheSummaryMovesToStandardError) {
+  const fs::path file = dir_ / "file.csv";
+  const std::string base = "simulate " + kExample + " --config " + kConfig;
+  const ProcessResult to_file =
+      run(base + " --csv " + file.string() + " --blocks " + (dir_ / "b.csv").string());
+  ASSERT_EQ(to_file.exit_code, 0) << to_file.err;
+  const ProcessResult csv = run(base + " --csv -");
+  ASSERT_EQ(csv.exit_code, 0) << csv.err;
+  EXPECT_EQ(csv.out, slurp(file));
+  EXPECT_FALSE(fs::exists(fs::current_path() / "-"));
+  EXPECT_NE(csv.err.find("result:    finished"), std::string::npos) << csv.err;
+  const ProcessResult blocks = run(base + " --blocks -");
+  ASSERT_EQ(blocks.exit_code, 0) << blocks.err;
+  EXPECT_EQ(blocks.out, slurp(dir_ / "b.csv"));
+  EXPECT_NE(blocks.err.find("result:    finished"), std::string::npos) << blocks.err;
+  // The summary stays on standard output without a "-".
+  EXPECT_NE(to_file.out.find("result:    finished"), std::string::npos) << to_file.out;
+  const ProcessResult both = run(base + " --csv - --blocks -");
+  EXPECT_EQ(both.exit_code, 2);
+  EXPECT_NE(both.err.find("both outputs would be written into it"), std::string::npos) << both.err;
+}
+
 TEST_F(HmiSimulate, OverrideStretchesAFeedLimitedLine) {
   // 100 mm at F600: 10 s plus the S-curve's ramps; at Rel_Speed 0.5 twice the cruise.
   const fs::path prog = write("line.ngc", "G90 G1 X100 F600\nM2\n");
