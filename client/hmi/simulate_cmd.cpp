@@ -310,6 +310,12 @@ int run_simulate(int argc, char** argv) {
   Program program;
   bool intercode = false;
   if (!load_program(file, machine, ip_index, program, nullptr, &start, &intercode)) return 2;
+  // As `run` says it: a summary of nothing ("NOT finished: empty program", exit 1) looked like
+  // a run that went wrong.
+  if (program.segments.empty()) {
+    std::fprintf(stderr, "%s: the program has no records\n", file.c_str());
+    return 2;
+  }
   // Intercode runs from the point it was compiled from, as `tgm-hmi run` runs it.
   if (intercode) {
     if (!start_text.empty() && !same_point(start, program.start_mm, program.number_axes)) {

@@ -586,6 +586,12 @@ TEST_F(HmiSimulate, BadInputIsAUsageErrorAndWritesNothing) {
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.err.find(bad.string() + ":2:7: error: unknown word 'Q2'"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(csv));
+  const fs::path empty = write("empty.ngc", "(nothing but a comment)\n");
+  r = run("simulate " + empty.string() + " --config " + kConfig + " --csv " + csv.string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.err, empty.string() + ": the program has no records\n");
+  EXPECT_TRUE(r.out.empty()) << r.out;
+  EXPECT_FALSE(fs::exists(csv));
   const std::string ok = kExample + " --config " + kConfig;
   const std::pair<std::string, std::string> cases[] = {
       {"simulate", "a G-code FILE is required"},
