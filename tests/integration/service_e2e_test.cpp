@@ -57,6 +57,18 @@ Program compile(const std::string& gcode, const std::string& config_path) {
   return r.program;
 }
 
+// The reply of a stand-in service that accepts `q` in `cycle`.
+msg::Reply accepted_reply(const msg::Request& q, std::uint64_t cycle) {
+  msg::Reply r;
+  r.request_id(q.request_id());
+  r.client_name(q.client_name());
+  r.interpolator(q.interpolator());
+  r.accepted(true);
+  r.code(msg::REPLY_CODE_ACCEPTED);
+  r.cycle_counter(cycle);
+  return r;
+}
+
 // Starts the service and a PLC client whose request and reply topics have matched both ways
 // (one request answered), for tests that then write requests without waiting for each reply.
 ::testing::AssertionResult start_with_matched_plc(ServiceEnv& env, std::optional<client::Client>& plc) {
@@ -414,13 +426,7 @@ TEST(ServiceProcesses, ThePlcAcknowledgesEachInterpolatorWithoutWaitingForAnothe
     }
     if (acks[0] > 0 && acks[1] > 0) {
       for (const msg::Request& q : held) {
-        msg::Reply r;
-        r.request_id(q.request_id());
-        r.client_name(q.client_name());
-        r.interpolator(q.interpolator());
-        r.accepted(true);
-        r.code(msg::REPLY_CODE_ACCEPTED);
-        r.cycle_counter(cycle);
+        msg::Reply r = accepted_reply(q, cycle);
         ASSERT_TRUE(replies.write(&r));
         st[q.interpolator()].m_func(0);
         st[q.interpolator()].run_flag(static_cast<std::int32_t>(SectionState::kRun));
@@ -690,13 +696,7 @@ struct SilentService {
     return std::nullopt;
   }
   void accept(const msg::Request& r) {
-    msg::Reply rep;
-    rep.request_id(r.request_id());
-    rep.client_name(r.client_name());
-    rep.interpolator(r.interpolator());
-    rep.accepted(true);
-    rep.code(msg::REPLY_CODE_ACCEPTED);
-    rep.cycle_counter(state.cycle_counter());
+    msg::Reply rep = accepted_reply(r, state.cycle_counter());
     reply_w.write(&rep);
   }
 
