@@ -358,8 +358,18 @@ int run_simulate(int argc, char** argv) {
   auto next_progress = after(wall0, tty ? 0.5 : interval_s);
   const SignalFlag signal_flag;
   g_signal = 0;
+  File csv, blocks, la;
+  // An output that can no longer be written (a full disk) ends the run where it is: it ran on
+  // to the end of the program, however long, and only then said that the file was incomplete.
+  bool output_failed = false;
   so.on_progress = [&](const SimulationProgress& p) {
     if (g_signal != 0) return false;
+    for (const File* f : {&csv, &blocks, &la}) {
+      if (*f && std::ferror(f->get())) {
+        output_failed = true;
+        return false;
+      }
+    }
     if (quiet) return true;
     const auto now = std::chrono::steady_clock::now();
     if (now < next_progress) return true;
@@ -384,7 +394,6 @@ int run_simulate(int argc, char** argv) {
   const std::string letters = machine.axis_letters(ip_index);
   const int n = static_cast<int>(letters.size());
 
-  File csv, blocks, la;
   if (!csv_path.empty() && !(csv = open_out(csv_path))) return 1;
   if (!la_path.empty() && !(la = open_out(la_path))) return 1;
   if (!blocks_path.empty() && !(blocks = open_out(blocks_path))) return 1;
@@ -552,7 +561,8 @@ int run_simulate(int argc, char** argv) {
   std::fprintf(report, "program:   %s (%zu records, interpolator %d, %d us cycle)\n", file.c_str(),
                program.segments.size(), ip_index, machine.cycle_time_us);
   const std::string why =
-      interrupted != 0
+      output_failed ? std::string("stopped: an output file could not be written (below)")
+      : interrupted != 0
           ? std::string("interrupted by ") + (interrupted == SIGINT ? "SIGINT" : "SIGTERM") +
                 (csv_every > 1 ? " (the output files hold the run up to here)"
                                : " (the output files hold every cycle up to here)")

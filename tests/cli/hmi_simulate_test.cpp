@@ -507,6 +507,23 @@ TEST_F(HmiSimulate, AnOutputThatCannotBeWrittenIsNamedWithTheReason) {
             0);
   EXPECT_GT(lines(slurp(csv)).size(), 1000u);
   EXPECT_EQ(slurp(csv), slurp(again));
+
+  // An output that fails while the run goes on (a disk that fills up) ends the run there: it
+  // ran to the program's end first, an hour of program for a file that was lost after a
+  // minute. 600 s of program time here, about 120 MB of CSV; the first megabyte fails.
+  const fs::path long_prog = write("long.ngc", "G90 G1 X100 F10\nM2\n");
+  const ProcessResult full =
+      run("simulate " + long_prog.string() + " --config " + kConfig + " --csv /dev/full --quiet");
+  EXPECT_EQ(full.exit_code, 1) << full.out << full.err;
+  EXPECT_NE(full.out.find("result:    NOT finished: stopped: an output file could not be written"),
+            std::string::npos)
+      << full.out;
+  EXPECT_EQ(full.err,
+            "tgm-hmi simulate: cannot write --csv /dev/full: No space left on device (the file "
+            "is incomplete)\n");
+  const std::size_t at = full.out.find("s program time, ");
+  ASSERT_NE(at, std::string::npos) << full.out;
+  EXPECT_LT(std::stoull(full.out.substr(at + 16)), 100000u) << full.out;  // of 1,200,000 cycles
 }
 
 // A feed of 0.001 mm/min: 0.001 mm take 60 s, and the summary prints the peak with its digits
