@@ -195,8 +195,10 @@ int run_watch(int argc, char** argv) {
   }
   if (args.help()) return 0;
   if (args.failed()) return 2;
-  if (const int rc = connect(args, c); rc != 0) return rc;
+  // Before the client exists: a Ctrl-C once its readers match is taken as the end of the watch
+  // (the test that waits for that match to interrupt found it killed, with no word).
   install_signal_flag(Hangup::kInterrupt);
+  if (const int rc = connect(args, c); rc != 0) return rc;
   const int ip = args.interpolator();
   if (const int rc = wait_for_service(*c.client, *c.config, ip, "watch", wait_s); rc != 0)
     return rc;
