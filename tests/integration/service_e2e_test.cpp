@@ -772,6 +772,36 @@ TEST(ServiceProcesses, RunAndWatchTakeCtrlCWhileTheyWaitForTheService) {
   EXPECT_EQ(r->kind(), msg::REQUEST_KIND_STOP);
 }
 
+// An interpolator the service does not host (its config has fewer) is named as such within a
+// second or so of the others' states: status, watch and run waited out their 10 s and asked
+// whether a service was running at all.
+TEST(ServiceProcesses, AnInterpolatorTheServiceDoesNotHostIsNamed) {
+  test::ConfigEdits one;
+  one.interpolators = 1;
+  ServiceEnv service_env(one), hmi_env;  // the HMI's config has the default three
+  ASSERT_TRUE(service_env.start_service());
+  std::ofstream(hmi_env.path("p.ngc")) << "G91 G1 X10 F3000\nM2\n";
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{TGM_HMI_BIN, "status", "--interpolator", "2"},
+        std::vector<std::string>{TGM_HMI_BIN, "watch", "--interpolator", "1"},
+        std::vector<std::string>{TGM_HMI_BIN, "run", hmi_env.path("p.ngc"), "--interpolator",
+                                 "1"}}) {
+    std::vector<std::string> a = args;
+    a.insert(a.end(),
+             {"--config", hmi_env.config(), "--domain", std::to_string(service_env.domain())});
+    test::Child hmi;
+    ASSERT_TRUE(hmi.start(a, hmi_env.path("hmi.log")));
+    EXPECT_EQ(hmi.wait(kHang), 1) << hmi.log();
+    const std::string expect = "tgm-service on DDS domain " + std::to_string(service_env.domain()) +
+                               " hosts interpolator 0, not " + args[args.size() - 1] +
+                               " (its config has 1 interpolator, " + hmi_env.config() + " has 3)";
+    EXPECT_NE(hmi.log().find(expect), std::string::npos) << hmi.log();
+  }
+  client::Client watch(service_env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(watch.wait_for_state(0, kHang));
+  EXPECT_EQ(watch.state(0)->status(), 0);  // the run sent nothing
+}
+
 // A reader of standard output that goes away (`| head`) no longer kills `run` by SIGPIPE: it
 // died and left a program longer than the buffer to run dry in an underrun. It follows and
 // streams on to the end, and says at exit that its output was lost (exit code 1). SIGHUP, the

@@ -24,6 +24,8 @@ struct ConfigEdits {
   double default_feed_mm_per_min = 6000;
   //! Buffer_Size of interpolator 0 (the default config has 10000).
   int buffer_size0 = 10000;
+  //! How many of the default config's three interpolators the config keeps (1..3).
+  int interpolators = 3;
   std::string profiles = profiles_path();
   int domain = test_domain();
 };
@@ -35,8 +37,17 @@ class ServiceEnv {
            ("tgm_it_" + std::to_string(::getpid()) + "_" + std::to_string(counter()++));
     std::filesystem::create_directories(dir_);
     std::string yaml = read_text(TGM_SOURCE_DIR "/config/default.yaml");
-    bool ok = replace_first(yaml, "default_feed_mm_per_min: 1000",
-                            "default_feed_mm_per_min: " + std::to_string(e.default_feed_mm_per_min));
+    const std::string entry =
+        "  - buffer_size: 10000\n    axes: [{letter: X}, {letter: Y}, {letter: Z}]\n";
+    bool ok = true;
+    for (int k = e.interpolators; k < 3 && ok; ++k) {
+      const std::size_t at = yaml.rfind(entry);
+      ok = at != std::string::npos;
+      if (ok) yaml.erase(at, entry.size());
+    }
+    ok = ok &&
+         replace_first(yaml, "default_feed_mm_per_min: 1000",
+                       "default_feed_mm_per_min: " + std::to_string(e.default_feed_mm_per_min));
     ok = ok && replace_first(yaml, "profiles_file: fastdds_profiles.xml", "profiles_file: " + e.profiles);
     ok = ok && replace_first(yaml, "domain_id: 0", "domain_id: " + std::to_string(e.domain));
     ok = ok && replace_first(yaml, "buffer_size: 10000", "buffer_size: " + std::to_string(e.buffer_size0));

@@ -4,9 +4,12 @@
 
 #include <algorithm>
 #include <charconv>
+#include <chrono>
 #include <cmath>
 #include <cstdarg>
 #include <cstdio>
+#include <optional>
+#include <string>
 #include <type_traits>
 
 #include "tgm/intercode.hpp"
@@ -50,12 +53,50 @@ int make_client(Args& args, const DdsOverrides& o, std::optional<AppConfig>& con
 
 int wait_for_service(client::Client& c, const AppConfig& config, int interpolator,
                      const char* command, double wait_s) {
-  const auto wait = std::chrono::milliseconds(static_cast<long long>(std::ceil(wait_s * 1000.0)));
-  if (c.wait_for_state(interpolator, wait, &g_interrupted)) return 0;
-  if (g_interrupted) {
-    std::fprintf(stderr, "tgm-hmi %s: interrupted while waiting for the state of interpolator %d\n",
-                 command, interpolator);
-    return 130;
+  using Clock = std::chrono::steady_clock;
+  const auto deadline =
+      Clock::now() + std::chrono::milliseconds(static_cast<long long>(std::ceil(wait_s * 1000.0)));
+  // A service publishes the states of all the interpolators it hosts every few milliseconds
+  // (--state-period-ms, at most 50): when others arrive for a second and this one does not,
+  // the service's config has fewer interpolators than this one's. The wait ran out the whole
+  // 10 s and then asked whether a service was running at all.
+  std::optional<Clock::time_point> others_since;
+  while (true) {
+    const auto slice = std::clamp<Clock::duration>(deadline - Clock::now(), Clock::duration(0),
+                                                   std::chrono::milliseconds(100));
+    if (c.wait_for_state(interpolator, std::chrono::duration_cast<std::chrono::milliseconds>(slice),
+                         &g_interrupted)) {
+      return 0;
+    }
+    if (g_interrupted) {
+      std::fprintf(stderr,
+                   "tgm-hmi %s: interrupted while waiting for the state of interpolator %d\n",
+                   command, interpolator);
+      return 130;
+    }
+    std::string hosted;
+    int hosted_count = 0;
+    for (int i = 0; i < kMaxInterpolators; ++i) {
+      if (i != interpolator && c.state(i) != nullptr) {
+        hosted += (hosted.empty() ? "" : ", ") + std::to_string(i);
+        ++hosted_count;
+      }
+    }
+    const auto now = Clock::now();
+    if (!hosted.empty() && !others_since) others_since = now;
+    if (others_since && now - *others_since >= std::chrono::seconds(1)) {
+      const std::string mine =
+          config.source_path.empty() ? "the built-in config" : config.source_path;
+      std::fprintf(stderr,
+                   "tgm-hmi %s: tgm-service on DDS domain %d hosts interpolator%s %s, not %d (its "
+                   "config has %d interpolator%s, %s has %zu): choose one with --interpolator, or "
+                   "use the service's config\n",
+                   command, config.dds.domain_id, hosted_count == 1 ? "" : "s", hosted.c_str(),
+                   interpolator, hosted_count, hosted_count == 1 ? "" : "s", mine.c_str(),
+                   config.machine.interpolators.size());
+      return 1;
+    }
+    if (now >= deadline) break;
   }
   std::fprintf(
       stderr,
