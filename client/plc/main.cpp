@@ -691,6 +691,11 @@ int plc_main(int argc, char** argv) {
   bool awaiting_match = false;
   Clock::time_point event_match_by{};
   auto last_wait_log = Clock::now();
+  // Served interpolators the service does not host (its config has fewer): said once, a second
+  // after the first state of another (every hosted one publishes every few ms). The PLC went on
+  // saying "waiting for tgm-service" beside a running service, or nothing at all.
+  std::optional<Clock::time_point> others_seen_at;
+  bool unhosted_said = false;
   tgm::client::SilenceWatch silence(3s);
   tgm::dds::MalformedWatch malformed;
   // systemd (Type=notify): ready once the DDS entities exist; the watchdog is pinged while the
@@ -907,7 +912,30 @@ int plc_main(int argc, char** argv) {
       }
       log_seen();
     }
-    if (!found_at && now - last_wait_log > 5s) {
+    std::string hosted;
+    for (int i = 0; i < tgm::kMaxInterpolators; ++i) {
+      if (plc->state(i) != nullptr) hosted += (hosted.empty() ? "" : ", ") + std::to_string(i);
+    }
+    if (!hosted.empty() && !others_seen_at) others_seen_at = now;
+    if (!unhosted_said && others_seen_at && now - *others_seen_at >= 1s) {
+      unhosted_said = true;
+      std::string missing;
+      int unhosted = 0;
+      for (const Served& sv : served) {
+        if (sv.found || plc->state(sv.number) != nullptr) continue;
+        missing += (missing.empty() ? "" : ", ") + std::to_string(sv.number);
+        ++unhosted;
+      }
+      if (unhosted > 0) {
+        append_log(pending_log, stamp(),
+                   "interpolator%s %s: tgm-service on DDS domain %d hosts %s only (its config has "
+                   "fewer interpolators than %s): not served until a service hosts %s",
+                   unhosted == 1 ? "" : "s", missing.c_str(), config.dds.domain_id, hosted.c_str(),
+                   config.source_path.empty() ? "the built-in config" : config.source_path.c_str(),
+                   unhosted == 1 ? "it" : "them");
+      }
+    }
+    if (!found_at && hosted.empty() && now - last_wait_log > 5s) {
       last_wait_log = now;
       append_log(pending_log, stamp(), "waiting for tgm-service on DDS domain %d ...",
                  config.dds.domain_id);

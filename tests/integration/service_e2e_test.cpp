@@ -800,6 +800,21 @@ TEST(ServiceProcesses, AnInterpolatorTheServiceDoesNotHostIsNamed) {
   client::Client watch(service_env.dds(), client::Role::kHmi);
   ASSERT_TRUE(watch.wait_for_state(0, kHang));
   EXPECT_EQ(watch.state(0)->status(), 0);  // the run sent nothing
+
+  // The PLC serves interpolator 0 and says once that the others are not hosted (it said
+  // "waiting for tgm-service" every 5 s beside the running service, or nothing).
+  test::Child plc;
+  ASSERT_TRUE(plc.start(
+      {TGM_PLC_BIN, "--config", hmi_env.config(), "--domain", std::to_string(service_env.domain())},
+      hmi_env.path("plc.log")));
+  EXPECT_TRUE(plc.wait_for_log("interpolators 1, 2: tgm-service on DDS domain " +
+                                   std::to_string(service_env.domain()) +
+                                   " hosts 0 only (its config has fewer interpolators than " +
+                                   hmi_env.config() + "): not served until a service hosts them",
+                               kHang))
+      << plc.log();
+  EXPECT_NE(plc.log().find("interpolator 0: found"), std::string::npos) << plc.log();
+  EXPECT_EQ(plc.interrupt(kHang), 0) << plc.log();
 }
 
 // A reader of standard output that goes away (`| head`) no longer kills `run` by SIGPIPE: it
