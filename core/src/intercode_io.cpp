@@ -281,9 +281,87 @@ void encode_intercode(const Program& p, std::string& out) {
   enc.finish(p.params, p.messages);
 }
 
-bool decode_intercode(std::string_view file, Program& out, std::string& error) {
-  std::string_view bytes = file;  // without the checksum
-  In in(bytes);
+// The values a record's delta fields apply to, as the encoder starts them.
+struct PackedProgram::Cursor::State {
+  Segment prev;
+  double feed = 0.0;
+  double comp_radius = 0.0;
+  std::uint8_t modes = 0;
+  State() {
+    prev.line = 0;
+    prev.tool = 0;
+    modes = pack_modes(prev);
+  }
+};
+
+namespace {
+
+using DeltaState = PackedProgram::Cursor::State;
+
+// Decodes record `k` from `in` into `s` and moves `st` on; on failure returns why (for
+// "intercode at byte ...: why"), else "". `n`: the header's axis count.
+std::string decode_record(In& in, int n, DeltaState& st, Segment& s, std::uint64_t k) {
+  auto rec = [k] { return "record " + std::to_string(k); };
+  s = Segment{};
+  std::uint8_t type = 0, flags = 0;
+  std::uint16_t mask = 0;
+  if (!in.get(type) || !in.get(flags) || !in.get(mask)) return "truncated " + rec();
+  if (type > 6) return "unknown record type " + std::to_string(type);
+  if (flags & ~kKnownFlags) return "unknown flags in " + rec();
+  if (mask >> n) return "axis mask names an axis beyond " + std::to_string(n) + " in " + rec();
+  s.type = static_cast<SegmentType>(type);
+  if ((flags & kHasModes) && !in.get(st.modes)) return "truncated " + rec();
+  const int plane = 17 + (st.modes & 3), comp = 40 + ((st.modes >> 2) & 3), mkind = st.modes >> 4;
+  if (plane > 19 || comp > 42 || mkind > 4) return "bad modes in " + rec();
+  s.plane = static_cast<Plane>(plane);
+  s.compensation = static_cast<Compensation>(comp);
+  s.m_kind = static_cast<MKind>(mkind);
+  s.tool = st.prev.tool;
+  if ((flags & kHasTool) && !in.get(s.tool)) return "truncated " + rec();
+  if (flags & kHasLine) {
+    if (!in.get(s.line)) return "truncated " + rec();
+  } else if (st.prev.line == std::numeric_limits<std::int32_t>::max()) {
+    return "line number overflows in " + rec();
+  } else {
+    s.line = st.prev.line + 1;
+  }
+  s.end = st.prev.end;
+  for (int i = 0; i < n; ++i) {
+    if (!(mask & (1u << i))) continue;
+    double& v = s.end[static_cast<std::size_t>(i)];
+    if (!in.get(v)) return "truncated " + rec();
+    if (!std::isfinite(v)) return "non-finite coordinate in " + rec();
+  }
+  bool ok = true;
+  if (flags & kHasCompRadius) ok = ok && in.get(st.comp_radius);
+  if (flags & kHasFeed) ok = ok && in.get(st.feed);
+  s.compensation_radius_mm = s.compensation != Compensation::kOff ? st.comp_radius : 0.0;
+  s.feed_mm_per_min = s.is_motion() ? st.feed : 0.0;
+  if (s.is_arc()) {
+    ok = ok && in.get(s.center[0]) && in.get(s.center[1]) && in.get(s.radius) && in.get(s.turns);
+  }
+  if (s.type == SegmentType::kDwell) ok = ok && in.get(s.dwell_s);
+  if (s.type == SegmentType::kMFunction) ok = ok && in.get(s.m) && in.get(s.aux);
+  if (s.type == SegmentType::kMessage) ok = ok && in.get(s.aux);
+  if (!ok) return "truncated " + rec();
+  auto finite = [](double v) { return std::isfinite(v); };
+  if (!finite(s.compensation_radius_mm) || !finite(s.feed_mm_per_min) || !finite(s.center[0]) ||
+      !finite(s.center[1]) || !finite(s.radius) || !finite(s.dwell_s) || s.feed_mm_per_min < 0 ||
+      s.radius < 0 || s.dwell_s < 0 || s.turns < 0 || s.compensation_radius_mm < 0 || s.tool < 0 ||
+      s.tool > kMaxTool) {
+    return "value out of range in " + rec();
+  }
+  st.prev = s;
+  return {};
+}
+
+// The header of `file`, checked (magic, version, checksum, axis count, record count, start
+// point): `tables` gets the axis count, letters and start point, `count` the record count,
+// `body` the file without its checksum and `records_at` where the records begin in it.
+bool read_header(std::string_view file, Program& tables, std::uint64_t& count,
+                 std::string_view& body, std::size_t& records_at, std::string& error) {
+  body = file;
+  In in(body);
   auto fail = [&](const std::string& why) {
     error = "intercode at byte " + std::to_string(in.pos()) + ": " + why;
     return false;
@@ -309,8 +387,8 @@ bool decode_intercode(std::string_view file, Program& out, std::string& error) {
       error = why;
       return false;
     }
-    bytes = file.substr(0, file.size() - 4);
-    in = In(bytes);
+    body = file.substr(0, file.size() - 4);
+    in = In(body);
     in.skip(6);
   } else if (version != kVersionWithoutChecksum) {
     return fail("unsupported version " + std::to_string(version) + " (this build reads 2 to 4)");
@@ -318,86 +396,60 @@ bool decode_intercode(std::string_view file, Program& out, std::string& error) {
   if (!in.get(n) || n < 1 || n > kMaxAxes) return fail("axis count must be 1..10");
   std::string letters;
   if (!in.bytes(kMaxAxes, letters)) return fail("truncated header");
-  std::uint64_t count = 0;
   if (!in.get(count)) return fail("truncated header");
   // Each record takes at least 4 bytes: reject counts the input cannot hold.
-  if (count > bytes.size() / 4) return fail("record count exceeds the file size");
-  Program p;
-  p.number_axes = n;
-  p.axis_letters = letters.substr(0, n);
+  if (count > body.size() / 4) return fail("record count exceeds the file size");
+  tables = Program{};
+  tables.number_axes = n;
+  tables.axis_letters = letters.substr(0, n);
   if (version == kVersion) {
     for (int i = 0; i < n; ++i) {
-      double& v = p.start_mm[static_cast<std::size_t>(i)];
+      double& v = tables.start_mm[static_cast<std::size_t>(i)];
       if (!in.get(v)) return fail("truncated header");
       if (!std::isfinite(v)) return fail("non-finite start point");
     }
   }
-  p.segments.resize(count);
-  auto finite = [](double v) { return std::isfinite(v); };
-  // The state the delta fields apply to, as the encoder starts it.
-  Segment prev;
-  prev.line = 0;
-  prev.tool = 0;
-  double prev_feed = 0.0, prev_comp_radius = 0.0;
-  std::uint8_t modes = pack_modes(prev);
+  records_at = in.pos();
+  return true;
+}
+
+// Checks `file` whole, as decode_intercode promises; the records go into `out.segments` when
+// `keep`, else only the header and the side tables are kept.
+bool decode_checked(std::string_view file, Program& out, std::string& error, bool keep) {
+  Program p;
+  std::uint64_t count = 0;
+  std::string_view bytes;
+  std::size_t records_at = 0;
+  if (!read_header(file, p, count, bytes, records_at, error)) return false;
+  In in(bytes);
+  in.skip(records_at);
+  auto fail = [&](const std::string& why) {
+    error = "intercode at byte " + std::to_string(in.pos()) + ": " + why;
+    return false;
+  };
+  // The M and message records, whose side-table indices are checked once the tables are read.
+  struct Indexed {
+    SegmentType type;
+    std::int32_t line;
+    std::int32_t aux;
+  };
+  std::vector<Indexed> indexed;
+  if (keep) p.segments.resize(count);
+  DeltaState st;
+  Segment scratch;
   for (std::uint64_t k = 0; k < count; ++k) {
-    Segment& s = p.segments[k];
-    const std::string rec = "record " + std::to_string(k);
-    std::uint8_t type = 0, flags = 0;
-    std::uint16_t mask = 0;
-    if (!in.get(type) || !in.get(flags) || !in.get(mask)) return fail("truncated " + rec);
-    if (type > 6) return fail("unknown record type " + std::to_string(type));
-    if (flags & ~kKnownFlags) return fail("unknown flags in " + rec);
-    if (mask >> n) return fail("axis mask names an axis beyond " + std::to_string(n) + " in " + rec);
-    s.type = static_cast<SegmentType>(type);
-    if ((flags & kHasModes) && !in.get(modes)) return fail("truncated " + rec);
-    const int plane = 17 + (modes & 3), comp = 40 + ((modes >> 2) & 3), mkind = modes >> 4;
-    if (plane > 19 || comp > 42 || mkind > 4) return fail("bad modes in " + rec);
-    s.plane = static_cast<Plane>(plane);
-    s.compensation = static_cast<Compensation>(comp);
-    s.m_kind = static_cast<MKind>(mkind);
-    s.tool = prev.tool;
-    if ((flags & kHasTool) && !in.get(s.tool)) return fail("truncated " + rec);
-    if (flags & kHasLine) {
-      if (!in.get(s.line)) return fail("truncated " + rec);
-    } else if (prev.line == std::numeric_limits<std::int32_t>::max()) {
-      return fail("line number overflows in " + rec);
-    } else {
-      s.line = prev.line + 1;
+    Segment& s = keep ? p.segments[k] : scratch;
+    if (std::string why = decode_record(in, p.number_axes, st, s, k); !why.empty())
+      return fail(why);
+    if (s.type == SegmentType::kMFunction || s.type == SegmentType::kMessage) {
+      indexed.push_back({s.type, s.line, s.aux});
     }
-    s.end = prev.end;
-    for (int i = 0; i < n; ++i) {
-      if (!(mask & (1u << i))) continue;
-      double& v = s.end[static_cast<std::size_t>(i)];
-      if (!in.get(v)) return fail("truncated " + rec);
-      if (!finite(v)) return fail("non-finite coordinate in " + rec);
-    }
-    bool ok = true;
-    if (flags & kHasCompRadius) ok = ok && in.get(prev_comp_radius);
-    if (flags & kHasFeed) ok = ok && in.get(prev_feed);
-    s.compensation_radius_mm = s.compensation != Compensation::kOff ? prev_comp_radius : 0.0;
-    s.feed_mm_per_min = s.is_motion() ? prev_feed : 0.0;
-    if (s.is_arc()) {
-      ok = ok && in.get(s.center[0]) && in.get(s.center[1]) && in.get(s.radius) &&
-           in.get(s.turns);
-    }
-    if (s.type == SegmentType::kDwell) ok = ok && in.get(s.dwell_s);
-    if (s.type == SegmentType::kMFunction) ok = ok && in.get(s.m) && in.get(s.aux);
-    if (s.type == SegmentType::kMessage) ok = ok && in.get(s.aux);
-    if (!ok) return fail("truncated " + rec);
-    if (!finite(s.compensation_radius_mm) || !finite(s.feed_mm_per_min) || !finite(s.center[0]) ||
-        !finite(s.center[1]) || !finite(s.radius) || !finite(s.dwell_s) || s.feed_mm_per_min < 0 ||
-        s.radius < 0 || s.dwell_s < 0 || s.turns < 0 || s.compensation_radius_mm < 0 ||
-        s.tool < 0 || s.tool > kMaxTool) {
-      return fail("value out of range in " + rec);
-    }
-    prev = s;
   }
   std::uint32_t nparams = 0, nmsg = 0;
   if (!in.get(nparams) || !in.get(nmsg)) return fail("truncated table counts");
   if (nparams > bytes.size() / (8u * kParamLetters) + 1) return fail("bad parameter count");
   if (nmsg > bytes.size() / 4 + 1) return fail("bad message count");
-  for (const Segment& s : p.segments) {
+  for (const Indexed& s : indexed) {
     if (s.type == SegmentType::kMFunction && (s.aux < 0 || s.aux >= static_cast<int>(nparams))) {
       return fail("an M record at line " + std::to_string(s.line) +
                   " names a missing parameter set");
@@ -425,6 +477,48 @@ bool decode_intercode(std::string_view file, Program& out, std::string& error) {
   out = std::move(p);
   return true;
 }
+
+}  // namespace
+
+bool decode_intercode(std::string_view file, Program& out, std::string& error) {
+  return decode_checked(file, out, error, true);
+}
+
+bool PackedProgram::open(std::string file, PackedProgram& out, std::string& error) {
+  PackedProgram p;
+  if (!decode_checked(file, p.tables_, error, false)) return false;
+  // Where the records lie (the header was checked just now).
+  Program header;
+  std::string_view body;
+  if (!read_header(file, header, p.count_, body, p.records_at_, error)) return false;
+  p.body_size_ = body.size();
+  p.file_ = std::move(file);
+  out = std::move(p);
+  return true;
+}
+
+bool PackedProgram::from_program(const Program& program, PackedProgram& out, std::string& error) {
+  std::string file;
+  encode_intercode(program, file);
+  return open(std::move(file), out, error);
+}
+
+bool PackedProgram::Cursor::next(Segment& s) {
+  if (program_ == nullptr || read_ >= program_->count_) return false;
+  In in(std::string_view(program_->file_).substr(0, program_->body_size_));
+  in.skip(at_);
+  // Checked when the program was opened: this cannot fail.
+  if (!decode_record(in, program_->tables_.number_axes, *state_, s, read_).empty()) return false;
+  at_ = in.pos();
+  ++read_;
+  return true;
+}
+
+PackedProgram::Cursor::Cursor(const PackedProgram& p)
+    : program_(&p), state_(std::make_unique<State>()), at_(p.records_at_) {}
+PackedProgram::Cursor::~Cursor() = default;
+PackedProgram::Cursor::Cursor(Cursor&&) noexcept = default;
+PackedProgram::Cursor& PackedProgram::Cursor::operator=(Cursor&&) noexcept = default;
 
 void dump_jsonl(const Program& p, std::string& out) {
   const int n = p.number_axes;

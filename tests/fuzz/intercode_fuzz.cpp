@@ -82,9 +82,26 @@ namespace {
 void check(std::string_view bytes) {
   tgm::Program p;
   std::string error;
+  // PackedProgram accepts what decode_intercode accepts, for the same reason, and reads the
+  // same records.
+  tgm::PackedProgram packed;
+  std::string packed_error;
+  const bool packed_ok = tgm::PackedProgram::open(std::string(bytes), packed, packed_error);
   if (!tgm::decode_intercode(bytes, p, error)) {
     TGM_FUZZ_CHECK(!error.empty(), "decode failed without a reason");
+    TGM_FUZZ_CHECK(!packed_ok && packed_error == error,
+                   "PackedProgram: " + packed_error + " / " + error);
     return;
+  }
+  TGM_FUZZ_CHECK(packed_ok, "PackedProgram refused: " + packed_error);
+  {
+    tgm::Program read = packed.tables();
+    TGM_FUZZ_CHECK(packed.size() == p.segments.size(), "PackedProgram size");
+    auto cursor = packed.cursor();
+    tgm::Segment s;
+    while (cursor.next(s)) read.segments.push_back(s);
+    std::string why;
+    TGM_FUZZ_CHECK(tgm::fuzz::same_program(p, read, why), "PackedProgram differs: " + why);
   }
   std::string why;
   TGM_FUZZ_CHECK(p.number_axes >= 1 && p.number_axes <= tgm::kMaxAxes, "number_axes");

@@ -632,6 +632,76 @@ TEST(Intercode, RoundTripKeepsEveryField) {
   EXPECT_EQ(q.messages, p.messages);
 }
 
+// A PackedProgram holds the intercode bytes and reads back every record of a seeded random
+// program as decode_intercode does; it refuses what decode_intercode refuses, with its words.
+TEST(Intercode, APackedProgramReadsTheRecordsDecodeReads) {
+  std::string text = "G90 T2 G41 G1 X1 Y2 Z3 F100\nM3 S100\nM29 (msg)\nG4 P2\n";
+  std::uint64_t seed = 0x5EED;
+  auto next = [&seed] {
+    seed += 0x9E3779B97F4A7C15ull;
+    std::uint64_t z = seed;
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return static_cast<double>((z ^ (z >> 31)) >> 11) / 9007199254740992.0;
+  };
+  for (int i = 0; i < 2000; ++i) {
+    const double u = next();
+    char line[160];
+    if (u < 0.6) {
+      std::snprintf(line, sizeof line, "G1 X%.4f Y%.4f F%d\n", 100 * next(), 100 * next(),
+                    100 + static_cast<int>(1000 * next()));
+    } else if (u < 0.8) {
+      std::snprintf(line, sizeof line, "G91 G2 X0 Y0 I%.3f J0 Z%.3f\nG90\n", 1 + next(), next());
+    } else if (u < 0.9) {
+      std::snprintf(line, sizeof line, "M%d Q%.2f\n", 51 + static_cast<int>(10 * next()), next());
+    } else {
+      std::snprintf(line, sizeof line, "G18 G0 Z%.3f X%.3f\nG17\n", next(), 50 * next());
+    }
+    text += line;
+  }
+  text += "M2\n";
+  const Program p = compile_ok(text);
+  ASSERT_GT(p.segments.size(), 2000u);
+  std::string bytes;
+  encode_intercode(p, bytes);
+  PackedProgram packed;
+  std::string err;
+  ASSERT_TRUE(PackedProgram::open(bytes, packed, err)) << err;
+  EXPECT_EQ(packed.size(), p.segments.size());
+  EXPECT_EQ(packed.bytes(), bytes.size());
+  EXPECT_LT(packed.bytes(), p.segments.size() * sizeof(Segment) / 3);
+  Program read = packed.tables();
+  EXPECT_TRUE(read.segments.empty());
+  auto cursor = packed.cursor();
+  Segment s;
+  while (cursor.next(s)) read.segments.push_back(s);
+  EXPECT_EQ(cursor.read(), p.segments.size());
+  EXPECT_FALSE(cursor.next(s));
+  std::string a, b;
+  dump_jsonl(p, a);
+  dump_jsonl(read, b);
+  EXPECT_EQ(a, b);
+  EXPECT_EQ(read.params, p.params);
+  EXPECT_EQ(read.messages, p.messages);
+  EXPECT_EQ(read.start_mm, p.start_mm);
+  EXPECT_EQ(read.axis_letters, p.axis_letters);
+  PackedProgram again;
+  ASSERT_TRUE(PackedProgram::from_program(p, again, err)) << err;
+  EXPECT_EQ(again.size(), packed.size());
+
+  // Refused as decode_intercode refuses: a damaged byte, a cut file.
+  for (std::string bad : {bytes.substr(0, bytes.size() / 2), bytes}) {
+    if (bad.size() == bytes.size())
+      bad[bad.size() / 2] = static_cast<char>(bad[bad.size() / 2] ^ 0x10);
+    Program q;
+    std::string decode_err, packed_err;
+    EXPECT_FALSE(decode_intercode(bad, q, decode_err));
+    EXPECT_FALSE(PackedProgram::open(bad, packed, packed_err));
+    EXPECT_EQ(packed_err, decode_err);
+    EXPECT_FALSE(packed_err.empty());
+  }
+}
+
 // Both dumps of every record kind the example program lacks: a continuous M-function, M0, an
 // M-function with parameters, a message whose comment holds a quote, a backslash, a tab and a
 // control character (JSON-escaped in the jsonl dump, as written in the text dump) and a dwell.

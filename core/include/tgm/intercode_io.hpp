@@ -4,9 +4,10 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <string>
-#include <vector>
 #include <string_view>
+#include <vector>
 
 #include "tgm/intercode.hpp"
 
@@ -59,6 +60,53 @@ class IntercodeEncoder {
 //! returns false and says why in `error`; never reads out of bounds and never accepts NaN,
 //! unknown record types or dangling side-table indices.
 bool decode_intercode(std::string_view bytes, Program& out, std::string& error);
+
+//! A program held as checked binary intercode (about 20 bytes a record for a G1 move in one
+//! plane, where a Segment takes 152) and read front to back: for programs too long to hold as
+//! Segments (`tgm-hmi simulate` of a few million lines held 1.4 GB).
+class PackedProgram {
+ public:
+  //! Checks `file` as decode_intercode does and holds it; false, with the reason, when
+  //! decode_intercode would refuse it.
+  static bool open(std::string file, PackedProgram& out, std::string& error);
+  //! The same for a program in memory (encoded first).
+  static bool from_program(const Program& program, PackedProgram& out, std::string& error);
+  //! Everything but the records: axes, letters, start point, parameter and message tables.
+  const Program& tables() const { return tables_; }
+  //! Number of records.
+  std::uint64_t size() const { return count_; }
+  //! Bytes held (the intercode file).
+  std::size_t bytes() const { return file_.size(); }
+
+  //! Reads the records in order. The program must outlive it.
+  class Cursor {
+   public:
+    explicit Cursor(const PackedProgram& p);
+    ~Cursor();
+    Cursor(Cursor&&) noexcept;
+    Cursor& operator=(Cursor&&) noexcept;
+    //! The next record into `s`; false after the last.
+    bool next(Segment& s);
+    //! Records read so far.
+    std::uint64_t read() const { return read_; }
+    //! What the records' delta fields apply to (opaque).
+    struct State;
+
+   private:
+    const PackedProgram* program_;
+    std::unique_ptr<State> state_;
+    std::size_t at_;
+    std::uint64_t read_ = 0;
+  };
+  Cursor cursor() const { return Cursor(*this); }
+
+ private:
+  std::string file_;
+  Program tables_;
+  std::uint64_t count_ = 0;
+  std::size_t records_at_ = 0;
+  std::size_t body_size_ = 0;
+};
 
 //! True when `bytes` begin as binary intercode does (its magic, "TGMI"). No G-code text begins
 //! so: a T word needs a number. Callers decide by this, not by a file's name.
