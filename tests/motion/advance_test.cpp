@@ -425,6 +425,87 @@ TEST(Advance, SimulationSummaryEqualsStepping) {
   }
 }
 
+// A program held as intercode (PackedProgram, what tgm-hmi simulate holds) runs as its decoded
+// Program to the bit: the records are decoded as the ring takes them, a window at a time. A
+// ring of 1,000 slots, chord programs of 600..3,000 records (a record a cycle and more), random
+// programs with stops; every register of every cycle compared in the stepped runs.
+TEST(Advance, APackedProgramRunsAsItsProgramToTheBit) {
+  const std::uint64_t seed = test::env_u64("TGM_SEED", 1);
+  for (std::uint64_t k = 0; k < 8; ++k) {
+    std::mt19937_64 rng(seed * 7919ull + k);
+    const int axes = k % 2 == 0 ? 3 : 5;
+    MachineConfig m = random_machine(rng, axes);
+    m.interpolators[0].buffer_size = 1000;
+    test::Generated g = k < 5 ? chord_program(rng, axes) : random_program(rng, axes, 60);
+    // Intercode names a parameter set for every M record (the builder leaves them unset).
+    for (Segment& r : g.program.segments) {
+      if (r.type != SegmentType::kMFunction || r.aux >= 0) continue;
+      r.aux = static_cast<std::int32_t>(g.program.params.size());
+      g.program.params.push_back(unset_params());
+    }
+    PackedProgram packed;
+    std::string err;
+    ASSERT_TRUE(PackedProgram::from_program(g.program, packed, err)) << err;
+    SimulationOptions o;
+    o.m_ack_s = 0.0123;
+    o.rel_speed_changes = g.overrides;
+    if (k >= 5) o.stops.emplace_back(1.0, k % 2 == 0 ? 8 : 4);
+    o.stop_restart_s = 0.05;
+    const bool stepped = k % 3 == 0;
+    const std::string ctx = "seed " + std::to_string(seed) + " program " + std::to_string(k) +
+                            (stepped ? " stepped" : " fast-forwarded");
+    std::array<SimulationSummary, 2> s;
+    std::array<std::vector<BlockReport>, 2> blocks;
+    // Each cycle's position, status and part; every 64th cycle's registers whole (all of them
+    // held 100,000s of copies of the LookAheadBuffer).
+    struct Cycle {
+      std::array<double, kMaxAxes> orig;
+      std::int32_t status, part;
+      bool operator==(const Cycle&) const = default;
+    };
+    std::array<std::vector<Cycle>, 2> cycles;
+    std::array<std::vector<Registers>, 2> whole;
+    for (std::size_t mode = 0; mode < 2; ++mode) {
+      auto sim = Simulation::create(m, o);
+      ASSERT_TRUE(sim.has_value()) << ctx;
+      const auto on_block = [&](const BlockReport& r) { blocks[mode].push_back(r); };
+      std::function<void(const Registers&)> on_cycle;
+      if (stepped) {
+        on_cycle = [&](const Registers& r) {
+          if (cycles[mode].size() % 64 == 0) whole[mode].push_back(r);
+          cycles[mode].push_back({r.orig_position, r.status, r.act_part});
+        };
+      }
+      s[mode] = mode == 0 ? sim->run(g.program, on_cycle, on_block)
+                          : sim->run(packed, on_cycle, on_block);
+    }
+    ASSERT_EQ(s[0].result, StepResult::kFinished) << ctx << ": " << s[0].error;
+    EXPECT_EQ(s[1].result, s[0].result) << ctx << ": " << s[1].error;
+    EXPECT_EQ(s[1].cycles, s[0].cycles) << ctx;
+    EXPECT_EQ(s[1].distance_mm, s[0].distance_mm) << ctx;
+    EXPECT_EQ(s[1].end_position, s[0].end_position) << ctx;
+    EXPECT_EQ(s[1].m_functions, s[0].m_functions) << ctx;
+    EXPECT_EQ(s[1].stops, s[0].stops) << ctx;
+    EXPECT_EQ(s[1].factor_time_s, s[0].factor_time_s) << ctx;
+    EXPECT_GT(g.program.segments.size(), 60u) << ctx;
+    ASSERT_EQ(blocks[1].size(), blocks[0].size()) << ctx;
+    for (std::size_t i = 0; i < blocks[0].size(); ++i)
+      ASSERT_TRUE(same_block(blocks[0][i], blocks[1][i])) << ctx << " block " << i;
+    ASSERT_EQ(cycles[1].size(), cycles[0].size()) << ctx;
+    for (std::size_t i = 0; i < cycles[0].size(); ++i)
+      ASSERT_TRUE(cycles[0][i] == cycles[1][i]) << ctx << " cycle " << i;
+    ASSERT_EQ(whole[1].size(), whole[0].size()) << ctx;
+    for (std::size_t i = 0; i < whole[0].size(); ++i) {
+      test::expect_same_registers(whole[0][i], whole[1][i],
+                                  ctx + " cycle " + std::to_string(64 * i));
+      if (::testing::Test::HasFailure()) return;
+    }
+    if (stepped) {
+      EXPECT_EQ(cycles[0].size(), s[0].cycles) << ctx;
+    }
+  }
+}
+
 // A program that ends inside start() (only M2, a move of no length before it, or an M0 pause
 // whose restart runs into the end) is finished after the first cycle. The fast-forward took the
 // ended interpolator for a standing one and skipped to the time limit: `tgm-hmi simulate` said

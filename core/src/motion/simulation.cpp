@@ -85,18 +85,53 @@ std::optional<Simulation> Simulation::create(const MachineConfig& machine, const
 
 SimulationSummary Simulation::run(const Program& program, const std::function<void(const Registers&)>& on_cycle,
                                   const std::function<void(const BlockReport&)>& on_block) {
+  return run_records(
+      program.segments.size(),
+      [&program](Interpolator& ip, std::size_t next, std::size_t count, bool last,
+                 std::size_t* took) { return ip.append(program, next, count, last, took); },
+      on_cycle, on_block);
+}
+
+SimulationSummary Simulation::run(const PackedProgram& program,
+                                  const std::function<void(const Registers&)>& on_cycle,
+                                  const std::function<void(const BlockReport&)>& on_block) {
+  PackedProgram::Cursor cursor = program.cursor();
+  // Records [base, base + window.segments.size()) decoded; the side tables are the program's.
+  Program window = program.tables();
+  std::size_t base = 0;
+  return run_records(
+      static_cast<std::size_t>(program.size()),
+      [&](Interpolator& ip, std::size_t next, std::size_t count, bool last, std::size_t* took) {
+        // What the ring took is dropped once it is half the window or more, so that a record is
+        // moved a bounded number of times (one record a cycle is the short-segment case).
+        const std::size_t taken = next - base;
+        if (taken > 0 && 2 * taken >= window.segments.size()) {
+          window.segments.erase(window.segments.begin(),
+                                window.segments.begin() + static_cast<std::ptrdiff_t>(taken));
+          base = next;
+        }
+        Segment s;
+        while (window.segments.size() < next + count - base && cursor.next(s))
+          window.segments.push_back(s);
+        return ip.append(window, next - base, count, last, took);
+      },
+      on_cycle, on_block);
+}
+
+SimulationSummary Simulation::run_records(std::size_t total, const AppendRecords& append,
+                                          const std::function<void(const Registers&)>& on_cycle,
+                                          const std::function<void(const BlockReport&)>& on_block) {
   SimulationSummary sum;
   Interpolator& ip = *ip_;
   const double T = ip.cycle_time_s();
   std::size_t next = 0;
-  const std::size_t total = program.segments.size();
   auto feed = [&]() -> bool {
     // During an emergency ramp the records wait for its end.
     if (next >= total || !ip.takes_records()) return true;
     std::size_t took = 0;
     // Only what fits, so a full ring is not a refusal (whose reason would be formatted).
     const std::size_t count = std::min(total - next, std::max<std::size_t>(ip.free_slots(), 1));
-    const auto r = ip.append(program, next, count, next + count == total, &took);
+    const auto r = append(ip, next, count, next + count == total, &took);
     next += took;
     if (!r.ok() && r.code != RequestCode::kBufferFull) {
       sum.error = "append: " + r.reason;
