@@ -153,6 +153,63 @@ bool load_program(const std::string& file, const MachineConfig& machine, int ip,
   return true;
 }
 
+bool load_packed(const std::string& file, const MachineConfig& machine, int ip, PackedProgram& out,
+                 const std::array<double, kMaxAxes>* start_mm, bool* intercode,
+                 CompensationNote* note) {
+  if (intercode) *intercode = false;
+  FileView input;
+  std::string error;
+  if (!input.open(file, error)) {
+    std::fprintf(stderr, "%s: error: %s\n", file.c_str(), error.c_str());
+    return false;
+  }
+  const std::string letters = machine.axis_letters(ip);
+  if (is_intercode(file, input.text())) {
+    if (intercode) *intercode = true;
+    if (!PackedProgram::open(std::string(input.text()), out, error)) {
+      std::fprintf(stderr, "%s: error: %s\n", file.c_str(), error.c_str());
+      return false;
+    }
+    if (out.tables().axis_letters != letters) {
+      std::fprintf(stderr,
+                   "%s: error: compiled for the axes %s, interpolator %d has %s: compile the "
+                   "G-code for it (tgm-hmi compile --interpolator %d)\n",
+                   file.c_str(), out.tables().axis_letters.c_str(), ip, letters.c_str(), ip);
+      return false;
+    }
+    if (note) {
+      auto cursor = out.cursor();
+      Segment s;
+      while (cursor.next(s)) note->observe(s);
+    }
+    return true;
+  }
+  CompileOptions options = CompileOptions::from_machine(machine, ip);
+  if (start_mm) options.start_mm = *start_mm;
+  std::string bytes;
+  // Room that is never written costs no memory, and growing the string by doubling holds the
+  // old and the new copy at once: twice the source covers a CAM program's records (a planar
+  // G1 line of 18 characters is 20 bytes of intercode); loops, arcs and many axes may need more.
+  bytes.reserve(2 * input.text().size() + 4096);
+  IntercodeEncoder encoder(bytes, static_cast<int>(letters.size()), letters, options.start_mm);
+  CompileResult r = compile_gcode(input.text(), options, [&](const Segment& s) {
+    encoder.add(s);
+    if (note) note->observe(s);
+  });
+  if (!r.ok()) {
+    for (const Diagnostic& d : r.errors)
+      std::fprintf(stderr, "%s\n", format_diagnostic(file, d).c_str());
+    return false;
+  }
+  encoder.finish(r.program.params, r.program.messages);
+  if (!PackedProgram::open(std::move(bytes), out, error)) {
+    std::fprintf(stderr, "%s: internal error: the compiled program does not read back: %s\n",
+                 file.c_str(), error.c_str());
+    return false;
+  }
+  return true;
+}
+
 void CompensationNote::print(const std::string& file) const {
   if (!seen_) return;
   std::fprintf(stderr,

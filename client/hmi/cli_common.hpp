@@ -13,6 +13,7 @@
 #include "tgm/config.hpp"
 #include "tgm/file_text.hpp"
 #include "tgm/intercode.hpp"
+#include "tgm/intercode_io.hpp"
 #include "tgm/yaml_config.hpp"
 
 namespace tgm::hmi {
@@ -118,6 +119,14 @@ class CompensationNote {
   bool seen_ = false;
   Segment first_{};
 };
+
+//! load_program for a program held as intercode (PackedProgram, about 20 bytes a record where
+//! a Program takes 152): G-code is compiled straight into intercode, an intercode file is
+//! checked and kept as it is. The same problems are printed and refused; `note` (when given)
+//! observes every record.
+bool load_packed(const std::string& file, const MachineConfig& machine, int ip, PackedProgram& out,
+                 const std::array<double, kMaxAxes>* start_mm = nullptr, bool* intercode = nullptr,
+                 CompensationNote* note = nullptr);
 
 //! A read-only view of a whole file (memory-mapped when possible).
 class FileView {

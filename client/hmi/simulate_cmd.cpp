@@ -307,29 +307,33 @@ int run_simulate(int argc, char** argv) {
       !start_text.empty() && !parse_start(start_text, machine.axis_letters(ip_index), start, why)) {
     return args.usage_error("--start: " + why);
   }
-  Program program;
+  // Held as intercode: a program of millions of lines took 152 bytes a record as Segments.
+  PackedProgram program;
   bool intercode = false;
-  if (!load_program(file, machine, ip_index, program, nullptr, &start, &intercode)) return 2;
+  CompensationNote note;
+  if (!load_packed(file, machine, ip_index, program, &start, &intercode, &note)) return 2;
   // As `run` says it: a summary of nothing ("NOT finished: empty program", exit 1) looked like
   // a run that went wrong.
-  if (program.segments.empty()) {
+  if (program.size() == 0) {
     std::fprintf(stderr, "%s: the program has no records\n", file.c_str());
     return 2;
   }
   // Intercode runs from the point it was compiled from, as `tgm-hmi run` runs it.
   if (intercode) {
-    if (!start_text.empty() && !same_point(start, program.start_mm, program.number_axes)) {
+    if (!start_text.empty() &&
+        !same_point(start, program.tables().start_mm, program.tables().number_axes)) {
       std::fprintf(
           stderr,
           "%s: error: compiled from %s, not from --start %s: tgm-hmi run runs it only from "
           "there (or with --from-here from anywhere); leave --start out\n",
-          file.c_str(), point_text(program.start_mm, program.axis_letters).c_str(),
-          point_text(start, program.axis_letters).c_str());
+          file.c_str(),
+          point_text(program.tables().start_mm, program.tables().axis_letters).c_str(),
+          point_text(start, program.tables().axis_letters).c_str());
       return 2;
     }
-    start = program.start_mm;
+    start = program.tables().start_mm;
   }
-  CompensationNote::print(program, file);
+  note.print(file);
 
   SimulationOptions so;
   so.interpolator = ip_index;
@@ -559,7 +563,7 @@ int run_simulate(int argc, char** argv) {
       csv_path == "-" || blocks_path == "-" || la_path == "-" ? stderr : stdout;
   const bool finished = sum.result == StepResult::kFinished;
   std::fprintf(report, "program:   %s (%zu records, interpolator %d, %d us cycle)\n", file.c_str(),
-               program.segments.size(), ip_index, machine.cycle_time_us);
+               static_cast<std::size_t>(program.size()), ip_index, machine.cycle_time_us);
   const std::string why =
       output_failed ? std::string("stopped: an output file could not be written (below)")
       : interrupted != 0

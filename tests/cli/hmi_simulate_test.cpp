@@ -579,13 +579,34 @@ TEST_F(HmiSimulate, IntercodeRunsAsItsGcodeAndOtherAxesAreRefused) {
 
 // Memory running out (here a 150 MB address-space limit and a million-line program) ends with
 // words and exit code 1; it used to abort with an uncaught std::bad_alloc and a core dump.
+// Under a limit of 150 MB of address space (ulimit -v): a million-record program runs, four
+// million records of three axes each do not, and that is said (exit code 1), not a crash.
 TEST_F(HmiSimulate, RunningOutOfMemoryIsSaidAndExitsOne) {
 #if defined(__SANITIZE_ADDRESS__)
   GTEST_SKIP() << "AddressSanitizer reserves far more address space than the limit";
 #else
+  // A million records fit in the limit: the program is held as intercode, 12 bytes a record
+  // here (152 as Segments: 1 M records ran out of memory at this limit before).
+  std::string fits = "G91 F6000\n";
+  fits.reserve(10'000'000);
+  for (int k = 0; k < 1'000'000; ++k) fits += "G1 X0.01\n";
+  fits += "M2\n";
+  const fs::path fits_prog = write("fits.ngc", fits);
+  const ProcessResult ok =
+      run("simulate " + fits_prog.string() + " --config " + kConfig + " --max-time 1 --quiet",
+          "ulimit -v 150000; ");
+  EXPECT_NE(ok.out.find("program:   " + fits_prog.string() + " (1000001 records"),
+            std::string::npos)
+      << ok.out << ok.err;
+  EXPECT_NE(ok.out.find("program time limit of 1 s reached"), std::string::npos)
+      << ok.out << ok.err;
+  fs::remove(fits_prog);
+
+  // 4 M records of 28 bytes of intercode each (all three axes move): over 100 MB held, where
+  // the limit leaves about 80 MB beyond what the process needs to start.
   std::string big = "G91 F6000\n";
-  big.reserve(10'000'000);
-  for (int k = 0; k < 1'000'000; ++k) big += "G1 X0.01\n";
+  big.reserve(50'000'000);
+  for (int k = 0; k < 4'000'000; ++k) big += "G1 X1 Y1 Z1\n";
   big += "M2\n";
   const fs::path prog = write("big.ngc", big);
   const ProcessResult r =

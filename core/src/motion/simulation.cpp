@@ -110,9 +110,17 @@ SimulationSummary Simulation::run(const PackedProgram& program,
                                 window.segments.begin() + static_cast<std::ptrdiff_t>(taken));
           base = next;
         }
-        Segment s;
-        while (window.segments.size() < next + count - base && cursor.next(s))
-          window.segments.push_back(s);
+        // Read ahead in batches, each record decoded in its place.
+        if (window.segments.size() < next + count - base) {
+          const std::size_t want = std::max(next + count - base, window.segments.size() + 512);
+          while (window.segments.size() < want) {
+            window.segments.emplace_back();
+            if (!cursor.next(window.segments.back())) {
+              window.segments.pop_back();
+              break;
+            }
+          }
+        }
         return ip.append(window, next - base, count, last, took);
       },
       on_cycle, on_block);
