@@ -113,50 +113,11 @@ bool is_intercode(const std::string& file, std::string_view bytes) {
          (file.size() > 5 && file.compare(file.size() - 5, 5, ".tgmi") == 0);
 }
 
-bool load_program(const std::string& file, const MachineConfig& machine, int ip, Program& out,
-                  std::size_t* compile_errors, const std::array<double, kMaxAxes>* start_mm,
-                  bool* intercode) {
-  if (compile_errors) *compile_errors = 0;
-  if (intercode) *intercode = false;
-  FileView input;
-  std::string error;
-  if (!input.open(file, error)) {
-    std::fprintf(stderr, "%s: error: %s\n", file.c_str(), error.c_str());
-    return false;
-  }
-  if (is_intercode(file, input.text())) {
-    if (intercode) *intercode = true;
-    if (!decode_intercode(input.text(), out, error)) {
-      std::fprintf(stderr, "%s: error: %s\n", file.c_str(), error.c_str());
-      return false;
-    }
-    const std::string letters = machine.axis_letters(ip);
-    if (out.axis_letters != letters) {
-      std::fprintf(stderr,
-                   "%s: error: compiled for the axes %s, interpolator %d has %s: compile the "
-                   "G-code for it (tgm-hmi compile --interpolator %d)\n",
-                   file.c_str(), out.axis_letters.c_str(), ip, letters.c_str(), ip);
-      return false;
-    }
-    return true;
-  }
-  CompileOptions options = CompileOptions::from_machine(machine, ip);
-  if (start_mm) options.start_mm = *start_mm;
-  CompileResult r = compile_gcode(input.text(), options);
-  if (!r.ok()) {
-    for (const Diagnostic& d : r.errors)
-      std::fprintf(stderr, "%s\n", format_diagnostic(file, d).c_str());
-    if (compile_errors) *compile_errors = r.error_count();
-    return false;
-  }
-  out = std::move(r.program);
-  return true;
-}
-
 bool load_packed(const std::string& file, const MachineConfig& machine, int ip, PackedProgram& out,
                  const std::array<double, kMaxAxes>* start_mm, bool* intercode,
-                 CompensationNote* note) {
+                 CompensationNote* note, std::size_t* compile_errors) {
   if (intercode) *intercode = false;
+  if (compile_errors) *compile_errors = 0;
   FileView input;
   std::string error;
   if (!input.open(file, error)) {
@@ -199,6 +160,7 @@ bool load_packed(const std::string& file, const MachineConfig& machine, int ip, 
   if (!r.ok()) {
     for (const Diagnostic& d : r.errors)
       std::fprintf(stderr, "%s\n", format_diagnostic(file, d).c_str());
+    if (compile_errors) *compile_errors = r.error_count();
     return false;
   }
   encoder.finish(r.program.params, r.program.messages);

@@ -51,19 +51,6 @@ class Args : public cli::ArgReader {
 //! several times the longest program the compiler expands (compiler.max_program_segments).
 inline constexpr std::size_t kMaxStreamedInput = std::size_t{1} << 30;
 
-//! FILE as the program of interpolator `ip` of `machine`: intercode (is_intercode: written by
-//! `tgm-hmi compile --out`) decoded and refused when it was compiled for other axis letters
-//! (positions go by axis index: a C where this interpolator has Z would move Z), or G-code
-//! compiled. Prints every problem ("FILE: error: ..." or the compiler's diagnostics) and
-//! returns false; `compile_errors` (when given) receives the number of compiler diagnostics.
-//! G-code is compiled from `start_mm` (machine mm; default machine zero), the point the program
-//! starts at: G91 moves are relative to it, axes a G90 line does not name stay there.
-//! `intercode` (when given) says which of the two FILE was.
-bool load_program(const std::string& file, const MachineConfig& machine, int ip, Program& out,
-                  std::size_t* compile_errors = nullptr,
-                  const std::array<double, kMaxAxes>* start_mm = nullptr,
-                  bool* intercode = nullptr);
-
 //! Reads a start point as "X20,Y5,Z-2" into `out`: axis letters of `letters` (either case),
 //! each at most once, numbers within +-1e9 mm; the axes not named stand at 0. False with the
 //! reason in `why`.
@@ -120,13 +107,19 @@ class CompensationNote {
   Segment first_{};
 };
 
-//! load_program for a program held as intercode (PackedProgram, about 20 bytes a record where
-//! a Program takes 152): G-code is compiled straight into intercode, an intercode file is
-//! checked and kept as it is. The same problems are printed and refused; `note` (when given)
-//! observes every record.
+//! FILE as the program of interpolator `ip` of `machine`, held as intercode (PackedProgram,
+//! about 20 bytes a record where a Segment takes 152): intercode (is_intercode: written by
+//! `tgm-hmi compile --out`) checked and kept as it is, refused when it was compiled for other
+//! axis letters (positions go by axis index: a C where this interpolator has Z would move Z),
+//! or G-code compiled straight into intercode. Prints every problem ("FILE: error: ..." or the
+//! compiler's diagnostics) and returns false; `compile_errors` (when given) receives the number
+//! of compiler diagnostics. G-code is compiled from `start_mm` (machine mm; default machine
+//! zero), the point the program starts at: G91 moves are relative to it, axes a G90 line does
+//! not name stay there. `intercode` (when given) says which of the two FILE was; `note` (when
+//! given) observes every record.
 bool load_packed(const std::string& file, const MachineConfig& machine, int ip, PackedProgram& out,
                  const std::array<double, kMaxAxes>* start_mm = nullptr, bool* intercode = nullptr,
-                 CompensationNote* note = nullptr);
+                 CompensationNote* note = nullptr, std::size_t* compile_errors = nullptr);
 
 //! A read-only view of a whole file (memory-mapped when possible).
 class FileView {

@@ -203,22 +203,28 @@ int run_run(int argc, char** argv) {
     return args.usage_error(why);
   const int ip = args.interpolator();
   const std::string letters = config->machine.axis_letters(ip);
-  Program program;
+  // Held as intercode: a program of millions of lines took 152 bytes a record as Segments.
+  PackedProgram program;
   bool intercode = false;
+  CompensationNote note;
   if (std::size_t errors = 0;
-      !load_program(file, config->machine, ip, program, &errors, nullptr, &intercode)) {
+      !load_packed(file, config->machine, ip, program, nullptr, &intercode, &note, &errors)) {
     if (errors > 0)
       std::fprintf(stderr, "%s: %zu error%s, nothing sent\n", file.c_str(), errors,
                    errors == 1 ? "" : "s");
     return 2;
   }
-  if (program.segments.empty()) {
+  if (program.size() == 0) {
     std::fprintf(stderr, "%s: the program has no records\n", file.c_str());
     return 2;
   }
-  CompensationNote::print(program, file);
+  note.print(file);
   std::int32_t last_line = 0;
-  for (const Segment& s : program.segments) last_line = std::max(last_line, s.line);
+  {
+    auto cursor = program.cursor();
+    Segment s;
+    while (cursor.next(s)) last_line = std::max(last_line, s.line);
+  }
 
   install_signal_flag(Hangup::kIgnore);
   // M-function waits are counted from the event topic (RELIABLE, every change of the handshake
@@ -270,20 +276,20 @@ int run_run(int argc, char** argv) {
   // Positions go by axis index: a program compiled with a config whose letters differ from the
   // service's would drive the wrong axes (the service refuses it too; this says why up front).
   if (const std::string service_letters = st->axis_letters().to_string();
-      !service_letters.empty() && service_letters != program.axis_letters) {
+      !service_letters.empty() && service_letters != program.tables().axis_letters) {
     // Fewer axes of the same config: the PLC wrote Number_Axes.
-    if (program.axis_letters.compare(0, service_letters.size(), service_letters) == 0) {
+    if (program.tables().axis_letters.compare(0, service_letters.size(), service_letters) == 0) {
       std::fprintf(stderr,
                    "%s: error: compiled for the axes %s, interpolator %d runs with Number_Axes %d "
                    "(%s), written by the PLC\n",
-                   file.c_str(), program.axis_letters.c_str(), ip, st->number_axes(),
+                   file.c_str(), program.tables().axis_letters.c_str(), ip, st->number_axes(),
                    service_letters.c_str());
     } else {
       std::fprintf(stderr,
                    "%s: error: compiled for the axes %s (config %s), the service's interpolator %d "
                    "drives %s: use the service's config\n",
-                   file.c_str(), program.axis_letters.c_str(), args.config_file().path.c_str(), ip,
-                   service_letters.c_str());
+                   file.c_str(), program.tables().axis_letters.c_str(),
+                   args.config_file().path.c_str(), ip, service_letters.c_str());
     }
     return 2;
   }
@@ -307,14 +313,14 @@ int run_run(int argc, char** argv) {
   // said so, and the run went on), so it runs from there only, or with --from-here.
   std::array<double, kMaxAxes> here{};
   bool away = false;
-  for (int a = 0; a < program.number_axes; ++a) {
+  for (int a = 0; a < program.tables().number_axes; ++a) {
     const auto k = static_cast<std::size_t>(a);
     here[k] = st->orig_position()[k];
     away = away || here[k] != 0.0;
   }
-  const std::string here_text = point_text(here, program.axis_letters);
+  const std::string here_text = point_text(here, program.tables().axis_letters);
   if (intercode) {
-    if (same_point(here, program.start_mm, program.number_axes)) {
+    if (same_point(here, program.tables().start_mm, program.tables().number_axes)) {
       // Runs as compiled.
     } else if (!from_here) {
       std::fprintf(stderr,
@@ -322,20 +328,24 @@ int run_run(int argc, char** argv) {
                    "not run as compiled (its moves were planned from %s). Compile the G-code "
                    "from here (tgm-hmi compile FILE --start %s --out ...), run the G-code itself, "
                    "or pass --from-here\n",
-                   file.c_str(), point_text(program.start_mm, program.axis_letters).c_str(), ip,
-                   here_text.c_str(), point_text(program.start_mm, program.axis_letters).c_str(),
-                   point_text(here, program.axis_letters, ',').c_str());
+                   file.c_str(),
+                   point_text(program.tables().start_mm, program.tables().axis_letters).c_str(), ip,
+                   here_text.c_str(),
+                   point_text(program.tables().start_mm, program.tables().axis_letters).c_str(),
+                   point_text(here, program.tables().axis_letters, ',').c_str());
       return 2;
     } else if (!quiet) {
       std::fprintf(stderr,
                    "%s: note: compiled from %s, runs from where interpolator %d stands (%s): its "
                    "first move starts here\n",
-                   file.c_str(), point_text(program.start_mm, program.axis_letters).c_str(), ip,
+                   file.c_str(),
+                   point_text(program.tables().start_mm, program.tables().axis_letters).c_str(), ip,
                    here_text.c_str());
     }
   } else if (away) {
-    program = Program{};  // a long program is not held twice
-    if (std::size_t errors = 0; !load_program(file, config->machine, ip, program, &errors, &here)) {
+    program = PackedProgram{};  // a long program is not held twice
+    if (std::size_t errors = 0;
+        !load_packed(file, config->machine, ip, program, &here, nullptr, nullptr, &errors)) {
       if (errors > 0)
         std::fprintf(
             stderr,
@@ -424,8 +434,8 @@ int run_run(int argc, char** argv) {
     progress_shown = false;
   };
   std::printf("tgm-hmi run: %s: %zu record%s for interpolator %d (program %u), DDS domain %d\n",
-              file.c_str(), program.segments.size(), program.segments.size() == 1 ? "" : "s", ip,
-              program_id, config->dds.domain_id);
+              file.c_str(), static_cast<std::size_t>(program.size()),
+              program.size() == 1 ? "" : "s", ip, program_id, config->dds.domain_id);
   std::fflush(stdout);
 
   while (true) {
@@ -660,7 +670,7 @@ int run_run(int argc, char** argv) {
              : now - last_line_at >= std::chrono::duration<double>(interval_s))) {
       last_line_at = now;
       const double pct = 100.0 * static_cast<double>(std::max(st->act_part(), 0)) /
-                         static_cast<double>(program.segments.size());
+                         static_cast<double>(program.size());
       char bar[21];
       const int filled = std::clamp(static_cast<int>(pct / 5.0), 0, 20);
       for (int k = 0; k < 20; ++k) bar[k] = k < filled ? '#' : '.';

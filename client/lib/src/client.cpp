@@ -442,10 +442,11 @@ Reply Client::set_rel_speed(int i, double rel_speed) {
 namespace {
 
 // "record 12 (line 14): " for a record of `program`, "" past its end.
-std::string record_text(const Program& program, std::size_t index) {
-  if (index >= program.segments.size()) return {};
+// "record 12 (line 14): " for record `index` of the program, held at `index - base` of `records`.
+std::string record_text(const Program& records, std::uint64_t index, std::uint64_t base = 0) {
+  if (index < base || index - base >= records.segments.size()) return {};
   return "record " + std::to_string(index) + " (line " +
-         std::to_string(program.segments[index].line) + "): ";
+         std::to_string(records.segments[static_cast<std::size_t>(index - base)].line) + "): ";
 }
 
 }  // namespace
@@ -453,7 +454,7 @@ std::string record_text(const Program& program, std::size_t index) {
 ProgramSender::ProgramSender(Client& client, const Program& program, int interpolator,
                              std::uint32_t program_id)
     : client_(client),
-      program_(program),
+      program_(&program),
       interpolator_(interpolator),
       program_id_(program_id),
       total_(program.segments.size()) {
@@ -461,6 +462,54 @@ ProgramSender::ProgramSender(Client& client, const Program& program, int interpo
   if (const mapping::MapStatus st = mapping::program_problem(program, index);
       st != mapping::MapStatus::kOk)
     error_ = record_text(program, index) + std::string(mapping::to_string(st));
+}
+
+ProgramSender::ProgramSender(Client& client, const PackedProgram& program, int interpolator,
+                             std::uint32_t program_id)
+    : client_(client),
+      cursor_(program.cursor()),
+      window_(program.tables()),
+      interpolator_(interpolator),
+      program_id_(program_id),
+      total_(program.size()) {
+  // The whole program is checked first, a window at a time, as the other constructor does.
+  PackedProgram::Cursor check = program.cursor();
+  Program part = program.tables();
+  std::uint64_t first = 0;
+  while (true) {
+    part.segments.clear();
+    Segment s;
+    while (part.segments.size() < 4096 && check.next(s)) part.segments.push_back(s);
+    std::size_t index = 0;
+    if (const mapping::MapStatus st = mapping::program_problem(part, index);
+        st != mapping::MapStatus::kOk) {
+      error_ = record_text(part, first + index, first) + std::string(mapping::to_string(st));
+      return;
+    }
+    if (part.segments.size() < 4096) break;
+    first += part.segments.size();
+  }
+}
+
+const Program& ProgramSender::records_from(std::uint64_t first) {
+  if (program_ != nullptr) return *program_;
+  // What was sent is dropped once it is half the window, so a record is moved a bounded
+  // number of times; then the window is read on to a chunk's worth past `first`.
+  const std::uint64_t sent = first - base_;
+  if (sent > 0 && 2 * sent >= window_.segments.size()) {
+    window_.segments.erase(window_.segments.begin(),
+                           window_.segments.begin() + static_cast<std::ptrdiff_t>(sent));
+    base_ = first;
+  }
+  const std::uint64_t want = first - base_ + mapping::kMaxChunkSegments;
+  while (window_.segments.size() < want) {
+    window_.segments.emplace_back();
+    if (!cursor_->next(window_.segments.back())) {
+      window_.segments.pop_back();
+      break;
+    }
+  }
+  return window_;
 }
 
 bool ProgramSender::pump() {
@@ -477,13 +526,19 @@ bool ProgramSender::pump() {
   }
   const std::uint64_t free_slots = static_cast<std::uint64_t>(std::max(0, s->free_buffer_slots()));
   while (!end_written_ && chunk_ends_.size() < static_cast<std::size_t>(dds::kProgramChunksInFlight)) {
-    std::size_t end = 0;
-    const mapping::MapStatus st =
-        mapping::fill_chunk(program_, next_, {static_cast<std::uint16_t>(interpolator_), program_id_}, chunk_, end);
+    const Program& records = records_from(next_);
+    std::size_t end_in = 0;
+    const mapping::MapStatus st = mapping::fill_chunk(
+        records, static_cast<std::size_t>(next_ - base_),
+        {static_cast<std::uint16_t>(interpolator_), program_id_}, chunk_, end_in);
     if (st != mapping::MapStatus::kOk) {
-      error_ = record_text(program_, end) + std::string(mapping::to_string(st));
+      error_ = record_text(records, base_ + end_in, base_) + std::string(mapping::to_string(st));
       return false;
     }
+    // Numbered in the whole program (a window starts at base_), ended by its last record.
+    const std::uint64_t end = base_ + end_in;
+    chunk_.sequence_number(next_);
+    chunk_.end_of_program(end == total_);
     const std::uint64_t in_flight = next_ - confirmed_;
     const std::uint64_t n = end - next_;
     if (in_flight > 0 && in_flight + n > free_slots) break;

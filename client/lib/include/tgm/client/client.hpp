@@ -43,6 +43,7 @@
 #include "tgm/client/silence_watch.hpp"
 #include "tgm/dds/participant.hpp"
 #include "tgm/intercode.hpp"
+#include "tgm/intercode_io.hpp"
 #include "tgm/msg/tgm.h"
 #include "tgm/yaml_config.hpp"
 
@@ -311,6 +312,10 @@ class ProgramSender {
   //! `error()` says why from the start ("record 12 (line 14): message text longer than 255
   //! characters"), and pump() returns false before writing anything.
   ProgramSender(Client& client, const Program& program, int interpolator, std::uint32_t program_id);
+  //! The same for a program held as intercode: records are decoded as they are sent, a window
+  //! of them at a time (a run holds about 20 bytes a record instead of 152).
+  ProgramSender(Client& client, const PackedProgram& program, int interpolator,
+                std::uint32_t program_id);
   //! Writes what the window allows. False (with `error()`) when a chunk cannot be built or written.
   bool pump();
   //! Records written / confirmed (accepted into the ring buffer) so far.
@@ -322,8 +327,15 @@ class ProgramSender {
   std::uint32_t program_id() const { return program_id_; }
 
  private:
+  // The records [base_, base_ + records().segments.size()) as a Program: the whole program, or
+  // the window of a packed one, moved on to hold `first` and up to a chunk after it.
+  const Program& records_from(std::uint64_t first);
+
   Client& client_;
-  const Program& program_;
+  const Program* program_ = nullptr;             // a whole program
+  std::optional<PackedProgram::Cursor> cursor_;  // or a packed one
+  Program window_;
+  std::uint64_t base_ = 0;
   int interpolator_;
   std::uint32_t program_id_;
   std::uint64_t total_;
