@@ -587,11 +587,14 @@ TEST_F(HmiSimulate, RunningOutOfMemoryIsSaidAndExitsOne) {
 #else
   // A million records fit in the limit: the program is held as intercode, 12 bytes a record
   // here (152 as Segments: 1 M records ran out of memory at this limit before).
-  std::string fits = "G91 F6000\n";
-  fits.reserve(10'000'000);
-  for (int k = 0; k < 1'000'000; ++k) fits += "G1 X0.01\n";
-  fits += "M2\n";
-  const fs::path fits_prog = write("fits.ngc", fits);
+  // `count` lines of `line` between G91 F6000 and M2.
+  auto repeated = [this](const std::string& name, const std::string& line, int count) {
+    std::string text = "G91 F6000\n";
+    text.reserve(line.size() * static_cast<std::size_t>(count) + 16);
+    for (int k = 0; k < count; ++k) text += line;
+    return write(name, text + "M2\n");
+  };
+  const fs::path fits_prog = repeated("fits.ngc", "G1 X0.01\n", 1'000'000);
   const ProcessResult ok =
       run("simulate " + fits_prog.string() + " --config " + kConfig + " --max-time 1 --quiet",
           "ulimit -v 150000; ");
@@ -604,11 +607,7 @@ TEST_F(HmiSimulate, RunningOutOfMemoryIsSaidAndExitsOne) {
 
   // 4 M records of 28 bytes of intercode each (all three axes move): over 100 MB held, where
   // the limit leaves about 80 MB beyond what the process needs to start.
-  std::string big = "G91 F6000\n";
-  big.reserve(50'000'000);
-  for (int k = 0; k < 4'000'000; ++k) big += "G1 X1 Y1 Z1\n";
-  big += "M2\n";
-  const fs::path prog = write("big.ngc", big);
+  const fs::path prog = repeated("big.ngc", "G1 X1 Y1 Z1\n", 4'000'000);
   const ProcessResult r =
       run("simulate " + prog.string() + " --config " + kConfig + " --csv /dev/null",
           "ulimit -v 150000; ");

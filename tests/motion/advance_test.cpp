@@ -360,6 +360,18 @@ TEST(Advance, SlowCruiseBelowOneMicronPerSecondEqualsStepping) {
   RecordProperty("cycles", std::to_string(c.total));
 }
 
+// The figures of a run `b` that must be the run `a`.
+void expect_same_summary(const SimulationSummary& a, const SimulationSummary& b,
+                         const std::string& ctx) {
+  EXPECT_EQ(b.result, a.result) << ctx << ": " << b.error;
+  EXPECT_EQ(b.cycles, a.cycles) << ctx;
+  EXPECT_EQ(b.distance_mm, a.distance_mm) << ctx;
+  EXPECT_EQ(b.end_position, a.end_position) << ctx;
+  EXPECT_EQ(b.m_functions, a.m_functions) << ctx;
+  EXPECT_EQ(b.stops, a.stops) << ctx;
+  EXPECT_EQ(b.factor_time_s, a.factor_time_s) << ctx;
+}
+
 // Whole simulations: fast-forward and stepping give the same summary and block reports.
 // Three seeds' programs from TGM_SEED on (the default run includes seed 3 program 3, where a
 // cruise skip once ignored the part of the window beyond what the cruise itself needed). Every
@@ -409,16 +421,10 @@ TEST(Advance, SimulationSummaryEqualsStepping) {
     const auto s = run_stepped_and_fast(m, o, g.program, &b);
     const std::string ctx = "seed " + std::to_string(seed) + " program " + std::to_string(k);
     ASSERT_EQ(s[0].result, StepResult::kFinished) << ctx << ": " << s[0].error;
-    EXPECT_EQ(s[0].result, s[1].result) << ctx;
-    EXPECT_EQ(s[0].cycles, s[1].cycles) << ctx;
-    EXPECT_EQ(s[0].distance_mm, s[1].distance_mm) << ctx;
-    EXPECT_EQ(s[0].end_position, s[1].end_position) << ctx;
-    EXPECT_EQ(s[0].m_functions, s[1].m_functions) << ctx;
-    EXPECT_EQ(s[0].stops, s[1].stops) << ctx;
+    expect_same_summary(s[0], s[1], ctx);
     if (k % 2 == 1) {
       EXPECT_GE(s[0].stops, 1u) << ctx;
     }
-    EXPECT_EQ(s[0].factor_time_s, s[1].factor_time_s) << ctx;
     ASSERT_EQ(b[0].size(), b[1].size()) << ctx;
     for (std::size_t i = 0; i < b[0].size(); ++i)
       EXPECT_TRUE(same_block(b[0][i], b[1][i])) << ctx << " block " << i;
@@ -480,13 +486,7 @@ TEST(Advance, APackedProgramRunsAsItsProgramToTheBit) {
                           : sim->run(packed, on_cycle, on_block);
     }
     ASSERT_EQ(s[0].result, StepResult::kFinished) << ctx << ": " << s[0].error;
-    EXPECT_EQ(s[1].result, s[0].result) << ctx << ": " << s[1].error;
-    EXPECT_EQ(s[1].cycles, s[0].cycles) << ctx;
-    EXPECT_EQ(s[1].distance_mm, s[0].distance_mm) << ctx;
-    EXPECT_EQ(s[1].end_position, s[0].end_position) << ctx;
-    EXPECT_EQ(s[1].m_functions, s[0].m_functions) << ctx;
-    EXPECT_EQ(s[1].stops, s[0].stops) << ctx;
-    EXPECT_EQ(s[1].factor_time_s, s[0].factor_time_s) << ctx;
+    expect_same_summary(s[0], s[1], ctx);
     EXPECT_GT(g.program.segments.size(), 60u) << ctx;
     ASSERT_EQ(blocks[1].size(), blocks[0].size()) << ctx;
     for (std::size_t i = 0; i < blocks[0].size(); ++i)
