@@ -413,14 +413,24 @@ bool read_header(std::string_view file, Program& tables, std::uint64_t& count,
   return true;
 }
 
+// Where a checked file's records lie.
+struct RecordsLayout {
+  std::uint64_t count = 0;
+  std::size_t records_at = 0;  // byte offset of the first record
+  std::size_t body_size = 0;   // the file without its checksum
+};
+
 // Checks `file` whole, as decode_intercode promises; the records go into `out.segments` when
-// `keep`, else only the header and the side tables are kept.
-bool decode_checked(std::string_view file, Program& out, std::string& error, bool keep) {
+// `keep`, else only the header and the side tables are kept. `layout` (when given) says where
+// the records lie.
+bool decode_checked(std::string_view file, Program& out, std::string& error, bool keep,
+                    RecordsLayout* layout = nullptr) {
   Program p;
   std::uint64_t count = 0;
   std::string_view bytes;
   std::size_t records_at = 0;
   if (!read_header(file, p, count, bytes, records_at, error)) return false;
+  if (layout) *layout = {count, records_at, bytes.size()};
   In in(bytes);
   in.skip(records_at);
   auto fail = [&](const std::string& why) {
@@ -486,12 +496,11 @@ bool decode_intercode(std::string_view file, Program& out, std::string& error) {
 
 bool PackedProgram::open(std::string file, PackedProgram& out, std::string& error) {
   PackedProgram p;
-  if (!decode_checked(file, p.tables_, error, false)) return false;
-  // Where the records lie (the header was checked just now).
-  Program header;
-  std::string_view body;
-  if (!read_header(file, header, p.count_, body, p.records_at_, error)) return false;
-  p.body_size_ = body.size();
+  RecordsLayout layout;
+  if (!decode_checked(file, p.tables_, error, false, &layout)) return false;
+  p.count_ = layout.count;
+  p.records_at_ = layout.records_at;
+  p.body_size_ = layout.body_size;
   p.file_ = std::move(file);
   out = std::move(p);
   return true;
