@@ -1,5 +1,6 @@
 #include "tgm/intercode_io.hpp"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -521,6 +522,30 @@ bool PackedProgram::Cursor::next(Segment& s) {
   at_ = in.pos();
   ++read_;
   return true;
+}
+
+const Program& PackedProgram::Window::from(std::uint64_t first, std::uint64_t count) {
+  // The records behind `first` are dropped once they are half of what is held, so that a record
+  // is moved a bounded number of times (one record a call is the short-segment case).
+  std::vector<Segment>& held = records_.segments;
+  const std::uint64_t behind = first - base_;
+  if (behind > 0 && 2 * behind >= held.size()) {
+    held.erase(held.begin(), held.begin() + static_cast<std::ptrdiff_t>(behind));
+    base_ = first;
+  }
+  // Read ahead in batches, each record decoded in its place.
+  const std::uint64_t need = first - base_ + count;
+  if (held.size() < need) {
+    const std::uint64_t want = std::max<std::uint64_t>(need, held.size() + 512);
+    while (held.size() < want) {
+      held.emplace_back();
+      if (!cursor_.next(held.back())) {
+        held.pop_back();
+        break;
+      }
+    }
+  }
+  return records_;
 }
 
 PackedProgram::Cursor::Cursor(const PackedProgram& p)

@@ -467,8 +467,7 @@ ProgramSender::ProgramSender(Client& client, const Program& program, int interpo
 ProgramSender::ProgramSender(Client& client, const PackedProgram& program, int interpolator,
                              std::uint32_t program_id)
     : client_(client),
-      cursor_(program.cursor()),
-      window_(program.tables()),
+      window_(program),
       interpolator_(interpolator),
       program_id_(program_id),
       total_(program.size()) {
@@ -492,24 +491,7 @@ ProgramSender::ProgramSender(Client& client, const PackedProgram& program, int i
 }
 
 const Program& ProgramSender::records_from(std::uint64_t first) {
-  if (program_ != nullptr) return *program_;
-  // What was sent is dropped once it is half the window, so a record is moved a bounded
-  // number of times; then the window is read on to a chunk's worth past `first`.
-  const std::uint64_t sent = first - base_;
-  if (sent > 0 && 2 * sent >= window_.segments.size()) {
-    window_.segments.erase(window_.segments.begin(),
-                           window_.segments.begin() + static_cast<std::ptrdiff_t>(sent));
-    base_ = first;
-  }
-  const std::uint64_t want = first - base_ + mapping::kMaxChunkSegments;
-  while (window_.segments.size() < want) {
-    window_.segments.emplace_back();
-    if (!cursor_->next(window_.segments.back())) {
-      window_.segments.pop_back();
-      break;
-    }
-  }
-  return window_;
+  return program_ != nullptr ? *program_ : window_->from(first, mapping::kMaxChunkSegments);
 }
 
 bool ProgramSender::pump() {
@@ -527,16 +509,17 @@ bool ProgramSender::pump() {
   const std::uint64_t free_slots = static_cast<std::uint64_t>(std::max(0, s->free_buffer_slots()));
   while (!end_written_ && chunk_ends_.size() < static_cast<std::size_t>(dds::kProgramChunksInFlight)) {
     const Program& records = records_from(next_);
+    const std::uint64_t base = this->base();
     std::size_t end_in = 0;
     const mapping::MapStatus st = mapping::fill_chunk(
-        records, static_cast<std::size_t>(next_ - base_),
+        records, static_cast<std::size_t>(next_ - base),
         {static_cast<std::uint16_t>(interpolator_), program_id_}, chunk_, end_in);
     if (st != mapping::MapStatus::kOk) {
-      error_ = record_text(records, base_ + end_in, base_) + std::string(mapping::to_string(st));
+      error_ = record_text(records, base + end_in, base) + std::string(mapping::to_string(st));
       return false;
     }
-    // Numbered in the whole program (a window starts at base_), ended by its last record.
-    const std::uint64_t end = base_ + end_in;
+    // Numbered in the whole program (a window starts at base), ended by its last record.
+    const std::uint64_t end = base + end_in;
     chunk_.sequence_number(next_);
     chunk_.end_of_program(end == total_);
     const std::uint64_t in_flight = next_ - confirmed_;

@@ -100,6 +100,24 @@ class PackedProgram {
   };
   Cursor cursor() const { return Cursor(*this); }
 
+  //! The records from a point on as a Program (the side tables whole), which is what
+  //! Interpolator::append and the chunk mapping take: decoded ahead as they are asked for,
+  //! dropped once they lie behind. The program must outlive it.
+  class Window {
+   public:
+    explicit Window(const PackedProgram& p) : cursor_(p), records_(p.tables()) {}
+    //! Holds records [first, first + count), fewer at the program's end; they stand from index
+    //! first - base() of the returned Program. `first` never moves back.
+    const Program& from(std::uint64_t first, std::uint64_t count);
+    //! The program's index of the returned Program's first record.
+    std::uint64_t base() const { return base_; }
+
+   private:
+    Cursor cursor_;
+    Program records_;
+    std::uint64_t base_ = 0;
+  };
+
  private:
   std::string file_;
   Program tables_;

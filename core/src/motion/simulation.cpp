@@ -95,33 +95,14 @@ SimulationSummary Simulation::run(const Program& program, const std::function<vo
 SimulationSummary Simulation::run(const PackedProgram& program,
                                   const std::function<void(const Registers&)>& on_cycle,
                                   const std::function<void(const BlockReport&)>& on_block) {
-  PackedProgram::Cursor cursor = program.cursor();
-  // Records [base, base + window.segments.size()) decoded; the side tables are the program's.
-  Program window = program.tables();
-  std::size_t base = 0;
+  PackedProgram::Window window(program);
   return run_records(
       static_cast<std::size_t>(program.size()),
-      [&](Interpolator& ip, std::size_t next, std::size_t count, bool last, std::size_t* took) {
-        // What the ring took is dropped once it is half the window or more, so that a record is
-        // moved a bounded number of times (one record a cycle is the short-segment case).
-        const std::size_t taken = next - base;
-        if (taken > 0 && 2 * taken >= window.segments.size()) {
-          window.segments.erase(window.segments.begin(),
-                                window.segments.begin() + static_cast<std::ptrdiff_t>(taken));
-          base = next;
-        }
-        // Read ahead in batches, each record decoded in its place.
-        if (window.segments.size() < next + count - base) {
-          const std::size_t want = std::max(next + count - base, window.segments.size() + 512);
-          while (window.segments.size() < want) {
-            window.segments.emplace_back();
-            if (!cursor.next(window.segments.back())) {
-              window.segments.pop_back();
-              break;
-            }
-          }
-        }
-        return ip.append(window, next - base, count, last, took);
+      [&window](Interpolator& ip, std::size_t next, std::size_t count, bool last,
+                std::size_t* took) {
+        const Program& records = window.from(next, count);
+        return ip.append(records, static_cast<std::size_t>(next - window.base()), count, last,
+                         took);
       },
       on_cycle, on_block);
 }

@@ -327,15 +327,14 @@ class ProgramSender {
   std::uint32_t program_id() const { return program_id_; }
 
  private:
-  // The records [base_, base_ + records().segments.size()) as a Program: the whole program, or
-  // the window of a packed one, moved on to hold `first` and up to a chunk after it.
+  // The records from `first` on as a Program, `first` at index first - base(): the whole
+  // program, or a window of a packed one.
   const Program& records_from(std::uint64_t first);
+  std::uint64_t base() const { return window_ ? window_->base() : 0; }
 
   Client& client_;
   const Program* program_ = nullptr;             // a whole program
-  std::optional<PackedProgram::Cursor> cursor_;  // or a packed one
-  Program window_;
-  std::uint64_t base_ = 0;
+  std::optional<PackedProgram::Window> window_;  // or a packed one
   int interpolator_;
   std::uint32_t program_id_;
   std::uint64_t total_;
