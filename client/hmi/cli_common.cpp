@@ -115,7 +115,7 @@ bool is_intercode(const std::string& file, std::string_view bytes) {
 
 bool load_packed(const std::string& file, const MachineConfig& machine, int ip, PackedProgram& out,
                  const std::array<double, kMaxAxes>* start_mm, bool* intercode,
-                 CompensationNote* note, std::size_t* compile_errors) {
+                 const SegmentSink& observe, std::size_t* compile_errors) {
   if (intercode) *intercode = false;
   if (compile_errors) *compile_errors = 0;
   FileView input;
@@ -138,10 +138,10 @@ bool load_packed(const std::string& file, const MachineConfig& machine, int ip, 
                    file.c_str(), out.tables().axis_letters.c_str(), ip, letters.c_str(), ip);
       return false;
     }
-    if (note) {
+    if (observe) {
       auto cursor = out.cursor();
       Segment s;
-      while (cursor.next(s)) note->observe(s);
+      while (cursor.next(s)) observe(s);
     }
     return true;
   }
@@ -155,7 +155,7 @@ bool load_packed(const std::string& file, const MachineConfig& machine, int ip, 
   IntercodeEncoder encoder(bytes, static_cast<int>(letters.size()), letters, options.start_mm);
   CompileResult r = compile_gcode(input.text(), options, [&](const Segment& s) {
     encoder.add(s);
-    if (note) note->observe(s);
+    if (observe) observe(s);
   });
   if (!r.ok()) {
     for (const Diagnostic& d : r.errors)

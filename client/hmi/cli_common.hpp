@@ -12,6 +12,7 @@
 #include "tgm/cli_numbers.hpp"
 #include "tgm/config.hpp"
 #include "tgm/file_text.hpp"
+#include "tgm/gcode.hpp"
 #include "tgm/intercode.hpp"
 #include "tgm/intercode_io.hpp"
 #include "tgm/yaml_config.hpp"
@@ -95,12 +96,6 @@ class CompensationNote {
   }
   //! Prints the note to standard error (nothing when no motion ran with compensation on).
   void print(const std::string& file) const;
-  //! The note for a whole program.
-  static void print(const Program& p, const std::string& file) {
-    CompensationNote note;
-    note.observe(p);
-    note.print(file);
-  }
 
  private:
   bool seen_ = false;
@@ -115,11 +110,11 @@ class CompensationNote {
 //! compiler's diagnostics) and returns false; `compile_errors` (when given) receives the number
 //! of compiler diagnostics. G-code is compiled from `start_mm` (machine mm; default machine
 //! zero), the point the program starts at: G91 moves are relative to it, axes a G90 line does
-//! not name stay there. `intercode` (when given) says which of the two FILE was; `note` (when
-//! given) observes every record.
+//! not name stay there. `intercode` (when given) says which of the two FILE was; `observe`
+//! (when given) sees every record of a program that loads, in order.
 bool load_packed(const std::string& file, const MachineConfig& machine, int ip, PackedProgram& out,
                  const std::array<double, kMaxAxes>* start_mm = nullptr, bool* intercode = nullptr,
-                 CompensationNote* note = nullptr, std::size_t* compile_errors = nullptr);
+                 const SegmentSink& observe = {}, std::size_t* compile_errors = nullptr);
 
 //! A read-only view of a whole file (memory-mapped when possible).
 class FileView {

@@ -311,7 +311,9 @@ int run_simulate(int argc, char** argv) {
   PackedProgram program;
   bool intercode = false;
   CompensationNote note;
-  if (!load_packed(file, machine, ip_index, program, &start, &intercode, &note)) return 2;
+  if (!load_packed(file, machine, ip_index, program, &start, &intercode,
+                   [&note](const Segment& s) { note.observe(s); }))
+    return 2;
   // As `run` says it: a summary of nothing ("NOT finished: empty program", exit 1) looked like
   // a run that went wrong.
   if (program.size() == 0) {

@@ -207,8 +207,13 @@ int run_run(int argc, char** argv) {
   PackedProgram program;
   bool intercode = false;
   CompensationNote note;
+  std::int32_t last_line = 0;
+  const auto observe = [&](const Segment& s) {
+    note.observe(s);
+    last_line = std::max(last_line, s.line);
+  };
   if (std::size_t errors = 0;
-      !load_packed(file, config->machine, ip, program, nullptr, &intercode, &note, &errors)) {
+      !load_packed(file, config->machine, ip, program, nullptr, &intercode, observe, &errors)) {
     if (errors > 0)
       std::fprintf(stderr, "%s: %zu error%s, nothing sent\n", file.c_str(), errors,
                    errors == 1 ? "" : "s");
@@ -219,12 +224,6 @@ int run_run(int argc, char** argv) {
     return 2;
   }
   note.print(file);
-  std::int32_t last_line = 0;
-  {
-    auto cursor = program.cursor();
-    Segment s;
-    while (cursor.next(s)) last_line = std::max(last_line, s.line);
-  }
 
   install_signal_flag(Hangup::kIgnore);
   // M-function waits are counted from the event topic (RELIABLE, every change of the handshake
