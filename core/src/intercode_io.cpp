@@ -22,23 +22,43 @@ constexpr std::uint16_t kVersionWithoutStart = 3;
 constexpr std::uint16_t kVersionWithoutChecksum = 2;
 constexpr std::size_t kHeaderBytes = IntercodeEncoder::kCountOffset + 8;
 
-// CRC-32 (IEEE 802.3, reflected, polynomial 0xEDB88320), table driven. `state` starts at
-// 0xFFFFFFFF; the checksum is the final state inverted.
-struct Crc32Table {
-  std::uint32_t t[256];
-  constexpr Crc32Table() : t() {
+// CRC-32 (IEEE 802.3, reflected, polynomial 0xEDB88320). `state` starts at 0xFFFFFFFF; the
+// checksum is the final state inverted. Slicing by 8: t[k][i] is the CRC of byte i followed by k
+// zero bytes, so eight bytes take eight look-ups and one step. Byte at a time, the check was a
+// third of loading a file of 6 million records (session 60).
+struct Crc32Tables {
+  std::uint32_t t[8][256];
+  constexpr Crc32Tables() : t() {
     for (std::uint32_t i = 0; i < 256; ++i) {
       std::uint32_t c = i;
       for (int k = 0; k < 8; ++k) c = (c & 1u) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
-      t[i] = c;
+      t[0][i] = c;
+    }
+    for (int k = 1; k < 8; ++k) {
+      for (std::uint32_t i = 0; i < 256; ++i)
+        t[k][i] = (t[k - 1][i] >> 8) ^ t[0][t[k - 1][i] & 0xFFu];
     }
   }
 };
-constexpr Crc32Table kCrcTable;
+constexpr Crc32Tables kCrc;
+
+// Four bytes as the little-endian word they are in the stream, on any host.
+std::uint32_t le32(const char* p) {
+  const auto b = [p](int i) {
+    return static_cast<std::uint32_t>(static_cast<unsigned char>(p[i]));
+  };
+  return b(0) | b(1) << 8 | b(2) << 16 | b(3) << 24;
+}
 
 std::uint32_t crc_update(std::uint32_t state, const char* data, std::size_t n) {
-  for (std::size_t i = 0; i < n; ++i) {
-    state = kCrcTable.t[(state ^ static_cast<unsigned char>(data[i])) & 0xFFu] ^ (state >> 8);
+  const auto& t = kCrc.t;
+  for (; n >= 8; n -= 8, data += 8) {
+    const std::uint32_t lo = state ^ le32(data), hi = le32(data + 4);
+    state = t[7][lo & 0xFFu] ^ t[6][(lo >> 8) & 0xFFu] ^ t[5][(lo >> 16) & 0xFFu] ^ t[4][lo >> 24] ^
+            t[3][hi & 0xFFu] ^ t[2][(hi >> 8) & 0xFFu] ^ t[1][(hi >> 16) & 0xFFu] ^ t[0][hi >> 24];
+  }
+  for (; n > 0; --n, ++data) {
+    state = t[0][(state ^ static_cast<unsigned char>(*data)) & 0xFFu] ^ (state >> 8);
   }
   return state;
 }

@@ -850,20 +850,32 @@ TEST(Intercode, DecodeRejectsEveryTruncation) {
   EXPECT_NE(err.find("trailing bytes"), std::string::npos) << err;
 }
 
-// The checksum is the CRC-32 of IEEE 802.3 (zlib's crc32): its check value, and the value of a
-// second string computed bit by bit here, the polynomial straight from the standard.
+// The checksum is the CRC-32 of IEEE 802.3 (zlib's crc32): its check value, and the values of
+// random strings computed bit by bit here, the polynomial straight from the standard. The
+// strings cover every length up to 40 from every start offset up to 8, so that each split
+// between the eight-byte steps and the bytes left over is compared; and a long one.
 TEST(Intercode, ChecksumIsTheStandardCrc32) {
   EXPECT_EQ(crc32("123456789"), 0xCBF43926u);
   EXPECT_EQ(crc32(""), 0u);
+  const auto bitwise = [](std::string_view text) {
+    std::uint32_t c = 0xFFFFFFFFu;
+    for (const char ch : text) {
+      c ^= static_cast<unsigned char>(ch);
+      for (int k = 0; k < 8; ++k) c = (c >> 1) ^ (0xEDB88320u & (0u - (c & 1u)));
+    }
+    return ~c;
+  };
   std::mt19937 rng(5);
-  std::string text(1000, '\0');
+  std::string text(100'003, '\0');
   for (char& c : text) c = static_cast<char>(rng());
-  std::uint32_t c = 0xFFFFFFFFu;
-  for (const char ch : text) {
-    c ^= static_cast<unsigned char>(ch);
-    for (int k = 0; k < 8; ++k) c = (c >> 1) ^ (0xEDB88320u & (0u - (c & 1u)));
+  const std::string_view all(text);
+  EXPECT_EQ(crc32(all), bitwise(all));
+  for (std::size_t from = 0; from <= 8; ++from) {
+    for (std::size_t len = 0; len <= 40; ++len) {
+      EXPECT_EQ(crc32(all.substr(from, len)), bitwise(all.substr(from, len)))
+          << "from " << from << ", " << len << " bytes";
+    }
   }
-  EXPECT_EQ(crc32(text), ~c);
 }
 
 // A file with any byte changed is refused as damaged, never run as another program: a byte of
