@@ -1,4 +1,5 @@
 // tgm-hmi compile: G-code text -> binary intercode and/or a dump.
+#include <array>
 #include <cstdint>
 #include <cstdio>
 #include <optional>
@@ -34,9 +35,75 @@ constexpr const char* kUsage =
     "Errors go to standard error as FILE:LINE:COL: error: reason, all of them; the exit\n"
     "code is then 2 and nothing is written.\n";
 
-// FILE is intercode already (`compile --out` wrote it, whatever its name now): decoded with
-// the checks `run` and `simulate` make, then dumped, written to --out (a checked copy) or
-// summed up. It used to be lexed as G-code: 277 errors of binary garbage.
+// Intercode encoded as the records come and written to `out` (when open) in 1 MiB pieces: a
+// long program is never held whole. Nothing replaces `out` until commit().
+class StreamedIntercode {
+ public:
+  StreamedIntercode(AtomicFile& out, const std::string& letters,
+                    const std::array<double, kMaxAxes>& start_mm)
+      : out_(out),
+        encoder_(bytes_, static_cast<int>(letters.size()), letters, start_mm, /*streaming=*/true) {}
+  void add(const Segment& s) {
+    encoder_.add(s);
+    if (bytes_.size() >= kPiece) flush();
+  }
+  std::uint64_t records() const { return encoder_.records(); }
+  // Appends the tables, writes what is left and the record count, and commits `out`.
+  bool commit(const std::vector<MParams>& params, const std::vector<std::string>& messages,
+              std::string& error) {
+    if (!out_.is_open()) return true;
+    const std::uint64_t count = encoder_.records();
+    encoder_.finish(params, messages);
+    flush();
+    if (!ok_) {
+      error = error_;
+      return false;
+    }
+    return out_.patch(static_cast<long>(IntercodeEncoder::kCountOffset), &count, sizeof count,
+                      error) &&
+           out_.commit(error);
+  }
+
+ private:
+  static constexpr std::size_t kPiece = 1u << 20;
+  void flush() {
+    if (out_.is_open() && ok_) ok_ = out_.write(bytes_.data(), bytes_.size(), error_);
+    bytes_.clear();
+  }
+  AtomicFile& out_;
+  std::string bytes_;
+  IntercodeEncoder encoder_;
+  bool ok_ = true;
+  std::string error_;
+};
+
+// Dumps every record to standard output a megabyte at a time: the dump of a program of
+// millions of lines was built whole first (2 GB for 6 million, and nothing for `| head` to read
+// until all of it was made).
+bool dump_records(const PackedProgram& program, const std::string& dump) {
+  std::string s;
+  s.reserve((1u << 20) + 4096);
+  auto cursor = program.cursor();
+  Segment seg;
+  const bool jsonl = dump == "jsonl";
+  while (cursor.next(seg)) {
+    if (jsonl) {
+      dump_jsonl_record(program.tables(), seg, s);
+    } else {
+      dump_text_record(program.tables(), seg, s);
+    }
+    if (s.size() >= (1u << 20)) {
+      if (!write_stdout(s, "compile", "the dump")) return false;
+      s.clear();
+    }
+  }
+  return write_stdout(s, "compile", "the dump");
+}
+
+// FILE is intercode already (`compile --out` wrote it, whatever its name now): checked as `run`
+// and `simulate` check it, then dumped, written to --out (encoded anew: a file of an older
+// version comes out in the current one) or summed up. It used to be lexed as G-code: 277
+// errors of binary garbage.
 int inspect_intercode(Args& args, const std::string& file, std::string_view text,
                       const std::string& dump, const std::string& out_path,
                       const std::string& start_text) {
@@ -44,42 +111,51 @@ int inspect_intercode(Args& args, const std::string& file, std::string_view text
     return args.usage_error("--start applies to G-code; " + file +
                             " is intercode, which records the point it was compiled from");
   }
-  Program program;
-  if (std::string why; !decode_intercode(text, program, why)) {
+  PackedProgram program;
+  if (std::string why; !PackedProgram::open(std::string(text), program, why)) {
     std::fprintf(stderr, "%s: error: %s\n", file.c_str(), why.c_str());
     return 2;
   }
+  const Program& tables = program.tables();
+  CompensationNote compensation;
   if (!out_path.empty()) {
-    std::string bytes, io_error;
-    encode_intercode(program, bytes);
+    std::string io_error;
     AtomicFile out;
-    if (!out.open(out_path, io_error) || !out.write(bytes.data(), bytes.size(), io_error) ||
-        !out.commit(io_error)) {
+    if (!out.open(out_path, io_error)) {
+      std::fprintf(stderr, "%s: error: %s\n", out_path.c_str(), io_error.c_str());
+      return 1;
+    }
+    StreamedIntercode copy(out, tables.axis_letters, tables.start_mm);
+    auto cursor = program.cursor();
+    Segment seg;
+    while (cursor.next(seg)) {
+      copy.add(seg);
+      compensation.observe(seg);
+    }
+    if (!copy.commit(tables.params, tables.messages, io_error)) {
       std::fprintf(stderr, "%s: error: %s\n", out_path.c_str(), io_error.c_str());
       return 1;
     }
   }
   if (!dump.empty()) {
-    std::string s;
-    if (dump == "jsonl") {
-      dump_jsonl(program, s);
-    } else {
-      dump_text(program, s);
-    }
-    if (!write_stdout(s, "compile", "the dump")) return 1;
+    if (!dump_records(program, dump)) return 1;
   } else {
-    const std::size_t records = program.segments.size(), ms = program.params.size(),
-                      texts = program.messages.size();
-    std::fprintf(stderr,
-                 "%s: intercode for the axes %s, compiled from %s: %zu record%s (%zu M-function%s, "
-                 "%zu message%s)%s%s\n",
-                 file.c_str(), program.axis_letters.c_str(),
-                 point_text(program.start_mm, program.axis_letters).c_str(), records,
-                 records == 1 ? "" : "s", ms, ms == 1 ? "" : "s", texts, texts == 1 ? "" : "s",
-                 out_path.empty() ? "" : " written to ", out_path.c_str());
+    const std::uint64_t records = program.size();
+    const std::size_t ms = tables.params.size(), texts = tables.messages.size();
+    std::fprintf(
+        stderr,
+        "%s: intercode for the axes %s, compiled from %s: %llu record%s (%zu M-function%s, "
+        "%zu message%s)%s%s\n",
+        file.c_str(), tables.axis_letters.c_str(),
+        point_text(tables.start_mm, tables.axis_letters).c_str(),
+        static_cast<unsigned long long>(records), records == 1 ? "" : "s", ms, ms == 1 ? "" : "s",
+        texts, texts == 1 ? "" : "s", out_path.empty() ? "" : " written to ", out_path.c_str());
   }
-  CompensationNote compensation;
-  compensation.observe(program);
+  if (out_path.empty()) {
+    auto cursor = program.cursor();
+    Segment seg;
+    while (cursor.next(seg)) compensation.observe(seg);
+  }
   compensation.print(file);
   return 0;
 }
@@ -126,7 +202,9 @@ int run_compile(int argc, char** argv) {
   }
 
   // Without a dump the records are encoded as they come and written out in 1 MiB pieces: a long
-  // program is never held in memory. The output only replaces --out when there is no error.
+  // program is never held in memory. With one they are held as intercode (about 20 bytes a
+  // record), and dumped a piece at a time once the whole program compiled. The output only
+  // replaces --out when there is no error.
   AtomicFile out;
   std::string io_error;
   if (!out_path.empty() && !out.open(out_path, io_error)) {
@@ -134,26 +212,24 @@ int run_compile(int argc, char** argv) {
     return 1;
   }
   std::string bytes;
-  std::optional<IntercodeEncoder> encoder;
-  CompileResult result;
+  std::optional<StreamedIntercode> streamed;
+  std::optional<IntercodeEncoder> held;
   CompensationNote compensation;
-  bool write_ok = true;
   if (dump.empty()) {
-    bytes.reserve(2u << 20);
-    encoder.emplace(bytes, static_cast<int>(options.axis_letters.size()), options.axis_letters,
-                    options.start_mm, /*streaming=*/true);
-    result = compile_gcode(text, options, [&](const Segment& s) {
-      encoder->add(s);
-      compensation.observe(s);
-      if (bytes.size() >= (1u << 20)) {
-        if (out.is_open() && write_ok) write_ok = out.write(bytes.data(), bytes.size(), io_error);
-        bytes.clear();
-      }
-    });
+    streamed.emplace(out, options.axis_letters, options.start_mm);
   } else {
-    result = compile_gcode(text, options);
-    compensation.observe(result.program);
+    bytes.reserve(2 * text.size() + 4096);  // as load_packed: a CAM line is about its bytes
+    held.emplace(bytes, static_cast<int>(options.axis_letters.size()), options.axis_letters,
+                 options.start_mm);
   }
+  const CompileResult result = compile_gcode(text, options, [&](const Segment& s) {
+    if (streamed) {
+      streamed->add(s);
+    } else {
+      held->add(s);
+    }
+    compensation.observe(s);
+  });
   if (!result.ok()) {
     for (const Diagnostic& d : result.errors) {
       std::fprintf(stderr, "%s\n", format_diagnostic(file, d).c_str());
@@ -162,34 +238,13 @@ int run_compile(int argc, char** argv) {
                  result.error_count(), result.error_count() == 1 ? "" : "s");
     return 2;
   }
-  if (out.is_open()) {
-    if (encoder) {
-      const std::uint64_t count = encoder->records();
-      encoder->finish(result.program.params, result.program.messages);
-      write_ok = write_ok && out.write(bytes.data(), bytes.size(), io_error) &&
-                 out.patch(static_cast<long>(IntercodeEncoder::kCountOffset), &count,
-                           sizeof count, io_error);
-    } else {
-      encode_intercode(result.program, bytes);
-      write_ok = out.write(bytes.data(), bytes.size(), io_error);
-    }
-    if (!write_ok || !out.commit(io_error)) {
+  const std::size_t ms = result.program.params.size(), texts = result.program.messages.size();
+  if (streamed) {
+    if (!streamed->commit(result.program.params, result.program.messages, io_error)) {
       std::fprintf(stderr, "%s: error: %s\n", out_path.c_str(), io_error.c_str());
       return 1;
     }
-  }
-  if (!dump.empty()) {
-    std::string s;
-    if (dump == "jsonl") {
-      dump_jsonl(result.program, s);
-    } else {
-      dump_text(result.program, s);
-    }
-    if (!write_stdout(s, "compile", "the dump")) return 1;
-  }
-  if (dump.empty()) {
-    const unsigned long long records = encoder->records();
-    const std::size_t ms = result.program.params.size(), texts = result.program.messages.size();
+    const auto records = static_cast<unsigned long long>(streamed->records());
     const std::string from =
         start_text.empty()
             ? std::string()
@@ -198,6 +253,21 @@ int run_compile(int argc, char** argv) {
                  file.c_str(), records, records == 1 ? "" : "s", ms, ms == 1 ? "" : "s", texts,
                  texts == 1 ? "" : "s", from.c_str(), out_path.empty() ? "" : " written to ",
                  out_path.c_str());
+  } else {
+    held->finish(result.program.params, result.program.messages);
+    if (out.is_open() &&
+        (!out.write(bytes.data(), bytes.size(), io_error) || !out.commit(io_error))) {
+      std::fprintf(stderr, "%s: error: %s\n", out_path.c_str(), io_error.c_str());
+      return 1;
+    }
+    held.reset();  // it refers to `bytes`, which the program takes over
+    PackedProgram program;
+    if (std::string why; !PackedProgram::open(std::move(bytes), program, why)) {
+      std::fprintf(stderr, "%s: internal error: the compiled program does not read back: %s\n",
+                   file.c_str(), why.c_str());
+      return 1;
+    }
+    if (!dump_records(program, dump)) return 1;
   }
   compensation.print(file);
   return 0;

@@ -574,134 +574,139 @@ PackedProgram::Cursor::~Cursor() = default;
 PackedProgram::Cursor::Cursor(Cursor&&) noexcept = default;
 PackedProgram::Cursor& PackedProgram::Cursor::operator=(Cursor&&) noexcept = default;
 
-void dump_jsonl(const Program& p, std::string& out) {
+void dump_jsonl_record(const Program& p, const Segment& s, std::string& out) {
   const int n = p.number_axes;
   auto letter = [&](int i) { return axis_letter(p, i); };
-  for (const Segment& s : p.segments) {
-    out += "{\"line\":";
-    out += std::to_string(s.line);
-    out += ",\"type\":\"";
-    out += segment_type_name(s.type);
-    out += "\",\"end\":{";
-    for (int i = 0; i < n; ++i) {
-      if (i) out.push_back(',');
+  out += "{\"line\":";
+  out += std::to_string(s.line);
+  out += ",\"type\":\"";
+  out += segment_type_name(s.type);
+  out += "\",\"end\":{";
+  for (int i = 0; i < n; ++i) {
+    if (i) out.push_back(',');
+    out += '"';
+    out += letter(i);
+    out += "\":";
+    num(out, s.end[static_cast<std::size_t>(i)]);
+  }
+  out += '}';
+  if (s.is_motion()) {
+    out += ",\"feed_mm_per_min\":";
+    num(out, s.feed_mm_per_min);
+    out += ",\"plane\":";
+    out += std::to_string(static_cast<int>(s.plane));
+  }
+  if (s.is_arc()) {
+    const PlaneAxes pa = plane_axes(s.plane);
+    out += ",\"center\":{";
+    const int a0 = pa.first < n ? pa.first : -1;
+    const int a1 = pa.second < n ? pa.second : -1;
+    bool first = true;
+    for (int k = 0; k < 2; ++k) {
+      const int ax = k == 0 ? a0 : a1;
+      if (ax < 0) continue;
+      if (!first) out.push_back(',');
+      first = false;
       out += '"';
-      out += letter(i);
+      out += letter(ax);
       out += "\":";
-      num(out, s.end[static_cast<std::size_t>(i)]);
+      num(out, s.center[static_cast<std::size_t>(k)]);
     }
-    out += '}';
-    if (s.is_motion()) {
-      out += ",\"feed_mm_per_min\":";
-      num(out, s.feed_mm_per_min);
-      out += ",\"plane\":";
-      out += std::to_string(static_cast<int>(s.plane));
-    }
-    if (s.is_arc()) {
-      const PlaneAxes pa = plane_axes(s.plane);
-      out += ",\"center\":{";
-      const int a0 = pa.first < n ? pa.first : -1;
-      const int a1 = pa.second < n ? pa.second : -1;
+    out += "},\"radius\":";
+    num(out, s.radius);
+    out += ",\"turns\":";
+    out += std::to_string(s.turns);
+  }
+  if (s.type == SegmentType::kDwell) {
+    out += ",\"seconds\":";
+    num(out, s.dwell_s);
+  }
+  if (s.type == SegmentType::kMFunction) {
+    out += ",\"m\":";
+    out += std::to_string(s.m);
+    out += ",\"kind\":\"";
+    out += m_kind_name(s.m_kind);
+    out += "\",\"params\":{";
+    if (const MParams* params = params_of(p, s)) {
       bool first = true;
-      for (int k = 0; k < 2; ++k) {
-        const int ax = k == 0 ? a0 : a1;
-        if (ax < 0) continue;
+      const MParams& mp = *params;
+      for (int k = 0; k < kParamLetters; ++k) {
+        if (is_not_set(mp[static_cast<std::size_t>(k)])) continue;
         if (!first) out.push_back(',');
         first = false;
         out += '"';
-        out += letter(ax);
+        out += static_cast<char>('A' + k);
         out += "\":";
-        num(out, s.center[static_cast<std::size_t>(k)]);
+        num(out, mp[static_cast<std::size_t>(k)]);
       }
-      out += "},\"radius\":";
-      num(out, s.radius);
-      out += ",\"turns\":";
-      out += std::to_string(s.turns);
     }
-    if (s.type == SegmentType::kDwell) {
-      out += ",\"seconds\":";
-      num(out, s.dwell_s);
-    }
-    if (s.type == SegmentType::kMFunction) {
-      out += ",\"m\":";
-      out += std::to_string(s.m);
-      out += ",\"kind\":\"";
-      out += m_kind_name(s.m_kind);
-      out += "\",\"params\":{";
-      if (const MParams* params = params_of(p, s)) {
-        bool first = true;
-        const MParams& mp = *params;
-        for (int k = 0; k < kParamLetters; ++k) {
-          if (is_not_set(mp[static_cast<std::size_t>(k)])) continue;
-          if (!first) out.push_back(',');
-          first = false;
-          out += '"';
-          out += static_cast<char>('A' + k);
-          out += "\":";
-          num(out, mp[static_cast<std::size_t>(k)]);
-        }
-      }
-      out += '}';
-    }
-    if (s.type == SegmentType::kMessage) {
-      out += ",\"text\":";
-      append_json_string(out, message_of(p, s));
-    }
-    out += ",\"tool\":";
-    out += std::to_string(s.tool);
-    if (s.compensation != Compensation::kOff) {
-      out += ",\"compensation\":\"G";
-      out += std::to_string(static_cast<int>(s.compensation));
-      out += "\",\"compensation_radius_mm\":";
-      num(out, s.compensation_radius_mm);
-    }
-    out += "}\n";
+    out += '}';
   }
+  if (s.type == SegmentType::kMessage) {
+    out += ",\"text\":";
+    append_json_string(out, message_of(p, s));
+  }
+  out += ",\"tool\":";
+  out += std::to_string(s.tool);
+  if (s.compensation != Compensation::kOff) {
+    out += ",\"compensation\":\"G";
+    out += std::to_string(static_cast<int>(s.compensation));
+    out += "\",\"compensation_radius_mm\":";
+    num(out, s.compensation_radius_mm);
+  }
+  out += "}\n";
+}
+
+void dump_jsonl(const Program& p, std::string& out) {
+  for (const Segment& s : p.segments) dump_jsonl_record(p, s, out);
+}
+
+void dump_text_record(const Program& p, const Segment& s, std::string& out) {
+  const int n = p.number_axes;
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%6d  %-3s", s.line,
+                std::string(segment_type_name(s.type)).c_str());
+  out += buf;
+  if (s.type == SegmentType::kMFunction) {
+    std::snprintf(buf, sizeof buf, " M%d (%s)", s.m, std::string(m_kind_name(s.m_kind)).c_str());
+    out += buf;
+    if (const MParams* params = params_of(p, s)) {
+      const MParams& mp = *params;
+      for (int k = 0; k < kParamLetters; ++k) {
+        if (is_not_set(mp[static_cast<std::size_t>(k)])) continue;
+        std::snprintf(buf, sizeof buf, " %c%.6g", 'A' + k, mp[static_cast<std::size_t>(k)]);
+        out += buf;
+      }
+    }
+  } else if (s.type == SegmentType::kMessage) {
+    out += " \"";
+    out += printable(message_of(p, s));
+    out += '"';
+  } else if (s.type == SegmentType::kDwell) {
+    std::snprintf(buf, sizeof buf, " %.6g s", s.dwell_s);
+    out += buf;
+  } else {
+    for (int i = 0; i < n; ++i) {
+      std::snprintf(buf, sizeof buf, " %c%.4f", axis_letter(p, i),
+                    s.end[static_cast<std::size_t>(i)]);
+      out += buf;
+    }
+    if (s.is_arc()) {
+      std::snprintf(buf, sizeof buf, "  centre(%.4f, %.4f) R%.4f G%d", s.center[0], s.center[1],
+                    s.radius, static_cast<int>(s.plane));
+      out += buf;
+      if (s.turns) out += " turns+" + std::to_string(s.turns);
+    }
+    if (s.type != SegmentType::kRapid) {
+      std::snprintf(buf, sizeof buf, "  F%.6g", s.feed_mm_per_min);
+      out += buf;
+    }
+  }
+  out += '\n';
 }
 
 void dump_text(const Program& p, std::string& out) {
-  const int n = p.number_axes;
-  char buf[64];
-  for (const Segment& s : p.segments) {
-    std::snprintf(buf, sizeof buf, "%6d  %-3s", s.line, std::string(segment_type_name(s.type)).c_str());
-    out += buf;
-    if (s.type == SegmentType::kMFunction) {
-      std::snprintf(buf, sizeof buf, " M%d (%s)", s.m, std::string(m_kind_name(s.m_kind)).c_str());
-      out += buf;
-      if (const MParams* params = params_of(p, s)) {
-        const MParams& mp = *params;
-        for (int k = 0; k < kParamLetters; ++k) {
-          if (is_not_set(mp[static_cast<std::size_t>(k)])) continue;
-          std::snprintf(buf, sizeof buf, " %c%.6g", 'A' + k, mp[static_cast<std::size_t>(k)]);
-          out += buf;
-        }
-      }
-    } else if (s.type == SegmentType::kMessage) {
-      out += " \"";
-      out += printable(message_of(p, s));
-      out += '"';
-    } else if (s.type == SegmentType::kDwell) {
-      std::snprintf(buf, sizeof buf, " %.6g s", s.dwell_s);
-      out += buf;
-    } else {
-      for (int i = 0; i < n; ++i) {
-        std::snprintf(buf, sizeof buf, " %c%.4f", axis_letter(p, i),
-                      s.end[static_cast<std::size_t>(i)]);
-        out += buf;
-      }
-      if (s.is_arc()) {
-        std::snprintf(buf, sizeof buf, "  centre(%.4f, %.4f) R%.4f G%d", s.center[0], s.center[1],
-                      s.radius, static_cast<int>(s.plane));
-        out += buf;
-        if (s.turns) out += " turns+" + std::to_string(s.turns);
-      }
-      if (s.type != SegmentType::kRapid) {
-        std::snprintf(buf, sizeof buf, "  F%.6g", s.feed_mm_per_min);
-        out += buf;
-      }
-    }
-    out += '\n';
-  }
+  for (const Segment& s : p.segments) dump_text_record(p, s, out);
 }
 
 }  // namespace tgm

@@ -101,6 +101,55 @@ TEST_F(HmiCompile, LongProgramStreamsInPiecesAndDecodes) {
   EXPECT_NEAR(p.segments[40001].end[0], 20000 * 0.2 + 20000 * 0.1, 1e-6);
 }
 
+// A dump is written a piece at a time as the records are read back: it was built whole first
+// (2 GB for 6 million lines, and nothing for `| head` to read before all of it was made). The
+// pieces join into the dump of the whole program made in-process, from G-code and from its
+// intercode; --out beside --dump writes what --out alone writes.
+TEST_F(HmiCompile, ALongDumpIsWrittenInPiecesThatMakeTheWholeDump) {
+  std::string text = "G91 G1 F1000\nG25 L1\n";
+  for (int i = 0; i < 40000; ++i) text += (i % 2) ? "G1 X0.1 Y-0.05\n" : "G2 X0.2 I0.1\n";
+  text += "M7 Q1\nM29 (half way)\nM30\nG29 L1\nG1 Z1\nG1 Z-1\nM17\n";
+  const fs::path prog = write("long.ngc", text);
+  const fs::path alone = dir_ / "alone.tgmi", beside = dir_ / "beside.tgmi";
+  ProcessResult r =
+      run("compile " + prog.string() + " --config " + kConfig + " --out " + alone.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  Program p;
+  std::string err;
+  ASSERT_TRUE(decode_intercode(slurp(alone), p, err)) << err;
+  ASSERT_EQ(p.segments.size(), 40005u);
+  for (const std::string kind : {"jsonl", "text"}) {
+    std::string whole;
+    if (kind == "jsonl") {
+      dump_jsonl(p, whole);
+    } else {
+      dump_text(p, whole);
+    }
+    ASSERT_GT(whole.size(), 2u << 20);  // three pieces at least
+    r = run("compile " + prog.string() + " --config " + kConfig + " --dump " + kind + " --out " +
+            beside.string());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_TRUE(r.out == whole) << kind << ": " << r.out.size() << " bytes, not " << whole.size();
+    EXPECT_TRUE(slurp(beside) == slurp(alone)) << kind;
+    r = run("compile " + alone.string() + " --config " + kConfig + " --dump " + kind);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_TRUE(r.out == whole) << kind << ", from intercode: " << r.out.size() << " bytes";
+  }
+#if !defined(__SANITIZE_ADDRESS__)  // AddressSanitizer reserves far more address space
+  // A million records dump in 150 MB of address space; held whole as Segments (152 bytes a
+  // record) beside their dump, they ran out of memory there.
+  std::string million = "G91 F6000\n";
+  for (int k = 0; k < 1'000'000; ++k) million += "G1 X0.01\n";
+  const fs::path big = write("million.ngc", million + "M2\n");
+  r = run("compile " + big.string() + " --config " + kConfig + " --dump text",
+          "ulimit -v 150000; ");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1'000'001);
+  EXPECT_TRUE(r.out.ends_with("1000002  M   M2 (program_end)\n"))
+      << r.out.substr(r.out.size() - 80);
+#endif
+}
+
 // The summary counts in words that agree with the counts ("1 M-functions" before).
 TEST_F(HmiCompile, TheSummaryCountsRecordsMFunctionsAndMessages) {
   const fs::path one = write("one.ngc", "M2\n");

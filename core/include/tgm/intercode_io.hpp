@@ -144,6 +144,11 @@ void dump_jsonl(const Program& p, std::string& out);
 //! One readable line per record.
 void dump_text(const Program& p, std::string& out);
 
+//! One record's line of dump_jsonl / dump_text; `tables` gives the axis letters and the
+//! parameter and message tables (its records are not read: PackedProgram::tables() will do).
+void dump_jsonl_record(const Program& tables, const Segment& s, std::string& out);
+void dump_text_record(const Program& tables, const Segment& s, std::string& out);
+
 //! Name of a record type as the dumps print it: G0..G4, M, MSG.
 std::string_view segment_type_name(SegmentType t);
 
