@@ -665,10 +665,11 @@ bool eventually(Pred pred, std::chrono::milliseconds limit) {
 }
 
 struct SilentService {
-  explicit SilentService(const DdsConfig& c)
+  // Without `events` it has no event writer, so a client's event reader never matches.
+  explicit SilentService(const DdsConfig& c, bool events = true)
       : p(c, "silent"),
         state_w(p.writer<msg::InterpolatorStatePubSubType>(dds::kStateTopic)),
-        event_w(p.writer<msg::InterpolatorEventPubSubType>(dds::kEventTopic)),
+        event_w(events ? &p.writer<msg::InterpolatorEventPubSubType>(dds::kEventTopic) : nullptr),
         reply_w(p.writer<msg::ReplyPubSubType>(dds::kReplyTopic)),
         request_r(p.reader<msg::RequestPubSubType>(dds::kRequestTopic)),
         program_r(p.reader<msg::ProgramChunkPubSubType>(dds::kProgramTopic)) {
@@ -702,7 +703,7 @@ struct SilentService {
 
   dds::Participant p;
   fdds::DataWriter& state_w;
-  fdds::DataWriter& event_w;
+  fdds::DataWriter* event_w;
   fdds::DataWriter& reply_w;
   fdds::DataReader& request_r;
   fdds::DataReader& program_r;
@@ -770,6 +771,27 @@ TEST(ServiceProcesses, RunAndWatchTakeCtrlCWhileTheyWaitForTheService) {
   r = service.next_request(kHang);
   ASSERT_TRUE(r.has_value());
   EXPECT_EQ(r->kind(), msg::REQUEST_KIND_STOP);
+}
+
+// Ctrl-C is taken while `run` waits for its event reader to match the service's event writer
+// (up to 5 s; a service that has none, here): run went on to its warning that M-function
+// waits are counted from the state, and only then saw the Ctrl-C.
+TEST(ServiceProcesses, RunTakesCtrlCWhileItWaitsForTheEventTopic) {
+  ServiceEnv env;
+  std::ofstream(env.path("p.ngc")) << "G91 G1 X10 F3000\nM2\n";
+  SilentService service(env.dds(), /*events=*/false);
+  test::Child hmi;
+  ASSERT_TRUE(hmi.start({TGM_HMI_BIN, "run", env.path("p.ngc"), "--config", env.config()},
+                        env.path("run.log")));
+  ASSERT_TRUE(dds::wait_for_match(service.state_w, 1, kHang)) << hmi.log();
+  // The state goes out every 10 ms; a second of it is far more than run needs to take one
+  // and reach the event wait, and far less than the wait's 5 s.
+  EXPECT_FALSE(service.next_request(1s).has_value()) << hmi.log();
+  EXPECT_EQ(hmi.interrupt(kHang), 130) << hmi.log();
+  EXPECT_NE(hmi.log().find("interrupted while waiting for the event topic to match"),
+            std::string::npos)
+      << hmi.log();
+  EXPECT_EQ(hmi.log().find("did not match within 5 s"), std::string::npos) << hmi.log();
 }
 
 // An interpolator the service does not host (its config has fewer) is named as such within a

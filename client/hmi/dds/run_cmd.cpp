@@ -263,7 +263,11 @@ int run_run(int argc, char** argv) {
   }
   // The service's writer is known (its state arrived); the new reader matches it within
   // milliseconds. Events written before the match would be missing from the count.
-  const bool events_matched = hmi->wait_for_event_match(std::chrono::seconds(5));
+  const bool events_matched = hmi->wait_for_event_match(std::chrono::seconds(5), &g_interrupted);
+  if (!events_matched && g_interrupted) {
+    std::fprintf(stderr, "tgm-hmi run: interrupted while waiting for the event topic to match\n");
+    return 130;
+  }
   if (!events_matched) {
     std::fprintf(stderr,
                  "tgm-hmi run: warning: the event topic did not match within 5 s; M-function waits "

@@ -153,8 +153,19 @@ void Client::on_event(EventHandler handler) {
   }
 }
 
-bool Client::wait_for_event_match(std::chrono::milliseconds timeout) {
-  return event_reader_ != nullptr && dds::wait_for_match(*event_reader_, 1, timeout);
+bool Client::wait_for_event_match(std::chrono::milliseconds timeout,
+                                  const std::atomic<bool>* cancel) {
+  if (event_reader_ == nullptr) return false;
+  const auto deadline = Clock::now() + timeout;
+  while (true) {
+    const auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
+    if (dds::wait_for_match(
+            *event_reader_, 1,
+            std::clamp(left, std::chrono::milliseconds(0), std::chrono::milliseconds(20))))
+      return true;
+    if (Clock::now() >= deadline || (cancel != nullptr && cancel->load())) return false;
+  }
 }
 
 void Client::poll(std::chrono::nanoseconds timeout) {

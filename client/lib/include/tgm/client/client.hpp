@@ -170,8 +170,10 @@ class Client {
   //! state (poll(), state()) is the source of truth for a late joiner.
   void on_event(EventHandler handler);
   //! Waits until the event reader of on_event() has matched the service's event writer (events
-  //! written before the match never arrive). False on timeout, or when on_event() was not called.
-  bool wait_for_event_match(std::chrono::milliseconds timeout);
+  //! written before the match never arrive). False on timeout, when on_event() was not called,
+  //! or when the `cancel` flag became true (checked every 20 ms).
+  bool wait_for_event_match(std::chrono::milliseconds timeout,
+                            const std::atomic<bool>* cancel = nullptr);
   //! Event samples handed to the callback so far, and events the service wrote that this
   //! client never got (gaps in InterpolatorEvent.event_counter). Thread-safe.
   std::uint64_t events_received() const { return events_received_.load(std::memory_order_relaxed); }
