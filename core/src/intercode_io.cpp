@@ -304,54 +304,97 @@ void encode_intercode(const Program& p, std::string& out) {
 
 // The values a record's delta fields apply to, as the encoder starts them.
 struct PackedProgram::Cursor::State {
-  Segment prev;
+  std::array<double, kMaxAxes> end{};
+  std::int32_t line = 0;
+  std::int32_t tool = 0;
   double feed = 0.0;
   double comp_radius = 0.0;
-  std::uint8_t modes = 0;
-  State() {
-    prev.line = 0;
-    prev.tool = 0;
-    modes = pack_modes(prev);
-  }
+  std::uint8_t modes = pack_modes(Segment{});
 };
 
 namespace {
 
 using DeltaState = PackedProgram::Cursor::State;
 
-// Decodes record `k` from `in` into `s` and moves `st` on; on failure returns why (for
-// "intercode at byte ...: why"), else "". `n`: the header's axis count.
-std::string decode_record(In& in, int n, DeltaState& st, Segment& s, std::uint64_t k) {
-  auto rec = [k] { return "record " + std::to_string(k); };
-  s = Segment{};
-  std::uint8_t type = 0, flags = 0;
+// Why a record does not decode; its text (fault_text) is made only on failure.
+enum class RecordFault : std::uint8_t {
+  kNone,
+  kTruncated,
+  kUnknownType,
+  kUnknownFlags,
+  kAxisBeyond,
+  kBadModes,
+  kLineOverflow,
+  kNonFinite,
+  kOutOfRange
+};
+
+std::string fault_text(RecordFault f, std::uint8_t type, int n, std::uint64_t k) {
+  const std::string rec = "record " + std::to_string(k);
+  switch (f) {
+    case RecordFault::kNone:
+      return {};
+    case RecordFault::kTruncated:
+      return "truncated " + rec;
+    case RecordFault::kUnknownType:
+      return "unknown record type " + std::to_string(type);
+    case RecordFault::kUnknownFlags:
+      return "unknown flags in " + rec;
+    case RecordFault::kAxisBeyond:
+      return "axis mask names an axis beyond " + std::to_string(n) + " in " + rec;
+    case RecordFault::kBadModes:
+      return "bad modes in " + rec;
+    case RecordFault::kLineOverflow:
+      return "line number overflows in " + rec;
+    case RecordFault::kNonFinite:
+      return "non-finite coordinate in " + rec;
+    case RecordFault::kOutOfRange:
+      return "value out of range in " + rec;
+  }
+  return "bad " + rec;
+}
+
+// Decodes the next record from `in` into `s` and moves `st` on; `type` gets the record's type
+// byte (for the fault's text). `n`: the header's axis count.
+RecordFault decode_fields(In& in, int n, DeltaState& st, Segment& s, std::uint8_t& type) {
+  // Every field is set below; those a record may not carry get their defaults here. `s =
+  // Segment{}` compiled to a `rep stos`, whose start-up was a third of a record's decoding.
+  static_assert(sizeof(Segment) == 152, "a field added to Segment needs its default here");
+  s.m = -1;
+  s.turns = 0;
+  s.aux = -1;
+  s.center = {0.0, 0.0};
+  s.radius = 0.0;
+  s.dwell_s = 0.0;
+  s.line = 0;
+  std::uint8_t flags = 0;
   std::uint16_t mask = 0;
-  if (!in.get(type) || !in.get(flags) || !in.get(mask)) return "truncated " + rec();
-  if (type > 6) return "unknown record type " + std::to_string(type);
-  if (flags & ~kKnownFlags) return "unknown flags in " + rec();
-  if (mask >> n) return "axis mask names an axis beyond " + std::to_string(n) + " in " + rec();
+  if (!in.get(type) || !in.get(flags) || !in.get(mask)) return RecordFault::kTruncated;
+  if (type > 6) return RecordFault::kUnknownType;
+  if (flags & ~kKnownFlags) return RecordFault::kUnknownFlags;
+  if (mask >> n) return RecordFault::kAxisBeyond;
   s.type = static_cast<SegmentType>(type);
-  if ((flags & kHasModes) && !in.get(st.modes)) return "truncated " + rec();
+  if ((flags & kHasModes) && !in.get(st.modes)) return RecordFault::kTruncated;
   const int plane = 17 + (st.modes & 3), comp = 40 + ((st.modes >> 2) & 3), mkind = st.modes >> 4;
-  if (plane > 19 || comp > 42 || mkind > 4) return "bad modes in " + rec();
+  if (plane > 19 || comp > 42 || mkind > 4) return RecordFault::kBadModes;
   s.plane = static_cast<Plane>(plane);
   s.compensation = static_cast<Compensation>(comp);
   s.m_kind = static_cast<MKind>(mkind);
-  s.tool = st.prev.tool;
-  if ((flags & kHasTool) && !in.get(s.tool)) return "truncated " + rec();
+  s.tool = st.tool;
+  if ((flags & kHasTool) && !in.get(s.tool)) return RecordFault::kTruncated;
   if (flags & kHasLine) {
-    if (!in.get(s.line)) return "truncated " + rec();
-  } else if (st.prev.line == std::numeric_limits<std::int32_t>::max()) {
-    return "line number overflows in " + rec();
+    if (!in.get(s.line)) return RecordFault::kTruncated;
+  } else if (st.line == std::numeric_limits<std::int32_t>::max()) {
+    return RecordFault::kLineOverflow;
   } else {
-    s.line = st.prev.line + 1;
+    s.line = st.line + 1;
   }
-  s.end = st.prev.end;
+  s.end = st.end;
   for (int i = 0; i < n; ++i) {
     if (!(mask & (1u << i))) continue;
     double& v = s.end[static_cast<std::size_t>(i)];
-    if (!in.get(v)) return "truncated " + rec();
-    if (!std::isfinite(v)) return "non-finite coordinate in " + rec();
+    if (!in.get(v)) return RecordFault::kTruncated;
+    if (!std::isfinite(v)) return RecordFault::kNonFinite;
   }
   bool ok = true;
   if (flags & kHasCompRadius) ok = ok && in.get(st.comp_radius);
@@ -364,16 +407,18 @@ std::string decode_record(In& in, int n, DeltaState& st, Segment& s, std::uint64
   if (s.type == SegmentType::kDwell) ok = ok && in.get(s.dwell_s);
   if (s.type == SegmentType::kMFunction) ok = ok && in.get(s.m) && in.get(s.aux);
   if (s.type == SegmentType::kMessage) ok = ok && in.get(s.aux);
-  if (!ok) return "truncated " + rec();
+  if (!ok) return RecordFault::kTruncated;
   auto finite = [](double v) { return std::isfinite(v); };
   if (!finite(s.compensation_radius_mm) || !finite(s.feed_mm_per_min) || !finite(s.center[0]) ||
       !finite(s.center[1]) || !finite(s.radius) || !finite(s.dwell_s) || s.feed_mm_per_min < 0 ||
       s.radius < 0 || s.dwell_s < 0 || s.turns < 0 || s.compensation_radius_mm < 0 || s.tool < 0 ||
       s.tool > kMaxTool) {
-    return "value out of range in " + rec();
+    return RecordFault::kOutOfRange;
   }
-  st.prev = s;
-  return {};
+  st.end = s.end;
+  st.line = s.line;
+  st.tool = s.tool;
+  return RecordFault::kNone;
 }
 
 // The header of `file`, checked (magic, version, checksum, axis count, record count, start
@@ -470,8 +515,10 @@ bool decode_checked(std::string_view file, Program& out, std::string& error, boo
   Segment scratch;
   for (std::uint64_t k = 0; k < count; ++k) {
     Segment& s = keep ? p.segments[k] : scratch;
-    if (std::string why = decode_record(in, p.number_axes, st, s, k); !why.empty())
-      return fail(why);
+    std::uint8_t type = 0;
+    if (const RecordFault f = decode_fields(in, p.number_axes, st, s, type);
+        f != RecordFault::kNone)
+      return fail(fault_text(f, type, p.number_axes, k));
     if (s.type == SegmentType::kMFunction || s.type == SegmentType::kMessage) {
       indexed.push_back({s.type, s.line, s.aux});
     }
@@ -538,7 +585,9 @@ bool PackedProgram::Cursor::next(Segment& s) {
   In in(std::string_view(program_->file_).substr(0, program_->body_size_));
   in.skip(at_);
   // Checked when the program was opened: this cannot fail.
-  if (!decode_record(in, program_->tables_.number_axes, *state_, s, read_).empty()) return false;
+  std::uint8_t type = 0;
+  if (decode_fields(in, program_->tables_.number_axes, *state_, s, type) != RecordFault::kNone)
+    return false;
   at_ = in.pos();
   ++read_;
   return true;

@@ -54,6 +54,49 @@ void compile(benchmark::State& state, bool incremental, bool encode) {
                           static_cast<std::int64_t>(text.size()));
 }
 
+// The program as intercode: PackedProgram::open (checksum and a checking pass over every
+// record), then a cursor reading every record, as simulate and run read them.
+const std::string& intercode() {
+  static const std::string bytes = [] {
+    tgm::CompileOptions opt;
+    opt.axis_letters = "XYZ";
+    std::string b;
+    tgm::encode_intercode(tgm::compile_gcode(program(false), opt).program, b);
+    return b;
+  }();
+  return bytes;
+}
+
+void BM_OpenIntercode(benchmark::State& state) {
+  std::uint64_t records = 0;
+  for (auto _ : state) {
+    tgm::PackedProgram p;
+    std::string error;
+    if (!tgm::PackedProgram::open(intercode(), p, error)) {
+      state.SkipWithError(error.c_str());
+      break;
+    }
+    records = p.size();
+  }
+  state.counters["records_per_s"] = benchmark::Counter(
+      static_cast<double>(records), benchmark::Counter::kIsIterationInvariantRate);
+}
+
+void BM_ReadIntercode(benchmark::State& state) {
+  tgm::PackedProgram p;
+  std::string error;
+  if (!tgm::PackedProgram::open(intercode(), p, error)) state.SkipWithError(error.c_str());
+  for (auto _ : state) {
+    auto cursor = p.cursor();
+    tgm::Segment s;
+    double sum = 0.0;
+    while (cursor.next(s)) sum += s.end[0];
+    benchmark::DoNotOptimize(sum);
+  }
+  state.counters["records_per_s"] = benchmark::Counter(
+      static_cast<double>(p.size()), benchmark::Counter::kIsIterationInvariantRate);
+}
+
 void BM_CompileCamG90(benchmark::State& s) { compile(s, false, false); }
 void BM_CompileCamG91(benchmark::State& s) { compile(s, true, false); }
 void BM_CompileAndEncodeCamG90(benchmark::State& s) { compile(s, false, true); }
@@ -63,4 +106,6 @@ void BM_CompileAndEncodeCamG90(benchmark::State& s) { compile(s, false, true); }
 BENCHMARK(BM_CompileCamG90)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_CompileCamG91)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_CompileAndEncodeCamG90)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_OpenIntercode)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_ReadIntercode)->Unit(benchmark::kMillisecond);
 BENCHMARK_MAIN();
