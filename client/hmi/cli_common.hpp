@@ -88,12 +88,8 @@ class CompensationNote {
       first_ = s;
     }
   }
-  void observe(const Program& p) {
-    for (const Segment& s : p.segments) {
-      if (seen_) break;
-      observe(s);
-    }
-  }
+  //! A record that moves with compensation on was observed (the ones after it do not matter).
+  bool seen() const { return seen_; }
   //! Prints the note to standard error (nothing when no motion ran with compensation on).
   void print(const std::string& file) const;
 

@@ -117,7 +117,6 @@ int inspect_intercode(Args& args, const std::string& file, std::string_view text
     return 2;
   }
   const Program& tables = program.tables();
-  CompensationNote compensation;
   if (!out_path.empty()) {
     std::string io_error;
     AtomicFile out;
@@ -128,10 +127,7 @@ int inspect_intercode(Args& args, const std::string& file, std::string_view text
     StreamedIntercode copy(out, tables.axis_letters, tables.start_mm);
     auto cursor = program.cursor();
     Segment seg;
-    while (cursor.next(seg)) {
-      copy.add(seg);
-      compensation.observe(seg);
-    }
+    while (cursor.next(seg)) copy.add(seg);
     if (!copy.commit(tables.params, tables.messages, io_error)) {
       std::fprintf(stderr, "%s: error: %s\n", out_path.c_str(), io_error.c_str());
       return 1;
@@ -151,11 +147,9 @@ int inspect_intercode(Args& args, const std::string& file, std::string_view text
         static_cast<unsigned long long>(records), records == 1 ? "" : "s", ms, ms == 1 ? "" : "s",
         texts, texts == 1 ? "" : "s", out_path.empty() ? "" : " written to ", out_path.c_str());
   }
-  if (out_path.empty()) {
-    auto cursor = program.cursor();
-    Segment seg;
-    while (cursor.next(seg)) compensation.observe(seg);
-  }
+  CompensationNote compensation;
+  auto cursor = program.cursor();
+  for (Segment seg; !compensation.seen() && cursor.next(seg);) compensation.observe(seg);
   compensation.print(file);
   return 0;
 }
