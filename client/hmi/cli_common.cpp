@@ -127,7 +127,8 @@ bool load_packed(const std::string& file, const MachineConfig& machine, int ip, 
   const std::string letters = machine.axis_letters(ip);
   if (is_intercode(file, input.text())) {
     if (intercode) *intercode = true;
-    if (!PackedProgram::open(std::string(input.text()), out, error)) {
+    // `observe` sees the records as open() checks them: one pass less.
+    if (!PackedProgram::open(std::string(input.text()), out, error, observe)) {
       std::fprintf(stderr, "%s: error: %s\n", file.c_str(), error.c_str());
       return false;
     }
@@ -137,11 +138,6 @@ bool load_packed(const std::string& file, const MachineConfig& machine, int ip, 
                    "G-code for it (tgm-hmi compile --interpolator %d)\n",
                    file.c_str(), out.tables().axis_letters.c_str(), ip, letters.c_str(), ip);
       return false;
-    }
-    if (observe) {
-      auto cursor = out.cursor();
-      Segment s;
-      while (cursor.next(s)) observe(s);
     }
     return true;
   }

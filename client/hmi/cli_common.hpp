@@ -107,7 +107,8 @@ class CompensationNote {
 //! of compiler diagnostics. G-code is compiled from `start_mm` (machine mm; default machine
 //! zero), the point the program starts at: G91 moves are relative to it, axes a G90 line does
 //! not name stay there. `intercode` (when given) says which of the two FILE was; `observe`
-//! (when given) sees every record of a program that loads, in order.
+//! (when given) sees every record in order as it is read: what it gathers is the program's when
+//! load_packed returns true (on false it may have seen a part of it).
 bool load_packed(const std::string& file, const MachineConfig& machine, int ip, PackedProgram& out,
                  const std::array<double, kMaxAxes>* start_mm = nullptr, bool* intercode = nullptr,
                  const SegmentSink& observe = {}, std::size_t* compile_errors = nullptr);

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <functional>
 #include <limits>
 
 #include "tgm/printable.hpp"
@@ -490,7 +491,8 @@ struct RecordsLayout {
 // `keep`, else only the header and the side tables are kept. `layout` (when given) says where
 // the records lie.
 bool decode_checked(std::string_view file, Program& out, std::string& error, bool keep,
-                    RecordsLayout* layout = nullptr) {
+                    RecordsLayout* layout = nullptr,
+                    const std::function<void(const Segment&)>* observe = nullptr) {
   Program p;
   std::uint64_t count = 0;
   std::string_view bytes;
@@ -519,6 +521,7 @@ bool decode_checked(std::string_view file, Program& out, std::string& error, boo
     if (const RecordFault f = decode_fields(in, p.number_axes, st, s, type);
         f != RecordFault::kNone)
       return fail(fault_text(f, type, p.number_axes, k));
+    if (observe) (*observe)(s);
     if (s.type == SegmentType::kMFunction || s.type == SegmentType::kMessage) {
       indexed.push_back({s.type, s.line, s.aux});
     }
@@ -562,10 +565,12 @@ bool decode_intercode(std::string_view file, Program& out, std::string& error) {
   return decode_checked(file, out, error, true);
 }
 
-bool PackedProgram::open(std::string file, PackedProgram& out, std::string& error) {
+bool PackedProgram::open(std::string file, PackedProgram& out, std::string& error,
+                         const std::function<void(const Segment&)>& observe) {
   PackedProgram p;
   RecordsLayout layout;
-  if (!decode_checked(file, p.tables_, error, false, &layout)) return false;
+  if (!decode_checked(file, p.tables_, error, false, &layout, observe ? &observe : nullptr))
+    return false;
   p.count_ = layout.count;
   p.records_at_ = layout.records_at;
   p.body_size_ = layout.body_size;

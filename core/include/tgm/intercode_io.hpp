@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <string_view>
@@ -67,8 +68,11 @@ bool decode_intercode(std::string_view bytes, Program& out, std::string& error);
 class PackedProgram {
  public:
   //! Checks `file` as decode_intercode does and holds it; false, with the reason, when
-  //! decode_intercode would refuse it.
-  static bool open(std::string file, PackedProgram& out, std::string& error);
+  //! decode_intercode would refuse it. `observe` (when given) sees each record as it is checked,
+  //! which saves a pass for a caller that needs one; when open fails it may have seen a part of
+  //! the records.
+  static bool open(std::string file, PackedProgram& out, std::string& error,
+                   const std::function<void(const Segment&)>& observe = {});
   //! The same for a program in memory (encoded first).
   static bool from_program(const Program& program, PackedProgram& out, std::string& error);
   //! Everything but the records: axes, letters, start point, parameter and message tables.
