@@ -65,29 +65,25 @@ TEST_F(HmiCompile, CompensationThatIsNotAppliedIsNotedOnceWithItsLineAndRadius) 
 
   const fs::path left =
       write("left.ngc", "G90 G1 X1 F600\nG41 D2.5\nM51\nG1 X5\nG1 Y5\nG40\nG1 X0\nM2\n");
-  for (const char* cmd : {"compile ", "simulate "}) {
-    const ProcessResult r = run(cmd + left.string() + " --config " + kConfig);
-    ASSERT_EQ(r.exit_code, 0) << cmd << r.err;
-    EXPECT_NE(r.err.find("left.ngc:4: note: G41 (tool radius compensation, radius 2.5 mm)"),
-              std::string::npos)
-        << cmd << r.err;
-  }
-  const ProcessResult dump =
-      run("compile " + left.string() + " --config " + kConfig + " --dump text");
-  ASSERT_EQ(dump.exit_code, 0) << dump.err;
-  EXPECT_NE(dump.err.find("left.ngc:4: note: G41"), std::string::npos) << dump.err;
   // From its intercode too (the records are seen as the load checks them).
   const fs::path tgmi = dir_ / "left.tgmi";
   ASSERT_EQ(run("compile " + left.string() + " --config " + kConfig + " --out " + tgmi.string())
                 .exit_code,
             0);
-  for (const char* cmd : {"compile ", "simulate "}) {
-    const ProcessResult r = run(cmd + tgmi.string() + " --config " + kConfig);
-    ASSERT_EQ(r.exit_code, 0) << cmd << r.err;
-    EXPECT_NE(r.err.find("left.tgmi:4: note: G41 (tool radius compensation, radius 2.5 mm)"),
-              std::string::npos)
-        << cmd << r.err;
+  for (const fs::path& prog : {left, tgmi}) {
+    for (const char* cmd : {"compile ", "simulate "}) {
+      const ProcessResult r = run(cmd + prog.string() + " --config " + kConfig);
+      ASSERT_EQ(r.exit_code, 0) << cmd << r.err;
+      EXPECT_NE(r.err.find(prog.filename().string() +
+                           ":4: note: G41 (tool radius compensation, radius 2.5 mm)"),
+                std::string::npos)
+          << cmd << r.err;
+    }
   }
+  const ProcessResult dump =
+      run("compile " + left.string() + " --config " + kConfig + " --dump text");
+  ASSERT_EQ(dump.exit_code, 0) << dump.err;
+  EXPECT_NE(dump.err.find("left.ngc:4: note: G41"), std::string::npos) << dump.err;
 
   const fs::path plain = write("plain.ngc", "G90 G1 X1 F600\nG41 D2\nG40\nG1 X5\nM2\n");
   const ProcessResult p = run("compile " + plain.string() + " --config " + kConfig);
