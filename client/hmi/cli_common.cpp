@@ -143,13 +143,20 @@ bool load_packed(const std::string& file, const MachineConfig& machine, int ip, 
   }
   CompileOptions options = CompileOptions::from_machine(machine, ip);
   if (start_mm) options.start_mm = *start_mm;
+  return compile_packed(file, input.text(), options, out, observe, compile_errors);
+}
+
+bool compile_packed(const std::string& file, std::string_view text, const CompileOptions& options,
+                    PackedProgram& out, const SegmentSink& observe, std::size_t* compile_errors) {
+  if (compile_errors) *compile_errors = 0;
+  const std::string& letters = options.axis_letters;
   std::string bytes;
   // Room that is never written costs no memory, and growing the string by doubling holds the
   // old and the new copy at once: twice the source covers a CAM program's records (a planar
   // G1 line of 18 characters is 20 bytes of intercode); loops, arcs and many axes may need more.
-  bytes.reserve(2 * input.text().size() + 4096);
+  bytes.reserve(2 * text.size() + 4096);
   IntercodeEncoder encoder(bytes, static_cast<int>(letters.size()), letters, options.start_mm);
-  CompileResult r = compile_gcode(input.text(), options, [&](const Segment& s) {
+  CompileResult r = compile_gcode(text, options, [&](const Segment& s) {
     encoder.add(s);
     if (observe) observe(s);
   });
@@ -160,7 +167,7 @@ bool load_packed(const std::string& file, const MachineConfig& machine, int ip, 
     return false;
   }
   encoder.finish(r.program.params, r.program.messages);
-  if (!PackedProgram::open(std::move(bytes), out, error)) {
+  if (std::string error; !PackedProgram::open(std::move(bytes), out, error)) {
     std::fprintf(stderr, "%s: internal error: the compiled program does not read back: %s\n",
                  file.c_str(), error.c_str());
     return false;

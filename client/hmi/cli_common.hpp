@@ -113,6 +113,13 @@ bool load_packed(const std::string& file, const MachineConfig& machine, int ip, 
                  const std::array<double, kMaxAxes>* start_mm = nullptr, bool* intercode = nullptr,
                  const SegmentSink& observe = {}, std::size_t* compile_errors = nullptr);
 
+//! load_packed's G-code half: `text` (the contents of FILE) compiled with `options` straight
+//! into intercode held by `out`. Prints the compiler's diagnostics (their number goes to
+//! `compile_errors` when given) or an internal error, and returns false.
+bool compile_packed(const std::string& file, std::string_view text, const CompileOptions& options,
+                    PackedProgram& out, const SegmentSink& observe = {},
+                    std::size_t* compile_errors = nullptr);
+
 //! A read-only view of a whole file (memory-mapped when possible).
 class FileView {
  public:

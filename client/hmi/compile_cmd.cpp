@@ -2,7 +2,6 @@
 #include <array>
 #include <cstdint>
 #include <cstdio>
-#include <optional>
 #include <string>
 #include <string_view>
 
@@ -205,24 +204,29 @@ int run_compile(int argc, char** argv) {
     std::fprintf(stderr, "%s: error: %s\n", out_path.c_str(), io_error.c_str());
     return 1;
   }
-  std::string bytes;
-  std::optional<StreamedIntercode> streamed;
-  std::optional<IntercodeEncoder> held;
   CompensationNote compensation;
-  if (dump.empty()) {
-    streamed.emplace(out, options.axis_letters, options.start_mm);
-  } else {
-    bytes.reserve(2 * text.size() + 4096);  // as load_packed: a CAM line is about its bytes
-    held.emplace(bytes, static_cast<int>(options.axis_letters.size()), options.axis_letters,
-                 options.start_mm);
-  }
-  const CompileResult result = compile_gcode(text, options, [&](const Segment& s) {
-    if (streamed) {
-      streamed->add(s);
-    } else {
-      held->add(s);
+  const auto note = [&](const Segment& s) { compensation.observe(s); };
+  if (!dump.empty()) {
+    PackedProgram program;
+    if (std::size_t errors = 0; !compile_packed(file, text, options, program, note, &errors)) {
+      if (errors == 0) return 1;  // the internal error is said
+      std::fprintf(stderr, "%s: %zu error%s, no intercode written\n", file.c_str(), errors,
+                   errors == 1 ? "" : "s");
+      return 2;
     }
-    compensation.observe(s);
+    if (out.is_open() && (!out.write(program.file().data(), program.file().size(), io_error) ||
+                          !out.commit(io_error))) {
+      std::fprintf(stderr, "%s: error: %s\n", out_path.c_str(), io_error.c_str());
+      return 1;
+    }
+    if (!dump_records(program, dump)) return 1;
+    compensation.print(file);
+    return 0;
+  }
+  StreamedIntercode streamed(out, options.axis_letters, options.start_mm);
+  const CompileResult result = compile_gcode(text, options, [&](const Segment& s) {
+    streamed.add(s);
+    note(s);
   });
   if (!result.ok()) {
     for (const Diagnostic& d : result.errors) {
@@ -232,37 +236,19 @@ int run_compile(int argc, char** argv) {
                  result.error_count(), result.error_count() == 1 ? "" : "s");
     return 2;
   }
-  const std::size_t ms = result.program.params.size(), texts = result.program.messages.size();
-  if (streamed) {
-    if (!streamed->commit(result.program.params, result.program.messages, io_error)) {
-      std::fprintf(stderr, "%s: error: %s\n", out_path.c_str(), io_error.c_str());
-      return 1;
-    }
-    const auto records = static_cast<unsigned long long>(streamed->records());
-    const std::string from =
-        start_text.empty()
-            ? std::string()
-            : ", compiled from " + point_text(options.start_mm, options.axis_letters);
-    std::fprintf(stderr, "%s: %llu record%s (%zu M-function%s, %zu message%s%s)%s%s\n",
-                 file.c_str(), records, records == 1 ? "" : "s", ms, ms == 1 ? "" : "s", texts,
-                 texts == 1 ? "" : "s", from.c_str(), out_path.empty() ? "" : " written to ",
-                 out_path.c_str());
-  } else {
-    held->finish(result.program.params, result.program.messages);
-    if (out.is_open() &&
-        (!out.write(bytes.data(), bytes.size(), io_error) || !out.commit(io_error))) {
-      std::fprintf(stderr, "%s: error: %s\n", out_path.c_str(), io_error.c_str());
-      return 1;
-    }
-    held.reset();  // it refers to `bytes`, which the program takes over
-    PackedProgram program;
-    if (std::string why; !PackedProgram::open(std::move(bytes), program, why)) {
-      std::fprintf(stderr, "%s: internal error: the compiled program does not read back: %s\n",
-                   file.c_str(), why.c_str());
-      return 1;
-    }
-    if (!dump_records(program, dump)) return 1;
+  if (!streamed.commit(result.program.params, result.program.messages, io_error)) {
+    std::fprintf(stderr, "%s: error: %s\n", out_path.c_str(), io_error.c_str());
+    return 1;
   }
+  const std::size_t ms = result.program.params.size(), texts = result.program.messages.size();
+  const auto records = static_cast<unsigned long long>(streamed.records());
+  const std::string from =
+      start_text.empty() ? std::string()
+                         : ", compiled from " + point_text(options.start_mm, options.axis_letters);
+  std::fprintf(stderr, "%s: %llu record%s (%zu M-function%s, %zu message%s%s)%s%s\n", file.c_str(),
+               records, records == 1 ? "" : "s", ms, ms == 1 ? "" : "s", texts,
+               texts == 1 ? "" : "s", from.c_str(), out_path.empty() ? "" : " written to ",
+               out_path.c_str());
   compensation.print(file);
   return 0;
 }

@@ -81,6 +81,8 @@ class PackedProgram {
   std::uint64_t size() const { return count_; }
   //! Bytes held (the intercode file).
   std::size_t bytes() const { return file_.size(); }
+  //! The intercode file held, as `tgm-hmi compile --out` writes it.
+  std::string_view file() const { return file_; }
 
   //! Reads the records in order. The program must outlive it.
   class Cursor {
