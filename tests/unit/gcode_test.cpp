@@ -702,6 +702,52 @@ TEST(Intercode, APackedProgramReadsTheRecordsDecodeReads) {
   }
 }
 
+// A PackedProgram::Window holds the records asked for, in place, as a consumer that takes some
+// or all of them each time sees them: seeded calls ask for 0..700 records from where the last
+// taking ended (0..all of them taken), now and then skipping ahead over records never asked
+// for, and every record returned is the program's own; the calls past the end hold fewer.
+TEST(Intercode, AWindowHoldsTheRecordsAskedForWhereverTheyStart) {
+  std::string text = "G90\n";
+  for (int i = 0; i < 3000; ++i) {
+    text += "G1 X" + std::to_string(i % 97) + " Y" + std::to_string(i % 89) + " F" +
+            std::to_string(100 + i) + "\n";
+  }
+  text += "M2\n";
+  const Program p = compile_ok(text);
+  PackedProgram packed;
+  std::string err;
+  ASSERT_TRUE(PackedProgram::from_program(p, packed, err)) << err;
+  const std::uint64_t total = packed.size();
+  std::mt19937_64 rng(62);
+  for (int round = 0; round < 20; ++round) {
+    PackedProgram::Window window(packed);
+    std::uint64_t first = 0;
+    std::uint64_t calls = 0;
+    while (first < total + 10) {
+      const std::uint64_t count = rng() % 701;
+      const Program& held = window.from(first, count);
+      ++calls;
+      ASSERT_LE(window.base(), first);
+      const std::uint64_t have = std::min(count, first < total ? total - first : 0);
+      if (have > 0) {
+        ASSERT_GE(held.segments.size(), first - window.base() + have)
+            << "call " << calls << ": records from " << first << ", held from " << window.base();
+      }
+      for (std::uint64_t k = 0; k < have; ++k) {
+        const Segment& got = held.segments[static_cast<std::size_t>(first - window.base() + k)];
+        const Segment& want = p.segments[static_cast<std::size_t>(first + k)];
+        ASSERT_EQ(got.line, want.line) << "record " << first + k << ", call " << calls;
+        ASSERT_EQ(got.feed_mm_per_min, want.feed_mm_per_min) << "record " << first + k;
+        ASSERT_EQ(got.end, want.end) << "record " << first + k;
+      }
+      // Taken: all, some or none of them; or a jump past records never asked for.
+      const std::uint64_t way = rng() % 8;
+      first += way == 0 ? 0 : (way == 1 ? 1 + rng() % 2000 : (way < 4 ? have / 2 : have));
+      if (have == 0 && way != 1) ++first;
+    }
+  }
+}
+
 // Both dumps of every record kind the example program lacks: a continuous M-function, M0, an
 // M-function with parameters, a message whose comment holds a quote, a backslash, a tab and a
 // control character (JSON-escaped in the jsonl dump, as written in the text dump) and a dwell.
