@@ -107,7 +107,7 @@ class PackedProgram {
   Cursor cursor() const { return Cursor(*this); }
 
   //! The records from a point on as a Program (the side tables whole), which is what
-  //! Interpolator::append and the chunk mapping take: decoded ahead as they are asked for,
+  //! Interpolator::append and the chunk mapping take: decoded as they are asked for (none ahead),
   //! dropped once they lie behind. The program must outlive it.
   class Window {
    public:
