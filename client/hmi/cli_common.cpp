@@ -146,6 +146,11 @@ bool load_packed(const std::string& file, const MachineConfig& machine, int ip, 
   return compile_packed(file, input.text(), options, out, observe, compile_errors);
 }
 
+void print_compile_errors(const std::string& file, const CompileResult& result) {
+  for (const Diagnostic& d : result.errors)
+    std::fprintf(stderr, "%s\n", format_diagnostic(file, d).c_str());
+}
+
 bool compile_packed(const std::string& file, std::string_view text, const CompileOptions& options,
                     PackedProgram& out, const SegmentSink& observe, std::size_t* compile_errors) {
   if (compile_errors) *compile_errors = 0;
@@ -161,8 +166,7 @@ bool compile_packed(const std::string& file, std::string_view text, const Compil
     if (observe) observe(s);
   });
   if (!r.ok()) {
-    for (const Diagnostic& d : r.errors)
-      std::fprintf(stderr, "%s\n", format_diagnostic(file, d).c_str());
+    print_compile_errors(file, r);
     if (compile_errors) *compile_errors = r.error_count();
     return false;
   }

@@ -113,6 +113,9 @@ bool load_packed(const std::string& file, const MachineConfig& machine, int ip, 
                  const std::array<double, kMaxAxes>* start_mm = nullptr, bool* intercode = nullptr,
                  const SegmentSink& observe = {}, std::size_t* compile_errors = nullptr);
 
+//! Every diagnostic of a failed compile on standard error, as `FILE:LINE:COL: error: reason`.
+void print_compile_errors(const std::string& file, const CompileResult& result);
+
 //! load_packed's G-code half: `text` (the contents of FILE) compiled with `options` straight
 //! into intercode held by `out`. Prints the compiler's diagnostics (their number goes to
 //! `compile_errors` when given) or an internal error, and returns false.

@@ -206,13 +206,17 @@ int run_compile(int argc, char** argv) {
   }
   CompensationNote compensation;
   const auto note = [&](const Segment& s) { compensation.observe(s); };
+  // After the diagnostics themselves: their number, and the exit code of a program with errors.
+  const auto no_intercode = [&](std::size_t errors) {
+    std::fprintf(stderr, "%s: %zu error%s, no intercode written\n", file.c_str(), errors,
+                 errors == 1 ? "" : "s");
+    return 2;
+  };
   if (!dump.empty()) {
     PackedProgram program;
     if (std::size_t errors = 0; !compile_packed(file, text, options, program, note, &errors)) {
       if (errors == 0) return 1;  // the internal error is said
-      std::fprintf(stderr, "%s: %zu error%s, no intercode written\n", file.c_str(), errors,
-                   errors == 1 ? "" : "s");
-      return 2;
+      return no_intercode(errors);
     }
     if (out.is_open() && (!out.write(program.file().data(), program.file().size(), io_error) ||
                           !out.commit(io_error))) {
@@ -229,12 +233,8 @@ int run_compile(int argc, char** argv) {
     note(s);
   });
   if (!result.ok()) {
-    for (const Diagnostic& d : result.errors) {
-      std::fprintf(stderr, "%s\n", format_diagnostic(file, d).c_str());
-    }
-    std::fprintf(stderr, "%s: %zu error%s, no intercode written\n", file.c_str(),
-                 result.error_count(), result.error_count() == 1 ? "" : "s");
-    return 2;
+    print_compile_errors(file, result);
+    return no_intercode(result.error_count());
   }
   if (!streamed.commit(result.program.params, result.program.messages, io_error)) {
     std::fprintf(stderr, "%s: error: %s\n", out_path.c_str(), io_error.c_str());
