@@ -1,6 +1,7 @@
 #include "cli_common.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cctype>
 #include <cerrno>
 #include <cmath>
@@ -8,8 +9,10 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <mutex>
 
 #include <fcntl.h>
+#include <signal.h>
 #include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -127,8 +130,10 @@ bool load_packed(const std::string& file, const MachineConfig& machine, int ip, 
   const std::string letters = machine.axis_letters(ip);
   if (is_intercode(file, input.text())) {
     if (intercode) *intercode = true;
+    std::string bytes(input.text());
+    if (!input.check_or_report(file)) return false;
     // `observe` sees the records as open() checks them: one pass less.
-    if (!PackedProgram::open(std::string(input.text()), out, error, observe)) {
+    if (!PackedProgram::open(std::move(bytes), out, error, observe)) {
       std::fprintf(stderr, "%s: error: %s\n", file.c_str(), error.c_str());
       return false;
     }
@@ -143,7 +148,7 @@ bool load_packed(const std::string& file, const MachineConfig& machine, int ip, 
   }
   CompileOptions options = CompileOptions::from_machine(machine, ip);
   if (start_mm) options.start_mm = *start_mm;
-  return compile_packed(file, input.text(), options, out, observe, compile_errors);
+  return compile_packed(file, input, options, out, observe, compile_errors);
 }
 
 void print_compile_errors(const std::string& file, const CompileResult& result) {
@@ -151,9 +156,10 @@ void print_compile_errors(const std::string& file, const CompileResult& result) 
     std::fprintf(stderr, "%s\n", format_diagnostic(file, d).c_str());
 }
 
-bool compile_packed(const std::string& file, std::string_view text, const CompileOptions& options,
+bool compile_packed(const std::string& file, const FileView& input, const CompileOptions& options,
                     PackedProgram& out, const SegmentSink& observe, std::size_t* compile_errors) {
   if (compile_errors) *compile_errors = 0;
+  const std::string_view text = input.text();
   const std::string& letters = options.axis_letters;
   std::string bytes;
   // Room that is never written costs no memory, and growing the string by doubling holds the
@@ -165,6 +171,8 @@ bool compile_packed(const std::string& file, std::string_view text, const Compil
     encoder.add(s);
     if (observe) observe(s);
   });
+  // A file changed under the compiler: its diagnostics may be about a mix of two versions.
+  if (!input.check_or_report(file)) return false;
   if (!r.ok()) {
     print_compile_errors(file, r);
     if (compile_errors) *compile_errors = r.error_count();
@@ -188,8 +196,118 @@ void CompensationNote::print(const std::string& file) const {
                first_.compensation_radius_mm);
 }
 
+namespace {
+
+// The SIGBUS guard of FileView's mappings: a fault on a guarded page that the file no longer
+// has maps zeros over the rest of that mapping and marks it cut, and the reading goes on.
+struct GuardedMapping {
+  std::atomic<std::uintptr_t> begin{0};
+  std::atomic<std::size_t> size{0};
+  std::atomic<bool> cut{false};
+};
+constexpr int kGuardSlots = 8;  // mapped views at once (tgm-hmi holds one)
+GuardedMapping g_guarded[kGuardSlots];
+std::mutex g_guard_mutex;
+bool g_guard_installed = false;  // under g_guard_mutex
+struct sigaction g_bus_before {};
+std::uintptr_t g_page_size = 4096;
+
+void on_bus_error(int sig, siginfo_t* info, void* /*context*/) {
+  const auto at = reinterpret_cast<std::uintptr_t>(info->si_addr);
+  for (GuardedMapping& g : g_guarded) {
+    const std::uintptr_t begin = g.begin.load(std::memory_order_acquire);
+    const std::size_t size = g.size.load(std::memory_order_acquire);
+    if (begin == 0 || at < begin || at - begin >= size) continue;
+    const std::uintptr_t from = at & ~(g_page_size - 1);
+    // mmap is a plain system call here, safe in a handler; the faulting read then reads zeros.
+    if (mmap(reinterpret_cast<void*>(from), begin + size - from, PROT_READ,
+             MAP_PRIVATE | MAP_ANONYMOUS | MAP_FIXED, -1, 0) != MAP_FAILED) {
+      g.cut.store(true, std::memory_order_release);
+      return;
+    }
+    break;
+  }
+  // Not a guarded page: the disposition from before the guard takes the fault when the
+  // instruction faults again (a SIGBUS sent by another process is raised again for it).
+  sigaction(SIGBUS, &g_bus_before, nullptr);
+  if (info->si_code <= 0) raise(sig);
+}
+
+// The slot guarding [p, p + size), -1 when none is free or the handler cannot be installed.
+int guard_mapping(void* p, std::size_t size) {
+  const std::lock_guard<std::mutex> lock(g_guard_mutex);
+  // Installed once; again when a SIGBUS of another mapping handed the signal back (on_bus_error).
+  if (g_guard_installed) {
+    struct sigaction now {};
+    g_guard_installed = sigaction(SIGBUS, nullptr, &now) == 0 && (now.sa_flags & SA_SIGINFO) != 0 &&
+                        now.sa_sigaction == on_bus_error;
+  }
+  if (!g_guard_installed) {
+    const long page = sysconf(_SC_PAGESIZE);
+    if (page > 0) g_page_size = static_cast<std::uintptr_t>(page);
+    struct sigaction sa {};
+    sa.sa_sigaction = on_bus_error;
+    sa.sa_flags = SA_SIGINFO;
+    sigemptyset(&sa.sa_mask);
+    if (sigaction(SIGBUS, &sa, &g_bus_before) != 0) return -1;
+    g_guard_installed = true;
+  }
+  for (int i = 0; i < kGuardSlots; ++i) {
+    GuardedMapping& g = g_guarded[i];
+    if (g.begin.load(std::memory_order_relaxed) != 0) continue;
+    g.cut.store(false, std::memory_order_relaxed);
+    g.size.store(size, std::memory_order_release);
+    g.begin.store(reinterpret_cast<std::uintptr_t>(p), std::memory_order_release);
+    return i;
+  }
+  return -1;
+}
+
+void unguard_mapping(int slot) {
+  const std::lock_guard<std::mutex> lock(g_guard_mutex);
+  g_guarded[slot].begin.store(0, std::memory_order_release);
+  g_guarded[slot].size.store(0, std::memory_order_release);
+}
+
+long long mtime_ns(const struct stat& st) {
+  return static_cast<long long>(st.st_mtim.tv_sec) * 1'000'000'000LL + st.st_mtim.tv_nsec;
+}
+
+}  // namespace
+
 FileView::~FileView() {
+  if (guard_ >= 0) unguard_mapping(guard_);
   if (map_) munmap(map_, map_size_);
+  if (fd_ >= 0) ::close(fd_);
+}
+
+bool FileView::check(std::string& why) const {
+  if (guard_ >= 0 && g_guarded[guard_].cut.load(std::memory_order_acquire)) {
+    why =
+        "the file was cut short while it was read (written again by another program?); "
+        "use it once it is complete";
+    return false;
+  }
+  struct stat st {};
+  if (fd_ < 0 || fstat(fd_, &st) != 0) return true;  // a pipe, or nothing to compare
+  if (st.st_size != size_) {
+    why = "the file changed while it was read (" + std::to_string(size_) +
+          " bytes when it was opened, " + std::to_string(st.st_size) +
+          " now); use it once it is complete";
+    return false;
+  }
+  if (mtime_ns(st) != mtime_ns_) {
+    why = "the file was written while it was read; use it once it is complete";
+    return false;
+  }
+  return true;
+}
+
+bool FileView::check_or_report(const std::string& file) const {
+  std::string why;
+  if (check(why)) return true;
+  std::fprintf(stderr, "%s: error: %s\n", file.c_str(), why.c_str());
+  return false;
 }
 
 bool FileView::open(const std::string& path, std::string& error) {
@@ -212,18 +330,27 @@ bool FileView::open(const std::string& path, std::string& error) {
     error = "is a device, not a file";
     return false;
   }
+  if (have_stat && S_ISREG(st.st_mode)) {
+    // Kept open: check() compares the file with what was opened.
+    fd_ = fd;
+    size_ = static_cast<long long>(st.st_size);
+    mtime_ns_ = mtime_ns(st);
+  }
   if (have_stat && S_ISREG(st.st_mode) && st.st_size > 0) {
-    void* p = mmap(nullptr, static_cast<std::size_t>(st.st_size), PROT_READ,
-                   MAP_PRIVATE | MAP_POPULATE, fd, 0);
+    const auto size = static_cast<std::size_t>(st.st_size);
+    void* p = mmap(nullptr, size, PROT_READ, MAP_PRIVATE | MAP_POPULATE, fd, 0);
     if (p != MAP_FAILED) {
-      ::close(fd);
-      map_ = p;
-      map_size_ = static_cast<std::size_t>(st.st_size);
-      text_ = std::string_view(static_cast<const char*>(p), map_size_);
-      return true;
+      guard_ = guard_mapping(p, size);
+      if (guard_ >= 0) {
+        map_ = p;
+        map_size_ = size;
+        text_ = std::string_view(static_cast<const char*>(p), map_size_);
+        return true;
+      }
+      munmap(p, size);  // unguarded it could kill the process: read it instead
     }
   }
-  ::close(fd);
+  if (fd_ < 0) ::close(fd);
   switch (read_whole_file(path, kMaxStreamedInput, copy_)) {
     case ReadResult::kRead:
       break;

@@ -116,14 +116,24 @@ bool load_packed(const std::string& file, const MachineConfig& machine, int ip, 
 //! Every diagnostic of a failed compile on standard error, as `FILE:LINE:COL: error: reason`.
 void print_compile_errors(const std::string& file, const CompileResult& result);
 
-//! load_packed's G-code half: `text` (the contents of FILE) compiled with `options` straight
-//! into intercode held by `out`. Prints the compiler's diagnostics (their number goes to
-//! `compile_errors` when given) or an internal error, and returns false.
-bool compile_packed(const std::string& file, std::string_view text, const CompileOptions& options,
+class FileView;
+
+//! load_packed's G-code half: `input` (FILE, open) compiled with `options` straight into
+//! intercode held by `out`. Prints the compiler's diagnostics (their number goes to
+//! `compile_errors` when given), an internal error, or that FILE changed while it was read
+//! (FileView::check; then no diagnostics), and returns false.
+bool compile_packed(const std::string& file, const FileView& input, const CompileOptions& options,
                     PackedProgram& out, const SegmentSink& observe = {},
                     std::size_t* compile_errors = nullptr);
 
 //! A read-only view of a whole file (memory-mapped when possible).
+//!
+//! A mapped file that another program truncates while it is read would kill the process with
+//! SIGBUS (a CAM post-processor writing the program again with `>` while `tgm-hmi compile`
+//! reads it). The mapping is guarded instead: a page that is no longer there reads as zeros
+//! (a process-wide SIGBUS handler maps them in, for the guarded mappings only; any other
+//! SIGBUS keeps its disposition), and check() says afterwards whether what was read is the
+//! file as it was opened.
 class FileView {
  public:
   FileView() = default;
@@ -132,10 +142,20 @@ class FileView {
   ~FileView();
   bool open(const std::string& path, std::string& error);
   std::string_view text() const { return text_; }
+  //! True when the file is still the one opened (size and modification time, nothing cut from
+  //! the mapping); else false with the reason in `why`. Call it once the text has been used:
+  //! a change before then may have mixed two versions of the file, or zeros, into it.
+  bool check(std::string& why) const;
+  //! check() with the reason printed as "FILE: error: ...".
+  bool check_or_report(const std::string& file) const;
 
  private:
   void* map_ = nullptr;
   std::size_t map_size_ = 0;
+  int guard_ = -1;  // the mapping's slot in the SIGBUS guard (-1: none)
+  int fd_ = -1;     // a regular file, kept open for check()
+  long long size_ = 0;
+  long long mtime_ns_ = 0;
   std::string copy_;  // for files that cannot be mapped (pipes, empty files)
   std::string_view text_;
 };

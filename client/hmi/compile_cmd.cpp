@@ -103,15 +103,17 @@ bool dump_records(const PackedProgram& program, const std::string& dump) {
 // and `simulate` check it, then dumped, written to --out (encoded anew: a file of an older
 // version comes out in the current one) or summed up. It used to be lexed as G-code: 277
 // errors of binary garbage.
-int inspect_intercode(Args& args, const std::string& file, std::string_view text,
+int inspect_intercode(Args& args, const std::string& file, const FileView& input,
                       const std::string& dump, const std::string& out_path,
                       const std::string& start_text) {
   if (!start_text.empty()) {
     return args.usage_error("--start applies to G-code; " + file +
                             " is intercode, which records the point it was compiled from");
   }
+  std::string bytes(input.text());
+  if (!input.check_or_report(file)) return 2;
   PackedProgram program;
-  if (std::string why; !PackedProgram::open(std::string(text), program, why)) {
+  if (std::string why; !PackedProgram::open(std::move(bytes), program, why)) {
     std::fprintf(stderr, "%s: error: %s\n", file.c_str(), why.c_str());
     return 2;
   }
@@ -187,7 +189,7 @@ int run_compile(int argc, char** argv) {
   }
   const std::string_view text = input.text();
   if (is_intercode(file, text))
-    return inspect_intercode(args, file, text, dump, out_path, start_text);
+    return inspect_intercode(args, file, input, dump, out_path, start_text);
   CompileOptions options = CompileOptions::from_machine(*machine, args.interpolator());
   if (std::string why; !start_text.empty() &&
                        !parse_start(start_text, options.axis_letters, options.start_mm, why)) {
@@ -214,8 +216,9 @@ int run_compile(int argc, char** argv) {
   };
   if (!dump.empty()) {
     PackedProgram program;
-    if (std::size_t errors = 0; !compile_packed(file, text, options, program, note, &errors)) {
-      if (errors == 0) return 1;  // the internal error is said
+    if (std::size_t errors = 0; !compile_packed(file, input, options, program, note, &errors)) {
+      // Said: a file that changed while it was read (bad input), or an internal error.
+      if (std::string why; errors == 0) return input.check(why) ? 1 : 2;
       return no_intercode(errors);
     }
     if (out.is_open() && (!out.write(program.file().data(), program.file().size(), io_error) ||
@@ -232,6 +235,9 @@ int run_compile(int argc, char** argv) {
     streamed.add(s);
     note(s);
   });
+  // Changed under the compiler: nothing is written, and the diagnostics may be about a mix of
+  // two versions of the file.
+  if (!input.check_or_report(file)) return 2;
   if (!result.ok()) {
     print_compile_errors(file, result);
     return no_intercode(result.error_count());
