@@ -537,6 +537,17 @@ TEST_F(HmiSimulate, ASlowFeedFinishesAndItsPeakIsPrinted) {
   EXPECT_NE(r.out.find("X=0.001000 Y=0.000000 Z=0.000000"), std::string::npos) << r.out;
 }
 
+// A program of one cycle is over before its run is set up: the summary gives the wall time
+// instead of a speed of "0x" real time, which read as a fault.
+TEST_F(HmiSimulate, AProgramOfOneCycleSaysItsWallTimeNotASpeed) {
+  const fs::path prog = write("tiny.ngc", "G90 G1 X0.0000000001 F1000\nM2\n");
+  const ProcessResult r = run("simulate " + prog.string() + " --config " + kConfig);
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("0.0005 s program time, 1 cycles, simulated in "), std::string::npos)
+      << r.out;
+  EXPECT_EQ(r.out.find("faster than real time"), std::string::npos) << r.out;
+}
+
 // Intercode written by `compile --out` simulates as its G-code does (the summary is the same to
 // the last digit); one compiled for other axis letters is refused (it was read as G-code and
 // gave a screen of errors about its bytes).
