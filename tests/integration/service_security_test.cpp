@@ -234,6 +234,14 @@ TEST_F(ServiceSecurity, TheToolsArgumentsAndTheDomainsItsPermissionsAllow) {
             std::string::npos);
   EXPECT_EQ(tool("--out " + dir + " --bogus", log), 2);
   EXPECT_NE(test::read_text(log).find("unknown argument '--bogus'"), std::string::npos);
+  // A missing value is named, not taken from the next option (a directory named --force) and
+  // not said by the shell with the script's line number.
+  EXPECT_EQ(tool("--out --force", log), 2);
+  EXPECT_EQ(test::read_text(log), "tgm-security: --out needs a directory (see --help)\n");
+  EXPECT_EQ(tool("--out " + dir + " --days", log), 2);
+  EXPECT_EQ(test::read_text(log), "tgm-security: --days needs a number of days (see --help)\n");
+  EXPECT_EQ(tool("--out /dev/null", log), 2);
+  EXPECT_EQ(test::read_text(log), "tgm-security: '/dev/null' exists and is not a directory\n");
   EXPECT_EQ(tool("--help", log), 0);
   EXPECT_NE(test::read_text(log).find("usage: tgm-security --out DIR"), std::string::npos);
 
