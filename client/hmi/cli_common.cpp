@@ -130,13 +130,7 @@ bool load_packed(const std::string& file, const MachineConfig& machine, int ip, 
   const std::string letters = machine.axis_letters(ip);
   if (is_intercode(file, input.text())) {
     if (intercode) *intercode = true;
-    std::string bytes(input.text());
-    if (!input.check_or_report(file)) return false;
-    // `observe` sees the records as open() checks them: one pass less.
-    if (!PackedProgram::open(std::move(bytes), out, error, observe)) {
-      std::fprintf(stderr, "%s: error: %s\n", file.c_str(), error.c_str());
-      return false;
-    }
+    if (!open_intercode(file, input, out, observe)) return false;
     if (out.tables().axis_letters != letters) {
       std::fprintf(stderr,
                    "%s: error: compiled for the axes %s, interpolator %d has %s: compile the "
@@ -149,6 +143,19 @@ bool load_packed(const std::string& file, const MachineConfig& machine, int ip, 
   CompileOptions options = CompileOptions::from_machine(machine, ip);
   if (start_mm) options.start_mm = *start_mm;
   return compile_packed(file, input, options, out, observe, compile_errors);
+}
+
+bool open_intercode(const std::string& file, const FileView& input, PackedProgram& out,
+                    const SegmentSink& observe) {
+  // Copied before the check: the copy is what is checked to be the file as it was opened.
+  std::string bytes(input.text());
+  if (!input.check_or_report(file)) return false;
+  // `observe` sees the records as open() checks them: one pass less.
+  if (std::string error; !PackedProgram::open(std::move(bytes), out, error, observe)) {
+    std::fprintf(stderr, "%s: error: %s\n", file.c_str(), error.c_str());
+    return false;
+  }
+  return true;
 }
 
 void print_compile_errors(const std::string& file, const CompileResult& result) {

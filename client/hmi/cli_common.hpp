@@ -118,6 +118,12 @@ void print_compile_errors(const std::string& file, const CompileResult& result);
 
 class FileView;
 
+//! load_packed's intercode half: `input` (FILE, open, intercode) copied, checked to be the file
+//! as it was opened (FileView::check) and decoded into `out`, which `observe` sees record by
+//! record. Prints why not ("FILE: error: ...") and returns false.
+bool open_intercode(const std::string& file, const FileView& input, PackedProgram& out,
+                    const SegmentSink& observe = {});
+
 //! load_packed's G-code half: `input` (FILE, open) compiled with `options` straight into
 //! intercode held by `out`. Prints the compiler's diagnostics (their number goes to
 //! `compile_errors` when given), an internal error, or that FILE changed while it was read

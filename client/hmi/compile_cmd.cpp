@@ -110,13 +110,8 @@ int inspect_intercode(Args& args, const std::string& file, const FileView& input
     return args.usage_error("--start applies to G-code; " + file +
                             " is intercode, which records the point it was compiled from");
   }
-  std::string bytes(input.text());
-  if (!input.check_or_report(file)) return 2;
   PackedProgram program;
-  if (std::string why; !PackedProgram::open(std::move(bytes), program, why)) {
-    std::fprintf(stderr, "%s: error: %s\n", file.c_str(), why.c_str());
-    return 2;
-  }
+  if (!open_intercode(file, input, program)) return 2;
   const Program& tables = program.tables();
   if (!out_path.empty()) {
     std::string io_error;
