@@ -903,7 +903,7 @@ std::size_t Compiler::execute_block(std::size_t index, bool relex) {
         }
       }
       // Mirroring one axis of the plane swaps the side of the contour.
-      const PlaneAxes pa = plane_axes(plane_);
+      const PlaneAxes pa = plane_axes(plane_, opt_.axis_letters);
       const double m0 = pa.first < kMaxAxes ? mirror_[static_cast<std::size_t>(pa.first)] : 1.0;
       const double m1 = pa.second < kMaxAxes ? mirror_[static_cast<std::size_t>(pa.second)] : 1.0;
       const bool swap = m0 * m1 < 0;
@@ -991,23 +991,24 @@ std::size_t Compiler::execute_block(std::size_t index, bool relex) {
       s.feed_mm_per_min = motion_ == 0 ? 0.0 : feed;
       bool ok = true;
       if (motion_ >= 2) {
-        const PlaneAxes pa = plane_axes(plane_);
+        const PlaneAxes pa = plane_axes(plane_, opt_.axis_letters);
+        const PlaneAxes xyz = plane_xyz(plane_);
         const int a0 = pa.first, a1 = pa.second;
         if (a0 >= n_axes_ || a1 >= n_axes_) {
           error(b.line, motion_word ? motion_word->column : 1,
-                "arc in plane G" + std::to_string(static_cast<int>(plane_)) + " needs axes " +
-                    std::to_string(a0) + " and " + std::to_string(a1) +
-                    ", but this interpolator has only " + std::to_string(n_axes_) +
-                    (n_axes_ == 1 ? " axis (" : " axes (") + opt_.axis_letters + ")");
+                "arc in plane G" + std::to_string(static_cast<int>(plane_)) + " needs the axes " +
+                    "XYZ"[std::min(xyz.first, xyz.second)] + " and " +
+                    "XYZ"[std::max(xyz.first, xyz.second)] + ", but this interpolator's axes are " +
+                    opt_.axis_letters);
           ok = false;
         } else {
           const auto i0 = static_cast<std::size_t>(a0), i1 = static_cast<std::size_t>(a1);
           const double sx = pos_[i0], sy = pos_[i1];
           const double ex = target[i0], ey = target[i1];
-          // Offset letters per axis: X->I, Y->J, Z->K.
+          // Offset letters per axis letter: X->I, Y->J, Z->K.
           static constexpr char kOffsetLetter[3] = {'I', 'J', 'K'};
-          const char o0 = kOffsetLetter[a0], o1 = kOffsetLetter[a1];
-          const char onormal = kOffsetLetter[pa.normal];
+          const char o0 = kOffsetLetter[xyz.first], o1 = kOffsetLetter[xyz.second];
+          const char onormal = kOffsetLetter[xyz.normal];
           const Word* wr = word('R');
           const Word* wo0 = word(o0);
           const Word* wo1 = word(o1);

@@ -649,7 +649,7 @@ void dump_jsonl_record(const Program& p, const Segment& s, std::string& out) {
     out += std::to_string(static_cast<int>(s.plane));
   }
   if (s.is_arc()) {
-    const PlaneAxes pa = plane_axes(s.plane);
+    const PlaneAxes pa = plane_axes(s.plane, p.axis_letters);
     out += ",\"center\":{";
     const int a0 = pa.first < n ? pa.first : -1;
     const int a1 = pa.second < n ? pa.second : -1;

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "program_builder.hpp"
+#include "tgm/gcode.hpp"
 #include "tgm/interpolator.hpp"
 #include "tgm/limit_checker.hpp"
 #include "tgm/simulation.hpp"
@@ -77,7 +78,7 @@ TEST(KnownValues, ShortMoveNeverReachesFeed) {
 TEST(KnownValues, FullCircleClosesInEveryPlane) {
   for (Plane pl : {Plane::kXY, Plane::kXZ, Plane::kYZ}) {
     for (bool ccw : {false, true}) {
-      const PlaneAxes pa = plane_axes(pl);
+      const PlaneAxes pa = plane_xyz(pl);
       std::array<double, kMaxAxes> start{};
       start[static_cast<std::size_t>(pa.first)] = 12.5;
       start[static_cast<std::size_t>(pa.second)] = -3.25;
@@ -89,6 +90,47 @@ TEST(KnownValues, FullCircleClosesInEveryPlane) {
       EXPECT_NEAR(s.distance_mm, 2.0 * kPi * 20.0, 1e-9);
     }
   }
+}
+
+// Arc planes go by the axes' letters (plane_axes): a lathe of axes X, Z closes a G18 circle, and
+// an interpolator whose axes 0 and 1 are Y and X runs the program of the X, Y, Z machine with
+// those two columns swapped, cycle for cycle.
+TEST(KnownValues, ArcPlanesFollowTheAxisLetters) {
+  const auto run_gcode = [](MachineConfig m, const std::string& text,
+                            std::vector<std::array<double, kMaxAxes>>& path) {
+    const CompileResult c = compile_gcode(text, CompileOptions::from_machine(m, 0));
+    EXPECT_TRUE(c.ok()) << (c.errors.empty() ? "" : c.errors[0].reason);
+    return simulate(
+        c.program, {}, [&](const Registers& r) { path.push_back(r.orig_position); }, std::move(m));
+  };
+  MachineConfig lathe = machine();
+  auto& axes = lathe.interpolators[0].axes;
+  axes.erase(axes.begin() + 1);  // X, Z
+  axes[1].letter = 'Z';
+  std::vector<std::array<double, kMaxAxes>> turned;
+  const auto l = run_gcode(lathe, "G90 G18 G1 X20 Z-5 F3000\nG2 I-10 K0\nM2\n", turned);
+  expect_clean(l);
+  EXPECT_NEAR(l.end_position[0], 20.0, 1e-9);
+  EXPECT_NEAR(l.end_position[1], -5.0, 1e-9);
+  EXPECT_NEAR(l.distance_mm, std::hypot(20.0, 5.0) + 2.0 * kPi * 10.0, 1e-9);
+  double far_x = 0.0;  // the circle about X10 reaches X0
+  for (const auto& q : turned) far_x = std::min(far_x, q[0] - 10.0);
+  EXPECT_NEAR(far_x, -10.0, 1e-3);
+
+  const std::string text = "G90 G1 X10 Y0 F3000\nG2 X20 Y0 I5 J0\nG3 X10 Y0 R5\nM2\n";
+  std::vector<std::array<double, kMaxAxes>> xy, yx;
+  expect_clean(run_gcode(machine(), text, xy));
+  MachineConfig swapped = machine();
+  std::swap(swapped.interpolators[0].axes[0].letter, swapped.interpolators[0].axes[1].letter);
+  expect_clean(run_gcode(swapped, text, yx));
+  ASSERT_EQ(xy.size(), yx.size());
+  double deviation = 0.0;
+  for (std::size_t k = 0; k < xy.size(); ++k) {
+    deviation = std::max({deviation, std::fabs(xy[k][0] - yx[k][1]), std::fabs(xy[k][1] - yx[k][0]),
+                          std::fabs(xy[k][2] - yx[k][2])});
+  }
+  EXPECT_LT(deviation, 1e-12);
+  EXPECT_NEAR(yx.back()[1], 10.0, 1e-9);
 }
 
 TEST(KnownValues, CircleStaysOnRadiusAndTurnsTheRightWay) {

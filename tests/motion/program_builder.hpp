@@ -35,7 +35,7 @@ class ProgramBuilder {
     s.plane = plane;
     s.end = end;
     s.center = center;
-    const PlaneAxes pa = plane_axes(plane);
+    const PlaneAxes pa = plane_xyz(plane);
     const double dx = pos_[static_cast<std::size_t>(pa.first)] - center[0];
     const double dy = pos_[static_cast<std::size_t>(pa.second)] - center[1];
     s.radius = std::sqrt(dx * dx + dy * dy);

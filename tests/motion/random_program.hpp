@@ -56,7 +56,7 @@ inline Generated random_program(std::mt19937_64& rng, int axes, int blocks) {
         const double r = u(rng);
         pl = r < 0.6 ? Plane::kXY : (r < 0.8 ? Plane::kXZ : Plane::kYZ);
       }
-      const PlaneAxes pa = plane_axes(pl);
+      const PlaneAxes pa = plane_xyz(pl);
       const double radius = u(rng) < 0.3 ? uni(0.2, 2.0) : uni(2.0, 40.0);
       const double a0 = uni(0, 2 * kSweepPi);
       const auto f = static_cast<std::size_t>(pa.first), s = static_cast<std::size_t>(pa.second);
@@ -157,7 +157,7 @@ inline RecordLimits record_limits(const Segment& sg, const std::array<double, kM
     if (sg.type == SegmentType::kRapid) out.feed = rapid;
     return out;
   }
-  const PlaneAxes pa = plane_axes(sg.plane);
+  const PlaneAxes pa = plane_xyz(sg.plane);
   const auto f = static_cast<std::size_t>(pa.first), s = static_cast<std::size_t>(pa.second);
   const double sx = pos[f] - sg.center[0], sy = pos[s] - sg.center[1];
   const double ex = sg.end[f] - sg.center[0], ey = sg.end[s] - sg.center[1];

@@ -223,7 +223,7 @@ class Generator {
 
   void arc_ijk() {
     const std::string pp = arc_plane_prefix() + mode_prefix();
-    const PlaneAxes pa = plane_axes(plane_);
+    const PlaneAxes pa = plane_xyz(plane_);
     const auto a = static_cast<std::size_t>(pa.first);
     const auto b = static_cast<std::size_t>(pa.second);
     const double radius = rng_.chance(0.6) ? rng_.uniform(0.2, 5.0) : rng_.uniform(5.0, 40.0);
@@ -264,7 +264,7 @@ class Generator {
 
   void arc_r() {
     const std::string pp = arc_plane_prefix() + mode_prefix();
-    const PlaneAxes pa = plane_axes(plane_);
+    const PlaneAxes pa = plane_xyz(plane_);
     const auto a = static_cast<std::size_t>(pa.first);
     const auto b = static_cast<std::size_t>(pa.second);
     const double chord = rng_.chance(0.6) ? rng_.uniform(0.5, 5.0) : rng_.uniform(5.0, 40.0);

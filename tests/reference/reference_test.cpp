@@ -134,7 +134,7 @@ std::string compare(const CanonProgram& ref, const Program& ours, const std::str
       }
     }
     if (s.is_arc()) {
-      const PlaneAxes pa = plane_axes(s.plane);
+      const PlaneAxes pa = plane_xyz(s.plane);
       for (std::size_t i = 0; i < 2; ++i) {
         if (!(std::fabs(s.center[i] - r.center[i]) <= kTolerance)) {
           const int axis = i == 0 ? pa.first : pa.second;

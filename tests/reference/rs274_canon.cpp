@@ -112,7 +112,7 @@ std::optional<std::string> parse_canon(std::string_view output, CanonProgram& ou
       if (out.ended) continue;
       // first_end, second_end, first_centre, second_centre, rotation, axis_end, a, b, c[, u, v, w]
       if (!parse_numbers(args, v) || v.size() < 6) return bad("bad ARC_FEED");
-      const PlaneAxes pa = plane_axes(plane);
+      const PlaneAxes pa = plane_xyz(plane);
       const auto f = static_cast<std::size_t>(pa.first);
       const auto s = static_cast<std::size_t>(pa.second);
       const auto n = static_cast<std::size_t>(pa.normal);

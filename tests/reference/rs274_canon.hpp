@@ -25,7 +25,8 @@ struct CanonMotion {
   Plane plane = Plane::kXY;
   //! End point X, Y, Z in machine coordinates [mm].
   std::array<double, 3> end{};
-  //! Arc centre on the plane's first and second axis (see `plane_axes`), machine coords [mm].
+  //! Arc centre on the plane's first and second axis (see `plane_axes`: X, Y, Z are axes 0, 1, 2
+  //! here), machine coords [mm].
   std::array<double, 2> center{};
   //! Extra full turns beyond the first: |rotation| - 1 (arcs only).
   int turns = 0;

@@ -497,13 +497,53 @@ TEST(GcodeErrors, ArcGeometry) {
   CompileOptions two = options();
   two.axis_letters = "XY";
   EXPECT_THAT(errors_of("G18 G2 X1 I1\n", two),
-              ElementsAre("1:5: arc in plane G18 needs axes 2 and 0, but this interpolator has "
-                          "only 2 axes (XY)"));
+              ElementsAre("1:5: arc in plane G18 needs the axes X and Z, but this "
+                          "interpolator's axes are XY"));
   CompileOptions one = options();
   one.axis_letters = "X";
   EXPECT_THAT(errors_of("G2 X1 I1\n", one),
-              ElementsAre("1:1: arc in plane G17 needs axes 0 and 1, but this interpolator has "
-                          "only 1 axis (X)"));
+              ElementsAre("1:1: arc in plane G17 needs the axes X and Y, but this "
+                          "interpolator's axes are X"));
+  CompileOptions lathe = options();
+  lathe.axis_letters = "XZ";
+  EXPECT_THAT(errors_of("G17 G2 X10 Z0 I5 J0\n", lathe),
+              ElementsAre("1:5: arc in plane G17 needs the axes X and Y, but this "
+                          "interpolator's axes are XZ"));
+}
+
+// The plane is that of the axes with its letters, wherever they stand: a lathe of axes X, Z
+// turns G18 arcs (it refused them as needing "axes 2 and 0"), and an interpolator whose axis 0
+// is Y takes I as the X offset (it took I for axis 0, Y, and ran another circle silently).
+TEST(Gcode, ArcPlanesFollowTheAxisLettersNotTheirPositions) {
+  CompileOptions lathe = options();
+  lathe.axis_letters = "XZ";
+  const Program l = compile_ok("G90 G18 G2 X10 Z0 I5 K0 F100\nG3 X0 Z0 R5\n", lathe);
+  ASSERT_EQ(l.segments.size(), 2u);
+  EXPECT_EQ(l.segments[0].plane, Plane::kXZ);
+  EXPECT_EQ(l.segments[0].type, SegmentType::kArcCw);
+  // G18's first axis is Z (axis 1 here), its second X (axis 0).
+  EXPECT_EQ(plane_axes(Plane::kXZ, "XZ").first, 1);
+  EXPECT_EQ(plane_axes(Plane::kXZ, "XZ").second, 0);
+  EXPECT_EQ(plane_axes(Plane::kXZ, "XZ").normal, kMaxAxes);
+  EXPECT_NEAR(l.segments[0].center[0], 0.0, kTol);  // Z
+  EXPECT_NEAR(l.segments[0].center[1], 5.0, kTol);  // X
+  EXPECT_DOUBLE_EQ(l.segments[0].end[0], 10.0);
+  EXPECT_DOUBLE_EQ(l.segments[0].end[1], 0.0);
+  EXPECT_NEAR(l.segments[1].radius, 5.0, kTol);
+
+  CompileOptions swapped = options();
+  swapped.axis_letters = "YXZ";
+  const Program y = compile_ok("G90 G1 X10 Y0 F100\nG2 X20 Y0 I5 J0\n", swapped);
+  ASSERT_EQ(y.segments.size(), 2u);
+  EXPECT_DOUBLE_EQ(y.segments[0].end[1], 10.0);      // X is axis 1
+  EXPECT_NEAR(y.segments[1].center[0], 15.0, kTol);  // G17's first axis: X
+  EXPECT_NEAR(y.segments[1].center[1], 0.0, kTol);
+  EXPECT_EQ(y.segments[1].type, SegmentType::kArcCw);
+  // The same program on X, Y, Z: the same centre, the same end point with its axes swapped.
+  const Program x = compile_ok("G90 G1 X10 Y0 F100\nG2 X20 Y0 I5 J0\n");
+  EXPECT_EQ(x.segments[1].center, y.segments[1].center);
+  EXPECT_EQ(x.segments[1].end[0], y.segments[1].end[1]);
+  EXPECT_EQ(x.segments[1].end[1], y.segments[1].end[0]);
 }
 
 TEST(GcodeErrors, LabelsAndFlowControl) {

@@ -11,6 +11,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace tgm {
@@ -119,15 +120,16 @@ constexpr MParams unset_params() {
   return p;
 }
 
-//! Index of the two plane axes (first, second) and the normal axis for a plane, with axes 0, 1, 2
-//! being X, Y, Z of the interpolator. (first, second, normal) is right-handed, so an arc is CCW
-//! when it turns from `first` towards `second`.
+//! The two axes of an arc's plane (first, second) and the normal axis. (first, second, normal)
+//! is right-handed, so an arc is CCW when it turns from `first` towards `second`.
 struct PlaneAxes {
   int first;
   int second;
   int normal;
 };
-inline PlaneAxes plane_axes(Plane p) {
+
+//! The plane's axes as X, Y, Z = 0, 1, 2 (their centre offsets are I, J, K).
+inline PlaneAxes plane_xyz(Plane p) {
   switch (p) {
     case Plane::kXZ:
       // G18 is the Z-X plane: (Z, X, Y) is right-handed, so CW/CCW are seen from +Y as in
@@ -139,6 +141,20 @@ inline PlaneAxes plane_axes(Plane p) {
     default:
       return {0, 1, 2};
   }
+}
+
+//! The plane's axes as indices of an interpolator whose axes have the letters `letters` (axis
+//! 0 first): G17 is the plane of the axes lettered X and Y wherever they stand, so a lathe of
+//! axes X, Z turns G18 arcs, and one whose axis 0 is Y still turns G17 arcs in X-Y. An axis
+//! whose letter the interpolator does not have is kMaxAxes (no axis). Arc records hold their
+//! centre on `first` and `second` of this.
+inline PlaneAxes plane_axes(Plane p, std::string_view letters) {
+  const PlaneAxes xyz = plane_xyz(p);
+  const auto index = [&](int k) {
+    const std::size_t at = letters.find("XYZ"[k]);
+    return at == std::string_view::npos || at >= kMaxAxes ? kMaxAxes : static_cast<int>(at);
+  };
+  return {index(xyz.first), index(xyz.second), index(xyz.normal)};
 }
 
 //! A compiled program: records plus their side tables.

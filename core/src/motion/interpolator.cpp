@@ -322,6 +322,12 @@ struct Interpolator::Impl {
   double allowance = 1.0;
   std::array<double, kMaxAxes> vmax{}, amax{}, jmax{}, rapid{}, tol{};
   double rho = 1.0;        // emergency / normal deceleration ratio (min over axes, >= 1)
+  // The axes of G17, G18, G19 by the axes' letters (plane_axes), and those of X and Y, whose
+  // tangent the LookAheadBuffer shows (kMaxAxes: the letter is not configured).
+  std::array<PlaneAxes, 3> planes{};
+  int x_axis = kMaxAxes, y_axis = kMaxAxes;
+  static std::size_t plane_slot(Plane p) { return p == Plane::kXZ ? 1 : p == Plane::kYZ ? 2 : 0; }
+  const PlaneAxes& plane(Plane p) const { return planes[plane_slot(p)]; }
 
   // ---- ring ----
   // The slot arrays hold `cap` slots when full. They are reserved at create() and grow as
@@ -509,7 +515,7 @@ struct Interpolator::Impl {
       r.jt = kLimitSafety * jt;
       return true;
     }
-    const PlaneAxes pa = plane_axes(sg.plane);
+    const PlaneAxes pa = plane(sg.plane);
     g.arc = true;
     g.first = pa.first;
     g.second = pa.second;
@@ -669,7 +675,7 @@ struct Interpolator::Impl {
   std::string arc_start_problem(const Program& p, std::size_t i, const double* start,
                                 bool first_motion) const {
     const Segment& sg = p.segments[i];
-    const PlaneAxes pa = plane_axes(sg.plane);
+    const PlaneAxes pa = plane(sg.plane);
     const auto f = static_cast<std::size_t>(pa.first), s2 = static_cast<std::size_t>(pa.second);
     const double r0 = std::hypot(start[f] - sg.center[0], start[s2] - sg.center[1]);
     const double r1 = std::hypot(sg.end[f] - sg.center[0], sg.end[s2] - sg.center[1]);
@@ -711,7 +717,7 @@ struct Interpolator::Impl {
       }
     }
     if (sg.is_arc()) {
-      const PlaneAxes pa = plane_axes(sg.plane);
+      const PlaneAxes pa = plane(sg.plane);
       if (pa.first >= n || pa.second >= n) {
         return {"arc plane G", static_cast<int>(sg.plane), " needs axes that are not configured"};
       }
@@ -3312,11 +3318,12 @@ struct Interpolator::Impl {
   }
 
   double tangent_deg(const Geometry& g, double s) const {
-    if (n < 2) return kNotSet;
+    if (x_axis >= n || y_axis >= n) return kNotSet;
     double t[kMaxAxes];
     motion::geometry_tangent(g, n, s, t);
-    if (t[0] * t[0] + t[1] * t[1] < 1e-24) return kNotSet;
-    return norm_angle_deg(std::atan2(t[1], t[0]));
+    const double tx = t[x_axis], ty = t[y_axis];
+    if (tx * tx + ty * ty < 1e-24) return kNotSet;
+    return norm_angle_deg(std::atan2(ty, tx));
   }
 
   // A section of the LookAheadBuffer (manual: a G0..G3 motion or an M-function M3..M999):
@@ -3542,6 +3549,13 @@ std::optional<Interpolator> Interpolator::create(const MachineConfig& machine, i
   m.dt = m.T / kCalcSteps;
   m.quarter_dt2 = 0.25 * m.dt * m.dt;
   m.rho = kInf;
+  std::string letters;
+  for (const AxisConfig& a : m.cfg.axes) letters.push_back(a.letter);
+  for (const Plane p : {Plane::kXY, Plane::kXZ, Plane::kYZ}) {
+    m.planes[Impl::plane_slot(p)] = plane_axes(p, letters);
+  }
+  m.x_axis = m.plane(Plane::kXY).first;
+  m.y_axis = m.plane(Plane::kXY).second;
   for (int i = 0; i < m.n; ++i) {
     const AxisConfig& a = m.cfg.axes[static_cast<std::size_t>(i)];
     const auto ui = static_cast<std::size_t>(i);
