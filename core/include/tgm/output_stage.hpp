@@ -38,8 +38,13 @@ class OutputStage {
   //! (PositionInc from the Position given to the last update()).
   void fill(Registers& r) const;
 
-  //! Command 1024: Ratio = numerator [inc] / denominator [mm] (checks: axis, signs, range).
+  //! Command 1024: Ratio = numerator [inc] / denominator [mm] (checks: check_ratio).
   RequestResult set_ratio(std::int64_t axis, std::int64_t numerator_inc, std::int64_t denominator_mm);
+  //! The checks of Command 1024 without a stage (check_command uses them too, so that a ratio
+  //! refused at run time is refused by a check made in advance): the axis is 0..axes-1, the
+  //! numerator not 0, the denominator > 0, |numerator / denominator| kMinRatio..kMaxRatio.
+  static RequestResult check_ratio(std::int64_t axis, std::int64_t numerator_inc,
+                                   std::int64_t denominator_mm, int axes);
   //! Register writes (PLC): Ratio [inc/mm] and Offset [inc].
   RequestResult write_ratio(std::int64_t axis, double ratio_inc_per_mm);
   RequestResult write_offset(std::int64_t axis, std::int64_t offset_inc);

@@ -28,20 +28,10 @@ RequestResult check_command(std::int32_t code,
     case 9:
       return {};
     case kCommandSetRatio: {
-      if (p[0] < 0 || p[0] >= c.number_axes) {
-        return refuse(RequestCode::kOutOfRange, "Command 1024: axis (Command_Parameter[0]) must be 0.." +
-                                                    std::to_string(c.number_axes - 1) + ", not " +
-                                                    std::to_string(p[0]));
-      }
-      if (p[1] == 0) {
-        return refuse(RequestCode::kOutOfRange,
-                      "Command 1024: numerator (Command_Parameter[1]) must not be 0 inc");
-      }
-      if (p[2] <= 0) {
-        return refuse(RequestCode::kOutOfRange,
-                      "Command 1024: denominator (Command_Parameter[2]) must be > 0 mm, not " +
-                          std::to_string(p[2]));
-      }
+      // The checks OutputStage::set_ratio makes, against Number_Axes: a ratio out of range
+      // passed here (and tgm-plc's check of a script) and was refused only when executed.
+      if (RequestResult r = OutputStage::check_ratio(p[0], p[1], p[2], c.number_axes); !r.ok())
+        return r;
       if (!c.standing) {
         return refuse(RequestCode::kWrongState, "Command 1024: the ratio can only be set while standing");
       }

@@ -4,6 +4,7 @@
 #include <string>
 
 #include "tgm/output_stage.hpp"
+#include "tgm/printable.hpp"
 
 namespace tgm {
 
@@ -119,12 +120,12 @@ RequestResult OutputStage::write_ratio(std::int64_t axis, double ratio_inc_per_m
   return {};
 }
 
-RequestResult OutputStage::set_ratio(std::int64_t axis, std::int64_t numerator_inc,
-                                     std::int64_t denominator_mm) {
-  if (axis < 0 || axis >= axes_) {
-    return refuse(RequestCode::kOutOfRange, "Command 1024: axis (Command_Parameter[0]) must be 0.." +
-                                                std::to_string(axes_ - 1) + ", not " +
-                                                std::to_string(axis));
+RequestResult OutputStage::check_ratio(std::int64_t axis, std::int64_t numerator_inc,
+                                       std::int64_t denominator_mm, int axes) {
+  if (axis < 0 || axis >= axes) {
+    return refuse(RequestCode::kOutOfRange,
+                  "Command 1024: axis (Command_Parameter[0]) must be 0.." +
+                      std::to_string(axes - 1) + ", not " + std::to_string(axis));
   }
   if (numerator_inc == 0) {
     return refuse(RequestCode::kOutOfRange,
@@ -138,9 +139,18 @@ RequestResult OutputStage::set_ratio(std::int64_t axis, std::int64_t numerator_i
   const double ratio = static_cast<double>(numerator_inc) / static_cast<double>(denominator_mm);
   if (std::fabs(ratio) < kMinRatio || std::fabs(ratio) > kMaxRatio) {
     return refuse(RequestCode::kOutOfRange,
-                  "Command 1024: |numerator / denominator| must be 1e-06..1e+09 inc/mm");
+                  "Command 1024: |numerator / denominator| must be 1e-06..1e+09 inc/mm, not " +
+                      std::to_string(numerator_inc) + " / " + std::to_string(denominator_mm) +
+                      " = " + number_text(ratio));
   }
-  ratio_[static_cast<std::size_t>(axis)] = ratio;
+  return {};
+}
+
+RequestResult OutputStage::set_ratio(std::int64_t axis, std::int64_t numerator_inc,
+                                     std::int64_t denominator_mm) {
+  if (RequestResult r = check_ratio(axis, numerator_inc, denominator_mm, axes_); !r.ok()) return r;
+  ratio_[static_cast<std::size_t>(axis)] =
+      static_cast<double>(numerator_inc) / static_cast<double>(denominator_mm);
   return {};
 }
 
