@@ -266,7 +266,7 @@ TEST_F(HmiCompile, BadCommandLinesAndFilesAreUsageErrors) {
   r = run("compile " + prog.string() + " --config /dev/zero");
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_EQ(r.err,
-            "/dev/zero: more than 16 MiB: not a config file\n"
+            "/dev/zero: is a character device, not a config file\n"
             "tgm-hmi compile: the config /dev/zero has 1 problem\n");
 }
 

@@ -19,10 +19,12 @@ enum class ReadResult {
 //! Reads the whole of `path` into `out`, at most `limit` bytes.
 ReadResult read_whole_file(const std::string& path, std::size_t limit, std::string& out);
 
-//! Reads a settings file (a config, a PLC script) of at most `limit` bytes into `out`. Returns
-//! "" or what went wrong, naming the path and `kind` ("config", "script"): "PATH: is a
-//! directory, not a KIND file", "PATH: cannot open the KIND file: <errno text>", "PATH: cannot
-//! read the KIND file", "PATH: more than N MiB: not a KIND file".
+//! Reads a settings file (a config, a PLC script) of at most `limit` bytes into `out`. Only a
+//! regular file (or a link to one) is read: a directory, FIFO, device or socket is refused
+//! without blocking. Returns "" or what went wrong, naming the path and `kind` ("config",
+//! "script"): "PATH: is a directory, not a KIND file" (likewise "a named pipe (FIFO)", "a
+//! character device", "a block device", "a socket"), "PATH: cannot open the KIND file: <errno
+//! text>", "PATH: cannot read the KIND file", "PATH: more than N MiB: not a KIND file".
 std::string read_settings_file(const std::string& path, std::string_view kind, std::size_t limit,
                                std::string& out);
 
