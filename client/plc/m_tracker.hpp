@@ -1,11 +1,12 @@
-// tgm-plc's record of the M-functions it has handled (client/plc/main.cpp), apart so that the
-// unit tests can drive it with samples in any order.
+// tgm-plc's record of the M-functions it has handled and of those it refuses to acknowledge
+// (client/plc/main.cpp), apart so that the unit tests can drive them with samples in any order.
 #pragma once
 
 #include <algorithm>
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <set>
 
 #include "tgm/intercode.hpp"
 
@@ -59,6 +60,30 @@ class MTracker {
     std::size_t next_replaced = 0;
   };
   std::array<Seen, kMaxInterpolators> seen_{};
+};
+
+// The normal M-functions not acknowledged, per interpolator (the caller holds the mutex the
+// event callback and the main loop share): --refuse-ack refuses them on every interpolator, a
+// script step's refuse_ack on the one the step names only (a step for interpolator 1 refused
+// M51 on all three).
+class RefusedM {
+ public:
+  //! `m` is not acknowledged on any interpolator from now on.
+  void refuse_everywhere(int m) {
+    for (std::set<int>& r : refused_) r.insert(m);
+  }
+  //! `m` is not acknowledged on `interpolator` from now on (one that does not exist: nothing).
+  void refuse(int interpolator, int m) {
+    if (interpolator >= 0 && interpolator < kMaxInterpolators)
+      refused_[static_cast<std::size_t>(interpolator)].insert(m);
+  }
+  bool refused(int interpolator, int m) const {
+    return interpolator >= 0 && interpolator < kMaxInterpolators &&
+           refused_[static_cast<std::size_t>(interpolator)].count(m) != 0;
+  }
+
+ private:
+  std::array<std::set<int>, kMaxInterpolators> refused_{};
 };
 
 }  // namespace tgm::plc

@@ -84,7 +84,7 @@ constexpr const char* kUsage =
     "  --interpolator N     serve only interpolator N (default: every configured one)\n"
     "  --rel-speed R        write Rel_Speed = R (0.01..2) at start\n"
     "  --refuse-ack M[,M]   never acknowledge these normal M-functions (1..999; the interpolator\n"
-    "                       keeps waiting)\n"
+    "                       keeps waiting), on every interpolator served\n"
     "  --ack-delay S        acknowledge every normal M-function after S seconds (overrides "
     "config)\n"
     "  --script YAML        timed actions, a list of maps:\n"
@@ -95,9 +95,10 @@ constexpr const char* kUsage =
     "                                                             rest 0)\n"
     "                         - {at_s: 4, start: true}            try to start (refused)\n"
     "                         - {at_s: 0, refuse_ack: [51]}       stop acknowledging M51\n"
-    "                       each may name `interpolator: N` (default 0) and needs at least\n"
-    "                       one action (several run in the order above); at_s counts from\n"
-    "                       the moment the service was found (default 0)\n"
+    "                       each may name `interpolator: N` (default 0), the only one its\n"
+    "                       actions apply to (with --interpolator, it must be that one), and\n"
+    "                       needs at least one action (several run in the order above); at_s\n"
+    "                       counts from the moment the service was found (default 0)\n"
     "  --try-start          send a start request as the PLC once (the service refuses it)\n"
     "  --no-basic-params    do not send the basic parameters at start\n"
     "  --duration S         stop by itself after S seconds (at most 1e9)\n"
@@ -234,7 +235,9 @@ int plc_main(int argc, char** argv) {
   tgm::DdsOverrides overrides;
   std::optional<double> rel_speed;
   std::optional<double> ack_delay;
-  std::set<int> refuse;
+  // --refuse-ack's M-functions, refused on every interpolator served (a script's are added
+  // per interpolator when their step runs).
+  std::set<int> refuse_flag;
   std::vector<tgm::PlcScriptStep> script;
   std::string script_path;
   std::string trace_path;
@@ -282,7 +285,7 @@ int plc_main(int argc, char** argv) {
           return args.usage_error(
               "--refuse-ack takes normal M-functions 1.." + std::to_string(tgm::kMaxNormalM) +
               " like 51,50 (the interpolator waits only for those), not '" + value + "'");
-        refuse.insert(m);
+        refuse_flag.insert(m);
       }
     } else if (args.flag("--script", script_path)) {
       if (!args.failed()) {
@@ -322,9 +325,10 @@ int plc_main(int argc, char** argv) {
                             std::to_string(count));
   std::vector<bool> script_done(script.size(), false);
   for (const auto& s : script) {
-    if (s.interpolator < 0 || s.interpolator >= count) {
-      std::fprintf(stderr, "tgm-plc: %s:%d: interpolator %d does not exist (the config has %d)\n",
-                   script_path.c_str(), s.line, s.interpolator, count);
+    // A step for an interpolator this PLC does not serve (--interpolator N) was sent anyway.
+    if (const std::string why = tgm::plc_script_interpolator_problem(s, count, only);
+        !why.empty()) {
+      std::fprintf(stderr, "tgm-plc: %s:%d: %s\n", script_path.c_str(), s.line, why.c_str());
       return 2;
     }
     // What the service would refuse in any state (a ratio of 0 mm, spline points out of
@@ -484,6 +488,8 @@ int plc_main(int argc, char** argv) {
   // Shared by the event callback and the main loop, under `shared_mutex`.
   std::mutex shared_mutex;
   tgm::plc::MTracker tracker;
+  tgm::plc::RefusedM refuse;
+  for (int m : refuse_flag) refuse.refuse_everywhere(m);
   std::vector<EventSeen> event_seen;
   event_seen.reserve(256);
   // More than 64 M-functions in a row share cycles in M_Func (core/MOTION.md): between two
@@ -528,7 +534,7 @@ int plc_main(int argc, char** argv) {
         }
         last = {e.service_instance(), e.event_counter(), e.m_func_count()};
         if (!tracker.claim(i, e.service_instance(), e.m_func_count(), rec.m)) return;
-        refused = rec.normal && refuse.count(rec.m) != 0;
+        refused = rec.normal && refuse.refused(i, rec.m);
       }
       if (!refused && (!rec.normal || delay_for(rec.m) <= 0.0)) {
         rec.ack_call = Clock::now();
@@ -864,7 +870,7 @@ int plc_main(int argc, char** argv) {
       {
         const std::lock_guard lock(shared_mutex);
         claimed = tracker.claim(sv.number, s->service_instance(), s->m_func_count(), s->m_func());
-        refused = claimed && normal && refuse.count(s->m_func()) != 0;
+        refused = claimed && normal && refuse.refused(sv.number, s->m_func());
       }
       if (claimed) {
         sv.m_part = s->act_part();
@@ -992,10 +998,11 @@ int plc_main(int argc, char** argv) {
         for (int m : st.refuse_ack) {
           {
             const std::lock_guard lock(shared_mutex);
-            refuse.insert(m);
+            refuse.refuse(st.interpolator, m);
           }
-          append_log(pending_log, stamp(), "script line %d: from now on M%d is not acknowledged",
-                     st.line, m);
+          append_log(pending_log, stamp(),
+                     "script line %d: interpolator %d: from now on M%d is not acknowledged",
+                     st.line, st.interpolator, m);
         }
       }
     }

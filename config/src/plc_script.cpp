@@ -12,6 +12,7 @@
 #include "tgm/intercode.hpp"
 #include "tgm/printable.hpp"
 #include "tgm/yaml_config.hpp"
+#include "yaml_document.hpp"
 #include "yaml_mark.hpp"
 
 namespace tgm {
@@ -108,20 +109,35 @@ bool plc_script_command(long long code) {
   return c == 4 || c == 5 || c == 8 || c == 9 || is_stage_command(c);
 }
 
+std::string plc_script_interpolator_problem(const PlcScriptStep& step, int count, int only) {
+  const std::string named = "interpolator " + std::to_string(step.interpolator);
+  if (step.interpolator < 0 || step.interpolator >= count) {
+    return named + " does not exist (the config has " + std::to_string(count) + ")";
+  }
+  if (only >= 0 && step.interpolator != only) {
+    // A step without `interpolator:` is for interpolator 0: said, since that is easy to miss.
+    return named + " is not served: tgm-plc runs with --interpolator " + std::to_string(only) +
+           (step.interpolator == 0 ? " (a step without `interpolator: N` is for interpolator 0)"
+                                   : "");
+  }
+  return {};
+}
+
 namespace {
 
 // parse_plc_script before its one exit: the first problem as it is worded.
 PlcScriptLoad read_script(std::string_view text, const std::string& path) {
   PlcScriptLoad out;
   try {
-    const YAML::Node root = YAML::Load(std::string(text));
+    const YAML::Node root = load_one_document(std::string(text));
     if (!root.IsSequence()) {
       out.error = path + ": the script must be a list of steps, e.g. - {at_s: 3, command: 8}";
       return out;
     }
     for (const YAML::Node& n : root) {
       PlcScriptStep s;
-      s.line = n.Mark().line + 1;
+      // An empty step ("-" alone) is marked where the next token starts: named at its `-`.
+      s.line = (n.IsNull() ? empty_item_line(text, n.Mark()) : n.Mark().line) + 1;
       const std::string at = path + ":" + std::to_string(s.line) + ": ";
       if (!n.IsMap()) {
         out.error = at + "a step must be a map, e.g. {at_s: 3, command: 8}";

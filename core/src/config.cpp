@@ -131,8 +131,11 @@ std::vector<std::string> MachineConfig::validate() const {
     if (!std::isfinite(t.length_mm)) e.push_back(tb + ".length_mm: must be a finite number");
   }
   const auto& c = compiler;
-  if (!finite_positive(c.default_feed_mm_per_min)) {
-    e.push_back("compiler.default_feed_mm_per_min: must be > 0, not " +
+  // The range of an F word: 1e308 compiled and then every record without an F was refused by
+  // the interpolator when it was appended, mid-program.
+  if (!finite_positive(c.default_feed_mm_per_min) || c.default_feed_mm_per_min > kMaxFeedMmPerMin) {
+    e.push_back("compiler.default_feed_mm_per_min: must be > 0 and at most " +
+                std::to_string(static_cast<long long>(kMaxFeedMmPerMin)) + " mm/min, not " +
                 number_text(c.default_feed_mm_per_min));
   }
   if (c.initial_tool < 0 || c.initial_tool > kMaxTool) {

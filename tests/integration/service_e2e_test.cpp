@@ -7,6 +7,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -445,6 +446,95 @@ TEST(ServiceProcesses, ThePlcAcknowledgesEachInterpolatorWithoutWaitingForAnothe
   EXPECT_EQ(test::count_of(log, "interpolator 1: M52 acknowledged after"), 1) << log;
   EXPECT_EQ(test::count_of(log, ": accepted (cycle"), 2) << log;
   EXPECT_EQ(test::count_of(log, "no reply"), 0) << log;
+}
+
+// A script's refuse_ack is for the interpolator its step names: with M51 waiting on
+// interpolators 0 and 1 after `{interpolator: 1, refuse_ack: [51]}`, 0's is acknowledged and
+// 1's is not (one set for all refused M51 on every interpolator). A stand-in service, as above.
+TEST(ServiceProcesses, APlcScriptRefusalIsForTheInterpolatorItNames) {
+  ServiceEnv env;  // its config and domain only: no tgm-service runs
+  dds::Participant fake(env.dds(), "service");
+  auto& states = fake.writer<msg::InterpolatorStatePubSubType>(dds::kStateTopic);
+  auto& replies = fake.writer<msg::ReplyPubSubType>(dds::kReplyTopic);
+  auto& requests = fake.reader<msg::RequestPubSubType>(dds::kRequestTopic);
+  const std::string script = env.path("refuse.yaml");
+  std::ofstream(script) << "- {at_s: 0, interpolator: 1, refuse_ack: [51]}\n";
+  test::Child plc;
+  ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.config(), "--no-events", "--no-basic-params",
+                         "--ack-delay", "0", "--script", script},
+                        env.path("plc.log")));
+  ASSERT_TRUE(dds::wait_for_match(states, 1, kHang)) << plc.log();
+  ASSERT_TRUE(dds::wait_for_match(requests, 1, kHang)) << plc.log();
+  ASSERT_TRUE(dds::wait_for_match(replies, 1, kHang)) << plc.log();
+  std::array<msg::InterpolatorState, 2> st;
+  for (std::uint16_t i = 0; i < 2; ++i) {
+    st[i].interpolator(i);
+    st[i].number(i);
+    st[i].number_axes(3);
+    st[i].buffer_size(10000);
+    st[i].service_instance(0x5eedULL);
+    st[i].axis_letters("XYZ");
+  }
+  // Idle until the step ran (it runs once the PLC found the service), then both wait for M51.
+  const std::string step_ran = "script line 1: interpolator 1: from now on M51 is not acknowledged";
+  std::uint64_t cycle = 0;
+  std::array<int, 2> acks{};
+  const auto deadline = std::chrono::steady_clock::now() + kHang;
+  auto until = deadline;
+  const auto waits =
+      static_cast<std::int32_t>(static_cast<std::uint32_t>(SectionState::kWaitMFunc) |
+                                (static_cast<std::uint32_t>(SpeedState::kNoMotion) << 16));
+  bool waiting = false;
+  while (std::chrono::steady_clock::now() < until) {
+    if (!waiting && plc.log().find(step_ran) != std::string::npos) {
+      waiting = true;
+      for (auto& s : st) {
+        s.status(1);
+        s.m_func(51);
+        s.m_func_count(1);
+        s.run_flag(waits);
+      }
+      until = std::min(deadline, std::chrono::steady_clock::now() + 1500ms);
+    }
+    for (auto& s : st) {
+      s.cycle_counter(cycle += 20);
+      ASSERT_TRUE(states.write(&s));
+    }
+    msg::Request rq;
+    while (dds::take_next(requests, rq)) {
+      ASSERT_LT(rq.interpolator(), 2) << plc.log();
+      ++acks[rq.interpolator()];
+      msg::Reply r = accepted_reply(rq, cycle);
+      ASSERT_TRUE(replies.write(&r));
+      st[rq.interpolator()].m_func(0);
+      st[rq.interpolator()].run_flag(static_cast<std::int32_t>(SectionState::kRun));
+    }
+    std::this_thread::sleep_for(10ms);
+  }
+  EXPECT_TRUE(waiting) << plc.log();
+  EXPECT_EQ(plc.interrupt(), 0);
+  const std::string log = plc.log();
+  EXPECT_EQ(acks[0], 1) << log;
+  EXPECT_EQ(acks[1], 0) << log;
+  EXPECT_EQ(test::count_of(log, "interpolator 0: M51 acknowledged after"), 1) << log;
+  EXPECT_EQ(test::count_of(log, "interpolator 1: M51: refusing to acknowledge"), 1) << log;
+}
+
+// With --interpolator N the PLC serves N alone: a script step for another interpolator was
+// sent all the same. It is an error at the start, with the step's line.
+TEST(ServiceProcesses, APlcScriptStepForAnInterpolatorNotServedIsAnError) {
+  ServiceEnv env;
+  const std::string script = env.path("other.yaml");
+  std::ofstream(script) << "- {at_s: 0, interpolator: 1, rel_speed: 0.5}\n"
+                           "- {at_s: 1, refuse_ack: [51]}\n";
+  test::Child plc;
+  ASSERT_TRUE(
+      plc.start({TGM_PLC_BIN, "--config", env.config(), "--interpolator", "1", "--script", script},
+                env.path("plc.log")));
+  EXPECT_EQ(plc.wait(kHang), 2) << plc.log();
+  EXPECT_EQ(plc.log(), "tgm-plc: " + script +
+                           ":2: interpolator 0 is not served: tgm-plc runs with --interpolator 1 "
+                           "(a step without `interpolator: N` is for interpolator 0)\n");
 }
 
 // A service restarted under a running tgm-plc: the PLC sees the new instance, sets the basic
@@ -1886,6 +1976,10 @@ TEST(ServiceProcesses, PlcScriptErrorsNameTheLineAndTheReason) {
        ":1: interpolator 0: Command 1024: numerator (Command_Parameter[1]) must not be 0 inc"},
       {"- {at_s: 1, command: 1024, parameters: [3, 2000, 1]}\n",
        ":1: interpolator 0: Command 1024: axis (Command_Parameter[0]) must be 0..2, not 3"},
+      // A ratio out of range passed this check and was refused only when it ran.
+      {"- {at_s: 1, command: 1024, parameters: [0, 1, 2000000000]}\n",
+       ":1: interpolator 0: Command 1024: |numerator / denominator| must be 1e-06..1e+09 inc/mm, "
+       "not 1 / 2000000000 = 5e-10"},
       {"- {at_s: 1, command: -2, parameters: [20, 1000000], interpolator: 2}\n",
        ":1: interpolator 2: Command -2: Spline points (Command_Parameter[0]) must be 0 (off) or "
        "50..500, not 20"},
@@ -1937,7 +2031,7 @@ TEST(ServiceProcesses, PlcScriptStepsRunAtTheirTimesAndAreLoggedWithTheirLine) {
   EXPECT_EQ(plc.wait(kHang), 0) << plc.log();
   const std::string log = plc.log();
   for (const char* says : {"script line 2: interpolator 2: Rel_Speed = 0.45: accepted",
-                           "script line 3: from now on M51 is not acknowledged",
+                           "script line 3: interpolator 0: from now on M51 is not acknowledged",
                            "script line 4: interpolator 1: Command 8: ",
                            "script line 5: interpolator 0: Command 1024 [1, 2500, 2]: accepted"}) {
     EXPECT_NE(log.find(says), std::string::npos) << says << "\n" << log;

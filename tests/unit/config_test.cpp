@@ -1,13 +1,17 @@
 // Config: core validation and the YAML adapter (key paths, unknown keys, ranges).
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <future>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "tgm/dds_overrides.hpp"
 #include "tgm/yaml_config.hpp"
@@ -263,6 +267,9 @@ TEST(Config, WholeNumbersAreDecimalAndNeverWrapRound) {
       {"cycle_time_us: 99999999999999999999\n",
        "cycle_time_us: must be a whole number, not '99999999999999999999'"},
       {"cycle_time_us: 0x1F4\n", "cycle_time_us: must be a whole number, not '0x1F4'"},
+      // Plain decimal only, as on the command line: strtoll took '+' and leading blanks.
+      {"cycle_time_us: +500\n", "m.yaml:1: cycle_time_us: must be a whole number, not '+500'"},
+      {"cycle_time_us: \" 500\"\n", "cycle_time_us: must be a whole number, not ' 500'"},
       {"compiler: {plc_redefined_m: [4294967298]}\n",
        "m.yaml:1: compiler.plc_redefined_m[0]: M4294967298 cannot be redefined (only M2-M9, M17, "
        "M29, M30, M99)"},
@@ -285,6 +292,47 @@ TEST(Config, WholeNumbersAreDecimalAndNeverWrapRound) {
   load = load_config_text("compiler: {max_call_depth: 010}\n", "m.yaml");  // not octal 8
   ASSERT_TRUE(load.config) << load.errors.front();
   EXPECT_EQ(load.config->machine.compiler.max_call_depth, 10);
+}
+
+// Decimal numbers too are plain base 10 (strtod took hexadecimal floats, '+' and leading
+// blanks), and one too small to be told from 0 is refused, not read as 0.
+TEST(Config, DecimalNumbersArePlainBaseTenAndNeverReadAsZero) {
+  for (const char* bad : {"0x10", "0x1p4", "+16", "\" 16\"", "1e-400"}) {
+    const std::string text = std::string("axis_defaults: {max_jerk_mm_s3: ") + bad + "}\n";
+    const ConfigLoad load = load_config_text(text, "m.yaml");
+    EXPECT_FALSE(load.config) << text;
+    EXPECT_TRUE(has_error(load.errors, "m.yaml:1: axis_defaults.max_jerk_mm_s3: must be a number"))
+        << text << (load.errors.empty() ? "" : load.errors.front());
+  }
+  const ConfigLoad load = load_config_text("axis_defaults: {max_jerk_mm_s3: 2.5E+4}\n", "m.yaml");
+  ASSERT_TRUE(load.config) << load.errors.front();
+  EXPECT_EQ(load.config->machine.interpolators[0].axes[0].max_jerk_mm_s3, 25000.0);
+}
+
+// A config is one YAML document: YAML::Load read the first and ignored the rest, so a second
+// document (or anything after `...`) was silently left out.
+TEST(Config, ASecondDocumentIsAnError) {
+  const std::pair<std::string, std::string> refused[] = {
+      {"cycle_time_us: 500\n---\ncycle_time_us: 250\n",
+       "m.yaml:2:1: YAML syntax: a second YAML document starts here; the file must hold one"},
+      {"cycle_time_us: 500\n...\n\n# junk follows\n}}} not: [yaml\n",
+       "m.yaml:5:1: YAML syntax: a second YAML document starts here; the file must hold one"},
+      {"cycle_time_us: 500\n...\ncycle_time_us: 250\n",
+       "m.yaml:3:1: YAML syntax: a second YAML document starts here; the file must hold one"},
+      {"---\ncycle_time_us: 500\n---\n",
+       "m.yaml:3:1: YAML syntax: a second YAML document starts here; the file must hold one"},
+  };
+  for (const auto& [text, error] : refused) {
+    const ConfigLoad load = load_config_text(text, "m.yaml");
+    EXPECT_FALSE(load.config) << text;
+    ASSERT_EQ(load.errors.size(), 1u) << text;
+    EXPECT_EQ(load.errors[0], error) << text;
+  }
+  for (const char* fine : {"---\ncycle_time_us: 500\n...\n", "cycle_time_us: 500\n...\n# end\n",
+                           "# nothing but a comment\n...\n"}) {
+    const ConfigLoad load = load_config_text(fine, "m.yaml");
+    EXPECT_TRUE(load.config) << fine << (load.errors.empty() ? "" : load.errors.front());
+  }
 }
 
 // axis_defaults reach the axes whether or not the interpolators are listed, and an axis listed
@@ -373,6 +421,33 @@ TEST(Config, DirectoryIsAnErrorNotAnEmptyConfig) {
   EXPECT_EQ(load.errors[0], TGM_SOURCE_DIR "/config: is a directory, not a config file");
 }
 
+// Only a regular file is read as a config: a FIFO without a writer blocked the start in open()
+// for good, and a device is said as what it is (it was read up to the 16 MiB bound). Read on
+// another thread: should it block again, a writer frees it and the test fails, not hangs.
+TEST(Config, AFifoOrADeviceIsAnErrorAndNeverBlocks) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("tgm_fifo_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const std::string fifo = (dir / "c.fifo").string();
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  auto read = std::async(std::launch::async, [&] { return load_config_file(fifo).errors; });
+  if (read.wait_for(std::chrono::seconds(10)) != std::future_status::ready) {
+    ADD_FAILURE() << "load_config_file blocked on a FIFO";
+    std::ofstream(fifo) << "cycle_time_us: 500\n";
+  }
+  EXPECT_EQ(read.get(),
+            std::vector<std::string>{fifo + ": is a named pipe (FIFO), not a config file"});
+  EXPECT_EQ(load_config_file("/dev/null").errors,
+            std::vector<std::string>{"/dev/null: is a character device, not a config file"});
+  // A link to a regular file is read as the file.
+  std::ofstream(dir / "real.yaml") << "cycle_time_us: 250\n";
+  fs::create_symlink(dir / "real.yaml", dir / "link.yaml");
+  const ConfigLoad linked = load_config_file((dir / "link.yaml").string());
+  ASSERT_TRUE(linked.config) << linked.errors.front();
+  EXPECT_EQ(linked.config->machine.cycle_time_us, 250);
+  fs::remove_all(dir);
+}
+
 // yaml-cpp keeps both entries of a repeated key and a lookup takes the first: the second value
 // was dropped without a word.
 TEST(Config, KeyGivenTwiceIsAnErrorWithItsLine) {
@@ -448,6 +523,40 @@ TEST(Config, EmptyValuesAmongThousandsAndBehindAliasesAreNamedAtTheirKeys) {
   EXPECT_EQ(load.errors[kTools + 2], last + "number: tool 7 is listed twice");
 }
 
+// An empty list item ("-" and nothing) is named at its `-`, past blank lines and comments
+// (yaml-cpp marks it where the next token starts: the line of the next item, or of the next
+// section); and so is each of thousands, looked up without a pass over the file for each.
+TEST(Config, AnEmptyListItemIsNamedAtItsDash) {
+  const std::pair<std::string, std::string> cases[] = {
+      {"interpolators:\n  -\n\n  # a comment - with a dash\n  - {axes: [{letter: X}]}\n",
+       "m.yaml:2: interpolators[0]: must be a mapping of key: value"},
+      {"interpolators:\n  - axes:\n    -   # nothing here\n\n    - {letter: Y}\n",
+       "m.yaml:3: interpolators[0].axes[0]: must be a mapping of key: value"},
+      {"tools:\n  - {number: 1, radius_mm: 1, length_mm: 1}\n  -\n\n\ncycle_time_us: 500\n",
+       "m.yaml:3: tools[1]: must be a mapping"},
+      {"\xEF\xBB\xBFtools:\n  -\n\n  - {number: 1, radius_mm: 1, length_mm: 1}\n",
+       "m.yaml:2: tools[0]: must be a mapping"},  // after a byte order mark
+      {"tools: [{number: 1, radius_mm: 1, length_mm: 1},\n\n  ~]\n",
+       "m.yaml:3: tools[1]: must be a mapping"},  // a flow list: where yaml-cpp marks it
+  };
+  for (const auto& [text, error] : cases) {
+    const ConfigLoad load = load_config_text(text, "m.yaml");
+    EXPECT_FALSE(load.config) << text;
+    ASSERT_FALSE(load.errors.empty()) << text;
+    EXPECT_EQ(load.errors[0].rfind(error, 0), 0u) << text << "\n" << load.errors[0];
+  }
+  constexpr int kTools = 20000;
+  std::string text = "tools:\n";
+  for (int i = 0; i < kTools; ++i) text += "  -\n  # tool " + std::to_string(i) + " left out\n";
+  const ConfigLoad load = load_config_text(text, "m.yaml");
+  ASSERT_EQ(load.errors.size(), static_cast<std::size_t>(kTools));
+  for (int i = 0; i < kTools; i += 997) {
+    const std::string& e = load.errors[static_cast<std::size_t>(i)];
+    const std::string at = "m.yaml:" + std::to_string(2 * i + 2) + ": tools[" + std::to_string(i);
+    EXPECT_EQ(e.rfind(at + "]: ", 0), 0u) << e;
+  }
+}
+
 // Every other check of MachineConfig::validate, each named with its key, its value and the
 // reason, and with the line of the YAML that set it. Line coverage (session 44) showed that no
 // test had given any of these values.
@@ -479,7 +588,8 @@ TEST(Config, EveryOtherBadValueIsNamedWithItsKeyAndLine) {
         "m.yaml:5: interpolators[0].axes[2].rapid_velocity_mm_s: 200 exceeds max_velocity_mm_s 100",
         "m.yaml:7: tools[0].radius_mm: must be >= 0, not -1",
         "m.yaml:8: tools[1].number: tool 4 is listed twice",
-        "m.yaml:10: compiler.default_feed_mm_per_min: must be > 0, not 0",
+        "m.yaml:10: compiler.default_feed_mm_per_min: must be > 0 and at most 1000000 mm/min, "
+        "not 0",
         "m.yaml:11: compiler.initial_tool: must be 0..99999, not -2",
         "m.yaml:12: compiler.max_program_segments: must be 1..1000000000, not 0",
         "m.yaml:13: compiler.max_call_depth: must be 1..16, not 17",
@@ -488,6 +598,14 @@ TEST(Config, EveryOtherBadValueIsNamedWithItsKeyAndLine) {
     EXPECT_TRUE(has_error(load.errors, want)) << "missing: " << want;
   }
   EXPECT_EQ(load.errors.size(), 11u);
+  // The F word's range: 1e308 loaded, and each record without an F was refused mid-program.
+  const auto fast = load_config_text("compiler:\n  default_feed_mm_per_min: 1e308\n", "f.yaml");
+  EXPECT_FALSE(fast.config);
+  ASSERT_EQ(fast.errors.size(), 1u);
+  EXPECT_EQ(fast.errors[0],
+            "f.yaml:2: compiler.default_feed_mm_per_min: must be > 0 and at most 1000000 mm/min, "
+            "not 1e+308");
+  EXPECT_TRUE(load_config_text("compiler:\n  default_feed_mm_per_min: 1000000\n", "f.yaml").config);
 
   // Tools a T word cannot select (T is 0..99999), and an M-number redefined twice.
   load = load_config_text(

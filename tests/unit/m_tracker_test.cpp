@@ -89,5 +89,22 @@ TEST(MTracker, RandomInterleavingsClaimEveryCountOnce) {
   }
 }
 
+// A script's refuse_ack applies to the interpolator its step names (a step for interpolator 1
+// refused M51 on all three); --refuse-ack to every one.
+TEST(RefusedM, AScriptRefusalIsForItsInterpolatorAndTheFlagsForAll) {
+  RefusedM r;
+  r.refuse(1, 51);
+  EXPECT_TRUE(r.refused(1, 51));
+  EXPECT_FALSE(r.refused(0, 51));
+  EXPECT_FALSE(r.refused(2, 51));
+  EXPECT_FALSE(r.refused(1, 50));
+  r.refuse_everywhere(60);
+  for (int i = 0; i < kMaxInterpolators; ++i) EXPECT_TRUE(r.refused(i, 60)) << i;
+  // Numbers outside 0..2 change nothing and are never refused (no out-of-range access).
+  r.refuse(-1, 70);
+  r.refuse(kMaxInterpolators, 70);
+  for (int i = -1; i <= kMaxInterpolators; ++i) EXPECT_FALSE(r.refused(i, 70)) << i;
+}
+
 }  // namespace
 }  // namespace tgm::plc

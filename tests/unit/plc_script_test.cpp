@@ -2,13 +2,16 @@
 // itself is tested with a script in tests/integration (PlcScriptErrorsNameTheLineAndTheReason).
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <array>
+#include <chrono>
 #include <climits>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <future>
 #include <string>
 #include <utility>
 #include <vector>
@@ -109,6 +112,35 @@ TEST(PlcScript, AProblemNamesTheLineAndKeepsNoStep) {
       {"- " + std::string(3000, '[') + std::string(3000, ']') + "\n",
        "s.yaml:2:1: YAML syntax: nested more than "},
       {"- {at_s: 1\n", "s.yaml:2:1: YAML syntax: "},
+      // A second document was ignored (YAML::Load reads the first), and so was anything after
+      // `...`, YAML or not.
+      {"- {at_s: 1, command: 8}\n---\n- {at_s: 2, command: 9}\n",
+       "s.yaml:2:1: YAML syntax: a second YAML document starts here; the file must hold one"},
+      {"- {at_s: 1, command: 8}\n---\n", "s.yaml:2:1: YAML syntax: a second YAML document"},
+      {"---\n- {at_s: 1, command: 8}\n...\n\n# more\n: : not yaml [ {\n",
+       "s.yaml:6:1: YAML syntax: a second YAML document starts here"},
+      {"- {at_s: 1, command: 8}\n...\n- {at_s: 2, command: 9}\n",
+       "s.yaml:3:1: YAML syntax: a second YAML document starts here"},
+      {"- {at_s: 1, command: 8}\n...\n%YAML 1.2\n---\n[]\n",
+       "s.yaml:4:1: YAML syntax: a second YAML document starts here"},
+      // yaml-cpp starts one without `---` where the list ends and more follows.
+      {"- {at_s: 1, command: 8}\ncommand: 9\n",
+       "s.yaml:2:1: YAML syntax: a second YAML document starts here"},
+      // Numbers are plain decimal, as on the command line: strtod took hex, '+' and blanks, and
+      // read 1e-400 as 0.
+      {"- {at_s: 0x2, command: 8}\n",
+       "s.yaml:1: at_s must be a number of seconds 0..1e9, not '0x2'"},
+      {"- {at_s: 0x1p-1, command: 8}\n", "s.yaml:1: at_s must be a number of seconds 0..1e9"},
+      {"- {at_s: +1, command: 8}\n", "s.yaml:1: at_s must be a number of seconds 0..1e9, not '+1'"},
+      {"- {at_s: \" 1\", command: 8}\n", "s.yaml:1: at_s must be a number of seconds"},
+      {"- {at_s: 1, rel_speed: 1e-400}\n",
+       "s.yaml:1: rel_speed must be an override 0.01..2, not '1e-400'"},
+      {"- {at_s: 1, interpolator: +1, command: 8}\n",
+       "s.yaml:1: interpolator must be an interpolator 0..2, not '+1'"},
+      {"- {at_s: 1, command: 0x8}\n", "s.yaml:1: command must be a Command"},
+      {"- {at_s: 1, command: -2, parameters: [0x10]}\n",
+       "s.yaml:1: parameters must list 32-bit integers, not '0x10'"},
+      {"- {at_s: 1, refuse_ack: [+51]}\n", "s.yaml:1: refuse_ack must list normal M-functions"},
   };
   for (const auto& [text, says] : cases) {
     const PlcScriptLoad load = parse_plc_script(text, "s.yaml");
@@ -116,6 +148,61 @@ TEST(PlcScript, AProblemNamesTheLineAndKeepsNoStep) {
     EXPECT_TRUE(load.steps.empty()) << text;
     EXPECT_EQ(load.error.rfind(says, 0), 0u) << text.substr(0, 80) << "\n" << load.error;
   }
+}
+
+// A script may end its one document with `...` and comments.
+TEST(PlcScript, ADocumentEndAndCommentsAfterTheStepsAreFine) {
+  for (const char* text : {"- {at_s: 1, command: 8}\n...\n", "---\n- {at_s: 1, command: 8}\n...\n",
+                           "- {at_s: 1, command: 8}\n...\n# the end\n\n...\n"}) {
+    const PlcScriptLoad load = parse_plc_script(text, "s.yaml");
+    ASSERT_TRUE(load.ok()) << text << load.error;
+    EXPECT_EQ(load.steps.size(), 1u) << text;
+  }
+}
+
+// An empty step ("-" alone) is named at its `-`: yaml-cpp marks it where the next token starts,
+// past blank lines and comments (the message named the line of the next step, or one past the
+// end of the file).
+TEST(PlcScript, AnEmptyStepIsNamedAtItsDash) {
+  const std::string says = ": a step must be a map, e.g. {at_s: 3, command: 8}";
+  const std::pair<std::string, int> cases[] = {
+      {"- {at_s: 1, command: 8}\n-\n- {at_s: 2, command: 9}\n", 2},
+      {"- {at_s: 1, command: 8}\n-\n\n# a comment\n   # another - with a dash\n\n"
+       "- {at_s: 2, command: 9}\n",
+       2},
+      {"- {at_s: 1, command: 8}\n-   # nothing here\n  \n- {at_s: 2, command: 9}\n", 2},
+      {"- {at_s: 1, command: 8}\n-\n", 2},  // the last step: marked past the end
+      {"- {at_s: 1, command: 8}\n-\n\n\n", 2},
+      {"-\n- {at_s: 2, command: 9}\n", 1},                  // the first
+      {"# head\n\n  -\n\n  - {at_s: 2, command: 9}\n", 3},  // an indented list
+      {"- {at_s: 1, command: 8}\r\n-\r\n\r\n- {at_s: 2, command: 9}\r\n", 2},
+      {"- {at_s: 1, command: 8}\n- ~\n\n- {at_s: 2, command: 9}\n", 2},  // a null written
+      {"- {at_s: 1, command: 8}\n-\n  # indented\n- {at_s: 2, command: 9}\n", 2},
+      // A flow list has no `-`: its null item is where yaml-cpp marks it.
+      {"[{at_s: 1, command: 8},\n\n ~]\n", 3},
+  };
+  for (const auto& [text, line] : cases) {
+    const PlcScriptLoad load = parse_plc_script(text, "s.yaml");
+    EXPECT_EQ(load.error, "s.yaml:" + std::to_string(line) + says) << text;
+  }
+}
+
+// tgm-plc checks each step's interpolator against its config and --interpolator at the start:
+// a step for an interpolator it does not serve was sent anyway.
+TEST(PlcScript, AStepMustNameAnInterpolatorThePlcServes) {
+  PlcScriptStep s;
+  s.interpolator = 1;
+  EXPECT_EQ(plc_script_interpolator_problem(s, 3, -1), "");
+  EXPECT_EQ(plc_script_interpolator_problem(s, 3, 1), "");
+  EXPECT_EQ(plc_script_interpolator_problem(s, 3, 2),
+            "interpolator 1 is not served: tgm-plc runs with --interpolator 2");
+  EXPECT_EQ(plc_script_interpolator_problem(s, 1, -1),
+            "interpolator 1 does not exist (the config has 1)");
+  s.interpolator = 0;  // also what a step without `interpolator:` names
+  EXPECT_EQ(plc_script_interpolator_problem(s, 3, 1),
+            "interpolator 0 is not served: tgm-plc runs with --interpolator 1 (a step without "
+            "`interpolator: N` is for interpolator 0)");
+  EXPECT_EQ(plc_script_interpolator_problem(s, 3, 0), "");
 }
 
 TEST(PlcScript, AnEmptyScriptHasNoSteps) {
@@ -146,7 +233,18 @@ TEST(PlcScript, FilesThatAreNoScriptAreNamed) {
   EXPECT_EQ(load_plc_script(dir).error, dir + ": is a directory, not a script file");
   EXPECT_EQ(load_plc_script(dir + "/none.yaml").error,
             dir + "/none.yaml: cannot open the script file: No such file or directory");
-  EXPECT_EQ(load_plc_script("/dev/zero").error, "/dev/zero: more than 16 MiB: not a script file");
+  EXPECT_EQ(load_plc_script("/dev/zero").error,
+            "/dev/zero: is a character device, not a script file");
+  // A FIFO without a writer blocked the PLC's start in open() for good. Read on another thread:
+  // should it block again, a writer frees it and the test fails instead of hanging.
+  const std::string fifo = dir + "/s.fifo";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  auto read = std::async(std::launch::async, [&] { return load_plc_script(fifo).error; });
+  if (read.wait_for(std::chrono::seconds(10)) != std::future_status::ready) {
+    ADD_FAILURE() << "load_plc_script blocked on a FIFO";
+    std::ofstream(fifo) << "[]\n";
+  }
+  EXPECT_EQ(read.get(), fifo + ": is a named pipe (FIFO), not a script file");
   const std::string file = dir + "/s.yaml";
   std::ofstream(file) << "- {at_s: 2, command: 9}\n";
   const PlcScriptLoad load = load_plc_script(file);

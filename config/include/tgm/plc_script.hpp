@@ -37,6 +37,11 @@ struct PlcScriptLoad {
 //! Commands (gear ratios, position set, IIR and spline parameters), with zero parameters.
 bool plc_script_command(long long code);
 
+//! Why `step` cannot run on a PLC whose config has `count` interpolators and that serves them
+//! all (`only` < 0) or interpolator `only` alone (--interpolator); "" when it can. The reason
+//! goes after "PATH:LINE: ".
+std::string plc_script_interpolator_problem(const PlcScriptStep& step, int count, int only);
+
 //! Parses script text; `path` names it in messages.
 PlcScriptLoad parse_plc_script(std::string_view text, const std::string& path);
 
