@@ -707,6 +707,33 @@ TEST(ServiceProcesses, HmiRunStreamsOnAfterAnEmergencyStopOnTheTrajectory) {
   EXPECT_NEAR(watch.state(0)->orig_position()[0], 0.1 * kRecords, 1e-6);
 }
 
+// Command 9 after Command 4: the status stays 7 and the program is dropped off the trajectory.
+// The run said "emergency stop (Command 5)", which nobody had sent.
+TEST(ServiceProcesses, HmiRunNamesAStopOffTheTrajectoryAfterAnEmergencyStop) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  write_tenth_steps(env.path("long.ngc"), 5000, 3000);
+  test::Child hmi;
+  ASSERT_TRUE(
+      hmi.start({TGM_HMI_BIN, "run", env.path("long.ngc"), "--config", env.config(), "--quiet"},
+                env.path("hmi.log")));
+  client::Client watch(env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(watch.wait_until(
+      0, [](const msg::InterpolatorState& s) { return s.status() == 1 && s.act_part() > 100; },
+      kHang))
+      << hmi.log();
+  EXPECT_TRUE(watch.command(0, 4).accepted);
+  ASSERT_TRUE(hmi.wait_for_log("emergency stop (Command 4) at line ", kHang)) << hmi.log();
+  const client::Reply off = watch.command(0, 9);
+  EXPECT_TRUE(off.accepted) << client::describe(off);
+  EXPECT_EQ(hmi.wait(kHang), 1) << hmi.log();
+  EXPECT_NE(hmi.log().find("after the emergency stop, a stop off the trajectory (Command 9 or 5) "
+                           "at line "),
+            std::string::npos)
+      << hmi.log();
+  EXPECT_EQ(hmi.log().find("Command 5)"), std::string::npos) << hmi.log();
+}
+
 // On a terminal, an M0 waits for Enter. The end of the terminal's input (Ctrl-D, or a closed
 // SSH session, which no longer ends the run) was taken for Enter and the program ran on past
 // its M0 at once; now the M0 waits for a start, here from another HMI, and the run follows on.

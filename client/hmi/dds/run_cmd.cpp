@@ -587,10 +587,19 @@ int run_run(int argc, char** argv) {
       // The Command register is back at 0 once the ramp has ended: the trajectory tells 4 from 5.
       if (st->off_trajectory()) {
         clear_progress();
-        std::fprintf(stderr,
-                     "tgm-hmi run: emergency stop (Command 5), off trajectory at line %d: the "
-                     "program was dropped\n",
-                     st->act_line());
+        if (stop_reported) {
+          // Stopped on the trajectory (Command 4) first: Command 9 (or 5) then drops the
+          // program and the status stays 7. It was named Command 5 whichever it was.
+          std::fprintf(stderr,
+                       "tgm-hmi run: after the emergency stop, a stop off the trajectory (Command "
+                       "9 or 5) at line %d dropped the program\n",
+                       st->act_line());
+        } else {
+          std::fprintf(stderr,
+                       "tgm-hmi run: emergency stop (Command 5), off trajectory at line %d: the "
+                       "program was dropped\n",
+                       st->act_line());
+        }
         exit_code = 1;
         break;
       }
