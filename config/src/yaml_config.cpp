@@ -302,12 +302,28 @@ std::vector<std::string> locate(const Reader& r, const std::string& file,
       up.resize(cut);
       l = r.line_of.find(up);
     }
+    // A finding about a group of keys the file gives (smoothing.iir: the iir_* keys) is at the
+    // first of them, not at its section, and is no built-in value: it was said to be "iir is
+    // not given: the built-in value" under the very keys that gave it.
+    int group_line = -1;
+    if (r.line_of.count(at) == 0) {
+      const std::string prefix = at + "_";
+      for (auto g = r.line_of.lower_bound(prefix);
+           g != r.line_of.end() && g->first.compare(0, prefix.size(), prefix) == 0; ++g) {
+        if (group_line < 0 || g->second < group_line) group_line = g->second;
+      }
+    }
     std::string where = file;
-    if (l != r.line_of.end()) where.append(":").append(std::to_string(l->second));
+    if (group_line >= 0) {
+      where.append(":").append(std::to_string(group_line));
+    } else if (l != r.line_of.end()) {
+      where.append(":").append(std::to_string(l->second));
+    }
     if (o == r.origin.end()) {
       // A value the file does not give is the built-in one: say so, or "rapid_velocity_mm_s:
       // 250 exceeds max_velocity_mm_s 100" names a 250 the reader looks for in vain.
-      const bool built_in = r.line_of.count(key) == 0 && key.find('.') != std::string::npos;
+      const bool built_in =
+          r.line_of.count(key) == 0 && group_line < 0 && key.find('.') != std::string::npos;
       out.push_back(
           where + ": " + f +
           (built_in ? " (" + key.substr(key.rfind('.') + 1) + " is not given: the built-in value)"

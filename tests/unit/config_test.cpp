@@ -642,6 +642,13 @@ TEST(Config, EveryOtherBadValueIsNamedWithItsKeyAndLine) {
     EXPECT_TRUE(has_error(load.errors, want)) << "missing: " << want;
   }
   EXPECT_EQ(load.errors.size(), 3u);
+  // Given on lines of their own: the first of the group's keys, and no "not given".
+  load = load_config_text(
+      "smoothing:\n  iir_axis_mask: 7\n  iir_p_e6: 2000000\n  iir_f_e6: 2001000000\n", "m.yaml");
+  ASSERT_EQ(load.errors.size(), 1u);
+  EXPECT_EQ(load.errors[0],
+            "m.yaml:2: smoothing.iir: IIR f (Command_Parameter[2]) must be 1000000..2000000000 "
+            "(1..2000 ms x 1e6), not 2001000000");
 
   // An empty list of axes is named at its own line, as given (it was said to be "not given:
   // the built-in value", without a line); a letter that is not one of A..Z says what is.
