@@ -324,6 +324,34 @@ std::vector<std::string> locate(const Reader& r, const std::string& file,
       // 250 exceeds max_velocity_mm_s 100" names a 250 the reader looks for in vain.
       const bool built_in =
           r.line_of.count(key) == 0 && group_line < 0 && key.find('.') != std::string::npos;
+      if (built_in) {
+        // The other key of the finding, when the axis took it from axis_defaults: the finding
+        // is that default's, said once at its line for every axis that takes it (a config of
+        // only `axis_defaults: {max_velocity_mm_s: 100}` gave nine findings without a line).
+        const std::string name = key.substr(key.rfind('.') + 1);
+        const std::string axis = key.substr(0, key.rfind('.'));
+        std::string from;
+        for (const std::string& other : kAxisKeys) {
+          if (other == name || reason.find(other) == std::string::npos) continue;
+          if (const auto d = r.origin.find(axis + "." + other); d != r.origin.end()) {
+            from = d->second;
+            break;
+          }
+        }
+        if (!from.empty()) {
+          std::string at_line = file;
+          if (const auto fl = r.line_of.find(from); fl != r.line_of.end())
+            at_line.append(":").append(std::to_string(fl->second));
+          const std::string id = from + ": the built-in " + name + " (not given) " + reason;
+          const auto [it, fresh] = shared.emplace(id, out.size());
+          if (fresh) out.push_back(at_line + ": " + id + " (" + axis + ")");
+          if (++takers[id] > 1) {
+            out[it->second] =
+                at_line + ": " + id + "; " + std::to_string(takers[id]) + " axes take it";
+          }
+          continue;
+        }
+      }
       out.push_back(
           where + ": " + f +
           (built_in ? " (" + key.substr(key.rfind('.') + 1) + " is not given: the built-in value)"

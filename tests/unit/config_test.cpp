@@ -650,6 +650,22 @@ TEST(Config, EveryOtherBadValueIsNamedWithItsKeyAndLine) {
             "m.yaml:2: smoothing.iir: IIR f (Command_Parameter[2]) must be 1000000..2000000000 "
             "(1..2000 ms x 1e6), not 2001000000");
 
+  // A default that makes a built-in value of the same axes wrong is said once, at the
+  // default's line (nine findings without a line when the config lists no interpolators).
+  load =
+      load_config_text("cycle_time_us: 500\naxis_defaults: {max_velocity_mm_s: 100}\n", "d.yaml");
+  ASSERT_EQ(load.errors.size(), 1u);
+  EXPECT_EQ(load.errors[0],
+            "d.yaml:2: axis_defaults.max_velocity_mm_s: the built-in rapid_velocity_mm_s (not "
+            "given) 250 exceeds max_velocity_mm_s 100; 9 axes take it");
+  load = load_config_text(
+      "axis_defaults: {max_velocity_mm_s: 100}\ninterpolators: [{axes: [{letter: X}]}]\n",
+      "d.yaml");
+  ASSERT_EQ(load.errors.size(), 1u);
+  EXPECT_EQ(load.errors[0],
+            "d.yaml:1: axis_defaults.max_velocity_mm_s: the built-in rapid_velocity_mm_s (not "
+            "given) 250 exceeds max_velocity_mm_s 100 (interpolators[0].axes[0])");
+
   // An empty list of axes is named at its own line, as given (it was said to be "not given:
   // the built-in value", without a line); a letter that is not one of A..Z says what is.
   load = load_config_text(
