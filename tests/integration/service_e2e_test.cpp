@@ -666,6 +666,24 @@ TEST(ServiceProcesses, HmiRunEndsAtAnEmergencyStopOffTheTrajectory) {
       << hmi.log();
 }
 
+// `tgm-hmi run` of `records` tenth steps at F3000 (hmi), stopped by Command 4 on the trajectory
+// once it runs past part 100. From this process (watch): a `tgm-hmi command` under
+// AddressSanitizer may take seconds to start, and the stream could be complete by then.
+void run_into_an_emergency_stop(ServiceEnv& env, int records, test::Child& hmi,
+                                client::Client& watch) {
+  write_tenth_steps(env.path("long.ngc"), records, 3000);
+  ASSERT_TRUE(
+      hmi.start({TGM_HMI_BIN, "run", env.path("long.ngc"), "--config", env.config(), "--quiet"},
+                env.path("hmi.log")));
+  ASSERT_TRUE(watch.wait_until(
+      0, [](const msg::InterpolatorState& s) { return s.status() == 1 && s.act_part() > 100; },
+      kHang))
+      << hmi.log();
+  const client::Reply estop = watch.command(0, 4);
+  EXPECT_TRUE(estop.accepted) << client::describe(estop);
+  ASSERT_TRUE(hmi.wait_for_log("emergency stop (Command 4) at line ", kHang)) << hmi.log();
+}
+
 // An emergency stop on the trajectory (Command 4) is resumed by start, so `run` follows on and
 // streams the rest. It used to end there with exit code 1: a program longer than the buffer
 // then resumed into an underrun, the records beyond the buffer never sent.
@@ -676,21 +694,9 @@ TEST(ServiceProcesses, HmiRunStreamsOnAfterAnEmergencyStopOnTheTrajectory) {
   ASSERT_TRUE(env.start_service());
   // 500 mm in about 10 s, five buffers' worth.
   constexpr int kRecords = 5000;
-  write_tenth_steps(env.path("long.ngc"), kRecords, 3000);
   test::Child hmi;
-  ASSERT_TRUE(
-      hmi.start({TGM_HMI_BIN, "run", env.path("long.ngc"), "--config", env.config(), "--quiet"},
-                env.path("hmi.log")));
   client::Client watch(env.dds(), client::Role::kHmi);
-  ASSERT_TRUE(watch.wait_until(
-      0, [](const msg::InterpolatorState& s) { return s.status() == 1 && s.act_part() > 100; },
-      kHang))
-      << hmi.log();
-  // From this process: a `tgm-hmi command` under AddressSanitizer may take seconds to start,
-  // and the stream could be complete by then.
-  const client::Reply estop = watch.command(0, 4);
-  EXPECT_TRUE(estop.accepted) << client::describe(estop);
-  ASSERT_TRUE(hmi.wait_for_log("emergency stop (Command 4) at line ", kHang)) << hmi.log();
+  ASSERT_NO_FATAL_FAILURE(run_into_an_emergency_stop(env, kRecords, hmi, watch));
   ASSERT_TRUE(watch.wait_until(
       0, [](const msg::InterpolatorState& s) { return s.status() == 7; }, kHang));
   // Records are still to be sent, and the run is still there to send them.
@@ -712,18 +718,9 @@ TEST(ServiceProcesses, HmiRunStreamsOnAfterAnEmergencyStopOnTheTrajectory) {
 TEST(ServiceProcesses, HmiRunNamesAStopOffTheTrajectoryAfterAnEmergencyStop) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());
-  write_tenth_steps(env.path("long.ngc"), 5000, 3000);
   test::Child hmi;
-  ASSERT_TRUE(
-      hmi.start({TGM_HMI_BIN, "run", env.path("long.ngc"), "--config", env.config(), "--quiet"},
-                env.path("hmi.log")));
   client::Client watch(env.dds(), client::Role::kHmi);
-  ASSERT_TRUE(watch.wait_until(
-      0, [](const msg::InterpolatorState& s) { return s.status() == 1 && s.act_part() > 100; },
-      kHang))
-      << hmi.log();
-  EXPECT_TRUE(watch.command(0, 4).accepted);
-  ASSERT_TRUE(hmi.wait_for_log("emergency stop (Command 4) at line ", kHang)) << hmi.log();
+  ASSERT_NO_FATAL_FAILURE(run_into_an_emergency_stop(env, 5000, hmi, watch));
   const client::Reply off = watch.command(0, 9);
   EXPECT_TRUE(off.accepted) << client::describe(off);
   EXPECT_EQ(hmi.wait(kHang), 1) << hmi.log();
