@@ -961,7 +961,9 @@ std::size_t Compiler::execute_block(std::size_t index, bool relex) {
   if (!flow) {
     // I/J/K/R only make sense on an arc.
     const bool arc_mode = motion_ == 2 || motion_ == 3;
-    if (arc_words && !(arc_mode && (any_axis || g_motion >= 0))) {
+    // Modal as the axis words are: in G2/G3 a line of centre offsets alone is another full
+    // circle (rs274 runs it; it was "I is only used by an arc move" under an active G2).
+    if (arc_words && !arc_mode) {
       const Word* p = word('I') ? word('I') : word('J') ? word('J') : word('K') ? word('K') : word('R');
       error(b.line, p->column,
             std::string(1, p->letter) + " is only used by an arc move (G2/G3)");
@@ -971,7 +973,8 @@ std::size_t Compiler::execute_block(std::size_t index, bool relex) {
     error(b.line, l->column, "L (label) is only used by G25, G26, G27 and G29");
   }
 
-  if (any_axis || g_motion >= 0) {
+  const bool modal_arc = (motion_ == 2 || motion_ == 3) && arc_words;
+  if (any_axis || g_motion >= 0 || (modal_arc && !flow)) {
     if (motion_ < 0) {
       const Word* p = w;
       error(b.line, p->column, "axis words without a motion G-code (G0, G1, G2 or G3) before them");
@@ -1020,6 +1023,8 @@ std::size_t Compiler::execute_block(std::size_t index, bool relex) {
           }
           double cx = 0, cy = 0, radius = 0;
           const bool cw = motion_ == 2;
+          // Mirroring one axis of the plane reverses the direction.
+          const bool flip = mirror_[i0] * mirror_[i1] < 0;
           if (wr && (wo0 || wo1)) {
             error(b.line, wr->column, "an arc takes either R or centre offsets, not both");
             ok = false;
@@ -1041,8 +1046,11 @@ std::size_t Compiler::execute_block(std::size_t index, bool relex) {
             } else {
               const double h2 = r * r - 0.25 * d * d;
               const double h = h2 > 0 ? std::sqrt(h2) : 0.0;
-              // Left of the chord (towards `second` from `first`) for a CCW arc of <= 180 deg.
-              double side = cw ? -1.0 : 1.0;
+              // Left of the chord (towards `second` from `first`) for a CCW arc of <= 180 deg,
+              // in the direction the arc runs: the mirrored one (start and end are mirrored
+              // already). With the programmed one a mirrored R arc took the centre on the other
+              // side, 270 degrees where its I/J twin turned 90.
+              double side = cw != flip ? -1.0 : 1.0;
               if (wr->value < 0) side = -side;
               const double ux = -dy / d, uy = dx / d;
               cx = 0.5 * (sx + ex) + side * h * ux;
@@ -1070,8 +1078,6 @@ std::size_t Compiler::execute_block(std::size_t index, bool relex) {
                   std::string("arc needs a centre: ") + o0 + "/" + o1 + " offsets or R");
             ok = false;
           }
-          // Mirroring one axis of the plane reverses the direction.
-          const bool flip = mirror_[i0] * mirror_[i1] < 0;
           if (flip) s.type = cw ? SegmentType::kArcCcw : SegmentType::kArcCw;
           s.center = {cx, cy};
           s.radius = radius;

@@ -248,6 +248,77 @@ TEST(Gcode, FullCircleAndHelixInEveryPlane) {
   EXPECT_DOUBLE_EQ(p.segments[3].end[0], 7.0);
 }
 
+std::string fmt(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6f", v);
+  return buf;
+}
+
+// A mirrored R arc is the mirror image of the unmirrored one, as its I/J twin is: G2 X10 Y10
+// R10 under M81 took its centre on the wrong side (0, 10), a 270 degree arc, where the I/J
+// form and rs274's unmirrored centre (10, 0) mirrored give (-10, 0) and 90 degrees.
+TEST(Gcode, AMirroredRArcIsTheMirrorImageOfItsIjTwin) {
+  const Program r = compile_ok("G90 G0 X0 Y0\nM81\nG2 X10 Y10 R10 F100\nM2\n");
+  const Program ij = compile_ok("G90 G0 X0 Y0\nM81\nG2 X10 Y10 I10 J0 F100\nM2\n");
+  ASSERT_EQ(r.segments.size(), 3u);
+  ASSERT_EQ(ij.segments.size(), 3u);
+  for (const Program* p : {&r, &ij}) {
+    const Segment& a = p->segments[1];
+    EXPECT_EQ(a.type, SegmentType::kArcCcw);
+    EXPECT_NEAR(a.center[0], -10.0, kTol);
+    EXPECT_NEAR(a.center[1], 0.0, kTol);
+    EXPECT_DOUBLE_EQ(a.end[0], -10.0);
+    EXPECT_DOUBLE_EQ(a.end[1], 10.0);
+  }
+  // G18 (centre as Z, X), mirrored in X: the R arc and its I/J twin agree.
+  const Program g18 = compile_ok("G90 G18 G0 X0 Z0\nM81\nG2 X10 Z10 R10 F100\nM2\n");
+  const Program g18ij = compile_ok("G90 G18 G0 X0 Z0\nM81\nG2 X10 Z10 I0 K10 F100\nM2\n");
+  EXPECT_EQ(g18.segments[1].type, g18ij.segments[1].type);
+  EXPECT_NEAR(g18.segments[1].center[0], g18ij.segments[1].center[0], kTol);
+  EXPECT_NEAR(g18.segments[1].center[1], g18ij.segments[1].center[1], kTol);
+  // Seeded: R arcs of both signs, both directions and every mirror agree with their I/J twins.
+  std::mt19937 rng(6501);
+  std::uniform_real_distribution<double> u(-20.0, 20.0);
+  for (int k = 0; k < 200; ++k) {
+    const double ex = u(rng), ey = u(rng);
+    const double d = std::hypot(ex, ey);
+    if (d < 1.0) continue;
+    const double rad = 0.5 * d * (1.0 + std::fabs(u(rng)) / 10.0);
+    const bool cw = k % 2 == 0, long_way = k % 4 >= 2;
+    const char* mirror = k % 3 == 0 ? "M81" : k % 3 == 1 ? "M82" : "M80";
+    const std::string head = std::string("G90 G0 X0 Y0\n") + mirror + "\nG" + (cw ? "2" : "3") +
+                             " X" + fmt(ex) + " Y" + fmt(ey);
+    const Program pr = compile_ok(head + " R" + fmt(long_way ? -rad : rad) + " F100\n");
+    // The unmirrored R arc's centre, from the same formula the compiler applies before
+    // mirroring, gives the offsets of the I/J twin.
+    const Program plain =
+        compile_ok(std::string("G90 G0 X0 Y0\nG") + (cw ? "2" : "3") + " X" + fmt(ex) + " Y" +
+                   fmt(ey) + " R" + fmt(long_way ? -rad : rad) + " F100\n");
+    const double i = plain.segments[1].center[0], j = plain.segments[1].center[1];
+    const Program pij = compile_ok(head + " I" + fmt(i) + " J" + fmt(j) + " F100\n");
+    ASSERT_EQ(pr.segments.size(), 2u) << head;
+    EXPECT_EQ(pr.segments[1].type, pij.segments[1].type) << head;
+    EXPECT_NEAR(pr.segments[1].center[0], pij.segments[1].center[0], 1e-6) << head;
+    EXPECT_NEAR(pr.segments[1].center[1], pij.segments[1].center[1], 1e-6) << head;
+  }
+}
+
+// In G2/G3 a line of centre offsets alone is another full circle, as a line of axis words
+// alone is another arc (rs274 runs it); it was "I is only used by an arc move (G2/G3)".
+TEST(Gcode, ALineOfCentreOffsetsAloneIsAModalFullCircle) {
+  const Program p = compile_ok("G90 G17 F100\nG0 X10\nG2 X10 I5\nI-5\nM51 I3\nM2\n");
+  ASSERT_EQ(p.segments.size(), 5u);
+  EXPECT_EQ(p.segments[2].type, SegmentType::kArcCw);
+  EXPECT_EQ(p.segments[2].line, 4);
+  EXPECT_NEAR(p.segments[2].center[0], 5.0, kTol);
+  EXPECT_DOUBLE_EQ(p.segments[2].end[0], 10.0);
+  // On an M line I stays a parameter of the M-function.
+  EXPECT_EQ(p.segments[3].type, SegmentType::kMFunction);
+  EXPECT_EQ(p.segments[3].m, 51);
+  EXPECT_THAT(errors_of("G1 X1 F100\nI2\n"),
+              testing::ElementsAre("2:1: I is only used by an arc move (G2/G3)"));
+}
+
 TEST(Gcode, MirroringFlipsCoordinatesArcsAndCompensation) {
   const Program p = compile_ok(
       "G90 M81\nG1 X10 Y5 F100\nG2 X20 Y5 I5\nM84\nG41 D2\nG1 X1 Y1\nM80\nG1 X1 Y1\n");
