@@ -369,6 +369,40 @@ TEST(ServiceProcesses, PlcLogsAContinuousMFunctionAtItsOwnLine) {
   }
 }
 
+// A stand-in service in this process (its config and domain only: no tgm-service runs) for a
+// tgm-plc started with `args` after --config: the state, reply and request endpoints, matched
+// with the PLC's, and interpolators 0 and 1 of three axes of one service instance, idle.
+struct StandInService {
+  explicit StandInService(const ServiceEnv& env)
+      : fake(env.dds(), "service"),
+        states(fake.writer<msg::InterpolatorStatePubSubType>(dds::kStateTopic)),
+        replies(fake.writer<msg::ReplyPubSubType>(dds::kReplyTopic)),
+        requests(fake.reader<msg::RequestPubSubType>(dds::kRequestTopic)) {
+    for (std::uint16_t i = 0; i < 2; ++i) {
+      st[i].interpolator(i);
+      st[i].number(i);
+      st[i].number_axes(3);
+      st[i].buffer_size(10000);
+      st[i].service_instance(0x5eedULL);
+      st[i].axis_letters("XYZ");
+    }
+  }
+  void start_plc(ServiceEnv& env, test::Child& plc, const std::vector<std::string>& args) {
+    std::vector<std::string> argv = {TGM_PLC_BIN, "--config", env.config(), "--no-events",
+                                     "--no-basic-params"};
+    argv.insert(argv.end(), args.begin(), args.end());
+    ASSERT_TRUE(plc.start(argv, env.path("plc.log")));
+    ASSERT_TRUE(dds::wait_for_match(states, 1, kHang)) << plc.log();
+    ASSERT_TRUE(dds::wait_for_match(replies, 1, kHang)) << plc.log();
+    ASSERT_TRUE(dds::wait_for_match(requests, 1, kHang)) << plc.log();
+  }
+  dds::Participant fake;
+  eprosima::fastdds::dds::DataWriter& states;
+  eprosima::fastdds::dds::DataWriter& replies;
+  eprosima::fastdds::dds::DataReader& requests;
+  std::array<msg::InterpolatorState, 2> st;
+};
+
 // tgm-plc's handshakes with several interpolators do not wait for one another: a reply lost on
 // the network for one does not hold up the acknowledgement of the next. A stand-in service in
 // this process shows interpolators 0 and 1 both waiting (M51, M52) and answers neither
@@ -376,35 +410,24 @@ TEST(ServiceProcesses, PlcLogsAContinuousMFunctionAtItsOwnLine) {
 // next acknowledgement (as it did until session 51) left its first one unanswered for its 3 s
 // timeout and logged it so; this one writes both and takes both replies.
 TEST(ServiceProcesses, ThePlcAcknowledgesEachInterpolatorWithoutWaitingForAnothersReply) {
-  ServiceEnv env;  // its config and domain only: no tgm-service runs
-  dds::Participant fake(env.dds(), "service");
-  auto& states = fake.writer<msg::InterpolatorStatePubSubType>(dds::kStateTopic);
-  auto& replies = fake.writer<msg::ReplyPubSubType>(dds::kReplyTopic);
-  auto& requests = fake.reader<msg::RequestPubSubType>(dds::kRequestTopic);
+  ServiceEnv env;
+  StandInService service(env);
+  auto& states = service.states;
+  auto& replies = service.replies;
+  auto& requests = service.requests;
+  auto& st = service.st;
   test::Child plc;
-  ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.config(), "--no-events", "--no-basic-params",
-                         "--ack-delay", "0.1"},
-                        env.path("plc.log")));
-  ASSERT_TRUE(dds::wait_for_match(states, 1, kHang)) << plc.log();
-  ASSERT_TRUE(dds::wait_for_match(replies, 1, kHang)) << plc.log();
-  ASSERT_TRUE(dds::wait_for_match(requests, 1, kHang)) << plc.log();
+  ASSERT_NO_FATAL_FAILURE(service.start_plc(env, plc, {"--ack-delay", "0.1"}));
   const auto waits =
       static_cast<std::int32_t>(static_cast<std::uint32_t>(SectionState::kWaitMFunc) |
                                 (static_cast<std::uint32_t>(SpeedState::kNoMotion) << 16));
-  std::array<msg::InterpolatorState, 2> st;
   for (std::uint16_t i = 0; i < 2; ++i) {
-    st[i].interpolator(i);
-    st[i].number(i);
-    st[i].number_axes(3);
-    st[i].buffer_size(10000);
     st[i].status(1);
     st[i].act_part(2);
     st[i].act_line(2);
     st[i].m_func(51 + i);
     st[i].m_func_count(1);
     st[i].run_flag(waits);
-    st[i].service_instance(0x5eedULL);
-    st[i].axis_letters("XYZ");
   }
   std::vector<msg::Request> held;
   std::array<int, 2> acks{};
@@ -452,29 +475,16 @@ TEST(ServiceProcesses, ThePlcAcknowledgesEachInterpolatorWithoutWaitingForAnothe
 // interpolators 0 and 1 after `{interpolator: 1, refuse_ack: [51]}`, 0's is acknowledged and
 // 1's is not (one set for all refused M51 on every interpolator). A stand-in service, as above.
 TEST(ServiceProcesses, APlcScriptRefusalIsForTheInterpolatorItNames) {
-  ServiceEnv env;  // its config and domain only: no tgm-service runs
-  dds::Participant fake(env.dds(), "service");
-  auto& states = fake.writer<msg::InterpolatorStatePubSubType>(dds::kStateTopic);
-  auto& replies = fake.writer<msg::ReplyPubSubType>(dds::kReplyTopic);
-  auto& requests = fake.reader<msg::RequestPubSubType>(dds::kRequestTopic);
+  ServiceEnv env;
+  StandInService service(env);
+  auto& states = service.states;
+  auto& replies = service.replies;
+  auto& requests = service.requests;
+  auto& st = service.st;
   const std::string script = env.path("refuse.yaml");
   std::ofstream(script) << "- {at_s: 0, interpolator: 1, refuse_ack: [51]}\n";
   test::Child plc;
-  ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.config(), "--no-events", "--no-basic-params",
-                         "--ack-delay", "0", "--script", script},
-                        env.path("plc.log")));
-  ASSERT_TRUE(dds::wait_for_match(states, 1, kHang)) << plc.log();
-  ASSERT_TRUE(dds::wait_for_match(requests, 1, kHang)) << plc.log();
-  ASSERT_TRUE(dds::wait_for_match(replies, 1, kHang)) << plc.log();
-  std::array<msg::InterpolatorState, 2> st;
-  for (std::uint16_t i = 0; i < 2; ++i) {
-    st[i].interpolator(i);
-    st[i].number(i);
-    st[i].number_axes(3);
-    st[i].buffer_size(10000);
-    st[i].service_instance(0x5eedULL);
-    st[i].axis_letters("XYZ");
-  }
+  ASSERT_NO_FATAL_FAILURE(service.start_plc(env, plc, {"--ack-delay", "0", "--script", script}));
   // Idle until the step ran (it runs once the PLC found the service), then both wait for M51.
   const std::string step_ran = "script line 1: interpolator 1: from now on M51 is not acknowledged";
   std::uint64_t cycle = 0;
