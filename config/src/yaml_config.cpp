@@ -286,6 +286,15 @@ std::vector<std::string> locate(const Reader& r, const std::string& file,
   std::vector<std::string> out;
   std::map<std::string, std::size_t> shared;  // "origin: reason" -> index in out
   std::map<std::string, int> takers;
+  // A finding `id` of defaults that several axes take is said once: as `first`, then as
+  // "WHERE: ID; N axes take it".
+  const auto say_once = [&](const std::string& where, const std::string& id, std::string first) {
+    const auto [it, fresh] = shared.emplace(id, out.size());
+    if (fresh) out.push_back(std::move(first));
+    if (++takers[id] > 1) {
+      out[it->second] = where + ": " + id + "; " + std::to_string(takers[id]) + " axes take it";
+    }
+  };
   for (const std::string& f : findings) {
     const std::size_t colon = f.find(": ");
     const std::string key = colon == std::string::npos ? f : f.substr(0, colon);
@@ -343,12 +352,7 @@ std::vector<std::string> locate(const Reader& r, const std::string& file,
           if (const auto fl = r.line_of.find(from); fl != r.line_of.end())
             at_line.append(":").append(std::to_string(fl->second));
           const std::string id = from + ": the built-in " + name + " (not given) " + reason;
-          const auto [it, fresh] = shared.emplace(id, out.size());
-          if (fresh) out.push_back(at_line + ": " + id + " (" + axis + ")");
-          if (++takers[id] > 1) {
-            out[it->second] =
-                at_line + ": " + id + "; " + std::to_string(takers[id]) + " axes take it";
-          }
+          say_once(at_line, id, at_line + ": " + id + " (" + axis + ")");
           continue;
         }
       }
@@ -359,11 +363,7 @@ std::vector<std::string> locate(const Reader& r, const std::string& file,
       continue;
     }
     const std::string id = at + ": " + reason;
-    const auto [it, fresh] = shared.emplace(id, out.size());
-    if (fresh) out.push_back(where + ": " + f + " (from " + at + ")");
-    if (++takers[id] > 1) {
-      out[it->second] = where + ": " + id + "; " + std::to_string(takers[id]) + " axes take it";
-    }
+    say_once(where, id, where + ": " + f + " (from " + at + ")");
   }
   return out;
 }
