@@ -249,6 +249,7 @@ int plc_main(int argc, char** argv) {
   double duration_s = 0.0;
   int rt_priority = 0;
   tgm::cli::ArgReader args(argc, argv, "tgm-plc");
+  args.repeatable("--refuse-ack");  // the lists add up
   while (args.more()) {
     std::string value;
     if (args.help_flag()) {

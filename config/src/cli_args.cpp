@@ -5,6 +5,7 @@
 
 #include <malloc.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstring>
 #include <exception>
@@ -63,6 +64,11 @@ bool ArgReader::flag(const char* name, std::string& value) {
   }
   // An empty value would read as the flag not given (its default), silently.
   if (value.empty()) usage_error(std::string(name) + " needs a value, not an empty string");
+  if (std::find(given_.begin(), given_.end(), name) == given_.end()) {
+    given_.emplace_back(name);
+  } else if (std::find(repeatable_.begin(), repeatable_.end(), name) == repeatable_.end()) {
+    usage_error(std::string(name) + " is given more than once; give it once");
+  }
   return true;
 }
 

@@ -122,6 +122,7 @@ int service_main(int argc, char** argv) {
   long long service_check_ms = 500;
   tgm::cli::ArgReader args(argc, argv, "tgm-service");
   bool no_realtime = false;
+  bool rt_priority_given = false;
   while (args.more()) {
     long long n = 0;
     if (args.help_flag()) {
@@ -139,7 +140,6 @@ int service_main(int argc, char** argv) {
       continue;
     }
     if (args.whole_flag("--cpu", 0, 1023, rt.cpu) ||
-        args.whole_flag("--rt-priority", 1, 99, rt.priority) ||
         args.whole_flag("--dds-priority", 0, 98, dds_priority) ||
         args.whole_flag("--service-check-ms", 0, 10000, service_check_ms) ||
         args.whole_flag("--setpoint-decimation", 1, 10000, port_options.setpoint_decimation) ||
@@ -147,7 +147,9 @@ int service_main(int argc, char** argv) {
                          [](double v) { return v > 0.0 && v <= 1e9; })) {
       continue;
     }
-    if (args.whole_flag("--chunk-budget", 1, 1'000'000, n)) {
+    if (args.whole_flag("--rt-priority", 1, 99, rt.priority)) {
+      rt_priority_given = true;
+    } else if (args.whole_flag("--chunk-budget", 1, 1'000'000, n)) {
       engine_options.max_segments_per_cycle = static_cast<std::size_t>(n);
     } else if (args.whole_flag("--state-period-ms", 1, 50, n)) {
       port_options.state_period = std::chrono::milliseconds(n);
@@ -207,6 +209,14 @@ int service_main(int argc, char** argv) {
   // machines stood still with it). It rereads nothing: SIGINT / SIGTERM stop it.
   ::signal(SIGHUP, SIG_IGN);
 
+  // Both set SCHED_FIFO priorities, which --no-realtime turns off: together they are a
+  // contradiction, not a priority to compare (a --dds-priority of 80 under --no-realtime used to
+  // be refused as "must be below --rt-priority", a check of values that were not used).
+  if (no_realtime && (rt_priority_given || dds_priority > 0)) {
+    return args.usage_error(std::string(rt_priority_given ? "--rt-priority" : "--dds-priority") +
+                            " sets a SCHED_FIFO priority, which --no-realtime turns off: give "
+                            "one or the other");
+  }
   if (dds_priority >= rt.priority)
     return args.usage_error("--dds-priority must be below --rt-priority");
   // A pin the kernel would refuse (a CPU the machine does not have, or one outside this

@@ -2227,6 +2227,23 @@ TEST(ServiceProcesses, ServiceStopsCleanlyOnSigtermAndRejectsBadFlags) {
                                 env.path("plc_endless.log")));
   EXPECT_EQ(plc_endless.wait(kHang), 2);
   EXPECT_NE(plc_endless.log().find("--duration must be"), std::string::npos) << plc_endless.log();
+  // Priorities with --no-realtime contradict it; a value given twice would lose one of them.
+  test::Child not_realtime;
+  ASSERT_TRUE(not_realtime.start({TGM_SERVICE_BIN, "--config", env.config(), "--no-realtime",
+                                  "--dds-priority", "90", "--duration", "5"},
+                                 env.path("not_realtime.log")));
+  EXPECT_EQ(not_realtime.wait(kHang), 2);
+  EXPECT_NE(not_realtime.log().find("--dds-priority sets a SCHED_FIFO priority, which "
+                                    "--no-realtime turns off"),
+            std::string::npos)
+      << not_realtime.log();
+  test::Child twice;
+  ASSERT_TRUE(twice.start({TGM_PLC_BIN, "--config", env.config(), "--ack-delay", "0.5",
+                           "--ack-delay", "0", "--duration", "5"},
+                          env.path("twice.log")));
+  EXPECT_EQ(twice.wait(kHang), 2);
+  EXPECT_NE(twice.log().find("tgm-plc: --ack-delay is given more than once"), std::string::npos)
+      << twice.log();
   // An empty value is not the flag left out: `--config=` used to run with the default config.
   test::Child empty_config;
   ASSERT_TRUE(empty_config.start({TGM_SERVICE_BIN, "--config="}, env.path("empty_config.log")));

@@ -93,6 +93,11 @@ TEST(CliArgs, EveryProblemIsNamedWithTheProgramAndAHintToHelp) {
        "prog sub: --domain must be 0..232, not '233'\n(see prog sub --help)\n"},
       {{"--domain"}, "prog sub: --domain needs a value\n(see prog sub --help)\n"},
       {{"--outfile", "x"}, "prog sub: unknown option '--outfile'\n(see prog sub --help)\n"},
+      // A second value would silently replace the first (either spelling, DDS overrides too).
+      {{"--out", "a.csv", "--out=b.csv"},
+       "prog sub: --out is given more than once; give it once\n(see prog sub --help)\n"},
+      {{"--domain", "3", "x.ngc", "--domain", "3"},
+       "prog sub: --domain is given more than once; give it once\n(see prog sub --help)\n"},
   };
   for (const Case& c : cases) {
     const Parsed p = parse(c.args);
@@ -128,6 +133,28 @@ TEST(CliArgs, OnlyTheFirstProblemIsPrintedAndReadingStops) {
   EXPECT_EQ(s.usage_error("--count must be 1..10, not ''"), 2);
   EXPECT_EQ(testing::internal::GetCapturedStderr(),
             "prog: --count needs a value\n(see prog --help)\n");
+}
+
+TEST(CliArgs, ARepeatableFlagMayBeGivenAgainAndOthersStayOnce) {
+  Argv a({"--refuse", "51", "--refuse=52", "--quiet", "--quiet", "--rate", "1", "--rate", "2"});
+  ArgReader r(a.argc(), a.argv(), "prog");
+  r.repeatable("--refuse");
+  std::vector<std::string> refused;
+  std::string rate;
+  bool quiet = false;
+  testing::internal::CaptureStderr();
+  while (r.more()) {
+    if (std::string v; r.flag("--refuse", v)) {
+      refused.push_back(v);
+    } else if (!r.flag("--rate", rate) && !r.boolean("--quiet", quiet)) {
+      r.fail();
+    }
+  }
+  EXPECT_EQ(testing::internal::GetCapturedStderr(),
+            "prog: --rate is given more than once; give it once\n(see prog --help)\n");
+  EXPECT_TRUE(r.failed());
+  EXPECT_EQ(refused, (std::vector<std::string>{"51", "52"}));
+  EXPECT_TRUE(quiet);  // a switch given twice loses nothing
 }
 
 // Numbers read by whole_flag / number_flag: the value lands only when all of it is a number

@@ -24,8 +24,13 @@ class ArgReader {
   //! Arguments are left and none was malformed.
   bool more() const { return i_ < argc_ && !failed_; }
   //! Consumes `name VALUE` or `name=VALUE`; true when the current argument was `name`. A
-  //! missing or empty value is reported (failed() becomes true, `value` is left empty).
+  //! missing or empty value is reported (failed() becomes true, `value` is left empty), and so
+  //! is a second `name` unless repeatable(name) was called: one of the two values would be lost
+  //! without a word (`--rel-speed 0.5 ... --rel-speed 2`).
   bool flag(const char* name, std::string& value);
+  //! Lets `name` be given more than once; the caller combines the values (tgm-plc's
+  //! --refuse-ack 51 --refuse-ack 52).
+  void repeatable(const char* name) { repeatable_.emplace_back(name); }
   //! Consumes a flag without a value; `name=...` is reported as a malformed flag.
   bool boolean(const char* name, bool& value);
   //! Consumes `name N` with N a whole number lo..hi into `out`; a bad value is reported as
@@ -80,6 +85,8 @@ class ArgReader {
   std::string program_;
   bool help_ = false;
   bool failed_ = false;
+  std::vector<std::string> given_;       // value flags read so far
+  std::vector<std::string> repeatable_;  // repeatable(): may be given more than once
 };
 
 //! Runs a binary's main body so that what escapes it (memory running out, a thread that cannot
