@@ -134,6 +134,12 @@ PlcScriptLoad read_script(std::string_view text, const std::string& path) {
       out.error = path + ": the script must be a list of steps, e.g. - {at_s: 3, command: 8}";
       return out;
     }
+    // As a step that does nothing (below): `[]` is a script left unwritten or cut, not a run.
+    if (root.size() == 0) {
+      out.error =
+          path + ": the script has no steps; give at least one, e.g. - {at_s: 3, command: 8}";
+      return out;
+    }
     for (const YAML::Node& n : root) {
       PlcScriptStep s;
       // An empty step ("-" alone) is marked where the next token starts: named at its `-`.

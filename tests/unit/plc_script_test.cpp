@@ -205,14 +205,19 @@ TEST(PlcScript, AStepMustNameAnInterpolatorThePlcServes) {
   EXPECT_EQ(plc_script_interpolator_problem(s, 3, 0), "");
 }
 
-TEST(PlcScript, AnEmptyScriptHasNoSteps) {
+TEST(PlcScript, AnEmptyScriptIsRefused) {
   // An empty file is a null document, not a list: said, since a script given on purpose that
-  // does nothing is a mistake more often than not.
+  // does nothing is a mistake more often than not. So is an empty list (it used to load and
+  // run as no script at all).
   EXPECT_EQ(parse_plc_script("", "s.yaml").error,
             "s.yaml: the script must be a list of steps, e.g. - {at_s: 3, command: 8}");
-  const PlcScriptLoad none = parse_plc_script("[]\n", "s.yaml");
-  EXPECT_TRUE(none.ok()) << none.error;
-  EXPECT_TRUE(none.steps.empty());
+  for (const char* text : {"[]\n", "# steps to come\n[ ]\n"}) {
+    const PlcScriptLoad none = parse_plc_script(text, "s.yaml");
+    EXPECT_EQ(none.error,
+              "s.yaml: the script has no steps; give at least one, e.g. - {at_s: 3, command: 8}")
+        << text;
+    EXPECT_TRUE(none.steps.empty());
+  }
 }
 
 TEST(PlcScript, OnlyTheStopsAndTheStageCommandsMayBeSent) {
