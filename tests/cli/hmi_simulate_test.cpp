@@ -443,6 +443,32 @@ TEST_F(HmiSimulate, LookAheadFileIsTheShiftBufferOfTheProgram) {
   EXPECT_EQ(field(tables[tables.size() - 2][0], "line"), "15");  // the last section: M51
 }
 
+// A continuous M-function is no section: its number and its other addresses are the AllParams
+// of the section after it (M1005 S3 Q7 before line 3), a normal M-function's are its own. Only
+// the M letter used to reach the table.
+TEST_F(HmiSimulate, AContinuousMsAddressesAreTheNextSectionsAllParams) {
+  const fs::path prog =
+      write("cont.ngc", "G91 G1 X1 F600\nM1005 S3 Q7\nG1 X1\nM51 S9\nG1 X1\nM2\n");
+  const fs::path la = dir_ / "cont.jsonl";
+  const ProcessResult r =
+      run("simulate " + prog.string() + " --config " + kConfig + " --lookahead " + la.string());
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  const auto shifts = lines(slurp(la));
+  ASSERT_FALSE(shifts.empty());
+  const std::string& first = shifts[0];
+  const auto entry_of_line = [&](const std::string& line) {
+    const std::size_t at = first.find("\"line\":" + line + ",");
+    EXPECT_NE(at, std::string::npos) << first;
+    return at == std::string::npos ? std::string() : first.substr(at, first.find("}}", at) - at);
+  };
+  EXPECT_TRUE(entry_of_line("1").ends_with("\"all_params\":{")) << entry_of_line("1");
+  EXPECT_TRUE(entry_of_line("3").ends_with("\"all_params\":{\"M\":1005,\"Q\":7,\"S\":3"))
+      << entry_of_line("3");
+  // M51's number is its MovementCode (2 / 51); its addresses stay its own.
+  EXPECT_TRUE(entry_of_line("4").ends_with("\"all_params\":{\"S\":9")) << entry_of_line("4");
+  EXPECT_TRUE(entry_of_line("5").ends_with("\"all_params\":{")) << entry_of_line("5");
+}
+
 // --stop-at: a normal stop at 2 s on a 100 mm line at F600 (10 s): the motion stands, is
 // restarted 1.5 s later and still ends at X100, 1.5 s plus the extra ramps later, without a
 // limit excess; the summary says how many stops were given.

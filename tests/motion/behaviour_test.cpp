@@ -645,10 +645,17 @@ TEST(LookAhead, EntriesShowTheNextSections) {
   ProgramBuilder b;
   MParams p = unset_params();
   p[static_cast<std::size_t>('S' - 'A')] = 1200.0;
+  p[static_cast<std::size_t>('T' - 'A')] = 4.0;
+  // M1005 S500 Q7 after M6: the line after it gets M1005's addresses, M6 keeps its own.
+  MParams c = unset_params();
+  c[static_cast<std::size_t>('M' - 'A')] = 1005.0;
+  c[static_cast<std::size_t>('S' - 'A')] = 500.0;
+  c[static_cast<std::size_t>('Q' - 'A')] = 7.0;
   b.line({10.0, 0.0, 0.0}, 3000.0)
       .m(1003, MKind::kContinuous)
       .arc(true, {10.0, 10.0, 0.0}, {10.0, 5.0}, 3000.0)
       .m(6, MKind::kNormal, &p)
+      .m(1005, MKind::kContinuous, &c)
       .line({0.0, 10.0, 0.0}, 3000.0)
       .end();
   ASSERT_TRUE(ip.load(b.program()).ok());
@@ -667,6 +674,13 @@ TEST(LookAhead, EntriesShowTheNextSections) {
   EXPECT_EQ(la[2].movement_code, 6);
   EXPECT_EQ(la[2].all_params[static_cast<std::size_t>('S' - 'A')], 1200.0);
   EXPECT_EQ(la[3].movement_code, 1);
+  // A continuous M's addresses come with its number (manual: AllParams holds all the addresses
+  // of the M line); only M used to be shown.
+  MParams after = unset_params();
+  after[static_cast<std::size_t>('M' - 'A')] = 1005.0;
+  after[static_cast<std::size_t>('S' - 'A')] = 500.0;
+  after[static_cast<std::size_t>('Q' - 'A')] = 7.0;
+  EXPECT_EQ(la[3].all_params, after);
   // M2 is not a section (manual: G0..G3 or M3..M999): fewer than 8 sections remain.
   for (std::size_t e = 4; e < la.size(); ++e) EXPECT_EQ(la[e].movement_type, 0) << e;
   EXPECT_TRUE(is_not_set(la[0].start_angle_deg));
@@ -691,7 +705,13 @@ TEST(LookAhead, UpdatedTableEqualsARebuildInEveryCycle) {
   double x = 0.0, y = 0.0;
   for (int i = 0; i < 3000; ++i) {
     const double r = u(rng);
-    if (r < 0.06) b.m(1001 + static_cast<int>(u(rng) * 50), MKind::kContinuous);
+    if (r < 0.03) b.m(1001 + static_cast<int>(u(rng) * 50), MKind::kContinuous);
+    if (r >= 0.03 && r < 0.06) {  // with addresses, which go to the next section's AllParams
+      MParams p = unset_params();
+      p[static_cast<std::size_t>('Q' - 'A')] = static_cast<double>(i);
+      if (r < 0.045) p[static_cast<std::size_t>('S' - 'A')] = 0.5 * static_cast<double>(i);
+      b.m(1001 + static_cast<int>(u(rng) * 50), MKind::kContinuous, &p);
+    }
     if (r > 0.03 && r < 0.05) b.m(1001 + static_cast<int>(u(rng) * 50), MKind::kContinuous);
     if (r > 0.05 && r < 0.06) b.dwell(0.0005);
     if (r > 0.06 && r < 0.065) {

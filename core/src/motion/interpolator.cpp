@@ -3285,12 +3285,11 @@ struct Interpolator::Impl {
 
   // ================= registers =================
 
-  void fill_entry(LookAheadEntry& e, std::uint64_t q, double pending_m, bool current) {
+  void fill_entry(LookAheadEntry& e, std::uint64_t q, std::uint64_t pending, bool current) {
     const Segment& sg = S(q);
     const Rec& r = R(q);
     e = LookAheadEntry{};
-    e.all_params = sg.type == SegmentType::kMFunction ? par[ring_index(q)] : unset_params();
-    if (!is_not_set(pending_m)) e.all_params[static_cast<std::size_t>('M' - 'A')] = pending_m;
+    e.all_params = section_params(q, pending);
     e.plane = static_cast<std::int32_t>(sg.plane);
     e.tool = sg.tool;
     e.line = sg.line;
@@ -3333,24 +3332,43 @@ struct Interpolator::Impl {
     return sg.type == SegmentType::kMFunction && sg.m_kind == MKind::kNormal;
   }
 
-  // A continuous M just behind `cur`, else kNotSet. A continuous M belongs to the section
-  // after it: when that section executes, the M record is just behind `cur`.
-  double pending_m_behind_cur() const {
+  // The continuous M record just behind `cur`, else kNoQ. A continuous M belongs to the
+  // section after it: when that section executes, the M record is just behind `cur`.
+  std::uint64_t pending_behind_cur() const {
     for (std::uint64_t b = cur; b > base && cur - b < 64 && tail - (b - 1) <= cap;) {
       --b;
       const Segment& sb = S(b);
-      if (sb.type == SegmentType::kMFunction && sb.m_kind == MKind::kContinuous) return sb.m;
+      if (sb.type == SegmentType::kMFunction && sb.m_kind == MKind::kContinuous) return b;
       if (is_section(sb) || sb.type == SegmentType::kMFunction || sb.type == SegmentType::kDwell) break;
     }
-    return kNotSet;
+    return kNoQ;
   }
 
-  // Fills entries e.. from record q on (pending_m: a continuous M seen before q).
-  void fill_lookahead_from(int e, std::uint64_t q, double pending_m) {
+  // AllParams of section q: the addresses of its own M line (a normal M), with those of the
+  // continuous M `pending` before it over them (kNoQ: none). The manual puts a continuous M's
+  // number in the M letter of the next section's AllParams; its other addresses (M1005 S3 Q7)
+  // come with it, since AllParams holds all the addresses of the M line, and a PLC that looks
+  // ahead to prepare the function needs them (they used to be dropped: only M was shown).
+  MParams section_params(std::uint64_t q, std::uint64_t pending) const {
+    MParams out = S(q).type == SegmentType::kMFunction ? par[ring_index(q)] : unset_params();
+    if (pending == kNoQ) return out;
+    const MParams& cont = par[ring_index(pending)];
+    for (std::size_t k = 0; k < out.size(); ++k) {
+      if (!is_not_set(cont[k])) out[k] = cont[k];
+    }
+    // The number itself, also for a record without parameters (intercode not made by the
+    // compiler, whose M lines carry their M letter).
+    out[static_cast<std::size_t>('M' - 'A')] = S(pending).m;
+    return out;
+  }
+
+  // Fills entries e.. from record q on (pending: the continuous M record seen before q, or
+  // kNoQ).
+  void fill_lookahead_from(int e, std::uint64_t q, std::uint64_t pending) {
     while (e < kLookAheadEntries && q < tail && q - cur < 256) {
       const Segment& sg = S(q);
       if (sg.type == SegmentType::kMFunction && sg.m_kind == MKind::kContinuous) {
-        pending_m = sg.m;
+        pending = q;
         ++q;
         continue;
       }
@@ -3359,9 +3377,9 @@ struct Interpolator::Impl {
         continue;
       }
       const auto ue = static_cast<std::size_t>(e);
-      fill_entry(reg.lookahead[ue], q, pending_m, e == 0 && on_path && q == cur);
+      fill_entry(reg.lookahead[ue], q, pending, e == 0 && on_path && q == cur);
       lookahead_q[ue] = q;
-      pending_m = kNotSet;
+      pending = kNoQ;
       ++e;
       ++q;
     }
@@ -3369,7 +3387,7 @@ struct Interpolator::Impl {
     for (; e < kLookAheadEntries; ++e) reg.lookahead[static_cast<std::size_t>(e)] = LookAheadEntry{};
   }
 
-  void fill_lookahead() { fill_lookahead_from(0, cur, pending_m_behind_cur()); }
+  void fill_lookahead() { fill_lookahead_from(0, cur, pending_behind_cur()); }
 
   // `cur` moved on from lookahead_cur or records were appended, and nothing else changed
   // (lookahead_dirty clear): the sections passed leave the table, the rest move up, new ones are
@@ -3394,26 +3412,23 @@ struct Interpolator::Impl {
       reg.lookahead[ud] = reg.lookahead[ue];
       lookahead_q[ud] = lookahead_q[ue];
     }
-    // The new first entry: its M address (as fill_lookahead_from would find it from `cur`) and,
-    // when it is the current arc, its tangent.
+    // The new first entry: its AllParams (as fill_lookahead_from would find the continuous M
+    // before it from `cur`) and, when it is the current arc, its tangent.
     const std::uint64_t q0 = lookahead_q[0];
     const Segment& s0 = S(q0);
-    double pending_m = pending_m_behind_cur();
+    std::uint64_t pending = pending_behind_cur();
     for (std::uint64_t q = cur; q < q0; ++q) {
       const Segment& sg = S(q);
-      if (sg.type == SegmentType::kMFunction && sg.m_kind == MKind::kContinuous) pending_m = sg.m;
+      if (sg.type == SegmentType::kMFunction && sg.m_kind == MKind::kContinuous) pending = q;
     }
     LookAheadEntry& e0 = reg.lookahead[0];
-    const auto m_slot = static_cast<std::size_t>('M' - 'A');
-    e0.all_params[m_slot] = !is_not_set(pending_m) ? pending_m
-                            : s0.type == SegmentType::kMFunction ? par[ring_index(q0)][m_slot]
-                                                                 : kNotSet;
+    e0.all_params = section_params(q0, pending);
     const Rec& r0 = R(q0);
     if (r0.kind == RecKind::kMotion && s0.type != SegmentType::kMFunction) {
       e0.tangent_deg =
           on_path && q0 == cur && r0.g.arc ? tangent_deg(r0.g, st.s) : start_tangent_deg(q0);
     }
-    fill_lookahead_from(kLookAheadEntries - p, last + 1, kNotSet);
+    fill_lookahead_from(kLookAheadEntries - p, last + 1, kNoQ);
   }
 
   // With record_cycle_trace: one trace entry of `count` cycles ending as the registers do now.
