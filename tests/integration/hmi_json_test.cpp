@@ -55,6 +55,7 @@ TEST(HmiJson, StatusWritesOneObjectPerLineWithEveryValueReadable) {
   s.act_part(7);
   s.act_line(12);
   s.m_func(51);
+  s.address_external_position(4096);
   s.run_flag(0x00020005);
   s.axis_letters("XYZ");
   s.service_instance(0xfedcba9876543210ULL);
@@ -90,9 +91,17 @@ TEST(HmiJson, StatusWritesOneObjectPerLineWithEveryValueReadable) {
   int code = -1;
   const auto lines =
       hmi_stdout(env, "status", {"status", "--json", "--config", env.config()}, code);
+  int text_code = -1;
+  const auto text_lines = hmi_stdout(env, "text", {"status", "--config", env.config()}, text_code);
   done = true;
   writer.join();
   ASSERT_EQ(code, 0) << test::read_text(env.path("status.err"));
+  ASSERT_EQ(text_code, 0) << test::read_text(env.path("text.err"));
+  ASSERT_GE(text_lines.size(), 2u);
+  EXPECT_NE(text_lines[1].find("Run_Flag 0x00020005 (section 5, speed 2), "
+                               "Address_External_Position 4096"),
+            std::string::npos)
+      << text_lines[1];
   ASSERT_EQ(lines.size(), 1u);
   const YAML::Node j = YAML::Load(lines[0]);
   ASSERT_TRUE(j.IsMap()) << lines[0];
@@ -107,6 +116,8 @@ TEST(HmiJson, StatusWritesOneObjectPerLineWithEveryValueReadable) {
   EXPECT_TRUE(j["program_stop"].as<bool>());
   EXPECT_FALSE(j["off_trajectory"].as<bool>());
   EXPECT_EQ(j["run_flag"].as<std::uint32_t>(), 0x00020005u);
+  // Every register of the manual's table is shown (this one was left out of both views).
+  EXPECT_EQ(j["address_external_position"].as<int>(), 4096);
   EXPECT_EQ(j["service_instance"].as<std::string>(), "fedcba9876543210");
   EXPECT_EQ(j["cycle_counter"].as<std::uint64_t>(), 123456789012ULL);
   EXPECT_EQ(j["orig_position_mm"]["X"].as<double>(), 12.5);

@@ -152,8 +152,11 @@ std::string format_state(const msg::InterpolatorState& s, const std::string& con
               s.status(), std::string(client::status_name(s.status())).c_str(),
               s.program_stop() ? ", at an M0 program stop: start continues" : "", s.number_axes(),
               s.buffer_size());
-  append_line(out, "  Command %d, Command_Status %d, Run_Flag 0x%08x (section %u, speed %u)",
-              s.command(), s.command_status(), rf, rf & 0xFFFFu, rf >> 16);
+  append_line(out,
+              "  Command %d, Command_Status %d, Run_Flag 0x%08x (section %u, speed %u), "
+              "Address_External_Position %d",
+              s.command(), s.command_status(), rf, rf & 0xFFFFu, rf >> 16,
+              s.address_external_position());
   append_line(out,
               "  Act_Part %d, line %d, Act_G_Func %d, Act_M_Func %d, M_Func %d, Last_Cont_M_Func "
               "%d, Tool_Number %d",
@@ -294,6 +297,7 @@ std::string format_state_json(const msg::InterpolatorState& s, const std::string
   }
   out += ']';
   json_field(out, "command_status", s.command_status());
+  json_field(out, "address_external_position", s.address_external_position());
   json_field(out, "run_flag", static_cast<std::uint32_t>(s.run_flag()));
   json_field(out, "act_part", s.act_part());
   json_field(out, "act_line", s.act_line());
