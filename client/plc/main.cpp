@@ -89,6 +89,9 @@ constexpr const char* kUsage =
     "config)\n"
     "  --script YAML        timed actions, a list of maps:\n"
     "                         - {at_s: 1.5, rel_speed: 0.5}       Rel_Speed write\n"
+    "                         - {at_s: 0, number_axes: 2}         Number_Axes write\n"
+    "                         - {at_s: 0, ratio: {X: 2000}}       Ratio writes [inc/mm]\n"
+    "                         - {at_s: 0, offset: {X: 500}}       Offset writes [inc]\n"
     "                         - {at_s: 3, command: 8}             Command: 4/5/8/9 stops, or\n"
     "                                                             1024 2048 2049 -1 -2 with\n"
     "                           parameters: [0, 2000, 1]          Command_Parameter[0..] (the\n"
@@ -328,6 +331,13 @@ int plc_main(int argc, char** argv) {
   for (const auto& s : script) {
     // A step for an interpolator this PLC does not serve (--interpolator N) was sent anyway.
     if (const std::string why = tgm::plc_script_interpolator_problem(s, count, only);
+        !why.empty()) {
+      std::fprintf(stderr, "tgm-plc: %s:%d: %s\n", script_path.c_str(), s.line, why.c_str());
+      return 2;
+    }
+    // An axis letter the interpolator does not have, more axes than it has.
+    if (const std::string why =
+            tgm::plc_script_axes_problem(s, config.machine.axis_letters(s.interpolator));
         !why.empty()) {
       std::fprintf(stderr, "tgm-plc: %s:%d: %s\n", script_path.c_str(), s.line, why.c_str());
       return 2;
@@ -974,6 +984,31 @@ int plc_main(int argc, char** argv) {
           queue_request(st.interpolator,
                         tgm::client::rel_speed_request(st.interpolator, *st.rel_speed), what, false,
                         1);
+        }
+        // Register writes by axis letter: the index is the letter's place in the config (the
+        // service's axes, as the basic parameters assume).
+        const std::string letters = config.machine.axis_letters(st.interpolator);
+        const auto axis_of = [&](char letter) { return static_cast<int>(letters.find(letter)); };
+        if (st.number_axes) {
+          std::snprintf(what, sizeof what, "script line %d: interpolator %d: Number_Axes = %d",
+                        st.line, st.interpolator, *st.number_axes);
+          queue_request(st.interpolator,
+                        tgm::client::number_axes_request(st.interpolator, *st.number_axes), what,
+                        false, 1);
+        }
+        for (const auto& [letter, ratio] : st.ratio) {
+          std::snprintf(what, sizeof what, "script line %d: interpolator %d: Ratio %c = %g inc/mm",
+                        st.line, st.interpolator, letter, ratio);
+          queue_request(st.interpolator,
+                        tgm::client::ratio_request(st.interpolator, axis_of(letter), ratio), what,
+                        false, 1);
+        }
+        for (const auto& [letter, offset] : st.offset_inc) {
+          std::snprintf(what, sizeof what, "script line %d: interpolator %d: Offset %c = %lld inc",
+                        st.line, st.interpolator, letter, static_cast<long long>(offset));
+          queue_request(st.interpolator,
+                        tgm::client::offset_request(st.interpolator, axis_of(letter), offset), what,
+                        false, 1);
         }
         if (st.command) {
           // The parameters up to the last one that is not 0, as the script gave them.

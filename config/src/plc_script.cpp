@@ -3,13 +3,16 @@
 #include <yaml-cpp/depthguard.h>
 #include <yaml-cpp/yaml.h>
 
+#include <cmath>
 #include <cstdint>
 #include <set>
 
 #include "tgm/cli_numbers.hpp"
 #include "tgm/command_stage.hpp"
+#include "tgm/config.hpp"
 #include "tgm/file_text.hpp"
 #include "tgm/intercode.hpp"
+#include "tgm/output_stage.hpp"
 #include "tgm/printable.hpp"
 #include "tgm/yaml_config.hpp"
 #include "yaml_document.hpp"
@@ -74,6 +77,38 @@ std::string read_step(const YAML::Node& n, PlcScriptStep& s) {
         }
         s.parameters[i++] = static_cast<std::int32_t>(k);
       }
+    } else if (key == "number_axes") {
+      if (!v.IsScalar() || !parse_integer(v.Scalar(), 1LL, kMaxAxes + 0LL, k)) {
+        return bad("a number of axes 1.." + std::to_string(kMaxAxes));
+      }
+      s.number_axes = static_cast<int>(k);
+    } else if (key == "ratio" || key == "offset") {
+      const bool ratio = key == "ratio";
+      const char* what = ratio ? "Ratio [inc/mm] by axis letter, e.g. {X: 2000}"
+                               : "Offset [inc] by axis letter, e.g. {X: 500, Z: -20}";
+      if (!v.IsMap() || v.size() == 0) return bad(std::string("a map of ") + what);
+      std::set<char> axes;
+      for (const auto& av : v) {
+        const std::string letter = av.first.IsScalar() ? av.first.Scalar() : "";
+        const std::string in = key + " of '" + letter + "'";
+        if (letter.size() != 1 || letter[0] < 'A' || letter[0] > 'Z') {
+          return key + " takes axis letters A..Z as keys, not '" + shown(av.first) + "'";
+        }
+        if (!axes.insert(letter[0]).second) return in + " is given twice";
+        const YAML::Node& a = av.second;
+        if (ratio) {
+          if (!a.IsScalar() || !parse_finite(a.Scalar(), x) || !(std::fabs(x) >= kMinRatio) ||
+              !(std::fabs(x) <= kMaxRatio)) {
+            return in + " must be inc/mm with |ratio| 1e-06..1e+09, not '" + shown(a) + "'";
+          }
+          s.ratio.emplace_back(letter[0], x);
+        } else {
+          if (!a.IsScalar() || !parse_integer(a.Scalar(), -kMaxOffsetInc, kMaxOffsetInc, k)) {
+            return in + " must be whole increments, |offset| <= 1e15, not '" + shown(a) + "'";
+          }
+          s.offset_inc.emplace_back(letter[0], k);
+        }
+      }
     } else if (key == "start") {
       const std::string t = v.IsScalar() ? v.Scalar() : "";
       if (t == "true" || t == "yes" || t == "on") {
@@ -92,8 +127,8 @@ std::string read_step(const YAML::Node& n, PlcScriptStep& s) {
         s.refuse_ack.push_back(static_cast<int>(k));
       }
     } else {
-      return "unknown key '" + key + "' (known: at_s, interpolator, rel_speed, command, " +
-             "parameters, start, refuse_ack)";
+      return "unknown key '" + key + "' (known: at_s, interpolator, rel_speed, number_axes, " +
+             "ratio, offset, command, parameters, start, refuse_ack)";
     }
   }
   if (seen.count("parameters") != 0 && !s.command)
@@ -119,6 +154,27 @@ std::string plc_script_interpolator_problem(const PlcScriptStep& step, int count
     return named + " is not served: tgm-plc runs with --interpolator " + std::to_string(only) +
            (step.interpolator == 0 ? " (a step without `interpolator: N` is for interpolator 0)"
                                    : "");
+  }
+  return {};
+}
+
+std::string plc_script_axes_problem(const PlcScriptStep& step, const std::string& letters) {
+  const std::string named = "interpolator " + std::to_string(step.interpolator);
+  const auto axes = static_cast<int>(letters.size());
+  if (step.number_axes && *step.number_axes > axes) {
+    return named + ": number_axes " + std::to_string(*step.number_axes) + " is more than its " +
+           std::to_string(axes) + " configured axes (" + letters + ")";
+  }
+  const auto unknown = [&](char letter, const char* key) -> std::string {
+    if (letters.find(letter) != std::string::npos) return {};
+    return named + ": " + key + " of '" + std::string(1, letter) + "': it has no such axis (" +
+           letters + ")";
+  };
+  for (const auto& [letter, value] : step.ratio) {
+    if (std::string why = unknown(letter, "ratio"); !why.empty()) return why;
+  }
+  for (const auto& [letter, value] : step.offset_inc) {
+    if (std::string why = unknown(letter, "offset"); !why.empty()) return why;
   }
   return {};
 }
@@ -155,9 +211,10 @@ PlcScriptLoad read_script(std::string_view text, const std::string& path) {
       }
       // A step that does nothing is a mistake (an action left out, `start: false`, an empty
       // refuse_ack list): said rather than run as a silent no-op.
-      if (!s.rel_speed && !s.command && !s.start && s.refuse_ack.empty()) {
-        out.error = at + "the step does nothing: give it rel_speed, command, start: true or " +
-                    "refuse_ack [M, ...]";
+      if (!s.rel_speed && !s.number_axes && s.ratio.empty() && s.offset_inc.empty() && !s.command &&
+          !s.start && s.refuse_ack.empty()) {
+        out.error = at + "the step does nothing: give it rel_speed, number_axes, ratio, offset, " +
+                    "command, start: true or refuse_ack [M, ...]";
         return out;
       }
       out.steps.push_back(std::move(s));

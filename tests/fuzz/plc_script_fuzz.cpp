@@ -41,7 +41,19 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     TGM_FUZZ_CHECK(!s.rel_speed || (*s.rel_speed >= 0.01 && *s.rel_speed <= 2.0), at + "rel_speed");
     TGM_FUZZ_CHECK(!s.command || tgm::plc_script_command(*s.command), at + "command");
     for (int m : s.refuse_ack) TGM_FUZZ_CHECK(m >= 1 && m <= 999, at + "refuse_ack");
-    TGM_FUZZ_CHECK(s.rel_speed || s.command || s.start || !s.refuse_ack.empty(),
+    TGM_FUZZ_CHECK(!s.number_axes || (*s.number_axes >= 1 && *s.number_axes <= tgm::kMaxAxes),
+                   at + "number_axes");
+    for (const auto& [letter, r] : s.ratio) {
+      TGM_FUZZ_CHECK(letter >= 'A' && letter <= 'Z' && std::fabs(r) >= 1e-6 && std::fabs(r) <= 1e9,
+                     at + "ratio");
+    }
+    for (const auto& [letter, o] : s.offset_inc) {
+      TGM_FUZZ_CHECK(letter >= 'A' && letter <= 'Z' && o >= -1'000'000'000'000'000 &&
+                         o <= 1'000'000'000'000'000,
+                     at + "offset");
+    }
+    TGM_FUZZ_CHECK(s.rel_speed || s.number_axes || !s.ratio.empty() || !s.offset_inc.empty() ||
+                       s.command || s.start || !s.refuse_ack.empty(),
                    at + "a step without an action");
   }
   const tgm::PlcScriptLoad again = tgm::parse_plc_script(text, path);

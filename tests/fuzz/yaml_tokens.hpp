@@ -143,6 +143,9 @@ inline std::vector<std::string> yaml_tokens() {
       "command: 8}",
       "rel_speed: 0.5}",
       "refuse_ack: [51]}",
+      "number_axes: 2}",
+      "offset: {X: 500}}",
+      "ratio: {Y: 2000}}",
   };
 }
 

@@ -2017,6 +2017,9 @@ TEST(ServiceProcesses, PlcScriptErrorsNameTheLineAndTheReason) {
       {"- {at_s: 1, command: -2, parameters: [20, 1000000], interpolator: 2}\n",
        ":1: interpolator 2: Command -2: Spline points (Command_Parameter[0]) must be 0 (off) or "
        "50..500, not 20"},
+      // An axis the interpolator does not have: said before anything is sent.
+      {"- {at_s: 1, offset: {X: 5, W: 1}}\n",
+       ":1: interpolator 0: offset of 'W': it has no such axis (XYZ)"},
       // A directory aborted the PLC (an uncaught exception from yaml-cpp).
       {"", ": is a directory, not a script file"},
   };
@@ -2055,7 +2058,9 @@ TEST(ServiceProcesses, PlcScriptStepsRunAtTheirTimesAndAreLoggedWithTheirLine) {
                            "- {at_s: 0.2, rel_speed: 0.45, interpolator: 2}\n"
                            "- {at_s: 0.4, refuse_ack: [51]}\n"
                            "- {at_s: 0.4, command: 8, interpolator: 1}\n"
-                           "- {at_s: 0.5, command: 1024, parameters: [1, 2500, 2]}\n";
+                           "- {at_s: 0.5, command: 1024, parameters: [1, 2500, 2]}\n"
+                           "- {at_s: 0.5, offset: {Z: -20, X: 500}, ratio: {Z: 4000}}\n"
+                           "- {at_s: 0.6, number_axes: 2, interpolator: 1}\n";
   test::Child plc;
   ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.config(), "--script", script,
                          "--no-basic-params", "--duration", "1.5"},
@@ -2067,7 +2072,11 @@ TEST(ServiceProcesses, PlcScriptStepsRunAtTheirTimesAndAreLoggedWithTheirLine) {
   for (const char* says : {"script line 2: interpolator 2: Rel_Speed = 0.45: accepted",
                            "script line 3: interpolator 0: from now on M51 is not acknowledged",
                            "script line 4: interpolator 1: Command 8: ",
-                           "script line 5: interpolator 0: Command 1024 [1, 2500, 2]: accepted"}) {
+                           "script line 5: interpolator 0: Command 1024 [1, 2500, 2]: accepted",
+                           "script line 6: interpolator 0: Ratio Z = 4000 inc/mm: accepted",
+                           "script line 6: interpolator 0: Offset Z = -20 inc: accepted",
+                           "script line 6: interpolator 0: Offset X = 500 inc: accepted",
+                           "script line 7: interpolator 1: Number_Axes = 2: accepted"}) {
     EXPECT_NE(log.find(says), std::string::npos) << says << "\n" << log;
     EXPECT_EQ(log.find(says), log.rfind(says)) << "run twice: " << says;
   }
@@ -2076,6 +2085,19 @@ TEST(ServiceProcesses, PlcScriptStepsRunAtTheirTimesAndAreLoggedWithTheirLine) {
   EXPECT_TRUE(hmi.wait_until(
       0, [](const msg::InterpolatorState& s) { return s.ratio()[1] == 1250.0; }, kHang))
       << hmi.state(0)->ratio()[1];
+  // The register writes reached their axes (by letter) and interpolator; PositionInc at the
+  // origin is the offset.
+  EXPECT_TRUE(hmi.wait_until(
+      0,
+      [](const msg::InterpolatorState& s) {
+        return s.offset()[0] == 500 && s.offset()[2] == -20 && s.ratio()[2] == 4000.0 &&
+               s.position_inc()[0] == 500 && s.position_inc()[2] == -20;
+      },
+      kHang));
+  EXPECT_EQ(hmi.state(0)->offset()[1], 0);
+  EXPECT_TRUE(hmi.wait_until(
+      1, [](const msg::InterpolatorState& s) { return s.number_axes() == 2; }, kHang));
+  EXPECT_EQ(hmi.state(0)->number_axes(), 3);
 }
 
 // tgm-plc refuses flags that could not do what they say, before it joins DDS: refusing to

@@ -56,6 +56,34 @@ TEST(PlcScript, EveryKindOfStepIsRead) {
             (std::array<std::int32_t, 12>{1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12}));
 }
 
+// The PLC's register writes (DESIGN section 1): Number_Axes, and Ratio and Offset by axis
+// letter, in the order given; whether the letters exist is a question of the interpolator.
+TEST(PlcScript, RegisterWritesByAxisLetter) {
+  const PlcScriptLoad load = parse_plc_script(
+      "- {at_s: 0, offset: {Z: -20, X: 1000000000000000}, ratio: {Y: 2000.5, X: -1e-6}}\n"
+      "- {at_s: 1, number_axes: 2, interpolator: 1}\n",
+      "s.yaml");
+  ASSERT_TRUE(load.ok()) << load.error;
+  ASSERT_EQ(load.steps.size(), 2u);
+  using Offsets = std::vector<std::pair<char, std::int64_t>>;
+  using Ratios = std::vector<std::pair<char, double>>;
+  EXPECT_EQ(load.steps[0].offset_inc, (Offsets{{'Z', -20}, {'X', 1'000'000'000'000'000}}));
+  EXPECT_EQ(load.steps[0].ratio, (Ratios{{'Y', 2000.5}, {'X', -1e-6}}));
+  EXPECT_FALSE(load.steps[0].number_axes);
+  EXPECT_EQ(load.steps[1].number_axes, 2);
+  EXPECT_TRUE(load.steps[1].offset_inc.empty() && load.steps[1].ratio.empty());
+  EXPECT_EQ(plc_script_axes_problem(load.steps[0], "XYZ"), "");
+  EXPECT_EQ(plc_script_axes_problem(load.steps[0], "XY"),
+            "interpolator 0: offset of 'Z': it has no such axis (XY)");
+  EXPECT_EQ(plc_script_axes_problem(load.steps[1], "XY"), "");
+  EXPECT_EQ(plc_script_axes_problem(load.steps[1], "X"),
+            "interpolator 1: number_axes 2 is more than its 1 configured axes (X)");
+  PlcScriptStep ratio_only;
+  ratio_only.ratio = {{'C', 1.0}};
+  EXPECT_EQ(plc_script_axes_problem(ratio_only, "XYZ"),
+            "interpolator 0: ratio of 'C': it has no such axis (XYZ)");
+}
+
 // A bad step is named by its line and the reason, and nothing of the script is kept: a script
 // is not run in part (the fuzz target found the steps before a bad one kept).
 TEST(PlcScript, AProblemNamesTheLineAndKeepsNoStep) {
@@ -68,7 +96,30 @@ TEST(PlcScript, AProblemNamesTheLineAndKeepsNoStep) {
       {"- {at_s: 1, command: 8}\n- 8\n", "s.yaml:2: a step must be a map"},
       // A step without an action did nothing, silently.
       {"- {at_s: 1, command: 8}\n- {at_s: 2}\n",
-       "s.yaml:2: the step does nothing: give it rel_speed, command, start: true or refuse_ack"},
+       "s.yaml:2: the step does nothing: give it rel_speed, number_axes, ratio, offset, command, "
+       "start: true or refuse_ack"},
+      // Register writes: whole axes, letters as keys, values in the registers' ranges.
+      {"- {at_s: 1, number_axes: 11}\n",
+       "s.yaml:1: number_axes must be a number of axes 1..10, not '11'"},
+      {"- {at_s: 1, number_axes: 1.5}\n", "s.yaml:1: number_axes must be a number of axes 1..10"},
+      {"- {at_s: 1, offset: 5}\n",
+       "s.yaml:1: offset must be a map of Offset [inc] by axis letter, e.g. {X: 500, Z: -20}, not "
+       "'5'"},
+      {"- {at_s: 1, offset: {}}\n", "s.yaml:1: offset must be a map of Offset [inc]"},
+      {"- {at_s: 1, offset: {x: 5}}\n",
+       "s.yaml:1: offset takes axis letters A..Z as keys, not 'x'"},
+      {"- {at_s: 1, offset: {XY: 5}}\n",
+       "s.yaml:1: offset takes axis letters A..Z as keys, not 'XY'"},
+      {"- {at_s: 1, offset: {X: 0.5}}\n",
+       "s.yaml:1: offset of 'X' must be whole increments, |offset| <= 1e15, not '0.5'"},
+      {"- {at_s: 1, offset: {X: 1000000000000001}}\n",
+       "s.yaml:1: offset of 'X' must be whole increments, |offset| <= 1e15, not "
+       "'1000000000000001'"},
+      {"- {at_s: 1, offset: {X: 1, X: 2}}\n", "s.yaml:1: offset of 'X' is given twice"},
+      {"- {at_s: 1, ratio: {X: 0}}\n",
+       "s.yaml:1: ratio of 'X' must be inc/mm with |ratio| 1e-06..1e+09, not '0'"},
+      {"- {at_s: 1, ratio: {X: 2e9}}\n", "s.yaml:1: ratio of 'X' must be inc/mm"},
+      {"- {at_s: 1, ratio: {X: nan}}\n", "s.yaml:1: ratio of 'X' must be inc/mm"},
       {"- {at_s: 2, start: false}\n", "s.yaml:1: the step does nothing"},
       {"- {at_s: 2, refuse_ack: []}\n", "s.yaml:1: the step does nothing"},
       {"- {}\n", "s.yaml:1: the step does nothing"},

@@ -416,6 +416,26 @@ msg::Request rel_speed_request(int interpolator, double rel_speed) {
   return r;
 }
 
+msg::Request number_axes_request(int interpolator, int number_axes) {
+  msg::Request r = make(interpolator, msg::REQUEST_KIND_WRITE_NUMBER_AXES);
+  r.value(number_axes);
+  return r;
+}
+
+msg::Request ratio_request(int interpolator, int axis, double ratio_inc_per_mm) {
+  msg::Request r = make(interpolator, msg::REQUEST_KIND_WRITE_RATIO);
+  r.axis(static_cast<std::uint16_t>(axis));
+  r.value(ratio_inc_per_mm);
+  return r;
+}
+
+msg::Request offset_request(int interpolator, int axis, std::int64_t offset_inc) {
+  msg::Request r = make(interpolator, msg::REQUEST_KIND_WRITE_OFFSET);
+  r.axis(static_cast<std::uint16_t>(axis));
+  r.value(static_cast<double>(offset_inc));  // exact: |offset| <= 1e15 < 2^53
+  return r;
+}
+
 Reply Client::start(int i) {
   return start(i, request_timeout_);
 }

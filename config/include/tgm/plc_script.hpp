@@ -8,6 +8,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 namespace tgm {
@@ -20,6 +21,12 @@ struct PlcScriptStep {
   std::optional<int> command;       //!< a Command (plc_script_command)
   //! Its Command_Parameter[0..11] (`parameters: [..]`, 32-bit integers); the rest are 0.
   std::array<std::int32_t, 12> parameters{};
+  std::optional<int> number_axes;  //!< Number_Axes write, 1..10 (`number_axes: 2`)
+  //! Ratio writes [inc/mm], |ratio| 1e-6..1e9, by axis letter (`ratio: {X: 2000}`), in the
+  //! order given.
+  std::vector<std::pair<char, double>> ratio;
+  //! Offset writes [inc], |offset| <= 1e15, by axis letter (`offset: {X: 500, Z: -20}`).
+  std::vector<std::pair<char, std::int64_t>> offset_inc;
   bool start = false;               //!< a start request as the PLC (the service refuses it)
   std::vector<int> refuse_ack;      //!< M numbers, 1..999999, no longer acknowledged
   int line = 0;                     //!< line of the step in the script (1-based)
@@ -41,6 +48,11 @@ bool plc_script_command(long long code);
 //! all (`only` < 0) or interpolator `only` alone (--interpolator); "" when it can. The reason
 //! goes after "PATH:LINE: ".
 std::string plc_script_interpolator_problem(const PlcScriptStep& step, int count, int only);
+
+//! Why the axis writes of `step` (ratio, offset, number_axes) cannot go to an interpolator whose
+//! axes are `letters` (the config's, in order); "" when they can. The reason goes after
+//! "PATH:LINE: ".
+std::string plc_script_axes_problem(const PlcScriptStep& step, const std::string& letters);
 
 //! Parses script text; `path` names it in messages.
 PlcScriptLoad parse_plc_script(std::string_view text, const std::string& path);

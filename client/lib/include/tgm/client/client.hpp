@@ -87,6 +87,11 @@ msg::Request start_request(int interpolator);
 msg::Request command_request(int interpolator, std::int32_t code,
                              std::span<const std::int32_t> params = {});
 msg::Request rel_speed_request(int interpolator, double rel_speed);
+//! The PLC's register writes (DESIGN section 1): Number_Axes, Ratio[axis] [inc/mm] and
+//! Offset[axis] [inc].
+msg::Request number_axes_request(int interpolator, int number_axes);
+msg::Request ratio_request(int interpolator, int axis, double ratio_inc_per_mm);
+msg::Request offset_request(int interpolator, int axis, std::int64_t offset_inc);
 
 //! One event sample as the event callback gets it.
 struct Event {
