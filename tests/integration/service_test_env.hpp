@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -64,10 +65,13 @@ class ServiceEnv {
   ServiceEnv& operator=(const ServiceEnv&) = delete;
 
   //! Starts tgm-service (no real-time scheduling: tests share the machine) with extra args and
-  //! extra environment ("NAME=value").
+  //! extra environment ("NAME=value"). A `--config` among the extra args replaces this
+  //! environment's (a flag may be given once).
   bool start_service(std::vector<std::string> extra = {},
                      const std::vector<std::string>& extra_env = {}) {
-    std::vector<std::string> args{TGM_SERVICE_BIN, "--config", config_, "--no-realtime", "--stats", stats_path()};
+    const bool own_config = std::find(extra.begin(), extra.end(), "--config") != extra.end();
+    std::vector<std::string> args{TGM_SERVICE_BIN, "--no-realtime", "--stats", stats_path()};
+    if (!own_config) args.insert(args.begin() + 1, {"--config", config_});
     args.insert(args.end(), extra.begin(), extra.end());
     return service.start(args, path("service.log"), extra_env);
   }
