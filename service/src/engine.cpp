@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <string>
 
+#include "tgm/smoothing.hpp"
+
 namespace tgm::service {
 
 namespace {
@@ -427,6 +429,37 @@ void Engine::cycle(CyclePort& port, const LatenessStats& lateness) {
     o.axis_letters.set(s.active_letters());
   }
   port.publish(snapshot_);
+}
+
+bool Engine::wind_down(CyclePort& port) {
+  const auto moving = [](const Slot& s) {
+    const Registers& r = s.ip.registers();
+    return r.act_speed != 0.0 ||
+           r.status == static_cast<std::int32_t>(InterpolatorStatus::kEmergencyRamp) ||
+           !s.ip.smoothing().settled();
+  };
+  if (!winding_down_) {
+    winding_down_ = true;
+    for (int i = 0; i < count(); ++i) {
+      Slot& s = ips_[static_cast<std::size_t>(i)];
+      const Registers& r = s.ip.registers();
+      // An underrun or an emergency ramp is a stop under way already: it runs on.
+      if (!moving(s) || r.status != static_cast<std::int32_t>(InterpolatorStatus::kRunning))
+        continue;
+      const RequestResult stop = s.ip.command(8);
+      if (stop.ok()) ++wound_down_;
+      char text[200];
+      std::snprintf(
+          text, sizeof text, "tgm-service is stopping: %s at %.0f mm/min on line %d%s%s",
+          stop.ok() ? "normal stop on the trajectory (Command 8)" : "could not stop the motion",
+          r.act_speed, r.act_line, stop.ok() ? "" : ": ", stop.ok() ? "" : stop.reason.c_str());
+      send_message(port, i, MessageOut::Severity::kWarning, text, r.act_line, s.program_id);
+    }
+  }
+  for (const Slot& s : ips_) {
+    if (moving(s)) return false;
+  }
+  return true;
 }
 
 }  // namespace tgm::service

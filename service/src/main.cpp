@@ -53,8 +53,9 @@ constexpr const char* kUsage =
     "\n"
     "Hosts the configured interpolators (1..3), runs their cycle every cycle_time_us with\n"
     "absolute deadlines and serves state, setpoints, requests and the program stream over DDS.\n"
-    "Stops cleanly on SIGINT / SIGTERM (exit code 0; SIGHUP, a closed terminal, is ignored); a\n"
-    "stop that takes longer than 5 s says what it waits for, and a second SIGINT / SIGTERM\n"
+    "Stops cleanly on SIGINT / SIGTERM (exit code 0; SIGHUP, a closed terminal, is ignored),\n"
+    "bringing axes that still move to rest on the trajectory first (normal stop, at most 30 s);\n"
+    "a stop that takes longer than 5 s says what it waits for, and a second SIGINT / SIGTERM\n"
     "while stopping exits at once (code 1).\n"
     "\n"
     "  --config YAML          machine config (default: $TGM_CONFIG, the installed or the\n"
@@ -89,6 +90,9 @@ constexpr const char* kUsage =
     "Under systemd (Type=notify: the installed lib/systemd/system/tgm-service.service) it says\n"
     "READY=1 once its cycle runs, its state in STATUS=, and STOPPING=1; with WatchdogSec= it\n"
     "pings the watchdog only while the cycle thread makes progress.\n";
+
+// How long a stop waits for moving axes to come to rest before the process exits regardless.
+constexpr auto kWindDownLimit = std::chrono::seconds(30);
 
 std::int64_t percentile(std::vector<std::int64_t> v, double q) {
   if (v.empty()) return 0;
@@ -385,6 +389,10 @@ int service_main(int argc, char** argv) {
       timespec slice{};
       slice.tv_nsec = 50'000'000;
       const int again = sigtimedwait(&signals, nullptr, &slice);
+      // A repeat within 250 ms is the same request delivered twice, not an operator insisting:
+      // `timeout` signals its child and then its own process group, the child among them.
+      if (again > 0 && std::chrono::steady_clock::now() - begin < std::chrono::milliseconds(250))
+        continue;
       if (again > 0) {
         std::fprintf(stderr, "tgm-service: %s while stopping (%s): exiting at once\n", strsignal(again),
                      stage.load(std::memory_order_acquire));
@@ -400,6 +408,31 @@ int service_main(int argc, char** argv) {
       }
     }
   });
+  // Axes in motion are brought to rest on the trajectory before the cycle ends (Engine::
+  // wind_down): leaving at once froze the drives' setpoints at full speed. Bounded, and a second
+  // signal still exits at once (the watchdog above).
+  stage.store("bringing the motion to rest (normal stop on the trajectory)",
+              std::memory_order_release);
+  loop.wind_down();
+  {
+    const auto give_up = std::chrono::steady_clock::now() + kWindDownLimit;
+    while (!loop.at_rest() && std::chrono::steady_clock::now() < give_up)
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    // The cycle runs on a little at rest, so that the states and setpoints of the standstill
+    // are published (the last cycles of the ramp were still in the port's queue).
+    if (engine->wound_down() > 0) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    if (engine->wound_down() > 0 || !loop.at_rest()) {
+      std::printf(
+          "tgm-service: %s\n",
+          loop.at_rest()
+              ? ("stopped the motion of " + std::to_string(engine->wound_down()) + " interpolator" +
+                 (engine->wound_down() == 1 ? "" : "s") + " on the trajectory before exiting")
+                    .c_str()
+              : "the motion did not come to rest within 30 s: exiting with it moving");
+      std::fflush(stdout);
+    }
+  }
+  stage.store("joining the cycle thread", std::memory_order_release);
   stop = true;
   cycle_thread.join();
   port->stop(&stage);

@@ -90,6 +90,10 @@ void RtLoop::run(const std::atomic<bool>& stop) {
     // The percentile walks the histogram: every 64 cycles is plenty for a published value.
     if ((stats_.cycles & 63u) == 1u) stats_.p999_ns = hist_.quantile_ns(0.999);
     engine_.cycle(port_, stats_);
+    if (wind_down_.load(std::memory_order_acquire) && !at_rest_.load(std::memory_order_relaxed) &&
+        engine_.wind_down(port_)) {
+      at_rest_.store(true, std::memory_order_release);
+    }
     heartbeat_.store(stats_.cycles, std::memory_order_relaxed);
     work_.record(now_ns() - woke);
     deadline += period_ns_;

@@ -4,6 +4,7 @@
 // Time bounds only guard against hangs; what is checked is counted in interpolation cycles.
 #include <fcntl.h>
 #include <gtest/gtest.h>
+#include <signal.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -2202,6 +2203,63 @@ TEST(ServiceProcesses, ReportFilesThatCannotBeWrittenFailTheStartOrTheExit) {
   for (const auto& e : std::filesystem::directory_iterator(env.path(""))) {
     EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << e.path();
   }
+}
+
+// SIGTERM while an axis runs at its programmed feed: the service brings it to rest on the
+// trajectory (the Command 8 ramp) before it exits, says so in its log and to the HMIs, and the
+// last setpoints the drives get are at rest. It used to leave the cycle at once, and the
+// setpoints froze at 6000 mm/min.
+TEST(ServiceProcesses, AStopSignalBringsMovingAxesToRestBeforeTheExit) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  client::ClientOptions options;
+  options.setpoints = true;
+  client::Client hmi(env.dds(), client::Role::kHmi, options);
+  std::vector<double> x;  // setpoint Position of X, cycle by cycle as they arrive
+  hmi.on_setpoints = [&](const msg::Setpoints& sp) {
+    if (sp.interpolator() == 0) x.push_back(sp.position()[0]);
+  };
+  ASSERT_TRUE(hmi.wait_for_state(0, kHang));
+  const Program program = compile("G90 G1 X300 F6000\nM2\n", env.config());
+  client::ProgramSender sender(hmi, program, 0, client::new_program_id());
+  const auto deadline = std::chrono::steady_clock::now() + kHang;
+  bool started = false, at_feed = false;
+  while (!at_feed && std::chrono::steady_clock::now() < deadline) {
+    hmi.poll(2ms);
+    ASSERT_TRUE(sender.pump()) << sender.error();
+    const auto* s = hmi.state(0);
+    if (!started && sender.all_confirmed()) started = hmi.start(0).accepted;
+    at_feed = started && s != nullptr && s->act_speed() == 6000.0;
+  }
+  ASSERT_TRUE(at_feed);
+  const double x_at_signal = hmi.state(0)->orig_position()[0];
+  ASSERT_LT(x_at_signal, 200.0);  // far from the end: the stop is the signal's
+  ASSERT_EQ(::kill(env.service.pid(), SIGTERM), 0);
+  int code = -1;
+  std::vector<std::string> messages;
+  while ((code = env.service.wait(0ms)) == -1 &&
+         std::chrono::steady_clock::now() < deadline + kHang) {
+    hmi.poll(5ms);
+    for (const auto& m : hmi.take_messages()) messages.emplace_back(m.text().c_str());
+  }
+  for (int i = 0; i < 40; ++i) hmi.poll(5ms);  // what is still on its way
+  for (const auto& m : hmi.take_messages()) messages.emplace_back(m.text().c_str());
+  EXPECT_EQ(code, 0) << env.service.log();
+  EXPECT_NE(env.service.log().find(
+                "stopped the motion of 1 interpolator on the trajectory before exiting"),
+            std::string::npos)
+      << env.service.log();
+  EXPECT_TRUE(std::any_of(messages.begin(), messages.end(), [](const std::string& m) {
+    return m.find(
+               "tgm-service is stopping: normal stop on the trajectory (Command 8) at 6000 "
+               "mm/min on line 1") != std::string::npos;
+  }));
+  // The last setpoints stand, past where the signal came and short of the program's end.
+  ASSERT_GE(x.size(), 3u);
+  EXPECT_EQ(x[x.size() - 1], x[x.size() - 2]);
+  EXPECT_EQ(x[x.size() - 2], x[x.size() - 3]);
+  EXPECT_GT(x.back(), x_at_signal);
+  EXPECT_LT(x.back(), 300.0);
 }
 
 TEST(ServiceProcesses, ServiceStopsCleanlyOnSigtermAndRejectsBadFlags) {

@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <map>
 #include <random>
@@ -805,6 +806,64 @@ TEST(Engine, RandomRequestsAreEachAnsweredOnceAndNeverBreakTheCycle) {
   EXPECT_GT(by_code[ReplyCode::kAccepted], 100);
   EXPECT_GT(by_code[ReplyCode::kWrongRole], 100);
   EXPECT_GT(by_code[ReplyCode::kOutOfRange] + by_code[ReplyCode::kBadRequest], 100);
+}
+
+// The shutdown of tgm-service (Engine::wind_down): an interpolator in motion gets a normal stop
+// on the trajectory and the HMIs a warning that says why; wind_down() is true once the motion
+// and its smoothing stand, and the program stays resumable (Status 4). Idle interpolators get
+// neither a stop nor a message.
+TEST(Engine, WindDownStopsTheMotionOnTheTrajectoryAndSaysWhy) {
+  Engine e = make_engine();
+  MockPort port;
+  const Program p = line_program(2000);  // 200 mm at F6000
+  port.add_chunk(0, p, 0, p.segments.size(), 7, true);
+  e.cycle(port, {});
+  port.add_request(Role::kHmi, RequestKind::kStart);
+  int cycles = 0;
+  do {
+    e.cycle(port, {});
+  } while (port.last.ip[0].reg.act_speed < 5990.0 && ++cycles < 100000);
+  ASSERT_GE(port.last.ip[0].reg.act_speed, 5990.0);  // at the feed (0.1 mm chords)
+  const double x_at_stop = port.last.ip[0].reg.orig_position[0];
+  char expected[160];
+  std::snprintf(expected, sizeof expected,
+                "tgm-service is stopping: normal stop on the trajectory (Command 8) at %.0f mm/min "
+                "on line %d",
+                port.last.ip[0].reg.act_speed, port.last.ip[0].reg.act_line);
+  const std::size_t messages_before = port.messages.size();
+  EXPECT_FALSE(e.wind_down(port));
+  EXPECT_EQ(e.wound_down(), 1);
+  ASSERT_EQ(port.messages.size(), messages_before + 1);
+  const MessageOut& m = port.messages.back();
+  EXPECT_EQ(m.interpolator, 0);
+  EXPECT_EQ(m.severity, MessageOut::Severity::kWarning);
+  EXPECT_EQ(m.program_id, 7u);
+  EXPECT_EQ(std::string(m.text.view()), expected);
+  cycles = 0;
+  bool rest = false;
+  while (!rest && ++cycles < 100000) {
+    e.cycle(port, {});
+    rest = e.wind_down(port);
+  }
+  ASSERT_TRUE(rest);
+  EXPECT_EQ(port.messages.size(), messages_before + 1);  // said once
+  EXPECT_EQ(e.wound_down(), 1);
+  const Registers& r = port.last.ip[0].reg;
+  EXPECT_EQ(r.act_speed, 0.0);
+  EXPECT_EQ(r.status, 4);  // on the trajectory: resumable
+  EXPECT_GT(r.orig_position[0], x_at_stop);
+  EXPECT_LT(r.orig_position[0], 200.0);
+  // Interpolators 1 and 2 stood idle throughout: nothing was sent for them.
+  for (const MessageOut& each : port.messages) EXPECT_EQ(each.interpolator, 0);
+}
+
+TEST(Engine, WindDownOfStandingInterpolatorsIsAtOnceAndSilent) {
+  Engine e = make_engine();
+  MockPort port;
+  e.cycle(port, {});
+  EXPECT_TRUE(e.wind_down(port));
+  EXPECT_EQ(e.wound_down(), 0);
+  EXPECT_TRUE(port.messages.empty());
 }
 
 }  // namespace

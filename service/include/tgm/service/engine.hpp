@@ -68,6 +68,15 @@ class Engine {
   //! One interpolation cycle. `lateness` goes into the snapshot unchanged.
   void cycle(CyclePort& port, const LatenessStats& lateness);
 
+  //! Shutdown (SIGINT / SIGTERM): call after each cycle() once the service is to stop. The
+  //! first call brings every interpolator still in motion to a normal stop on the trajectory
+  //! (Command 8) and tells the HMIs why; an emergency ramp already under way runs on. True once
+  //! every interpolator stands with its smoothing settled, so the last setpoints the drives
+  //! get are at rest (leaving the cycle at once froze them at full speed).
+  bool wind_down(CyclePort& port);
+  //! Interpolators wind_down() stopped (for the log).
+  int wound_down() const { return wound_down_; }
+
   int count() const { return static_cast<int>(ips_.size()); }
   const Interpolator& interpolator(int i) const { return ips_[static_cast<std::size_t>(i)].ip; }
   const EngineCounters& counters() const { return counters_; }
@@ -112,6 +121,8 @@ class Engine {
   EngineOptions opt_;
   EngineCounters counters_;
   std::uint64_t cycles_ = 0;
+  bool winding_down_ = false;  // wind_down() has sent its stops
+  int wound_down_ = 0;
   Snapshot snapshot_;
 };
 

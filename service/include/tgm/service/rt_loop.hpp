@@ -35,6 +35,10 @@ class RtLoop {
   RtLoop(Engine& engine, CyclePort& port, std::int64_t period_ns)
       : engine_(engine), port_(port), period_ns_(period_ns) {}
   void run(const std::atomic<bool>& stop);
+  //! Asks the running loop to bring the motion to rest (Engine::wind_down) before `stop`; any
+  //! thread may call it. at_rest() says when every interpolator stands.
+  void wind_down() { wind_down_.store(true, std::memory_order_release); }
+  bool at_rest() const { return at_rest_.load(std::memory_order_acquire); }
   //! Valid after run() returned.
   const LatenessHistogram& histogram() const { return hist_; }
   //! Time the engine's cycle() took (the work of a cycle, without the wake-up) [ns].
@@ -51,6 +55,8 @@ class RtLoop {
   LatenessHistogram work_;
   LatenessStats stats_;
   std::atomic<std::uint64_t> heartbeat_{0};
+  std::atomic<bool> wind_down_{false};
+  std::atomic<bool> at_rest_{false};
 };
 
 }  // namespace tgm::service
