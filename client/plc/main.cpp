@@ -139,8 +139,13 @@ using MParams = std::array<double, TGM_M_FUNCTION_PARAMETERS>;
 // The reply to the note (M_Func = 0) of a continuous M-function. The service refuses it with
 // WRONG_STATE when M_Func shows the next M-function already: that one is left to be handled,
 // which is what should happen, not an error.
+// A repeat whose first copy arrived is refused as acknowledged already: said as such.
 std::string note_reply(const tgm::client::Reply& r) {
-  if (r.code == tgm::msg::REPLY_CODE_WRONG_STATE) return "M_Func shows the next M-function already";
+  if (r.code == tgm::msg::REPLY_CODE_WRONG_STATE) {
+    if (r.reason.find("was acknowledged already") != std::string::npos)
+      return "acknowledged already (the first acknowledgement arrived)";
+    return "M_Func shows the next M-function already";
+  }
   return tgm::client::describe(r);
 }
 

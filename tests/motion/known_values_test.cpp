@@ -332,7 +332,7 @@ TEST(KnownValues, AdjacentMFunctionsReachMFuncOnePerCycle) {
 // the count of M-functions handed over (the register the PLC deduplicates by) tells them apart,
 // one per cycle, and the normal one after them is counted once although it shows for many cycles.
 // An acknowledgement that names an M-function by its count is refused once a later one was
-// handed over, also with the same number.
+// handed over, also with the same number, and once it was acknowledged already.
 TEST(KnownValues, EqualAdjacentMFunctionsAreCountedApart) {
   ProgramBuilder b;
   b.line({10.0, 0.0, 0.0}, 3000.0)
@@ -356,6 +356,14 @@ TEST(KnownValues, EqualAdjacentMFunctionsAreCountedApart) {
       EXPECT_EQ(ip->registers().m_func, 50);
       ASSERT_TRUE(ip->write_m_func(0, 50, 3).ok());
       EXPECT_EQ(ip->registers().m_func, 0);
+      // The same acknowledgement again (a second PLC, or a repeat whose first copy arrived)
+      // is refused; it used to be accepted, telling both writers they had released M50.
+      const RequestResult again = ip->write_m_func(0, 50, 3);
+      EXPECT_EQ(again.code, RequestCode::kWrongState);
+      EXPECT_EQ(again.reason,
+                "M-function #3 was acknowledged already (by another acknowledgement: a second "
+                "PLC, or a repeat whose first copy arrived)");
+      EXPECT_TRUE(ip->write_m_func(0).ok());  // one that names none clears whatever shows
     }
   });
   ASSERT_EQ(seen.size(), 3u);

@@ -200,7 +200,8 @@ class Interpolator {
   //! cannot release the normal one shown after it. 0 clears whatever M_Func shows. `count` != 0
   //! names it exactly, by its `m_func_count`: the write is refused (kWrongState) once a later
   //! M-function was handed over, also one with the same number (a delayed acknowledgement from
-  //! a program that was cleared meanwhile).
+  //! a program that was cleared meanwhile), and once that M-function was acknowledged already
+  //! (M_Func 0: a second PLC, or a repeat whose first copy arrived).
   RequestResult write_m_func(std::int32_t value, std::int32_t acknowledged = 0,
                              std::uint32_t count = 0);
   //! Rel_Speed 0.01..2; takes effect in the next calculation step through the jerk-limited ramp.

@@ -3908,6 +3908,14 @@ RequestResult Interpolator::write_m_func(std::int32_t value, std::int32_t acknow
                   "M-function #" + std::to_string(handed) + " was handed over since: the " +
                       "acknowledgement of #" + std::to_string(count) + " came after it");
   }
+  // The same M-function acknowledged again: a second PLC, or a repeat whose first copy did
+  // arrive. Accepting it told both writers they had released the motion.
+  if (count != 0 && shown == 0) {
+    return refuse(RequestCode::kWrongState,
+                  "M-function #" + std::to_string(count) +
+                      " was acknowledged already (by another acknowledgement: a second PLC, "
+                      "or a repeat whose first copy arrived)");
+  }
   impl_->reg.m_func = 0;
   return {};
 }
