@@ -919,6 +919,35 @@ TEST(ServiceProcesses, RunTakesCtrlCWhileItWaitsForTheEventTopic) {
   EXPECT_EQ(hmi.log().find("did not match within 5 s"), std::string::npos) << hmi.log();
 }
 
+// Ctrl-C while a program larger than the buffer streams: the run stops the interpolator and
+// says how much of the program stays loaded and what a start would do with it. It said only
+// "normal stop: accepted", and a start from another HMI ran the part and stood in underrun.
+TEST(ServiceProcesses, AnInterruptedRunSaysWhatOfItsProgramStaysLoaded) {
+  test::ConfigEdits edits;
+  edits.buffer_size0 = 1000;
+  ServiceEnv env(edits);
+  ASSERT_TRUE(env.start_service());
+  write_tenth_steps(env.path("long.ngc"), 5000, 600);  // 500 mm at 10 mm/s: minutes
+  test::Child run;
+  ASSERT_TRUE(run.start({TGM_HMI_BIN, "run", env.path("long.ngc"), "--config", env.config()},
+                        env.path("run.log")));
+  client::Client hmi(env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(hmi.wait_until(
+      0, [](const msg::InterpolatorState& s) { return s.status() == 1; }, kHang))
+      << run.log();
+  EXPECT_EQ(run.interrupt(kHang), 130) << run.log();
+  const std::string log = run.log();
+  const std::regex said(
+      "interrupted: normal stop: accepted; only ([0-9]+) of its 5001 records reached the buffer "
+      "and stay loaded: a start runs only those and then stands in underrun; `tgm-hmi command "
+      "clear` drops them");
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(log, m, said)) << log;
+  const int loaded = std::stoi(m[1].str());
+  EXPECT_GE(loaded, 1000);
+  EXPECT_LT(loaded, 5001);
+}
+
 // An interpolator the service does not host (its config has fewer) is named as such within a
 // second or so of the others' states: status, watch and run waited out their 10 s and asked
 // whether a service was running at all.
@@ -1679,7 +1708,9 @@ TEST(ServiceProcesses, HmiRunSaysWhenAnMFunctionWaitsLongAndTimesOut) {
   EXPECT_NE(log.find(" running waiting for M51\n"), std::string::npos) << log;
   EXPECT_NE(log.find(" running waiting for M51 for 5 s (is tgm-plc running?)\n"), std::string::npos)
       << log;
-  EXPECT_NE(log.find("tgm-hmi run: timeout after 7.0 s: normal stop: accepted"), std::string::npos)
+  EXPECT_NE(log.find("tgm-hmi run: timeout after 7.0 s: normal stop: accepted; the program "
+                     "stays loaded: `tgm-hmi command start` resumes it"),
+            std::string::npos)
       << log;
   client::Client hmi(env.dds(), client::Role::kHmi);
   ASSERT_TRUE(hmi.wait_until(

@@ -497,16 +497,30 @@ int run_run(int argc, char** argv) {
       if (err && m.program_id() == program_id) exit_code = 1;
     }
     if (exit_code != 0) break;
+    // What a run that ends here leaves on the interpolator: the program stays loaded, and a
+    // part of it when the stream was cut (a start from another HMI ran that part and stood in
+    // underrun for good, with nothing said).
+    const auto left_loaded = [&] {
+      if (sender.all_confirmed())
+        return std::string("the program stays loaded: `tgm-hmi command start` resumes it");
+      return "only " + std::to_string(sender.confirmed()) + " of its " +
+             std::to_string(sender.total()) +
+             " records reached the buffer and stay loaded: a start runs only those and then "
+             "stands in underrun; `tgm-hmi command clear` drops them";
+    };
     if (g_interrupted) {
       clear_progress();
-      std::printf("tgm-hmi run: interrupted: normal stop: %s\n", client::describe(hmi->stop(ip)).c_str());
+      const client::Reply stop = hmi->stop(ip);
+      std::printf("tgm-hmi run: interrupted: normal stop: %s; %s\n", client::describe(stop).c_str(),
+                  left_loaded().c_str());
       exit_code = 130;
       break;
     }
     if (timeout_s > 0 && Clock::now() - t0 > std::chrono::duration<double>(timeout_s)) {
       clear_progress();
-      std::printf("tgm-hmi run: timeout after %.1f s: normal stop: %s\n", timeout_s,
-                  client::describe(hmi->stop(ip)).c_str());
+      const client::Reply stop = hmi->stop(ip);
+      std::printf("tgm-hmi run: timeout after %.1f s: normal stop: %s; %s\n", timeout_s,
+                  client::describe(stop).c_str(), left_loaded().c_str());
       exit_code = 1;
       break;
     }
