@@ -896,6 +896,23 @@ TEST(ServiceProcesses, RunAndWatchTakeCtrlCWhileTheyWaitForTheService) {
   r = service.next_request(kHang);
   ASSERT_TRUE(r.has_value());
   EXPECT_EQ(r->kind(), msg::REQUEST_KIND_STOP);
+
+  // `command` waiting for its reply: the Ctrl-C is said with what is known of the request. It
+  // died of the signal without a word, which left open whether the start had been sent.
+  test::Child command;
+  ASSERT_TRUE(command.start(
+      {TGM_HMI_BIN, "command", "start", "--config", env.config(), "--timeout", "60"},
+      env.path("command.log")));
+  r = service.next_request(kHang);
+  ASSERT_TRUE(r.has_value()) << command.log();
+  EXPECT_EQ(r->kind(), msg::REQUEST_KIND_START);
+  EXPECT_EQ(command.interrupt(kHang), 130) << command.log();
+  EXPECT_NE(command.log().find("tgm-hmi command: start: interrupted after"), std::string::npos)
+      << command.log();
+  EXPECT_NE(command.log().find("the request was sent, whether tgm-service executed it is not "
+                               "known"),
+            std::string::npos)
+      << command.log();
 }
 
 // Ctrl-C is taken while `run` waits for its event reader to match the service's event writer

@@ -85,9 +85,13 @@ bool timeout_flag(Args& args, double& out) {
 }
 
 int connect(Args& args, Common& c) {
+  // Ctrl-C while waiting for the service or a reply is said (whether the request was sent),
+  // not a silent death with code 130.
+  install_signal_flag(Hangup::kInterrupt);
   client::ClientOptions options;
   options.request_timeout =
       std::chrono::milliseconds(static_cast<long long>(std::ceil(c.timeout_s * 1000.0)));
+  options.cancel = &g_interrupted;
   return make_client(args, c.overrides, c.config, c.client, options);
 }
 
@@ -98,7 +102,7 @@ int report(const char* command, const std::string& what, const client::Reply& r)
     return 0;
   }
   std::fprintf(stderr, "tgm-hmi %s: %s: %s\n", command, what.c_str(), client::describe(r).c_str());
-  return 1;
+  return r.cancelled ? 130 : 1;
 }
 
 // Flushes what watch wrote: -1 while standard output takes it, else the exit code: 0 when its
@@ -195,9 +199,9 @@ int run_watch(int argc, char** argv) {
   }
   if (args.help()) return 0;
   if (args.failed()) return 2;
-  // Before the client exists: a Ctrl-C once its readers match is taken as the end of the watch
-  // (the test that waits for that match to interrupt found it killed, with no word).
-  install_signal_flag(Hangup::kInterrupt);
+  // connect() takes the signals before the client exists: a Ctrl-C once its readers match is
+  // taken as the end of the watch (the test that waits for that match to interrupt found it
+  // killed, with no word).
   if (const int rc = connect(args, c); rc != 0) return rc;
   const int ip = args.interpolator();
   if (const int rc = wait_for_service(*c.client, *c.config, ip, "watch", wait_s); rc != 0)

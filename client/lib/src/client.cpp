@@ -69,6 +69,7 @@ std::string_view status_name(std::int32_t status) {
 Client::Client(const DdsConfig& config, Role role, const ClientOptions& options)
     : role_(role),
       request_timeout_(options.request_timeout),
+      default_cancel_(options.cancel),
       participant_(config, role == Role::kPlc ? "plc" : "hmi"),
       name_(participant_.name() + "-" + std::to_string(::getpid())),
       state_reader_(participant_.reader<msg::InterpolatorStatePubSubType>(dds::kStateTopic)),
@@ -268,6 +269,7 @@ std::vector<msg::Message> Client::take_messages() {
 
 Reply Client::request(msg::Request r, std::chrono::milliseconds timeout,
                       const std::atomic<bool>* cancel) {
+  if (cancel == nullptr) cancel = default_cancel_;
   Reply out;
   out.waited = timeout;
   const auto start = Clock::now();

@@ -110,6 +110,9 @@ struct ClientOptions {
   //! How long start(), stop(), clear(), command(), ack_m_func() and set_rel_speed() wait for
   //! their reply (matching included).
   std::chrono::milliseconds request_timeout = 3s;
+  //! A flag that ends the wait of every request made without a cancel flag of its own, as
+  //! request()'s `cancel` does (a command-line tool's Ctrl-C flag); null: none.
+  const std::atomic<bool>* cancel = nullptr;
 };
 
 class Client {
@@ -217,7 +220,7 @@ class Client {
   //! Sends `r` (request_id, role and client_name are filled in) and polls until its reply,
   //! at most `timeout` (ClientOptions::request_timeout when not given). A `cancel` flag that
   //! becomes true ends the wait within one poll (20 ms): the reply is then `timed_out` and
-  //! `cancelled`.
+  //! `cancelled`; without one, ClientOptions::cancel is the flag.
   Reply request(msg::Request r, std::chrono::milliseconds timeout,
                 const std::atomic<bool>* cancel = nullptr);
   Reply request(msg::Request r) { return request(std::move(r), request_timeout_); }
@@ -270,6 +273,7 @@ class Client {
   std::unique_ptr<EventListener> event_listener_;
   Role role_;
   std::chrono::milliseconds request_timeout_;
+  const std::atomic<bool>* default_cancel_ = nullptr;  // ClientOptions::cancel
   dds::Participant participant_;
   std::string name_;
   eprosima::fastdds::dds::DataReader& state_reader_;
