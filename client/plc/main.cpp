@@ -1078,6 +1078,19 @@ int plc_main(int argc, char** argv) {
     append_log(pending_log, stamp(), "malformed DDS samples were dropped (%llu failed reads)",
                static_cast<unsigned long long>(bad));
   }
+  // A normal M-function still waiting is left to the next PLC: said, since the interpolator
+  // stands until one acknowledges it (the log ended with "stopping" alone).
+  for (const Served& sv : served) {
+    const auto* st = plc->state(sv.number);
+    if (st == nullptr || st->m_func() == 0 || st->m_func() >= 1000) continue;
+    const auto section = tgm::run_flag_section(static_cast<std::uint32_t>(st->run_flag()));
+    if (section != tgm::SectionState::kWaitMFunc && section != tgm::SectionState::kWaitMFuncEnd)
+      continue;
+    append_log(pending_log, stamp(),
+               "interpolator %d: M%d (line %d) is left waiting, not acknowledged: the "
+               "interpolator stands until a PLC acknowledges it",
+               sv.number, st->m_func(), m_func_line_of(*st));
+  }
   append_log(pending_log, stamp(), "stopping");
   flush_log();
   int exit_code = 0;

@@ -529,6 +529,9 @@ TEST(ServiceProcesses, APlcScriptRefusalIsForTheInterpolatorItNames) {
   EXPECT_EQ(acks[1], 0) << log;
   EXPECT_EQ(test::count_of(log, "interpolator 0: M51 acknowledged after"), 1) << log;
   EXPECT_EQ(test::count_of(log, "interpolator 1: M51: refusing to acknowledge"), 1) << log;
+  // At the stop, the M-function left waiting is named (only 1's: 0's was acknowledged).
+  EXPECT_EQ(test::count_of(log, "is left waiting, not acknowledged"), 1) << log;
+  EXPECT_EQ(test::count_of(log, "interpolator 1: M51 (line 0) is left waiting"), 1) << log;
 }
 
 // With --interpolator N the PLC serves N alone: a script step for another interpolator was
