@@ -903,9 +903,9 @@ TEST(ServiceProcesses, RunAndWatchTakeCtrlCWhileTheyWaitForTheService) {
   // `command` waiting for its reply: the Ctrl-C is said with what is known of the request. It
   // died of the signal without a word, which left open whether the start had been sent.
   test::Child command;
-  ASSERT_TRUE(command.start(
-      {TGM_HMI_BIN, "command", "start", "--config", env.config(), "--timeout", "60"},
-      env.path("command.log")));
+  ASSERT_TRUE(
+      command.start({TGM_HMI_BIN, "command", "start", "--config", env.config(), "--timeout", "60"},
+                    env.path("command.log")));
   r = service.next_request(kHang);
   ASSERT_TRUE(r.has_value()) << command.log();
   EXPECT_EQ(r->kind(), msg::REQUEST_KIND_START);
