@@ -830,7 +830,25 @@ int plc_main(int argc, char** argv) {
                      sv.number, theirs.c_str(),
                      tgm::cli::ArgReader::config_file(config_path).path.c_str(), mine.c_str());
         }
-        if (basic && same_axes) {
+        // A PLC started while a program is under way (a restart after a crash) leaves the
+        // machine as it is: the service keeps the parameters set before, and new ones would
+        // change it mid-program (a gear ratio written while M51 waited made PositionInc jump by
+        // Position x dRatio, and the program went on).
+        const int status = s->status();
+        // Ready (4) counts once the loaded program has moved or paused at M0 (a stop in its
+        // middle); a program loaded and not yet started is not under way.
+        const bool under_way = status == 1 || status == 6 || status == 8 ||
+                               (status == 4 && s->buffered_segments() > 0 &&
+                                (s->move_distance() > 0.0 || s->program_stop()));
+        if (basic && same_axes && under_way) {
+          append_log(pending_log, stamp(),
+                     "interpolator %d: basic parameters not sent: a program is under way "
+                     "(status %d %s), and they would change the machine in its middle; the "
+                     "service keeps the ones set before (restart tgm-plc while it is idle to "
+                     "send them)",
+                     sv.number, status, std::string(tgm::client::status_name(status)).c_str());
+        }
+        if (basic && same_axes && !under_way) {
           const auto& sm = config.machine.smoothing;
           const std::int32_t spline[] = {sm.spline_points, static_cast<std::int32_t>(sm.spline_jerk_mm_s3)};
           const std::int32_t iir[] = {static_cast<std::int32_t>(sm.iir_p_e6), static_cast<std::int32_t>(sm.iir_q_e6),

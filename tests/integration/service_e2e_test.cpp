@@ -534,6 +534,39 @@ TEST(ServiceProcesses, APlcScriptRefusalIsForTheInterpolatorItNames) {
   EXPECT_EQ(test::count_of(log, "interpolator 1: M51 (line 0) is left waiting"), 1) << log;
 }
 
+// A tgm-plc (re)started while a program waits for M51 leaves the machine's parameters alone:
+// its gear ratios were accepted mid-program (the interpolator stands during the wait), and
+// PositionInc jumped by Position x dRatio with the program going on from there.
+TEST(ServiceProcesses, APlcStartedInTheMiddleOfAProgramSendsNoBasicParameters) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  std::ofstream(env.path("m.ngc")) << "G90 G1 X10 F3000\nM51\nG1 X20\nM2\n";
+  test::Child run;
+  ASSERT_TRUE(run.start({TGM_HMI_BIN, "run", env.path("m.ngc"), "--config", env.config()},
+                        env.path("run.log")));
+  client::Client hmi(env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(hmi.wait_until(
+      0, [](const msg::InterpolatorState& s) { return s.m_func() == 51; }, kHang))
+      << run.log();
+  std::string geared = test::read_text(env.config());
+  ASSERT_TRUE(test::replace_first(geared, "ratio_inc_per_mm: 1000", "ratio_inc_per_mm: 2000"));
+  std::ofstream(env.path("geared.yaml")) << geared;
+  test::Child plc;
+  ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.path("geared.yaml"), "--refuse-ack", "51",
+                         "--interpolator", "0", "--duration", "1.5"},
+                        env.path("plc.log")));
+  EXPECT_EQ(plc.wait(kHang), 0) << plc.log();
+  EXPECT_NE(plc.log().find("interpolator 0: basic parameters not sent: a program is under way "
+                           "(status 1 running)"),
+            std::string::npos)
+      << plc.log();
+  EXPECT_EQ(plc.log().find("Command 1024"), std::string::npos) << plc.log();
+  hmi.poll(100ms);
+  EXPECT_EQ(hmi.state(0)->ratio()[0], 1000.0);
+  EXPECT_EQ(hmi.state(0)->position_inc()[0], 10000);
+  EXPECT_EQ(run.interrupt(kHang), 130) << run.log();
+}
+
 // With --interpolator N the PLC serves N alone: a script step for another interpolator was
 // sent all the same. It is an error at the start, with the step's line.
 TEST(ServiceProcesses, APlcScriptStepForAnInterpolatorNotServedIsAnError) {
