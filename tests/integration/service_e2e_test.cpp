@@ -683,6 +683,10 @@ TEST(ServiceProcesses, HmiRunEndsWithAClearErrorWhenTheServiceRestarts) {
   EXPECT_NE(silent, std::string::npos) << watched;
   EXPECT_NE(watched.find("tgm-hmi watch: tgm-service is back", silent), std::string::npos)
       << watched;
+  // And that it is another service, whose registers start afresh (they switched silently).
+  EXPECT_NE(watched.find("tgm-hmi watch: tgm-service restarted (instance ", silent),
+            std::string::npos)
+      << watched;
 }
 
 // An emergency stop off the trajectory (Command 5) drops the program: the run ends with exit

@@ -217,10 +217,25 @@ int run_watch(int argc, char** argv) {
   // A service that stops publishing leaves its last state here: watch kept showing it, "running"
   // at a standstill, without a word.
   client::SilenceWatch silence(3s);
+  // The service instance followed: another one (a restarted service) is said once, since its
+  // registers start afresh (Status 0) and what ran before is gone; they switched silently.
+  std::uint64_t followed = c.client->service_followed(ip);
   for (long long k = 0; !g_interrupted && (count == 0 || k < count); ++k) {
     if (k > 0) {
       const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(interval);
       while (!g_interrupted && std::chrono::steady_clock::now() < until) c.client->poll(10ms);
+    }
+    std::string restarted;
+    if (const std::uint64_t now_followed = c.client->service_followed(ip);
+        now_followed != followed && now_followed != 0) {
+      char text[200];
+      std::snprintf(text, sizeof text,
+                    "tgm-service restarted (instance %016llx, was %016llx): its registers start "
+                    "afresh, and the program it ran before is gone",
+                    static_cast<unsigned long long>(now_followed),
+                    static_cast<unsigned long long>(followed));
+      restarted = text;
+      followed = now_followed;
     }
     const auto now = std::chrono::steady_clock::now();
     const auto change = silence.update(c.client->state_samples(ip), now);
@@ -230,6 +245,7 @@ int run_watch(int argc, char** argv) {
                   " s (stopped, or the network is down): the registers shown are the last received"
             : std::string();
     if (json) {
+      if (!restarted.empty()) std::fprintf(stderr, "tgm-hmi watch: %s\n", restarted.c_str());
       if (change == client::SilenceWatch::Change::kSilent) {
         std::fprintf(stderr, "tgm-hmi watch: %s\n", stale.c_str());
       } else if (change == client::SilenceWatch::Change::kBack) {
@@ -269,6 +285,14 @@ int run_watch(int argc, char** argv) {
           "shown: %016llx. Stop one of them.\n",
           static_cast<unsigned long long>(other), c.config->dds.domain_id,
           static_cast<unsigned long long>(c.client->service_followed(ip)));
+    }
+    if (!restarted.empty()) {
+      if (tty) {
+        recent.push_back(restarted);
+        if (recent.size() > kMessagesShown) recent.pop_front();
+      } else {
+        std::printf("%s\n", restarted.c_str());
+      }
     }
     for (const auto& m : c.client->take_messages()) {
       if (m.interpolator() != ip) continue;
