@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <mutex>
 #include <optional>
 #include <regex>
@@ -125,6 +126,18 @@ bool run_program(client::Client& hmi, const Program& program, std::string& why,
   }
   why = "timeout";
   return false;
+}
+
+// Starts `tgm-hmi run FILE` as `run` (log run.log) and waits, through `hmi`, until the state of
+// interpolator 0 satisfies `reached`.
+::testing::AssertionResult start_run_until(
+    ServiceEnv& env, const std::string& file, test::Child& run, client::Client& hmi,
+    const std::function<bool(const msg::InterpolatorState&)>& reached) {
+  if (!run.start({TGM_HMI_BIN, "run", file, "--config", env.config()}, env.path("run.log")))
+    return ::testing::AssertionFailure() << "tgm-hmi run did not start";
+  if (!hmi.wait_until(0, reached, kHang))
+    return ::testing::AssertionFailure() << "the state never came:\n" << run.log();
+  return ::testing::AssertionSuccess();
 }
 
 TEST(ServiceProcesses, ManualExampleEndToEndWithPlcAndHmiProcesses) {
@@ -542,12 +555,9 @@ TEST(ServiceProcesses, APlcStartedInTheMiddleOfAProgramSendsNoBasicParameters) {
   ASSERT_TRUE(env.start_service());
   std::ofstream(env.path("m.ngc")) << "G90 G1 X10 F3000\nM51\nG1 X20\nM2\n";
   test::Child run;
-  ASSERT_TRUE(run.start({TGM_HMI_BIN, "run", env.path("m.ngc"), "--config", env.config()},
-                        env.path("run.log")));
   client::Client hmi(env.dds(), client::Role::kHmi);
-  ASSERT_TRUE(hmi.wait_until(
-      0, [](const msg::InterpolatorState& s) { return s.m_func() == 51; }, kHang))
-      << run.log();
+  ASSERT_TRUE(start_run_until(env, env.path("m.ngc"), run, hmi,
+                              [](const msg::InterpolatorState& s) { return s.m_func() == 51; }));
   std::string geared = test::read_text(env.config());
   ASSERT_TRUE(test::replace_first(geared, "ratio_inc_per_mm: 1000", "ratio_inc_per_mm: 2000"));
   std::ofstream(env.path("geared.yaml")) << geared;
@@ -986,12 +996,9 @@ TEST(ServiceProcesses, AnInterruptedRunSaysWhatOfItsProgramStaysLoaded) {
   ASSERT_TRUE(env.start_service());
   write_tenth_steps(env.path("long.ngc"), 5000, 600);  // 500 mm at 10 mm/s: minutes
   test::Child run;
-  ASSERT_TRUE(run.start({TGM_HMI_BIN, "run", env.path("long.ngc"), "--config", env.config()},
-                        env.path("run.log")));
   client::Client hmi(env.dds(), client::Role::kHmi);
-  ASSERT_TRUE(hmi.wait_until(
-      0, [](const msg::InterpolatorState& s) { return s.status() == 1; }, kHang))
-      << run.log();
+  ASSERT_TRUE(start_run_until(env, env.path("long.ngc"), run, hmi,
+                              [](const msg::InterpolatorState& s) { return s.status() == 1; }));
   EXPECT_EQ(run.interrupt(kHang), 130) << run.log();
   const std::string log = run.log();
   const std::regex said(
