@@ -1008,7 +1008,7 @@ TEST(ServiceProcesses, AnInterruptedRunSaysWhatOfItsProgramStaysLoaded) {
   std::smatch m;
   ASSERT_TRUE(std::regex_search(log, m, said)) << log;
   const int loaded = std::stoi(m[1].str());
-  EXPECT_GE(loaded, 1000);
+  EXPECT_GE(loaded, 500);  // run starts the program once half the buffer is filled
   EXPECT_LT(loaded, 5001);
 }
 
