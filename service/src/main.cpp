@@ -418,19 +418,24 @@ int service_main(int argc, char** argv) {
     const auto give_up = std::chrono::steady_clock::now() + kWindDownLimit;
     while (!loop.at_rest() && std::chrono::steady_clock::now() < give_up)
       std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    // wound_down() is read only once at_rest() said the cycle thread is done with it (its
+    // acquire pairs with the loop's release); without the rest the count is not needed.
+    const bool rest = loop.at_rest();
+    const int brought = rest ? engine->wound_down() : 0;
     // The cycle runs on a little at rest, so that the states and setpoints of the standstill
     // are published (the last cycles of the ramp were still in the port's queue).
-    if (engine->wound_down() > 0) std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    if (engine->wound_down() > 0 || !loop.at_rest()) {
+    if (brought > 0) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    if (brought > 0) {
       std::printf(
-          "tgm-service: %s\n",
-          loop.at_rest()
-              ? ("stopped the motion of " + std::to_string(engine->wound_down()) + " interpolator" +
-                 (engine->wound_down() == 1 ? "" : "s") + " on the trajectory before exiting")
-                    .c_str()
-              : "the motion did not come to rest within 30 s: exiting with it moving");
-      std::fflush(stdout);
+          "tgm-service: stopped the motion of %d interpolator%s on the trajectory before "
+          "exiting\n",
+          brought, brought == 1 ? "" : "s");
+    } else if (!rest) {
+      std::printf(
+          "tgm-service: the motion did not come to rest within 30 s: exiting with it "
+          "moving\n");
     }
+    std::fflush(stdout);
   }
   stage.store("joining the cycle thread", std::memory_order_release);
   stop = true;
