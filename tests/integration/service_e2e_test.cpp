@@ -410,6 +410,32 @@ struct StandInService {
     ASSERT_TRUE(dds::wait_for_match(replies, 1, kHang)) << plc.log();
     ASSERT_TRUE(dds::wait_for_match(requests, 1, kHang)) << plc.log();
   }
+  // Interpolator i waits for the PLC's acknowledgement of normal M-function m (the first one
+  // handed over).
+  void wait_for_m(std::size_t i, std::int32_t m) {
+    st[i].status(1);
+    st[i].m_func(m);
+    st[i].m_func_count(1);
+    st[i].run_flag(
+        static_cast<std::int32_t>(static_cast<std::uint32_t>(SectionState::kWaitMFunc) |
+                                  (static_cast<std::uint32_t>(SpeedState::kNoMotion) << 16)));
+  }
+  // Publishes both states as one more service cycle of 20 (`cycle` counts them).
+  bool publish(std::uint64_t& cycle) {
+    for (auto& s : st) {
+      s.cycle_counter(cycle += 20);
+      if (!states.write(&s)) return false;
+    }
+    return true;
+  }
+  // Accepts acknowledgement `q` in `cycle`: the reply, and its interpolator's M-function
+  // released.
+  bool answer(const msg::Request& q, std::uint64_t cycle) {
+    msg::Reply r = accepted_reply(q, cycle);
+    st[q.interpolator()].m_func(0);
+    st[q.interpolator()].run_flag(static_cast<std::int32_t>(SectionState::kRun));
+    return replies.write(&r);
+  }
   dds::Participant fake;
   eprosima::fastdds::dds::DataWriter& states;
   eprosima::fastdds::dds::DataWriter& replies;
@@ -426,22 +452,12 @@ struct StandInService {
 TEST(ServiceProcesses, ThePlcAcknowledgesEachInterpolatorWithoutWaitingForAnothersReply) {
   ServiceEnv env;
   StandInService service(env);
-  auto& states = service.states;
-  auto& replies = service.replies;
-  auto& requests = service.requests;
-  auto& st = service.st;
   test::Child plc;
   ASSERT_NO_FATAL_FAILURE(service.start_plc(env, plc, {"--ack-delay", "0.1"}));
-  const auto waits =
-      static_cast<std::int32_t>(static_cast<std::uint32_t>(SectionState::kWaitMFunc) |
-                                (static_cast<std::uint32_t>(SpeedState::kNoMotion) << 16));
   for (std::uint16_t i = 0; i < 2; ++i) {
-    st[i].status(1);
-    st[i].act_part(2);
-    st[i].act_line(2);
-    st[i].m_func(51 + i);
-    st[i].m_func_count(1);
-    st[i].run_flag(waits);
+    service.wait_for_m(i, 51 + i);
+    service.st[i].act_part(2);
+    service.st[i].act_line(2);
   }
   std::vector<msg::Request> held;
   std::array<int, 2> acks{};
@@ -451,12 +467,9 @@ TEST(ServiceProcesses, ThePlcAcknowledgesEachInterpolatorWithoutWaitingForAnothe
   // Until both are answered, and half a second more for the PLC to see them released.
   auto until = deadline;
   while (std::chrono::steady_clock::now() < until) {
-    for (auto& s : st) {
-      s.cycle_counter(cycle += 20);
-      ASSERT_TRUE(states.write(&s));
-    }
+    ASSERT_TRUE(service.publish(cycle));
     msg::Request rq;
-    while (dds::take_next(requests, rq)) {
+    while (dds::take_next(service.requests, rq)) {
       ASSERT_EQ(rq.kind(), msg::REQUEST_KIND_WRITE_M_FUNC) << plc.log();
       ASSERT_LT(rq.interpolator(), 2) << plc.log();
       ++acks[rq.interpolator()];
@@ -464,10 +477,7 @@ TEST(ServiceProcesses, ThePlcAcknowledgesEachInterpolatorWithoutWaitingForAnothe
     }
     if (acks[0] > 0 && acks[1] > 0) {
       for (const msg::Request& q : held) {
-        msg::Reply r = accepted_reply(q, cycle);
-        ASSERT_TRUE(replies.write(&r));
-        st[q.interpolator()].m_func(0);
-        st[q.interpolator()].run_flag(static_cast<std::int32_t>(SectionState::kRun));
+        ASSERT_TRUE(service.answer(q, cycle));
         if (++answered == 2) until = std::chrono::steady_clock::now() + 500ms;
       }
       held.clear();
@@ -491,10 +501,6 @@ TEST(ServiceProcesses, ThePlcAcknowledgesEachInterpolatorWithoutWaitingForAnothe
 TEST(ServiceProcesses, APlcScriptRefusalIsForTheInterpolatorItNames) {
   ServiceEnv env;
   StandInService service(env);
-  auto& states = service.states;
-  auto& replies = service.replies;
-  auto& requests = service.requests;
-  auto& st = service.st;
   const std::string script = env.path("refuse.yaml");
   std::ofstream(script) << "- {at_s: 0, interpolator: 1, refuse_ack: [51]}\n";
   test::Child plc;
@@ -505,33 +511,19 @@ TEST(ServiceProcesses, APlcScriptRefusalIsForTheInterpolatorItNames) {
   std::array<int, 2> acks{};
   const auto deadline = std::chrono::steady_clock::now() + kHang;
   auto until = deadline;
-  const auto waits =
-      static_cast<std::int32_t>(static_cast<std::uint32_t>(SectionState::kWaitMFunc) |
-                                (static_cast<std::uint32_t>(SpeedState::kNoMotion) << 16));
   bool waiting = false;
   while (std::chrono::steady_clock::now() < until) {
     if (!waiting && plc.log().find(step_ran) != std::string::npos) {
       waiting = true;
-      for (auto& s : st) {
-        s.status(1);
-        s.m_func(51);
-        s.m_func_count(1);
-        s.run_flag(waits);
-      }
+      for (std::size_t i = 0; i < 2; ++i) service.wait_for_m(i, 51);
       until = std::min(deadline, std::chrono::steady_clock::now() + 1500ms);
     }
-    for (auto& s : st) {
-      s.cycle_counter(cycle += 20);
-      ASSERT_TRUE(states.write(&s));
-    }
+    ASSERT_TRUE(service.publish(cycle));
     msg::Request rq;
-    while (dds::take_next(requests, rq)) {
+    while (dds::take_next(service.requests, rq)) {
       ASSERT_LT(rq.interpolator(), 2) << plc.log();
       ++acks[rq.interpolator()];
-      msg::Reply r = accepted_reply(rq, cycle);
-      ASSERT_TRUE(replies.write(&r));
-      st[rq.interpolator()].m_func(0);
-      st[rq.interpolator()].run_flag(static_cast<std::int32_t>(SectionState::kRun));
+      ASSERT_TRUE(service.answer(rq, cycle));
     }
     std::this_thread::sleep_for(10ms);
   }
