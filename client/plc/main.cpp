@@ -837,8 +837,11 @@ int plc_main(int argc, char** argv) {
         const int status = s->status();
         // Ready (4) counts once the loaded program has moved or paused at M0 (a stop in its
         // middle); a program loaded and not yet started is not under way.
-        const bool under_way = status == 1 || status == 6 || status == 8 ||
-                               (status == 4 && s->buffered_segments() > 0 &&
+        using Status = tgm::InterpolatorStatus;
+        const auto is = [status](Status x) { return status == static_cast<int>(x); };
+        const bool under_way = is(Status::kRunning) || is(Status::kEmergencyRamp) ||
+                               is(Status::kUnderrun) ||
+                               (is(Status::kReady) && s->buffered_segments() > 0 &&
                                 (s->move_distance() > 0.0 || s->program_stop()));
         if (basic && same_axes && under_way) {
           append_log(pending_log, stamp(),
