@@ -197,10 +197,11 @@ bool compile_packed(const std::string& file, const FileView& input, const Compil
 void CompensationNote::print(const std::string& file) const {
   if (!seen_) return;
   std::fprintf(stderr,
-               "%s:%d: note: G%d (tool radius compensation, radius %g mm) is recorded in the "
-               "intercode but not applied: the tool centre follows the programmed contour\n",
+               "%s:%d: note: G%d (tool radius compensation) with radius 0 (tool T%d): the tool "
+               "centre follows the programmed contour; D<mm> on the G%d line, or a T with a "
+               "radius in the tool table, offsets it\n",
                file.c_str(), static_cast<int>(first_.line), static_cast<int>(first_.compensation),
-               first_.compensation_radius_mm);
+               static_cast<int>(first_.tool), static_cast<int>(first_.compensation));
 }
 
 namespace {

@@ -76,21 +76,22 @@ bool same_point(const std::array<double, kMaxAxes>& a, const std::array<double, 
 //! if it is not intercode).
 bool is_intercode(const std::string& file, std::string_view bytes);
 
-//! Tool radius compensation (G41/G42) is recorded in the intercode, but no part of tgm offsets
-//! the path yet: the tool centre follows the programmed contour. A program that moves with it on
-//! gets one note naming the first such record, so the user is not misled (compile, simulate,
-//! run).
+//! G41/G42 at radius 0 (no D on the line and tool T0, or a table radius of 0) leaves the tool
+//! centre on the programmed contour: a program that moves so gets one note naming the first
+//! such record, so the user who asked for compensation is not misled (compile, simulate, run).
 class CompensationNote {
  public:
   void observe(const Segment& s) {
-    if (!seen_ && s.compensation != Compensation::kOff && s.is_motion()) {
+    if (!seen_ && s.compensation != Compensation::kOff && s.compensation_radius_mm == 0.0 &&
+        s.is_motion()) {
       seen_ = true;
       first_ = s;
     }
   }
-  //! A record that moves with compensation on was observed (the ones after it do not matter).
+  //! A record that moves with compensation on at radius 0 was observed (the ones after it do
+  //! not matter): the operator asked for G41/G42 and the tool path is the programmed one.
   bool seen() const { return seen_; }
-  //! Prints the note to standard error (nothing when no motion ran with compensation on).
+  //! Prints the note to standard error (nothing when no such motion was observed).
   void print(const std::string& file) const;
 
  private:

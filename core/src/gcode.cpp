@@ -19,6 +19,7 @@
 #include <cstring>
 #include <unordered_map>
 
+#include "cutter_compensation.hpp"
 #include "tgm/intercode_io.hpp"
 
 namespace tgm {
@@ -159,7 +160,15 @@ class Compiler {
 
   // Helpers of pass 2.
   bool emit_check(const Block& b);
+  // Records go through tool radius compensation while it is on or still holds records.
   void emit(const Segment& s) {
+    if (s.compensation_radius_mm > 0 || !comp_stage_.idle()) {
+      comp_stage_.push(s, pos_);
+    } else {
+      out(s);
+    }
+  }
+  void out(const Segment& s) {
     ++emitted_;
     if (sink_) {
       (*sink_)(s);
@@ -216,6 +225,9 @@ class Compiler {
   double feed_ = 0.0;           //!< modal F, 0 when none is active
   double default_feed_ = 0.0;   //!< M99 / config
   int tool_ = 0;
+  detail::CutterCompensation comp_stage_{
+      opt_.axis_letters, [this](const Segment& s) { out(s); },
+      [this](int line, std::string reason) { error(line, 1, std::move(reason)); }};
   bool ended_ = false;
   bool too_big_ = false;
   std::uint64_t executed_ = 0;
@@ -796,7 +808,16 @@ std::size_t Compiler::execute_block(std::size_t index, bool relex) {
   auto word = [&](char L) { return by_letter[L - 'A']; };
 
   // Modal settings first, so that "G17 G90 G2 ..." works on one line.
-  if (g_plane >= 0) plane_ = static_cast<Plane>(g_plane);
+  if (g_plane >= 0) {
+    const auto plane = static_cast<Plane>(g_plane);
+    if (plane != plane_ && comp_ != Compensation::kOff && comp_radius_ > 0 && g_comp != 40) {
+      error(b.line, 1,
+            "G" + std::to_string(g_plane) +
+                ": the plane cannot change while tool radius compensation is on (G40 first)");
+    } else {
+      plane_ = plane;
+    }
+  }
   if (g_dist >= 0) incremental_ = g_dist == 91;
   if (g_nonmodal == 53) shift_.fill(0.0);
 
@@ -888,10 +909,16 @@ std::size_t Compiler::execute_block(std::size_t index, bool relex) {
       if (const Word* d = word('D')) {
         error(b.line, d->column, "D (compensation radius) belongs to G41/G42, not G40");
       }
+    } else if (comp_ != Compensation::kOff) {
+      error(b.line, 1,
+            "G" + std::to_string(g_comp) +
+                ": tool radius compensation is on already; cancel it with G40 first");
     } else {
       double radius = -1.0;
       if (const Word* d = word('D')) {
         radius = d->value;
+      } else if (tool_ == 0) {
+        radius = 0.0;  // T0: no tool in the spindle, the path is the programmed one
       } else {
         for (const ToolConfig& t : opt_.tools) {
           if (t.number == tool_) radius = t.radius_mm;
@@ -1236,6 +1263,7 @@ CompileResult Compiler::run() {
   }
   lex();  // executes the program as far as it runs straight down
   execute();
+  comp_stage_.finish();
 
   std::stable_sort(errors_.begin(), errors_.end(), [](const Diagnostic& a, const Diagnostic& b) {
     return a.line != b.line ? a.line < b.line : a.column < b.column;

@@ -52,43 +52,72 @@ TEST_F(HmiCompile, ExampleProgramWritesIntercodeEqualToTheInProcessEncoding) {
   EXPECT_EQ(temporaries(dir_), 0) << "a temporary file was left";
 }
 
-// G41/G42 are recorded, not applied: compile, --dump and simulate say so once, naming the first
-// record that moves with compensation on and its radius (D on the line, else the tool table);
-// a program without it gets no note.
-TEST_F(HmiCompile, CompensationThatIsNotAppliedIsNotedOnceWithItsLineAndRadius) {
-  const std::string note = "note: G42 (tool radius compensation, radius 3 mm) is recorded";
+// G41/G42 offset the path by the radius of D, else of the active tool's table entry; with no
+// tool (T0, the default config's initial tool) and no D the radius is 0: compile, --dump and
+// simulate say so once, naming the first record that moves so; a program with a radius gets
+// no note.
+TEST_F(HmiCompile, CompensationIsAppliedAndRadiusZeroIsNotedOnce) {
+  const std::string note =
+      "note: G42 (tool radius compensation) with radius 0 (tool T0): the tool centre follows the "
+      "programmed contour; D<mm> on the G42 line, or a T with a radius in the tool table, "
+      "offsets it";
   const ProcessResult ex =
       run("compile " + std::string(test::kManualExample) + " --config " + kConfig);
   ASSERT_EQ(ex.exit_code, 0) << ex.err;
   EXPECT_NE(ex.err.find(std::string("manual_example.ngc:4: ") + note), std::string::npos) << ex.err;
   EXPECT_EQ(ex.err.find("note:"), ex.err.rfind("note:")) << ex.err;
 
-  const fs::path left =
-      write("left.ngc", "G90 G1 X1 F600\nG41 D2.5\nM51\nG1 X5\nG1 Y5\nG40\nG1 X0\nM2\n");
+  const fs::path zero =
+      write("zero.ngc", "G90 G1 X1 F600\nG41\nM51\nG1 X5\nG1 Y5\nG40\nG1 X0\nM2\n");
   // From its intercode too (the records are seen as the load checks them).
-  const fs::path tgmi = dir_ / "left.tgmi";
-  ASSERT_EQ(run("compile " + left.string() + " --config " + kConfig + " --out " + tgmi.string())
+  const fs::path tgmi = dir_ / "zero.tgmi";
+  ASSERT_EQ(run("compile " + zero.string() + " --config " + kConfig + " --out " + tgmi.string())
                 .exit_code,
             0);
-  for (const fs::path& prog : {left, tgmi}) {
+  for (const fs::path& prog : {zero, tgmi}) {
     for (const char* cmd : {"compile ", "simulate "}) {
       const ProcessResult r = run(cmd + prog.string() + " --config " + kConfig);
       ASSERT_EQ(r.exit_code, 0) << cmd << r.err;
       EXPECT_NE(r.err.find(prog.filename().string() +
-                           ":4: note: G41 (tool radius compensation, radius 2.5 mm)"),
+                           ":4: note: G41 (tool radius compensation) with radius 0 (tool T0)"),
                 std::string::npos)
           << cmd << r.err;
     }
   }
+
+  // D 2.5 on the left: the entry from X1 ends where the offset lines of X5 and Y5 meet
+  // (concave corner), the rise runs at X2.5, G40's move leads back to the contour.
+  const fs::path left =
+      write("left.ngc", "G90 G1 X1 F600\nG41 D2.5\nM51\nG1 X5\nG1 Y5\nG40\nG1 X0\nM2\n");
   const ProcessResult dump =
       run("compile " + left.string() + " --config " + kConfig + " --dump text");
   ASSERT_EQ(dump.exit_code, 0) << dump.err;
-  EXPECT_NE(dump.err.find("left.ngc:4: note: G41"), std::string::npos) << dump.err;
+  EXPECT_EQ(dump.err.find("note:"), std::string::npos) << dump.err;
+  EXPECT_NE(dump.out.find("4  G1  X2.5000 Y2.5000 Z0.0000  F600\n"), std::string::npos) << dump.out;
+  EXPECT_NE(dump.out.find("5  G1  X2.5000 Y5.0000 Z0.0000  F600\n"), std::string::npos) << dump.out;
+  EXPECT_NE(dump.out.find("7  G1  X0.0000 Y5.0000 Z0.0000  F600\n"), std::string::npos) << dump.out;
+  // T3's radius from the default tool table (1.5 mm), on the right: a convex corner gets an
+  // arc around it.
+  const fs::path tool =
+      write("tool.ngc", "G90 G1 X-10 F600\nT3 G42\nG1 X0\nG1 Y10\nG40\nG0 X20 Y20\nM2\n");
+  const ProcessResult td =
+      run("compile " + tool.string() + " --config " + kConfig + " --dump text");
+  ASSERT_EQ(td.exit_code, 0) << td.err;
+  EXPECT_NE(td.out.find("3  G1  X0.0000 Y-1.5000 Z0.0000  F600\n"), std::string::npos) << td.out;
+  EXPECT_NE(td.out.find("4  G3  X1.5000 Y0.0000 Z0.0000  centre(0.0000, 0.0000) R1.5000"),
+            std::string::npos)
+      << td.out;
+  EXPECT_NE(td.out.find("4  G1  X1.5000 Y10.0000 Z0.0000  F600\n"), std::string::npos) << td.out;
 
-  const fs::path plain = write("plain.ngc", "G90 G1 X1 F600\nG41 D2\nG40\nG1 X5\nM2\n");
-  const ProcessResult p = run("compile " + plain.string() + " --config " + kConfig);
-  ASSERT_EQ(p.exit_code, 0) << p.err;
-  EXPECT_EQ(p.err.find("note:"), std::string::npos) << p.err;  // no motion ran with it on
+  // A concave corner the tool cannot reach is an error at its line, and nothing is written.
+  const fs::path gouge =
+      write("gouge.ngc", "G90 G1 X-5 F600\nG41 D2\nG1 X10\nG1 Y1\nG1 X20\nG40\nG0 X30\nM2\n");
+  const ProcessResult g = run("compile " + gouge.string() + " --config " + kConfig);
+  EXPECT_EQ(g.exit_code, 2) << g.err;
+  EXPECT_NE(g.err.find("gouge.ngc:4:1: error: tool radius compensation: the tool (radius 2.0000 "
+                       "mm) cannot reach the concave corner at line 3's end"),
+            std::string::npos)
+      << g.err;
 }
 
 TEST_F(HmiCompile, LongProgramStreamsInPiecesAndDecodes) {
@@ -281,8 +310,9 @@ TEST_F(HmiCompile, IntercodeGivenAsTheProgramIsReadAsIntercode) {
   const std::string bytes = slurp(tgmi);
   const fs::path renamed = write("ex.bin", bytes);
   const std::string note =
-      ":4: note: G42 (tool radius compensation, radius 3 mm) is recorded in the intercode but "
-      "not applied: the tool centre follows the programmed contour\n";
+      ":4: note: G42 (tool radius compensation) with radius 0 (tool T0): the tool centre "
+      "follows the programmed contour; D<mm> on the G42 line, or a T with a radius in the tool "
+      "table, offsets it\n";
   r = run("compile " + renamed.string() + " --config " + kConfig);
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(r.err, renamed.string() +

@@ -155,8 +155,9 @@ TEST(ServiceProcesses, ManualExampleEndToEndWithPlcAndHmiProcesses) {
   EXPECT_EQ(env.service.interrupt(), 0) << env.service.log();
   const std::string out = hmi.log();
   EXPECT_NE(out.find("done: 13 records"), std::string::npos) << out;
-  // G42 is recorded, not applied: the operator is told so before the program runs.
-  EXPECT_NE(out.find("manual_example.ngc:4: note: G42 (tool radius compensation, radius 3 mm)"),
+  // G42 with no tool (T0) and no D compensates by nothing: the operator is told so before the
+  // program runs.
+  EXPECT_NE(out.find("manual_example.ngc:4: note: G42 (tool radius compensation) with radius 0"),
             std::string::npos)
       << out;
   // Counted from the event topic (a wait acknowledged at once can be shorter than the state's

@@ -74,7 +74,9 @@ TEST(GcodeExample, CompilesWithTheDefaultG91Start) {
   EXPECT_EQ(m51.m_kind, MKind::kNormal);
   EXPECT_EQ(m51.line, 3);
   EXPECT_EQ(m51.compensation, Compensation::kRight);
-  EXPECT_DOUBLE_EQ(m51.compensation_radius_mm, 3.0);  // initial tool 1 from the tool table
+  // No tool (T0, the default initial tool) and no D: radius 0, the contour as programmed.
+  EXPECT_DOUBLE_EQ(m51.compensation_radius_mm, 0.0);
+  EXPECT_EQ(m51.tool, 0);
 
   // First arc: centre = start + (I, J) and the end radius equals the start radius.
   const Segment& a1 = p.segments[2];
@@ -320,8 +322,8 @@ TEST(Gcode, ALineOfCentreOffsetsAloneIsAModalFullCircle) {
 }
 
 TEST(Gcode, MirroringFlipsCoordinatesArcsAndCompensation) {
-  const Program p = compile_ok(
-      "G90 M81\nG1 X10 Y5 F100\nG2 X20 Y5 I5\nM84\nG41 D2\nG1 X1 Y1\nM80\nG1 X1 Y1\n");
+  const Program p =
+      compile_ok("G90 M81\nG1 X10 Y5 F100\nG2 X20 Y5 I5\nM84\nG41 D0\nG1 X1 Y1\nM80\nG1 X1 Y1\n");
   ASSERT_EQ(p.segments.size(), 4u);
   EXPECT_DOUBLE_EQ(p.segments[0].end[0], -10.0);
   EXPECT_DOUBLE_EQ(p.segments[0].end[1], 5.0);
@@ -340,8 +342,15 @@ TEST(Gcode, MirroringFlipsCoordinatesArcsAndCompensation) {
 }
 
 TEST(Gcode, CompensationRadiusFromDOrTheToolTable) {
-  const Program p = compile_ok("G90 T2\nG41\nG1 X1 F100\nG42 D0.5\nX2\nG40\nX3\n");
+  // G41 with T2's 5 mm, G40, G42 with D's 0.5 mm: the second entry starts where the first
+  // offset left the tool.
+  const Program p = compile_ok("G90 T2\nG41\nG1 X10 F100\nG40\nG42 D0.5\nX20\nG40\nX30\n");
   ASSERT_EQ(p.segments.size(), 3u);
+  EXPECT_DOUBLE_EQ(p.segments[0].end[1], 5.0);
+  // From (10, 5) to X20 Y0: 0.5 mm to the right of that direction, (10, -5) / sqrt(125).
+  EXPECT_NEAR(p.segments[1].end[0], 20.0 - 0.5 * 5 / std::sqrt(125.0), 1e-12);
+  EXPECT_NEAR(p.segments[1].end[1], -0.5 * 10 / std::sqrt(125.0), 1e-12);
+  EXPECT_DOUBLE_EQ(p.segments[2].end[1], 0.0);
   EXPECT_EQ(p.segments[0].compensation, Compensation::kLeft);
   EXPECT_DOUBLE_EQ(p.segments[0].compensation_radius_mm, 5.0);
   EXPECT_EQ(p.segments[0].tool, 2);
@@ -730,7 +739,8 @@ TEST(Gcode, DiagnosticFormat) {
 
 TEST(Intercode, RoundTripKeepsEveryField) {
   const Program p = compile_ok(
-      "G90 T2 G41 G1 X1 Y2 Z3 F100\nG18 G3 X9 Z3 I4 K0\nM3 S100\nM29 (msg)\nG4 P2\nM2\n");
+      "G90 T2 G41 G1 X10 Y20 Z3 F100\nG40 G1 X11\nG18 G3 X19 Z3 I4 K0\nM3 S100\nM29 (msg)\nG4 "
+      "P2\nM2\n");
   std::string bytes;
   encode_intercode(p, bytes);
   Program q;
@@ -746,7 +756,7 @@ TEST(Intercode, RoundTripKeepsEveryField) {
 // A PackedProgram holds the intercode bytes and reads back every record of a seeded random
 // program as decode_intercode does; it refuses what decode_intercode refuses, with its words.
 TEST(Intercode, APackedProgramReadsTheRecordsDecodeReads) {
-  std::string text = "G90 T2 G41 G1 X1 Y2 Z3 F100\nM3 S100\nM29 (msg)\nG4 P2\n";
+  std::string text = "G90 T2 G41 D0 G1 X1 Y2 Z3 F100\nM3 S100\nM29 (msg)\nG4 P2\n";
   std::uint64_t seed = 0x5EED;
   auto next = [&seed] {
     seed += 0x9E3779B97F4A7C15ull;
@@ -864,7 +874,7 @@ TEST(Intercode, AWindowHoldsTheRecordsAskedForWhereverTheyStart) {
 // control character (JSON-escaped in the jsonl dump, as written in the text dump) and a dwell.
 TEST(Intercode, DumpsShowEveryRecordKind) {
   const Program p = compile_ok(
-      "G90 G1 X1 F100\nM1003\nM0\nM3 S1200 Q2.5\nM29 (say \"hi\" \\ back\ttab\001x)\nG4 "
+      "G90 T1 G1 X1 F100\nM1003\nM0\nM3 S1200 Q2.5\nM29 (say \"hi\" \\ back\ttab\001x)\nG4 "
       "P0.25\nM2\n");
   std::string jsonl, text;
   dump_jsonl(p, jsonl);
@@ -956,8 +966,8 @@ TEST(Intercode, DecodeRefusesOutOfRangeValuesAndMissingSideTableEntries) {
 
 TEST(Intercode, RecordsStoreOnlyWhatChanged) {
   // Header 25 bytes and the start point 3 x 8; first move: type, flags, axis mask, tool
-  // (initial tool 1), X, feed = 24; then X only = 12 each; the table counts 8; the checksum 4.
-  const Program p = compile_ok("G90 G1 X1 F100\nX2\nX3\n");
+  // (T1), X, feed = 24; then X only = 12 each; the table counts 8; the checksum 4.
+  const Program p = compile_ok("G90 T1 G1 X1 F100\nX2\nX3\n");
   std::string bytes;
   encode_intercode(p, bytes);
   EXPECT_EQ(bytes.size(), 25u + 24u + 24u + 12u + 12u + 8u + 4u);

@@ -66,8 +66,9 @@ struct CompilerConfig {
   bool start_incremental = true;
   //! Feed used by G1/G2/G3 before any F word or M99 [mm/min].
   double default_feed_mm_per_min = 1000.0;
-  //! Tool in the spindle when a program starts (Tool_Number before the first T word).
-  int initial_tool = 1;
+  //! Tool in the spindle when a program starts (Tool_Number before the first T word); 0 is no
+  //! tool: G41/G42 without D then compensate by radius 0.
+  int initial_tool = 0;
   //! M-numbers (from the redefinable set M2..M99) that the PLC handles as plain functions.
   std::vector<int> plc_redefined_m;
   //! Largest expanded program, in segments.
