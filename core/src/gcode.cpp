@@ -842,6 +842,14 @@ std::size_t Compiler::execute_block(std::size_t index, bool relex) {
       if (m >= 80 && m <= 87) {
         // Mirroring about program zero (manual table): which of X, Y, Z change sign.
         static constexpr const char* kMirrored[8] = {"", "X", "Y", "Z", "XY", "XZ", "YZ", "XYZ"};
+        const PlaneAxes pa = plane_axes(plane_, opt_.axis_letters);
+        const auto swapped = [&] {
+          const double m0 = pa.first < kMaxAxes ? mirror_[static_cast<std::size_t>(pa.first)] : 1.0;
+          const double m1 =
+              pa.second < kMaxAxes ? mirror_[static_cast<std::size_t>(pa.second)] : 1.0;
+          return m0 * m1 < 0;
+        };
+        const bool was_swapped = swapped();
         mirror_.fill(1.0);
         for (const char* L = kMirrored[m - 80]; *L; ++L) {
           const int a = axis_index(*L);
@@ -851,6 +859,14 @@ std::size_t Compiler::execute_block(std::size_t index, bool relex) {
             continue;
           }
           mirror_[static_cast<std::size_t>(a)] = -1.0;
+        }
+        // The offset side was chosen under the old mirroring; the moves after this would take
+        // the contour's other side with it.
+        if (comp_ != Compensation::kOff && comp_radius_ > 0 && swapped() != was_swapped) {
+          error(b.line, m_word->column,
+                "M" + std::to_string(m) +
+                    " mirrors one axis of the plane while tool radius "
+                    "compensation is on, which would swap its side (G40 first)");
         }
         return next;
       }

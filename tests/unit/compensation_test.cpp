@@ -205,6 +205,11 @@ TEST(Compensation, ErrorsNameTheBlockAndTheReason) {
   EXPECT_EQ(first_error("G90 G0 X-5 Y0\nG41 D2\nG1 X10 F600\nG1 Y1\nG1 X20\nG40\nM2\n"),
             "t.ngc:4:1: error: tool radius compensation: the tool (radius 2.0000 mm) cannot reach "
             "the concave corner at line 3's end without cutting into the contour");
+  EXPECT_EQ(first_error("G90 G0 X0 Y0\nG41 D2\nG1 X10 F600\nM82\nG1 Y10\nM2\n"),
+            "t.ngc:4:1: error: M82 mirrors one axis of the plane while tool radius compensation "
+            "is on, which would swap its side (G40 first)");
+  // Mirroring both plane axes (or Z) keeps the side: a 180 degree turn of the contour.
+  EXPECT_TRUE(compile("G90 G0 X0 Y0\nG41 D2\nG1 X10 F600\nM84\nG1 Y10\nG40\nG1 X0\nM2\n").ok());
   // G40 and a plane change on one line are fine.
   EXPECT_TRUE(compile("G90 G0 X0 Y0\nG41 D2\nG1 X10 F600\nG40 G18 G1 X20\nM2\n").ok());
 }
