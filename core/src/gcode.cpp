@@ -428,8 +428,15 @@ bool Compiler::lex_words(Block& b) {
     if (L >= 'a' && L <= 'z') L = static_cast<char>(L - 'a' + 'A');
     if (L < 'A' || L > 'Z') {
       const auto uc = static_cast<unsigned char>(c);
-      char buf[80];
-      if (uc >= 0x21 && uc < 0x7f) {
+      char buf[112];
+      std::size_t lead = begin;
+      while (lead < i && is_space(src_[lead])) ++lead;
+      if (c == '/' && lead == i) {
+        // RS274's optional block: which lines the switch skips is the operator's, not ours.
+        std::snprintf(buf, sizeof buf,
+                      "block delete '/' is not part of this dialect: delete the line, or the '/' "
+                      "to run it");
+      } else if (uc >= 0x21 && uc < 0x7f) {
         std::snprintf(buf, sizeof buf, "unexpected character '%c'", c);
       } else {
         std::snprintf(buf, sizeof buf, "unexpected byte 0x%02X", uc);

@@ -435,6 +435,10 @@ TEST(GcodeErrors, UnknownWordAndCharacter) {
   EXPECT_THAT(errors_of("G1 A5\n"),
               ElementsAre("1:4: unknown word 'A5' (not an axis of this interpolator)"));
   EXPECT_THAT(errors_of("G1 X1 #\n"), ElementsAre("1:7: unexpected character '#'"));
+  EXPECT_THAT(errors_of("G1 X1 F100\n  /G1 X2\n"),
+              ElementsAre("2:3: block delete '/' is not part of this dialect: delete the line, or "
+                          "the '/' to run it"));
+  EXPECT_THAT(errors_of("G1 X1 /Y2\n"), ElementsAre("1:7: unexpected character '/'"));
   EXPECT_THAT(errors_of("G1 X1 \xff\n"), ElementsAre("1:7: unexpected byte 0xFF"));
 }
 
