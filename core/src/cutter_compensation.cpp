@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <utility>
 
 namespace tgm::detail {
@@ -191,6 +192,9 @@ bool CutterCompensation::entry_element(const Segment& s, V from, Elem& el) {
     }
     if (!offset_element(s, from, el)) return false;
     el.s = from;  // the move starts where the tool stands
+    // It runs from there straight to wherever the next corner cuts its offset line, before
+    // that line's start too (rs274 alike): no start to run behind.
+    el.t0 = -std::numeric_limits<double>::infinity();
     return true;
   }
   if (dist < kFullCircleMm) {
