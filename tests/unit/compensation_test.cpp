@@ -53,6 +53,17 @@ std::vector<const Segment*> moves(const Program& p) {
   return m;
 }
 
+//! The motion records of `text`, which must compile.
+std::vector<Segment> compiled_moves(const std::string& text) {
+  const CompileResult r = compile(text);
+  EXPECT_TRUE(r.ok()) << errors(r);
+  std::vector<Segment> m;
+  for (const Segment& s : r.program.segments) {
+    if (s.is_motion()) m.push_back(s);
+  }
+  return m;
+}
+
 void expect_move(const Segment& s, SegmentType type, double x, double y, int line) {
   EXPECT_EQ(s.type, type) << "line " << s.line;
   EXPECT_NEAR(s.end[0], x, 1e-4) << "line " << s.line;
@@ -63,69 +74,61 @@ void expect_move(const Segment& s, SegmentType type, double x, double y, int lin
 TEST(Compensation, SquareOnTheInsideCutsItsCornersAndOnTheOutsideRoundsThem) {
   const std::string body =
       " D1\nG1 X10 Y0 F600\nG1 X10 Y10\nG1 X0 Y10\nG1 X0 Y0\nG40\nG0 X-20 Y-20\nM2\n";
-  const CompileResult in = compile("G90 G17\nG0 X0 Y0\nG41" + body);
-  ASSERT_TRUE(in.ok()) << errors(in);
-  const auto m = moves(in.program);
+  const auto m = compiled_moves("G90 G17\nG0 X0 Y0\nG41" + body);
   ASSERT_EQ(m.size(), 6u);
-  expect_move(*m[1], SegmentType::kLinear, 9, 1, 4);  // entry, cut at the first corner
-  expect_move(*m[2], SegmentType::kLinear, 9, 9, 5);
-  expect_move(*m[3], SegmentType::kLinear, 1, 9, 6);
-  expect_move(*m[4], SegmentType::kLinear, 1, 0, 7);     // last move: square to its end
-  expect_move(*m[5], SegmentType::kRapid, -20, -20, 9);  // G40's move: back to the contour
+  expect_move(m[1], SegmentType::kLinear, 9, 1, 4);  // entry, cut at the first corner
+  expect_move(m[2], SegmentType::kLinear, 9, 9, 5);
+  expect_move(m[3], SegmentType::kLinear, 1, 9, 6);
+  expect_move(m[4], SegmentType::kLinear, 1, 0, 7);     // last move: square to its end
+  expect_move(m[5], SegmentType::kRapid, -20, -20, 9);  // G40's move: back to the contour
 
-  const CompileResult out = compile("G90 G17\nG0 X0 Y0\nG42" + body);
-  ASSERT_TRUE(out.ok()) << errors(out);
-  const auto o = moves(out.program);
+  const auto o = compiled_moves("G90 G17\nG0 X0 Y0\nG42" + body);
   ASSERT_EQ(o.size(), 9u);
-  expect_move(*o[1], SegmentType::kLinear, 10, -1, 4);
-  expect_move(*o[2], SegmentType::kArcCcw, 11, 0, 5);  // around the corner, of the next block
-  EXPECT_NEAR(o[2]->center[0], 10, 1e-12);
-  EXPECT_NEAR(o[2]->center[1], 0, 1e-12);
-  EXPECT_NEAR(o[2]->radius, 1, 1e-12);
-  EXPECT_EQ(o[2]->feed_mm_per_min, 600);
-  expect_move(*o[3], SegmentType::kLinear, 11, 10, 5);
-  expect_move(*o[4], SegmentType::kArcCcw, 10, 11, 6);
-  expect_move(*o[5], SegmentType::kLinear, 0, 11, 6);
-  expect_move(*o[6], SegmentType::kArcCcw, -1, 10, 7);
-  expect_move(*o[7], SegmentType::kLinear, -1, 0, 7);
-  for (const Segment* s : o) {
-    if (s->line >= 4 && s->line <= 7) {
-      EXPECT_EQ(s->compensation, Compensation::kRight);
-      EXPECT_EQ(s->compensation_radius_mm, 1.0);
+  expect_move(o[1], SegmentType::kLinear, 10, -1, 4);
+  expect_move(o[2], SegmentType::kArcCcw, 11, 0, 5);  // around the corner, of the next block
+  EXPECT_NEAR(o[2].center[0], 10, 1e-12);
+  EXPECT_NEAR(o[2].center[1], 0, 1e-12);
+  EXPECT_NEAR(o[2].radius, 1, 1e-12);
+  EXPECT_EQ(o[2].feed_mm_per_min, 600);
+  expect_move(o[3], SegmentType::kLinear, 11, 10, 5);
+  expect_move(o[4], SegmentType::kArcCcw, 10, 11, 6);
+  expect_move(o[5], SegmentType::kLinear, 0, 11, 6);
+  expect_move(o[6], SegmentType::kArcCcw, -1, 10, 7);
+  expect_move(o[7], SegmentType::kLinear, -1, 0, 7);
+  for (const Segment& s : o) {
+    if (s.line >= 4 && s.line <= 7) {
+      EXPECT_EQ(s.compensation, Compensation::kRight);
+      EXPECT_EQ(s.compensation_radius_mm, 1.0);
     }
   }
 }
 
 TEST(Compensation, ArcsKeepTheirCentresAndChangeTheirRadius) {
   // Outside of a CW arc, inside of a CCW one, then a convex corner into a line.
-  const CompileResult r = compile(
+  const auto m = compiled_moves(
       "G90 G17\nG0 X0 Y0\nG41 D1\nG1 X10 Y0 F600\nG2 X20 Y0 I5 J0\nG3 X30 Y0 I5 J0\n"
       "G1 X40 Y5\nG40\nG0 X50\nM2\n");
-  ASSERT_TRUE(r.ok()) << errors(r);
-  const auto m = moves(r.program);
   ASSERT_EQ(m.size(), 7u);
-  expect_move(*m[1], SegmentType::kLinear, 9.0839, 1.0, 4);  // cut where y=1 meets r 6
-  expect_move(*m[2], SegmentType::kArcCw, 21, 0, 5);
-  EXPECT_NEAR(m[2]->center[0], 15, 1e-12);
-  EXPECT_NEAR(m[2]->radius, 6, 1e-9);
-  expect_move(*m[3], SegmentType::kArcCcw, 29, 0, 6);
-  EXPECT_NEAR(m[3]->center[0], 25, 1e-12);
-  EXPECT_NEAR(m[3]->radius, 4, 1e-9);
-  expect_move(*m[4], SegmentType::kArcCw, 29.5528, 0.8944, 7);  // the corner at X30
-  expect_move(*m[5], SegmentType::kLinear, 39.5528, 5.8944, 7);
-  expect_move(*m[6], SegmentType::kRapid, 50, 5, 9);
+  expect_move(m[1], SegmentType::kLinear, 9.0839, 1.0, 4);  // cut where y=1 meets r 6
+  expect_move(m[2], SegmentType::kArcCw, 21, 0, 5);
+  EXPECT_NEAR(m[2].center[0], 15, 1e-12);
+  EXPECT_NEAR(m[2].radius, 6, 1e-9);
+  expect_move(m[3], SegmentType::kArcCcw, 29, 0, 6);
+  EXPECT_NEAR(m[3].center[0], 25, 1e-12);
+  EXPECT_NEAR(m[3].radius, 4, 1e-9);
+  expect_move(m[4], SegmentType::kArcCw, 29.5528, 0.8944, 7);  // the corner at X30
+  expect_move(m[5], SegmentType::kLinear, 39.5528, 5.8944, 7);
+  expect_move(m[6], SegmentType::kRapid, 50, 5, 9);
 }
 
 TEST(Compensation, AnEntryArcKeepsItsCentreOnTheRadiusThroughItsEnd) {
-  const CompileResult r =
-      compile("G90 G17\nG0 X0 Y0\nG41 D1\nG2 X10 Y0 I5 J0 F600\nG1 X20\nG40\nG0 X30\nM2\n");
-  ASSERT_TRUE(r.ok()) << errors(r);
-  const auto m = moves(r.program);
+  const auto m =
+      compiled_moves("G90 G17\nG0 X0 Y0\nG41 D1\nG2 X10 Y0 I5 J0 F600\nG1 X20\nG40\nG0 X30\nM2\n");
   ASSERT_EQ(m.size(), 4u);
-  expect_move(*m[1], SegmentType::kArcCw, 10.9083, 1.0, 4);
-  EXPECT_NEAR(m[1]->center[0], 5.5, 1e-12);
-  EXPECT_NEAR(m[1]->center[1], 0.0, 1e-12);
-  expect_move(*m[2], SegmentType::kLinear, 20, 1, 5);
+  expect_move(m[1], SegmentType::kArcCw, 10.9083, 1.0, 4);
+  EXPECT_NEAR(m[1].center[0], 5.5, 1e-12);
+  EXPECT_NEAR(m[1].center[1], 0.0, 1e-12);
+  expect_move(m[2], SegmentType::kLinear, 20, 1, 5);
 }
 
 TEST(Compensation, RecordsThatStayInThePlaneHappenAtTheOffsetPoint) {
@@ -148,14 +151,12 @@ TEST(Compensation, RecordsThatStayInThePlaneHappenAtTheOffsetPoint) {
 }
 
 TEST(Compensation, ARapidAroundAConvexCornerGoesStraight) {
-  const CompileResult r =
-      compile("G90 G17\nG0 X0 Y0\nG42 D1\nG1 X10 F500\nG0 X10 Y10\nG40\nG0 X20\nM2\n");
-  ASSERT_TRUE(r.ok()) << errors(r);
-  const auto m = moves(r.program);
+  const auto m =
+      compiled_moves("G90 G17\nG0 X0 Y0\nG42 D1\nG1 X10 F500\nG0 X10 Y10\nG40\nG0 X20\nM2\n");
   ASSERT_EQ(m.size(), 5u);
-  expect_move(*m[1], SegmentType::kLinear, 10, -1, 4);
-  expect_move(*m[2], SegmentType::kRapid, 11, 0, 5);
-  expect_move(*m[3], SegmentType::kRapid, 11, 10, 5);
+  expect_move(m[1], SegmentType::kLinear, 10, -1, 4);
+  expect_move(m[2], SegmentType::kRapid, 11, 0, 5);
+  expect_move(m[3], SegmentType::kRapid, 11, 10, 5);
 }
 
 TEST(Compensation, RadiusZeroAndTZeroLeaveThePathAsProgrammed) {
