@@ -177,6 +177,13 @@ class Compiler {
     }
   }
   Segment base_segment(const Block& b) const;
+  //! True when exactly one axis of the active plane is mirrored: G41 and G42 swap sides.
+  bool plane_mirrored_once() const {
+    const PlaneAxes pa = plane_axes(plane_, opt_.axis_letters);
+    const double m0 = pa.first < kMaxAxes ? mirror_[static_cast<std::size_t>(pa.first)] : 1.0;
+    const double m1 = pa.second < kMaxAxes ? mirror_[static_cast<std::size_t>(pa.second)] : 1.0;
+    return m0 * m1 < 0;
+  }
   int axis_index(char letter) const {
     return (letter >= 'A' && letter <= 'Z') ? axis_of_letter_[letter - 'A'] : -1;
   }
@@ -849,14 +856,7 @@ std::size_t Compiler::execute_block(std::size_t index, bool relex) {
       if (m >= 80 && m <= 87) {
         // Mirroring about program zero (manual table): which of X, Y, Z change sign.
         static constexpr const char* kMirrored[8] = {"", "X", "Y", "Z", "XY", "XZ", "YZ", "XYZ"};
-        const PlaneAxes pa = plane_axes(plane_, opt_.axis_letters);
-        const auto swapped = [&] {
-          const double m0 = pa.first < kMaxAxes ? mirror_[static_cast<std::size_t>(pa.first)] : 1.0;
-          const double m1 =
-              pa.second < kMaxAxes ? mirror_[static_cast<std::size_t>(pa.second)] : 1.0;
-          return m0 * m1 < 0;
-        };
-        const bool was_swapped = swapped();
+        const bool was_swapped = plane_mirrored_once();
         mirror_.fill(1.0);
         for (const char* L = kMirrored[m - 80]; *L; ++L) {
           const int a = axis_index(*L);
@@ -869,7 +869,8 @@ std::size_t Compiler::execute_block(std::size_t index, bool relex) {
         }
         // The offset side was chosen under the old mirroring; the moves after this would take
         // the contour's other side with it.
-        if (comp_ != Compensation::kOff && comp_radius_ > 0 && swapped() != was_swapped) {
+        if (comp_ != Compensation::kOff && comp_radius_ > 0 &&
+            plane_mirrored_once() != was_swapped) {
           error(b.line, m_word->column,
                 "M" + std::to_string(m) +
                     " mirrors one axis of the plane while tool radius "
@@ -953,11 +954,7 @@ std::size_t Compiler::execute_block(std::size_t index, bool relex) {
         }
       }
       // Mirroring one axis of the plane swaps the side of the contour.
-      const PlaneAxes pa = plane_axes(plane_, opt_.axis_letters);
-      const double m0 = pa.first < kMaxAxes ? mirror_[static_cast<std::size_t>(pa.first)] : 1.0;
-      const double m1 = pa.second < kMaxAxes ? mirror_[static_cast<std::size_t>(pa.second)] : 1.0;
-      const bool swap = m0 * m1 < 0;
-      comp_ = (g_comp == 41) != swap ? Compensation::kLeft : Compensation::kRight;
+      comp_ = (g_comp == 41) != plane_mirrored_once() ? Compensation::kLeft : Compensation::kRight;
       comp_radius_ = std::max(radius, 0.0);
     }
   } else if (const Word* d = word('D')) {
