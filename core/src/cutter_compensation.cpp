@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <optional>
 #include <utility>
 
 namespace tgm::detail {
@@ -104,6 +105,14 @@ int circle_circle(V c0, double r0, V c1, double r1, V out[2]) {
   out[0] = m + h * left(u);
   out[1] = m + (-h) * left(u);
   return 2;
+}
+
+//! The distance mu along the unit direction u from b to the point b + mu u that lies as far
+//! from p as from q; nothing when that line runs square to p-q (no such point, or every one).
+std::optional<double> equidistant_along(V b, V u, V p, V q) {
+  const double den = 2.0 * dot(u, q - p);
+  if (std::fabs(den) < 1e-12) return std::nullopt;
+  return (dot(b - q, b - q) - dot(b - p, b - p)) / den;
 }
 
 }  // namespace
@@ -213,16 +222,14 @@ bool CutterCompensation::entry_element(const Segment& s, V from, Elem& el) {
   // The centre stays on the radial line through the end: c' = p + mu u, as far from the
   // start as from the offset end.
   const V u = (1.0 / norm(c - p)) * (c - p);
-  const double off = dot(e - p, u);
-  const double den = 2.0 * (dot(u, p - from) + off);
-  if (std::fabs(den) < 1e-12) {
+  const std::optional<double> mu = equidistant_along(p, u, from, e);
+  if (!mu) {
     fail(s.line,
          "tool radius compensation: the entry arc after " + g +
              " has no centre that reaches its compensated end (start with a straight move)");
     return false;
   }
-  const double mu = (off * off - dist * dist) / den;
-  el.c = p + mu * u;
+  el.c = p + *mu * u;
   el.r = norm(from - el.c);
   el.r_end = norm(e - el.c);
   if (el.r < kMinRadiusMm) {
@@ -265,14 +272,10 @@ bool CutterCompensation::join(Elem& next, bool& corner) {
     // points are equally far (the interpolator refuses a record whose start is off).
     if (std::fabs(norm(next.s - next.c) - next.r_end) > 0.5 * arc_radius_tolerance_mm(next.r_end)) {
       const V u = (1.0 / norm(next.c - next.e)) * (next.c - next.e);
-      const double l2 = dot(next.e - next.s, next.e - next.s);
-      const double den = 2.0 * dot(u, next.e - next.s);
-      if (std::fabs(den) > 1e-12) {
-        const double mu = -l2 / den;
-        if (mu > kMinRadiusMm) {
-          next.c = next.e + mu * u;
-          next.r = next.r_end = mu;
-        }
+      const std::optional<double> mu = equidistant_along(next.e, u, next.s, next.e);
+      if (mu && *mu > kMinRadiusMm) {
+        next.c = next.e + *mu * u;
+        next.r = next.r_end = *mu;
       }
     }
     next.sweep = arc_angle(next.c, next.s, next.e, next.cw) +
