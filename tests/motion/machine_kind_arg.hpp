@@ -11,11 +11,13 @@
 #include <string_view>
 #include <vector>
 
+#include "../support/test_params.hpp"
 #include "random_program.hpp"
 
 namespace tgm::test {
 
 inline MachineKind machine_kind_arg() {
+  read_flags().insert("--machines");
   const std::vector<std::string> args = ::testing::internal::GetArgvs();
   for (std::size_t i = 0; i < args.size(); ++i) {
     std::string value;
