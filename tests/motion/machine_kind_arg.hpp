@@ -7,9 +7,8 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <optional>
 #include <string>
-#include <string_view>
-#include <vector>
 
 #include "../support/test_params.hpp"
 #include "random_program.hpp"
@@ -17,23 +16,12 @@
 namespace tgm::test {
 
 inline MachineKind machine_kind_arg() {
-  read_flags().insert("--machines");
-  const std::vector<std::string> args = ::testing::internal::GetArgvs();
-  for (std::size_t i = 0; i < args.size(); ++i) {
-    std::string value;
-    if (args[i].rfind("--machines=", 0) == 0) {
-      value = args[i].substr(11);
-    } else if (args[i] == "--machines") {  // the spaced form, as test_params.hpp takes it
-      value = i + 1 < args.size() ? args[i + 1] : "";
-    } else {
-      continue;
-    }
-    MachineKind kind;
-    if (machine_kind_from_name(value, kind)) return kind;
-    std::fprintf(stderr, "--machines must be wide, box or random, not '%s'\n", value.c_str());
-    std::exit(2);
-  }
-  return MachineKind::kRandom;
+  const std::optional<std::string> value = flag_value("machines");
+  if (!value) return MachineKind::kRandom;
+  MachineKind kind;
+  if (machine_kind_from_name(*value, kind)) return kind;
+  std::fprintf(stderr, "--machines must be wide, box or random, not '%s'\n", value->c_str());
+  std::exit(2);
 }
 
 }  // namespace tgm::test

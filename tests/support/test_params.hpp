@@ -10,6 +10,7 @@
 
 #include <cstdint>
 #include <cstdio>
+#include <optional>
 #include <set>
 #include <string>
 #include <vector>
@@ -47,17 +48,24 @@ inline const bool kUnreadFlagsReportInstalled = [] {
   return true;
 }();
 
-//! `--name=N` or `--name N` among the test binary's arguments, else env_u64(env, fallback).
-inline std::uint64_t param_u64(const std::string& name, const char* env, std::uint64_t fallback) {
+//! The value of `--name=V` or `--name V` among the test binary's arguments ("" when the spaced
+//! form ends the line), or nothing when the flag is absent. Marks the flag as read.
+inline std::optional<std::string> flag_value(const std::string& name) {
   const std::string flag = "--" + name;
   read_flags().insert(flag);
   const std::string prefix = flag + "=";
   const std::vector<std::string> args = ::testing::internal::GetArgvs();
   for (std::size_t i = 0; i < args.size(); ++i) {
-    if (args[i].rfind(prefix, 0) == 0) return u64_or_exit(args[i].substr(prefix.size()), flag);
+    if (args[i].rfind(prefix, 0) == 0) return args[i].substr(prefix.size());
     // The spaced form: without it `--comp-seed 2` ran the default seed and passed.
-    if (args[i] == flag) return u64_or_exit(i + 1 < args.size() ? args[i + 1] : "", flag);
+    if (args[i] == flag) return i + 1 < args.size() ? args[i + 1] : "";
   }
+  return std::nullopt;
+}
+
+//! `--name=N` or `--name N` among the test binary's arguments, else env_u64(env, fallback).
+inline std::uint64_t param_u64(const std::string& name, const char* env, std::uint64_t fallback) {
+  if (const std::optional<std::string> v = flag_value(name)) return u64_or_exit(*v, "--" + name);
   return env_u64(env, fallback);
 }
 
