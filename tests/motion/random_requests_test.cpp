@@ -31,6 +31,7 @@
 #include <random>
 #include <string>
 
+#include "../support/sweep_progress.hpp"
 #include "../support/test_params.hpp"
 #include "machine_kind_arg.hpp"
 #include "random_program.hpp"
@@ -460,7 +461,9 @@ TEST(RandomRequests, AnyRequestStreamKeepsTheRegistersSaneAndTheWayBackOpen) {
   const std::uint64_t count = test::param_u64("count", "TGM_SWEEP_COUNT", 60);
   const std::uint64_t first = test::param_u64("first", "TGM_SWEEP_FIRST", 0);
   Tally tally;
+  test::SweepProgress progress("RandomRequests seed " + std::to_string(seed), count, "storms");
   for (std::uint64_t k = first; k < first + count && !::testing::Test::HasFailure(); ++k) {
+    progress.update(k - first);
     RequestStorm(seed, k).run(tally);
   }
   // The storm must reach the states it is about: requests taken and motion under way.

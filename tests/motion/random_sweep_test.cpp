@@ -35,6 +35,7 @@
 #include <utility>
 #include <vector>
 
+#include "../support/sweep_progress.hpp"
 #include "../support/test_params.hpp"
 #include "machine_kind_arg.hpp"
 #include "random_program.hpp"
@@ -208,7 +209,9 @@ TEST(RandomSweep, ProgramsFinishAtTheirEndWithinLimits) {
   const std::uint64_t first =
       test::param_u64("first", "TGM_SWEEP_FIRST", 0);  // to rerun one program
   std::uint64_t total_cycles = 0;
+  test::SweepProgress progress("RandomSweep seed " + std::to_string(seed), count);
   for (std::uint64_t k = first; k < first + count; ++k) {
+    progress.update(k - first);
     const SweepCase c = sweep_case(seed, k, machine_kind());
     const std::string ctx = case_context(seed, k, c) + ", lower bound " +
                             std::to_string(c.bound_s) + " s, limit " + std::to_string(c.limit_s) +
@@ -260,7 +263,9 @@ TEST(RandomSweep, StopsOnTheTrajectoryResumeAndFinishWithinLimits) {
   const std::uint64_t count = test::param_u64("count", "TGM_SWEEP_COUNT", 200);
   const std::uint64_t first = test::param_u64("first", "TGM_SWEEP_FIRST", 0);
   std::uint64_t given = 0;
+  test::SweepProgress progress("RandomSweep (stops) seed " + std::to_string(seed), count);
   for (std::uint64_t k = first; k < first + count; ++k) {
+    progress.update(k - first);
     const SweepCase c = sweep_case(seed, k, machine_kind());
     std::string ctx;
     const SimulationOptions o = stop_sweep_options(seed, k, c, &ctx);

@@ -34,6 +34,7 @@
 #include <string>
 #include <vector>
 
+#include "../support/sweep_progress.hpp"
 #include "../support/test_params.hpp"
 #include "ngc_generator.hpp"
 #include "reference_compare.hpp"
@@ -716,7 +717,9 @@ TEST(CompensationSweep, AgreesWithRs274) {
   std::size_t shrunk = 0;
   std::size_t rs274_cuts_in = 0;  //!< refused by ours only, and rs274's path cuts in
   std::ostringstream failures;
+  test::SweepProgress progress("CompensationSweep (rs274) seed " + std::to_string(seed), count);
   for (std::uint64_t index = first; index < first + count; ++index) {
+    progress.update(index - first);
     const std::uint64_t program_seed = seed * 1000003u + index;
     const std::string text = generate_comp_program(program_seed, tangent_share);
     const fs::path base =

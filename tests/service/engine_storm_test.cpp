@@ -28,6 +28,7 @@
 #include <string>
 
 #include "../motion/random_program.hpp"
+#include "../support/sweep_progress.hpp"
 #include "../support/test_params.hpp"
 #include "mock_port.hpp"
 #include "tgm/config.hpp"
@@ -414,8 +415,11 @@ TEST(EngineStorm, EveryRequestIsAnsweredOnceAndEveryInterpolatorComesBack) {
   const std::uint64_t seed = tgm::test::param_u64("seed", "TGM_SEED", 1);
   const std::uint64_t count = tgm::test::param_u64("count", "TGM_SWEEP_COUNT", 12);
   Tally t;
-  for (std::uint64_t k = 0; k < count && !::testing::Test::HasFailure(); ++k)
+  tgm::test::SweepProgress progress("EngineStorm seed " + std::to_string(seed), count, "storms");
+  for (std::uint64_t k = 0; k < count && !::testing::Test::HasFailure(); ++k) {
+    progress.update(k);
     EngineStorm(seed, k).run(t);
+  }
   // The storm must reach what it is about: requests taken, records streamed, motion under way.
   EXPECT_GT(t.accepted, count * 50);
   EXPECT_GT(t.segments, count * 100);

@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "../support/sweep_progress.hpp"
 #include "../support/test_params.hpp"
 #include "tgm/gcode.hpp"
 
@@ -382,7 +383,9 @@ TEST(CompensationSweep, OffsetMovesKeepTheRadiusFromTheContour) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   std::size_t compiled = 0, refused = 0, checked_moves = 0;
+  test::SweepProgress progress("CompensationSweep seed " + std::to_string(seed), count, "contours");
   for (std::uint64_t k = 0; k < count; ++k) {
+    progress.update(k);
     const double r = 0.1 + 2.0 * u(rng);
     const bool left = u(rng) < 0.5;
     const std::string text = random_contour(rng, r, left);
