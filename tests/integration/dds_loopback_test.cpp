@@ -4,11 +4,15 @@
 // before the participant lease expires. Timeouts only guard against hangs; nothing is timed.
 #include <gtest/gtest.h>
 
+#include <netinet/in.h>
 #include <signal.h>
 #include <spawn.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <atomic>
+#include <cerrno>
 #include <chrono>
 #include <cstring>
 #include <string>
@@ -277,6 +281,41 @@ TEST(DdsLoopback, RequestGetsItsReply) {
   EXPECT_FALSE(replies[1].accepted());
   EXPECT_EQ(replies[1].code(), msg::REPLY_CODE_OUT_OF_RANGE);
   EXPECT_NE(replies[1].reason().to_string().find("outside"), std::string::npos);
+}
+
+// A socket of another program on the domain's discovery port (7400 + 250 x domain), bound
+// without SO_REUSEADDR as an outgoing socket the kernel handed that port is, made Fast DDS's
+// bind fail without a word: the participant was created and never matched anything (two
+// participants of this suite on a domain in the ephemeral range, CI session 69). Such a
+// participant is refused with the port and the reason; once the port is free, it is created.
+TEST(DdsLoopback, AParticipantWhoseDiscoveryPortIsTakenIsRefusedWithThePort) {
+  const int domain = test::test_domain();
+  const int port = 7400 + 250 * domain;
+  const int fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  ASSERT_GE(fd, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_addr.s_addr = htonl(INADDR_ANY);
+  addr.sin_port = htons(static_cast<std::uint16_t>(port));
+  ASSERT_EQ(::bind(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr), 0)
+      << "port " << port << ": " << std::strerror(errno);
+  try {
+    dds::Participant deaf(test::test_config(), "plc");
+    ADD_FAILURE() << "a participant was created although its discovery port is taken";
+  } catch (const dds::SetupError& e) {
+    EXPECT_NE(std::string(e.what()).find("DDS domain " + std::to_string(domain) +
+                                         ": its discovery port, UDP " + std::to_string(port) +
+                                         ", is held by another program"),
+              std::string::npos)
+        << e.what();
+  }
+  ::close(fd);
+  const auto t = test::test_topic(dds::kRequestTopic);
+  dds::Participant plc(test::test_config(), "plc");
+  dds::Participant service(test::test_config(), "service");
+  auto& w = plc.writer<msg::RequestPubSubType>(t.spec);
+  service.reader<msg::RequestPubSubType>(t.spec);
+  EXPECT_TRUE(dds::wait_for_match(w, 1, kHang));
 }
 
 // A PLC process killed with SIGKILL cannot say goodbye. Its request writer must be reported

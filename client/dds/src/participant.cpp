@@ -1,8 +1,15 @@
 #include "tgm/dds/participant.hpp"
 
-#include <array>
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
+#include <algorithm>
+#include <array>
+#include <cerrno>
 #include <filesystem>
+#include <fstream>
 #include <mutex>
 #include <set>
 #include <thread>
@@ -75,6 +82,63 @@ void add_security(fdds::DomainParticipantQos& qos, const std::array<std::string,
   p.emplace_back("dds.sec.crypto.plugin", "builtin.AES-GCM-GMAC");
 }
 
+// The hint for a domain whose ports may lie where the kernel hands out ports for outgoing
+// sockets (/proc/sys/net/ipv4/ip_local_port_range, "32768 60999" by default): the domains whose
+// whole block of `gain` ports from `base` lies below that range, or "" if none or unknown.
+std::string ephemeral_hint(std::uint32_t base, std::uint32_t gain) {
+  std::ifstream in("/proc/sys/net/ipv4/ip_local_port_range");
+  long lo = 0;
+  long hi = 0;
+  if (!(in >> lo >> hi) || lo <= 0 || hi < lo || gain == 0) return {};
+  if (lo < static_cast<long>(base + gain)) return {};
+  const long last = (lo - static_cast<long>(base)) / static_cast<long>(gain) - 1;
+  return ". Domains 0.." + std::to_string(std::min(last, 232L)) +
+         " keep their ports below this machine's range for outgoing sockets (" +
+         std::to_string(lo) + "-" + std::to_string(hi) + "), where any program can be given one";
+}
+
+// Why the enabled participant on `domain` (built from `qos`) can neither find nor be found, or
+// "" when it can. Simple discovery listens on the domain's multicast port (7400 + 250 x domain
+// with the default port parameters), bound with SO_REUSEADDR so that every participant on the
+// host shares it. A socket of another program bound there without SO_REUSEADDR (an outgoing
+// socket the kernel gave that port, when the domain's ports lie in the ephemeral range) makes
+// Fast DDS's bind fail, and Fast DDS goes on without saying so: the participant was deaf, and a
+// test's two participants never matched (CI, session 69). Once Fast DDS holds the port no
+// such socket can take it, so a bind beside it right after creation is exact: it fails only
+// if Fast DDS's failed.
+std::string discovery_port_problem(const fdds::DomainParticipantQos& qos, int domain) {
+  const auto& wire = qos.wire_protocol();
+  const auto& builtin = wire.builtin;
+  if (builtin.discovery_config.discoveryProtocol !=
+          eprosima::fastrtps::rtps::DiscoveryProtocol_t::SIMPLE ||
+      !builtin.metatrafficMulticastLocatorList.empty() || !qos.transport().use_builtin_transports ||
+      !qos.transport().user_transports.empty()) {
+    return {};  // a profile that chose its own discovery locators or transports
+  }
+  const std::uint32_t port = wire.port.portBase +
+                             wire.port.domainIDGain * static_cast<std::uint32_t>(domain) +
+                             wire.port.offsetd0;
+  if (port > 65535) return {};  // Fast DDS refuses such a participant itself
+  const int fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) return {};
+  const int one = 1;
+  ::setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_addr.s_addr = htonl(INADDR_ANY);
+  addr.sin_port = htons(static_cast<std::uint16_t>(port));
+  const int rc = ::bind(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr);
+  const int err = errno;
+  ::close(fd);
+  if (rc == 0 || err != EADDRINUSE) return {};
+  return "DDS domain " + std::to_string(domain) + ": its discovery port, UDP " +
+         std::to_string(port) +
+         ", is held by another program (a socket that does not share it), so this participant "
+         "could neither find nor be found; free the port (ss -uanp 'sport = :" +
+         std::to_string(port) + "') or use another domain" +
+         ephemeral_hint(wire.port.portBase, wire.port.domainIDGain);
+}
+
 }  // namespace
 
 void load_profiles(const std::string& path) {
@@ -137,6 +201,10 @@ Participant::Participant(const DdsConfig& config, std::string_view role, std::st
   if (participant_ == nullptr) {
     throw SetupError("cannot create DDS participant '" + name_ + "' on domain " +
                      std::to_string(domain_id_) + " from profile '" + std::string(profile) + "'");
+  }
+  if (std::string why = discovery_port_problem(qos, domain_id_); !why.empty()) {
+    factory->delete_participant(participant_);
+    throw SetupError(why);
   }
   publisher_ = participant_->create_publisher(fdds::PUBLISHER_QOS_DEFAULT);
   subscriber_ = participant_->create_subscriber(fdds::SUBSCRIBER_QOS_DEFAULT);
