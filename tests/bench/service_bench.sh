@@ -20,7 +20,9 @@ if ((dds_prio > 0)); then svc_prio=(--dds-priority "$dds_prio"); plc_prio=(--rt-
 # SVC_ARGS / PLC_ARGS: extra options for tgm-service / tgm-plc in part 1 (word-split).
 read -r -a svc_extra <<< "${SVC_ARGS:-}"
 read -r -a plc_extra <<< "${PLC_ARGS:-}"
-domain=${DOMAIN:-91}
+# DOMAIN=N: the service on domain N, the raw ping-pongs on N+1 and N+2 (default 5: clear of
+# the tests' domains 10..99 and of tgm's default 0)
+domain=${DOMAIN:-5}
 tmp=$(mktemp -d)
 pids=()
 # SIGINT is the clean stop; a process that got it before it had started its own handling (a

@@ -22,25 +22,31 @@ inline std::string profiles_path() {
   return env != nullptr && *env != '\0' ? env : TGM_SOURCE_DIR "/config/fastdds_profiles.xml";
 }
 
-//! A DDS domain in 100..199 that no other test process on this machine holds. Each process
+//! A DDS domain in 10..99 that no other test process on this machine holds. Each process
 //! takes an exclusive lock on /tmp/tgm-test-domain-D.lock, trying its pid's slot first, and
 //! keeps it until it exits (the kernel drops the lock with the process, also on a crash; the
 //! descriptor is close-on-exec, so the service and clients a test starts do not hold it).
 //! Concurrent tests (ctest -j) used to take 100 + pid % 100 and met on one domain when their
 //! pids differed by a multiple of 100: another test's clear then reached this test's service
-//! ("chunk ... of a program that is not loaded", CI, session 27).
+//! ("chunk ... of a program that is not loaded", CI, session 27). The domains were 100..199
+//! until session 70, whose ports (7400 + 250 x domain and up) lie from domain 102 on in Linux's
+//! default range for outgoing sockets (32768-60999): another program's socket took a test's
+//! discovery port and its participants never matched (CI, session 69). 10..99 stay below it and
+//! clear of domain 0, which tgm uses by default.
 inline int test_domain() {
   static const int domain = [] {
-    const int start = static_cast<int>(::getpid() % 100);
-    for (int k = 0; k < 100; ++k) {
-      const int d = 100 + (start + k) % 100;
+    constexpr int kFirst = 10;
+    constexpr int kCount = 90;
+    const int start = static_cast<int>(::getpid() % kCount);
+    for (int k = 0; k < kCount; ++k) {
+      const int d = kFirst + (start + k) % kCount;
       const std::string path = "/tmp/tgm-test-domain-" + std::to_string(d) + ".lock";
       const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0666);
       if (fd < 0) continue;
       if (::flock(fd, LOCK_EX | LOCK_NB) == 0) return d;  // fd stays open: the lock is held
       ::close(fd);
     }
-    return 100 + start;  // every slot held: the pid's, as before
+    return kFirst + start;  // every slot held: the pid's, as before
   }();
   return domain;
 }
