@@ -4,12 +4,9 @@
 // before the participant lease expires. Timeouts only guard against hangs; nothing is timed.
 #include <gtest/gtest.h>
 
-#include <netinet/in.h>
 #include <signal.h>
 #include <spawn.h>
-#include <sys/socket.h>
 #include <sys/wait.h>
-#include <unistd.h>
 
 #include <atomic>
 #include <cerrno>
@@ -290,15 +287,9 @@ TEST(DdsLoopback, RequestGetsItsReply) {
 // participant is refused with the port and the reason; once the port is free, it is created.
 TEST(DdsLoopback, AParticipantWhoseDiscoveryPortIsTakenIsRefusedWithThePort) {
   const int domain = test::test_domain();
-  const int port = 7400 + 250 * domain;
-  const int fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
-  ASSERT_GE(fd, 0);
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_addr.s_addr = htonl(INADDR_ANY);
-  addr.sin_port = htons(static_cast<std::uint16_t>(port));
-  ASSERT_EQ(::bind(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr), 0)
-      << "port " << port << ": " << std::strerror(errno);
+  const int port = test::discovery_port(domain);
+  test::HeldUdpPort held(port);
+  ASSERT_EQ(held.error(), "");
   try {
     dds::Participant deaf(test::test_config(), "plc");
     ADD_FAILURE() << "a participant was created although its discovery port is taken";
@@ -309,7 +300,7 @@ TEST(DdsLoopback, AParticipantWhoseDiscoveryPortIsTakenIsRefusedWithThePort) {
               std::string::npos)
         << e.what();
   }
-  ::close(fd);
+  held.release();
   const auto t = test::test_topic(dds::kRequestTopic);
   dds::Participant plc(test::test_config(), "plc");
   dds::Participant service(test::test_config(), "service");

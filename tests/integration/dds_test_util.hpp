@@ -4,10 +4,15 @@
 #pragma once
 
 #include <fcntl.h>
+#include <netinet/in.h>
 #include <sys/file.h>
+#include <sys/socket.h>
 #include <unistd.h>
 
+#include <cerrno>
+#include <cstdint>
 #include <cstdlib>
+#include <cstring>
 #include <string>
 #include <string_view>
 
@@ -69,5 +74,40 @@ inline TestTopic test_topic(const dds::TopicSpec& spec) {
   t.spec.name = t.name;
   return t;
 }
+
+//! The UDP port on which simple discovery listens for `domain` (Fast DDS's default port
+//! parameters, which config/fastdds_profiles.xml keeps).
+inline int discovery_port(int domain) {
+  return 7400 + 250 * domain;
+}
+
+//! A UDP port on all addresses held as another program's socket holds it (no SO_REUSEADDR),
+//! so a DDS participant cannot share it. Released when destroyed or by release().
+class HeldUdpPort {
+ public:
+  explicit HeldUdpPort(int port) : fd_(::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0)) {
+    sockaddr_in addr{};
+    addr.sin_family = AF_INET;
+    addr.sin_addr.s_addr = htonl(INADDR_ANY);
+    addr.sin_port = htons(static_cast<std::uint16_t>(port));
+    if (fd_ < 0 || ::bind(fd_, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) {
+      error_ = "cannot hold UDP port " + std::to_string(port) + ": " + std::strerror(errno);
+      release();
+    }
+  }
+  ~HeldUdpPort() { release(); }
+  HeldUdpPort(const HeldUdpPort&) = delete;
+  HeldUdpPort& operator=(const HeldUdpPort&) = delete;
+  //! "" while the port is held, else why not.
+  const std::string& error() const { return error_; }
+  void release() {
+    if (fd_ >= 0) ::close(fd_);
+    fd_ = -1;
+  }
+
+ private:
+  int fd_;
+  std::string error_;
+};
 
 }  // namespace tgm::test

@@ -2242,6 +2242,38 @@ TEST(ServiceProcesses, AProfilesFileFastDdsRejectsIsAConfigError) {
   }
 }
 
+// Another program's socket on the domain's discovery port left every binary running deaf
+// (Fast DDS goes on without the port): each now exits with code 1 at its start, naming the
+// port, as `PROGRAM: reason`.
+TEST(ServiceProcesses, ADiscoveryPortHeldByAnotherProgramFailsTheStart) {
+  const std::string cfg = std::string(TGM_SOURCE_DIR) + "/config/default.yaml";
+  const std::string dir = ::testing::TempDir();
+  const int domain = test::test_domain();
+  test::HeldUdpPort held(test::discovery_port(domain));
+  ASSERT_EQ(held.error(), "");
+  const std::string says = "DDS domain " + std::to_string(domain) + ": its discovery port, UDP " +
+                           std::to_string(test::discovery_port(domain)) +
+                           ", is held by another program";
+  const std::pair<std::vector<std::string>, std::string> cases[] = {
+      {{TGM_SERVICE_BIN, "--no-realtime", "--duration", "5"}, "tgm-service: "},
+      {{TGM_PLC_BIN, "--duration", "5"}, "tgm-plc: "},
+      {{TGM_HMI_BIN, "status", "--wait", "1"}, "tgm-hmi status: "},
+      {{TGM_HMI_BIN, "run", std::string(TGM_SOURCE_DIR) + "/tests/programs/manual_example.ngc"},
+       "tgm-hmi run: "},
+  };
+  int k = 0;
+  for (const auto& [head, who] : cases) {
+    std::vector<std::string> args = head;
+    for (const std::string& a :
+         {std::string("--config"), cfg, std::string("--domain"), std::to_string(domain)})
+      args.push_back(a);
+    test::Child c;
+    ASSERT_TRUE(c.start(args, dir + "/held-port" + std::to_string(k++) + ".log"));
+    EXPECT_EQ(c.wait(kHang), 1) << who << c.log();
+    EXPECT_NE(c.log().find(who + says), std::string::npos) << c.log();
+  }
+}
+
 // --stats and --handshake-trace are written at exit. A path that cannot be written fails the
 // start (it used to be said at the end of the run, exit code 0, the figures lost); a device
 // that refuses the bytes (/dev/full) fails the exit with code 1 (it was not noticed at all).

@@ -45,7 +45,7 @@ int make_client(Args& args, const DdsOverrides& o, std::optional<AppConfig>& con
   try {
     c.emplace(config->dds, client::Role::kHmi, options);
   } catch (const dds::SetupError& e) {
-    std::fprintf(stderr, "tgm-hmi: %s\n", e.what());
+    std::fprintf(stderr, "%s: %s\n", args.program().c_str(), e.what());
     return 1;
   }
   return 0;
