@@ -2214,15 +2214,12 @@ TEST(ServiceProcesses, PlcFlagsThatCannotWorkAreUsageErrors) {
   }
 }
 
-// A profiles file that Fast DDS rejects is a bad config like a missing one: every binary says
-// so with exit code 2 before it joins DDS (it was exit code 1, as if DDS could not be set up).
-TEST(ServiceProcesses, AProfilesFileFastDdsRejectsIsAConfigError) {
+// Runs tgm-service, tgm-plc, tgm-hmi status and tgm-hmi run with the default config and
+// `extra` flags, each of which must fail its start with exit code `code` and say `says` as
+// `PROGRAM: says` (logs in `stem`N.log under the test's temporary directory).
+void expect_every_binary_fails_its_start(const std::vector<std::string>& extra, int code,
+                                         const std::string& says, const std::string& stem) {
   const std::string cfg = std::string(TGM_SOURCE_DIR) + "/config/default.yaml";
-  const std::string dir = ::testing::TempDir();
-  const std::string bad = dir + "/rejected-profiles.xml";
-  std::ofstream(bad) << "<dds><profiles>\n";  // not closed
-  const std::string says =
-      "DDS profiles file '" + bad + "' was rejected by Fast DDS (Fast DDS return code 1)";
   const std::pair<std::vector<std::string>, std::string> cases[] = {
       {{TGM_SERVICE_BIN, "--no-realtime", "--duration", "5"}, "tgm-service: "},
       {{TGM_PLC_BIN, "--duration", "5"}, "tgm-plc: "},
@@ -2233,45 +2230,39 @@ TEST(ServiceProcesses, AProfilesFileFastDdsRejectsIsAConfigError) {
   int k = 0;
   for (const auto& [head, who] : cases) {
     std::vector<std::string> args = head;
-    for (const std::string& a : {std::string("--config"), cfg, std::string("--profiles"), bad})
-      args.push_back(a);
+    args.push_back("--config");
+    args.push_back(cfg);
+    args.insert(args.end(), extra.begin(), extra.end());
     test::Child c;
-    ASSERT_TRUE(c.start(args, dir + "/profiles" + std::to_string(k++) + ".log"));
-    EXPECT_EQ(c.wait(kHang), 2) << who << c.log();
+    ASSERT_TRUE(c.start(args, ::testing::TempDir() + "/" + stem + std::to_string(k++) + ".log"));
+    EXPECT_EQ(c.wait(kHang), code) << who << c.log();
     EXPECT_NE(c.log().find(who + says), std::string::npos) << c.log();
   }
+}
+
+// A profiles file that Fast DDS rejects is a bad config like a missing one: every binary says
+// so with exit code 2 before it joins DDS (it was exit code 1, as if DDS could not be set up).
+TEST(ServiceProcesses, AProfilesFileFastDdsRejectsIsAConfigError) {
+  const std::string bad = ::testing::TempDir() + "/rejected-profiles.xml";
+  std::ofstream(bad) << "<dds><profiles>\n";  // not closed
+  expect_every_binary_fails_its_start(
+      {"--profiles", bad}, 2,
+      "DDS profiles file '" + bad + "' was rejected by Fast DDS (Fast DDS return code 1)",
+      "profiles");
 }
 
 // Another program's socket on the domain's discovery port left every binary running deaf
 // (Fast DDS goes on without the port): each now exits with code 1 at its start, naming the
 // port, as `PROGRAM: reason`.
 TEST(ServiceProcesses, ADiscoveryPortHeldByAnotherProgramFailsTheStart) {
-  const std::string cfg = std::string(TGM_SOURCE_DIR) + "/config/default.yaml";
-  const std::string dir = ::testing::TempDir();
   const int domain = test::test_domain();
   test::HeldUdpPort held(test::discovery_port(domain));
   ASSERT_EQ(held.error(), "");
-  const std::string says = "DDS domain " + std::to_string(domain) + ": its discovery port, UDP " +
-                           std::to_string(test::discovery_port(domain)) +
-                           ", is held by another program";
-  const std::pair<std::vector<std::string>, std::string> cases[] = {
-      {{TGM_SERVICE_BIN, "--no-realtime", "--duration", "5"}, "tgm-service: "},
-      {{TGM_PLC_BIN, "--duration", "5"}, "tgm-plc: "},
-      {{TGM_HMI_BIN, "status", "--wait", "1"}, "tgm-hmi status: "},
-      {{TGM_HMI_BIN, "run", std::string(TGM_SOURCE_DIR) + "/tests/programs/manual_example.ngc"},
-       "tgm-hmi run: "},
-  };
-  int k = 0;
-  for (const auto& [head, who] : cases) {
-    std::vector<std::string> args = head;
-    for (const std::string& a :
-         {std::string("--config"), cfg, std::string("--domain"), std::to_string(domain)})
-      args.push_back(a);
-    test::Child c;
-    ASSERT_TRUE(c.start(args, dir + "/held-port" + std::to_string(k++) + ".log"));
-    EXPECT_EQ(c.wait(kHang), 1) << who << c.log();
-    EXPECT_NE(c.log().find(who + says), std::string::npos) << c.log();
-  }
+  expect_every_binary_fails_its_start(
+      {"--domain", std::to_string(domain)}, 1,
+      "DDS domain " + std::to_string(domain) + ": its discovery port, UDP " +
+          std::to_string(test::discovery_port(domain)) + ", is held by another program",
+      "held-port");
 }
 
 // --stats and --handshake-trace are written at exit. A path that cannot be written fails the
