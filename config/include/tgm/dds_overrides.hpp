@@ -17,7 +17,8 @@ namespace tgm {
 
 //! The flags below, for --help texts.
 inline constexpr const char* kDdsOverrideHelp =
-    "  --domain N            DDS domain id 0..232 (overrides dds.domain_id)\n"
+    "  --domain N            DDS domain id 0..232 (overrides dds.domain_id; 0..100 keep\n"
+    "                        their ports below Linux's range for outgoing sockets)\n"
     "  --profiles FILE       Fast DDS XML profiles (overrides dds.profiles_file)\n"
     "  --participant-prefix P  participant names P-service, P-plc, P-hmi\n"
     "  --security DIR        DDS Security material of config/security/tgm-security\n"
