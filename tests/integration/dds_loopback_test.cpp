@@ -9,7 +9,6 @@
 #include <sys/wait.h>
 
 #include <atomic>
-#include <cerrno>
 #include <chrono>
 #include <cstring>
 #include <string>

@@ -34,7 +34,7 @@ inline std::string profiles_path() {
 //! Concurrent tests (ctest -j) used to take 100 + pid % 100 and met on one domain when their
 //! pids differed by a multiple of 100: another test's clear then reached this test's service
 //! ("chunk ... of a program that is not loaded", CI, session 27). The domains were 100..199
-//! until session 70, whose ports (7400 + 250 x domain and up) lie from domain 102 on in Linux's
+//! until session 70; from domain 102 on their ports (7400 + 250 x domain and up) lie in Linux's
 //! default range for outgoing sockets (32768-60999): another program's socket took a test's
 //! discovery port and its participants never matched (CI, session 69). 10..99 stay below it and
 //! clear of domain 0, which tgm uses by default.
@@ -91,7 +91,8 @@ class HeldUdpPort {
     addr.sin_addr.s_addr = htonl(INADDR_ANY);
     addr.sin_port = htons(static_cast<std::uint16_t>(port));
     if (fd_ < 0 || ::bind(fd_, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) {
-      error_ = "cannot hold UDP port " + std::to_string(port) + ": " + std::strerror(errno);
+      const int err = errno;
+      error_ = "cannot hold UDP port " + std::to_string(port) + ": " + std::strerror(err);
       release();
     }
   }
