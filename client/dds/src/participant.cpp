@@ -115,10 +115,8 @@ std::string discovery_port_problem(const fdds::DomainParticipantQos& qos, int do
       !qos.transport().user_transports.empty()) {
     return {};  // a profile that chose its own discovery locators or transports
   }
-  const std::uint32_t port = wire.port.portBase +
-                             wire.port.domainIDGain * static_cast<std::uint32_t>(domain) +
-                             wire.port.offsetd0;
-  if (port > 65535) return {};  // Fast DDS refuses such a participant itself
+  // Fast DDS's own formula; it ended the process in create_participant had it overflowed.
+  const std::uint32_t port = wire.port.getMulticastPort(static_cast<std::uint32_t>(domain));
   const int fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
   if (fd < 0) return {};
   const int one = 1;
