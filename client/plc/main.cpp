@@ -21,7 +21,9 @@
 #include <array>
 #include <atomic>
 #include <cerrno>
+#include <charconv>
 #include <chrono>
+#include <cmath>
 #include <cstdarg>
 #include <cstdio>
 #include <cstdlib>
@@ -853,7 +855,10 @@ int plc_main(int argc, char** argv) {
         }
         if (basic && same_axes && !under_way) {
           const auto& sm = config.machine.smoothing;
-          const std::int32_t spline[] = {sm.spline_points, static_cast<std::int32_t>(sm.spline_jerk_mm_s3)};
+          // Rounded as the loader checked it (at most INT32_MAX there: Command_Parameter is
+          // 32-bit); a cast truncated 0.7 to 0, which the service refused.
+          const std::int32_t spline[] = {
+              sm.spline_points, static_cast<std::int32_t>(std::llround(sm.spline_jerk_mm_s3))};
           const std::int32_t iir[] = {static_cast<std::int32_t>(sm.iir_p_e6), static_cast<std::int32_t>(sm.iir_q_e6),
                                       static_cast<std::int32_t>(sm.iir_f_e6), static_cast<std::int32_t>(sm.iir_axis_mask)};
           // A request left unanswered is sent again, twice at most: setting the same
@@ -872,14 +877,33 @@ int plc_main(int argc, char** argv) {
           queue_request(sv.number, tgm::client::command_request(sv.number, -1, iir), what, true, 3);
           const auto& axes = config.machine.interpolators[static_cast<std::size_t>(sv.number)].axes;
           for (std::size_t a = 0; a < axes.size(); ++a) {
-            // Ratio as counter [inc] / denominator [mm] with 1e-3 mm resolution.
-            const std::int32_t ratio[] = {static_cast<std::int32_t>(a),
-                                          static_cast<std::int32_t>(axes[a].ratio_inc_per_mm * 1000.0 + 0.5), 1000};
-            std::snprintf(what, sizeof what,
-                          "interpolator %d: basic parameters: Command 1024 (gear ratio of axis %c)",
-                          sv.number, config.machine.axis_letters(sv.number)[a]);
-            queue_request(sv.number, tgm::client::command_request(sv.number, 1024, ratio), what,
-                          true, 3);
+            // Ratio as counter [inc] / denominator [mm], both 32-bit, exactly the configured
+            // double (x 1000 + 0.5 over 1000 made -1000 into -999.999 and 3e6 into
+            // -2147483.648). A ratio no such pair carries goes to the Ratio register.
+            const double want = axes[a].ratio_inc_per_mm;
+            const auto f = tgm::OutputStage::ratio_as_fraction(want);
+            const char letter = config.machine.axis_letters(sv.number)[a];
+            if (f.exact) {
+              const std::int32_t ratio[] = {static_cast<std::int32_t>(a), f.numerator_inc,
+                                            f.denominator_mm};
+              std::snprintf(what, sizeof what,
+                            "interpolator %d: basic parameters: Command 1024 (gear ratio of axis "
+                            "%c)",
+                            sv.number, letter);
+              queue_request(sv.number, tgm::client::command_request(sv.number, 1024, ratio), what,
+                            true, 3);
+            } else {
+              char value[32];
+              const auto end = std::to_chars(value, value + sizeof value - 1, want).ptr;
+              *end = '\0';  // the shortest text that reads back as the same double
+              std::snprintf(what, sizeof what,
+                            "interpolator %d: basic parameters: Ratio register of axis %c = %s "
+                            "(no 32-bit numerator / denominator of Command 1024 carries it)",
+                            sv.number, letter, value);
+              queue_request(sv.number,
+                            tgm::client::ratio_request(sv.number, static_cast<int>(a), want), what,
+                            true, 3);
+            }
           }
         }
         if (try_start) {

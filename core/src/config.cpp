@@ -166,6 +166,13 @@ std::vector<std::string> MachineConfig::validate() const {
   if (!finite_positive(s.spline_jerk_mm_s3)) {
     e.push_back("smoothing.spline_jerk_mm_s3: must be > 0, not " +
                 number_text(s.spline_jerk_mm_s3));
+  } else if (s.spline_jerk_mm_s3 >= 2147483647.5) {
+    // Command -2 carries it in a 32-bit Command_Parameter, whether or not the spline is on:
+    // tgm-plc sent 3e9 as -2147483648.
+    e.push_back(
+        "smoothing.spline_jerk_mm_s3: must be at most 2147483647 (Command -2 carries it as a "
+        "32-bit parameter), not " +
+        number_text(s.spline_jerk_mm_s3));
   }
   if (s.iir_p_e6 <= 0) e.push_back("smoothing.iir_p_e6: must be > 0");
   if (s.iir_q_e6 <= 0) e.push_back("smoothing.iir_q_e6: must be > 0");
@@ -177,11 +184,9 @@ std::vector<std::string> MachineConfig::validate() const {
       e.push_back("smoothing.iir: " + r.reason);
     }
   }
-  if (s.spline_points >= 50 && s.spline_points <= 500 && finite_positive(s.spline_jerk_mm_s3)) {
-    if (s.spline_jerk_mm_s3 > 9.2e18) {
-      e.push_back("smoothing.spline_jerk_mm_s3: must be < 9.2e18, not " +
-                  number_text(s.spline_jerk_mm_s3));
-    } else if (std::llround(s.spline_jerk_mm_s3) < 1) {
+  if (s.spline_points >= 50 && s.spline_points <= 500 && finite_positive(s.spline_jerk_mm_s3) &&
+      s.spline_jerk_mm_s3 < 2147483647.5) {
+    if (std::llround(s.spline_jerk_mm_s3) < 1) {
       // Command -2 takes the jerk rounded to whole mm/s^3: 0.2 became 0, and the message said
       // "must be > 0 mm/s^3, not 0" of a value the file gives as 0.2.
       e.push_back(

@@ -570,6 +570,56 @@ TEST(ServiceProcesses, APlcStartedInTheMiddleOfAProgramSendsNoBasicParameters) {
   EXPECT_EQ(run.interrupt(kHang), 130) << run.log();
 }
 
+// The PLC's basic parameters set the very gear ratios of its config: Command 1024 with a 32-bit
+// numerator and denominator where they carry the value, the Ratio register where not. It sent
+// ratio x 1000 + 0.5 over 1000: -1000 became -999.999, 3e6 overflowed into -2147483.648 (the
+// axis reversed, "accepted"), 0.0004 became 0 and was refused.
+TEST(ServiceProcesses, ThePlcSetsTheConfiguredGearRatiosExactly) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  std::string geared = test::read_text(env.config());
+  ASSERT_TRUE(test::replace_first(
+      geared, "axes: [{letter: X}, {letter: Y}, {letter: Z}]",
+      "axes: [{letter: X, ratio_inc_per_mm: -1000}, {letter: Y, ratio_inc_per_mm: 3e6},\n"
+      "           {letter: Z, ratio_inc_per_mm: 0.0004}]"));
+  std::ofstream(env.path("geared.yaml")) << geared;
+  // No pair of 32-bit whole numbers has this quotient (1 / 3 does: the double nearest to it).
+  std::string fine = geared;
+  ASSERT_TRUE(
+      test::replace_first(fine, "ratio_inc_per_mm: 0.0004", "ratio_inc_per_mm: 1234.56789012345"));
+  std::ofstream(env.path("fine.yaml")) << fine;
+  client::Client hmi(env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(hmi.wait_for_state(0, kHang));
+  for (const char* cfg : {"geared.yaml", "fine.yaml"}) {
+    SCOPED_TRACE(cfg);
+    const bool is_fine = std::string(cfg) == "fine.yaml";
+    const double z = is_fine ? 1234.56789012345 : 0.0004;
+    test::Child plc;
+    ASSERT_TRUE(plc.start(
+        {TGM_PLC_BIN, "--config", env.path(cfg), "--interpolator", "0", "--duration", "1.5"},
+        env.path("plc.log")));
+    EXPECT_EQ(plc.wait(kHang), 0) << plc.log();
+    EXPECT_EQ(test::count_of(plc.log(), "(gear ratio of axis"), is_fine ? 2 : 3) << plc.log();
+    EXPECT_EQ(test::count_of(plc.log(), "): accepted"), 5) << plc.log();
+    EXPECT_EQ(plc.log().find("refused"), std::string::npos) << plc.log();
+    if (is_fine) {
+      EXPECT_NE(plc.log().find("basic parameters: Ratio register of axis Z = 1234.56789012345 "
+                               "(no 32-bit numerator / denominator of Command 1024 carries it): "
+                               "accepted"),
+                std::string::npos)
+          << plc.log();
+    }
+    const auto until = std::chrono::steady_clock::now() + 3s;
+    while (std::chrono::steady_clock::now() < until) {
+      hmi.poll(50ms);
+      if (hmi.state(0)->ratio()[2] == z) break;
+    }
+    EXPECT_EQ(hmi.state(0)->ratio()[0], -1000.0);
+    EXPECT_EQ(hmi.state(0)->ratio()[1], 3e6);
+    EXPECT_EQ(hmi.state(0)->ratio()[2], z);
+  }
+}
+
 // With --interpolator N the PLC serves N alone: a script step for another interpolator was
 // sent all the same. It is an error at the start, with the step's line.
 TEST(ServiceProcesses, APlcScriptStepForAnInterpolatorNotServedIsAnError) {

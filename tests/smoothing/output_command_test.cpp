@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <string>
 
 #include "tgm/command_stage.hpp"
@@ -62,6 +63,57 @@ TEST(OutputStage, RefusedWritesWithReasons) {
             "Command 1024: |numerator / denominator| must be 1e-06..1e+09 inc/mm, not 2000000000 / "
             "1 = 2e+09");
   EXPECT_EQ(o.ratio(0), 1000.0);
+}
+
+// Command 1024 carries a ratio as a 32-bit numerator over a 32-bit denominator: tgm-plc sent
+// ratio x 1000 + 0.5 over 1000, which turned -1000 into -999.999 and 3e6 into -2147483.648.
+TEST(OutputStage, RatioAsFractionIsExactWherePossible) {
+  struct Known {
+    double ratio;
+    std::int32_t num, den;
+  };
+  for (const Known k :
+       {Known{1000.0, 1000, 1}, Known{-1000.0, -1000, 1}, Known{3e6, 3000000, 1},
+        Known{0.0004, 1, 2500}, Known{3333.3333, 33333333, 10000}, Known{1e9, 1000000000, 1},
+        Known{1e-6, 1, 1000000}, Known{-2.5, -5, 2}, Known{4096.0 / 5.0, 4096, 5}}) {
+    SCOPED_TRACE(k.ratio);
+    const auto f = OutputStage::ratio_as_fraction(k.ratio);
+    EXPECT_TRUE(f.exact);
+    EXPECT_EQ(f.numerator_inc, k.num);
+    EXPECT_EQ(f.denominator_mm, k.den);
+  }
+  // Not representable: the nearest fraction found, flagged inexact.
+  const auto third = OutputStage::ratio_as_fraction(1.0 / 3.0 + 1e-12);
+  EXPECT_FALSE(third.exact);
+  EXPECT_NEAR(static_cast<double>(third.numerator_inc) / third.denominator_mm, 1.0 / 3.0, 1e-11);
+  EXPECT_FALSE(OutputStage::ratio_as_fraction(0.0).exact);
+  EXPECT_FALSE(OutputStage::ratio_as_fraction(NAN).exact);
+}
+
+// Seeded sweep: every ratio of the config's range written with up to 4 decimals and at most
+// 9 significant digits comes out exact, and set_ratio then holds the very same double.
+TEST(OutputStage, RatioAsFractionRoundTripsDecimalRatios) {
+  unsigned state = 12345u;
+  auto next = [&state]() {
+    state = state * 1103515245u + 12345u;
+    return (state >> 8) & 0xFFFFFFu;
+  };
+  OutputStage o(three_axes());
+  int checked = 0;
+  for (int i = 0; i < 20000; ++i) {
+    const int decimals = static_cast<int>(next() % 5);
+    const long long digits = static_cast<long long>(next()) % 100000000LL + 1;  // < 1e8 + 1
+    const double scale = std::pow(10.0, decimals);
+    const double ratio = (next() % 2 ? -1.0 : 1.0) * std::stod(std::to_string(digits)) / scale;
+    if (std::fabs(ratio) < 1e-6 || std::fabs(ratio) > 1e9) continue;
+    SCOPED_TRACE(ratio);
+    const auto f = OutputStage::ratio_as_fraction(ratio);
+    ASSERT_TRUE(f.exact);
+    ASSERT_TRUE(o.set_ratio(0, f.numerator_inc, f.denominator_mm).ok());
+    ASSERT_EQ(o.ratio(0), ratio);
+    ++checked;
+  }
+  EXPECT_GT(checked, 19000);
 }
 
 TEST(OutputStage, BacklashRampsOnReversalWithoutStep) {

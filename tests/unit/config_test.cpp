@@ -642,6 +642,13 @@ TEST(Config, EveryOtherBadValueIsNamedWithItsKeyAndLine) {
     EXPECT_TRUE(has_error(load.errors, want)) << "missing: " << want;
   }
   EXPECT_EQ(load.errors.size(), 3u);
+  // Command -2 carries the jerk in 32 bits: tgm-plc sent 3e9 as -2147483648.
+  load = load_config_text("smoothing: {spline_jerk_mm_s3: 3e9}\n", "m.yaml");
+  ASSERT_EQ(load.errors.size(), 1u);
+  EXPECT_EQ(load.errors[0],
+            "m.yaml:1: smoothing.spline_jerk_mm_s3: must be at most 2147483647 (Command -2 "
+            "carries it as a 32-bit parameter), not 3e+09");
+  EXPECT_TRUE(load_config_text("smoothing: {spline_jerk_mm_s3: 2147483647}\n", "m.yaml").config);
   // Given on lines of their own: the first of the group's keys, and no "not given".
   load = load_config_text(
       "smoothing:\n  iir_axis_mask: 7\n  iir_p_e6: 2000000\n  iir_f_e6: 2001000000\n", "m.yaml");

@@ -45,6 +45,17 @@ class OutputStage {
   //! numerator not 0, the denominator > 0, |numerator / denominator| kMinRatio..kMaxRatio.
   static RequestResult check_ratio(std::int64_t axis, std::int64_t numerator_inc,
                                    std::int64_t denominator_mm, int axes);
+  //! Command 1024's parameters for a Ratio [inc/mm]: the 32-bit numerator [inc] and denominator
+  //! [mm] (> 0) whose quotient, as set_ratio divides it, is `ratio_inc_per_mm` to the last bit.
+  //! exact = false when no such pair exists (e.g. 1/3 or most ratios with more than nine
+  //! significant digits); the pair is then the nearest fraction found, and a PLC that must keep
+  //! the value writes the Ratio register instead (tgm-plc does).
+  struct RatioFraction {
+    bool exact = false;
+    std::int32_t numerator_inc = 0;
+    std::int32_t denominator_mm = 1;
+  };
+  static RatioFraction ratio_as_fraction(double ratio_inc_per_mm);
   //! Register writes (PLC): Ratio [inc/mm] and Offset [inc].
   RequestResult write_ratio(std::int64_t axis, double ratio_inc_per_mm);
   RequestResult write_offset(std::int64_t axis, std::int64_t offset_inc);

@@ -1,6 +1,7 @@
 // Ratio, Offset, backlash compensation and PositionInc (core/SMOOTHING.md, "Output stage").
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 
 #include "tgm/output_stage.hpp"
@@ -144,6 +145,44 @@ RequestResult OutputStage::check_ratio(std::int64_t axis, std::int64_t numerator
                       " = " + number_text(ratio));
   }
   return {};
+}
+
+OutputStage::RatioFraction OutputStage::ratio_as_fraction(double ratio_inc_per_mm) {
+  RatioFraction best;
+  if (!std::isfinite(ratio_inc_per_mm) || ratio_inc_per_mm == 0.0) return best;
+  constexpr double kMax = 2147483647.0;
+  const double target = std::fabs(ratio_inc_per_mm);
+  const double sign = ratio_inc_per_mm < 0.0 ? -1.0 : 1.0;
+  // Convergents h/k of the continued fraction of |ratio|, while both fit: the best
+  // approximations there are, and a ratio written with few decimals (3333.3333, 0.0004) ends in
+  // one that is exact.
+  double h_prev = 1.0, h_prev2 = 0.0, k_prev = 0.0, k_prev2 = 1.0;
+  double x = target;
+  double best_err = std::numeric_limits<double>::infinity();
+  for (int it = 0; it < 64; ++it) {
+    const double a = std::floor(x);
+    const double h = a * h_prev + h_prev2, k = a * k_prev + k_prev2;
+    if (h > kMax || k > kMax) break;
+    if (h >= 1.0) {
+      const double q = sign * h / k;  // h and k are whole numbers below 2^31: exact in double
+      const double err = std::fabs(q - ratio_inc_per_mm);
+      if (err < best_err) {
+        best_err = err;
+        best.numerator_inc = static_cast<std::int32_t>(sign * h);
+        best.denominator_mm = static_cast<std::int32_t>(k);
+        best.exact = q == ratio_inc_per_mm;
+        if (best.exact) break;
+      }
+    }
+    const double frac = x - a;
+    if (!(frac > 0.0)) break;
+    x = 1.0 / frac;
+    h_prev2 = h_prev;
+    h_prev = h;
+    k_prev2 = k_prev;
+    k_prev = k;
+  }
+  return best;
 }
 
 RequestResult OutputStage::set_ratio(std::int64_t axis, std::int64_t numerator_inc,
