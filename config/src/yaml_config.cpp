@@ -510,6 +510,16 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
       r.string(d, "dds", "profiles_file", cfg.dds.profiles_file);
       r.string(d, "dds", "participant_prefix", cfg.dds.participant_prefix);
       r.string(d, "dds", "security", cfg.dds.security_dir);
+      // Both as the flags refuse them: an empty profiles file failed every binary later, in
+      // Fast DDS, with exit 1 (a restart every 2 s under systemd) and "not found in ''".
+      if (d["profiles_file"] && cfg.dds.profiles_file.empty()) {
+        r.error(d["profiles_file"], "dds.profiles_file",
+                "must name the Fast DDS profiles file (the shipped one: fastdds_profiles.xml), "
+                "not an empty string");
+      }
+      if (d["participant_prefix"] && cfg.dds.participant_prefix.empty()) {
+        r.error(d["participant_prefix"], "dds.participant_prefix", "must not be empty");
+      }
       if (cfg.dds.domain_id < 0 || cfg.dds.domain_id > 232) {
         r.error(d["domain_id"], "dds.domain_id", "must be 0..232");
       }
@@ -527,6 +537,10 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
           r.error(md, "plc.m_delay_s", "must map M-numbers to seconds, e.g. {51: 0.2}");
         } else {
           r.unique_keys(md, "plc.m_delay_s");
+          // The table replaces the built-in one (default.yaml's), entry by entry it would be
+          // a table the file does not show.
+          cfg.plc.m_delay_s.clear();
+          std::map<long long, std::string> given;  // M-number -> its key as written
           for (const auto& kv : md) {
             long long mnum = 0;
             double sec = 0;
@@ -540,6 +554,11 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
                           " (the ones the PLC acknowledges)");
             } else if (!Reader::scalar_double(kv.second, sec) || sec < 0 || sec > 3600) {
               r.error(kv.second, key, "must be 0..3600 s");
+            } else if (const auto [at, fresh] = given.emplace(mnum, kv.first.as<std::string>("?"));
+                       !fresh) {
+              // 51 and 051 are one M-function: the later entry silently won.
+              r.error(kv.first, key,
+                      "M" + std::to_string(mnum) + " is given twice (also as " + at->second + ")");
             } else {
               cfg.plc.m_delay_s[static_cast<int>(mnum)] = sec;
             }

@@ -289,6 +289,28 @@ TEST(Config, WholeNumbersAreDecimalAndNeverWrapRound) {
   ConfigLoad load = load_config_text("plc:\n  m_delay_s: {1: 1, 999: 2}\n", "m.yaml");
   ASSERT_TRUE(load.config) << load.errors.front();
   EXPECT_DOUBLE_EQ(load.config->plc.m_delay_s.at(999), 2.0);
+  // The file's table replaces default.yaml's whole; left out, default.yaml's holds (it was
+  // empty, and M51 got default_m_delay_s's 0.1 s where default.yaml shows 0.2 s).
+  EXPECT_EQ(load.config->plc.m_delay_s.size(), 2u);
+  const ConfigLoad shipped = load_config_file(TGM_SOURCE_DIR "/config/default.yaml");
+  ASSERT_TRUE(shipped.config);
+  load = load_config_text("cycle_time_us: 500\n", "m.yaml");
+  ASSERT_TRUE(load.config);
+  EXPECT_EQ(load.config->plc.m_delay_s, shipped.config->plc.m_delay_s);
+  EXPECT_DOUBLE_EQ(load.config->plc.m_delay_s.at(51), 0.2);
+  // Empty DDS names are refused as the flags refuse them.
+  load = load_config_text("dds:\n  profiles_file: \"\"\n  participant_prefix: ''\n", "m.yaml");
+  EXPECT_FALSE(load.config);
+  EXPECT_TRUE(has_error(load.errors,
+                        "m.yaml:2: dds.profiles_file: must name the Fast DDS profiles file (the "
+                        "shipped one: fastdds_profiles.xml), not an empty string"));
+  EXPECT_TRUE(has_error(load.errors, "m.yaml:3: dds.participant_prefix: must not be empty"));
+  // One M-function written two ways is given twice (the later entry won).
+  load = load_config_text("plc:\n  m_delay_s: {51: 0.2, 051: 5}\n", "m.yaml");
+  EXPECT_FALSE(load.config);
+  EXPECT_TRUE(
+      has_error(load.errors, "m.yaml:2: plc.m_delay_s.051: M51 is given twice (also as 51)"))
+      << load.errors.front();
   load = load_config_text("compiler: {max_call_depth: 010}\n", "m.yaml");  // not octal 8
   ASSERT_TRUE(load.config) << load.errors.front();
   EXPECT_EQ(load.config->machine.compiler.max_call_depth, 10);

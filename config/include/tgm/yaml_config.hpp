@@ -30,8 +30,8 @@ struct DdsConfig {
 struct PlcConfig {
   //! Time the emulated PLC takes for an M-function without its own entry [s].
   double default_m_delay_s = 0.1;
-  //! Time per M-number [s].
-  std::map<int, double> m_delay_s;
+  //! Time per M-number [s] (default.yaml's table; a table in the file replaces it whole).
+  std::map<int, double> m_delay_s{{50, 0.2}, {51, 0.2}};
 };
 
 //! The whole YAML file.
