@@ -750,6 +750,23 @@ void Compiler::check_block_static(Block& b) {
     default:
       break;
   }
+  // Lines that do not move take no centre offset or radius: under a modal G2 / G3 one ran an
+  // arc all the same ("G92 X6 I3" a half circle to the G92 coordinates, "G29 L1 K5" a full
+  // circle), and on G25 / G26 / G27 lines the words were dropped. K is G26 / G27's count.
+  if (nonmodal == 4 || nonmodal == 25 || nonmodal == 26 || nonmodal == 27 || nonmodal == 29 ||
+      nonmodal == 54 || nonmodal == 92) {
+    for (const char letter : {'I', 'J', 'K', 'R'}) {
+      if (letter == 'K' && (nonmodal == 26 || nonmodal == 27)) continue;
+      if (const Word* x = word(letter)) {
+        error(b.line, x->column,
+              std::string(1, letter) + " is not used by G" + std::to_string(nonmodal) +
+                  (letter == 'K' && nonmodal == 25
+                       ? " (K, the count of calls, belongs to G26 / G27)"
+                       : " (it belongs to an arc move, G2 / G3, on a line of its own)"));
+        b.valid = false;
+      }
+    }
+  }
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -516,6 +516,35 @@ TEST(GcodeErrors, RepeatedAndConflictingWords) {
   EXPECT_THAT(errors_of("M2 X1\n"), ElementsAre("1:4: M2 takes no parameters, but X is given"));
 }
 
+// Under a modal G2 / G3 a line that does not move took its centre offset for an arc: "G92 X6
+// I3" ran a half circle to X16, "G29 L1 K5" a full circle; on G25 / G26 / G27 lines I, J, R (and
+// K on G25) were dropped without a word. rs274 refuses them all ("I word with no G2 ... to use
+// it").
+TEST(GcodeErrors, CentreWordsOnLinesThatDoNotMove) {
+  EXPECT_THAT(errors_of("G91 G2 X10 I5 F100\nG92 X6 I3\nM2\n"),
+              ElementsAre("2:8: I is not used by G92 (it belongs to an arc move, G2 / G3, on a "
+                          "line of its own)"));
+  EXPECT_THAT(errors_of("G90 G2 X10 Y0 I5 J0 F100\nG54 X8 I3\nM2\n"),
+              ElementsAre("2:8: I is not used by G54 (it belongs to an arc move, G2 / G3, on a "
+                          "line of its own)"));
+  EXPECT_THAT(errors_of("G91 G18 G2 X10 I5 F100\nG29 L1 K5\nM2\n"),
+              ElementsAre("2:8: K is not used by G29 (it belongs to an arc move, G2 / G3, on a "
+                          "line of its own)"));
+  EXPECT_THAT(errors_of("G2 X10 I5 F100\nG4 P1 R5\nM2\n"),
+              ElementsAre("2:7: R is not used by G4 (it belongs to an arc move, G2 / G3, on a "
+                          "line of its own)"));
+  EXPECT_THAT(errors_of("G91 G1 F100\nG25 L1 K3\nM2\nG29 L1\nX1\nM17\n"),
+              ElementsAre("2:8: K is not used by G25 (K, the count of calls, belongs to G26 / "
+                          "G27)"));
+  EXPECT_THAT(errors_of("G26 L1 K2 I5 J2\nM2\nG29 L1\nM17\n"),
+              ElementsAre("1:11: I is not used by G26 (it belongs to an arc move, G2 / G3, on a "
+                          "line of its own)",
+                          "1:14: J is not used by G26 (it belongs to an arc move, G2 / G3, on a "
+                          "line of its own)"));
+  // K stays G26 / G27's count, also under a modal arc.
+  EXPECT_THAT(errors_of("G18 G2 X10 I5 F100\nG26 L1 K2\nM2\nG29 L1\nM17\n"), ElementsAre());
+}
+
 TEST(GcodeErrors, MissingWords) {
   EXPECT_THAT(errors_of("G4\n"), ElementsAre("1:1: G4 needs P<seconds>"));
   EXPECT_THAT(errors_of("G25\n"), ElementsAre("1:1: G25 needs L<label>"));
