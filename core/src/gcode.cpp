@@ -838,6 +838,13 @@ std::size_t Compiler::execute_block(std::size_t index, bool relex) {
   }
   auto word = [&](char L) { return by_letter[L - 'A']; };
 
+  // A call or jump to a label further down runs once every line is lexed, the whole line then:
+  // its settings ran twice before, and a G41 on it was "on already" the second time.
+  if (!relex && (g_nonmodal == 25 || g_nonmodal == 26 || g_nonmodal == 27) && word('L') &&
+      labels_.find(static_cast<long long>(word('L')->value)) == labels_.end()) {
+    return index;
+  }
+
   // Modal settings first, so that "G17 G90 G2 ..." works on one line.
   if (g_plane >= 0) {
     const auto plane = static_cast<Plane>(g_plane);

@@ -545,6 +545,28 @@ TEST(GcodeErrors, CentreWordsOnLinesThatDoNotMove) {
   EXPECT_THAT(errors_of("G18 G2 X10 I5 F100\nG26 L1 K2\nM2\nG29 L1\nM17\n"), ElementsAre());
 }
 
+// A line with a call or jump to a label further down ran its settings twice (once when read,
+// once when the labels were known): G41 on it was refused as "on already".
+TEST(GcodeErrors, AForwardJumpLineRunsItsSettingsOnce) {
+  const std::string fwd =
+      "G90 G17 G0 X0 Y0\nG41 D1 G27 L5\nG1 X20 Y0 F500\nG29 L5\n"
+      "G1 X20 Y20\nG40 G1 X30 Y30\nM2\n";
+  const std::string split =
+      "G90 G17 G0 X0 Y0\nG41 D1\nG27 L5\nG1 X20 Y0 F500\nG29 L5\n"
+      "G1 X20 Y20\nG40 G1 X30 Y30\nM2\n";
+  EXPECT_THAT(errors_of(fwd), ElementsAre());
+  const auto a = compile_gcode(fwd, options());
+  const auto b = compile_gcode(split, options());
+  ASSERT_TRUE(a.ok() && b.ok());
+  ASSERT_EQ(a.program.segments.size(), b.program.segments.size());
+  for (std::size_t i = 0; i < a.program.segments.size(); ++i) {
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_EQ(a.program.segments[i].end[static_cast<std::size_t>(k)],
+                b.program.segments[i].end[static_cast<std::size_t>(k)]);
+    }
+  }
+}
+
 TEST(GcodeErrors, MissingWords) {
   EXPECT_THAT(errors_of("G4\n"), ElementsAre("1:1: G4 needs P<seconds>"));
   EXPECT_THAT(errors_of("G25\n"), ElementsAre("1:1: G25 needs L<label>"));
