@@ -28,7 +28,8 @@ constexpr const char* kUsage =
     "  material of tgm-security; 'off' runs without)\n"
 #endif
     "\n"
-    "Every command takes --config YAML (default: config/default.yaml) and --help;\n"
+    "Every command takes --config YAML (default: $TGM_CONFIG, the installed or the in-tree\n"
+    "config/default.yaml) and --help;\n"
     "tgm-hmi --version prints the version.\n";
 
 }  // namespace

@@ -21,8 +21,9 @@ class ArgReader {
   //! "tgm-hmi simulate").
   ArgReader(int argc, char** argv, std::string program);
 
-  //! Arguments are left and none was malformed.
-  bool more() const { return i_ < argc_ && !failed_; }
+  //! Arguments are left, none was malformed and --help was not given (what follows --help is
+  //! not read: `SUB --help --domain 999` printed the error and the help, then exited 0).
+  bool more() const { return i_ < argc_ && !failed_ && !help_; }
   //! Consumes `name VALUE` or `name=VALUE`; true when the current argument was `name`. A
   //! missing or empty value is reported (failed() becomes true, `value` is left empty), and so
   //! is a second `name` unless repeatable(name) was called: one of the two values would be lost
