@@ -556,9 +556,13 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
               r.error(kv.second, key, "must be 0..3600 s");
             } else if (const auto [at, fresh] = given.emplace(mnum, kv.first.as<std::string>("?"));
                        !fresh) {
-              // 51 and 051 are one M-function: the later entry silently won.
-              r.error(kv.first, key,
-                      "M" + std::to_string(mnum) + " is given twice (also as " + at->second + ")");
+              // 51 and 051 are one M-function: the later entry silently won. The same text
+              // twice unique_keys has said.
+              if (at->second != kv.first.as<std::string>("?")) {
+                r.error(
+                    kv.first, key,
+                    "M" + std::to_string(mnum) + " is given twice (also as " + at->second + ")");
+              }
             } else {
               cfg.plc.m_delay_s[static_cast<int>(mnum)] = sec;
             }

@@ -483,6 +483,7 @@ TEST(Config, KeyGivenTwiceIsAnErrorWithItsLine) {
   load = load_config_text("plc:\n  m_delay_s: {51: 0.2, 51: 0.5}\n", "m.yaml");
   EXPECT_FALSE(load.config);
   EXPECT_TRUE(has_error(load.errors, "plc.m_delay_s.51: given twice"));
+  EXPECT_EQ(load.errors.size(), 1u);  // said once, not again as "M51 is given twice"
   load = load_config_text("plc:\n  m_delay_s: {51: 0.2, 50: 0.5}\n", "m.yaml");
   EXPECT_TRUE(load.config) << load.errors.front();
 }
