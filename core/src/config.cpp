@@ -14,6 +14,9 @@ namespace {
 
 bool finite_positive(double v) { return std::isfinite(v) && v > 0.0; }
 
+// Spline jerks [mm/s^3] below this round into Command -2's 32-bit Command_Parameter (2^31 - 1).
+constexpr double kCarriedJerkBound = 2147483647.5;
+
 }  // namespace
 
 std::string redefine_m_problem(long long m) {
@@ -166,7 +169,7 @@ std::vector<std::string> MachineConfig::validate() const {
   if (!finite_positive(s.spline_jerk_mm_s3)) {
     e.push_back("smoothing.spline_jerk_mm_s3: must be > 0, not " +
                 number_text(s.spline_jerk_mm_s3));
-  } else if (s.spline_jerk_mm_s3 >= 2147483647.5) {
+  } else if (s.spline_jerk_mm_s3 >= kCarriedJerkBound) {
     // Command -2 carries it in a 32-bit Command_Parameter, whether or not the spline is on:
     // tgm-plc sent 3e9 as -2147483648.
     e.push_back(
@@ -185,7 +188,7 @@ std::vector<std::string> MachineConfig::validate() const {
     }
   }
   if (s.spline_points >= 50 && s.spline_points <= 500 && finite_positive(s.spline_jerk_mm_s3) &&
-      s.spline_jerk_mm_s3 < 2147483647.5) {
+      s.spline_jerk_mm_s3 < kCarriedJerkBound) {
     if (std::llround(s.spline_jerk_mm_s3) < 1) {
       // Command -2 takes the jerk rounded to whole mm/s^3: 0.2 became 0, and the message said
       // "must be > 0 mm/s^3, not 0" of a value the file gives as 0.2.

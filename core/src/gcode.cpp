@@ -1182,10 +1182,7 @@ std::size_t Compiler::execute_block(std::size_t index, bool relex) {
     const Word* lw = word('L');
     const auto label = static_cast<long long>(lw->value);
     const auto it = labels_.find(label);
-    if (it == labels_.end() && !relex) {
-      return index;  // a label further down: run this line again once every line is lexed
-    }
-    if (it == labels_.end()) {
+    if (it == labels_.end()) {  // pass 2 (pass 1 left a line with a later label to it, above)
       error(b.line, lw->column, "unknown label L" + std::to_string(label) +
                                     " (define it with G29 L" + std::to_string(label) + ")");
       return next;
