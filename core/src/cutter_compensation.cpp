@@ -143,6 +143,7 @@ bool CutterCompensation::offset_element(const Segment& s, V from, Elem& el) {
   const V p = plane_point(s);
   el = Elem{};
   el.line = s.line;
+  el.from = from;
   el.corner = p;
   if (!s.is_arc()) {
     const double len = norm(p - from);
@@ -215,6 +216,7 @@ bool CutterCompensation::entry_element(const Segment& s, V from, Elem& el) {
   el.arc = true;
   el.cw = s.type == SegmentType::kArcCw;
   el.line = s.line;
+  el.from = from;
   el.corner = p;
   const V c{s.center[0], s.center[1]};
   el.t_end = arc_tangent(c, p, el.cw);
@@ -282,7 +284,13 @@ bool CutterCompensation::join(Elem& next, bool& corner) {
                  (next.sweep >= kTwoPi ? kTwoPi * std::floor(next.sweep / kTwoPi) : 0.0);
     return true;
   }
-  const bool reversal = std::fabs(turn) <= 1e-12 && dot(prev.t_end, next.t_start) < 0;
+  // Within kTangentRad of a reversal the tangents do not say which side the corner opens to:
+  // where an arc bends back, the two moves cross a little way on and the tool stands in the
+  // narrowing gap between them (a CAM post's rounded numbers make such a cusp). Round the tip
+  // it would come back through the move before, closer than r; where the offsets cross on both
+  // moves the cut is there, as at a concave corner (rs274 alike), else the corner goes round.
+  const bool reversal =
+      kPi - std::atan2(std::fabs(turn), dot(prev.t_end, next.t_start)) < kTangentRad;
   const bool concave = sigma * turn > 1e-12;
   if (concave || reversal) {
     // Both elements on their whole line or circle; the cut is the intersection that lies on
@@ -290,71 +298,105 @@ bool CutterCompensation::join(Elem& next, bool& corner) {
     // backwards; beyond the next move's end that one would run back to its end, and there
     // the tool stands closer than r to the held move's contour (rs274 lets this pass when
     // the next corner turns away: its path cuts in).
-    V cand[2];
-    int n = 0;
-    if (!prev.arc && !next.arc) {
-      const double den = cross(prev.d, next.d);
-      if (std::fabs(den) > 1e-15) {
-        cand[0] = prev.a + (cross(next.a - prev.a, next.d) / den) * prev.d;
-        n = 1;
-      }
-    } else if (!prev.arc) {
-      n = line_circle(prev.a, prev.d, next.c, next.r, cand);
-    } else if (!next.arc) {
-      n = line_circle(next.a, next.d, prev.c, prev.r_end, cand);
-    } else {
-      n = circle_circle(prev.c, prev.r_end, next.c, next.r_end, cand);
-    }
-    double best = 0;
-    int pick = -1;
-    for (int k = 0; k < n; ++k) {
-      const V x = cand[k];
-      // On prev, between its start and its nominal end.
-      if (prev.arc) {
-        const double a = param(prev, x);
-        if (a * prev.r_end > prev.sweep * prev.r_end + kOnMm && prev.sweep < kTwoPi) continue;
-      } else {
-        const double t = param(prev, x);
-        if (t < prev.t0 - kOnMm || t > prev.t1 + kOnMm) continue;
-      }
-      // On next, from its start on.
-      double along = 0;
-      if (next.arc) {
-        along = param(next, x);
-        if ((kTwoPi - along) * next.r <= kOnMm) along = 0;  // just behind the start
-        if (along > next.sweep) continue;
-        along *= next.r;
-      } else {
-        const double t = param(next, x);
-        if (t < next.t0 - kOnMm || t > next.t1 + kOnMm) continue;
-        along = t - next.t0;
-      }
-      if (pick < 0 || along < best) {
-        pick = k;
-        best = along;
-      }
-    }
-    if (pick >= 0) {
-      const V x = cand[pick];
+    V x;
+    double along = 0;
+    if (first_crossing(prev, next, false, x, along)) {
       if (prev.arc) prev.sweep = param(prev, x);
       prev.e = x;
       if (next.arc) {
-        next.sweep -= std::max(0.0, best / next.r);
+        next.sweep -= std::max(0.0, along / next.r);
       } else {
         next.t0 = param(next, x);
       }
       next.s = x;
       return true;
     }
-    if (!reversal) {
+    if (concave) {
       fail(next.line, "tool radius compensation: the tool (radius " + mm(radius_) +
                           " mm) cannot reach the concave corner at line " +
                           std::to_string(prev.line) + "'s end without cutting into the contour");
       return false;
     }
+    // Round the tip of a reversal: right where the material between the moves narrows to it,
+    // a cut into the move before where the moves cross behind it and the gap is the tool's.
+    if (first_crossing(prev, next, true, x, along)) {
+      fail(next.line, "tool radius compensation: this move crosses line " +
+                          std::to_string(prev.line) + "'s move " + mm(norm(x - prev.corner)) +
+                          " mm from their corner; the tool (radius " + mm(radius_) +
+                          " mm) cannot reach that corner without cutting into the contour");
+      return false;
+    }
   }
   corner = true;
   return true;
+}
+
+bool CutterCompensation::first_crossing(const Elem& prev, const Elem& next, bool programmed, V& x,
+                                        double& along) const {
+  // The programmed contour lies r to the other side of the tool's path; an arc's centre is
+  // the same, its circle runs through the corner.
+  const double sigma = side_ == Compensation::kLeft ? 1.0 : -1.0;
+  const V corner = prev.corner;
+  const auto anchor = [&](const Elem& el) {
+    return programmed ? el.a + (-sigma * radius_) * left(el.d) : el.a;
+  };
+  V cand[2];
+  int n = 0;
+  if (!prev.arc && !next.arc) {
+    const double den = cross(prev.d, next.d);
+    if (std::fabs(den) > 1e-15) {
+      const V pa = anchor(prev);
+      cand[0] = pa + (cross(anchor(next) - pa, next.d) / den) * prev.d;
+      n = 1;
+    }
+  } else if (!prev.arc) {
+    n = line_circle(anchor(prev), prev.d, next.c, programmed ? norm(corner - next.c) : next.r,
+                    cand);
+  } else if (!next.arc) {
+    n = line_circle(anchor(next), next.d, prev.c, programmed ? norm(corner - prev.c) : prev.r_end,
+                    cand);
+  } else {
+    n = circle_circle(prev.c, programmed ? norm(corner - prev.c) : prev.r_end, next.c,
+                      programmed ? norm(corner - next.c) : next.r_end, cand);
+  }
+  int pick = -1;
+  for (int k = 0; k < n; ++k) {
+    const V q = cand[k];
+    if (programmed && norm(q - corner) <= kOnMm) continue;  // the corner itself
+    // On prev, between its start and its nominal end (its contour: from its programmed start,
+    // where an earlier corner may have cut the tool's path short).
+    if (programmed && prev.arc) {
+      const double a = arc_angle(prev.c, prev.from, q, prev.cw);
+      const double sweep = norm(prev.corner - prev.from) < kFullCircleMm
+                               ? kTwoPi
+                               : arc_angle(prev.c, prev.from, prev.corner, prev.cw);
+      if (a * prev.r_end > sweep * prev.r_end + kOnMm) continue;
+    } else if (prev.arc) {
+      const double a = param(prev, q);
+      if (a * prev.r_end > prev.sweep * prev.r_end + kOnMm && prev.sweep < kTwoPi) continue;
+    } else {
+      const double t = param(prev, q);
+      if (t < (programmed ? 0.0 : prev.t0) - kOnMm || t > prev.t1 + kOnMm) continue;
+    }
+    // On next, from its start on.
+    double d = 0;
+    if (next.arc) {
+      d = param(next, q);
+      if ((kTwoPi - d) * next.r <= kOnMm) d = 0;  // just behind the start
+      if (d > next.sweep) continue;
+      d *= next.r;
+    } else {
+      const double t = param(next, q);
+      if (t < next.t0 - kOnMm || t > next.t1 + kOnMm) continue;
+      d = t - next.t0;
+    }
+    if (pick < 0 || d < along) {
+      pick = k;
+      along = d;
+      x = q;
+    }
+  }
+  return pick >= 0;
 }
 
 void CutterCompensation::flush() {

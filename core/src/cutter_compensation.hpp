@@ -12,7 +12,9 @@
 //  - every later move is offset by the radius (an arc keeps its centre, its radius grows or
 //    shrinks by r); where two moves meet at a convex corner an arc of radius r around the
 //    programmed corner joins them, at a concave corner both are cut where they intersect (an
-//    error when they do not: the tool would cut into the contour);
+//    error when they do not: the tool would cut into the contour); within 0.05 rad of a
+//    reversal the corner is cut where the offsets cross, if they do, else it goes round, unless
+//    the two moves cross just after it (an error: the tool cannot reach it);
 //  - moves that leave the plane coordinates where they are (Z alone, M-functions, dwells)
 //    happen at the compensated point;
 //  - the first move after G40 leads from the compensated point to the programmed one; an arc
@@ -69,6 +71,7 @@ class CutterCompensation {
     double t1 = 0;     //!< line: parameter of the nominal end
     double sweep = 0;  //!< arc: angle from the start to the nominal end [rad]
     V t_start;         //!< unit tangent at the programmed start
+    V from;            //!< programmed start point
     V corner;          //!< programmed end point (the corner the next move turns at)
     V t_end;           //!< unit tangent at the programmed end
     int line = 0;
@@ -88,6 +91,12 @@ class CutterCompensation {
   //! Joins held_ (ending with element cur_) to `next`: cuts or adds a corner arc.
   //! Returns false on error; sets `corner` when a corner arc goes between them.
   bool join(Elem& next, bool& corner);
+  //! Where the lines or circles of `prev` and `next` cross first along `next`, on both moves
+  //! (prev between its start and its nominal end, next from its start on): those of the
+  //! tool's path, or with `programmed` those of the contour (not at the corner itself).
+  //! Returns false when they do not; `along` is the distance along next's path.
+  bool first_crossing(const Elem& prev, const Elem& next, bool programmed, V& x,
+                      double& along) const;
   //! Where `p` lies along `el` from its start: a length for a line, an angle for an arc.
   static double param(const Elem& el, V p);
 

@@ -207,6 +207,13 @@ TEST(Compensation, ErrorsNameTheBlockAndTheReason) {
   EXPECT_EQ(first_error("G90 G0 X-5 Y0\nG41 D2\nG1 X10 F600\nG1 Y1\nG1 X20\nG40\nM2\n"),
             "t.ngc:4:1: error: tool radius compensation: the tool (radius 2.0000 mm) cannot reach "
             "the concave corner at line 3's end without cutting into the contour");
+  // A short hook: the move back crosses the arc 0.35 mm from their corner, and the gap the
+  // tool stands in narrows to that crossing, which the arc's offset never reaches.
+  EXPECT_EQ(first_error("G90 G0 X-20 Y-10\nG42 D1\nG1 X-20 Y0 F600\nG1 X0 Y0\n"
+                        "G3 X1.736482 Y0.151922 I0 J10\nG1 X-18.018 Y-2.976\nG40 G1 X-30\nM2\n"),
+            "t.ngc:6:1: error: tool radius compensation: this move crosses line 5's move 0.3499 "
+            "mm from their corner; the tool (radius 1.0000 mm) cannot reach that corner without "
+            "cutting into the contour");
   EXPECT_EQ(first_error("G90 G0 X0 Y0\nG41 D2\nG1 X10 F600\nM82\nG1 Y10\nM2\n"),
             "t.ngc:4:1: error: M82 mirrors one axis of the plane while tool radius compensation "
             "is on, which would swap its side (G40 first)");
@@ -214,6 +221,27 @@ TEST(Compensation, ErrorsNameTheBlockAndTheReason) {
   EXPECT_TRUE(compile("G90 G0 X0 Y0\nG41 D2\nG1 X10 F600\nM84\nG1 Y10\nG40\nG1 X0\nM2\n").ok());
   // G40 and a plane change on one line are fine.
   EXPECT_TRUE(compile("G90 G0 X0 Y0\nG41 D2\nG1 X10 F600\nG40 G18 G1 X20\nM2\n").ok());
+}
+
+// Two arcs that meet 1 degree short of a reversal, the tool outside both: by their tangents a
+// convex corner, but they cross 0.17 mm on and the tool stands in the cusp between them. It stops
+// where the offset circles cross (rs274: -4.6705, 0.0407); round the tip, on the second arc's
+// offset it cut up to 0.2 mm into the first arc's contour.
+TEST(Compensation, ACuspJustShortOfAReversalIsCutWhereTheOffsetsCross) {
+  const std::vector<Segment> m = compiled_moves(
+      "G90 G17 G0 X-10 Y20\nG42 D1\nG1 X-10 Y10 F500\nG3 X0 Y0 I10 J0\n"
+      "G3 X-10.1745 Y-9.9985 I-0.1745 J-9.9985\nG1 X-10.1745 Y-30\nG40 G1 X-30 Y-30\nM2\n");
+  ASSERT_EQ(m.size(), 6u);  // rapid, entry, two arcs, line, exit: no corner arc
+  // The crossing of the circles (0, 10) and (-0.1745, -9.9985) of radius 11 (the second arc
+  // ends at radius 10; it starts 2.3e-5 mm further out), left of the corner.
+  expect_move(m[2], SegmentType::kArcCcw, m[2].end[0], m[2].end[1], 4);
+  EXPECT_NEAR(std::hypot(m[2].end[0], m[2].end[1] - 10), 11, 1e-9);
+  EXPECT_NEAR(std::hypot(m[2].end[0] + 0.1745, m[2].end[1] + 9.9985), 11, 1e-9);
+  EXPECT_NEAR(m[2].end[0], -4.6705, 1e-4);
+  EXPECT_NEAR(m[2].end[1], 0.0407, 1e-4);
+  expect_move(m[3], SegmentType::kArcCcw, -11.1745, -9.9985, 5);
+  EXPECT_NEAR(m[3].center[0], -0.1745, 1e-12);
+  EXPECT_NEAR(m[3].center[1], -9.9985, 1e-12);
 }
 
 //! `text` with X and Y negated and G2/G3, G41/G42 swapped: what mirroring X must give.
@@ -339,8 +367,10 @@ std::string fmt(double v) {
   return buf;
 }
 
-//! A contour of lines and I/J arcs, every join tangent or a corner of 0.1..2.6 rad.
-std::string random_contour(std::mt19937_64& rng, double r, bool left) {
+//! A contour of lines and I/J arcs, every join tangent or a corner of 0.1..2.6 rad; with
+//! `reversal_share`, that share of the joins turns back by pi less 0.0005..0.045 rad instead,
+//! away from the tool (tangents that say convex; on the tool's side only long moves would reach).
+std::string random_contour(std::mt19937_64& rng, double r, bool left, double reversal_share = 0) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   const auto uni = [&](double a, double b) { return a + (b - a) * u(rng); };
   std::ostringstream o;
@@ -351,7 +381,11 @@ std::string random_contour(std::mt19937_64& rng, double r, bool left) {
   o << "G1 X" << fmt(px) << " Y" << fmt(py) << "\n";
   const int n = 3 + static_cast<int>(u(rng) * 20);
   for (int k = 0; k < n; ++k) {
-    if (u(rng) > 0.4) dir += (u(rng) < 0.5 ? -1 : 1) * uni(0.1, 2.6);
+    if (reversal_share > 0 && u(rng) < reversal_share) {
+      dir += (left ? -1 : 1) * (kPi - uni(0.0005, 0.045));
+    } else if (u(rng) > 0.4) {
+      dir += (u(rng) < 0.5 ? -1 : 1) * uni(0.1, 2.6);
+    }
     if (u(rng) < 0.1) o << "G1 Z" << fmt(-uni(0.1, 2)) << "\n";
     if (u(rng) < 0.5) {
       const double l = uni(4 * r + 1, 4 * r + 20);
@@ -377,9 +411,27 @@ std::string random_contour(std::mt19937_64& rng, double r, bool left) {
   return o.str();
 }
 
-TEST(CompensationSweep, OffsetMovesKeepTheRadiusFromTheContour) {
-  const std::uint64_t seed = test::param_u64("comp-seed", "TGM_COMP_UNIT_SEED", 20261203);
-  const std::uint64_t count = test::param_u64("comp-count", "TGM_COMP_UNIT_COUNT", 400);
+//! Unit tangent of a move at its start (or end).
+P tangent(const Move& m, bool at_end) {
+  if (!m.arc) {
+    const P d = m.b - m.a;
+    return {d.x / len(d), d.y / len(d)};
+  }
+  const P r = (at_end ? m.b : m.a) - m.c;
+  const double l = len(r);
+  return m.cw ? P{r.y / l, -r.x / l} : P{-r.y / l, r.x / l};
+}
+
+//! Whether moves k - 1 and k of `pm` meet within 0.05 rad of a reversal.
+bool reverses(const std::vector<Move>& pm, std::size_t k) {
+  if (k == 0 || k >= pm.size()) return false;
+  const P t0 = tangent(pm[k - 1], true), t1 = tangent(pm[k], false);
+  return std::atan2(std::fabs(t0.x * t1.y - t0.y * t1.x), t0.x * t1.x + t0.y * t1.y) > kPi - 0.05;
+}
+
+//! Compiles `count` random contours and checks every offset move against the programmed moves
+//! at its ends. Contours may be refused only at a corner the tool cannot reach.
+void sweep_contours(std::uint64_t seed, std::uint64_t count, double reversal_share) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   std::size_t compiled = 0, refused = 0, checked_moves = 0;
@@ -388,16 +440,18 @@ TEST(CompensationSweep, OffsetMovesKeepTheRadiusFromTheContour) {
     progress.update(k);
     const double r = 0.1 + 2.0 * u(rng);
     const bool left = u(rng) < 0.5;
-    const std::string text = random_contour(rng, r, left);
+    const std::string text = random_contour(rng, r, left, reversal_share);
     std::string zero = text;
     zero.replace(zero.find(" D") + 2, fmt(r).size(), "0");
     const CompileResult comp = compile(text);
     const CompileResult prog = compile(zero);
     ASSERT_TRUE(prog.ok()) << errors(prog) << zero;
     if (!comp.ok()) {
-      // Only the concave corner a move is too short or too curved for may refuse these.
-      ASSERT_NE(comp.errors.front().reason.find("cannot reach the concave corner"),
-                std::string::npos)
+      // Only the concave corner a move is too short or too curved for may refuse these, or
+      // the tip of a reversal the moves cross just after.
+      const std::string& why = comp.errors.front().reason;
+      ASSERT_TRUE(why.find("cannot reach the concave corner") != std::string::npos ||
+                  (reversal_share > 0 && why.find("cannot reach that corner") != std::string::npos))
           << "seed " << seed << " program " << k << ": " << errors(comp) << text;
       ++refused;
       continue;
@@ -421,8 +475,10 @@ TEST(CompensationSweep, OffsetMovesKeepTheRadiusFromTheContour) {
         // compensation decides (a contour that folds back onto itself within a radius elsewhere
         // is beyond a corner-by-corner offset, rs274's as ours).
         // (A corner arc lies at the start of its move: between the move before and its own.)
-        const std::size_t q0 = f == 0 || corner_arc ? at - 1 : at;
-        const std::size_t q1 = f == 16 && !corner_arc ? at + 1 : at;
+        // Where they meet near a reversal, the move runs alongside its neighbour: checked
+        // against it along its length.
+        const std::size_t q0 = f == 0 || corner_arc || reverses(pm, at) ? at - 1 : at;
+        const std::size_t q1 = (f == 16 || reverses(pm, at + 1)) && !corner_arc ? at + 1 : at;
         for (std::size_t q = q0; q <= q1 && q < pm.size() && pm[q].line < exit_line; ++q) {
           EXPECT_GE(distance(p, pm[q]), r - 1e-6)
               << "seed " << seed << " program " << k << ": move " << c << " (line " << m.line
@@ -442,9 +498,21 @@ TEST(CompensationSweep, OffsetMovesKeepTheRadiusFromTheContour) {
   }
   std::printf(
       "[ compensation sweep ] seed %llu: %zu programs compiled (%zu moves checked), %zu "
-      "refused at a concave corner\n",
+      "refused at a corner the tool cannot reach\n",
       static_cast<unsigned long long>(seed), compiled, checked_moves, refused);
   EXPECT_GT(compiled, count / 2) << "the generator makes too few programs that compile";
+}
+
+TEST(CompensationSweep, OffsetMovesKeepTheRadiusFromTheContour) {
+  sweep_contours(test::param_u64("comp-seed", "TGM_COMP_UNIT_SEED", 20261203),
+                 test::param_u64("comp-count", "TGM_COMP_UNIT_COUNT", 400), 0.0);
+}
+
+// A fifth of the joins turn back within 0.045 rad of a reversal: the cusps where an arc bends
+// back across the move before must be cut, the tips where the material narrows gone round.
+TEST(CompensationSweep, NearReversalsKeepTheRadiusFromTheContour) {
+  sweep_contours(test::param_u64("comp-seed", "TGM_COMP_UNIT_SEED", 20261204),
+                 test::param_u64("comp-count", "TGM_COMP_UNIT_COUNT", 400), 0.2);
 }
 
 TEST(Compensation, TheStreamingSinkGetsTheSameRecords) {
