@@ -117,10 +117,8 @@ int inspect_intercode(Args& args, const std::string& file, const FileView& input
   if (!out_path.empty()) {
     std::string io_error;
     AtomicFile out;
-    if (!out.open(out_path, io_error)) {
-      std::fprintf(stderr, "%s: error: %s\n", out_path.c_str(), io_error.c_str());
-      return 1;
-    }
+    if (!out.open(out_path, io_error))
+      return args.usage_error("--out " + out_path + ": " + io_error);
     StreamedIntercode copy(out, tables.axis_letters, tables.start_mm);
     auto cursor = program.cursor();
     Segment seg;
@@ -199,8 +197,7 @@ int run_compile(int argc, char** argv) {
   AtomicFile out;
   std::string io_error;
   if (!out_path.empty() && !out.open(out_path, io_error)) {
-    std::fprintf(stderr, "%s: error: %s\n", out_path.c_str(), io_error.c_str());
-    return 1;
+    return args.usage_error("--out " + out_path + ": " + io_error);
   }
   CompensationNote compensation;
   const auto note = [&](const Segment& s) { compensation.observe(s); };

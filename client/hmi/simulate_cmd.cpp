@@ -18,6 +18,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "cli_common.hpp"
@@ -174,20 +175,24 @@ class CsvWriter {
 };
 
 // "-" is standard output (a copy of its descriptor, so that closing the file leaves it open).
-File open_out(const std::string& path) {
+// Opened before the run: a path that cannot be written is bad input (exit code 2), said with
+// its flag, as tgm-service and tgm-plc say theirs.
+File open_out(const std::string& path, std::string& why) {
   if (path == "-") {
     std::fflush(stdout);
     const int fd = ::dup(1);
     File f(fd >= 0 ? ::fdopen(fd, "w") : nullptr);
     if (!f) {
-      std::fprintf(stderr, "tgm-hmi simulate: error: cannot write standard output: %s\n",
-                   std::strerror(errno));
+      why = std::string("cannot write standard output: ") + std::strerror(errno);
       if (fd >= 0) ::close(fd);
     }
     return f;
   }
   File f(std::fopen(path.c_str(), "w"));
-  if (!f) std::fprintf(stderr, "%s: error: cannot write: %s\n", path.c_str(), std::strerror(errno));
+  if (!f) {
+    why = errno == EISDIR ? std::string("is a directory")
+                          : std::string("cannot create: ") + std::strerror(errno);
+  }
   return f;
 }
 
@@ -404,9 +409,14 @@ int run_simulate(int argc, char** argv) {
   const std::string letters = machine.axis_letters(ip_index);
   const int n = static_cast<int>(letters.size());
 
-  if (!csv_path.empty() && !(csv = open_out(csv_path))) return 1;
-  if (!la_path.empty() && !(la = open_out(la_path))) return 1;
-  if (!blocks_path.empty() && !(blocks = open_out(blocks_path))) return 1;
+  for (auto [flag, path, out] :
+       {std::tuple{"--csv", &csv_path, &csv}, std::tuple{"--lookahead", &la_path, &la},
+        std::tuple{"--blocks", &blocks_path, &blocks}}) {
+    std::string why;
+    if (!path->empty() && !(*out = open_out(*path, why))) {
+      return args.usage_error(std::string(flag) + " " + *path + ": " + why);
+    }
+  }
   if (csv) {
     csv_buf.resize(1 << 20);
     std::setvbuf(csv.get(), csv_buf.data(), _IOFBF, csv_buf.size());

@@ -297,6 +297,18 @@ TEST_F(HmiCompile, BadCommandLinesAndFilesAreUsageErrors) {
   EXPECT_EQ(r.err,
             "/dev/zero: is a character device, not a config file\n"
             "tgm-hmi compile: the config /dev/zero has 1 problem\n");
+  // An --out that cannot be written is named with its flag, before anything is compiled, and
+  // is bad input like the rest (it said "DIR: error: is a directory", exit code 1).
+  r = run("compile " + prog.string() + " --config " + kConfig + " --out " + dir_.string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.err, "tgm-hmi compile: --out " + dir_.string() +
+                       ": is a directory\n(see tgm-hmi compile --help)\n");
+  r = run("compile " + prog.string() + " --config " + kConfig + " --out " +
+          (dir_ / "no" / "p.tgi").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.err,
+            "tgm-hmi compile: --out " + (dir_ / "no" / "p.tgi").string() +
+                ": cannot create: No such file or directory\n(see tgm-hmi compile --help)\n");
 }
 
 // Intercode is known by its content: `compile` checks it and dumps it, copies it or sums it up

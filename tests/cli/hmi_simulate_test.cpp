@@ -512,6 +512,24 @@ TEST_F(HmiSimulate, TimeLimitIsNamedAndMaxTimeRaisesIt) {
   EXPECT_NEAR(number_before(r.out, " mm/min, "), 600.0, 1e-6) << r.out;
 }
 
+// An output path that cannot be opened is bad input, said with its flag before the run (it
+// said "DIR: error: cannot write: Is a directory" and exited 1, like a failed run).
+TEST_F(HmiSimulate, AnOutputPathThatCannotBeOpenedIsAUsageError) {
+  const fs::path prog = write("line.ngc", "G90 G1 X6 F600\nM2\n");
+  ProcessResult r =
+      run("simulate " + prog.string() + " --config " + kConfig + " --csv " + dir_.string());
+  EXPECT_EQ(r.exit_code, 2) << r.out << r.err;
+  EXPECT_EQ(r.out, "");
+  EXPECT_EQ(r.err, "tgm-hmi simulate: --csv " + dir_.string() +
+                       ": is a directory\n(see tgm-hmi simulate --help)\n");
+  const std::string missing = (dir_ / "no" / "la.jsonl").string();
+  r = run("simulate " + prog.string() + " --config " + kConfig + " --lookahead " + missing);
+  EXPECT_EQ(r.exit_code, 2) << r.out << r.err;
+  EXPECT_EQ(r.err, "tgm-hmi simulate: --lookahead " + missing +
+                       ": cannot create: No such file or directory\n(see tgm-hmi simulate "
+                       "--help)\n");
+}
+
 // An output file the disk does not take: the summary is still printed, then each file that
 // failed is named with the reason, and the exit code is 1 (it said "error writing the output
 // files", naming none).

@@ -1805,7 +1805,8 @@ TEST(ServiceProcesses, HmiRunSaysWhenAnMFunctionWaitsLongAndTimesOut) {
       {TGM_HMI_BIN, "run", env.path("m.ngc"), "--config", env.config(), "--plot", env.path("")},
       env.path("no_plot.log")));
   EXPECT_EQ(no_plot.wait(kHang), 2) << no_plot.log();
-  EXPECT_EQ(no_plot.log(), env.path("") + ": error: is a directory\n");
+  EXPECT_EQ(no_plot.log(),
+            "tgm-hmi run: --plot " + env.path("") + ": is a directory\n(see tgm-hmi run --help)\n");
   test::Child run;
   ASSERT_TRUE(run.start({TGM_HMI_BIN, "run", env.path("m.ngc"), "--config", env.config(),
                          "--progress-interval", "0.5", "--timeout", "7"},

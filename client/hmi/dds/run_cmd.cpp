@@ -192,8 +192,7 @@ int run_run(int argc, char** argv) {
   // Written at the end: a path that cannot be written fails now, not after the run.
   AtomicFile plot_file;
   if (!plot_path.empty() && !plot_file.open(plot_path, error)) {
-    std::fprintf(stderr, "%s: error: %s\n", plot_path.c_str(), error.c_str());
-    return 2;
+    return args.usage_error("--plot " + plot_path + ": " + error);
   }
 
   // Config and program first: bad input never touches the service.
