@@ -436,6 +436,10 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
         const std::string path = "tools[" + std::to_string(i) + "]";
         ToolConfig t;
         if (!r.map(tools[i], path, {"number", "radius_mm", "length_mm"})) continue;
+        // Without one the entry was tool 1, and two such entries were "tool 1 listed twice".
+        if (!tools[i]["number"]) {
+          r.error(tools[i], path + ".number", "is required (the T word that selects the tool)");
+        }
         r.integer(tools[i], path, "number", t.number);
         r.number(tools[i], path, "radius_mm", t.radius_mm);
         r.number(tools[i], path, "length_mm", t.length_mm);

@@ -121,9 +121,10 @@ std::vector<std::string> MachineConfig::validate() const {
   for (std::size_t i = 0; i < tools.size(); ++i) {
     const auto& t = tools[i];
     const std::string tb = "tools[" + std::to_string(i) + "]";
-    if (t.number < 0 || t.number > kMaxTool) {
-      e.push_back(tb + ".number: must be 0.." + std::to_string(kMaxTool) +
-                  " (what a T word selects), not " + std::to_string(t.number));
+    // T0 is no tool in the spindle, whose radius is 0: an entry for it was never used.
+    if (t.number < 1 || t.number > kMaxTool) {
+      e.push_back(tb + ".number: must be 1.." + std::to_string(kMaxTool) +
+                  " (what a T word selects; T0 is no tool), not " + std::to_string(t.number));
     }
     if (!tool_numbers.insert(t.number).second) {
       e.push_back(tb + ".number: tool " + std::to_string(t.number) + " is listed twice");

@@ -593,6 +593,8 @@ TEST(Config, EveryOtherBadValueIsNamedWithItsKeyAndLine) {
       "tools:\n"
       "  - {number: 4, radius_mm: -1, length_mm: 1}\n"
       "  - {number: 4, radius_mm: 1, length_mm: 1}\n"
+      "  - {number: 0, radius_mm: 2}\n"
+      "  - {radius_mm: 2}\n"
       "compiler:\n"
       "  default_feed_mm_per_min: 0\n"
       "  initial_tool: -2\n"
@@ -611,16 +613,19 @@ TEST(Config, EveryOtherBadValueIsNamedWithItsKeyAndLine) {
         "m.yaml:5: interpolators[0].axes[2].rapid_velocity_mm_s: 200 exceeds max_velocity_mm_s 100",
         "m.yaml:7: tools[0].radius_mm: must be >= 0, not -1",
         "m.yaml:8: tools[1].number: tool 4 is listed twice",
-        "m.yaml:10: compiler.default_feed_mm_per_min: must be > 0 and at most 1000000 mm/min, "
+        "m.yaml:9: tools[2].number: must be 1..99999 (what a T word selects; T0 is no tool), not "
+        "0",
+        "m.yaml:10: tools[3].number: is required (the T word that selects the tool)",
+        "m.yaml:12: compiler.default_feed_mm_per_min: must be > 0 and at most 1000000 mm/min, "
         "not 0",
-        "m.yaml:11: compiler.initial_tool: must be 0..99999, not -2",
-        "m.yaml:12: compiler.max_program_segments: must be 1..1000000000, not 0",
-        "m.yaml:13: compiler.max_call_depth: must be 1..16, not 17",
-        "m.yaml:15: smoothing.spline_points: must be 0 (off) or 50..500, not 20",
-        "m.yaml:16: smoothing.spline_jerk_mm_s3: must be > 0, not -5"}) {
+        "m.yaml:13: compiler.initial_tool: must be 0..99999, not -2",
+        "m.yaml:14: compiler.max_program_segments: must be 1..1000000000, not 0",
+        "m.yaml:15: compiler.max_call_depth: must be 1..16, not 17",
+        "m.yaml:17: smoothing.spline_points: must be 0 (off) or 50..500, not 20",
+        "m.yaml:18: smoothing.spline_jerk_mm_s3: must be > 0, not -5"}) {
     EXPECT_TRUE(has_error(load.errors, want)) << "missing: " << want;
   }
-  EXPECT_EQ(load.errors.size(), 11u);
+  EXPECT_EQ(load.errors.size(), 13u);
   // The F word's range: 1e308 loaded, and each record without an F was refused mid-program.
   const auto fast = load_config_text("compiler:\n  default_feed_mm_per_min: 1e308\n", "f.yaml");
   EXPECT_FALSE(fast.config);
@@ -640,7 +645,8 @@ TEST(Config, EveryOtherBadValueIsNamedWithItsKeyAndLine) {
       "m.yaml");
   EXPECT_FALSE(load.config);
   for (const char* want :
-       {"m.yaml:2: tools[0].number: must be 0..99999 (what a T word selects), not 100000",
+       {"m.yaml:2: tools[0].number: must be 1..99999 (what a T word selects; T0 is no tool), not "
+        "100000",
         "m.yaml:4: compiler.initial_tool: must be 0..99999, not 123456",
         "m.yaml:5: compiler.plc_redefined_m[2]: M6 is listed twice"}) {
     EXPECT_TRUE(has_error(load.errors, want)) << "missing: " << want;
