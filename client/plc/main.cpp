@@ -859,8 +859,14 @@ int plc_main(int argc, char** argv) {
           // 32-bit); a cast truncated 0.7 to 0, which the service refused.
           const std::int32_t spline[] = {
               sm.spline_points, static_cast<std::int32_t>(std::llround(sm.spline_jerk_mm_s3))};
-          const std::int32_t iir[] = {static_cast<std::int32_t>(sm.iir_p_e6), static_cast<std::int32_t>(sm.iir_q_e6),
-                                      static_cast<std::int32_t>(sm.iir_f_e6), static_cast<std::int32_t>(sm.iir_axis_mask)};
+          // The mask's bits of this interpolator's axes (the service refuses a mask that names
+          // none of them; the config's mask is shared by interpolators of different sizes).
+          const auto axis_count =
+              config.machine.interpolators[static_cast<std::size_t>(sv.number)].axes.size();
+          const std::uint32_t iir_mask = sm.iir_axis_mask & ((1u << axis_count) - 1u);
+          const std::int32_t iir[] = {
+              static_cast<std::int32_t>(sm.iir_p_e6), static_cast<std::int32_t>(sm.iir_q_e6),
+              static_cast<std::int32_t>(sm.iir_f_e6), static_cast<std::int32_t>(iir_mask)};
           // A request left unanswered is sent again, twice at most: setting the same
           // parameters twice is harmless, and a lossy network can lose the request or its reply
           // for longer than the timeout (30 % loss left one interpolator without them).
@@ -873,7 +879,7 @@ int plc_main(int argc, char** argv) {
                         3);
           std::snprintf(what, sizeof what,
                         "interpolator %d: basic parameters: Command -1 (IIR mask 0x%x)", sv.number,
-                        sm.iir_axis_mask);
+                        iir_mask);
           queue_request(sv.number, tgm::client::command_request(sv.number, -1, iir), what, true, 3);
           const auto& axes = config.machine.interpolators[static_cast<std::size_t>(sv.number)].axes;
           for (std::size_t a = 0; a < axes.size(); ++a) {

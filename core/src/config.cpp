@@ -182,6 +182,15 @@ std::vector<std::string> MachineConfig::validate() const {
   if (s.iir_q_e6 <= 0) e.push_back("smoothing.iir_q_e6: must be > 0");
   if (s.iir_f_e6 <= 0) e.push_back("smoothing.iir_f_e6: must be > 0");
   if (s.iir_axis_mask > 0x3FFu) e.push_back("smoothing.iir_axis_mask: only 10 bits (0..1023)");
+  // Bit 0 is axis 0: a mask of axes no interpolator has filtered nothing, without a word.
+  std::size_t most_axes = 0;
+  for (const auto& ip : interpolators) most_axes = std::max(most_axes, ip.axes.size());
+  if (s.iir_axis_mask != 0 && most_axes >= 1 && most_axes <= kMaxAxes &&
+      (s.iir_axis_mask & ((1u << most_axes) - 1u)) == 0) {
+    e.push_back("smoothing.iir_axis_mask: " + std::to_string(s.iir_axis_mask) +
+                " selects no axis of any interpolator (bit 0 is axis 0; the largest has " +
+                std::to_string(most_axes) + " axes)");
+  }
   // The checks of Command -1 / -2 (core/SMOOTHING.md), so a bad default is reported at load.
   if (s.iir_axis_mask != 0 && s.iir_p_e6 > 0 && s.iir_q_e6 > 0 && s.iir_f_e6 > 0) {
     if (const RequestResult r = IirFilter::check(s.iir_p_e6, s.iir_q_e6, s.iir_f_e6); !r.ok()) {

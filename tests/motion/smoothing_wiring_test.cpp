@@ -347,6 +347,110 @@ TEST(Wiring, CommandsWithValidAndInvalidParametersAndStatusSequence) {
   ASSERT_TRUE(ip.write_number_axes(3).ok());
 }
 
+// A gear ratio changes PositionInc by Position x the change in one cycle: not while a program
+// is under way, at an M-function wait (it was accepted there, the drive setpoint jumped 100 mm
+// and the program went on at the new scale), at a stop it resumes from, or while it waits for
+// more records; before it starts and after it ended, yes.
+TEST(Wiring, TheRatioIsSetOnlyBetweenPrograms) {
+  MachineConfig m = MachineConfig::default_machine();
+  Interpolator ip = make(m);
+  const Registers& r = ip.registers();
+  Params p{};
+  p[0] = 0;
+  p[1] = 2000;
+  p[2] = 1;
+  const std::string refused =
+      "Command 1024: the ratio can only be set while no program is executing (PositionInc jumps "
+      "by Position x the change)";
+  const std::string refused_register =
+      "Ratio can only be written while no program is executing (PositionInc jumps by Position x "
+      "the change)";
+  ProgramBuilder b;
+  b.line({100.0, 0.0, 0.0}, 6000.0).m(50, MKind::kNormal).line({0.0, 0.0, 0.0}, 6000.0).end();
+  ASSERT_TRUE(ip.load(b.program()).ok());
+  // Loaded, not started: allowed.
+  ASSERT_TRUE(ip.command(kCommandSetRatio, p).ok());
+  EXPECT_EQ(r.ratio[0], 2000.0);
+  p[1] = 1000;
+  ASSERT_TRUE(ip.write_ratio(0, 1000.0).ok());
+  ASSERT_TRUE(ip.start().ok());
+  int c = 0;
+  while (r.m_func != 50 && c++ < 100000) ip.step();
+  ASSERT_EQ(r.m_func, 50);
+  const std::int64_t inc = r.position_inc[0];
+  EXPECT_EQ(inc, 100000);
+  EXPECT_EQ(ip.command(kCommandSetRatio, p).reason, refused);
+  EXPECT_EQ(ip.write_ratio(0, 2000.0).reason, refused_register);
+  ip.step();
+  EXPECT_EQ(r.position_inc[0], inc);
+  EXPECT_EQ(r.ratio[0], 1000.0);
+  ASSERT_TRUE(ip.write_m_func(0).ok());
+  // Stopped on the trajectory mid-move (Status 4): a start resumes it.
+  for (int k = 0; k < 200; ++k) ip.step();
+  ASSERT_TRUE(ip.command(8).ok());
+  c = 0;
+  while (r.status != static_cast<std::int32_t>(InterpolatorStatus::kReady) && c++ < 100000) {
+    ip.step();
+  }
+  ASSERT_EQ(r.status, static_cast<std::int32_t>(InterpolatorStatus::kReady));
+  EXPECT_EQ(ip.command(kCommandSetRatio, p).reason, refused);
+  EXPECT_EQ(ip.write_ratio(0, 2000.0).code, RequestCode::kWrongState);
+  ASSERT_TRUE(ip.start().ok());
+  EXPECT_EQ(run(ip).back().status, static_cast<std::int32_t>(InterpolatorStatus::kEnded));
+  // Ended: allowed again.
+  ASSERT_TRUE(ip.write_ratio(0, 2000.0).ok());
+  EXPECT_EQ(r.ratio[0], 2000.0);
+}
+
+// An axis entering the IIR mask starts at rest on its input: while the spline still carries
+// motion after a stop, Command -1 waits at Command_Status 1 until it has drained (it was done
+// at once, and Position X went from 34.7 mm/s to 1.4 in one cycle). Position's velocity then
+// changes per cycle no more than in the same run without the command.
+TEST(Wiring, AnAxisEntersTheIirMaskOnlyWhenItsInputStands) {
+  const auto largest_step = [](bool enter) {
+    MachineConfig m = MachineConfig::default_machine();
+    Interpolator ip = make(m);
+    const Registers& r = ip.registers();
+    EXPECT_TRUE(ip.command(kCommandSpline, spline(500, 1'000'000)).ok());
+    ProgramBuilder b;
+    b.line({200.0, 0.0, 0.0}, 6000.0).end();
+    EXPECT_TRUE(ip.load(b.program()).ok());
+    EXPECT_TRUE(ip.start().ok());
+    double prev_pos = 0.0, prev_v = 0.0, largest = 0.0;
+    bool sent = false;
+    int waited = -1;
+    for (int c = 0; c < 4000; ++c) {
+      ip.step();
+      const double v = (r.position[0] - prev_pos) / 0.0005;
+      if (c > 2) largest = std::max(largest, std::fabs(v - prev_v));
+      prev_v = v;
+      prev_pos = r.position[0];
+      if (c == 600) {
+        EXPECT_TRUE(ip.command(8).ok());
+      }
+      if (enter && !sent && r.status == static_cast<std::int32_t>(InterpolatorStatus::kReady)) {
+        EXPECT_FALSE(ip.smoothing().spline().settled());
+        EXPECT_TRUE(ip.command(kCommandIir, iir_params(2'000'000, 1'000'000, 6'000'000, 1)).ok());
+        EXPECT_EQ(r.command_status, 1);
+        sent = true;
+        waited = 0;
+      } else if (sent && r.command_status == 1) {
+        ++waited;
+      }
+    }
+    if (enter) {
+      EXPECT_EQ(r.command_status, 0);
+      EXPECT_EQ(ip.smoothing().iir().mask(), 1u);
+      EXPECT_GT(waited, 10);  // the spline's drain: 2 x 500 steps = 200 cycles at most
+    }
+    return largest;
+  };
+  const double without = largest_step(false);
+  const double with = largest_step(true);
+  EXPECT_GT(without, 0.0);
+  EXPECT_LE(with, without + 1e-9);
+}
+
 // Command_Status 1 while a command waits for the smoothing: a spline change and a position set
 // after a stop, executed when the spline has drained; a stop cancels a waiting command.
 TEST(Wiring, CommandStatusOneWhileWaitingForTheSmoothing) {

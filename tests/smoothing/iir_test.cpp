@@ -235,7 +235,7 @@ TEST(Iir, ParameterChecksWithReasons) {
   r = IirFilter::check(2'000'000, 1'000'000, 999'999);
   EXPECT_EQ(r.reason, "IIR f (Command_Parameter[2]) must be 1000000..2000000000 (1..2000 ms x 1e6), not 999999");
   r = IirFilter::check(100'000, 1'000'000, 6'000'000);  // zeta 0.05
-  EXPECT_EQ(r.reason, "IIR damping p / (2 sqrt q) = 0.050000 (p 0.100000, q 1.000000) must be 0.2..10");
+  EXPECT_EQ(r.reason, "IIR damping p / (2 sqrt q) = 0.05 (p 0.1, q 1) must be 0.2..10");
   // Mask 0 switches the filter off; p, q, f are then not checked.
   IirFilter f(kDt);
   EXPECT_TRUE(f.configure({0, 0, 0, 0}, 3).ok());

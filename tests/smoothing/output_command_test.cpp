@@ -53,7 +53,9 @@ TEST(OutputStage, RefusedWritesWithReasons) {
   EXPECT_EQ(o.write_offset(3, 0).reason, "Offset: axis 3 is not 0..2");
   EXPECT_EQ(o.write_offset(0, 2'000'000'000'000'000).reason,
             "Offset: |offset| must be <= 1e15 inc, not 2000000000000000");
-  EXPECT_EQ(o.write_ratio(0, 0.0).reason, "Ratio: |ratio| must be 1e-06..1e+09 inc/mm, not 0.000000");
+  EXPECT_EQ(o.write_ratio(0, 0.0).reason, "Ratio: |ratio| must be 1e-06..1e+09 inc/mm, not 0");
+  // Below the range but not 0 (it read "not 0.000000").
+  EXPECT_EQ(o.write_ratio(0, 4e-7).reason, "Ratio: |ratio| must be 1e-06..1e+09 inc/mm, not 4e-07");
   EXPECT_EQ(o.write_ratio(0, NAN).code, RequestCode::kOutOfRange);
   EXPECT_EQ(o.set_ratio(0, 1, 0).reason, "Command 1024: denominator (Command_Parameter[2]) must be > 0 mm, not 0");
   EXPECT_EQ(o.set_ratio(0, 0, 1).reason, "Command 1024: numerator (Command_Parameter[1]) must not be 0 inc");
@@ -210,7 +212,24 @@ TEST(Commands, ValidAndInvalidParametersWithExactReasons) {
        {0, 4096, 5},
        moving(),
        RequestCode::kWrongState,
-       "Command 1024: the ratio can only be set while standing"},
+       "Command 1024: the ratio can only be set while no program is executing (PositionInc "
+       "jumps by Position x the change)"},
+      // Standing at an M-function wait: PositionInc jumped by Position x the change, and the
+      // program went on at the new scale.
+      // Stopped on the trajectory of a program a start resumes (Status 4): idle, but not
+      // between programs.
+      {1024,
+       {0, 4096, 5},
+       CommandContext{true, true, 3, 3, false},
+       RequestCode::kWrongState,
+       "Command 1024: the ratio can only be set while no program is executing (PositionInc "
+       "jumps by Position x the change)"},
+      {1024,
+       {0, 4096, 5},
+       CommandContext{true, false, 3, 3},
+       RequestCode::kWrongState,
+       "Command 1024: the ratio can only be set while no program is executing (PositionInc "
+       "jumps by Position x the change)"},
       // The range set_ratio refuses at run time is refused by the check too (a PLC script's
       // ratio of 2e9 inc/mm passed it), with the value.
       {1024,
@@ -245,6 +264,15 @@ TEST(Commands, ValidAndInvalidParametersWithExactReasons) {
        RequestCode::kAccepted,
        ""},  // standing at an M-function: fine (bumpless)
       {-1, {0, 0, 0, 0}, standing(), RequestCode::kAccepted, ""},  // mask 0: off
+      // Only axes the interpolator lacks (axes counted from 1: 8 meant Z of three): it was
+      // done, and nothing was filtered. Bits beyond the axes are ignored where one is an axis.
+      {-1,
+       {2'000'000, 1'000'000, 6'000'000, 0b1000},
+       standing(),
+       RequestCode::kOutOfRange,
+       "Command -1: the axis mask (Command_Parameter[3]) 8 selects none of axes 0..2 (bit 0 is "
+       "axis 0)"},
+      {-1, {2'000'000, 1'000'000, 6'000'000, 0x3FF}, standing(), RequestCode::kAccepted, ""},
       {-1,
        {0, 1'000'000, 6'000'000, 1},
        standing(),

@@ -602,7 +602,8 @@ TEST(Config, EveryOtherBadValueIsNamedWithItsKeyAndLine) {
       "  max_call_depth: 17\n"
       "smoothing:\n"
       "  spline_points: 20\n"
-      "  spline_jerk_mm_s3: -5\n",
+      "  spline_jerk_mm_s3: -5\n"
+      "  iir_axis_mask: 8\n",
       "m.yaml");
   EXPECT_FALSE(load.config);
   for (const char* want :
@@ -622,10 +623,13 @@ TEST(Config, EveryOtherBadValueIsNamedWithItsKeyAndLine) {
         "m.yaml:14: compiler.max_program_segments: must be 1..1000000000, not 0",
         "m.yaml:15: compiler.max_call_depth: must be 1..16, not 17",
         "m.yaml:17: smoothing.spline_points: must be 0 (off) or 50..500, not 20",
-        "m.yaml:18: smoothing.spline_jerk_mm_s3: must be > 0, not -5"}) {
+        "m.yaml:18: smoothing.spline_jerk_mm_s3: must be > 0, not -5",
+        // Axes counted from 1 (8 for Z): no axis was filtered, without a word.
+        "m.yaml:19: smoothing.iir_axis_mask: 8 selects no axis of any interpolator (bit 0 is axis "
+        "0; the largest has 3 axes)"}) {
     EXPECT_TRUE(has_error(load.errors, want)) << "missing: " << want;
   }
-  EXPECT_EQ(load.errors.size(), 13u);
+  EXPECT_EQ(load.errors.size(), 14u);
   // The F word's range: 1e308 loaded, and each record without an F was refused mid-program.
   const auto fast = load_config_text("compiler:\n  default_feed_mm_per_min: 1e308\n", "f.yaml");
   EXPECT_FALSE(fast.config);
@@ -664,7 +668,7 @@ TEST(Config, EveryOtherBadValueIsNamedWithItsKeyAndLine) {
   // A finding about several keys has the line of its section.
   for (const char* want :
        {"m.yaml:1: interpolators: between 1 and 3 interpolators are needed, not 4",
-        "m.yaml:3: smoothing.iir: IIR damping p / (2 sqrt q) = 0.000500 (p 0.001000, q 1.000000) "
+        "m.yaml:3: smoothing.iir: IIR damping p / (2 sqrt q) = 0.0005 (p 0.001, q 1) "
         "must be 0.2..10",
         "m.yaml:3: smoothing.spline_jerk_mm_s3: must be at least 0.5 (Command -2 takes it rounded "
         "to whole mm/s^3), not 0.2"}) {

@@ -30,6 +30,9 @@ struct CommandContext {
   bool idle = true;
   int number_axes = 1;      //!< Number_Axes
   int configured_axes = 1;  //!< axes of the interpolator's config
+  //! With `idle`: no program is under way either (nothing loaded, ended, dropped, or loaded and
+  //! not yet started; not one stopped on its trajectory or starved, which a start resumes).
+  bool between_programs = true;
 };
 
 //! True for the commands this stage executes (1024, 2048, 2049, -1, -2).

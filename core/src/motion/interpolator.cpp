@@ -1640,6 +1640,10 @@ struct Interpolator::Impl {
               s == InterpolatorStatus::kUnderrun);
     c.number_axes = reg.number_axes;
     c.configured_axes = static_cast<int>(cfg.axes.size());
+    c.between_programs =
+        s == InterpolatorStatus::kEmpty || s == InterpolatorStatus::kEnded ||
+        (s == InterpolatorStatus::kEmergencyStopped && !resumable_estop) ||
+        (s == InterpolatorStatus::kReady && reg.move_distance == 0.0 && !paused_m0);
     return c;
   }
 
@@ -1657,6 +1661,9 @@ struct Interpolator::Impl {
         for (int i = 0; i < smooth->axes(); ++i) {
           const std::uint32_t bit = 1u << i;
           if ((now & bit) && !(want & bit) && !smooth->iir().settled(i)) return false;
+          // An entering axis starts at rest on its input: the input must stand, or its motion
+          // behind the spline became a velocity step (34 mm/s to 1.4 in one cycle).
+          if (!(now & bit) && (want & bit) && !smooth->spline().settled()) return false;
         }
         return true;
       }
@@ -3984,7 +3991,11 @@ RequestResult Interpolator::write_ratio(int axis, double ratio_inc_per_mm) {
     return refuse(RequestCode::kOutOfRange, "Ratio: axis " + std::to_string(axis) + " is not 0.." +
                                                 std::to_string(m.reg.number_axes - 1));
   }
-  if (!m.standing()) return refuse(RequestCode::kWrongState, "Ratio can only be written while standing");
+  if (const CommandContext c = m.command_context(); !c.idle || !c.between_programs || !c.standing) {
+    return refuse(RequestCode::kWrongState,
+                  "Ratio can only be written while no program is executing (PositionInc jumps by "
+                  "Position x the change)");
+  }
   if (!m.smooth->settled()) {
     return refuse(RequestCode::kWrongState, "Ratio: the axes are still moving behind the spline / IIR filter");
   }

@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 #include <unsupported/Eigen/MatrixFunctions>
 
+#include "tgm/printable.hpp"
 #include "tgm/smoothing.hpp"
 
 namespace tgm {
@@ -18,9 +19,8 @@ constexpr double kBand = 0.02;  // 2 % settling band
 RequestResult refuse(RequestCode c, std::string why) { return {c, std::move(why)}; }
 
 std::string e6(std::int64_t v) {
-  // The physical value of an integer x 1e6 parameter, for messages ("1.414214").
-  std::string s = std::to_string(static_cast<double>(v) * 1e-6);
-  return s;
+  // The physical value of an integer x 1e6 parameter, for messages ("1.414214", "1e-06").
+  return number_text(static_cast<double>(v) * 1e-6);
 }
 
 // Step response of the normalized q / (s^2 + p s + q) at time t (closed form).
@@ -94,9 +94,9 @@ RequestResult IirFilter::check(std::int64_t p_e6, std::int64_t q_e6, std::int64_
   }
   const double zeta = static_cast<double>(p_e6) / (2.0 * std::sqrt(static_cast<double>(q_e6) * 1e6));
   if (zeta < kIirMinZeta || zeta > kIirMaxZeta) {
-    return refuse(RequestCode::kOutOfRange,
-                  "IIR damping p / (2 sqrt q) = " + std::to_string(zeta) + " (p " + e6(p_e6) +
-                      ", q " + e6(q_e6) + ") must be 0.2..10");
+    return refuse(RequestCode::kOutOfRange, "IIR damping p / (2 sqrt q) = " + number_text(zeta) +
+                                                " (p " + e6(p_e6) + ", q " + e6(q_e6) +
+                                                ") must be 0.2..10");
   }
   return {};
 }

@@ -114,8 +114,8 @@ RequestResult OutputStage::write_ratio(std::int64_t axis, double ratio_inc_per_m
   }
   const double m = std::fabs(ratio_inc_per_mm);
   if (!std::isfinite(ratio_inc_per_mm) || m < kMinRatio || m > kMaxRatio) {
-    return refuse(RequestCode::kOutOfRange,
-                  "Ratio: |ratio| must be 1e-06..1e+09 inc/mm, not " + std::to_string(ratio_inc_per_mm));
+    return refuse(RequestCode::kOutOfRange, "Ratio: |ratio| must be 1e-06..1e+09 inc/mm, not " +
+                                                number_text(ratio_inc_per_mm));
   }
   ratio_[static_cast<std::size_t>(axis)] = ratio_inc_per_mm;
   return {};
