@@ -305,8 +305,8 @@ void DdsPort::take_requests_locked() {
         if (!busy_replies_.push(busy)) {
           busy_reply_.request_id(r.request_id());
           busy_reply_.client_name(r.client_name());
-          busy_reply_.interpolator(r.interpolator());
-          reply_writer_.write(&busy_reply_);
+          busy_reply_.interpolator(reply_key(r.interpolator()));
+          if (!reply_writer_.write(&busy_reply_)) ++replies_not_written_;
         }
         ++busy_requests_;
         continue;
@@ -518,7 +518,7 @@ void DdsPort::publish_replies() {
     while (replies_.pop(r) || busy_replies_.pop(r)) {
       reply.request_id(r.request_id);
       reply.client_name(std::string(r.client.view()));
-      reply.interpolator(static_cast<std::uint16_t>(r.interpolator));
+      reply.interpolator(reply_key(r.interpolator));
       reply.accepted(r.code == ReplyCode::kAccepted);
       reply.code(to_msg(r.code));
       reply.reason(std::string(r.reason.view()));
@@ -537,7 +537,9 @@ void DdsPort::publish_replies() {
       }
     }
   }
-  for (msg::Reply& w : replies_to_write_) reply_writer_.write(&w);
+  for (msg::Reply& w : replies_to_write_) {
+    if (!reply_writer_.write(&w)) ++replies_not_written_;
+  }
 }
 
 void DdsPort::publish_loop() {

@@ -121,6 +121,12 @@ class DdsPort final : public CyclePort {
   //! of them written after kReplyMatchWait without that match (valid after stop()).
   std::uint64_t replies_held() const { return replies_held_; }
   std::uint64_t replies_unmatched() const { return replies_unmatched_; }
+  //! Replies whose write() failed (valid after stop()).
+  std::uint64_t replies_not_written() const { return replies_not_written_; }
+  //! The reply key of a request to an interpolator the service does not host: one instance for
+  //! all of them (each new key is a writer instance for good, and at Fast DDS's default of 10
+  //! every later reply, to every client, failed while its request still executed).
+  static constexpr std::uint16_t kForeignInterpolatorKey = 0xFFFF;
   //! How long a reply waits for the reply writer to match its client's reply reader. On a
   //! network that loses packets that match can take seconds (a lost discovery sample is
   //! repaired at the builtin writers' heartbeat): with 2 s, one in a few fresh `tgm-hmi
@@ -255,6 +261,13 @@ class DdsPort final : public CyclePort {
   std::vector<msg::Reply> replies_to_write_;
   std::uint64_t replies_held_ = 0;
   std::uint64_t replies_unmatched_ = 0;
+  std::uint64_t replies_not_written_ = 0;
+  //! The key a reply to a request for `interpolator` is written under.
+  std::uint16_t reply_key(std::int64_t interpolator) const {
+    return interpolator >= 0 && interpolator < opt_.interpolators
+               ? static_cast<std::uint16_t>(interpolator)
+               : kForeignInterpolatorKey;
+  }
   // receiver thread only
   std::vector<std::deque<ChunkIn*>> backlog_;
   ChunkIn* spare_ = nullptr;

@@ -452,7 +452,7 @@ int service_main(int argc, char** argv) {
       "tgm-service: stopping (%s) after %llu cycles: lateness p50 %.1f us, p99 %.1f us,"
       " p99.9 %.1f us, max %.1f us, missed %llu; cycle work p99.9 %.1f us, max %.1f us;"
       " %llu requests (%llu refused, %llu busy), %llu chunks, %llu segments,"
-      " %llu events (%llu lost), %llu states, %llu setpoints published%s%s\n",
+      " %llu events (%llu lost), %llu states, %llu setpoints published%s%s%s\n",
       sig > 0           ? strsignal(sig)
       : yielded_to != 0 ? "gave way to another service"
                         : "time is up",
@@ -477,6 +477,9 @@ int service_main(int argc, char** argv) {
           ? ("; malformed DDS samples dropped (" + std::to_string(tgm::dds::malformed_samples()) +
              " failed reads)")
                 .c_str()
+          : "",
+      port->replies_not_written() != 0
+          ? ("; replies DDS did not take: " + std::to_string(port->replies_not_written())).c_str()
           : "");
   int exit_code = yielded_to != 0 ? 1 : 0;
   if (std::FILE* f = stats_file.stream()) {
@@ -491,7 +494,8 @@ int service_main(int argc, char** argv) {
         " \"requests\": %llu, \"busy_requests\": %llu, \"chunks\": %llu, \"segments\": %llu,"
         " \"duplicate_chunks\": %llu,"
         " \"refused_chunks\": %llu, \"lost_replies\": %llu, \"lost_messages\": %llu,\n"
-        " \"replies_held_for_match\": %llu, \"replies_unmatched\": %llu,\n"
+        " \"replies_held_for_match\": %llu, \"replies_unmatched\": %llu,"
+        " \"replies_not_written\": %llu,\n"
         " \"events_published\": %llu, \"lost_events\": %llu, \"states_published\": %llu,"
         " \"setpoints_published\": %llu,\n"
         " \"limits_checked\": %s, \"limit_violations\": %llu}\n",
@@ -515,6 +519,7 @@ int service_main(int argc, char** argv) {
         static_cast<unsigned long long>(c.lost_messages),
         static_cast<unsigned long long>(port->replies_held()),
         static_cast<unsigned long long>(port->replies_unmatched()),
+        static_cast<unsigned long long>(port->replies_not_written()),
         static_cast<unsigned long long>(port->events_published()),
         static_cast<unsigned long long>(c.lost_events),
         static_cast<unsigned long long>(port->states_published()),

@@ -247,6 +247,53 @@ TEST(ServiceProcesses, MFunctionWaitsUntilThePlcAcksAndNotLonger) {
               static_cast<unsigned long long>(s.cycle_counter()));
 }
 
+// Two clients of one PID (each PID 1 in a container of its own) get different names: named
+// "tgm-hmi-1" both, each took the other's replies (a start "accepted" that the service refused).
+TEST(ClientName, IsUniquePerClientAndFitsTheTopicsBound) {
+  const std::string a = client::unique_client_name("tgm-hmi");
+  const std::string b = client::unique_client_name("tgm-hmi");
+  EXPECT_NE(a, b);
+  const std::string pid = "-" + std::to_string(::getpid()) + "-";
+  for (const std::string& n : {a, b}) {
+    EXPECT_EQ(n.rfind("tgm-hmi" + pid, 0), 0u) << n;
+    EXPECT_EQ(n.size(), 7 + pid.size() + 8) << n;
+    EXPECT_EQ(n.find_first_not_of("0123456789abcdef", 7 + pid.size()), std::string::npos) << n;
+  }
+  // A long participant name is cut, the tail kept: the name stays at 64 characters.
+  const std::string long_name = client::unique_client_name(std::string(100, 'p'));
+  EXPECT_EQ(long_name.size(), 64u);
+  EXPECT_NE(long_name.find(pid), std::string::npos) << long_name;
+}
+
+// Replies are keyed by interpolator. A request to one the service does not host is refused, and
+// its reply goes out under one key for all of them: each key is a reply writer instance for
+// good, and after ten bad indices (Fast DDS's default limit) no client got another reply, while
+// its requests still executed.
+TEST(ServiceProcesses, RequestsToInterpolatorsThatDoNotExistLeaveTheRepliesWorking) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  client::Client plc(env.dds(), client::Role::kPlc);
+  ASSERT_TRUE(plc.wait_for_state(0, kHang));
+  for (int i = 3; i < 13; ++i) {
+    msg::Request r;
+    r.interpolator(static_cast<std::uint16_t>(i));
+    r.kind(msg::REQUEST_KIND_WRITE_REL_SPEED);
+    r.value(1.0);
+    const client::Reply reply = plc.request(r);
+    ASSERT_FALSE(reply.timed_out) << "interpolator " << i;
+    EXPECT_EQ(reply.code, msg::REPLY_CODE_BAD_REQUEST) << client::describe(reply);
+    EXPECT_NE(reply.reason.find("interpolator " + std::to_string(i) + " does not exist"),
+              std::string::npos)
+        << reply.reason;
+  }
+  // Another client (a process of its own: one participant per test process) is answered.
+  test::Child stop;
+  ASSERT_TRUE(
+      stop.start({TGM_HMI_BIN, "command", "stop", "--config", env.config()}, env.path("stop.log")));
+  EXPECT_EQ(stop.wait(kHang), 0) << stop.log();
+  EXPECT_NE(stop.log().find("accepted"), std::string::npos) << stop.log();
+}
+
 // The event topic: the PLC gets the M-function in a small event sample, in Fast DDS's receive
 // thread, and can acknowledge it right there; the reply is taken later by the polling thread.
 TEST(ServiceProcesses, EventCallbackSeesTheMFunctionAndCanAcknowledgeIt) {

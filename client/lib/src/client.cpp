@@ -6,6 +6,8 @@
 #include <array>
 #include <chrono>
 #include <cstdio>
+#include <cstring>
+#include <random>
 
 #include "tgm/dds/topics.hpp"
 #include "tgm/idl_mapping.hpp"
@@ -28,6 +30,14 @@ std::string_view reply_code_name(msg::ReplyCode c) {
     case msg::REPLY_CODE_BUSY: return "busy";
   }
   return "unknown reply code";
+}
+
+std::string unique_client_name(std::string_view participant) {
+  char tail[32];
+  std::snprintf(tail, sizeof tail, "-%ld-%08x", static_cast<long>(::getpid()),
+                static_cast<unsigned>(std::random_device{}()));
+  const std::size_t room = TGM_MAX_NAME - std::strlen(tail);
+  return std::string(participant.substr(0, room)) + tail;
 }
 
 std::string describe(const Reply& r) {
@@ -71,7 +81,7 @@ Client::Client(const DdsConfig& config, Role role, const ClientOptions& options)
       request_timeout_(options.request_timeout),
       default_cancel_(options.cancel),
       participant_(config, role == Role::kPlc ? "plc" : "hmi"),
-      name_(participant_.name() + "-" + std::to_string(::getpid())),
+      name_(unique_client_name(participant_.name())),
       state_reader_(participant_.reader<msg::InterpolatorStatePubSubType>(dds::kStateTopic)),
       reply_reader_(participant_.reader<msg::ReplyPubSubType>(dds::kReplyTopic)),
       message_reader_(participant_.reader<msg::MessagePubSubType>(dds::kMessageTopic)),

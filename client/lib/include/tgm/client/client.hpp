@@ -78,6 +78,12 @@ struct Reply {
 std::string_view reply_code_name(msg::ReplyCode c);
 //! A one-line description of a reply: "accepted" or "refused (wrong role): reason".
 std::string describe(const Reply& r);
+
+//! The name a client puts on its requests and the service on their replies:
+//! "<participant>-<pid>-<8 random hex digits>", at most 64 characters (the participant's name is
+//! cut first). The random part tells apart clients that share a PID, each PID 1 in a container
+//! of its own: named by PID alone, two HMIs took each other's replies.
+std::string unique_client_name(std::string_view participant);
 //! "empty", "running", "ended", "ready", "emergency ramp", "emergency stopped", "underrun".
 std::string_view status_name(std::int32_t status);
 
