@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <string>
 
+#include "tgm/printable.hpp"
 #include "tgm/smoothing.hpp"
 
 namespace tgm::service {
@@ -21,7 +22,10 @@ using Handler = RequestResult (*)(Interpolator&, const RequestIn&);
 
 RequestResult whole(double v, double lo, double hi, const char* name, std::int64_t& out) {
   if (!std::isfinite(v) || v != std::floor(v) || v < lo || v > hi) {
-    return {RequestCode::kOutOfRange, std::string(name) + " must be a whole number"};
+    // With the range and the value: "Number_Axes must be a whole number" was all of it for 0.
+    return {RequestCode::kOutOfRange, std::string(name) + " must be a whole number " +
+                                          number_text(lo) + ".." + number_text(hi) + ", not " +
+                                          number_text(v)};
   }
   out = static_cast<std::int64_t>(v);
   return {};
@@ -51,7 +55,9 @@ const KindRule kKinds[] = {
      [](Interpolator& ip, const RequestIn& r) {
        // Offset is whole increments: the IDL says the value is rounded.
        if (!std::isfinite(r.value) || std::abs(r.value) > 1e15) {
-         return RequestResult{RequestCode::kOutOfRange, "Offset must be finite, |Offset| <= 1e15 inc"};
+         return RequestResult{
+             RequestCode::kOutOfRange,
+             "Offset must be finite, |Offset| <= 1e15 inc, not " + number_text(r.value)};
        }
        return ip.write_offset(r.axis, std::llround(r.value));
      }},
@@ -254,6 +260,13 @@ void Engine::apply_chunks(CyclePort& port, int i, std::size_t& budget) {
       port.pop_chunk(i);
       continue;
     }
+    // 0 is no program (the IDL): it also turned off the check for a program a position set
+    // dropped.
+    if (c->program_id == 0) {
+      refuse_chunk(port, i, *c, "program id 0 is no program (number programs from 1)");
+      port.pop_chunk(i);
+      continue;
+    }
     // Records hold positions by axis index: a program compiled for other letters (XYC) would
     // drive this interpolator's axes (XYZ) as if they were those. The axis count is checked
     // by the interpolator; letters only when the chunk names them.
@@ -296,7 +309,7 @@ void Engine::apply_chunks(CyclePort& port, int i, std::size_t& budget) {
       s.program_id = c->program_id;
       s.next_sequence = 0;
       s.sets_at_load = s.ip.position_sets();
-      s.refused_program = 0;
+      s.refused_program = kNoProgram;
       s.limit_messages = 0;
     }
     const std::size_t total = c->program.segments.size();
@@ -411,6 +424,16 @@ void Engine::cycle(CyclePort& port, const LatenessStats& lateness) {
                    s.program_id);
     }
     InterpolatorSnapshot& o = snapshot_.ip[static_cast<std::size_t>(i)];
+    // A command that waited at Command_Status 1 (its reply said accepted) and then ended
+    // unexecuted, cancelled by a stop or no longer allowed: the reason was only in
+    // command_error(), which nobody read, and the PLC believed its position set done.
+    if (s.ip.unexecuted_commands() != s.unexecuted_seen) {
+      s.unexecuted_seen = s.ip.unexecuted_commands();
+      send_message(
+          port, i, MessageOut::Severity::kError,
+          "a command that waited for the smoothing was not executed: " + s.ip.unexecuted_reason(),
+          0, s.program_id);
+    }
     // o still holds the previous cycle: queue the event (the first cycle always has one).
     if (s.events == 0 || event_due(reg, s.program_id, o.reg, o.program_id)) {
       EventOut e;

@@ -930,8 +930,8 @@ TEST(Requests, RefusedWithReasons) {
   EXPECT_NE(err.find("not configured"), std::string::npos);
 }
 
-// A Number_Axes write drops the program and keeps the position where a stop on the trajectory
-// left it: the next program starts there. It kept showing the point on the dropped record's
+// A Number_Axes write after a clear keeps the position where a stop on the trajectory left it:
+// the next program starts there. It kept showing the point on the dropped record's
 // path but planned the next program from the last rest point, so Orig_Position jumped by the
 // distance between them (RandomRequests, wide seed 10 case 40: 0.046 mm in one cycle, 8 x the
 // axis' velocity limit).
@@ -947,6 +947,15 @@ TEST(Requests, ANumberAxesWriteAfterAStopKeepsThePositionForTheNextProgram) {
   const std::array<double, kMaxAxes> stop = ip.registers().orig_position;
   ASSERT_GT(stop[0], 1.0);
   ASSERT_LT(stop[0], 99.0);
+  // The stopped program holds records planned for three axes: a change is refused (it dropped
+  // them without a word, and the rest of a streamed program then ran on its own), same count
+  // accepted; after a clear both go through.
+  EXPECT_EQ(ip.write_number_axes(2).reason,
+            "Number_Axes 2: a program is loaded, whose records are planned for 3 axes (clear it "
+            "first)");
+  EXPECT_TRUE(ip.write_number_axes(3).ok());
+  EXPECT_EQ(ip.registers().status, static_cast<std::int32_t>(InterpolatorStatus::kReady));
+  ASSERT_TRUE(ip.clear().ok());
   ASSERT_TRUE(ip.write_number_axes(2).ok());
   ASSERT_TRUE(ip.write_number_axes(3).ok());
   EXPECT_EQ(ip.registers().status, static_cast<std::int32_t>(InterpolatorStatus::kEmpty));

@@ -364,6 +364,9 @@ TEST(KnownValues, EqualAdjacentMFunctionsAreCountedApart) {
                 "M-function #3 was acknowledged already (by another acknowledgement: a second "
                 "PLC, or a repeat whose first copy arrived)");
       EXPECT_TRUE(ip->write_m_func(0).ok());  // one that names none clears whatever shows
+      // A count not handed over yet (it was said to have "come after" #3).
+      EXPECT_EQ(ip->write_m_func(0, 0, 99).reason,
+                "M-function #99 was never handed over (the last is #3)");
     }
   });
   ASSERT_EQ(seen.size(), 3u);

@@ -127,12 +127,15 @@ TEST(Engine, RepliesSayWhy) {
   EXPECT_EQ(port.replies[0].code, ReplyCode::kWrongRole);
   EXPECT_EQ(port.replies[1].code, ReplyCode::kWrongState);
   EXPECT_EQ(port.replies[2].code, ReplyCode::kOutOfRange);
+  EXPECT_EQ(port.replies[2].reason.view(), "Rel_Speed must be 0.01..2, not 5");
   EXPECT_EQ(port.replies[3].code, ReplyCode::kAccepted);
   EXPECT_EQ(port.replies[4].code, ReplyCode::kAccepted) << port.replies[4].reason.view();
   EXPECT_EQ(port.replies[5].code, ReplyCode::kBadRequest);
   EXPECT_EQ(port.replies[6].code, ReplyCode::kAccepted) << port.replies[6].reason.view();
   EXPECT_EQ(port.replies[7].code, ReplyCode::kBadRequest);
   EXPECT_EQ(port.replies[8].code, ReplyCode::kOutOfRange);
+  // With the range and the value received (it said "must be a whole number" of 0 and 11 too).
+  EXPECT_EQ(port.replies[8].reason.view(), "Number_Axes must be a whole number 1..10, not 2.5");
   for (int c = 0; c < 5; ++c) e.cycle(port, {});  // a stage command may finish in step()
   EXPECT_DOUBLE_EQ(port.last.ip[0].reg.ratio[1], 2000.0);
   EXPECT_EQ(port.last.ip[0].reg.offset[2], 1234);
@@ -144,6 +147,69 @@ TEST(Engine, RepliesSayWhy) {
     EXPECT_EQ(r.client.view(), "test");
   }
   EXPECT_DOUBLE_EQ(port.last.ip[0].reg.rel_speed, 0.5);
+}
+
+// A stage command that has to wait for the smoothing is replied accepted at Command_Status 1;
+// when it then ends with -1 (here a stop cancels it) the reason goes out as an error message
+// (it stayed in command_error(), and the PLC believed its position set done).
+TEST(Engine, AWaitingCommandThatEndsUnexecutedIsSaid) {
+  Engine e = make_engine();
+  MockPort port;
+  {
+    RequestIn& spline = port.add_request(Role::kPlc, RequestKind::kCommand);
+    spline.command = -2;
+    spline.command_parameter[0] = 500;
+    spline.command_parameter[1] = 1'000'000;
+  }
+  e.cycle(port, {});
+  const Program p = line_program(200);
+  port.add_chunk(0, p, 0, p.segments.size(), 4, true);
+  e.cycle(port, {});
+  port.add_request(Role::kHmi, RequestKind::kStart);
+  for (int c = 0; c < 100; ++c) e.cycle(port, {});
+  port.add_request(Role::kPlc, RequestKind::kCommand).command = 8;
+  int c = 0;
+  while (port.last.ip[0].reg.status != static_cast<std::int32_t>(InterpolatorStatus::kReady) &&
+         c++ < 10000) {
+    e.cycle(port, {});
+  }
+  ASSERT_EQ(port.last.ip[0].reg.status, static_cast<std::int32_t>(InterpolatorStatus::kReady));
+  port.replies.clear();
+  port.add_request(Role::kPlc, RequestKind::kCommand).command = 2048;
+  e.cycle(port, {});
+  ASSERT_EQ(port.replies.size(), 1u);
+  EXPECT_EQ(port.replies[0].code, ReplyCode::kAccepted);
+  ASSERT_EQ(port.last.ip[0].reg.command_status, 1);  // waits for the spline to drain
+  port.messages.clear();
+  port.add_request(Role::kPlc, RequestKind::kCommand).command = 8;
+  e.cycle(port, {});
+  ASSERT_EQ(port.messages.size(), 1u);
+  EXPECT_EQ(port.messages[0].severity, MessageOut::Severity::kError);
+  EXPECT_EQ(port.messages[0].text.view(),
+            "a command that waited for the smoothing was not executed: Command 2048: cancelled by "
+            "Command 8");
+  EXPECT_EQ(port.messages[0].program_id, 4u);
+}
+
+// Program id 0 is no program: refused with a message (a refusal of program 0 used to be
+// swallowed, the "last refused" mark starting at 0, and it turned off the check for a program
+// a position set dropped).
+TEST(Engine, ProgramIdZeroIsRefusedAndSaid) {
+  Engine e = make_engine();
+  MockPort port;
+  const Program p = line_program(3);
+  port.add_chunk(0, p, 0, p.segments.size(), 0, true);
+  e.cycle(port, {});
+  ASSERT_EQ(port.messages.size(), 1u);
+  EXPECT_EQ(port.messages[0].text.view(),
+            "program 0 refused: program id 0 is no program (number programs from 1)");
+  EXPECT_EQ(port.last.ip[0].reg.status, static_cast<std::int32_t>(InterpolatorStatus::kEmpty));
+  EXPECT_EQ(port.last.ip[0].program_id, 0u);
+  // The same again: counted, said once.
+  port.add_chunk(0, p, 0, p.segments.size(), 0, true);
+  e.cycle(port, {});
+  EXPECT_EQ(port.messages.size(), 1u);
+  EXPECT_EQ(e.counters().refused_chunks, 2u);
 }
 
 TEST(Engine, RequestsBeyondTheBudgetWaitForTheNextCycle) {

@@ -325,6 +325,14 @@ TEST(Commands, NumberAxes) {
   EXPECT_EQ(check_number_axes(0, standing()).reason, "Number_Axes must be 1..10, not 0");
   EXPECT_EQ(check_number_axes(11, standing()).reason, "Number_Axes must be 1..10, not 11");
   EXPECT_EQ(check_number_axes(4, standing()).reason, "Number_Axes 4: only 3 axes are configured");
+  // A change while a program is loaded (it dropped the program's records); the same count is
+  // no change.
+  CommandContext loaded = standing();
+  loaded.holds_program = true;
+  EXPECT_EQ(check_number_axes(2, loaded).reason,
+            "Number_Axes 2: a program is loaded, whose records are planned for 3 axes (clear it "
+            "first)");
+  EXPECT_TRUE(check_number_axes(3, loaded).ok());
   EXPECT_EQ(check_number_axes(2, moving()).code, RequestCode::kWrongState);
   EXPECT_EQ(check_number_axes(2, moving()).reason,
             "Number_Axes can only be written while no program is executing");

@@ -33,6 +33,9 @@ struct CommandContext {
   //! With `idle`: no program is under way either (nothing loaded, ended, dropped, or loaded and
   //! not yet started; not one stopped on its trajectory or starved, which a start resumes).
   bool between_programs = true;
+  //! Records of a program are loaded (Status 4, 8, or a resumable emergency stop): a change
+  //! of Number_Axes would drop them.
+  bool holds_program = false;
 };
 
 //! True for the commands this stage executes (1024, 2048, 2049, -1, -2).

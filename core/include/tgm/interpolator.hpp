@@ -184,6 +184,11 @@ class Interpolator {
   RequestResult command(std::int32_t code, const std::array<std::int32_t, kCommandParameters>& parameter);
   //! Reason of the last Command that ended with Command_Status -1 ("" after a success).
   const std::string& command_error() const;
+  //! How many commands accepted at Command_Status 1 ended without being executed (cancelled by
+  //! 4 / 5 / 8 / 9, or no longer allowed), and the reason of the last (a later command's
+  //! success does not clear it, as it does command_error()).
+  std::uint64_t unexecuted_commands() const;
+  const std::string& unexecuted_reason() const;
   //! Ratio register write [inc/mm]: axis 0..Number_Axes-1, |ratio| 1e-6..1e9, only while the
   //! path stands and the smoothing has settled (PositionInc jumps by Position x dRatio).
   RequestResult write_ratio(int axis, double ratio_inc_per_mm);

@@ -446,6 +446,9 @@ struct Interpolator::Impl {
   int m_deferred_n = 0;
   // Command accepted and waiting for the smoothing (Command_Status 1); 0 = none.
   std::int32_t pend_code = 0;
+  // Commands accepted at Command_Status 1 that ended without being executed, and why.
+  std::uint64_t unexecuted = 0;
+  std::string unexecuted_reason;
   std::array<std::int32_t, kCommandParameters> pend_par{};
   std::string cmd_error;
   // skip_cruise: record and path position one calculation step before the end
@@ -1644,6 +1647,8 @@ struct Interpolator::Impl {
         s == InterpolatorStatus::kEmpty || s == InterpolatorStatus::kEnded ||
         (s == InterpolatorStatus::kEmergencyStopped && !resumable_estop) ||
         (s == InterpolatorStatus::kReady && reg.move_distance == 0.0 && !paused_m0);
+    c.holds_program = s == InterpolatorStatus::kReady || s == InterpolatorStatus::kUnderrun ||
+                      (s == InterpolatorStatus::kEmergencyStopped && resumable_estop);
     return c;
   }
 
@@ -1699,6 +1704,8 @@ struct Interpolator::Impl {
     if (!c.ok()) {
       pend_code = 0;
       finish_command(c);
+      ++unexecuted;
+      unexecuted_reason = c.reason;
     } else if (stage_ready(code, pend_par)) {
       pend_code = 0;
       run_command(code, pend_par);
@@ -1712,6 +1719,8 @@ struct Interpolator::Impl {
     command_end(reg, {RequestCode::kWrongState,
                       "Command " + std::to_string(code) + ": cancelled by Command " + std::to_string(by)});
     cmd_error = "Command " + std::to_string(code) + ": cancelled by Command " + std::to_string(by);
+    ++unexecuted;
+    unexecuted_reason = cmd_error;
   }
 
   // New position of a standing interpolator without a program (set_position, 2048 / 2049).
@@ -3910,6 +3919,11 @@ RequestResult Interpolator::write_m_func(std::int32_t value, std::int32_t acknow
                                                 std::to_string(acknowledged) + " came after it");
   }
   const std::uint32_t handed = impl_->reg.m_func_count;
+  if (count > handed) {
+    return refuse(RequestCode::kWrongState, "M-function #" + std::to_string(count) +
+                                                " was never handed over (the last is #" +
+                                                std::to_string(handed) + ")");
+  }
   if (count != 0 && count != handed) {
     return refuse(RequestCode::kWrongState,
                   "M-function #" + std::to_string(handed) + " was handed over since: the " +
@@ -3929,7 +3943,8 @@ RequestResult Interpolator::write_m_func(std::int32_t value, std::int32_t acknow
 
 RequestResult Interpolator::set_rel_speed(double rel_speed) {
   if (!std::isfinite(rel_speed) || rel_speed < 0.01 || rel_speed > 2.0) {
-    return refuse(RequestCode::kOutOfRange, "Rel_Speed must be 0.01..2");
+    return refuse(RequestCode::kOutOfRange,
+                  "Rel_Speed must be 0.01..2, not " + number_text(rel_speed));
   }
   impl_->rel = rel_speed;
   impl_->reg.rel_speed = rel_speed;
@@ -3984,6 +3999,12 @@ RequestResult Interpolator::command(std::int32_t code,
 }
 
 const std::string& Interpolator::command_error() const { return impl_->cmd_error; }
+std::uint64_t Interpolator::unexecuted_commands() const {
+  return impl_->unexecuted;
+}
+const std::string& Interpolator::unexecuted_reason() const {
+  return impl_->unexecuted_reason;
+}
 
 RequestResult Interpolator::write_ratio(int axis, double ratio_inc_per_mm) {
   Impl& m = *impl_;

@@ -98,6 +98,15 @@ RequestResult check_number_axes(std::int64_t value, const CommandContext& c) {
   if (!c.idle || !c.standing) {
     return refuse(RequestCode::kWrongState, "Number_Axes can only be written while no program is executing");
   }
+  // A change drops the records planned for the old axes: a program stopped, starved or not yet
+  // started lost them without a word, and the rest of its stream then ran as a program of its
+  // own from where the axes stood.
+  if (value != c.number_axes && c.holds_program) {
+    return refuse(RequestCode::kWrongState,
+                  "Number_Axes " + std::to_string(value) +
+                      ": a program is loaded, whose records are planned for " +
+                      std::to_string(c.number_axes) + " axes (clear it first)");
+  }
   return {};
 }
 

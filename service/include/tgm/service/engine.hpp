@@ -84,6 +84,7 @@ class Engine {
   double cycle_time_s() const;
 
  private:
+  static constexpr std::uint64_t kNoProgram = ~std::uint64_t{0};
   struct Slot {
     explicit Slot(Interpolator i) : ip(std::move(i)) {}
     Interpolator ip;
@@ -93,8 +94,11 @@ class Engine {
     std::uint64_t sets_at_load = 0;       // Interpolator::position_sets() when program_id loaded
     std::uint32_t program_id = 0;
     std::uint64_t next_sequence = 0;
-    std::uint32_t refused_program = 0;  // last program id a refusal message was sent for
+    // Last program id a refusal message was sent for (kNoProgram: none; 0 is an id a bad
+    // client may send, whose refusals it used to swallow).
+    std::uint64_t refused_program = kNoProgram;
     std::uint32_t message_seen = 0;
+    std::uint64_t unexecuted_seen = 0;  // Interpolator::unexecuted_commands() already said
     std::uint32_t message_counter = 0;
     FixedText<256> message_text;
     std::uint64_t events = 0;  // EventOut::counter of the last event queued
