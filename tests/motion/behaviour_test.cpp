@@ -981,6 +981,13 @@ TEST(Requests, DroppingAProgramDropsItsSectionRegisters) {
       [](Interpolator& ip) { return ip.clear(); },
       [](Interpolator& ip) { return ip.write_number_axes(2); },
       [](Interpolator& ip) { return ip.set_position({}); },
+      // A new program loaded after the end: it ran with Act_M_Func 2 (M30: 30) of the old one
+      // and its feed until its first motion.
+      [](Interpolator& ip) {
+        ProgramBuilder next(3, ip.registers().orig_position);
+        next.line({5.0, 0.0, 0.0}, 600.0).end();
+        return ip.load(next.program());
+      },
   };
   for (std::size_t k = 0; k < std::size(drops); ++k) {
     SCOPED_TRACE(k);
@@ -1010,6 +1017,31 @@ TEST(Requests, DroppingAProgramDropsItsSectionRegisters) {
     EXPECT_EQ(r.move_distance, 0.0);
     EXPECT_EQ(r.tool_number, tool);
     EXPECT_EQ(r.last_cont_m_func, 1005);
+  }
+}
+
+// A stop off the trajectory (Command 9, Command 5) drops the program at its end: Status 0 (or 7)
+// beside the old program's Act_Part, G, feed and distance it used to keep.
+TEST(Requests, AStopOffTheTrajectoryDropsTheSectionRegisters) {
+  for (const std::int32_t code : {9, 5}) {
+    SCOPED_TRACE(code);
+    Interpolator ip = make();
+    ProgramBuilder b;
+    b.line({10.0, 0.0, 0.0}, 3000.0).line({40.0, 0.0, 0.0}, 3000.0).end();
+    ASSERT_TRUE(ip.load(b.program()).ok());
+    ASSERT_TRUE(ip.start().ok());
+    run_until(ip, [](const Registers& r) { return r.orig_position[0] > 15.0; });
+    const Registers& r = ip.registers();
+    ASSERT_EQ(r.act_part, 2);
+    ASSERT_TRUE(ip.command(code).ok());
+    run_until(ip, [](const Registers& g) { return g.act_speed == 0.0 && g.command_status != 1; });
+    for (int c = 0; c < 5; ++c) ip.step();
+    EXPECT_EQ(r.off_trajectory, 1);
+    EXPECT_EQ(r.act_part, 0);
+    EXPECT_EQ(r.act_line, 0);
+    EXPECT_EQ(r.act_g_func, 0);
+    EXPECT_EQ(r.set_speed, 0.0);
+    EXPECT_EQ(r.move_distance, 0.0);
   }
 }
 

@@ -1876,22 +1876,27 @@ struct Interpolator::Impl {
     m_pending = false;
     m_deferred_n = 0;
     end_pending = false;
-    // Nothing executes now: the registers of the dropped program's section go with it (after a
-    // clear, Act_Part 0 stood beside that program's line, G, M and feed, so a panel showed "M30"
-    // at the first line of the next program). Tool_Number (the tool in the spindle) and
-    // Last_Cont_M_Func (a "stored value", the manual) stay.
-    reg.move_distance = 0.0;
-    reg.act_part = 0;
-    reg.act_line = 0;
-    reg.act_g_func = 0;
-    reg.act_m_func = 0;
-    reg.set_speed = 0.0;
+    clear_section_registers();
     tail = cur;
     base = cur;
     complete = false;
     st = jerk::State{};
     reset_plan_tail();
     lookahead_dirty = true;
+  }
+
+  // Nothing executes now: the registers of the dropped (or ended) program's section go with it
+  // (after a clear, Act_Part 0 stood beside that program's line, G, M and feed, so a panel
+  // showed "M30" at the first line of the next program; a Command 9 / 5 and a new program
+  // loaded after the end kept them too). Tool_Number (the tool in the spindle) and
+  // Last_Cont_M_Func (a "stored value", the manual) stay.
+  void clear_section_registers() {
+    reg.move_distance = 0.0;
+    reg.act_part = 0;
+    reg.act_line = 0;
+    reg.act_g_func = 0;
+    reg.act_m_func = 0;
+    reg.set_speed = 0.0;
   }
 
   // Drops the program (off trajectory): the position stays where it is.
@@ -1906,6 +1911,7 @@ struct Interpolator::Impl {
     tail = cur;
     complete = false;
     reset_plan_tail();
+    clear_section_registers();
     reg.off_trajectory = 1;
     if (reg.status != static_cast<std::int32_t>(InterpolatorStatus::kEmergencyStopped)) {
       reg.status = static_cast<std::int32_t>(InterpolatorStatus::kEmpty);
@@ -3762,7 +3768,7 @@ RequestResult Interpolator::append(const Program& program, std::size_t first, st
   }
   if (fresh) {
     m.base = m.tail;
-    m.reg.move_distance = 0.0;
+    m.clear_section_registers();
     m.reset_plan_tail();
   }
   m.drop_stale();
