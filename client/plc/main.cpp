@@ -814,12 +814,6 @@ int plc_main(int argc, char** argv) {
         // Queued behind what a script queued for it before it was found, if anything.
         setup[sv.number].report = true;
         char what[160];
-        if (rel_speed) {
-          std::snprintf(what, sizeof what, "interpolator %d: Rel_Speed = %g", sv.number,
-                        *rel_speed);
-          queue_request(sv.number, tgm::client::rel_speed_request(sv.number, *rel_speed), what,
-                        false, 1);
-        }
         // The basic parameters go by axis index (gear ratios, the IIR axis mask): from a config
         // whose axes are not the service's they would set the wrong axes.
         const std::string mine = config.machine.axis_letters(sv.number);
@@ -845,6 +839,20 @@ int plc_main(int argc, char** argv) {
                                is(Status::kUnderrun) ||
                                (is(Status::kReady) && s->buffered_segments() > 0 &&
                                 (s->move_distance() > 0.0 || s->program_stop()));
+        // Rel_Speed too: a PLC restarted mid-cut reset the operator's override (it was written
+        // before this check).
+        if (rel_speed && !under_way) {
+          std::snprintf(what, sizeof what, "interpolator %d: Rel_Speed = %g", sv.number,
+                        *rel_speed);
+          queue_request(sv.number, tgm::client::rel_speed_request(sv.number, *rel_speed), what,
+                        false, 1);
+        } else if (rel_speed) {
+          append_log(pending_log, stamp(),
+                     "interpolator %d: Rel_Speed not written: a program is under way (status %d "
+                     "%s); the override stays %g",
+                     sv.number, status, std::string(tgm::client::status_name(status)).c_str(),
+                     s->rel_speed());
+        }
         if (basic && same_axes && under_way) {
           append_log(pending_log, stamp(),
                      "interpolator %d: basic parameters not sent: a program is under way "
@@ -862,7 +870,9 @@ int plc_main(int argc, char** argv) {
           // The mask's bits of this interpolator's axes (the service refuses a mask that names
           // none of them; the config's mask is shared by interpolators of different sizes).
           const auto axis_count =
-              config.machine.interpolators[static_cast<std::size_t>(sv.number)].axes.size();
+              theirs.empty()
+                  ? config.machine.interpolators[static_cast<std::size_t>(sv.number)].axes.size()
+                  : theirs.size();
           const std::uint32_t iir_mask = sm.iir_axis_mask & ((1u << axis_count) - 1u);
           const std::int32_t iir[] = {
               static_cast<std::int32_t>(sm.iir_p_e6), static_cast<std::int32_t>(sm.iir_q_e6),
@@ -882,7 +892,17 @@ int plc_main(int argc, char** argv) {
                         iir_mask);
           queue_request(sv.number, tgm::client::command_request(sv.number, -1, iir), what, true, 3);
           const auto& axes = config.machine.interpolators[static_cast<std::size_t>(sv.number)].axes;
-          for (std::size_t a = 0; a < axes.size(); ++a) {
+          // Only the axes the service drives (its letters may be the first of ours: a lower
+          // Number_Axes, or a config without the others): the rest were refused one by one.
+          const std::size_t driven =
+              theirs.empty() ? axes.size() : std::min(axes.size(), theirs.size());
+          if (driven < axes.size()) {
+            append_log(pending_log, stamp(),
+                       "interpolator %d: gear ratios of %s not sent: the service drives %s "
+                       "(Number_Axes %zu)",
+                       sv.number, mine.substr(driven).c_str(), theirs.c_str(), driven);
+          }
+          for (std::size_t a = 0; a < driven; ++a) {
             // Ratio as counter [inc] / denominator [mm], both 32-bit, exactly the configured
             // double (x 1000 + 0.5 over 1000 made -1000 into -999.999 and 3e6 into
             // -2147483.648). A ratio no such pair carries goes to the Ratio register.

@@ -603,9 +603,14 @@ TEST(ServiceProcesses, APlcStartedInTheMiddleOfAProgramSendsNoBasicParameters) {
   std::ofstream(env.path("geared.yaml")) << geared;
   test::Child plc;
   ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.path("geared.yaml"), "--refuse-ack", "51",
-                         "--interpolator", "0", "--duration", "1.5"},
+                         "--interpolator", "0", "--duration", "1.5", "--rel-speed", "0.5"},
                         env.path("plc.log")));
   EXPECT_EQ(plc.wait(kHang), 0) << plc.log();
+  // Nor the override (it was written: a restarted PLC reset the operator's Rel_Speed mid-cut).
+  EXPECT_NE(plc.log().find("interpolator 0: Rel_Speed not written: a program is under way (status "
+                           "1 running); the override stays 1"),
+            std::string::npos)
+      << plc.log();
   EXPECT_NE(plc.log().find("interpolator 0: basic parameters not sent: a program is under way "
                            "(status 1 running)"),
             std::string::npos)
@@ -614,7 +619,42 @@ TEST(ServiceProcesses, APlcStartedInTheMiddleOfAProgramSendsNoBasicParameters) {
   hmi.poll(100ms);
   EXPECT_EQ(hmi.state(0)->ratio()[0], 1000.0);
   EXPECT_EQ(hmi.state(0)->position_inc()[0], 10000);
+  EXPECT_EQ(hmi.state(0)->rel_speed(), 1.0);
   EXPECT_EQ(run.interrupt(kHang), 130) << run.log();
+}
+
+// The tool a program leaves in the spindle stays there for the next one: `run` compiles that for
+// Tool_Number (it compiled from the config's initial_tool, 0, so a program without a T word set
+// Tool_Number back to 0 and ran G41/G42 at radius 0).
+TEST(ServiceProcesses, HmiRunCompilesForTheToolInTheSpindle) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  std::ofstream(env.path("t2.ngc")) << "G90 T2 G1 X1 F3000\nM2\n";
+  std::ofstream(env.path("next.ngc")) << "G90 G1 X2 F3000\nM2\n";
+  client::Client hmi(env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(hmi.wait_for_state(0, kHang));
+  test::Child first;
+  ASSERT_TRUE(first.start({TGM_HMI_BIN, "run", env.path("t2.ngc"), "--config", env.config()},
+                          env.path("first.log")));
+  ASSERT_EQ(first.wait(kHang), 0) << first.log();
+  ASSERT_TRUE(hmi.wait_until(
+      0, [](const msg::InterpolatorState& s) { return s.tool_number() == 2; }, kHang));
+  test::Child next;
+  ASSERT_TRUE(next.start({TGM_HMI_BIN, "run", env.path("next.ngc"), "--config", env.config()},
+                         env.path("next.log")));
+  ASSERT_EQ(next.wait(kHang), 0) << next.log();
+  EXPECT_NE(next.log().find("next.ngc: compiled for tool T2, in interpolator 0's spindle since its "
+                            "last program (the config's initial_tool is 0)"),
+            std::string::npos)
+      << next.log();
+  // Ended at X2 (run waited for that), with T2 still in the spindle.
+  ASSERT_TRUE(hmi.wait_until(
+      0,
+      [](const msg::InterpolatorState& s) {
+        return s.status() == 3 && s.orig_position()[0] == 2.0;
+      },
+      kHang));
+  EXPECT_EQ(hmi.state(0)->tool_number(), 2);
 }
 
 // The PLC's basic parameters set the very gear ratios of its config: Command 1024 with a 32-bit
@@ -1661,6 +1701,19 @@ TEST(ServiceProcesses, HmiRunRefusesProgramsOfOtherAxisLetters) {
                   "(XY), written by the PLC"),
               std::string::npos)
         << fewer.log();
+    // A tgm-plc of the XYZ config sets the ratios of X and Y and says why not Z (Z's Command
+    // 1024 was sent and refused: "must be 0..1").
+    test::Child second;
+    ASSERT_TRUE(second.start({TGM_PLC_BIN, "--config", env.config(), "--duration", "1.5"},
+                             env.path("second_plc.log")));
+    EXPECT_EQ(second.wait(kHang), 0) << second.log();
+    EXPECT_NE(second.log().find("interpolator 0: gear ratios of Z not sent: the service drives XY "
+                                "(Number_Axes 2)"),
+              std::string::npos)
+        << second.log();
+    EXPECT_NE(second.log().find("Command 1024 (gear ratio of axis Y): accepted"), std::string::npos)
+        << second.log();
+    EXPECT_EQ(second.log().find("refused"), std::string::npos) << second.log();
     r.value(3);
     ASSERT_TRUE(plc.request(r).accepted);
   }

@@ -223,7 +223,7 @@ int run_run(int argc, char** argv) {
     std::fprintf(stderr, "%s: the program has no records\n", file.c_str());
     return 2;
   }
-  note.print(file);
+  // Said once the program is compiled for the tool in the spindle (below).
 
   install_signal_flag(Hangup::kIgnore);
   // M-function waits are counted from the event topic (RELIABLE, every change of the handshake
@@ -345,22 +345,44 @@ int run_run(int argc, char** argv) {
                    point_text(program.tables().start_mm, program.tables().axis_letters).c_str(), ip,
                    here_text.c_str());
     }
-  } else if (away) {
-    program = PackedProgram{};  // a long program is not held twice
-    if (std::size_t errors = 0;
-        !load_packed(file, config->machine, ip, program, &here, nullptr, nullptr, &errors)) {
-      if (errors > 0)
-        std::fprintf(
-            stderr,
-            "%s: %zu error%s compiled from where interpolator %d stands (%s), nothing sent\n",
-            file.c_str(), errors, errors == 1 ? "" : "s", ip, here_text.c_str());
-      return 2;
-    }
-    if (!quiet) {
-      std::fprintf(stderr, "%s: compiled from where interpolator %d stands: %s\n", file.c_str(), ip,
-                   here_text.c_str());
+  } else {
+    // The tool in the spindle is the one the last program left there (Tool_Number, which a clear
+    // keeps); the config's initial_tool only while the service shows none. Compiled from the
+    // config's alone, a program without a T word set Tool_Number back to 0 and ran G41/G42 at
+    // radius 0.
+    MachineConfig machine = config->machine;
+    const std::int32_t spindle = st->tool_number();
+    const bool other_tool =
+        spindle > 0 && spindle <= kMaxTool && spindle != machine.compiler.initial_tool;
+    if (other_tool) machine.compiler.initial_tool = spindle;
+    if (away || other_tool) {
+      program = PackedProgram{};  // a long program is not held twice
+      note = CompensationNote{};
+      if (std::size_t errors = 0; !load_packed(
+              file, machine, ip, program, away ? &here : nullptr, nullptr,
+              [&](const Segment& s) { note.observe(s); }, &errors)) {
+        if (errors > 0)
+          std::fprintf(stderr, "%s: %zu error%s compiled %s, nothing sent\n", file.c_str(), errors,
+                       errors == 1 ? "" : "s",
+                       (away ? "from where interpolator " + std::to_string(ip) + " stands (" +
+                                   here_text + ")"
+                             : "for tool T" + std::to_string(spindle))
+                           .c_str());
+        return 2;
+      }
+      if (!quiet && away) {
+        std::fprintf(stderr, "%s: compiled from where interpolator %d stands: %s\n", file.c_str(),
+                     ip, here_text.c_str());
+      }
+      if (!quiet && other_tool) {
+        std::fprintf(stderr,
+                     "%s: compiled for tool T%d, in interpolator %d's spindle since its last "
+                     "program (the config's initial_tool is %d)\n",
+                     file.c_str(), spindle, ip, config->machine.compiler.initial_tool);
+      }
     }
   }
+  note.print(file);
   // What the program stream cannot carry is found before the clear (the sender checks the
   // whole program when it is made): one that found it later left a half-sent program running
   // (a 300-byte M29 text at line 19,970 stopped the stream with the machine moving).
