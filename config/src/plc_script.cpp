@@ -31,9 +31,12 @@ std::string shown(const YAML::Node& n) {
 }
 
 // One step's keys; "" or the reason (without the place).
-std::string read_step(const YAML::Node& n, PlcScriptStep& s) {
+// `key_line` receives the line of the key being read (1-based; of the one that is wrong when
+// this returns a reason): a step over several lines is named where its bad key stands.
+std::string read_step(const YAML::Node& n, PlcScriptStep& s, int& key_line) {
   std::set<std::string> seen;
   for (const auto& kv : n) {
+    key_line = kv.first.Mark().line + 1;
     const std::string key = kv.first.IsScalar() ? kv.first.Scalar() : "(not a name)";
     if (!seen.insert(key).second) return "'" + key + "' is given twice";  // yaml-cpp keeps both
     const YAML::Node& v = kv.second;
@@ -186,6 +189,12 @@ PlcScriptLoad read_script(std::string_view text, const std::string& path) {
   PlcScriptLoad out;
   try {
     const YAML::Node root = load_one_document(std::string(text));
+    // Nothing but blanks and comments: said as such (it read "must be a list of steps").
+    if (!root.IsDefined() || root.IsNull()) {
+      out.error =
+          path + ": the script is empty; give at least one step, e.g. - {at_s: 3, command: 8}";
+      return out;
+    }
     if (!root.IsSequence()) {
       out.error = path + ": the script must be a list of steps, e.g. - {at_s: 3, command: 8}";
       return out;
@@ -205,8 +214,9 @@ PlcScriptLoad read_script(std::string_view text, const std::string& path) {
         out.error = at + "a step must be a map, e.g. {at_s: 3, command: 8}";
         return out;
       }
-      if (std::string why = read_step(n, s); !why.empty()) {
-        out.error = at + why;
+      int key_line = 0;
+      if (std::string why = read_step(n, s, key_line); !why.empty()) {
+        out.error = path + ":" + std::to_string(key_line > 0 ? key_line : s.line) + ": " + why;
         return out;
       }
       // A step that does nothing is a mistake (an action left out, `start: false`, an empty

@@ -256,12 +256,25 @@ TEST(PlcScript, AStepMustNameAnInterpolatorThePlcServes) {
   EXPECT_EQ(plc_script_interpolator_problem(s, 3, 0), "");
 }
 
+// A step over several lines is named at the line of its bad key (it was the step's first).
+TEST(PlcScript, AnErrorInAStepNamesTheLineOfItsKey) {
+  EXPECT_EQ(parse_plc_script("- at_s: 1\n  rel_speed: 0.5\n  bogus: 3\n", "s.yaml")
+                .error.rfind("s.yaml:3: unknown key 'bogus'", 0),
+            0u);
+  EXPECT_EQ(parse_plc_script("- at_s: 1\n\n  rel_speed: 5\n", "s.yaml").error,
+            "s.yaml:3: rel_speed must be an override 0.01..2, not '5'");
+}
+
 TEST(PlcScript, AnEmptyScriptIsRefused) {
-  // An empty file is a null document, not a list: said, since a script given on purpose that
-  // does nothing is a mistake more often than not. So is an empty list (it used to load and
+  // An empty file (or comments only) is a null document, not a list: said as empty (it read
+  // "must be a list of steps"), since a script given on purpose that does nothing is a mistake
+  // more often than not. So is an empty list (it used to load and
   // run as no script at all).
-  EXPECT_EQ(parse_plc_script("", "s.yaml").error,
-            "s.yaml: the script must be a list of steps, e.g. - {at_s: 3, command: 8}");
+  for (const char* text : {"", "# nothing yet\n\n"}) {
+    EXPECT_EQ(parse_plc_script(text, "s.yaml").error,
+              "s.yaml: the script is empty; give at least one step, e.g. - {at_s: 3, command: 8}")
+        << text;
+  }
   for (const char* text : {"[]\n", "# steps to come\n[ ]\n"}) {
     const PlcScriptLoad none = parse_plc_script(text, "s.yaml");
     EXPECT_EQ(none.error,

@@ -597,7 +597,9 @@ int run_run(int argc, char** argv) {
       m_wait_since = Clock::now();
     }
     const auto status = static_cast<InterpolatorStatus>(st->status());
-    if (status != InterpolatorStatus::kEmpty) line_seen = st->act_line();
+    // (A stop off the trajectory clears Act_Line with the program: the line it stopped at is
+    // the last one seen.)
+    if (status != InterpolatorStatus::kEmpty && st->act_line() != 0) line_seen = st->act_line();
     if (status == InterpolatorStatus::kEnded && sender.all_confirmed()) break;
     if (status == InterpolatorStatus::kEmpty) {
       clear_progress();
@@ -629,12 +631,12 @@ int run_run(int argc, char** argv) {
           std::fprintf(stderr,
                        "tgm-hmi run: after the emergency stop, a stop off the trajectory (Command "
                        "9 or 5) at line %d dropped the program\n",
-                       st->act_line());
+                       line_seen);
         } else {
           std::fprintf(stderr,
                        "tgm-hmi run: emergency stop (Command 5), off trajectory at line %d: the "
                        "program was dropped\n",
-                       st->act_line());
+                       line_seen);
         }
         exit_code = 1;
         break;
