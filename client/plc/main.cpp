@@ -46,6 +46,7 @@
 #include "tgm/dds_overrides.hpp"
 #include "tgm/plc_script.hpp"
 #include "tgm/registers.hpp"
+#include "tgm/smoothing.hpp"
 #include "tgm/systemd_notify.hpp"
 #include "tgm/yaml_config.hpp"
 
@@ -867,13 +868,15 @@ int plc_main(int argc, char** argv) {
           // 32-bit); a cast truncated 0.7 to 0, which the service refused.
           const std::int32_t spline[] = {
               sm.spline_points, static_cast<std::int32_t>(std::llround(sm.spline_jerk_mm_s3))};
-          // The mask's bits of this interpolator's axes (the service refuses a mask that names
-          // none of them; the config's mask is shared by interpolators of different sizes).
-          const auto axis_count =
-              theirs.empty()
-                  ? config.machine.interpolators[static_cast<std::size_t>(sv.number)].axes.size()
-                  : theirs.size();
-          const std::uint32_t iir_mask = sm.iir_axis_mask & ((1u << axis_count) - 1u);
+          const auto& axes = config.machine.interpolators[static_cast<std::size_t>(sv.number)].axes;
+          // Only the axes the service drives (its letters are the first of ours, same_axes: a
+          // lower Number_Axes, or a config without the others): gear ratios for the rest were
+          // refused one by one, and the IIR mask gets only their bits (the service refuses a
+          // mask that names none of them; the config's mask is shared by interpolators of
+          // different sizes).
+          const std::size_t driven = theirs.empty() ? axes.size() : theirs.size();
+          const std::uint32_t iir_mask =
+              tgm::IirFilter::mask_of_axes(sm.iir_axis_mask, static_cast<int>(driven));
           const std::int32_t iir[] = {
               static_cast<std::int32_t>(sm.iir_p_e6), static_cast<std::int32_t>(sm.iir_q_e6),
               static_cast<std::int32_t>(sm.iir_f_e6), static_cast<std::int32_t>(iir_mask)};
@@ -891,11 +894,6 @@ int plc_main(int argc, char** argv) {
                         "interpolator %d: basic parameters: Command -1 (IIR mask 0x%x)", sv.number,
                         iir_mask);
           queue_request(sv.number, tgm::client::command_request(sv.number, -1, iir), what, true, 3);
-          const auto& axes = config.machine.interpolators[static_cast<std::size_t>(sv.number)].axes;
-          // Only the axes the service drives (its letters may be the first of ours: a lower
-          // Number_Axes, or a config without the others): the rest were refused one by one.
-          const std::size_t driven =
-              theirs.empty() ? axes.size() : std::min(axes.size(), theirs.size());
           if (driven < axes.size()) {
             append_log(pending_log, stamp(),
                        "interpolator %d: gear ratios of %s not sent: the service drives %s "

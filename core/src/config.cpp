@@ -186,7 +186,7 @@ std::vector<std::string> MachineConfig::validate() const {
   std::size_t most_axes = 0;
   for (const auto& ip : interpolators) most_axes = std::max(most_axes, ip.axes.size());
   if (s.iir_axis_mask != 0 && most_axes >= 1 && most_axes <= kMaxAxes &&
-      (s.iir_axis_mask & ((1u << most_axes) - 1u)) == 0) {
+      IirFilter::mask_of_axes(s.iir_axis_mask, static_cast<int>(most_axes)) == 0) {
     e.push_back("smoothing.iir_axis_mask: " + std::to_string(s.iir_axis_mask) +
                 " selects no axis of any interpolator (bit 0 is axis 0; the largest has " +
                 std::to_string(most_axes) + " axes)");

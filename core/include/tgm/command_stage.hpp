@@ -38,6 +38,13 @@ struct CommandContext {
   bool holds_program = false;
 };
 
+//! A gear ratio (Command 1024, the Ratio register) may change: standing, between programs.
+//! PositionInc jumps by Position x the change in one cycle; during a program (an M-function
+//! wait, a dwell, a stop a start resumes from) the program went on at the new scale.
+inline bool ratio_may_change(const CommandContext& c) {
+  return c.idle && c.between_programs && c.standing;
+}
+
 //! True for the commands this stage executes (1024, 2048, 2049, -1, -2).
 bool is_stage_command(std::int32_t code);
 
@@ -48,7 +55,8 @@ RequestResult check_command(std::int32_t code,
                             const std::array<std::int32_t, kCommandParameters>& parameter,
                             const CommandContext& context);
 
-//! Checks a write of Number_Axes: 1..10, at most the configured axes, only while idle.
+//! Checks a write of Number_Axes: 1..10, at most the configured axes, only while idle, and a
+//! change not while a program is loaded (holds_program: it would drop its records).
 RequestResult check_number_axes(std::int64_t value, const CommandContext& context);
 
 //! Executes 1024, -1, -2 on the stages; for 2048 / 2049 computes the new Orig_Position [mm]

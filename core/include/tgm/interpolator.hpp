@@ -189,8 +189,9 @@ class Interpolator {
   //! success does not clear it, as it does command_error()).
   std::uint64_t unexecuted_commands() const;
   const std::string& unexecuted_reason() const;
-  //! Ratio register write [inc/mm]: axis 0..Number_Axes-1, |ratio| 1e-6..1e9, only while the
-  //! path stands and the smoothing has settled (PositionInc jumps by Position x dRatio).
+  //! Ratio register write [inc/mm]: axis 0..Number_Axes-1, |ratio| 1e-6..1e9, only between
+  //! programs with the smoothing settled (ratio_may_change: PositionInc jumps by Position x
+  //! dRatio).
   RequestResult write_ratio(int axis, double ratio_inc_per_mm);
   //! Offset register write [inc]: axis 0..Number_Axes-1, |offset| <= 1e15, any time (added as
   //! is: a change is a step of the setpoint).

@@ -54,6 +54,12 @@ class IirFilter {
   //! Checks p, q, f (not the mask): ranges, damping; reason names the parameter.
   static RequestResult check(std::int64_t p_e6, std::int64_t q_e6, std::int64_t f_e6);
 
+  //! The bits of `axis_mask` that name axes 0..axes-1 (bit 0 is axis 0; `axes` 0..10): what
+  //! configure() keeps of a mask for an interpolator of `axes` axes.
+  static constexpr std::uint32_t mask_of_axes(std::uint32_t axis_mask, int axes) {
+    return axis_mask & ((1u << axes) - 1u);
+  }
+
   //! Sets p, q, f and the mask for `axes` axes. Bumpless: the state (lag and velocity of each
   //! axis) is kept, so Position and its velocity stay continuous. An axis newly in the mask
   //! starts at rest on its input. Refused (and nothing changes) when the parameters are out of

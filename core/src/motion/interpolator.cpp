@@ -4018,7 +4018,7 @@ RequestResult Interpolator::write_ratio(int axis, double ratio_inc_per_mm) {
     return refuse(RequestCode::kOutOfRange, "Ratio: axis " + std::to_string(axis) + " is not 0.." +
                                                 std::to_string(m.reg.number_axes - 1));
   }
-  if (const CommandContext c = m.command_context(); !c.idle || !c.between_programs || !c.standing) {
+  if (!ratio_may_change(m.command_context())) {
     return refuse(RequestCode::kWrongState,
                   "Ratio can only be written while no program is executing (PositionInc jumps by "
                   "Position x the change)");

@@ -33,10 +33,7 @@ RequestResult check_command(std::int32_t code,
       // passed here (and tgm-plc's check of a script) and was refused only when executed.
       if (RequestResult r = OutputStage::check_ratio(p[0], p[1], p[2], c.number_axes); !r.ok())
         return r;
-      // Not during a program, even at an M-function wait, a dwell or a stop it resumes from:
-      // PositionInc jumps by Position x the change of ratio in one cycle, and the program went
-      // on at the new scale.
-      if (!c.idle || !c.between_programs || !c.standing) {
+      if (!ratio_may_change(c)) {
         return refuse(RequestCode::kWrongState,
                       "Command 1024: the ratio can only be set while no program is executing "
                       "(PositionInc jumps by Position x the change)");
@@ -59,7 +56,7 @@ RequestResult check_command(std::int32_t code,
         // A mask of axes the interpolator does not have was done, and filtered nothing (an axis
         // counted from 1: mask 8 for Z of three). Bits beyond them are ignored (0x3FF: all).
         const int axes = std::clamp(c.configured_axes, 1, kMaxAxes);
-        if ((mask & ((1u << axes) - 1u)) == 0) {
+        if (IirFilter::mask_of_axes(mask, axes) == 0) {
           return refuse(RequestCode::kOutOfRange,
                         "Command -1: the axis mask (Command_Parameter[3]) " + std::to_string(mask) +
                             " selects none of axes 0.." + std::to_string(axes - 1) +

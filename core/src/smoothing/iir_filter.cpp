@@ -103,7 +103,7 @@ RequestResult IirFilter::check(std::int64_t p_e6, std::int64_t q_e6, std::int64_
 
 RequestResult IirFilter::configure(const IirParams& params, int axes) {
   if (axes < 1 || axes > kMaxAxes) return refuse(RequestCode::kInvalid, "IIR: axes must be 1..10");
-  const std::uint32_t mask = params.axis_mask & ((1u << axes) - 1u);
+  const std::uint32_t mask = mask_of_axes(params.axis_mask, axes);
   const bool any = mask != 0;
   if (any) {
     RequestResult r = check(params.p_e6, params.q_e6, params.f_e6);
