@@ -79,6 +79,87 @@ Params iir_params(std::int32_t p_e6, std::int32_t q_e6, std::int32_t f_e6, std::
 
 // ---------------- Spline ----------------
 
+// Run_Flag's speed half describes the axes, after the smoothing: while any axis still moves
+// (Speed after spline / IIR), it is not "no motion", and while Status is 1 the section is not
+// STOP. Before, the half followed the path generator alone: with the spline on, "no motion"
+// (and at the program's end STOP) showed for 40 cycles while X still moved at up to 5 mm/s
+// into an M-function stop and into the end point, and a PLC that takes "no motion" as "the
+// axes stand" acted up to 20 ms early.
+TEST(Wiring, RunFlagSaysNoMotionOnlyOnceTheSmoothedAxesStand) {
+  MachineConfig m = MachineConfig::default_machine();
+  ProgramBuilder b;
+  b.line({20.0, 0.0, 0.0}, 3000.0).m(50, MKind::kNormal).line({40.0, 5.0, 0.0}, 3000.0).end();
+  struct Case {
+    const char* name;
+    std::int32_t code;
+    Params p;
+  };
+  const Case cases[] = {{"spline", kCommandSpline, spline(200, 1'000'000)},
+                        {"iir", kCommandIir, iir_params(2'000'000, 1'000'000, 6'000'000, 0b011)}};
+  for (const Case& k : cases) {
+    Interpolator ip = make(m);
+    ASSERT_TRUE(ip.command(k.code, k.p).ok()) << k.name;
+    ASSERT_TRUE(ip.load(b.program()).ok());
+    ASSERT_TRUE(ip.start().ok());
+    const auto rs = run(ip);
+    ASSERT_EQ(rs.back().status, static_cast<std::int32_t>(InterpolatorStatus::kEnded)) << k.name;
+    int moving_cycles_after_the_generator = 0;
+    for (std::size_t c = 0; c < rs.size(); ++c) {
+      const Registers& g = rs[c];
+      // At Status 3 the axes stand exactly at the end (the IIR's last step snaps onto it).
+      bool moves = false;
+      const bool ended = g.status == static_cast<std::int32_t>(InterpolatorStatus::kEnded);
+      for (int i = 0; i < 3 && !ended; ++i)
+        moves = moves || g.speed[static_cast<std::size_t>(i)] != 0.0;
+      const SpeedState v = run_flag_speed(g.run_flag);
+      if (moves) {
+        EXPECT_NE(v, SpeedState::kNoMotion) << k.name << " cycle " << c;
+        if (g.act_speed == 0.0) {
+          ++moving_cycles_after_the_generator;
+          EXPECT_EQ(v, SpeedState::kDeceleratingLast) << k.name << " cycle " << c;
+        }
+      }
+      if (g.status == static_cast<std::int32_t>(InterpolatorStatus::kRunning)) {
+        EXPECT_NE(run_flag_section(g.run_flag), SectionState::kStop) << k.name << " cycle " << c;
+      }
+    }
+    // The case the rule is for happens: the axes move on after the generator stands.
+    EXPECT_GT(moving_cycles_after_the_generator, 10) << k.name;
+    EXPECT_EQ(rs.back().run_flag, make_run_flag(SectionState::kStop, SpeedState::kNoMotion))
+        << k.name;
+  }
+}
+
+// A braking to a stop lands its deceleration with a slight overshoot: in its last cycle the
+// acceleration ends just above zero while the speed still falls. Run_Flag said ACCELERATING
+// for that one cycle (a line of 20 mm at F3000 into an M-function, spline off); the speed half
+// says accelerating only in cycles where Act_Speed did not fall.
+TEST(Wiring, RunFlagNeverSaysAcceleratingWhileTheSpeedFalls) {
+  MachineConfig m = MachineConfig::default_machine();
+  int landings = 0;
+  for (const double x : {20.0, 7.5, 1.0, 33.3}) {
+    for (const double f : {3000.0, 600.0, 6000.0}) {
+      ProgramBuilder b;
+      b.line({x, 0.0, 0.0}, f).m(50, MKind::kNormal).line({x, x, 0.0}, f).end();
+      Interpolator ip = make(m);
+      ASSERT_TRUE(ip.load(b.program()).ok());
+      ASSERT_TRUE(ip.start().ok());
+      const auto rs = run(ip);
+      ASSERT_EQ(rs.back().status, static_cast<std::int32_t>(InterpolatorStatus::kEnded));
+      for (std::size_t c = 1; c < rs.size(); ++c) {
+        const bool falls = rs[c].act_speed < rs[c - 1].act_speed;
+        if (falls && rs[c].act_speed < 1.0 && rs[c].act_speed > 0.0) ++landings;
+        if (falls) {
+          EXPECT_NE(run_flag_speed(rs[c].run_flag), SpeedState::kAccelerating)
+              << "X" << x << " F" << f << " cycle " << c << ": " << rs[c - 1].act_speed << " -> "
+              << rs[c].act_speed << " mm/min";
+        }
+      }
+    }
+  }
+  EXPECT_GT(landings, 0);
+}
+
 // Smooth motion (jerk far below the limit): Position is Orig_Position exactly N calculation
 // steps (N / 5 cycles) earlier, bit for bit; M_Func is raised exactly N steps later than
 // without the spline, and the run ends (Status 3) only when Position stands at the end.

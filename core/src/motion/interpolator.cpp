@@ -380,6 +380,7 @@ struct Interpolator::Impl {
   LimitFactor factor = LimitFactor::kNone;
   bool braking_to_stop = false;
   double last_vt = 0.0;
+  double cycle_start_v = 0.0;  // st.v when the last cycle began (Run_Flag: did the speed fall?)
   bool lookahead_dirty = true;
   // Limits ahead, gathered once per cycle (distances from cons_here, cumulative path).
   std::array<Constraint, 3 * kChainMax + 4> cons{};
@@ -3505,16 +3506,36 @@ struct Interpolator::Impl {
         if (!m_pending) wait_m_first = false;
         break;
       case Mode::kIdle:
+        // The program has ended but the spline / IIR still carry the axes to its end point:
+        // Status stays 1 until they stand, and the last section is still executing.
+        if (end_pending) sec = SectionState::kRun;
         break;
     }
+    // The speed half describes the axes. With the spline or the IIR filter on they follow the
+    // path generator late (the spline by its delay, the IIR by its lag): once the generator
+    // stands, Speed (after smoothing) still moves the axes into the stop, and "no motion" must
+    // wait until they stand, or a PLC that takes it as "axes stand" acts up to 50 ms early.
+    bool output_moves = false;  // the last step moved an axis, not onto its rest (the IIR's snap)
+    if (!smooth->passes_through() && !smooth->at_rest()) {
+      for (int i = 0; i < n; ++i)
+        output_moves = output_moves || vel[static_cast<std::size_t>(i)] != 0.0;
+    }
+    const SpeedState before = run_flag_speed(reg.run_flag);
+    const bool last_braking = braking_to_stop || before == SpeedState::kDeceleratingLast;
     SpeedState spd = SpeedState::kNoMotion;
     const double small_a = 1e-6 * std::max(1.0, std::fabs(st.a));
     if (mode == Mode::kEmergency) {
       spd = SpeedState::kEmergencyRamp;
     } else if (st.v <= kStandstillV) {
-      spd = SpeedState::kNoMotion;
+      spd = output_moves ? SpeedState::kDeceleratingLast : SpeedState::kNoMotion;
     } else if (st.a > small_a && st.a > 1e-3) {
-      spd = SpeedState::kAccelerating;
+      // A braking's last step lands its deceleration with a slight overshoot: the acceleration
+      // ends just above zero while the speed fell over the cycle. Still decelerating.
+      if (st.v >= cycle_start_v) {
+        spd = SpeedState::kAccelerating;
+      } else {
+        spd = last_braking ? SpeedState::kDeceleratingLast : SpeedState::kDecelerating;
+      }
     } else if (st.a < -1e-3) {
       spd = braking_to_stop ? SpeedState::kDeceleratingLast : SpeedState::kDecelerating;
     } else if (mode == Mode::kMoving && st.v < last_vt * (1.0 - 1e-3)) {
@@ -3665,6 +3686,7 @@ StepResult Interpolator::step() {
   m.n_events = 0;
   m.n_blocks = 0;
   m.reg.cycle += 1;
+  m.cycle_start_v = m.st.v;
   m.hand_over_deferred_m();
   for (int k = 0; k < kCalcSteps; ++k) {
     m.calc_step(k);
@@ -3696,6 +3718,7 @@ StepResult Interpolator::advance(std::uint64_t max_cycles, std::uint64_t* advanc
     return r;
   }
   m.reg.cycle += k;
+  m.cycle_start_v = m.st.v;  // a cruise or standing: the speed does not change
   {
     // The smoothing and output stages over the skipped calculation steps (they rest, or pass
     // the cruise through: skip_cycles checked it).
