@@ -130,6 +130,201 @@ TEST(Wiring, RunFlagSaysNoMotionOnlyOnceTheSmoothedAxesStand) {
   }
 }
 
+// The Status a motion comes to waits for the smoothed axes, as Status 3 always did: 4 after
+// Command 8 and at M0, 7 after an emergency stop (6 until then), 8 at an underrun. With the
+// spline on they showed up to 50 ms early, while X still moved at the full 50 mm/s: a PLC that
+// drops the drive enable at Status 7 or opens a guard at M0 did it mid-motion.
+TEST(Wiring, StopStatusesWaitUntilTheSmoothedAxesStand) {
+  MachineConfig m = MachineConfig::default_machine();
+  struct Case {
+    const char* name;
+    int stop_cycle;  // 0: none
+    std::int32_t code;
+    bool m0;
+    bool underrun;
+    InterpolatorStatus expect;
+  };
+  const Case cases[] = {
+      {"command 8", 300, 8, false, false, InterpolatorStatus::kReady},
+      {"command 4", 300, 4, false, false, InterpolatorStatus::kEmergencyStopped},
+      {"M0", 0, 0, true, false, InterpolatorStatus::kReady},
+      {"underrun", 0, 0, false, true, InterpolatorStatus::kUnderrun},
+  };
+  for (const Case& k : cases) {
+    Interpolator ip = make(m);
+    ASSERT_TRUE(ip.command(kCommandSpline, spline(500, 1'000'000)).ok());
+    ProgramBuilder b;
+    b.line({20.0, 0.0, 0.0}, 3000.0);
+    if (k.m0) b.m(0, MKind::kProgramStop);
+    b.line({40.0, 0.0, 0.0}, 3000.0);
+    if (!k.underrun) b.end();
+    const Program p = b.program();
+    if (k.underrun) {
+      ASSERT_TRUE(ip.append(p, 0, p.segments.size(), false).ok());
+    } else {
+      ASSERT_TRUE(ip.load(p).ok());
+    }
+    ASSERT_TRUE(ip.start().ok());
+    const Registers& r = ip.registers();
+    int generator_stood = -1, status_at = -1, moving_while_6 = 0;
+    for (int c = 0; c < 20000 && status_at < 0; ++c) {
+      ip.step();
+      if (c == k.stop_cycle && k.code != 0) {
+        ASSERT_TRUE(ip.command(k.code).ok());
+      }
+      bool moves = false;
+      for (int i = 0; i < 3; ++i) moves = moves || r.speed[static_cast<std::size_t>(i)] != 0.0;
+      if (c > 10 && r.act_speed == 0.0 && generator_stood < 0) generator_stood = c;
+      if (r.status == static_cast<std::int32_t>(k.expect)) {
+        status_at = c;
+        EXPECT_EQ(r.position, r.orig_position) << k.name << " cycle " << c;
+        EXPECT_EQ(run_flag_speed(r.run_flag), SpeedState::kNoMotion) << k.name;
+      } else if (generator_stood >= 0) {
+        // Until then Status still shows the motion.
+        const auto shown =
+            k.code == 4 ? InterpolatorStatus::kEmergencyRamp : InterpolatorStatus::kRunning;
+        EXPECT_EQ(r.status, static_cast<std::int32_t>(shown)) << k.name << " cycle " << c;
+        if (k.code == 4 && moves) {
+          ++moving_while_6;
+          EXPECT_EQ(run_flag_speed(r.run_flag), SpeedState::kEmergencyRamp)
+              << k.name << " cycle " << c;
+        }
+      }
+    }
+    ASSERT_GE(generator_stood, 0) << k.name;
+    ASSERT_GE(status_at, 0) << k.name;
+    // The spline's 500 steps (100 cycles) lie between the generator's stop and the Status.
+    EXPECT_GE(status_at - generator_stood, 50) << k.name;
+    if (k.code == 4) {
+      EXPECT_GT(moving_while_6, 10);
+    }
+    if (k.m0 || k.code == 8) {
+      ASSERT_TRUE(ip.start().ok()) << k.name;  // and the program goes on to its end
+      for (int c = 0; c < 20000 && ip.step() != StepResult::kFinished; ++c) {
+      }
+      EXPECT_EQ(r.status, static_cast<std::int32_t>(InterpolatorStatus::kEnded)) << k.name;
+      EXPECT_EQ(r.position[0], 40.0) << k.name;
+    }
+  }
+}
+
+// A start given while the axes still brake after an emergency stop is refused with the
+// reason; a start while they settle into a normal stop resumes the program at once.
+TEST(Wiring, AStartWhileTheAxesSettleIntoAStop) {
+  MachineConfig m = MachineConfig::default_machine();
+  for (const std::int32_t code : {4, 8}) {
+    Interpolator ip = make(m);
+    ASSERT_TRUE(ip.command(kCommandSpline, spline(500, 1'000'000)).ok());
+    ProgramBuilder b;
+    b.line({40.0, 0.0, 0.0}, 3000.0).end();
+    ASSERT_TRUE(ip.load(b.program()).ok());
+    ASSERT_TRUE(ip.start().ok());
+    const Registers& r = ip.registers();
+    for (int c = 0; c < 300; ++c) ip.step();
+    ASSERT_TRUE(ip.command(code).ok());
+    for (int c = 0; c < 2000 && r.act_speed != 0.0; ++c) ip.step();
+    ASSERT_EQ(r.act_speed, 0.0);
+    ASSERT_NE(r.position, r.orig_position);  // the spline still moves the axes
+    const RequestResult s = ip.start();
+    if (code == 4) {
+      EXPECT_EQ(s.code, RequestCode::kWrongState);
+      EXPECT_NE(s.reason.find("still braking after the emergency stop"), std::string::npos)
+          << s.reason;
+      for (int c = 0; c < 2000 && r.status != 7; ++c) ip.step();
+      EXPECT_EQ(r.status, static_cast<std::int32_t>(InterpolatorStatus::kEmergencyStopped));
+      EXPECT_TRUE(ip.start().ok());
+    } else {
+      EXPECT_TRUE(s.ok()) << s.reason;
+      EXPECT_EQ(r.status, static_cast<std::int32_t>(InterpolatorStatus::kRunning));
+    }
+    for (int c = 0; c < 20000 && ip.step() != StepResult::kFinished; ++c) {
+    }
+    EXPECT_EQ(r.status, static_cast<std::int32_t>(InterpolatorStatus::kEnded)) << code;
+    EXPECT_EQ(r.position[0], 40.0) << code;
+  }
+}
+
+// A stop given while a normal M-function is still inside the spline (the path stands at it,
+// the axes not yet): Command 9 / 5 drop the program, and its M-function never reaches M_Func
+// (it did, 40 ms after the drop, and a PLC took it for a continuous one); Command 8 hands it
+// over when the axes arrive, with Run_Flag WAIT_MFUNC, and the start waits for it.
+TEST(Wiring, AStopWhileANormalMIsInsideTheSpline) {
+  MachineConfig m = MachineConfig::default_machine();
+  for (const std::int32_t code : {9, 5, 8}) {
+    Interpolator ip = make(m);
+    ASSERT_TRUE(ip.command(kCommandSpline, spline(500, 1'000'000)).ok());
+    ProgramBuilder b;
+    b.line({20.0, 0.0, 0.0}, 3000.0).m(51, MKind::kNormal).line({40.0, 0.0, 0.0}, 3000.0).end();
+    ASSERT_TRUE(ip.load(b.program()).ok());
+    ASSERT_TRUE(ip.start().ok());
+    const Registers& r = ip.registers();
+    int c = 0;
+    for (; c < 20000 && !(c > 10 && r.act_speed == 0.0); ++c) ip.step();
+    ASSERT_EQ(r.m_func, 0);  // the M-function is inside the spline
+    ASSERT_TRUE(ip.command(code).ok());
+    bool handed = false, said_wait = false;
+    for (int k = 0; k < 400; ++k) {
+      ip.step();
+      if (r.m_func == 51 && !handed) {
+        handed = true;
+        said_wait = run_flag_section(r.run_flag) == SectionState::kWaitMFunc;
+      }
+    }
+    if (code == 8) {
+      EXPECT_TRUE(handed);
+      EXPECT_TRUE(said_wait);
+      EXPECT_EQ(run_flag_section(r.run_flag), SectionState::kWaitMFuncEnd);
+      EXPECT_EQ(r.status, static_cast<std::int32_t>(InterpolatorStatus::kReady));
+      ASSERT_TRUE(ip.start().ok());
+      for (int k = 0; k < 100; ++k) ip.step();
+      EXPECT_EQ(r.orig_position[0], 20.0);  // waits for the acknowledgement
+      ASSERT_TRUE(ip.write_m_func(0).ok());
+      for (int k = 0; k < 20000 && ip.step() != StepResult::kFinished; ++k) {
+      }
+      EXPECT_EQ(r.position[0], 40.0);
+    } else {
+      EXPECT_FALSE(handed) << code;
+      EXPECT_EQ(r.m_func, 0) << code;
+      EXPECT_EQ(r.m_func_count, 0u) << code;
+    }
+  }
+}
+
+// An M-function the PLC never acknowledged goes with its program: a Command 9 drops it, and
+// a clear after a Command 8 does too. M_Func 51 stayed through a clear and two later programs,
+// and a PLC started later executed it for a program cleared long before.
+TEST(Wiring, AnUnacknowledgedMGoesWithItsProgram) {
+  MachineConfig m = MachineConfig::default_machine();
+  for (const bool clear : {false, true}) {
+    Interpolator ip = make(m);
+    ProgramBuilder b;
+    b.line({5.0, 0.0, 0.0}, 3000.0).m(51, MKind::kNormal).line({9.0, 0.0, 0.0}, 3000.0).end();
+    ASSERT_TRUE(ip.load(b.program()).ok());
+    ASSERT_TRUE(ip.start().ok());
+    const Registers& r = ip.registers();
+    for (int c = 0; c < 20000 && r.m_func == 0; ++c) ip.step();
+    ASSERT_EQ(r.m_func, 51);
+    ASSERT_TRUE(ip.command(clear ? 8 : 9).ok());
+    if (clear) {
+      EXPECT_EQ(r.m_func, 51);  // stopped, the M-function still waits for its acknowledgement
+      ASSERT_TRUE(ip.clear().ok());
+    }
+    EXPECT_EQ(r.m_func, 0) << clear;
+    EXPECT_EQ(r.status, static_cast<std::int32_t>(InterpolatorStatus::kEmpty));
+    // The next program runs to its end without it.
+    ProgramBuilder home;
+    home.line({0.0, 0.0, 0.0}, 6000.0).end();
+    ASSERT_TRUE(ip.load(home.program()).ok());
+    ASSERT_TRUE(ip.start().ok());
+    for (int c = 0; c < 20000 && ip.step() != StepResult::kFinished; ++c) {
+    }
+    EXPECT_EQ(r.status, static_cast<std::int32_t>(InterpolatorStatus::kEnded));
+    EXPECT_EQ(r.m_func, 0);
+    // A late acknowledgement of it is still taken without an error (a PLC repeating one).
+    EXPECT_TRUE(ip.write_m_func(0).ok());
+  }
+}
+
 // A braking to a stop lands its deceleration with a slight overshoot: in its last cycle the
 // acceleration ends just above zero while the speed still falls. Run_Flag said ACCELERATING
 // for that one cycle (a line of 20 mm at F3000 into an M-function, spline off); the speed half
@@ -509,7 +704,8 @@ TEST(Wiring, AnAxisEntersTheIirMaskOnlyWhenItsInputStands) {
       if (c == 600) {
         EXPECT_TRUE(ip.command(8).ok());
       }
-      if (enter && !sent && r.status == static_cast<std::int32_t>(InterpolatorStatus::kReady)) {
+      // The path generator stands after the stop, the spline still moves the axes.
+      if (enter && !sent && c > 600 && r.act_speed == 0.0) {
         EXPECT_FALSE(ip.smoothing().spline().settled());
         EXPECT_TRUE(ip.command(kCommandIir, iir_params(2'000'000, 1'000'000, 6'000'000, 1)).ok());
         EXPECT_EQ(r.command_status, 1);
@@ -546,13 +742,15 @@ TEST(Wiring, CommandStatusOneWhileWaitingForTheSmoothing) {
   for (int c = 0; c < 100; ++c) ip.step();
   ASSERT_TRUE(ip.command(8).ok());  // stop on the trajectory
   int c = 0;
-  while (r.status != static_cast<std::int32_t>(InterpolatorStatus::kReady) && c < 10000) {
+  while (r.act_speed != 0.0 && c < 10000) {
     ip.step();
     ++c;
   }
   ASSERT_EQ(r.command_status, 0);
-  // The path stands, the spline still holds motion: Command -2 waits at Command_Status 1.
+  // The path stands, the spline still holds motion: Command -2 waits at Command_Status 1, and
+  // Status waits for the axes (4 once they stand).
   ASSERT_FALSE(ip.smoothing().spline().settled());
+  EXPECT_EQ(r.status, static_cast<std::int32_t>(InterpolatorStatus::kRunning));
   ASSERT_TRUE(ip.command(kCommandSpline, spline(300, 2'000'000)).ok());
   EXPECT_EQ(r.command, kCommandSpline);
   EXPECT_EQ(r.command_status, 1);
@@ -567,6 +765,7 @@ TEST(Wiring, CommandStatusOneWhileWaitingForTheSmoothing) {
   EXPECT_EQ(r.command_status, 0);
   EXPECT_EQ(r.command, 0);
   EXPECT_EQ(ip.smoothing().spline().delay_steps(), 300);
+  EXPECT_EQ(r.status, static_cast<std::int32_t>(InterpolatorStatus::kReady));
   // It took about the drain: 2N + 4 = 404 steps after the path stood, in cycles.
   EXPECT_GT(waited, 20);
   EXPECT_LE(waited, 82);

@@ -429,7 +429,10 @@ struct Interpolator::Impl {
   std::optional<SmoothingStage> smooth;
   std::optional<OutputStage> ostage;
   bool m_pending = false;    // a normal M is inside the spline: the wait starts when it leaves
-  bool end_pending = false;  // the program ended; Status 3 once the smoothing has settled
+  // The Status the motion has come to (3 ended, 4 stopped / M0, 7 emergency-stopped, 8 underrun),
+  // reported once every axis, delayed or filtered, stands (0: none waits). Meanwhile Status
+  // still shows the motion (1, or 6 after an emergency stop).
+  std::int32_t settle_status = 0;
   // M parameters of the events in flight, inside the smoothing and waiting in m_deferred (the
   // ring slot may be reused meanwhile).
   static constexpr std::size_t kMaxDeferredM = 64;
@@ -1501,7 +1504,7 @@ struct Interpolator::Impl {
         copy_params(cur);
         mode = Mode::kIdle;
         paused_m0 = true;
-        reg.status = static_cast<std::int32_t>(InterpolatorStatus::kReady);
+        settle_into(InterpolatorStatus::kReady);
         return;
       }
       // Normal M: handed to the PLC (M_Func, Act_M_Func, parameters, Run_Flag WAIT_MFUNC) when
@@ -1518,18 +1521,36 @@ struct Interpolator::Impl {
     if (complete) {
       end_program();
     } else {
-      reg.status = static_cast<std::int32_t>(InterpolatorStatus::kUnderrun);
+      settle_into(InterpolatorStatus::kUnderrun);
     }
   }
 
   // Status 3 only once every axis, delayed or filtered, stands exactly where the program ends
   // (the IIR filter snaps onto its input once the lag is below 1e-12 mm).
-  void end_program() {
+  void end_program() { settle_into(InterpolatorStatus::kEnded); }
+
+  // The path generator stands: `s` (3, 4, 7 or 8) becomes Status once the smoothed axes stand
+  // too. With the spline on, Status 7 after an emergency stop, 4 after a stop or at M0 and 8 at
+  // an underrun used to show up to 50 ms before the axes stood, while they still moved at full
+  // feed: a PLC that drops the drive enable at Status 7, or opens a guard at M0, did it
+  // mid-motion. Until then an emergency stop shows Status 6 (the axes are still braking).
+  void settle_into(InterpolatorStatus s) {
     if (smooth->at_rest()) {
-      reg.status = static_cast<std::int32_t>(InterpolatorStatus::kEnded);
-    } else {
-      end_pending = true;
+      settle_status = 0;
+      reg.status = static_cast<std::int32_t>(s);
+      return;
     }
+    settle_status = static_cast<std::int32_t>(s);
+    if (s == InterpolatorStatus::kEmergencyStopped) {
+      reg.status = static_cast<std::int32_t>(InterpolatorStatus::kEmergencyRamp);
+    } else if (reg.status != static_cast<std::int32_t>(InterpolatorStatus::kEmergencyRamp)) {
+      reg.status = static_cast<std::int32_t>(InterpolatorStatus::kRunning);
+    }
+  }
+
+  // The Status the interpolator is in: the one it settles into, or Status.
+  InterpolatorStatus status_now() const {
+    return static_cast<InterpolatorStatus>(settle_status != 0 ? settle_status : reg.status);
   }
 
   // Queues an event for the input sample the current calculation step is computing.
@@ -1590,7 +1611,7 @@ struct Interpolator::Impl {
         reg.m_func_line = ev_line[static_cast<std::size_t>(e.tag)];
         copy_params_from(ev_par[static_cast<std::size_t>(e.tag)]);
         m_pending = false;
-        wait_m_first = mode == Mode::kWaitM;
+        wait_m_first = mode == Mode::kWaitM || resume_wait_m;
         break;
       case kEvContinuousM:
         reg.m_func = e.value;
@@ -1624,9 +1645,9 @@ struct Interpolator::Impl {
     }
     SmoothingEvent e;
     while (smooth->pop_event(&e)) apply_event(e);
-    if (end_pending && smooth->at_rest()) {
-      end_pending = false;
-      reg.status = static_cast<std::int32_t>(InterpolatorStatus::kEnded);
+    if (settle_status != 0 && smooth->at_rest()) {
+      reg.status = settle_status;
+      settle_status = 0;
     }
   }
 
@@ -1637,8 +1658,10 @@ struct Interpolator::Impl {
   CommandContext command_context() const {
     CommandContext c;
     c.standing = standing();
-    const auto s = static_cast<InterpolatorStatus>(reg.status);
-    c.idle = mode == Mode::kIdle && !end_pending &&
+    const auto s = status_now();
+    // While the axes settle into a stop the interpolator counts as idle (a position set or a
+    // ratio waits for them at Command_Status 1, as before a stop's Status 4 waited for them).
+    c.idle = mode == Mode::kIdle &&
              (s == InterpolatorStatus::kEmpty || s == InterpolatorStatus::kEnded ||
               s == InterpolatorStatus::kReady || s == InterpolatorStatus::kEmergencyStopped ||
               s == InterpolatorStatus::kUnderrun);
@@ -1659,7 +1682,7 @@ struct Interpolator::Impl {
       case kCommandSetRatio:
       case kCommandSetPositionOn:
       case kCommandSetPositionOff:
-        return smooth->settled() && !end_pending;
+        return smooth->settled() && settle_status == 0;
       case kCommandSpline:
         return smooth->spline().settled() && smooth->pending_events() == 0;
       case kCommandIir: {
@@ -1846,10 +1869,10 @@ struct Interpolator::Impl {
     reg.command = 0;
     reg.command_status = 0;
     if (emergency) {
-      reg.status = static_cast<std::int32_t>(InterpolatorStatus::kEmergencyStopped);
+      settle_into(InterpolatorStatus::kEmergencyStopped);
       resumable_estop = !stop_off;
     } else {
-      reg.status = static_cast<std::int32_t>(InterpolatorStatus::kReady);
+      settle_into(InterpolatorStatus::kReady);
     }
     if (stop_off) abandon_program();
     stop_off = false;
@@ -1876,7 +1899,7 @@ struct Interpolator::Impl {
     resumable_estop = false;
     m_pending = false;
     m_deferred_n = 0;
-    end_pending = false;
+    settle_status = 0;
     clear_section_registers();
     tail = cur;
     base = cur;
@@ -1889,9 +1912,12 @@ struct Interpolator::Impl {
   // Nothing executes now: the registers of the dropped (or ended) program's section go with it
   // (after a clear, Act_Part 0 stood beside that program's line, G, M and feed, so a panel
   // showed "M30" at the first line of the next program; a Command 9 / 5 and a new program
-  // loaded after the end kept them too). Tool_Number (the tool in the spindle) and
-  // Last_Cont_M_Func (a "stored value", the manual) stay.
+  // loaded after the end kept them too). An M-function of it that the PLC has not acknowledged
+  // goes too: M_Func 51 stayed through a clear and two programs, and a PLC started later
+  // executed it. Tool_Number (the tool in the spindle) and Last_Cont_M_Func (a "stored value",
+  // the manual) stay.
   void clear_section_registers() {
+    reg.m_func = 0;
     reg.move_distance = 0.0;
     reg.act_part = 0;
     reg.act_line = 0;
@@ -1914,7 +1940,13 @@ struct Interpolator::Impl {
     reset_plan_tail();
     clear_section_registers();
     reg.off_trajectory = 1;
-    if (reg.status != static_cast<std::int32_t>(InterpolatorStatus::kEmergencyStopped)) {
+    // A normal M-function still inside the spline belongs to the dropped program: it must not
+    // reach M_Func (it did, 40 ms after the drop, and a PLC took it for a continuous one).
+    m_pending = false;
+    // Status 0 at once, also while the axes still settle: it says nothing loaded, not where the
+    // axes are, and the next program may be loaded at once. Status 7 waits for them.
+    if (status_now() != InterpolatorStatus::kEmergencyStopped) {
+      settle_status = 0;
       reg.status = static_cast<std::int32_t>(InterpolatorStatus::kEmpty);
     }
     lookahead_dirty = true;
@@ -2979,7 +3011,7 @@ struct Interpolator::Impl {
   // exactly the arithmetic step() uses and returns their count; 0 = nothing to skip, step().
   std::uint64_t skip_cycles(std::uint64_t max) {
     max = std::min<std::uint64_t>(max, kMaxSkipCycles);
-    if (pend_code != 0 || end_pending || m_pending) return 0;
+    if (pend_code != 0 || settle_status != 0 || m_pending) return 0;
     if (mode != Mode::kMoving) {
       // Standing: the smoothing must rest exactly and the backlash ramps be done, so the
       // skipped calculation steps change nothing there.
@@ -3506,9 +3538,17 @@ struct Interpolator::Impl {
         if (!m_pending) wait_m_first = false;
         break;
       case Mode::kIdle:
-        // The program has ended but the spline / IIR still carry the axes to its end point:
-        // Status stays 1 until they stand, and the last section is still executing.
-        if (end_pending) sec = SectionState::kRun;
+        // The motion has come to its end (program end, stop, M0, underrun) but the spline /
+        // IIR still carry the axes there: Status stays 1 (6) until they stand, and the last
+        // section is still executing.
+        if (settle_status != 0) sec = SectionState::kRun;
+        // Stopped (Command 8, 4) while a normal M-function was inside the spline: it reaches
+        // M_Func while the motion stands, and the resumed program waits for it. Without
+        // WAIT_MFUNC a PLC took it for a continuous M-function.
+        if (resume_wait_m && !m_pending && reg.m_func != 0) {
+          sec = wait_m_first ? SectionState::kWaitMFunc : SectionState::kWaitMFuncEnd;
+          wait_m_first = false;
+        }
         break;
     }
     // The speed half describes the axes. With the spline or the IIR filter on they follow the
@@ -3527,7 +3567,10 @@ struct Interpolator::Impl {
     if (mode == Mode::kEmergency) {
       spd = SpeedState::kEmergencyRamp;
     } else if (st.v <= kStandstillV) {
-      spd = output_moves ? SpeedState::kDeceleratingLast : SpeedState::kNoMotion;
+      spd = !output_moves ? SpeedState::kNoMotion
+            : settle_status == static_cast<std::int32_t>(InterpolatorStatus::kEmergencyStopped)
+                ? SpeedState::kEmergencyRamp
+                : SpeedState::kDeceleratingLast;
     } else if (st.a > small_a && st.a > 1e-3) {
       // A braking's last step lands its deceleration with a slight overshoot: the acceleration
       // ends just above zero while the speed fell over the cycle. Still decelerating.
@@ -3562,7 +3605,7 @@ struct Interpolator::Impl {
   }
 
   StepResult result() const {
-    if (end_pending || pend_code != 0) return StepResult::kWorking;
+    if (settle_status != 0 || pend_code != 0) return StepResult::kWorking;
     switch (mode) {
       case Mode::kMoving:
       case Mode::kStopping:
@@ -3770,7 +3813,7 @@ RequestResult Interpolator::append(const Program& program, std::size_t first, st
   }
   const std::size_t free = m.cap - static_cast<std::size_t>(m.tail - m.cur);
   const std::size_t take = std::min(free, count);
-  const auto status = static_cast<InterpolatorStatus>(m.reg.status);
+  const auto status = m.status_now();
   const bool fresh = m.mode == Mode::kIdle && m.cur >= m.tail && !m.paused_m0 &&
                      (status == InterpolatorStatus::kEmpty || status == InterpolatorStatus::kEnded ||
                       (status == InterpolatorStatus::kEmergencyStopped && m.reg.off_trajectory));
@@ -3805,6 +3848,7 @@ RequestResult Interpolator::append(const Program& program, std::size_t first, st
     m.lookahead_dirty = true;
   }
   if (fresh && take > 0) {
+    m.settle_status = 0;  // the axes may still settle; the new program waits for its start
     m.reg.status = static_cast<std::int32_t>(InterpolatorStatus::kReady);
     m.reg.off_trajectory = 0;
   }
@@ -3824,7 +3868,12 @@ RequestResult Interpolator::load(const Program& program) {
 RequestResult Interpolator::start() {
   Impl& m = *impl_;
   if (m.mode != Mode::kIdle) return refuse(RequestCode::kWrongState, "already running");
-  const auto s = static_cast<InterpolatorStatus>(m.reg.status);
+  const auto s = m.status_now();
+  if (s == InterpolatorStatus::kEmergencyStopped && m.settle_status != 0) {
+    return refuse(RequestCode::kWrongState,
+                  "the axes are still braking after the emergency stop (Status 6): start once "
+                  "Status is 7");
+  }
   switch (s) {
     case InterpolatorStatus::kEmpty:
       return refuse(RequestCode::kWrongState, m.reg.off_trajectory
@@ -3846,6 +3895,7 @@ RequestResult Interpolator::start() {
     return refuse(RequestCode::kWrongState, "buffer empty: append segments first");
   }
   m.resumable_estop = false;
+  m.settle_status = 0;  // a stop or M0 whose axes still settle: they go on with the motion
   m.reg.status = static_cast<std::int32_t>(InterpolatorStatus::kRunning);
   if (m.paused_m0) {
     m.paused_m0 = false;
@@ -3911,13 +3961,13 @@ RequestResult Interpolator::command(std::int32_t code) {
       // The rest of a dwell is kept for the start that resumes (it used to be dropped: a stop
       // and start cut a G4 short, the spindle's run-up or a chip break with it).
       if (m.mode == Mode::kDwell) m.resume_dwell = true;
-      const bool had_program = m.reg.status != static_cast<std::int32_t>(InterpolatorStatus::kEmpty);
+      const bool had_program = m.status_now() != InterpolatorStatus::kEmpty;
       m.mode = Mode::kIdle;
       if (emergency) {
-        m.reg.status = static_cast<std::int32_t>(InterpolatorStatus::kEmergencyStopped);
+        m.settle_into(InterpolatorStatus::kEmergencyStopped);
         m.resumable_estop = !off && had_program;
-      } else if (m.reg.status == static_cast<std::int32_t>(InterpolatorStatus::kRunning)) {
-        m.reg.status = static_cast<std::int32_t>(InterpolatorStatus::kReady);
+      } else if (m.status_now() == InterpolatorStatus::kRunning) {
+        m.settle_into(InterpolatorStatus::kReady);
       }
       // An emergency stop with nothing loaded leaves no trajectory to resume: off it, as after
       // Command 5. It stood on one, and a program streamed in next was taken as more records of
@@ -4070,6 +4120,11 @@ RequestResult Interpolator::write_number_axes(int number_axes) {
   RequestResult r = check_number_axes(number_axes, m.command_context());
   if (!r.ok()) return r;
   if (number_axes == m.n) return {};
+  if (m.settle_status != 0 || !m.smooth->settled()) {
+    return refuse(RequestCode::kWrongState, "Number_Axes " + std::to_string(number_axes) +
+                                                ": the axes are still moving behind the spline / "
+                                                "IIR filter");
+  }
   // Records planned for the old axis count are dropped (only the idle states get here), the
   // position taken on the old axes.
   m.drop_records();
