@@ -13,6 +13,7 @@
 
 #include <array>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -384,6 +385,57 @@ TEST_F(ServiceNetns, AnAcknowledgementCutOffByAnOutageArrivesAfterIt) {
       << stats << "\n--- plc:\n"
       << plc.log();
   std::printf("--- plc:\n%s\n%s", plc.log().c_str(), stats.c_str());
+}
+
+// The operator presses Ctrl-C on `tgm-hmi run` while the HMI's network is down. The stop must
+// reach the service once the link is back, and the interpolator stand. Tried once, the stop
+// was never written (the service's request reader had gone with the 1 s participant lease),
+// the run exited and the program ran on through everything buffered: 767 mm after the Ctrl-C.
+TEST_F(ServiceNetns, ACtrlCDuringAnOutageStopsTheMachineOnceTheLinkIsBack) {
+  if (!iptables(2, "-L -n")) GTEST_SKIP() << "iptables is not usable here";
+  test::ConfigEdits e = edits();
+  test::ServiceEnv env(e);
+  // 400 collinear 2.5 mm moves at F3000: 1 m in 20 s, far longer than the test, and all in
+  // the buffer, so that the outage does not starve the motion (it runs on without a stop).
+  constexpr int kRecords = 400;
+  std::string gcode = "G91 F3000\n";
+  for (int i = 0; i < kRecords; ++i) gcode += "G1 X2.5\n";
+  gcode += "M2\n";
+  const std::string program_path = env.path("long.ngc");
+  std::ofstream(program_path) << gcode;
+
+  test::Child service, hmi;
+  ASSERT_TRUE(
+      service.start(ns().exec(0, {TGM_SERVICE_BIN, "--config", env.config(), "--no-realtime"}),
+                    env.path("service.log")));
+  ASSERT_TRUE(hmi.start(ns().exec(2, {TGM_HMI_BIN, "run", program_path, "--config", env.config(),
+                                      "--progress-interval", "0.2"}),
+                        env.path("hmi.log")));
+  hmi.wait_for_log("% line ", 60s, 20ms);
+  ASSERT_NE(hmi.log().find("% line "), std::string::npos) << hmi.log() << service.log();
+  ASSERT_TRUE(iptables(2, "-I INPUT -j DROP") && iptables(2, "-I OUTPUT -j DROP"));
+  std::this_thread::sleep_for(1500ms);  // longer than the participant lease
+  ASSERT_GT(hmi.pid(), 0);
+  ::kill(hmi.pid(), SIGINT);
+  hmi.wait_for_log("trying again", 10s, 20ms);
+  std::this_thread::sleep_for(3s);
+  ASSERT_TRUE(iptables(2, "-D INPUT -j DROP") && iptables(2, "-D OUTPUT -j DROP"));
+  const int code = hmi.wait(90s);
+  const std::string log = hmi.log();
+  EXPECT_EQ(code, 130) << log << "\n--- service:\n" << service.log();
+  EXPECT_NE(log.find("trying again for up to 60 s"), std::string::npos) << log;
+  EXPECT_NE(log.find("interrupted: normal stop: accepted"), std::string::npos) << log;
+  EXPECT_EQ(log.find("NOT stopped"), std::string::npos) << log;
+  // The interpolator stands on the program's trajectory (Status 4), not in underrun (8) at
+  // the end of what was buffered, nor running.
+  std::this_thread::sleep_for(1s);
+  test::Child status;
+  ASSERT_TRUE(
+      status.start(ns().exec(2, {TGM_HMI_BIN, "status", "--json", "--config", env.config()}),
+                   env.path("status.log")));
+  EXPECT_EQ(status.wait(30s), 0) << status.log();
+  EXPECT_NE(status.log().find("\"status\":4,"), std::string::npos) << status.log();
+  EXPECT_EQ(service.interrupt(), 0) << service.log();
 }
 
 }  // namespace

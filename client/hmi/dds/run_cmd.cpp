@@ -58,8 +58,10 @@ constexpr const char* kUsage =
     "\n"
     "Ctrl-C (or SIGTERM) stops the interpolator (normal stop on the trajectory) and exits with\n"
     "130, also while it waits for the service (its state, or the reply to the clear or the\n"
-    "start). A closed terminal or SSH session (SIGHUP), or a reader of its output that goes away,\n"
-    "does not end the run: it follows the program to its end.\n";
+    "start). The stop (also that of --timeout) is repeated until tgm-service answers it, for up\n"
+    "to 60 s (a network outage); a second Ctrl-C gives up, and the run then says that the\n"
+    "interpolator was not stopped. A closed terminal or SSH session (SIGHUP), or a reader of its\n"
+    "output that goes away, does not end the run: it follows the program to its end.\n";
 
 struct PlotData {
   std::vector<std::pair<double, double>> path;      // Position of the first two axes [mm]
@@ -76,6 +78,9 @@ constexpr std::size_t kMaxPlotPoints = std::size_t{1} << 20;
 // ended ("no reply ... nothing was sent"; ServiceNetns.ProgramRequestsAndHandshake..., CI of
 // session 59). The service holds a reply up to 30 s for the match as well.
 constexpr std::chrono::milliseconds kFirstRequestTimeout = 30s;
+
+// How long the stop that ends a run (Ctrl-C, --timeout) is tried until the service answers it.
+constexpr auto kStopPersistence = 60s;
 
 // An M-function that has waited this long for the PLC's acknowledgement [s]: the progress line
 // asks whether tgm-plc runs (the PLC's own delays are fractions of a second).
@@ -458,6 +463,44 @@ int run_run(int argc, char** argv) {
     if (tty && progress_shown) std::printf("\r\033[K");
     progress_shown = false;
   };
+  // The normal stop that ends the run, repeated until the service answers it. Tried once, a
+  // stop during a network outage of a second or more was never written (the service's request
+  // reader had gone with the participant lease): the run exited and the program ran on, 767 mm
+  // after the Ctrl-C, while the run said it stayed loaded. A second Ctrl-C, or
+  // kStopPersistence, gives up, and then the run says plainly that nothing was stopped.
+  const auto stop_the_run = [&](const char* why, const std::string& left) {
+    g_interrupted = false;  // from here on a Ctrl-C means "give up the stop"
+    const auto until = Clock::now() + kStopPersistence;
+    client::Reply stop;
+    bool said = false;
+    while (true) {
+      stop = hmi->stop(ip, 3s, &g_interrupted);
+      if (!stop.timed_out || stop.cancelled || Clock::now() >= until) break;
+      if (!said) {
+        std::printf(
+            "tgm-hmi run: %s: normal stop: %s; trying again for up to %lld s (Ctrl-C "
+            "again gives up)\n",
+            why, client::describe(stop).c_str(),
+            static_cast<long long>(
+                std::chrono::duration_cast<std::chrono::seconds>(kStopPersistence).count()));
+        std::fflush(stdout);
+        said = true;
+      }
+    }
+    if (!stop.timed_out) {
+      std::printf("tgm-hmi run: %s: normal stop: %s; %s\n", why, client::describe(stop).c_str(),
+                  left.c_str());
+      return;
+    }
+    const msg::InterpolatorState* last = hmi->state(ip);
+    std::printf(
+        "tgm-hmi run: %s: normal stop: %s; the interpolator was NOT stopped: it may still be "
+        "executing program %u (last seen at Status %d, line %d); stop it with `tgm-hmi command "
+        "stop --interpolator %d` once tgm-service answers, or at the machine\n",
+        why, client::describe(stop).c_str(), program_id,
+        last ? static_cast<int>(last->status()) : 0, last ? static_cast<int>(last->act_line()) : 0,
+        ip);
+  };
   std::printf("tgm-hmi run: %s: %zu record%s for interpolator %d (program %u), DDS domain %d\n",
               file.c_str(), static_cast<std::size_t>(program.size()),
               program.size() == 1 ? "" : "s", ip, program_id, config->dds.domain_id);
@@ -532,17 +575,15 @@ int run_run(int argc, char** argv) {
     };
     if (g_interrupted) {
       clear_progress();
-      const client::Reply stop = hmi->stop(ip);
-      std::printf("tgm-hmi run: interrupted: normal stop: %s; %s\n", client::describe(stop).c_str(),
-                  left_loaded().c_str());
+      stop_the_run("interrupted", left_loaded());
       exit_code = 130;
       break;
     }
     if (timeout_s > 0 && Clock::now() - t0 > std::chrono::duration<double>(timeout_s)) {
       clear_progress();
-      const client::Reply stop = hmi->stop(ip);
-      std::printf("tgm-hmi run: timeout after %.1f s: normal stop: %s; %s\n", timeout_s,
-                  client::describe(stop).c_str(), left_loaded().c_str());
+      char why[64];
+      std::snprintf(why, sizeof why, "timeout after %.1f s", timeout_s);
+      stop_the_run(why, left_loaded());
       exit_code = 1;
       break;
     }
@@ -555,8 +596,7 @@ int run_run(int argc, char** argv) {
       if (r.cancelled) {
         // A start that was sent may still be carried out: stop as at any Ctrl-C.
         clear_progress();
-        std::printf("tgm-hmi run: interrupted: start: %s; normal stop: %s\n",
-                    client::describe(r).c_str(), client::describe(hmi->stop(ip)).c_str());
+        stop_the_run(("interrupted: start: " + client::describe(r)).c_str(), left_loaded());
         exit_code = 130;
         break;
       }

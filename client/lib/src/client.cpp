@@ -460,6 +460,9 @@ Reply Client::clear(int i) {
 Reply Client::start(int i, std::chrono::milliseconds timeout, const std::atomic<bool>* cancel) {
   return request(start_request(i), timeout, cancel);
 }
+Reply Client::stop(int i, std::chrono::milliseconds timeout, const std::atomic<bool>* cancel) {
+  return request(make(i, msg::REQUEST_KIND_STOP), timeout, cancel);
+}
 Reply Client::clear(int i, std::chrono::milliseconds timeout, const std::atomic<bool>* cancel) {
   return request(make(i, msg::REQUEST_KIND_CLEAR), timeout, cancel);
 }

@@ -239,6 +239,8 @@ class Client {
               const std::atomic<bool>* cancel = nullptr);
   Reply clear(int interpolator, std::chrono::milliseconds timeout,
               const std::atomic<bool>* cancel = nullptr);
+  Reply stop(int interpolator, std::chrono::milliseconds timeout,
+             const std::atomic<bool>* cancel = nullptr);
   //! Command register with Command_Parameter[0..11] (missing parameters are 0).
   Reply command(int interpolator, std::int32_t code, std::span<const std::int32_t> params = {});
   //! M_Func = 0, acknowledging M-function `m` (0: whichever is shown) with m_func_count `count`
