@@ -2,11 +2,15 @@
 // QoS DESIGN.md section 6 asks for, and each topic's writer and reader profiles match each other.
 #include <gtest/gtest.h>
 
+#include <cstdlib>
+#include <string>
+
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 #include <fastdds/dds/publisher/qos/DataWriterQos.hpp>
 #include <fastdds/dds/subscriber/qos/DataReaderQos.hpp>
 
 #include "dds_test_util.hpp"
+#include "process_util.hpp"
 #include "tgm/dds/participant.hpp"
 #include "tgm/msg/tgmPubSubTypes.h"
 
@@ -23,6 +27,21 @@ TEST(DdsProfiles, FileLoadsInFastDds) {
   EXPECT_EQ(fdds::DomainParticipantFactory::get_instance()->load_XML_profiles_file(
                 test::profiles_path()),
             ReturnCode_t::RETCODE_OK);
+}
+
+// docker/fastdds_profiles_udp.xml is what docker/make_udp_profiles.sh makes of this file for
+// docker/compose.yaml's addresses. It had fallen behind by two changes, one of them the request
+// reader's instance limit, so that the containers still lost replies that had been fixed.
+TEST(DdsProfiles, TheDockerUdpProfilesAreUpToDate) {
+  const std::string made = ::testing::TempDir() + "/tgm_udp_profiles.xml";
+  const std::string cmd = "bash " TGM_SOURCE_DIR
+                          "/docker/make_udp_profiles.sh 10.231.1.10 10.231.1.11 10.231.1.12 > " +
+                          made;
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  EXPECT_EQ(test::read_text(made),
+            test::read_text(TGM_SOURCE_DIR "/docker/fastdds_profiles_udp.xml"))
+      << "regenerate it: bash docker/make_udp_profiles.sh 10.231.1.10 10.231.1.11 10.231.1.12 > "
+         "docker/fastdds_profiles_udp.xml";
 }
 
 TEST(DdsProfiles, ParticipantLeaseIsShort) {
