@@ -19,11 +19,13 @@
 #include <memory>
 #include <mutex>
 
+#include <fastdds/dds/domain/DomainParticipantListener.hpp>
 #include <fastdds/dds/publisher/DataWriterListener.hpp>
 #include <fastdds/dds/subscriber/DataReaderListener.hpp>
 #include <fastdds/rtps/common/GuidPrefix_t.hpp>
 #include <map>
 #include <optional>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -109,6 +111,7 @@ class DdsPort final : public CyclePort {
   bool message(const MessageOut& m) override;
   bool event(const EventOut& e) override;
   void publish(const Snapshot& s) override;
+  bool next_peer_notice(PeerNotice& out) override;
 
   //! Valid after stop(); applied_ns filled in from the cycle thread's stamps.
   const std::vector<HandshakeSample>& handshakes();
@@ -176,8 +179,25 @@ class DdsPort final : public CyclePort {
    private:
     DdsPort& port_;
   };
+  using GuidPrefix = eprosima::fastrtps::rtps::GuidPrefix_t;
+  // The clients' participants as discovery sees them: one whose lease lapsed (the process
+  // died, or the network to it is down: DROPPED) or that left (its process ended: REMOVED),
+  // and one that is back. A PLC (a participant that sent requests as the PLC) or the sender
+  // of a program stream becomes a PeerNotice for the cycle thread, and a log line.
+  void participant_changed(const GuidPrefix& participant, bool gone, bool dropped);
+  class PeerWatch final : public eprosima::fastdds::dds::DomainParticipantListener {
+   public:
+    explicit PeerWatch(DdsPort& port) : port_(port) {}
+    void on_participant_discovery(
+        eprosima::fastdds::dds::DomainParticipant*,
+        eprosima::fastrtps::rtps::ParticipantDiscoveryInfo&& info) override;
+
+   private:
+    DdsPort& port_;
+  };
   // Declared before the participant so they outlive the participant's receive threads.
   TakeListener<&DdsPort::take_requests> request_listener_{*this};
+  PeerWatch peer_watch_{*this};
   // tgm_state as read back: every sample is taken as it comes (this service's own are delivered
   // too, within the process); a deeper look than the reader's KEEP_LAST 1 per interpolator,
   // where this service's next write would hide another's sample.
@@ -198,10 +218,26 @@ class DdsPort final : public CyclePort {
   // from (by client name; an entry goes when its participant's last reply reader unmatches).
   // Before the participant: the listener runs inside the reply writer's creation when the
   // participant already knows reply readers (a crash at start while they came after it).
-  using GuidPrefix = eprosima::fastrtps::rtps::GuidPrefix_t;
   std::mutex reply_match_mutex_;
   std::map<GuidPrefix, int> reply_readers_;
   std::map<std::string, GuidPrefix, std::less<>> client_participants_;
+  // Under peers_mutex_ (never held across a DDS call): who each client participant is, from its
+  // requests; the participant that sent each interpolator's last program chunk, and its
+  // program; the participants whose loss was said (so that a flapping link says it once).
+  struct Peer {
+    std::string name;
+    bool plc = false;
+  };
+  struct StreamFrom {
+    GuidPrefix participant;
+    std::uint32_t program_id = 0;
+    bool known = false;
+  };
+  std::mutex peers_mutex_;
+  std::map<GuidPrefix, Peer> peers_;
+  std::vector<StreamFrom> stream_from_;
+  std::set<GuidPrefix> lost_;
+  SpscQueue<PeerNotice> peer_notices_{64};  // pushed under peers_mutex_
 
   DdsPortOptions opt_;
   std::uint64_t service_instance_ = 0;

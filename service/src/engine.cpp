@@ -308,6 +308,7 @@ void Engine::apply_chunks(CyclePort& port, int i, std::size_t& budget) {
       }
       s.program_id = c->program_id;
       s.next_sequence = 0;
+      s.stream_complete = false;
       s.sets_at_load = s.ip.position_sets();
       s.refused_program = kNoProgram;
       s.limit_messages = 0;
@@ -341,6 +342,7 @@ void Engine::apply_chunks(CyclePort& port, int i, std::size_t& budget) {
         s.ip.append(c->program, c->applied, piece, last_piece && c->end_of_program, &accepted);
     c->applied += accepted;
     s.next_sequence += accepted;
+    if (res.ok() && last_piece && c->end_of_program) s.stream_complete = true;
     counters_.segments += accepted;
     budget -= std::min(budget, accepted);
     if (!res.ok() && res.code != RequestCode::kBufferFull) {
@@ -397,7 +399,62 @@ void Engine::check_limits(CyclePort& port, int i) {
   }
 }
 
+void Engine::peer_notice(CyclePort& port, const PeerNotice& n) {
+  const std::string name(n.client.view());
+  const std::string who = name.empty() ? std::string("a client") : "'" + name + "'";
+  switch (n.kind) {
+    case PeerNotice::Kind::kPlcLost:
+    case PeerNotice::Kind::kPlcBack:
+      for (int i = 0; i < count(); ++i) {
+        const Slot& s = ips_[static_cast<std::size_t>(i)];
+        if (n.kind == PeerNotice::Kind::kPlcBack) {
+          send_message(port, i, MessageOut::Severity::kInfo, "tgm-plc " + who + " is back", 0,
+                       s.program_id);
+          continue;
+        }
+        std::string text = (n.ended ? "tgm-plc " + who + " ended"
+                                    : "no sign of life from tgm-plc " + who +
+                                          " (it stopped, or the network is down)") +
+                           ": M-functions wait for an acknowledgement until a PLC answers";
+        if (const std::int32_t m = s.ip.registers().m_func; m != 0) {
+          text += " (M" + std::to_string(m) + " waits now)";
+        }
+        send_message(port, i, MessageOut::Severity::kWarning, text, 0, s.program_id);
+      }
+      return;
+    case PeerNotice::Kind::kStreamLost:
+    case PeerNotice::Kind::kStreamBack: {
+      if (n.interpolator < 0 || n.interpolator >= count()) return;
+      const Slot& s = ips_[static_cast<std::size_t>(n.interpolator)];
+      // Only while the program it sent is loaded and waits for more of it.
+      if (s.program_id != n.program_id || s.stream_complete ||
+          s.ip.registers().status == static_cast<std::int32_t>(InterpolatorStatus::kEmpty)) {
+        return;
+      }
+      const std::string program = "program " + std::to_string(n.program_id);
+      if (n.kind == PeerNotice::Kind::kStreamBack) {
+        send_message(port, n.interpolator, MessageOut::Severity::kInfo,
+                     program + ": its sender " + who + " is back", 0, n.program_id);
+        return;
+      }
+      const std::string records = std::to_string(s.next_sequence) + " records";
+      send_message(port, n.interpolator, MessageOut::Severity::kWarning,
+                   n.ended ? program + ": its sender " + who + " ended after " + records +
+                                 ": the rest will not come, and the interpolator stops at the end "
+                                 "of what is buffered (Status 8); `tgm-hmi command clear` drops it"
+                           : program + ": its sender " + who + " gave no sign of life after " +
+                                 records +
+                                 " (it stopped, or the network is down): unless it comes back, the "
+                                 "interpolator stops at the end of what is buffered (Status 8); "
+                                 "`tgm-hmi command clear` drops the rest",
+                   0, n.program_id);
+      return;
+    }
+  }
+}
+
 void Engine::cycle(CyclePort& port, const LatenessStats& lateness) {
+  for (PeerNotice n; port.next_peer_notice(n);) peer_notice(port, n);
   for (int n = 0; n < opt_.max_requests_per_cycle; ++n) {
     RequestIn r;
     if (!port.next_request(r)) break;

@@ -190,6 +190,81 @@ TEST(Engine, AWaitingCommandThatEndsUnexecutedIsSaid) {
   EXPECT_EQ(port.messages[0].program_id, 4u);
 }
 
+// A client that discovery dropped (its lease lapsed) or that left is said to the HMIs: the
+// sender of a stream that is not complete (the program will stop at the end of what is
+// buffered), a PLC (with the M-function that waits). Nothing watched the clients before: a
+// killed streaming tgm-hmi left its program to run dry in an underrun, and a killed tgm-plc an
+// M-function waiting, without a word.
+TEST(Engine, AClientThatIsGoneIsSaid) {
+  Engine e = make_engine();
+  MockPort port;
+  const Program p = line_program(50, true);
+  // Half of the program streamed: the sender is lost, then back.
+  port.add_chunk(0, p, 0, 20, 7, false);
+  e.cycle(port, {});
+  port.messages.clear();
+  PeerNotice n;
+  n.kind = PeerNotice::Kind::kStreamLost;
+  n.client.set("tgm-hmi-12-abcdef01");
+  n.interpolator = 0;
+  n.program_id = 7;
+  port.peer_notices.push_back(n);
+  n.kind = PeerNotice::Kind::kStreamBack;
+  port.peer_notices.push_back(n);
+  e.cycle(port, {});
+  ASSERT_EQ(port.messages.size(), 2u);
+  EXPECT_EQ(port.messages[0].severity, MessageOut::Severity::kWarning);
+  EXPECT_EQ(port.messages[0].text.view(),
+            "program 7: its sender 'tgm-hmi-12-abcdef01' gave no sign of life after 20 records (it "
+            "stopped, or the network is down): unless it comes back, the interpolator stops at the "
+            "end of what is buffered (Status 8); `tgm-hmi command clear` drops the rest");
+  EXPECT_EQ(port.messages[0].program_id, 7u);
+  EXPECT_EQ(port.messages[1].severity, MessageOut::Severity::kInfo);
+  EXPECT_EQ(port.messages[1].text.view(), "program 7: its sender 'tgm-hmi-12-abcdef01' is back");
+  // One that ended (its process left the domain).
+  port.messages.clear();
+  n.kind = PeerNotice::Kind::kStreamLost;
+  n.ended = true;
+  port.peer_notices.push_back(n);
+  e.cycle(port, {});
+  ASSERT_EQ(port.messages.size(), 1u);
+  EXPECT_EQ(port.messages[0].text.view(),
+            "program 7: its sender 'tgm-hmi-12-abcdef01' ended after 20 records: the rest will not "
+            "come, and the interpolator stops at the end of what is buffered (Status 8); `tgm-hmi "
+            "command clear` drops it");
+  n.ended = false;
+  // Another program's sender, or the sender of a complete stream, is not said.
+  port.messages.clear();
+  n.kind = PeerNotice::Kind::kStreamLost;
+  n.program_id = 8;
+  port.peer_notices.push_back(n);
+  e.cycle(port, {});
+  EXPECT_TRUE(port.messages.empty());
+  port.add_chunk(0, p, 20, p.segments.size() - 20, 7, true);
+  e.cycle(port, {});
+  n.program_id = 7;
+  port.peer_notices.push_back(n);
+  e.cycle(port, {});
+  EXPECT_TRUE(port.messages.empty());
+  // A PLC: said on every interpolator, with the M-function that waits for it.
+  port.add_request(Role::kHmi, RequestKind::kStart);
+  for (int c = 0; c < 20000 && port.last.ip[0].reg.m_func == 0; ++c) e.cycle(port, {});
+  ASSERT_EQ(port.last.ip[0].reg.m_func, 51);
+  port.messages.clear();
+  PeerNotice plc;
+  plc.kind = PeerNotice::Kind::kPlcLost;
+  plc.client.set("tgm-plc-3-0badc0de");
+  port.peer_notices.push_back(plc);
+  e.cycle(port, {});
+  ASSERT_EQ(port.messages.size(), 3u);
+  EXPECT_EQ(port.messages[0].text.view(),
+            "no sign of life from tgm-plc 'tgm-plc-3-0badc0de' (it stopped, or the network is "
+            "down): M-functions wait for an acknowledgement until a PLC answers (M51 waits now)");
+  EXPECT_EQ(port.messages[0].program_id, 7u);
+  EXPECT_EQ(port.messages[1].interpolator, 1);
+  EXPECT_EQ(port.messages[1].text.view().find("(M51"), std::string_view::npos);
+}
+
 // Program id 0 is no program: refused with a message (a refusal of program 0 used to be
 // swallowed, the "last refused" mark starting at 0, and it turned off the check for a program
 // a position set dropped).

@@ -40,6 +40,12 @@ class MockPort final : public CyclePort {
     last = s;
     ++snapshots;
   }
+  bool next_peer_notice(PeerNotice& out) override {
+    if (peer_notices.empty()) return false;
+    out = peer_notices.front();
+    peer_notices.pop_front();
+    return true;
+  }
 
   //! Queues records [first, first + count) of `p` as one chunk.
   void add_chunk(int i, const Program& p, std::size_t first, std::size_t count, std::uint32_t program_id,
@@ -69,6 +75,7 @@ class MockPort final : public CyclePort {
   }
 
   std::deque<RequestIn> requests;
+  std::deque<PeerNotice> peer_notices;
   std::deque<std::unique_ptr<ChunkIn>> chunks[kMaxInterpolators];
   std::vector<ReplyOut> replies;
   std::vector<MessageOut> messages;

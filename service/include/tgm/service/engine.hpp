@@ -94,6 +94,7 @@ class Engine {
     std::uint64_t sets_at_load = 0;       // Interpolator::position_sets() when program_id loaded
     std::uint32_t program_id = 0;
     std::uint64_t next_sequence = 0;
+    bool stream_complete = false;  // the chunk that ends program_id's stream is applied
     // Last program id a refusal message was sent for (kNoProgram: none; 0 is an id a bad
     // client may send, whose refusals it used to swallow).
     std::uint64_t refused_program = kNoProgram;
@@ -114,6 +115,8 @@ class Engine {
   //! Appends what interpolator i's queued chunks allow within `budget`, which it lowers.
   void apply_chunks(CyclePort& port, int i, std::size_t& budget);
   void refuse_chunk(CyclePort& port, int i, const ChunkIn& c, std::string_view why);
+  //! Says to the HMIs that a PLC or the sender of a stream lost (or regained) its liveliness.
+  void peer_notice(CyclePort& port, const PeerNotice& n);
   //! Sends a message of interpolator i to the HMIs (counted as lost when the port drops it).
   //! `program_id`: the program the message belongs to (0: none).
   void send_message(CyclePort& port, int i, MessageOut::Severity severity, std::string_view text,

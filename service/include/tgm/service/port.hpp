@@ -114,6 +114,23 @@ struct ChunkIn {
   std::size_t applied = 0;
 };
 
+//! A client that stopped giving signs of life (its DDS writer's liveliness lapsed: the process
+//! died, or the network between it and the service is down), or that came back.
+struct PeerNotice {
+  enum class Kind : std::uint8_t {
+    kPlcLost = 0,  //!< a tgm-plc (a client that sent requests as the PLC)
+    kPlcBack = 1,
+    kStreamLost = 2,  //!< the sender of `interpolator`'s program stream
+    kStreamBack = 3,
+  };
+  Kind kind = Kind::kPlcLost;
+  //! *Lost: the client's process ended (it left the domain), not a lapse of its lease.
+  bool ended = false;
+  FixedText<65> client;          //!< its client name, empty when it never sent a request
+  int interpolator = 0;          //!< kStream*: the interpolator its last chunk was for
+  std::uint32_t program_id = 0;  //!< kStream*: the program of that chunk
+};
+
 //! The event registers of one interpolator after a cycle in which one of them changed (or the
 //! program, or the M-function moved to another record): the cycle thread queues every such
 //! cycle, so the event topic shows each change, also those the newest-value snapshot merges
@@ -182,6 +199,11 @@ class CyclePort {
   virtual bool event(const EventOut& e) = 0;
   //! Hands the newest snapshot over (latest value wins).
   virtual void publish(const Snapshot& s) = 0;
+  //! Next client that lost or regained its liveliness, oldest first; false when none.
+  virtual bool next_peer_notice(PeerNotice& out) {
+    (void)out;
+    return false;
+  }
 };
 
 }  // namespace tgm::service
