@@ -660,8 +660,13 @@ std::optional<AppConfig> load_config_or_report(const std::string& path,
       std::fprintf(stderr, "%s: ... and %zu more not shown\n", file.c_str(),
                    load.errors.size() - shown);
     }
-    std::fprintf(stderr, "%s: the config %s has %zu problem%s\n", program.c_str(), file.c_str(),
-                 load.errors.size(), load.errors.size() == 1 ? "" : "s");
+    // A path the user never typed is said to come from the environment (a stale TGM_CONFIG
+    // of /etc/default/tgm or a container image looked like a path from nowhere).
+    const char* env = std::getenv("TGM_CONFIG");
+    const bool from_env = path.empty() && env != nullptr && *env != '\0';
+    std::fprintf(stderr, "%s: the config %s%s has %zu problem%s\n", program.c_str(), file.c_str(),
+                 from_env ? " (from $TGM_CONFIG)" : "", load.errors.size(),
+                 load.errors.size() == 1 ? "" : "s");
   }
   return std::move(load.config);
 }

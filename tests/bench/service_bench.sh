@@ -43,7 +43,7 @@ trap cleanup EXIT
 
 # The default machine with an absolute profiles path, this benchmark's domain and a 100,000-record
 # buffer on interpolator 0 (the streaming run needs the whole program in the buffer).
-sed -e "s#profiles_file: fastdds_profiles.xml#profiles_file: $PWD/config/fastdds_profiles.xml#" \
+sed -e "s|# profiles_file: fastdds_profiles.xml|profiles_file: $PWD/config/fastdds_profiles.xml|" \
     -e "s#domain_id: 0#domain_id: $domain#" \
     -e "0,/buffer_size: 10000/s//buffer_size: 100000/" config/default.yaml > "$tmp/config.yaml"
 cfg=(--config "$tmp/config.yaml")

@@ -297,6 +297,13 @@ TEST_F(HmiCompile, BadCommandLinesAndFilesAreUsageErrors) {
   EXPECT_EQ(r.err,
             "/dev/zero: is a character device, not a config file\n"
             "tgm-hmi compile: the config /dev/zero has 1 problem\n");
+  // A config path taken from $TGM_CONFIG is said to come from there.
+  r = run("compile " + prog.string(), "TGM_CONFIG=/nonexistent/machine.yaml ");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("tgm-hmi compile: the config /nonexistent/machine.yaml (from $TGM_CONFIG) "
+                       "has 1 problem\n"),
+            std::string::npos)
+      << r.err;
   // An --out that cannot be written is named with its flag, before anything is compiled, and
   // is bad input like the rest (it said "DIR: error: is a directory", exit code 1).
   r = run("compile " + prog.string() + " --config " + kConfig + " --out " + dir_.string());

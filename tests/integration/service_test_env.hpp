@@ -49,7 +49,8 @@ class ServiceEnv {
     ok = ok &&
          replace_first(yaml, "default_feed_mm_per_min: 1000",
                        "default_feed_mm_per_min: " + std::to_string(e.default_feed_mm_per_min));
-    ok = ok && replace_first(yaml, "profiles_file: fastdds_profiles.xml", "profiles_file: " + e.profiles);
+    ok = ok && replace_first(yaml, "# profiles_file: fastdds_profiles.xml",
+                             "profiles_file: " + e.profiles);
     ok = ok && replace_first(yaml, "domain_id: 0", "domain_id: " + std::to_string(e.domain));
     ok = ok && replace_first(yaml, "buffer_size: 10000", "buffer_size: " + std::to_string(e.buffer_size0));
     EXPECT_TRUE(ok) << "config/default.yaml changed: the test's edits no longer apply";

@@ -157,6 +157,15 @@ TEST(Config, AnUnnamedProfilesFileIsTheOneBesideOrTheShippedOne) {
   EXPECT_EQ(load.config->dds.profiles_file, (dir / "qos.xml").string());
   EXPECT_NE(dds_profiles_problem(load.config->dds).find("qos.xml' does not exist"),
             std::string::npos);
+  // A copy of config/default.yaml kept elsewhere (/etc/tgm/machine.yaml, as
+  // config/systemd/tgm.default suggests): it named fastdds_profiles.xml, which was then looked
+  // for beside the copy, and every binary refused to start.
+  fs::remove(dir / "fastdds_profiles.xml");
+  fs::copy_file(TGM_SOURCE_DIR "/config/default.yaml", dir / "machine.yaml");
+  load = load_config_file((dir / "machine.yaml").string());
+  ASSERT_TRUE(load.config.has_value());
+  EXPECT_EQ(load.config->dds.profiles_file, shipped_config_file("fastdds_profiles.xml"));
+  EXPECT_TRUE(dds_profiles_problem(load.config->dds).empty());
   fs::remove_all(dir);
 }
 
