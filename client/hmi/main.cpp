@@ -15,7 +15,7 @@ constexpr const char* kUsage =
     "\n"
     "Commands:\n"
     "  compile FILE   compile G-code to intercode (--dump jsonl|text, --out FILE)\n"
-    "  simulate FILE  run a program through the interpolator offline, write a CSV\n"
+    "  simulate FILE  run a program offline through the interpolator (--csv writes a CSV)\n"
 #ifdef TGM_HMI_DDS
     "  run FILE       stream a program to tgm-service, start it, follow it (--plot OUT.svg)\n"
     "  status         print the registers of an interpolator once\n"

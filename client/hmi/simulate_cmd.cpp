@@ -69,8 +69,9 @@ constexpr const char* kUsage =
     "  --rel-speed R    feed override 0.01..2 (default 1)\n"
     "  --check-limits   differentiate Orig_Position per cycle and fail on any per-axis velocity,\n"
     "                   acceleration, jerk or corner-step excess (listed with cycle and line)\n"
-    "  --limit-share F  with --check-limits (implied): hold the motion to F (0..1] of each\n"
-    "                   limit, e.g. 0.8 lists where the program uses more than 80 % of one\n"
+    "  --limit-share F  with --check-limits (implied): check against F (0..1] of each limit\n"
+    "                   (the motion is unchanged), e.g. 0.8 lists where the program uses more\n"
+    "                   than 80 % of one\n"
     "  --m-ack S        time the emulated PLC takes per normal M-function [s]\n"
     "  --stop-at T[:CODE],...  stops at program times T [s]: CODE 8 normal stop (default) or 4\n"
     "                   emergency stop, both on the trajectory (a feed hold, an emergency "
@@ -673,13 +674,19 @@ int run_simulate(int argc, char** argv) {
     }
     std::fprintf(report, "violations: %llu\n",
                  static_cast<unsigned long long>(sum.violation_count));
+    constexpr std::size_t kListed = 20;
     std::size_t shown = 0;
     for (const auto& v : sum.violations) {
-      if (++shown > 20) break;
+      if (++shown > kListed) break;
       std::fprintf(report, "  cycle %llu line %d axis %c %s %.6g > %.6g\n",
                    static_cast<unsigned long long>(v.cycle), v.line,
                    letters[static_cast<std::size_t>(v.axis)], limit_quantity_name(v.quantity),
                    v.value, v.limit);
+    }
+    // The list stopped at 20 without a word: 2,757 violations looked like 20.
+    if (sum.violation_count > kListed) {
+      std::fprintf(report, "  (the first %zu listed; %llu more)\n", kListed,
+                   static_cast<unsigned long long>(sum.violation_count - kListed));
     }
   }
   std::fprintf(report, "limited by (time):");

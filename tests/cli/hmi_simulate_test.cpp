@@ -735,7 +735,7 @@ TEST_F(HmiSimulate, BadInputIsAUsageErrorAndWritesNothing) {
   EXPECT_NE(r.out.find("usage: tgm-hmi simulate FILE"), std::string::npos);
 }
 
-// --limit-share F holds the motion to F of each limit (and implies --check-limits): the manual's
+// --limit-share F checks against F of each limit (and implies --check-limits): the manual's
 // example keeps the full limits and uses more than half of some, so at 0.5 it fails with the
 // excesses listed against the halved limits.
 TEST_F(HmiSimulate, LimitShareChecksAgainstThatPartOfEachLimit) {
@@ -750,6 +750,22 @@ TEST_F(HmiSimulate, LimitShareChecksAgainstThatPartOfEachLimit) {
       << half.out;
   EXPECT_NE(half.out.find("violations: "), std::string::npos) << half.out;
   EXPECT_EQ(half.out.find("violations: 0\n"), std::string::npos) << half.out;
+  // Only the check changes, not the motion (the help said it held the motion to F): the same
+  // program time to the last digit.
+  const auto program_time = [](const std::string& out) {
+    const std::size_t at = out.find("time:");
+    return at == std::string::npos ? std::string() : out.substr(at, out.find('\n', at) - at);
+  };
+  EXPECT_FALSE(program_time(full.out).empty()) << full.out;
+  EXPECT_EQ(program_time(half.out).substr(0, program_time(half.out).find(',')),
+            program_time(full.out).substr(0, program_time(full.out).find(',')));
+  // More than 20 are counted, 20 listed, and the rest said (they were left out without a word).
+  const std::size_t v = half.out.find("violations: ");
+  const unsigned long long count = std::stoull(half.out.substr(v + 12));
+  ASSERT_GT(count, 20u) << half.out;
+  EXPECT_NE(half.out.find("  (the first 20 listed; " + std::to_string(count - 20) + " more)\n"),
+            std::string::npos)
+      << half.out;
 }
 
 TEST_F(HmiSimulate, ProgressGoesToStandardErrorUnlessQuiet) {

@@ -1224,6 +1224,23 @@ TEST(ServiceProcesses, AnInterpolatorTheServiceDoesNotHostIsNamed) {
   client::Client watch(service_env.dds(), client::Role::kHmi);
   ASSERT_TRUE(watch.wait_for_state(0, kHang));
   EXPECT_EQ(watch.state(0)->status(), 0);  // the run sent nothing
+  // `status --all` lists the HMI config's three: the two the service lacks as not hosted (it
+  // said "no state", which read like a fault).
+  {
+    test::Child all;
+    ASSERT_TRUE(all.start({TGM_HMI_BIN, "status", "--all", "--config", hmi_env.config(), "--domain",
+                           std::to_string(service_env.domain())},
+                          hmi_env.path("all.log")));
+    EXPECT_EQ(all.wait(kHang), 0) << all.log();
+    EXPECT_NE(all.log().find("Interpolator 0: Status 0"), std::string::npos) << all.log();
+    for (const char* i : {"1", "2"}) {
+      EXPECT_NE(all.log().find(std::string("Interpolator ") + i +
+                               ": not hosted by tgm-service (no state within 2 s; its config has "
+                               "fewer interpolators than this one)"),
+                std::string::npos)
+          << all.log();
+    }
+  }
 
   // The PLC serves interpolator 0 and says once that the others are not hosted (it said
   // "waiting for tgm-service" every 5 s beside the running service, or nothing).

@@ -144,11 +144,17 @@ int run_status(int argc, char** argv) {
     return rc;
   if (all) c.client->poll(200ms);  // the other instances arrive together
   for (int i = first; i <= last; ++i) {
+    // The service publishes every interpolator it hosts at least every 50 ms: with the first
+    // one's state here, one without a state in 2 s is not hosted (its config has fewer). It
+    // said "no state", which read like a fault.
     if (i != first && !c.client->wait_for_state(i, 2s)) {
+      const char* why =
+          "not hosted by tgm-service (no state within 2 s; its config has fewer "
+          "interpolators than this one)";
       if (json) {
-        std::fprintf(stderr, "tgm-hmi status: interpolator %d: no state\n", i);
+        std::fprintf(stderr, "tgm-hmi status: interpolator %d: %s\n", i, why);
       } else {
-        std::printf("Interpolator %d: no state\n", i);
+        std::printf("Interpolator %d: %s\n", i, why);
       }
       continue;
     }
