@@ -553,10 +553,13 @@ int run_run(int argc, char** argv) {
       // printed for it.
       const std::string where =
           m.source_line() > 0 ? " (line " + std::to_string(m.source_line()) + ")" : "";
+      // An informational message without a line is the service's own (a PLC that is back),
+      // not an M29 text of the program.
       std::printf("%s%s: %s\n",
                   err                                     ? "ERROR"
                   : m.severity() == msg::SEVERITY_WARNING ? "warning"
-                                                          : "M29",
+                  : m.source_line() > 0                   ? "M29"
+                                                          : "note",
                   where.c_str(), printable(m.text().c_str()).c_str());
       ++messages;
       if (err && m.program_id() == program_id) exit_code = 1;
