@@ -135,6 +135,9 @@ DdsPort::DdsPort(const DdsConfig& config, const DdsPortOptions& options)
   }
   state_reader_.set_listener(&state_watch_, fdds::StatusMask::data_available());
   take_states();  // what came before the listener
+  // Discovery only (no status: the readers' and writers' own listeners or WaitSets keep those),
+  // from here on: a tgm-plc already running is then seen while the service looks for another.
+  participant_.get().set_listener(&peer_watch_, fdds::StatusMask::none());
 }
 
 DdsPort::~DdsPort() { stop(); }
@@ -170,8 +173,6 @@ void DdsPort::start() {
   for (const RequestSource& src : request_sources_) {
     src.reader->set_listener(&request_listener_, fdds::StatusMask::data_available());
   }
-  // Discovery only (no status: the readers' and writers' own listeners or WaitSets keep those).
-  participant_.get().set_listener(&peer_watch_, fdds::StatusMask::none());
   publisher_ = std::thread([this] {
     pthread_setname_np(pthread_self(), "tgm-publish");
     publish_loop();
@@ -422,7 +423,8 @@ void DdsPort::PeerWatch::on_participant_discovery(
   const bool dropped = info.status == Info::DROPPED_PARTICIPANT;
   const bool gone = dropped || info.status == Info::REMOVED_PARTICIPANT;
   if (gone || info.status == Info::DISCOVERED_PARTICIPANT) {
-    port_.participant_changed(info.info.m_guid.guidPrefix, gone, dropped);
+    port_.participant_changed(info.info.m_guid.guidPrefix, info.info.m_participantName.c_str(),
+                              gone, dropped);
   }
 }
 
@@ -432,9 +434,19 @@ void DdsPort::PeerWatch::on_participant_discovery(
 // DESIGN.md section 6 asks for about 100 ms, which the writers' 100 ms liveliness lease was to
 // give, but Fast DDS 2.9 reported those lapses only sometimes (a killed tgm-hmi was never
 // reported in one of two set-ups), where discovery drops every dead participant.
-void DdsPort::participant_changed(const GuidPrefix& participant, bool gone, bool dropped) {
+void DdsPort::participant_changed(const GuidPrefix& participant, std::string_view name_seen,
+                                  bool gone, bool dropped) {
   if (stopping_) return;
   const std::lock_guard lock(peers_mutex_);
+  // A tgm-plc's participant is named <prefix>-plc: known as a PLC before its first request (one
+  // started in the middle of a program sends none until the next M-function).
+  constexpr std::string_view kPlcSuffix = "-plc";
+  if (!gone && name_seen.size() > kPlcSuffix.size() &&
+      name_seen.substr(name_seen.size() - kPlcSuffix.size()) == kPlcSuffix &&
+      peers_.find(participant) == peers_.end()) {
+    if (peers_.size() >= 4096) peers_.clear();
+    peers_[participant] = Peer{std::string(name_seen), true};
+  }
   if (gone ? !lost_.insert(participant).second : lost_.erase(participant) == 0) return;
   const auto peer = peers_.find(participant);
   const std::string name = peer != peers_.end() ? peer->second.name : std::string();

@@ -184,7 +184,8 @@ class DdsPort final : public CyclePort {
   // died, or the network to it is down: DROPPED) or that left (its process ended: REMOVED),
   // and one that is back. A PLC (a participant that sent requests as the PLC) or the sender
   // of a program stream becomes a PeerNotice for the cycle thread, and a log line.
-  void participant_changed(const GuidPrefix& participant, bool gone, bool dropped);
+  void participant_changed(const GuidPrefix& participant, std::string_view name, bool gone,
+                           bool dropped);
   class PeerWatch final : public eprosima::fastdds::dds::DomainParticipantListener {
    public:
     explicit PeerWatch(DdsPort& port) : port_(port) {}
