@@ -303,7 +303,13 @@ int plc_main(int argc, char** argv) {
       if (!args.failed()) {
         tgm::PlcScriptLoad load = tgm::load_plc_script(script_path);
         if (!load.ok()) {
-          std::fprintf(stderr, "tgm-plc: %s\n", load.error.c_str());
+          std::size_t from = 0;
+          while (from <= load.error.size()) {  // one problem per line
+            const std::size_t end = std::min(load.error.find('\n', from), load.error.size());
+            std::fprintf(stderr, "tgm-plc: %.*s\n", static_cast<int>(end - from),
+                         load.error.c_str() + from);
+            from = end + 1;
+          }
           return 2;
         }
         script = std::move(load.steps);
@@ -336,19 +342,23 @@ int plc_main(int argc, char** argv) {
     return args.usage_error("--interpolator " + std::to_string(only) + ": the config has " +
                             std::to_string(count));
   std::vector<bool> script_done(script.size(), false);
+  // Every step that cannot run, in line order, before any runs (one per step).
+  bool script_bad = false;
   for (const auto& s : script) {
     // A step for an interpolator this PLC does not serve (--interpolator N) was sent anyway.
     if (const std::string why = tgm::plc_script_interpolator_problem(s, count, only);
         !why.empty()) {
       std::fprintf(stderr, "tgm-plc: %s:%d: %s\n", script_path.c_str(), s.line, why.c_str());
-      return 2;
+      script_bad = true;
+      continue;
     }
     // An axis letter the interpolator does not have, more axes than it has.
     if (const std::string why =
             tgm::plc_script_axes_problem(s, config.machine.axis_letters(s.interpolator));
         !why.empty()) {
       std::fprintf(stderr, "tgm-plc: %s:%d: %s\n", script_path.c_str(), s.line, why.c_str());
-      return 2;
+      script_bad = true;
+      continue;
     }
     // What the service would refuse in any state (a ratio of 0 mm, spline points out of
     // range) is said now, not in the middle of the run. A standing, idle interpolator with all
@@ -366,10 +376,11 @@ int plc_main(int argc, char** argv) {
                                       : "Command " + std::to_string(*s.command) + ": " + r.reason;
         std::fprintf(stderr, "tgm-plc: %s:%d: interpolator %d: %s\n", script_path.c_str(), s.line,
                      s.interpolator, named.c_str());
-        return 2;
+        script_bad = true;
       }
     }
   }
+  if (script_bad) return 2;
 
   struct sigaction sa{};
   sa.sa_handler = on_signal;

@@ -184,25 +184,42 @@ std::string plc_script_axes_problem(const PlcScriptStep& step, const std::string
 
 namespace {
 
-// parse_plc_script before its one exit: the first problem as it is worded.
+// A script's problems shown at most (the rest are counted).
+constexpr std::size_t kScriptProblemsShown = 20;
+
+// parse_plc_script before its one exit: every step's problem, in line order (one per step; a
+// script with five mistakes took five edits and runs, each naming the next). A problem of the
+// script as a whole (empty, not a list, YAML syntax) is the only one.
 PlcScriptLoad read_script(std::string_view text, const std::string& path) {
   PlcScriptLoad out;
+  std::vector<std::string> problems;
+  const auto finish = [&] {
+    for (std::size_t k = 0; k < problems.size() && k < kScriptProblemsShown; ++k) {
+      if (k > 0) out.error += '\n';
+      out.error += problems[k];
+    }
+    if (problems.size() > kScriptProblemsShown) {
+      out.error += "\n" + printable(path) + ": ... and " +
+                   std::to_string(problems.size() - kScriptProblemsShown) + " more not shown";
+    }
+  };
   try {
     const YAML::Node root = load_one_document(std::string(text));
     // Nothing but blanks and comments: said as such (it read "must be a list of steps").
     if (!root.IsDefined() || root.IsNull()) {
-      out.error =
-          path + ": the script is empty; give at least one step, e.g. - {at_s: 3, command: 8}";
+      out.error = printable(
+          path + ": the script is empty; give at least one step, e.g. - {at_s: 3, command: 8}");
       return out;
     }
     if (!root.IsSequence()) {
-      out.error = path + ": the script must be a list of steps, e.g. - {at_s: 3, command: 8}";
+      out.error =
+          printable(path + ": the script must be a list of steps, e.g. - {at_s: 3, command: 8}");
       return out;
     }
     // As a step that does nothing (below): `[]` is a script left unwritten or cut, not a run.
     if (root.size() == 0) {
-      out.error =
-          path + ": the script has no steps; give at least one, e.g. - {at_s: 3, command: 8}";
+      out.error = printable(
+          path + ": the script has no steps; give at least one, e.g. - {at_s: 3, command: 8}");
       return out;
     }
     for (const YAML::Node& n : root) {
@@ -211,30 +228,33 @@ PlcScriptLoad read_script(std::string_view text, const std::string& path) {
       s.line = (n.IsNull() ? empty_item_line(text, n.Mark()) : n.Mark().line) + 1;
       const std::string at = path + ":" + std::to_string(s.line) + ": ";
       if (!n.IsMap()) {
-        out.error = at + "a step must be a map, e.g. {at_s: 3, command: 8}";
-        return out;
+        problems.push_back(printable(at + "a step must be a map, e.g. {at_s: 3, command: 8}"));
+        continue;
       }
       int key_line = 0;
       if (std::string why = read_step(n, s, key_line); !why.empty()) {
-        out.error = path + ":" + std::to_string(key_line > 0 ? key_line : s.line) + ": " + why;
-        return out;
+        problems.push_back(
+            printable(path + ":" + std::to_string(key_line > 0 ? key_line : s.line) + ": " + why));
+        continue;
       }
       // A step that does nothing is a mistake (an action left out, `start: false`, an empty
       // refuse_ack list): said rather than run as a silent no-op.
       if (!s.rel_speed && !s.number_axes && s.ratio.empty() && s.offset_inc.empty() && !s.command &&
           !s.start && s.refuse_ack.empty()) {
-        out.error = at + "the step does nothing: give it rel_speed, number_axes, ratio, offset, " +
-                    "command, start: true or refuse_ack [M, ...]";
-        return out;
+        problems.push_back(printable(at +
+                                     "the step does nothing: give it rel_speed, number_axes, "
+                                     "ratio, offset, command, start: true or refuse_ack [M, ...]"));
+        continue;
       }
       out.steps.push_back(std::move(s));
     }
+    finish();
   } catch (const YAML::DeepRecursion& e) {
     // yaml-cpp's own message for this is "bad file".
-    out.error = path + yaml_place(e.mark) + ": YAML syntax: nested more than " +
-                std::to_string(e.depth() - 1) + " levels deep";
+    out.error = printable(path + yaml_place(e.mark) + ": YAML syntax: nested more than " +
+                          std::to_string(e.depth() - 1) + " levels deep");
   } catch (const YAML::Exception& e) {
-    out.error = path + yaml_place(e.mark) + ": YAML syntax: " + e.msg;
+    out.error = printable(path + yaml_place(e.mark) + ": YAML syntax: " + e.msg);
   }
   return out;
 }
@@ -246,8 +266,8 @@ PlcScriptLoad parse_plc_script(std::string_view text, const std::string& path) {
   if (!out.ok()) {
     out.steps.clear();  // all or nothing: a script is not run in part
     // Keys and values are quoted from the script: control characters are shown, not sent to
-    // the terminal (as the config loader does).
-    out.error = printable(out.error);
+    // the terminal (as the config loader does). read_script made each problem printable, so
+    // that the line breaks between them stay.
   }
   return out;
 }

@@ -5,6 +5,7 @@
 // control character; every step it gives is within the ranges the PLC sends (an override the
 // service would refuse, a Command it does not know, are problems here); the same text parses
 // the same way twice.
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -30,7 +31,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const tgm::PlcScriptLoad load = tgm::parse_plc_script(text, path);
   if (!load.ok()) {
     TGM_FUZZ_CHECK(load.steps.empty(), "steps with a problem: " + load.error);
-    tgm::fuzz::check_message(load.error, path, text);
+    // One problem per line (every bad step is named), each a message of its own.
+    std::size_t from = 0;
+    while (from <= load.error.size()) {
+      const std::size_t end = std::min(load.error.find('\n', from), load.error.size());
+      tgm::fuzz::check_message(load.error.substr(from, end - from), path, text);
+      from = end + 1;
+    }
   }
   for (const tgm::PlcScriptStep& s : load.steps) {
     const std::string at = "step of line " + std::to_string(s.line) + ": ";

@@ -1,10 +1,10 @@
 // tgm-plc --script: the reader of the timed steps (config/src/plc_script.cpp). The PLC process
 // itself is tested with a script in tests/integration (PlcScriptErrorsNameTheLineAndTheReason).
 #include <gtest/gtest.h>
-
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <climits>
@@ -214,6 +214,33 @@ TEST(PlcScript, ADocumentEndAndCommentsAfterTheStepsAreFine) {
 // An empty step ("-" alone) is named at its `-`: yaml-cpp marks it where the next token starts,
 // past blank lines and comments (the message named the line of the next step, or one past the
 // end of the file).
+// Every bad step is named at once, in line order, and none is kept: a script with five
+// mistakes took five edits and runs, each naming the next.
+TEST(PlcScript, EveryBadStepIsNamedAtOnce) {
+  const std::string text =
+      "- {at_s: 1, command: 8}\n"
+      "- {at_s: 2, rel_speed: 5}\n"
+      "-\n"
+      "- {at_s: 3, comand: 9}\n"
+      "- {at_s: 4, command: 9}\n"
+      "- {at_s: 5}\n";
+  const PlcScriptLoad load = parse_plc_script(text, "s.yaml");
+  EXPECT_TRUE(load.steps.empty());
+  EXPECT_EQ(load.error,
+            "s.yaml:2: rel_speed must be an override 0.01..2, not '5'\n"
+            "s.yaml:3: a step must be a map, e.g. {at_s: 3, command: 8}\n"
+            "s.yaml:4: unknown key 'comand' (known: at_s, interpolator, rel_speed, number_axes, "
+            "ratio, offset, command, parameters, start, refuse_ack)\n"
+            "s.yaml:6: the step does nothing: give it rel_speed, number_axes, ratio, offset, "
+            "command, start: true or refuse_ack [M, ...]");
+  // At most 20 are listed, the rest counted.
+  std::string many;
+  for (int i = 0; i < 25; ++i) many += "- {at_s: 1}\n";
+  const PlcScriptLoad lots = parse_plc_script(many, "m.yaml");
+  EXPECT_EQ(std::count(lots.error.begin(), lots.error.end(), '\n'), 20) << lots.error;
+  EXPECT_NE(lots.error.find("\nm.yaml: ... and 5 more not shown"), std::string::npos) << lots.error;
+}
+
 TEST(PlcScript, AnEmptyStepIsNamedAtItsDash) {
   const std::string says = ": a step must be a map, e.g. {at_s: 3, command: 8}";
   const std::pair<std::string, int> cases[] = {

@@ -32,8 +32,9 @@ struct PlcScriptStep {
   int line = 0;                     //!< line of the step in the script (1-based)
 };
 
-//! The steps, or the first problem as "PATH:LINE: reason" ("PATH: reason" for the file as a
-//! whole). Text taken from the script is shown with control characters escaped.
+//! The steps, or the problems as "PATH:LINE: reason" lines, one per bad step in line order
+//! (at most 20, then "PATH: ... and N more not shown"), or "PATH: reason" for the file as a
+//! whole. Text taken from the script is shown with control characters escaped.
 struct PlcScriptLoad {
   std::vector<PlcScriptStep> steps;
   std::string error;
