@@ -194,14 +194,16 @@ bool compile_packed(const std::string& file, const FileView& input, const Compil
   return true;
 }
 
-void CompensationNote::print(const std::string& file) const {
+void CompensationNote::print(const std::string& file, bool intercode) const {
   if (!seen_) return;
+  const std::string line = std::to_string(first_.line);
+  const std::string where = intercode ? file + " (source line " + line + ")" : file + ":" + line;
   std::fprintf(stderr,
-               "%s:%d: note: G%d (tool radius compensation) with radius 0 (tool T%d): the tool "
+               "%s: note: G%d (tool radius compensation) with radius 0 (tool T%d): the tool "
                "centre follows the programmed contour; D<mm> on the G%d line, or a T with a "
                "radius in the tool table, offsets it\n",
-               file.c_str(), static_cast<int>(first_.line), static_cast<int>(first_.compensation),
-               static_cast<int>(first_.tool), static_cast<int>(first_.compensation));
+               where.c_str(), static_cast<int>(first_.compensation), static_cast<int>(first_.tool),
+               static_cast<int>(first_.compensation));
 }
 
 namespace {

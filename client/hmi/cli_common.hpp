@@ -91,8 +91,10 @@ class CompensationNote {
   //! A record that moves with compensation on at radius 0 was observed (the ones after it do
   //! not matter): the operator asked for G41/G42 and the tool path is the programmed one.
   bool seen() const { return seen_; }
-  //! Prints the note to standard error (nothing when no such motion was observed).
-  void print(const std::string& file) const;
+  //! Prints the note to standard error (nothing when no such motion was observed), at
+  //! FILE:LINE, or for an `intercode` FILE at "FILE (source line LINE)": the line is one of the
+  //! G-code it was compiled from, not of the binary file.
+  void print(const std::string& file, bool intercode = false) const;
 
  private:
   bool seen_ = false;

@@ -145,7 +145,7 @@ int inspect_intercode(Args& args, const std::string& file, const FileView& input
   CompensationNote compensation;
   auto cursor = program.cursor();
   for (Segment seg; !compensation.seen() && cursor.next(seg);) compensation.observe(seg);
-  compensation.print(file);
+  compensation.print(file, true);
   return 0;
 }
 

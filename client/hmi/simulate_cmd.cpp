@@ -341,7 +341,7 @@ int run_simulate(int argc, char** argv) {
     }
     start = program.tables().start_mm;
   }
-  note.print(file);
+  note.print(file, intercode);
 
   SimulationOptions so;
   so.interpolator = ip_index;

@@ -387,7 +387,7 @@ int run_run(int argc, char** argv) {
       }
     }
   }
-  note.print(file);
+  note.print(file, intercode);
   // What the program stream cannot carry is found before the clear (the sender checks the
   // whole program when it is made): one that found it later left a half-sent program running
   // (a 300-byte M29 text at line 19,970 stopped the stream with the machine moving).
