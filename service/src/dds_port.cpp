@@ -282,11 +282,15 @@ void DdsPort::take_requests_locked() {
   for (const RequestSource& src : request_sources_) {
     while (!stopping_.load(std::memory_order_relaxed) && dds::take_next(*src.reader, r, info)) {
       const std::string_view name(r.client_name().c_str(), r.client_name().size());
+      // The participant this client's requests come from, and its role.
+      const GuidPrefix from =
+          eprosima::fastrtps::rtps::iHandle2GUID(info.publication_handle).guidPrefix;
+      const Role role = src.role                           ? *src.role
+                        : r.role() == msg::CLIENT_ROLE_PLC ? Role::kPlc
+                                                           : Role::kHmi;
       {
-        // The participant this client's requests come from, for publish_replies(). Bounded: a
-        // participant that never has a reply reader leaves its entries behind.
-        const GuidPrefix from =
-            eprosima::fastrtps::rtps::iHandle2GUID(info.publication_handle).guidPrefix;
+        // For publish_replies(). Bounded: a participant that never has a reply reader leaves
+        // its entries behind.
         const std::lock_guard lock(reply_match_mutex_);
         if (client_participants_.size() >= 4096 &&
             client_participants_.find(name) == client_participants_.end()) {
@@ -295,14 +299,11 @@ void DdsPort::take_requests_locked() {
         client_participants_.insert_or_assign(std::string(name), from);
       }
       {
-        const bool plc = src.role ? *src.role == Role::kPlc : r.role() == msg::CLIENT_ROLE_PLC;
-        const GuidPrefix from =
-            eprosima::fastrtps::rtps::iHandle2GUID(info.publication_handle).guidPrefix;
         const std::lock_guard lock(peers_mutex_);
         if (peers_.size() >= 4096 && peers_.find(from) == peers_.end()) peers_.clear();
         Peer& peer = peers_[from];
         if (peer.name != name) peer.name.assign(name);
-        peer.plc = peer.plc || plc;
+        peer.plc = peer.plc || role == Role::kPlc;
       }
       if (requests_.full()) {
         // A client sends faster than the cycles take requests. Leaving the sample in the reader
@@ -328,7 +329,7 @@ void DdsPort::take_requests_locked() {
       }
       RequestIn in;
       in.request_id = r.request_id();
-      in.role = src.role ? *src.role : r.role() == msg::CLIENT_ROLE_PLC ? Role::kPlc : Role::kHmi;
+      in.role = role;
       in.client.set(r.client_name().c_str());
       in.interpolator = r.interpolator();
       in.kind = from_msg(r.kind());

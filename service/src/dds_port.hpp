@@ -182,8 +182,8 @@ class DdsPort final : public CyclePort {
   using GuidPrefix = eprosima::fastrtps::rtps::GuidPrefix_t;
   // The clients' participants as discovery sees them: one whose lease lapsed (the process
   // died, or the network to it is down: DROPPED) or that left (its process ended: REMOVED),
-  // and one that is back. A PLC (a participant that sent requests as the PLC) or the sender
-  // of a program stream becomes a PeerNotice for the cycle thread, and a log line.
+  // and one that is back. A PLC (named <prefix>-plc, or that sent requests as the PLC) or the
+  // sender of a program stream becomes a PeerNotice for the cycle thread, and a log line.
   void participant_changed(const GuidPrefix& participant, std::string_view name, bool gone,
                            bool dropped);
   class PeerWatch final : public eprosima::fastdds::dds::DomainParticipantListener {

@@ -115,7 +115,7 @@ class Engine {
   //! Appends what interpolator i's queued chunks allow within `budget`, which it lowers.
   void apply_chunks(CyclePort& port, int i, std::size_t& budget);
   void refuse_chunk(CyclePort& port, int i, const ChunkIn& c, std::string_view why);
-  //! Says to the HMIs that a PLC or the sender of a stream lost (or regained) its liveliness.
+  //! Says to the HMIs that a PLC or the sender of a stream is gone (or back).
   void peer_notice(CyclePort& port, const PeerNotice& n);
   //! Sends a message of interpolator i to the HMIs (counted as lost when the port drops it).
   //! `program_id`: the program the message belongs to (0: none).

@@ -114,11 +114,13 @@ struct ChunkIn {
   std::size_t applied = 0;
 };
 
-//! A client that stopped giving signs of life (its DDS writer's liveliness lapsed: the process
-//! died, or the network between it and the service is down), or that came back.
+//! A client that DDS discovery dropped (its participant lease lapsed: the process died, or the
+//! network between it and the service is down) or that left (its process ended), or that came
+//! back.
 struct PeerNotice {
   enum class Kind : std::uint8_t {
-    kPlcLost = 0,  //!< a tgm-plc (a client that sent requests as the PLC)
+    kPlcLost =
+        0,  //!< a tgm-plc (a participant named <prefix>-plc, or that sent requests as the PLC)
     kPlcBack = 1,
     kStreamLost = 2,  //!< the sender of `interpolator`'s program stream
     kStreamBack = 3,
@@ -126,7 +128,7 @@ struct PeerNotice {
   Kind kind = Kind::kPlcLost;
   //! *Lost: the client's process ended (it left the domain), not a lapse of its lease.
   bool ended = false;
-  FixedText<65> client;          //!< its client name, empty when it never sent a request
+  FixedText<65> client;          //!< its client (or participant) name; empty when unknown
   int interpolator = 0;          //!< kStream*: the interpolator its last chunk was for
   std::uint32_t program_id = 0;  //!< kStream*: the program of that chunk
 };
