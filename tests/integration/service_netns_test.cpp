@@ -139,11 +139,35 @@ class ServiceNetns : public ::testing::Test {
   bool iptables(std::size_t i, const std::string& args) const {
     return sh(ip_ + " netns exec " + ns_->name(i) + " iptables " + args);
   }
+  //! Drops every datagram in and out of namespace i (block), or lets them through (unblock).
+  bool block(std::size_t i) const {
+    return iptables(i, "-I INPUT -j DROP") && iptables(i, "-I OUTPUT -j DROP");
+  }
+  bool unblock(std::size_t i) const {
+    return iptables(i, "-D INPUT -j DROP") && iptables(i, "-D OUTPUT -j DROP");
+  }
   //! Drops every datagram in and out of namespace i for `outage`, then lets them through again.
   void cut(std::size_t i, std::chrono::seconds outage) const {
-    ASSERT_TRUE(iptables(i, "-I INPUT -j DROP") && iptables(i, "-I OUTPUT -j DROP"));
+    ASSERT_TRUE(block(i));
     std::this_thread::sleep_for(outage);
-    ASSERT_TRUE(iptables(i, "-D INPUT -j DROP") && iptables(i, "-D OUTPUT -j DROP"));
+    ASSERT_TRUE(unblock(i));
+  }
+  //! tgm-service (with --stats) in the service's namespace and `tgm-hmi run PROGRAM` (a progress
+  //! line every 0.2 s) in the HMI's; succeeds once the run streams (its first progress line).
+  ::testing::AssertionResult start_run(const test::ServiceEnv& env, const std::string& program,
+                                       test::Child& service, test::Child& hmi) const {
+    if (!service.start(ns_->exec(0, {TGM_SERVICE_BIN, "--config", env.config(), "--no-realtime",
+                                     "--stats", env.stats_path()}),
+                       env.path("service.log")) ||
+        !hmi.start(ns_->exec(2, {TGM_HMI_BIN, "run", program, "--config", env.config(),
+                                 "--progress-interval", "0.2"}),
+                   env.path("hmi.log"))) {
+      return ::testing::AssertionFailure() << "cannot start tgm-service or tgm-hmi";
+    }
+    if (!hmi.wait_for_log("% line ", 60s, 20ms)) {
+      return ::testing::AssertionFailure() << hmi.log() << service.log();
+    }
+    return ::testing::AssertionSuccess();
   }
   const Namespaces& ns() const { return *ns_; }
 
@@ -322,15 +346,8 @@ TEST_F(ServiceNetns, AProgramStreamGoesOnAfterANetworkOutage) {
   std::ofstream(program_path) << gcode;
 
   test::Child service, hmi;
-  ASSERT_TRUE(service.start(ns().exec(0, {TGM_SERVICE_BIN, "--config", env.config(),
-                                          "--no-realtime", "--stats", env.stats_path()}),
-                            env.path("service.log")));
-  ASSERT_TRUE(hmi.start(ns().exec(2, {TGM_HMI_BIN, "run", program_path, "--config", env.config(),
-                                      "--progress-interval", "0.2"}),
-                        env.path("hmi.log")));
   // Cut once the stream runs (the first progress line), well before its end.
-  hmi.wait_for_log("% line ", 60s, 20ms);
-  ASSERT_NE(hmi.log().find("% line "), std::string::npos) << hmi.log() << service.log();
+  ASSERT_TRUE(start_run(env, program_path, service, hmi));
   cut(2, 4s);
   const int code = hmi.wait(120s);
   const std::string log = hmi.log();
@@ -405,21 +422,14 @@ TEST_F(ServiceNetns, ACtrlCDuringAnOutageStopsTheMachineOnceTheLinkIsBack) {
   std::ofstream(program_path) << gcode;
 
   test::Child service, hmi;
-  ASSERT_TRUE(
-      service.start(ns().exec(0, {TGM_SERVICE_BIN, "--config", env.config(), "--no-realtime"}),
-                    env.path("service.log")));
-  ASSERT_TRUE(hmi.start(ns().exec(2, {TGM_HMI_BIN, "run", program_path, "--config", env.config(),
-                                      "--progress-interval", "0.2"}),
-                        env.path("hmi.log")));
-  hmi.wait_for_log("% line ", 60s, 20ms);
-  ASSERT_NE(hmi.log().find("% line "), std::string::npos) << hmi.log() << service.log();
-  ASSERT_TRUE(iptables(2, "-I INPUT -j DROP") && iptables(2, "-I OUTPUT -j DROP"));
+  ASSERT_TRUE(start_run(env, program_path, service, hmi));
+  ASSERT_TRUE(block(2));
   std::this_thread::sleep_for(1500ms);  // longer than the participant lease
   ASSERT_GT(hmi.pid(), 0);
   ::kill(hmi.pid(), SIGINT);
   hmi.wait_for_log("trying again", 10s, 20ms);
   std::this_thread::sleep_for(3s);
-  ASSERT_TRUE(iptables(2, "-D INPUT -j DROP") && iptables(2, "-D OUTPUT -j DROP"));
+  ASSERT_TRUE(unblock(2));
   const int code = hmi.wait(90s);
   const std::string log = hmi.log();
   EXPECT_EQ(code, 130) << log << "\n--- service:\n" << service.log();

@@ -976,6 +976,18 @@ TEST(Requests, ANumberAxesWriteAfterAStopKeepsThePositionForTheNextProgram) {
 // in the registers. After a clear they showed its line, G and M (M30 after a program that ended)
 // and its feed beside Act_Part 0, and kept showing them through the first cycles of the next
 // program. The tool in the spindle and the stored last continuous M-function stay.
+// The section registers of a program that is gone (clear_section_registers): none of them
+// shows it any more, its unacknowledged M_Func neither.
+void expect_no_section(const Registers& r) {
+  EXPECT_EQ(r.act_part, 0);
+  EXPECT_EQ(r.act_line, 0);
+  EXPECT_EQ(r.act_g_func, 0);
+  EXPECT_EQ(r.act_m_func, 0);
+  EXPECT_EQ(r.m_func, 0);
+  EXPECT_EQ(r.set_speed, 0.0);
+  EXPECT_EQ(r.move_distance, 0.0);
+}
+
 TEST(Requests, DroppingAProgramDropsItsSectionRegisters) {
   const std::function<RequestResult(Interpolator&)> drops[] = {
       [](Interpolator& ip) { return ip.clear(); },
@@ -1009,12 +1021,7 @@ TEST(Requests, DroppingAProgramDropsItsSectionRegisters) {
     ASSERT_EQ(r.set_speed, 1500.0);
     const std::int32_t tool = r.tool_number;
     ASSERT_TRUE(drops[k](ip).ok());
-    EXPECT_EQ(r.act_part, 0);
-    EXPECT_EQ(r.act_line, 0);
-    EXPECT_EQ(r.act_g_func, 0);
-    EXPECT_EQ(r.act_m_func, 0);
-    EXPECT_EQ(r.set_speed, 0.0);
-    EXPECT_EQ(r.move_distance, 0.0);
+    expect_no_section(r);
     EXPECT_EQ(r.tool_number, tool);
     EXPECT_EQ(r.last_cont_m_func, 1005);
   }
@@ -1037,11 +1044,7 @@ TEST(Requests, AStopOffTheTrajectoryDropsTheSectionRegisters) {
     run_until(ip, [](const Registers& g) { return g.act_speed == 0.0 && g.command_status != 1; });
     for (int c = 0; c < 5; ++c) ip.step();
     EXPECT_EQ(r.off_trajectory, 1);
-    EXPECT_EQ(r.act_part, 0);
-    EXPECT_EQ(r.act_line, 0);
-    EXPECT_EQ(r.act_g_func, 0);
-    EXPECT_EQ(r.set_speed, 0.0);
-    EXPECT_EQ(r.move_distance, 0.0);
+    expect_no_section(r);
   }
 }
 
