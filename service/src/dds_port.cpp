@@ -405,9 +405,12 @@ void DdsPort::take_chunks() {
     c->program.segments.clear();
     c->program.params.clear();
     c->program.messages.clear();
-    const mapping::MapStatus st = mapping::append_chunk(chunk_sample_, c->program);
+    mapping::WireProblem where;
+    const mapping::MapStatus st = mapping::append_chunk(chunk_sample_, c->program, where);
     c->decode_status = static_cast<int>(st);
-    c->error.set(st == mapping::MapStatus::kOk ? std::string_view{} : mapping::to_string(st));
+    c->error.set(st == mapping::MapStatus::kOk
+                     ? std::string{}
+                     : mapping::describe(st, where, chunk_sample_.sequence_number()));
     auto& backlog = backlog_[static_cast<std::size_t>(i)];
     if (backlog.empty() && chunks_[static_cast<std::size_t>(i)]->push(c)) continue;
     backlog.push_back(c);

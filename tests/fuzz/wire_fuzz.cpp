@@ -57,9 +57,17 @@ std::string written(Topic topic, T& sample) {
 
 void check_chunk(const msg::ProgramChunk& c) {
   tgm::Program p;
-  const tgm::mapping::MapStatus st = tgm::mapping::append_chunk(c, p);
+  tgm::mapping::WireProblem where;
+  const tgm::mapping::MapStatus st = tgm::mapping::append_chunk(c, p, where);
   TGM_FUZZ_CHECK(!tgm::mapping::to_string(st).empty(), "a map status without words");
   if (st != tgm::mapping::MapStatus::kOk) {
+    // The service's refusal names the field at fault, and the record when it is one.
+    TGM_FUZZ_CHECK(!where.field.empty(),
+                   "a refusal without its field: " + std::string(tgm::mapping::to_string(st)));
+    TGM_FUZZ_CHECK(where.record < static_cast<int>(c.segments().size()),
+                   "a refusal names a record beyond the chunk");
+    const std::string said = tgm::mapping::describe(st, where, c.sequence_number());
+    TGM_FUZZ_CHECK(said.find(where.field) != std::string::npos, "the field is not said: " + said);
     TGM_FUZZ_CHECK(
         p.segments.empty() && p.params.empty() && p.messages.empty(),
         "a refused chunk changed the program: " + std::string(tgm::mapping::to_string(st)));

@@ -344,49 +344,75 @@ TEST(IdlMapping, ProgramProblemNamesTheRecordBeforeAnythingIsSent) {
   EXPECT_TRUE(chunk.segments().empty());
 }
 
-TEST(IdlMapping, WireSideErrorsLeaveTheProgramUnchanged) {
+TEST(IdlMapping, WireSideErrorsLeaveTheProgramUnchangedAndSayWhere) {
   const Program p = sample_program();
   std::vector<msg::ProgramChunk> chunks;
   ASSERT_EQ(mapping::to_chunks(p, {}, chunks), MapStatus::kOk);
-  const msg::ProgramChunk good = chunks[0];
+  msg::ProgramChunk good = chunks[0];
+  // As if this chunk continued a program at its record 1000.
+  good.sequence_number(1000);
 
   struct Case {
     const char* what;
     void (*spoil)(msg::ProgramChunk&);
     MapStatus expected;
+    const char* place;  // what describe() appends to the reason
   };
+  const std::string line2 = ": record 1001 of the program (record 1 of its chunk, source line 2)";
   const Case cases[] = {
-      {"type 7", [](msg::ProgramChunk& c) { c.segments()[1].type(7); }, MapStatus::kBadType},
-      {"plane 20", [](msg::ProgramChunk& c) { c.segments()[1].plane(20); }, MapStatus::kBadType},
+      {"type 7", [](msg::ProgramChunk& c) { c.segments()[1].type(7); }, MapStatus::kBadType,
+       ", field type"},
+      {"plane 20", [](msg::ProgramChunk& c) { c.segments()[1].plane(20); }, MapStatus::kBadType,
+       ", field plane"},
       {"compensation 39", [](msg::ProgramChunk& c) { c.segments()[1].compensation(39); },
-       MapStatus::kBadType},
-      {"m kind 5", [](msg::ProgramChunk& c) { c.segments()[1].m_kind(5); }, MapStatus::kBadType},
+       MapStatus::kBadType, ", field compensation"},
+      {"m kind 5", [](msg::ProgramChunk& c) { c.segments()[1].m_kind(5); }, MapStatus::kBadType,
+       ", field m_kind"},
       {"NaN end", [](msg::ProgramChunk& c) { c.segments()[1].end()[9] = std::nan(""); },
-       MapStatus::kNotFinite},
+       MapStatus::kNotFinite, ", field end[9]"},
+      {"NaN center", [](msg::ProgramChunk& c) { c.segments()[1].center()[1] = std::nan(""); },
+       MapStatus::kNotFinite, ", field center[1]"},
+      {"inf radius",
+       [](msg::ProgramChunk& c) {
+         c.segments()[1].radius(-std::numeric_limits<double>::infinity());
+       },
+       MapStatus::kNotFinite, ", field radius"},
       {"inf feed",
        [](msg::ProgramChunk& c) {
-         c.segments()[2].feed_mm_per_min(std::numeric_limits<double>::infinity());
+         c.segments()[1].feed_mm_per_min(std::numeric_limits<double>::infinity());
        },
-       MapStatus::kNotFinite},
-      {"NaN param", [](msg::ProgramChunk& c) { c.segments()[3].params()[0] = std::nan(""); },
-       MapStatus::kNotFinite},
+       MapStatus::kNotFinite, ", field feed_mm_per_min"},
+      {"NaN dwell", [](msg::ProgramChunk& c) { c.segments()[1].dwell_s(std::nan("")); },
+       MapStatus::kNotFinite, ", field dwell_s"},
+      {"NaN compensation radius",
+       [](msg::ProgramChunk& c) { c.segments()[1].compensation_radius_mm(std::nan("")); },
+       MapStatus::kNotFinite, ", field compensation_radius_mm"},
+      {"NaN param", [](msg::ProgramChunk& c) { c.segments()[3].params()[18] = std::nan(""); },
+       MapStatus::kNotFinite,
+       ": record 1003 of the program (record 3 of its chunk, source line 4), field params[18]"},
       {"5 params", [](msg::ProgramChunk& c) { c.segments()[3].params().resize(5); },
-       MapStatus::kBadParams},
+       MapStatus::kBadParams,
+       ": record 1003 of the program (record 3 of its chunk, source line 4), field params"},
       {"params on G1", [](msg::ProgramChunk& c) { c.segments()[1].params().assign(26, 0.0); },
-       MapStatus::kBadParams},
+       MapStatus::kBadParams, ", field params"},
       {"text on G1", [](msg::ProgramChunk& c) { c.segments()[1].text("hi"); },
-       MapStatus::kUnexpectedText},
-      {"0 axes", [](msg::ProgramChunk& c) { c.number_axes(0); }, MapStatus::kBadAxisCount},
+       MapStatus::kUnexpectedText, ", field text"},
+      {"no line", [](msg::ProgramChunk& c) { c.segments()[0].end()[0] = std::nan(""); },
+       MapStatus::kNotFinite,
+       ": record 1000 of the program (record 0 of its chunk, source line 1), field end[0]"},
+      {"0 axes", [](msg::ProgramChunk& c) { c.number_axes(0); }, MapStatus::kBadAxisCount,
+       ": field number_axes"},
       {"3 letters for 4 axes", [](msg::ProgramChunk& c) { c.axis_letters("XYZ"); },
-       MapStatus::kBadAxisLetters},
+       MapStatus::kBadAxisLetters, ": field axis_letters"},
       {"a letter twice", [](msg::ProgramChunk& c) { c.axis_letters("XYZX"); },
-       MapStatus::kBadAxisLetters},
+       MapStatus::kBadAxisLetters, ": field axis_letters"},
       {"lower case", [](msg::ProgramChunk& c) { c.axis_letters("XYZa"); },
-       MapStatus::kBadAxisLetters},
-      {"a digit", [](msg::ProgramChunk& c) { c.axis_letters("XY1A"); }, MapStatus::kBadAxisLetters},
+       MapStatus::kBadAxisLetters, ": field axis_letters"},
+      {"a digit", [](msg::ProgramChunk& c) { c.axis_letters("XY1A"); }, MapStatus::kBadAxisLetters,
+       ": field axis_letters"},
       {"129 records",
        [](msg::ProgramChunk& c) { c.segments().resize(mapping::kMaxChunkSegments + 1); },
-       MapStatus::kTooManySegments},
+       MapStatus::kTooManySegments, ": field segments"},
   };
   for (const Case& k : cases) {
     SCOPED_TRACE(k.what);
@@ -394,9 +420,17 @@ TEST(IdlMapping, WireSideErrorsLeaveTheProgramUnchanged) {
     k.spoil(bad);
     Program target = sample_program();
     const Program before = target;
-    EXPECT_EQ(mapping::append_chunk(bad, target), k.expected);
+    mapping::WireProblem where;
+    EXPECT_EQ(mapping::append_chunk(bad, target, where), k.expected);
     expect_same_program(before, target);
     EXPECT_FALSE(mapping::to_string(k.expected).empty());
+    // A place that starts with ", field" is a field of record 1 (source line 2).
+    const std::string place = k.place[0] == ',' ? line2 + k.place : std::string(k.place);
+    EXPECT_EQ(mapping::describe(k.expected, where, bad.sequence_number()),
+              std::string(mapping::to_string(k.expected)) + place);
+    // The plain overload agrees.
+    Program again = sample_program();
+    EXPECT_EQ(mapping::append_chunk(bad, again), k.expected);
   }
 }
 

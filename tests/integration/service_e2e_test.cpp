@@ -1598,6 +1598,49 @@ TEST(ServiceProcesses, ChunksForAnInterpolatorNotHostedAreSaidOnceNotPerChunk) {
   EXPECT_EQ(env.service.interrupt(kHang), 0) << env.service.log();
 }
 
+// A chunk with a NaN in it is refused, and the refusal names the record, its source line and
+// the field: "NaN or infinity in a record" alone left a sender of 100,000 records searching.
+TEST(ServiceProcesses, ARefusedChunkNamesTheRecordAndTheField) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  client::Client hmi(env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(hmi.wait_for_state(0, kHang));
+  dds::Participant other(env.dds(), "other");
+  auto& w = other.writer<msg::ProgramChunkPubSubType>(dds::kProgramTopic);
+  ASSERT_TRUE(dds::wait_for_match(w, 1, kHang));
+  msg::ProgramChunk chunk;
+  chunk.interpolator(0);
+  chunk.program_id(5);
+  chunk.number_axes(3);
+  chunk.axis_letters("XYZ");
+  chunk.sequence_number(0);
+  chunk.end_of_program(true);
+  for (int k = 0; k < 3; ++k) {
+    msg::Segment& seg = chunk.segments().emplace_back();
+    seg.type(static_cast<std::uint8_t>(SegmentType::kLinear));
+    seg.plane(static_cast<std::uint8_t>(Plane::kXY));
+    seg.compensation(static_cast<std::uint8_t>(Compensation::kOff));
+    seg.line(10 + k);
+    seg.feed_mm_per_min(600.0);
+    seg.end()[0] = k + 1.0;
+  }
+  chunk.segments()[2].end()[1] = std::nan("");
+  ASSERT_TRUE(w.write(&chunk));
+  const std::string want =
+      "program 5 refused: NaN or infinity in a record: record 2 of the program (record 2 of its "
+      "chunk, source line 12), field end[1]";
+  std::string got;
+  for (const auto until = std::chrono::steady_clock::now() + kHang;
+       got.empty() && std::chrono::steady_clock::now() < until;) {
+    hmi.poll(20ms);
+    for (const msg::Message& m : hmi.take_messages()) {
+      if (m.text().to_string().find("refused") != std::string::npos) got = m.text().to_string();
+    }
+  }
+  EXPECT_EQ(got, want);
+  EXPECT_EQ(env.service.interrupt(kHang), 0) << env.service.log();
+}
+
 TEST(ServiceProcesses, HmiCommandAndStopSayAcceptedOrWhyNot) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());

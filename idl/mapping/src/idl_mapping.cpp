@@ -15,34 +15,66 @@ static_assert(TGM_MAX_TEXT == kMaxMessageBytes);
 
 namespace {
 
-bool finite_all(const auto& values) {
-  return std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v); });
+// The first element of `values` that is not finite, or -1.
+int first_not_finite(const auto& values) {
+  for (std::size_t k = 0; k < values.size(); ++k) {
+    if (!std::isfinite(values[k])) return static_cast<int>(k);
+  }
+  return -1;
 }
 
-// Checks a wire record before anything of it is used.
-MapStatus validate(const msg::Segment& in) {
-  if (in.type() > static_cast<std::uint8_t>(SegmentType::kMessage) ||
-      in.plane() < static_cast<std::uint8_t>(Plane::kXY) ||
-      in.plane() > static_cast<std::uint8_t>(Plane::kYZ) ||
-      in.compensation() < static_cast<std::uint8_t>(Compensation::kOff) ||
-      in.compensation() > static_cast<std::uint8_t>(Compensation::kRight) ||
-      in.m_kind() > static_cast<std::uint8_t>(MKind::kProgramEnd)) {
-    return MapStatus::kBadType;
+// Checks a wire record before anything of it is used; `where` gets the field at fault.
+MapStatus validate(const msg::Segment& in, WireProblem& where) {
+  const auto bad = [&where](MapStatus st, std::string_view field, int element = -1) {
+    where.field = field;
+    where.element = element;
+    return st;
+  };
+  if (in.type() > static_cast<std::uint8_t>(SegmentType::kMessage)) {
+    return bad(MapStatus::kBadType, "type");
+  }
+  if (in.plane() < static_cast<std::uint8_t>(Plane::kXY) ||
+      in.plane() > static_cast<std::uint8_t>(Plane::kYZ)) {
+    return bad(MapStatus::kBadType, "plane");
+  }
+  if (in.compensation() < static_cast<std::uint8_t>(Compensation::kOff) ||
+      in.compensation() > static_cast<std::uint8_t>(Compensation::kRight)) {
+    return bad(MapStatus::kBadType, "compensation");
+  }
+  if (in.m_kind() > static_cast<std::uint8_t>(MKind::kProgramEnd)) {
+    return bad(MapStatus::kBadType, "m_kind");
   }
   const auto type = static_cast<SegmentType>(in.type());
   // The deserializer does not enforce IDL bounds: check them here.
   if (!in.params().empty() &&
       (in.params().size() != kParamLetters || type != SegmentType::kMFunction)) {
-    return MapStatus::kBadParams;
+    return bad(MapStatus::kBadParams, "params");
   }
   // (A bounded IDL string is a fixed_string that truncates on assignment: it cannot be longer.)
-  if (in.text().size() != 0 && type != SegmentType::kMessage) return MapStatus::kUnexpectedText;
-  if (!finite_all(in.end()) || !finite_all(in.center()) || !finite_all(in.params()) ||
-      !std::isfinite(in.radius()) || !std::isfinite(in.feed_mm_per_min()) ||
-      !std::isfinite(in.dwell_s()) || !std::isfinite(in.compensation_radius_mm())) {
-    return MapStatus::kNotFinite;
+  if (in.text().size() != 0 && type != SegmentType::kMessage) {
+    return bad(MapStatus::kUnexpectedText, "text");
+  }
+  if (const int k = first_not_finite(in.end()); k >= 0) {
+    return bad(MapStatus::kNotFinite, "end", k);
+  }
+  if (const int k = first_not_finite(in.center()); k >= 0) {
+    return bad(MapStatus::kNotFinite, "center", k);
+  }
+  if (const int k = first_not_finite(in.params()); k >= 0) {
+    return bad(MapStatus::kNotFinite, "params", k);
+  }
+  if (!std::isfinite(in.radius())) return bad(MapStatus::kNotFinite, "radius");
+  if (!std::isfinite(in.feed_mm_per_min())) return bad(MapStatus::kNotFinite, "feed_mm_per_min");
+  if (!std::isfinite(in.dwell_s())) return bad(MapStatus::kNotFinite, "dwell_s");
+  if (!std::isfinite(in.compensation_radius_mm())) {
+    return bad(MapStatus::kNotFinite, "compensation_radius_mm");
   }
   return MapStatus::kOk;
+}
+
+MapStatus validate(const msg::Segment& in) {
+  WireProblem unused;
+  return validate(in, unused);
 }
 
 // Serialized bytes of a chunk with no records (header, sequence length, trailer) plus slack for
@@ -276,14 +308,28 @@ bool valid_axis_letters(std::string_view letters, int number_axes) {
   return true;
 }
 
-MapStatus append_chunk(const msg::ProgramChunk& chunk, Program& program) {
-  if (chunk.segments().size() > kMaxChunkSegments) return MapStatus::kTooManySegments;
-  if (chunk.number_axes() < 1 || chunk.number_axes() > kMaxAxes) return MapStatus::kBadAxisCount;
+MapStatus append_chunk(const msg::ProgramChunk& chunk, Program& program, WireProblem& where) {
+  where = WireProblem{};
+  if (chunk.segments().size() > kMaxChunkSegments) {
+    where.field = "segments";
+    return MapStatus::kTooManySegments;
+  }
+  if (chunk.number_axes() < 1 || chunk.number_axes() > kMaxAxes) {
+    where.field = "number_axes";
+    return MapStatus::kBadAxisCount;
+  }
   const std::string_view letters(chunk.axis_letters().c_str(), chunk.axis_letters().size());
-  if (!letters.empty() && !valid_axis_letters(letters, chunk.number_axes()))
+  if (!letters.empty() && !valid_axis_letters(letters, chunk.number_axes())) {
+    where.field = "axis_letters";
     return MapStatus::kBadAxisLetters;
-  for (const msg::Segment& s : chunk.segments()) {
-    if (const MapStatus st = validate(s); st != MapStatus::kOk) return st;
+  }
+  for (std::size_t k = 0; k < chunk.segments().size(); ++k) {
+    const msg::Segment& s = chunk.segments()[k];
+    if (const MapStatus st = validate(s, where); st != MapStatus::kOk) {
+      where.record = static_cast<int>(k);
+      where.line = s.line();
+      return st;
+    }
   }
   program.number_axes = chunk.number_axes();
   program.axis_letters = letters;
@@ -292,6 +338,28 @@ MapStatus append_chunk(const msg::ProgramChunk& chunk, Program& program) {
     (void)append_from_idl(s, program);  // validated above, cannot fail
   }
   return MapStatus::kOk;
+}
+
+MapStatus append_chunk(const msg::ProgramChunk& chunk, Program& program) {
+  WireProblem unused;
+  return append_chunk(chunk, program, unused);
+}
+
+std::string describe(MapStatus status, const WireProblem& where, std::uint64_t first_record) {
+  std::string out(to_string(status));
+  if (status == MapStatus::kOk) return out;
+  if (where.record >= 0) {
+    out += ": record " + std::to_string(first_record + static_cast<std::uint64_t>(where.record));
+    out += " of the program (record " + std::to_string(where.record) + " of its chunk";
+    if (where.line > 0) out += ", source line " + std::to_string(where.line);
+    out += ")";
+  }
+  if (!where.field.empty()) {
+    out += where.record >= 0 ? ", field " : ": field ";
+    out += where.field;
+    if (where.element >= 0) out += "[" + std::to_string(where.element) + "]";
+  }
+  return out;
 }
 
 namespace {

@@ -108,6 +108,24 @@ bool valid_axis_letters(std::string_view letters, int number_axes);
 //! (it knows which one it expects).
 MapStatus append_chunk(const msg::ProgramChunk& chunk, Program& program);
 
+//! Where a wire chunk is at fault: the record's index in the chunk (-1 for the chunk's own
+//! fields), its source line (0 when unknown), the field's IDL name and, for an array, the
+//! element (-1 otherwise).
+struct WireProblem {
+  int record = -1;
+  std::int32_t line = 0;
+  std::string_view field;
+  int element = -1;
+};
+
+//! append_chunk that also says where the chunk is at fault.
+MapStatus append_chunk(const msg::ProgramChunk& chunk, Program& program, WireProblem& where);
+
+//! The reason and the place, for a sender to find the record: "NaN or infinity in a record:
+//! record 1037 of the program (record 13 of its chunk, source line 57), field end[2]".
+//! `first_record` is the chunk's sequence number (the program index of its first record).
+std::string describe(MapStatus status, const WireProblem& where, std::uint64_t first_record);
+
 // ---------------------------------------------------------------------------------------------
 // State and setpoints.
 

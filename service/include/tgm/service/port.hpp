@@ -107,7 +107,7 @@ struct ChunkIn {
   bool end_of_program = false;
   //! 0 when decoding worked; otherwise `error` says why the chunk is unusable.
   int decode_status = 0;
-  FixedText<128> error;
+  FixedText<200> error;
   //! The records with their side tables (number_axes set from the chunk).
   Program program;
   //! Records of `program` already in the ring buffer (cycle thread only).
