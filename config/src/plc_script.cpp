@@ -92,7 +92,11 @@ std::string read_step(const YAML::Node& n, PlcScriptStep& s, int& key_line) {
       if (!v.IsMap() || v.size() == 0) return bad(std::string("a map of ") + what);
       std::set<char> axes;
       for (const auto& av : v) {
-        const std::string letter = av.first.IsScalar() ? av.first.Scalar() : "";
+        std::string letter = av.first.IsScalar() ? av.first.Scalar() : "";
+        // Case-insensitive, as the config's axis letters and G-code's words are.
+        if (letter.size() == 1 && letter[0] >= 'a' && letter[0] <= 'z') {
+          letter[0] = static_cast<char>(letter[0] - 'a' + 'A');
+        }
         const std::string in = key + " of '" + letter + "'";
         if (letter.size() != 1 || letter[0] < 'A' || letter[0] > 'Z') {
           return key + " takes axis letters A..Z as keys, not '" + shown(av.first) + "'";

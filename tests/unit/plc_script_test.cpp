@@ -72,6 +72,12 @@ TEST(PlcScript, RegisterWritesByAxisLetter) {
   EXPECT_FALSE(load.steps[0].number_axes);
   EXPECT_EQ(load.steps[1].number_axes, 2);
   EXPECT_TRUE(load.steps[1].offset_inc.empty() && load.steps[1].ratio.empty());
+  // Letters in lower case, as the config takes them (`letter: x`).
+  const PlcScriptLoad lower =
+      parse_plc_script("- {at_s: 0, offset: {z: -20}, ratio: {y: 2000.5}}\n", "s.yaml");
+  ASSERT_TRUE(lower.ok()) << lower.error;
+  EXPECT_EQ(lower.steps[0].offset_inc, (Offsets{{'Z', -20}}));
+  EXPECT_EQ(lower.steps[0].ratio, (Ratios{{'Y', 2000.5}}));
   EXPECT_EQ(plc_script_axes_problem(load.steps[0], "XYZ"), "");
   EXPECT_EQ(plc_script_axes_problem(load.steps[0], "XY"),
             "interpolator 0: offset of 'Z': it has no such axis (XY)");
@@ -106,8 +112,10 @@ TEST(PlcScript, AProblemNamesTheLineAndKeepsNoStep) {
        "s.yaml:1: offset must be a map of Offset [inc] by axis letter, e.g. {X: 500, Z: -20}, not "
        "'5'"},
       {"- {at_s: 1, offset: {}}\n", "s.yaml:1: offset must be a map of Offset [inc]"},
-      {"- {at_s: 1, offset: {x: 5}}\n",
-       "s.yaml:1: offset takes axis letters A..Z as keys, not 'x'"},
+      {"- {at_s: 1, offset: {1: 5}}\n",
+       "s.yaml:1: offset takes axis letters A..Z as keys, not '1'"},
+      // Lower case is the same letter (as in the config): given twice.
+      {"- {at_s: 1, offset: {x: 5, X: 6}}\n", "s.yaml:1: offset of 'X' is given twice"},
       {"- {at_s: 1, offset: {XY: 5}}\n",
        "s.yaml:1: offset takes axis letters A..Z as keys, not 'XY'"},
       {"- {at_s: 1, offset: {X: 0.5}}\n",
