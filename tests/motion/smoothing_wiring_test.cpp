@@ -304,6 +304,7 @@ TEST(Wiring, AnUnacknowledgedMGoesWithItsProgram) {
     const Registers& r = ip.registers();
     for (int c = 0; c < 20000 && r.m_func == 0; ++c) ip.step();
     ASSERT_EQ(r.m_func, 51);
+    const std::uint32_t handed = r.m_func_count;
     ASSERT_TRUE(ip.command(clear ? 8 : 9).ok());
     if (clear) {
       EXPECT_EQ(r.m_func, 51);  // stopped, the M-function still waits for its acknowledgement
@@ -311,6 +312,14 @@ TEST(Wiring, AnUnacknowledgedMGoesWithItsProgram) {
     }
     EXPECT_EQ(r.m_func, 0) << clear;
     EXPECT_EQ(r.status, static_cast<std::int32_t>(InterpolatorStatus::kEmpty));
+    // The PLC's acknowledgement that comes after is told why it is refused (it was "acknowledged
+    // already: a second PLC, or a repeat").
+    const RequestResult late = ip.write_m_func(0, 51, handed);
+    EXPECT_EQ(late.code, RequestCode::kWrongState);
+    EXPECT_EQ(late.reason, "M-function #" + std::to_string(handed) +
+                               " (M51) went with its program (an off-trajectory stop, Command 9 / "
+                               "5, a clear or the next program's load): there is nothing to "
+                               "acknowledge");
     // The next program runs to its end without it.
     ProgramBuilder home;
     home.line({0.0, 0.0, 0.0}, 6000.0).end();

@@ -429,6 +429,9 @@ struct Interpolator::Impl {
   std::optional<SmoothingStage> smooth;
   std::optional<OutputStage> ostage;
   bool m_pending = false;    // a normal M is inside the spline: the wait starts when it leaves
+  // The last M-function dropped unacknowledged with its program: its count and number.
+  std::uint32_t dropped_m_count = 0;
+  std::int32_t dropped_m = 0;
   // The Status the motion has come to (3 ended, 4 stopped / M0, 7 emergency-stopped, 8 underrun),
   // reported once every axis, delayed or filtered, stands (0: none waits). Meanwhile Status
   // still shows the motion (1, or 6 after an emergency stop).
@@ -1917,6 +1920,12 @@ struct Interpolator::Impl {
   // executed it. Tool_Number (the tool in the spindle) and Last_Cont_M_Func (a "stored value",
   // the manual) stay.
   void clear_section_registers() {
+    // An M-function handed over and not acknowledged goes with the program: its PLC's late
+    // acknowledgement is told so (it was refused as "acknowledged already: a second PLC").
+    if (reg.m_func != 0) {
+      dropped_m_count = reg.m_func_count;
+      dropped_m = reg.m_func;
+    }
     reg.m_func = 0;
     reg.move_distance = 0.0;
     reg.act_part = 0;
@@ -4007,6 +4016,13 @@ RequestResult Interpolator::write_m_func(std::int32_t value, std::int32_t acknow
     return refuse(RequestCode::kWrongState,
                   "M-function #" + std::to_string(handed) + " was handed over since: the " +
                       "acknowledgement of #" + std::to_string(count) + " came after it");
+  }
+  if (count != 0 && shown == 0 && count == impl_->dropped_m_count) {
+    return refuse(RequestCode::kWrongState,
+                  "M-function #" + std::to_string(count) + " (M" +
+                      std::to_string(impl_->dropped_m) +
+                      ") went with its program (an off-trajectory stop, Command 9 / 5, a clear "
+                      "or the next program's load): there is nothing to acknowledge");
   }
   // The same M-function acknowledged again: a second PLC, or a repeat whose first copy did
   // arrive. Accepting it told both writers they had released the motion.
