@@ -451,7 +451,18 @@ void DdsPort::participant_changed(const GuidPrefix& participant, std::string_vie
     if (peers_.size() >= 4096) peers_.clear();
     peers_[participant] = Peer{std::string(name_seen), true};
   }
-  if (gone ? !lost_.insert(participant).second : lost_.erase(participant) == 0) return;
+  // Said once per loss: a dropped participant (its lease lapsed) is kept in lost_ until it is
+  // back or ends; one that ended is forgotten (its GUID never comes back), so that every run of
+  // an HMI does not leave an entry behind.
+  if (!gone) {
+    if (lost_.erase(participant) == 0) return;
+  } else if (dropped) {
+    if (lost_.size() >= 4096) lost_.clear();
+    if (!lost_.insert(participant).second) return;
+  } else if (lost_.erase(participant) != 0) {
+    peers_.erase(participant);  // its loss was said when it was dropped
+    return;
+  }
   const auto peer = peers_.find(participant);
   const std::string name = peer != peers_.end() ? peer->second.name : std::string();
   const std::string who = name.empty() ? std::string("a client") : "'" + name + "'";
@@ -463,6 +474,13 @@ void DdsPort::participant_changed(const GuidPrefix& participant, std::string_vie
     n.kind = gone ? PeerNotice::Kind::kPlcLost : PeerNotice::Kind::kPlcBack;
     n.ended = gone && !dropped;
     n.client.set(name);
+    // Another PLC that is there still acknowledges the M-functions (a tgm-plc --script run
+    // beside the machine's PLC ends, the machine's goes on).
+    for (const auto& [guid, other] : peers_) {
+      if (guid == participant || !other.plc || lost_.count(guid) != 0) continue;
+      n.other_plc.set(other.name);
+      break;
+    }
     if (peer_notices_.push(n))
       std::fprintf(stderr, "tgm-service: tgm-plc %s %s\n", who.c_str(), why);
   }
@@ -479,6 +497,7 @@ void DdsPort::participant_changed(const GuidPrefix& participant, std::string_vie
     std::fprintf(stderr, "tgm-service: interpolator %zu: the sender %s of program %u %s\n", i,
                  who.c_str(), s.program_id, why);
   }
+  if (gone && !dropped && peer != peers_.end()) peers_.erase(peer);
 }
 
 void DdsPort::receive_loop() {

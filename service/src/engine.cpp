@@ -412,10 +412,18 @@ void Engine::peer_notice(CyclePort& port, const PeerNotice& n) {
                        s.program_id);
           continue;
         }
-        std::string text = (n.ended ? "tgm-plc " + who + " ended"
-                                    : "no sign of life from tgm-plc " + who +
-                                          " (it stopped, or the network is down)") +
-                           ": M-functions wait for an acknowledgement until a PLC answers";
+        std::string text = n.ended ? "tgm-plc " + who + " ended"
+                                   : "no sign of life from tgm-plc " + who +
+                                         " (it stopped, or the network is down)";
+        if (!n.other_plc.view().empty()) {
+          // Not a warning: the M-functions are still acknowledged.
+          send_message(port, i, MessageOut::Severity::kInfo,
+                       text + "; tgm-plc '" + std::string(n.other_plc.view()) +
+                           "' is there and acknowledges the M-functions",
+                       0, s.program_id);
+          continue;
+        }
+        text += ": M-functions wait for an acknowledgement until a PLC answers";
         if (const std::int32_t m = s.ip.registers().m_func; m != 0) {
           text += " (M" + std::to_string(m) + " waits now)";
         }

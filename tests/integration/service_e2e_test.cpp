@@ -291,6 +291,32 @@ TEST(ServiceProcesses, AKilledStreamingHmiAndAKilledPlcAreSaid) {
   EXPECT_EQ(watch.interrupt(), 0) << w;
 }
 
+// A second tgm-plc (a script run beside the machine's PLC) that ends is no lost PLC: the HMIs
+// were warned that M-functions "wait until a PLC answers" while the first acknowledged them.
+TEST(ServiceProcesses, ASecondPlcThatEndsIsNoLostPlc) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  test::Child plc, second, watch;
+  ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.config()}, env.path("plc.log")));
+  plc.wait_for_log("setup done", kHang, 20ms);
+  ASSERT_TRUE(watch.start({TGM_HMI_BIN, "watch", "--config", env.config()}, env.path("watch.log")));
+  watch.wait_for_log("Status", kHang, 20ms);
+  ASSERT_TRUE(
+      second.start({TGM_PLC_BIN, "--config", env.config(), "--no-basic-params", "--duration", "1"},
+                   env.path("second.log")));
+  EXPECT_EQ(second.wait(kHang), 0) << second.log();
+  watch.wait_for_log("is there and acknowledges the M-functions", 30s, 20ms);
+  const std::string w = watch.log();
+  EXPECT_NE(w.find("ended; tgm-plc 'tgm-plc-"), std::string::npos) << w << env.service.log();
+  EXPECT_EQ(w.find("wait for an acknowledgement until a PLC answers"), std::string::npos) << w;
+  // The machine's PLC ends too: now the M-functions wait.
+  EXPECT_EQ(plc.interrupt(kHang), 0) << plc.log();
+  watch.wait_for_log("wait for an acknowledgement until a PLC answers", 30s, 20ms);
+  EXPECT_NE(watch.log().find("wait for an acknowledgement until a PLC answers"), std::string::npos)
+      << watch.log() << env.service.log();
+  EXPECT_EQ(watch.interrupt(), 0) << watch.log();
+}
+
 // Two clients of one PID (each PID 1 in a container of its own) get different names: named
 // "tgm-hmi-1" both, each took the other's replies (a start "accepted" that the service refused).
 TEST(ClientName, IsUniquePerClientAndFitsTheTopicsBound) {
@@ -1796,7 +1822,9 @@ TEST(ServiceProcesses, HmiRunRefusesProgramsOfOtherAxisLetters) {
               !rotary_plc)
         << plc.log();
   }
-  // Number_Axes 2, written by the PLC: the letters are the first two, and run says who cut them.
+  // Number_Axes 2, written by the PLC: the letters are the first two. G-code is compiled for
+  // them (every program was refused, also one of X alone); one that names Z is refused by the
+  // compiler, and intercode of XYZ is refused, each saying who cut the axes.
   {
     client::Client plc(env.dds(), client::Role::kPlc);
     ASSERT_TRUE(plc.wait_for_state(0, kHang));
@@ -1805,16 +1833,37 @@ TEST(ServiceProcesses, HmiRunRefusesProgramsOfOtherAxisLetters) {
     r.kind(msg::REQUEST_KIND_WRITE_NUMBER_AXES);
     r.value(2);
     ASSERT_TRUE(plc.request(r).accepted);
+    // There and back: the intercode below runs from machine zero.
+    std::ofstream(env.path("xy.ngc")) << "G90 G1 X5 Y1 F3000\nG1 X0 Y0\nM2\n";
     test::Child fewer;
-    ASSERT_TRUE(
-        fewer.start({TGM_HMI_BIN, "run", env.path("p.ngc"), "--config", env.config(), "--quiet"},
-                    env.path("fewer.log")));
-    EXPECT_EQ(fewer.wait(kHang), 2) << fewer.log();
-    EXPECT_NE(fewer.log().find(
-                  "p.ngc: error: compiled for the axes XYZ, interpolator 0 runs with Number_Axes 2 "
-                  "(XY), written by the PLC"),
+    ASSERT_TRUE(fewer.start({TGM_HMI_BIN, "run", env.path("xy.ngc"), "--config", env.config()},
+                            env.path("fewer.log")));
+    EXPECT_EQ(fewer.wait(kHang), 0) << fewer.log();
+    EXPECT_NE(fewer.log().find("xy.ngc: compiled for the axes XY: interpolator 0 runs with "
+                               "Number_Axes 2, written by the PLC\n"),
               std::string::npos)
         << fewer.log();
+    EXPECT_NE(fewer.log().find("end position X0.0000 Y0.0000\n"), std::string::npos) << fewer.log();
+    std::ofstream(env.path("z.ngc")) << "G90 G1 X6 Z1 F3000\nM2\n";
+    test::Child with_z;
+    ASSERT_TRUE(
+        with_z.start({TGM_HMI_BIN, "run", env.path("z.ngc"), "--config", env.config(), "--quiet"},
+                     env.path("with_z.log")));
+    EXPECT_EQ(with_z.wait(kHang), 2) << with_z.log();
+    EXPECT_NE(
+        with_z.log().find("for the axes XY (Number_Axes 2, written by the PLC), nothing sent"),
+        std::string::npos)
+        << with_z.log();
+    test::Child tgmi;
+    ASSERT_TRUE(tgmi.start(
+        {TGM_HMI_BIN, "run", env.path("config.yaml.tgmi"), "--config", env.config(), "--quiet"},
+        env.path("tgmi.log")));
+    EXPECT_EQ(tgmi.wait(kHang), 2) << tgmi.log();
+    EXPECT_NE(tgmi.log().find("config.yaml.tgmi: error: compiled for the axes XYZ, interpolator 0 "
+                              "runs with Number_Axes 2 (XY), written by the PLC: run the G-code "
+                              "itself, or compile it with a config of those axes"),
+              std::string::npos)
+        << tgmi.log();
     // A tgm-plc of the XYZ config sets the ratios of X and Y and says why not Z (Z's Command
     // 1024 was sent and refused: "must be 0..1").
     test::Child second;
@@ -1909,10 +1958,11 @@ TEST(ServiceProcesses, HmiRunEndsWhenAnotherHmiClearsItsProgram) {
       << run.log();
 }
 
-// A position set (Command 2048, the PLC's) while the program stands after a stop drops the
-// program: tgm-hmi run said "cleared by someone else". It names the set now and exits 1, and
-// nothing of the program is left to start (Engine.ChunksOfAProgramDroppedByAPositionSetAreRefused).
-TEST(ServiceProcesses, HmiRunEndsWhenAPositionSetDropsItsProgram) {
+// A position set (Command 2048, the PLC's) while the program stands after a stop dropped the
+// program behind an "accepted" (the run then said so and exited 1). It is refused now, with
+// what to do, and the run's program stays loaded: a start resumes it
+// (Engine.APositionSetIsRefusedWhileAProgramIsLoaded).
+TEST(ServiceProcesses, APositionSetIsRefusedWhileARunsProgramStands) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());
   test::Child run;
@@ -1923,13 +1973,16 @@ TEST(ServiceProcesses, HmiRunEndsWhenAPositionSetDropsItsProgram) {
   ASSERT_TRUE(plc.wait_for_state(0, kHang));
   const std::int32_t x_inc[] = {5000};  // X = 5 mm at the default 1000 inc/mm
   const client::Reply set = plc.command(0, 2048, x_inc);
-  ASSERT_TRUE(set.accepted) << client::describe(set);
-  EXPECT_EQ(run.wait(kHang), 1) << run.log();
-  EXPECT_NE(run.log().find("tgm-hmi run: a position set (Command 2048/2049, by the PLC) at line 2 "
-                           "dropped the program\n"),
-            std::string::npos)
-      << run.log();
-  EXPECT_FALSE(hmi.start(0).accepted);  // nothing left to run
+  EXPECT_FALSE(set.accepted);
+  EXPECT_EQ(set.reason,
+            "Command 2048: a program is loaded, which a start would run from the new position "
+            "(stop it off the trajectory, Command 9 or 5, or clear it first)")
+      << client::describe(set);
+  EXPECT_EQ(run.wait(500ms), -1) << run.log();  // the run goes on
+  const client::Reply start = hmi.start(0);
+  EXPECT_TRUE(start.accepted) << client::describe(start);
+  EXPECT_EQ(run.interrupt(kHang, SIGINT), 130) << run.log();  // as after any Ctrl-C
+  EXPECT_EQ(run.log().find("dropped the program"), std::string::npos) << run.log();
 }
 
 // A program runs from where the interpolator stands. tgm-hmi run compiled every program from

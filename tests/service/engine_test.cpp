@@ -174,7 +174,12 @@ TEST(Engine, AWaitingCommandThatEndsUnexecutedIsSaid) {
   // The path stands; the spline still moves the axes (Status 4 once they stand).
   ASSERT_EQ(port.last.ip[0].reg.status, static_cast<std::int32_t>(InterpolatorStatus::kRunning));
   port.replies.clear();
-  port.add_request(Role::kPlc, RequestKind::kCommand).command = 2048;
+  {
+    RequestIn& spline = port.add_request(Role::kPlc, RequestKind::kCommand);
+    spline.command = -2;
+    spline.command_parameter[0] = 200;
+    spline.command_parameter[1] = 1'000'000;
+  }
   e.cycle(port, {});
   ASSERT_EQ(port.replies.size(), 1u);
   EXPECT_EQ(port.replies[0].code, ReplyCode::kAccepted);
@@ -185,7 +190,7 @@ TEST(Engine, AWaitingCommandThatEndsUnexecutedIsSaid) {
   ASSERT_EQ(port.messages.size(), 1u);
   EXPECT_EQ(port.messages[0].severity, MessageOut::Severity::kError);
   EXPECT_EQ(port.messages[0].text.view(),
-            "a command that waited for the smoothing was not executed: Command 2048: cancelled by "
+            "a command that waited for the smoothing was not executed: Command -2: cancelled by "
             "Command 8");
   EXPECT_EQ(port.messages[0].program_id, 4u);
 }
@@ -263,6 +268,19 @@ TEST(Engine, AClientThatIsGoneIsSaid) {
   EXPECT_EQ(port.messages[0].program_id, 7u);
   EXPECT_EQ(port.messages[1].interpolator, 1);
   EXPECT_EQ(port.messages[1].text.view().find("(M51"), std::string_view::npos);
+  // A second PLC (a script run beside the machine's) that ends while the first is there: no
+  // warning that M-functions wait, which the first one acknowledges.
+  port.messages.clear();
+  plc.ended = true;
+  plc.client.set("tgm-plc-4-12345678");
+  plc.other_plc.set("tgm-plc-3-0badc0de");
+  port.peer_notices.push_back(plc);
+  e.cycle(port, {});
+  ASSERT_EQ(port.messages.size(), 3u);
+  EXPECT_EQ(port.messages[0].severity, MessageOut::Severity::kInfo);
+  EXPECT_EQ(port.messages[0].text.view(),
+            "tgm-plc 'tgm-plc-4-12345678' ended; tgm-plc 'tgm-plc-3-0badc0de' is there and "
+            "acknowledges the M-functions");
 }
 
 // Program id 0 is no program: refused with a message (a refusal of program 0 used to be
@@ -469,10 +487,11 @@ TEST(Engine, AProgramLoadsAfterAnEmergencyStopWithNothingLoaded) {
   EXPECT_EQ(port.last.ip[0].reg.orig_position[0], p.segments.back().end[0]);
 }
 
-// A position set (Command 2048) of a program stopped on the trajectory drops the program, as
-// an off-trajectory stop does: the rest of its stream must not load behind it and start from
-// the new position. Streamed again from its first record, it loads again.
-TEST(Engine, ChunksOfAProgramDroppedByAPositionSetAreRefused) {
+// A position set (Command 2048 / 2049) of a program stopped on the trajectory is refused, with
+// what to do: it dropped the program, the PLC's reply said "accepted" and the next start found
+// nothing loaded (session 74). The program stays, the rest of its stream loads behind it and a
+// start runs it to its end; after an off-trajectory stop the set is accepted.
+TEST(Engine, APositionSetIsRefusedWhileAProgramIsLoaded) {
   Engine e = make_engine();
   MockPort port;
   const Program p = line_program(999);
@@ -481,33 +500,57 @@ TEST(Engine, ChunksOfAProgramDroppedByAPositionSetAreRefused) {
   int cycles = 0;
   do {
     e.cycle(port, {});
-  } while (port.last.ip[0].reg.act_speed != 0.0 && cycles++ < 2000);
+  } while (port.last.ip[0].reg.status != static_cast<std::int32_t>(InterpolatorStatus::kReady) &&
+           cycles++ < 2000);
   ASSERT_EQ(port.last.ip[0].reg.act_speed, 0.0);
   ASSERT_EQ(port.last.ip[0].next_sequence, 500u);
+  const double stopped_at = port.last.ip[0].reg.orig_position[0];
+  for (const std::int32_t code : {2048, 2049}) {
+    RequestIn& set = port.add_request(Role::kPlc, RequestKind::kCommand);
+    set.command = code;
+    set.command_parameter[0] = 5000;  // X = 5 mm
+    e.cycle(port, {});
+    EXPECT_EQ(port.replies.back().code, ReplyCode::kWrongState);
+    EXPECT_EQ(port.replies.back().reason.view(),
+              "Command " + std::to_string(code) +
+                  ": a program is loaded, which a start would run from the new position (stop it "
+                  "off the trajectory, Command 9 or 5, or clear it first)");
+    EXPECT_EQ(port.last.ip[0].reg.command_status, -1);
+  }
+  EXPECT_EQ(port.last.ip[0].reg.status, static_cast<std::int32_t>(InterpolatorStatus::kReady));
+  EXPECT_EQ(port.last.ip[0].reg.orig_position[0], stopped_at);
+  port.add_chunk(0, p, 500, 499, 9, true);
+  e.cycle(port, {});
+  EXPECT_TRUE(port.messages.empty()) << port.messages[0].text.view();
+  EXPECT_EQ(port.last.ip[0].next_sequence, 999u);
+  port.add_request(Role::kHmi, RequestKind::kStart);
+  cycles = 0;
+  do {
+    e.cycle(port, {});
+  } while (port.last.ip[0].reg.status != static_cast<std::int32_t>(InterpolatorStatus::kEnded) &&
+           cycles++ < 20000);
+  EXPECT_EQ(port.last.ip[0].reg.orig_position[0], p.segments.back().end[0]);
+
+  // Stopped off the trajectory (the program dropped), the set is accepted and puts X there.
+  port.add_chunk(0, p, 0, 500, 10, false);
+  e.cycle(port, {});
+  port.add_request(Role::kHmi, RequestKind::kStart);
+  for (int c = 0; c < 400; ++c) e.cycle(port, {});
+  port.add_request(Role::kHmi, RequestKind::kCommand).command = 9;
+  cycles = 0;
+  do {
+    e.cycle(port, {});
+  } while (port.last.ip[0].reg.act_speed != 0.0 && cycles++ < 2000);
   RequestIn& set = port.add_request(Role::kPlc, RequestKind::kCommand);
   set.command = 2048;
-  set.command_parameter[0] = 5000;  // X = 5 mm
-  e.cycle(port, {});
-  ASSERT_EQ(port.replies.back().code, ReplyCode::kAccepted) << port.replies.back().reason.view();
-  EXPECT_EQ(port.last.ip[0].reg.status, static_cast<std::int32_t>(InterpolatorStatus::kEmpty));
-  port.add_chunk(0, p, 500, 499, 9, false);
-  port.add_chunk(0, p, 999, 1, 9, true);
-  e.cycle(port, {});
-  EXPECT_TRUE(port.chunks[0].empty());
-  EXPECT_EQ(port.last.ip[0].reg.status, static_cast<std::int32_t>(InterpolatorStatus::kEmpty));
-  ASSERT_EQ(port.messages.size(), 1u);  // one message per refused program
-  EXPECT_EQ(port.messages[0].text.view(),
-            "program 9 refused: program 9 was dropped by a position set (Command 2048/2049): "
-            "stream it again");
-  port.add_request(Role::kHmi, RequestKind::kStart);
-  e.cycle(port, {});
-  EXPECT_EQ(port.replies.back().code, ReplyCode::kWrongState);
-  // Streamed again from its first record, the same program loads at the new position.
-  port.add_chunk(0, p, 0, p.segments.size(), 9, true);
-  e.cycle(port, {});
-  EXPECT_EQ(port.last.ip[0].program_id, 9u);
-  EXPECT_EQ(port.last.ip[0].reg.status, static_cast<std::int32_t>(InterpolatorStatus::kReady));
-  EXPECT_EQ(port.last.ip[0].next_sequence, p.segments.size());
+  set.command_parameter[0] = 5000;
+  cycles = 0;
+  do {
+    e.cycle(port, {});
+  } while (port.last.ip[0].reg.command_status != 0 && cycles++ < 2000);
+  EXPECT_EQ(port.replies.back().code, ReplyCode::kAccepted) << port.replies.back().reason.view();
+  EXPECT_EQ(port.last.ip[0].reg.off_trajectory, 0);
+  EXPECT_NEAR(port.last.ip[0].reg.orig_position[0], 5.0, 1e-9);
 }
 
 TEST(Engine, DuplicatesAreDroppedGapsAndForeignProgramsRefused) {

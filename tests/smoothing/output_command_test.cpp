@@ -257,6 +257,20 @@ TEST(Commands, ValidAndInvalidParametersWithExactReasons) {
        CommandContext{true, false, 3, 3},
        RequestCode::kWrongState,
        "Command 2048: the position can only be set while no program is executing"},
+      // A program is loaded (stopped on its trajectory, starved or not started): a set
+      // dropped it without a word.
+      {2048,
+       {1, 2, 3},
+       CommandContext{true, true, 3, 3, false, true},
+       RequestCode::kWrongState,
+       "Command 2048: a program is loaded, which a start would run from the new position (stop "
+       "it off the trajectory, Command 9 or 5, or clear it first)"},
+      {2049,
+       {1, 2, 3},
+       CommandContext{true, true, 3, 3, false, true},
+       RequestCode::kWrongState,
+       "Command 2049: a program is loaded, which a start would run from the new position (stop "
+       "it off the trajectory, Command 9 or 5, or clear it first)"},
       {-1, {2'000'000, 1'000'000, 6'000'000, 0b111}, standing(), RequestCode::kAccepted, ""},
       {-1,
        {2'000'000, 1'000'000, 6'000'000, 0b111},

@@ -283,13 +283,20 @@ int run_run(int argc, char** argv) {
   const msg::InterpolatorState* st = hmi->state(ip);
   // Positions go by axis index: a program compiled with a config whose letters differ from the
   // service's would drive the wrong axes (the service refuses it too; this says why up front).
-  if (const std::string service_letters = st->axis_letters().to_string();
-      !service_letters.empty() && service_letters != program.tables().axis_letters) {
-    // Fewer axes of the same config: the PLC wrote Number_Axes.
-    if (program.tables().axis_letters.compare(0, service_letters.size(), service_letters) == 0) {
+  // Fewer axes of the same config: the PLC wrote Number_Axes. G-code is compiled again for the
+  // axes the interpolator runs with (below; every program was refused, also one that names only
+  // those axes); intercode holds positions for all its axes and is refused.
+  const std::string service_letters = st->axis_letters().to_string();
+  const bool fewer_axes =
+      !service_letters.empty() && service_letters.size() < program.tables().axis_letters.size() &&
+      program.tables().axis_letters.compare(0, service_letters.size(), service_letters) == 0;
+  if (!service_letters.empty() && service_letters != program.tables().axis_letters &&
+      !(fewer_axes && !intercode)) {
+    if (fewer_axes) {
       std::fprintf(stderr,
                    "%s: error: compiled for the axes %s, interpolator %d runs with Number_Axes %d "
-                   "(%s), written by the PLC\n",
+                   "(%s), written by the PLC: run the G-code itself, or compile it with a config "
+                   "of those axes\n",
                    file.c_str(), program.tables().axis_letters.c_str(), ip, st->number_axes(),
                    service_letters.c_str());
     } else {
@@ -321,12 +328,12 @@ int run_run(int argc, char** argv) {
   // said so, and the run went on), so it runs from there only, or with --from-here.
   std::array<double, kMaxAxes> here{};
   bool away = false;
-  for (int a = 0; a < program.tables().number_axes; ++a) {
-    const auto k = static_cast<std::size_t>(a);
+  const std::string& run_letters = fewer_axes ? service_letters : program.tables().axis_letters;
+  for (std::size_t k = 0; k < run_letters.size(); ++k) {
     here[k] = st->orig_position()[k];
     away = away || here[k] != 0.0;
   }
-  const std::string here_text = point_text(here, program.tables().axis_letters);
+  const std::string here_text = point_text(here, run_letters);
   if (intercode) {
     if (same_point(here, program.tables().start_mm, program.tables().number_axes)) {
       // Runs as compiled.
@@ -360,20 +367,34 @@ int run_run(int argc, char** argv) {
     const bool other_tool =
         spindle > 0 && spindle <= kMaxTool && spindle != machine.compiler.initial_tool;
     if (other_tool) machine.compiler.initial_tool = spindle;
-    if (away || other_tool) {
+    if (fewer_axes) {
+      machine.interpolators[static_cast<std::size_t>(ip)].axes.resize(service_letters.size());
+    }
+    if (away || other_tool || fewer_axes) {
       program = PackedProgram{};  // a long program is not held twice
       note = CompensationNote{};
       if (std::size_t errors = 0; !load_packed(
               file, machine, ip, program, away ? &here : nullptr, nullptr,
               [&](const Segment& s) { note.observe(s); }, &errors)) {
-        if (errors > 0)
+        if (errors > 0) {
+          std::string how;
+          if (away)
+            how = "from where interpolator " + std::to_string(ip) + " stands (" + here_text + ")";
+          if (fewer_axes) {
+            how += std::string(how.empty() ? "" : ", ") + "for the axes " + service_letters +
+                   " (Number_Axes " + std::to_string(st->number_axes()) + ", written by the PLC)";
+          }
+          if (how.empty()) how = "for tool T" + std::to_string(spindle);
           std::fprintf(stderr, "%s: %zu error%s compiled %s, nothing sent\n", file.c_str(), errors,
-                       errors == 1 ? "" : "s",
-                       (away ? "from where interpolator " + std::to_string(ip) + " stands (" +
-                                   here_text + ")"
-                             : "for tool T" + std::to_string(spindle))
-                           .c_str());
+                       errors == 1 ? "" : "s", how.c_str());
+        }
         return 2;
+      }
+      if (!quiet && fewer_axes) {
+        std::fprintf(stderr,
+                     "%s: compiled for the axes %s: interpolator %d runs with Number_Axes %d, "
+                     "written by the PLC\n",
+                     file.c_str(), service_letters.c_str(), ip, st->number_axes());
       }
       if (!quiet && away) {
         std::fprintf(stderr, "%s: compiled from where interpolator %d stands: %s\n", file.c_str(),

@@ -47,6 +47,16 @@ RequestResult check_command(std::int32_t code,
                       "Command " + std::to_string(code) +
                           ": the position can only be set while no program is executing");
       }
+      // A set drops the loaded records (a program stopped on its trajectory, starved, or not
+      // yet started): it was accepted and the program went without a word, so that the PLC's
+      // next start found nothing loaded (session 74). As Number_Axes and the ratio, it is
+      // refused, with what to do.
+      if (c.holds_program) {
+        return refuse(RequestCode::kWrongState,
+                      "Command " + std::to_string(code) +
+                          ": a program is loaded, which a start would run from the new position "
+                          "(stop it off the trajectory, Command 9 or 5, or clear it first)");
+      }
       return {};
     case kCommandIir: {
       const std::uint32_t mask = static_cast<std::uint32_t>(p[3]) & 0x3FFu;

@@ -129,6 +129,8 @@ struct PeerNotice {
   //! *Lost: the client's process ended (it left the domain), not a lapse of its lease.
   bool ended = false;
   FixedText<65> client;          //!< its client (or participant) name; empty when unknown
+  //! kPlcLost: another tgm-plc that is still there (empty when none is known).
+  FixedText<65> other_plc;
   int interpolator = 0;          //!< kStream*: the interpolator its last chunk was for
   std::uint32_t program_id = 0;  //!< kStream*: the program of that chunk
 };
