@@ -117,11 +117,13 @@ DdsPort::DdsPort(const DdsConfig& config, const DdsPortOptions& options)
   }
   m_written_.resize(n);
   stream_from_.resize(n);
-  m_applied_.reserve(100'000);
+  // Capacity bounds these (the receiving and the publisher thread push only within it).
+  const std::size_t stamps = std::min<std::size_t>(opt_.handshake_samples, 100'000);
+  m_applied_.reserve(stamps);
   busy_reply_.accepted(false);
   busy_reply_.code(msg::REPLY_CODE_BUSY);
   busy_reply_.reason(kBusyReason);
-  m_published_.reserve(100'000);
+  m_published_.reserve(stamps);
   m_pending_.assign(n, -1);
   last_m_count_.assign(n, 0);
   backlog_.resize(n);
@@ -346,7 +348,7 @@ void DdsPort::take_requests_locked() {
         in.taken_ns = steady_ns();
         auto& written = *m_written_ns_[static_cast<std::size_t>(in.interpolator)];
         const std::int64_t t0 = written.exchange(0, std::memory_order_acq_rel);
-        if (t0 != 0 && handshakes_.size() < 1'000'000) {
+        if (t0 != 0 && handshakes_.size() < opt_.handshake_samples) {
           const MWritten& w = m_written_[static_cast<std::size_t>(in.interpolator)];
           // Only the stamps the atomic published: the publisher may still be writing the rest.
           HandshakeSample h;

@@ -52,6 +52,10 @@ struct DdsPortOptions {
   //! the lower instance: of two that see each other one gives way. 0: never (tgm-service
   //! --service-check-ms 0).
   std::uint64_t yield_window_cycles = 0;
+  //! M-function handshakes whose time stamps are kept for handshakes() (--stats,
+  //! --handshake-trace); 0 keeps none. Kept without either, a week's run held 80 bytes a
+  //! handshake up to a million of them (session 74's soak: +55 MB after 120,000).
+  std::size_t handshake_samples = 0;
 };
 
 //! Publisher-side stamps of one event write that showed a new M_Func (and of the state write

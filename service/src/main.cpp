@@ -83,8 +83,10 @@ constexpr const char* kUsage =
     "                         (default 500, 0..10000; 0 = do not look). Of two started\n"
     "                         together, one gives way (exit code 1) in its first 10,000 cycles\n"
     "  --duration S           stop by itself after S seconds (at most 1e9)\n"
-    "  --stats FILE           write lateness, handshake and counter figures as JSON at exit\n"
-    "  --handshake-trace FILE write the time stamps of every M-function handshake as CSV at exit\n"
+    "  --stats FILE           write lateness, handshake (the first 100,000) and counter\n"
+    "                         figures as JSON at exit\n"
+    "  --handshake-trace FILE write the time stamps of every M-function handshake (up to a\n"
+    "                         million) as CSV at exit\n"
     "  --help                 this text\n"
     "  --version              print tgm-service's version\n"
     "\n"
@@ -193,6 +195,11 @@ int service_main(int argc, char** argv) {
     std::fprintf(stderr, "tgm-service: %s\n", error.c_str());
     return 2;
   }
+  // The handshake figures of --stats come from the first 100,000 handshakes; a trace keeps up
+  // to a million. Without either none are kept.
+  port_options.handshake_samples = !trace_path.empty()   ? 1'000'000
+                                   : !stats_path.empty() ? 100'000
+                                                         : 0;
   port_options.interpolators = engine->count();
   port_options.cycle_time_us = config.machine.cycle_time_us;
   // Two services started within each other's look both serve; in its first cycles one gives
