@@ -3,6 +3,7 @@
 #include <yaml-cpp/depthguard.h>
 #include <yaml-cpp/yaml.h>
 
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <set>
@@ -93,10 +94,9 @@ std::string read_step(const YAML::Node& n, PlcScriptStep& s, int& key_line) {
       std::set<char> axes;
       for (const auto& av : v) {
         std::string letter = av.first.IsScalar() ? av.first.Scalar() : "";
-        // Case-insensitive, as the config's axis letters and G-code's words are.
-        if (letter.size() == 1 && letter[0] >= 'a' && letter[0] <= 'z') {
-          letter[0] = static_cast<char>(letter[0] - 'a' + 'A');
-        }
+        // Case-insensitive, as the config's axis letters (yaml_config.cpp) and G-code's words are.
+        if (letter.size() == 1)
+          letter[0] = static_cast<char>(std::toupper(static_cast<unsigned char>(letter[0])));
         const std::string in = key + " of '" + letter + "'";
         if (letter.size() != 1 || letter[0] < 'A' || letter[0] > 'Z') {
           return key + " takes axis letters A..Z as keys, not '" + shown(av.first) + "'";
