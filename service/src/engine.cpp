@@ -489,6 +489,7 @@ void Engine::cycle(CyclePort& port, const LatenessStats& lateness) {
                    s.program_id);
     }
     InterpolatorSnapshot& o = snapshot_.ip[static_cast<std::size_t>(i)];
+    if (s.events != 0) report_output_steps(port, i, o.reg, reg);
     // A command that waited at Command_Status 1 (its reply said accepted) and then ended
     // unexecuted, cancelled by a stop or no longer allowed: the reason was only in
     // command_error(), which nobody read, and the PLC believed its position set done.
@@ -517,6 +518,47 @@ void Engine::cycle(CyclePort& port, const LatenessStats& lateness) {
     o.axis_letters.set(s.active_letters());
   }
   port.publish(snapshot_);
+}
+
+void Engine::report_output_steps(CyclePort& port, int i, const Registers& before,
+                                 const Registers& now) {
+  // A ratio set at standstill was only "accepted", and PositionInc jumped by Position x the
+  // change: a drive that is enabled follows that jump (session 75). The usual setup, a ratio
+  // at Position 0 before the position is set, steps nothing and says nothing. An Offset
+  // written at standstill is how a PLC references its axes (PositionInc made to match the
+  // drive): only one written while the axes move, a step in the middle of a motion, is said.
+  const Slot& s = ips_[static_cast<std::size_t>(i)];
+  const bool moving = now.act_speed != 0.0;
+  for (int a = 0; a < now.number_axes && a < kMaxAxes; ++a) {
+    const auto u = static_cast<std::size_t>(a);
+    const bool ratio = now.ratio[u] != before.ratio[u];
+    const bool offset = moving && now.offset[u] != before.offset[u];
+    if (!ratio && !offset) continue;
+    const double step = now.position[u] * (now.ratio[u] - before.ratio[u]) +
+                        (offset ? static_cast<double>(now.offset[u] - before.offset[u]) : 0.0);
+    if (!(std::fabs(step) >= 0.5)) continue;
+    // Formatted into a buffer: the cycle thread does not allocate (cycle_alloc_test).
+    char text[256];
+    std::size_t n = 0;
+    const auto put = [&](const char* fmt, auto... v) {
+      const int k = std::snprintf(text + n, sizeof text - n, fmt, v...);
+      if (k > 0) n = std::min(sizeof text - 1, n + static_cast<std::size_t>(k));
+    };
+    put("axis %c: PositionInc stepped by %.10g inc (", u < s.letters.size() ? s.letters[u] : '?',
+        step);
+    if (ratio) {
+      put("Ratio %.6g -> %.6g inc/mm at Position %.6g mm", before.ratio[u], now.ratio[u],
+          now.position[u]);
+    }
+    if (offset) {
+      put("%sOffset %lld -> %lld inc", ratio ? ", " : "", static_cast<long long>(before.offset[u]),
+          static_cast<long long>(now.offset[u]));
+    }
+    if (moving) put(", while moving at %.6g mm/min", now.act_speed);
+    put("): an enabled drive jumps with it (change them with the drive off, or set the position "
+        "after, Command 2049)");
+    send_message(port, i, MessageOut::Severity::kWarning, text, now.act_line, s.program_id);
+  }
 }
 
 bool Engine::wind_down(CyclePort& port) {

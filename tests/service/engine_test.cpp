@@ -553,6 +553,71 @@ TEST(Engine, APositionSetIsRefusedWhileAProgramIsLoaded) {
   EXPECT_NEAR(port.last.ip[0].reg.orig_position[0], 5.0, 1e-9);
 }
 
+// A ratio set at a position other than 0, or an Offset written while the axes move, steps
+// PositionInc, which an enabled drive follows: it was only "accepted" (session 75). Now a
+// warning names the axis, the step and its cause. The usual setup (a ratio at Position 0, an
+// Offset at standstill to reference the axes) says nothing.
+TEST(Engine, ARatioOrOffsetThatStepsPositionIncIsWarned) {
+  Engine e = make_engine();
+  MockPort port;
+  const auto settle = [&] {
+    int cycles = 0;
+    do {
+      e.cycle(port, {});
+    } while (port.last.ip[0].reg.command_status != 0 && cycles++ < 2000);
+  };
+  const auto command = [&](std::int32_t code, std::array<std::int32_t, 3> p) {
+    RequestIn& r = port.add_request(Role::kPlc, RequestKind::kCommand);
+    r.command = code;
+    for (std::size_t k = 0; k < p.size(); ++k) r.command_parameter[k] = p[k];
+    settle();
+    EXPECT_EQ(port.replies.back().code, ReplyCode::kAccepted) << port.replies.back().reason.view();
+  };
+  e.cycle(port, {});
+  command(1024, {1, 2000, 1});     // Y at 0 mm: nothing steps
+  command(2049, {10000, 0, 700});  // X at 10 mm, Z at 0.7 mm
+  RequestIn& offset = port.add_request(Role::kPlc, RequestKind::kWriteOffset);
+  offset.axis = 2;
+  offset.value = 250;  // at standstill: referencing, not a step to warn of
+  settle();
+  EXPECT_TRUE(port.messages.empty()) << port.messages[0].text.view();
+  ASSERT_EQ(port.last.ip[0].reg.position_inc[0], 10000);
+
+  command(1024, {0, 2500, 1});
+  ASSERT_EQ(port.messages.size(), 1u);
+  EXPECT_EQ(port.messages[0].severity, MessageOut::Severity::kWarning);
+  EXPECT_EQ(port.messages[0].text.view(),
+            "axis X: PositionInc stepped by 15000 inc (Ratio 1000 -> 2500 inc/mm at Position 10 "
+            "mm): an enabled drive jumps with it (change them with the drive off, or set the "
+            "position after, Command 2049)");
+  EXPECT_EQ(port.last.ip[0].reg.position_inc[0], 25000);
+  command(1024, {0, 2500, 1});  // the same ratio again: no step
+  EXPECT_EQ(port.messages.size(), 1u);
+
+  // Moving along X: an Offset of Z is a step in the middle of the motion.
+  port.messages.clear();
+  Program p = line_program(400);
+  for (Segment& s : p.segments) s.end[0] += 10.0;
+  port.add_chunk(0, p, 0, p.segments.size(), 3, true);
+  e.cycle(port, {});
+  port.add_request(Role::kHmi, RequestKind::kStart);
+  for (int c = 0; c < 100; ++c) e.cycle(port, {});
+  ASSERT_GT(port.last.ip[0].reg.act_speed, 0.0);
+  RequestIn& moving = port.add_request(Role::kPlc, RequestKind::kWriteOffset);
+  moving.axis = 2;
+  moving.value = -50;
+  e.cycle(port, {});
+  EXPECT_EQ(port.replies.back().code, ReplyCode::kAccepted) << port.replies.back().reason.view();
+  ASSERT_EQ(port.messages.size(), 1u) << port.messages[1].text.view();
+  const std::string text(port.messages[0].text.view());
+  EXPECT_EQ(text.rfind("axis Z: PositionInc stepped by -300 inc (Offset 250 -> -50 inc, while "
+                       "moving at ",
+                       0),
+            0u)
+      << text;
+  EXPECT_EQ(port.messages[0].program_id, 3u);
+}
+
 TEST(Engine, DuplicatesAreDroppedGapsAndForeignProgramsRefused) {
   Engine e = make_engine();
   MockPort port;

@@ -121,6 +121,9 @@ class Engine {
   //! `program_id`: the program the message belongs to (0: none).
   void send_message(CyclePort& port, int i, MessageOut::Severity severity, std::string_view text,
                     std::int32_t line, std::uint32_t program_id);
+  //! Warns when a Ratio or Offset change stepped an axis's PositionInc (the drive follows a
+  //! step unless it is disabled): `before` is the previous cycle's registers.
+  void report_output_steps(CyclePort& port, int i, const Registers& before, const Registers& now);
   //! Feeds interpolator i's cycle to its limit checker and reports new excesses.
   void check_limits(CyclePort& port, int i);
 
