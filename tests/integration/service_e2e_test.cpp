@@ -1595,17 +1595,30 @@ TEST(ServiceProcesses, AReplyWaitsUntilTheClientsReplyReaderIsMatched) {
   EXPECT_NE(stats.find("\"replies_unmatched\": 0,"), std::string::npos) << stats;
 }
 
+// An HMI of the service in `env` and a program writer on a participant of its own: for chunks
+// the client library never writes (another interpolator, a NaN in a record).
+struct RawChunkWriter {
+  explicit RawChunkWriter(const ServiceEnv& env)
+      : hmi(env.dds(), client::Role::kHmi),
+        other(env.dds(), "other"),
+        writer(other.writer<msg::ProgramChunkPubSubType>(dds::kProgramTopic)) {}
+  //! The HMI has the service's state and the writer has matched its reader.
+  bool ready() { return hmi.wait_for_state(0, kHang) && dds::wait_for_match(writer, 1, kHang); }
+
+  client::Client hmi;
+  dds::Participant other;
+  fdds::DataWriter& writer;
+};
+
 // Chunks for an interpolator the service does not host (a client configured for more, or a
 // flood) are dropped and said at once, then at most every 10 s: one line per chunk let a
 // sender fill the service's log as fast as it wrote.
 TEST(ServiceProcesses, ChunksForAnInterpolatorNotHostedAreSaidOnceNotPerChunk) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());
-  client::Client hmi(env.dds(), client::Role::kHmi);
-  ASSERT_TRUE(hmi.wait_for_state(0, kHang));
-  dds::Participant other(env.dds(), "other");
-  auto& w = other.writer<msg::ProgramChunkPubSubType>(dds::kProgramTopic);
-  ASSERT_TRUE(dds::wait_for_match(w, 1, kHang));
+  RawChunkWriter raw(env);
+  ASSERT_TRUE(raw.ready());
+  fdds::DataWriter& w = raw.writer;
   msg::ProgramChunk chunk;
   chunk.interpolator(7);
   chunk.end_of_program(true);
@@ -1629,11 +1642,10 @@ TEST(ServiceProcesses, ChunksForAnInterpolatorNotHostedAreSaidOnceNotPerChunk) {
 TEST(ServiceProcesses, ARefusedChunkNamesTheRecordAndTheField) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());
-  client::Client hmi(env.dds(), client::Role::kHmi);
-  ASSERT_TRUE(hmi.wait_for_state(0, kHang));
-  dds::Participant other(env.dds(), "other");
-  auto& w = other.writer<msg::ProgramChunkPubSubType>(dds::kProgramTopic);
-  ASSERT_TRUE(dds::wait_for_match(w, 1, kHang));
+  RawChunkWriter raw(env);
+  ASSERT_TRUE(raw.ready());
+  fdds::DataWriter& w = raw.writer;
+  client::Client& hmi = raw.hmi;
   msg::ProgramChunk chunk;
   chunk.interpolator(0);
   chunk.program_id(5);
