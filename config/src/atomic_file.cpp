@@ -1,15 +1,73 @@
 #include "tgm/atomic_file.hpp"
 
 #include <fcntl.h>
+#include <signal.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cerrno>
+#include <csignal>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 
 namespace tgm {
+
+namespace {
+
+// The temporary files being written, for a signal that ends the process: `tgm-hmi compile
+// --out` interrupted by Ctrl-C left "<out>.tmp-<pid>" (24 MB of a half-written program) beside
+// its output every time (session 75). A handler for SIGINT, SIGTERM and SIGHUP, installed only
+// where the signal's action is the default (a command that handles a signal itself, as
+// simulate and tgm-service do, keeps its handler, and an ignored SIGHUP stays ignored), removes
+// them and ends the process by the same signal. A slot is 0 free, 1 claimed, 2 named.
+constexpr int kTempSlots = 16;
+char g_temp_path[kTempSlots][4096];
+std::atomic<int> g_temp_state[kTempSlots];
+static_assert(std::atomic<int>::is_always_lock_free, "read in a signal handler");
+
+extern "C" void remove_temps_and_end(int sig) {
+  for (int i = 0; i < kTempSlots; ++i) {
+    if (g_temp_state[i].load() == 2) ::unlink(g_temp_path[i]);
+  }
+  ::signal(sig, SIG_DFL);
+  ::raise(sig);
+}
+
+// At every open (three system calls, once per output file): an action set back to the default
+// since the last one gets the handler again.
+void install_temp_cleanup() {
+  for (const int sig : {SIGINT, SIGTERM, SIGHUP}) {
+    struct sigaction now {};
+    if (::sigaction(sig, nullptr, &now) != 0 || now.sa_handler != SIG_DFL) continue;
+    struct sigaction sa {};
+    sa.sa_handler = remove_temps_and_end;
+    sigemptyset(&sa.sa_mask);
+    ::sigaction(sig, &sa, nullptr);
+  }
+}
+
+// The slot naming `path` (-1: none free, or a path too long: that file is only not removed).
+int claim_temp_slot(const std::string& path) {
+  if (path.size() >= sizeof g_temp_path[0]) return -1;
+  install_temp_cleanup();
+  for (int i = 0; i < kTempSlots; ++i) {
+    int free = 0;
+    if (!g_temp_state[i].compare_exchange_strong(free, 1)) continue;
+    std::memcpy(g_temp_path[i], path.c_str(), path.size() + 1);
+    g_temp_state[i].store(2);
+    return i;
+  }
+  return -1;
+}
+
+void release_temp_slot(int& slot) {
+  if (slot >= 0) g_temp_state[slot].store(0);
+  slot = -1;
+}
+
+}  // namespace
 
 bool write_file_atomic(const std::string& path, const std::string& bytes, std::string& error) {
   AtomicFile f;  // removes the temporary file on every early return
@@ -21,6 +79,7 @@ AtomicFile::~AtomicFile() {
     std::fclose(f_);
     std::remove(tmp_.c_str());
   }
+  release_temp_slot(slot_);
 }
 
 bool AtomicFile::open(const std::string& path, std::string& error) {
@@ -64,8 +123,16 @@ bool AtomicFile::open(const std::string& path, std::string& error) {
     }
     const int fd = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
     if (fd >= 0) {
+      slot_ = claim_temp_slot(tmp_);
+      // A file replaced keeps its permissions: a program made private (0600) became readable
+      // by all (0644) when compiled again.
+      struct stat old {};
+      if (::stat(path_.c_str(), &old) == 0 && S_ISREG(old.st_mode)) {
+        (void)::fchmod(fd, old.st_mode & 07777);
+      }
       f_ = ::fdopen(fd, "wb");
       if (f_) break;
+      release_temp_slot(slot_);
       ::close(fd);
       std::remove(tmp_.c_str());
     }
@@ -74,8 +141,10 @@ bool AtomicFile::open(const std::string& path, std::string& error) {
       return false;
     }
   }
-  static thread_local char buffer[1 << 20];
-  std::setvbuf(f_, buffer, _IOFBF, sizeof buffer);
+  // A buffer of its own: one shared by every file of a thread (thread_local) held the pending
+  // bytes of two files open at once in the same place.
+  buffer_ = std::make_unique<char[]>(kBufferBytes);
+  std::setvbuf(f_, buffer_.get(), _IOFBF, kBufferBytes);
   return true;
 }
 
@@ -131,8 +200,12 @@ bool AtomicFile::commit(std::string& error) {
   if (std::fclose(f) != 0) {
     error = std::string("cannot write: ") + std::strerror(errno);
     std::remove(tmp_.c_str());
+    release_temp_slot(slot_);
     return false;
   }
+  // Released before the rename: a signal between the two leaves the output whole rather than
+  // removing the file just renamed into place under its temporary name's slot.
+  release_temp_slot(slot_);
   if (std::rename(tmp_.c_str(), path_.c_str()) != 0) {
     error = std::string("cannot rename into place: ") + std::strerror(errno);
     std::remove(tmp_.c_str());

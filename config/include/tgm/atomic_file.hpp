@@ -6,6 +6,7 @@
 
 #include <cstddef>
 #include <cstdio>
+#include <memory>
 #include <string>
 
 namespace tgm {
@@ -17,8 +18,11 @@ bool write_file_atomic(const std::string& path, const std::string& bytes, std::s
 //! user's is touched) and renamed into place by commit(); destroyed
 //! without commit() it removes the temporary file, so an error never leaves a partial output.
 //! A path that names a symbolic link is written through it (the file it points to is replaced,
-//! not the link). A path that names a device or a pipe (/dev/stdout, a FIFO) is never renamed
-//! over: the output is held in memory and written into it by commit().
+//! not the link). A file replaced keeps its permission bits (a new inode: hard links to the old
+//! one keep the old content). SIGINT, SIGTERM or SIGHUP while the action is the default
+//! removes the temporary files of every AtomicFile open and ends the process by the signal. A path
+//! that names a device or a pipe (/dev/stdout, a FIFO) is never renamed over: the output is held in
+//! memory and written into it by commit().
 class AtomicFile {
  public:
   AtomicFile() = default;
@@ -34,7 +38,10 @@ class AtomicFile {
 
  private:
   std::string path_, tmp_;
+  static constexpr std::size_t kBufferBytes = 1 << 20;
   std::FILE* f_ = nullptr;
+  std::unique_ptr<char[]> buffer_;  // f_'s stdio buffer
+  int slot_ = -1;                   // its slot among the temporary files a signal removes
   bool in_place_ = false;  // a device or a pipe: `held_` is written into it by commit()
   std::string held_;
 };
