@@ -207,6 +207,15 @@ int run_compile(int argc, char** argv) {
                  errors == 1 ? "" : "s");
     return 2;
   };
+  // A program of comments and settings alone compiled "0 records", which simulate and run
+  // then refused (session 75): refused here, as they refuse it.
+  const auto no_records = [&] {
+    std::fprintf(stderr,
+                 "%s: error: the program has no records (no move, dwell or M-function): no "
+                 "intercode written\n",
+                 file.c_str());
+    return 2;
+  };
   if (!dump.empty()) {
     PackedProgram program;
     if (std::size_t errors = 0; !compile_packed(file, input, options, program, note, &errors)) {
@@ -214,6 +223,7 @@ int run_compile(int argc, char** argv) {
       if (std::string why; errors == 0) return input.check(why) ? 1 : 2;
       return no_intercode(errors);
     }
+    if (program.size() == 0) return no_records();
     if (out.is_open() && (!out.write(program.file().data(), program.file().size(), io_error) ||
                           !out.commit(io_error))) {
       std::fprintf(stderr, "%s: error: %s\n", out_path.c_str(), io_error.c_str());
@@ -235,6 +245,7 @@ int run_compile(int argc, char** argv) {
     print_compile_errors(file, result);
     return no_intercode(result.error_count());
   }
+  if (streamed.records() == 0) return no_records();
   if (!streamed.commit(result.program.params, result.program.messages, io_error)) {
     std::fprintf(stderr, "%s: error: %s\n", out_path.c_str(), io_error.c_str());
     return 1;

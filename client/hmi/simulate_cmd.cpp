@@ -323,7 +323,7 @@ int run_simulate(int argc, char** argv) {
   // As `run` says it: a summary of nothing ("NOT finished: empty program", exit 1) looked like
   // a run that went wrong.
   if (program.size() == 0) {
-    std::fprintf(stderr, "%s: the program has no records\n", file.c_str());
+    std::fprintf(stderr, "%s: error: the program has no records (no move, dwell or M-function)\n", file.c_str());
     return 2;
   }
   // Intercode runs from the point it was compiled from, as `tgm-hmi run` runs it.

@@ -21,6 +21,7 @@
 
 #include "cutter_compensation.hpp"
 #include "tgm/intercode_io.hpp"
+#include "tgm/printable.hpp"
 
 namespace tgm {
 
@@ -637,6 +638,19 @@ void Compiler::check_block_static(Block& b) {
     if (!plc && m == 29 && (!b.has_comment || b.comment_length == 0)) {
       error(b.line, m_word->column, "M29 needs its message text in parentheses: M29 (text)");
       b.valid = false;
+    }
+    // The text goes to every HMI as a DDS string and into JSON, which are UTF-8: a comment of
+    // a Windows CAM post in cp1252 ("\xB0" for a degree sign) passed as it was (session 75).
+    if (!plc && m == 29 && b.has_comment) {
+      const std::string_view text(src_.data() + b.comment_offset, b.comment_length);
+      if (const std::size_t bad = utf8_invalid_at(text); bad != std::string_view::npos) {
+        char buf[16];
+        std::snprintf(buf, sizeof buf, "0x%02X", static_cast<unsigned char>(text[bad]));
+        error(b.line, static_cast<std::uint32_t>(b.comment_offset + bad - b.begin + 1),
+              std::string("M29 message is not UTF-8 text (byte ") + buf +
+                  "): save the program as UTF-8");
+        b.valid = false;
+      }
     }
     if (!plc && m == 29 && b.has_comment && b.comment_length > kMaxMessageBytes) {
       error(b.line, m_word->column,

@@ -327,7 +327,8 @@ enum class RecordFault : std::uint8_t {
   kBadModes,
   kLineOverflow,
   kNonFinite,
-  kOutOfRange
+  kOutOfRange,
+  kMKind
 };
 
 std::string fault_text(RecordFault f, std::uint8_t type, int n, std::uint64_t k) {
@@ -351,6 +352,9 @@ std::string fault_text(RecordFault f, std::uint8_t type, int n, std::uint64_t k)
       return "non-finite coordinate in " + rec;
     case RecordFault::kOutOfRange:
       return "value out of range in " + rec;
+    case RecordFault::kMKind:
+      return "M-function kind does not match its number in " + rec +
+             " (M0 pauses, M2 and M30 end, M1..M999 wait, M1001.. run on)";
   }
   return "bad " + rec;
 }
@@ -412,9 +416,20 @@ RecordFault decode_fields(In& in, int n, DeltaState& st, Segment& s, std::uint8_
   auto finite = [](double v) { return std::isfinite(v); };
   if (!finite(s.compensation_radius_mm) || !finite(s.feed_mm_per_min) || !finite(s.center[0]) ||
       !finite(s.center[1]) || !finite(s.radius) || !finite(s.dwell_s) || s.feed_mm_per_min < 0 ||
-      s.radius < 0 || s.dwell_s < 0 || s.turns < 0 || s.compensation_radius_mm < 0 || s.tool < 0 ||
-      s.tool > kMaxTool) {
+      s.radius < 0 || s.dwell_s < 0 || s.turns < 0 || s.turns > kMaxArcTurns ||
+      s.compensation_radius_mm < 0 || s.tool < 0 || s.tool > kMaxTool || s.line < 0) {
     return RecordFault::kOutOfRange;
+  }
+  // A kind the compiler never gives its number: M51 written as a program end ended the
+  // program there without a word (session 75). M0, M2 and M30 redefined for the PLC are
+  // normal M-functions.
+  if (s.type == SegmentType::kMFunction) {
+    const bool fits = s.m_kind == MKind::kProgramStop  ? s.m == 0
+                      : s.m_kind == MKind::kProgramEnd ? s.m == 2 || s.m == 30
+                      : s.m_kind == MKind::kContinuous ? s.m > kMaxNormalM + 1
+                      : s.m_kind == MKind::kNormal     ? s.m >= 0 && s.m <= kMaxNormalM
+                                                       : false;
+    if (!fits) return RecordFault::kMKind;
   }
   st.end = s.end;
   st.line = s.line;
@@ -434,8 +449,19 @@ bool read_header(std::string_view file, Program& tables, std::uint64_t& count,
     return false;
   };
   std::string magic;
+  if (file.empty()) {
+    error = "intercode at byte 0: the file is empty";
+    return false;
+  }
   if (!in.bytes(4, magic) || std::memcmp(magic.data(), kMagic, 4) != 0) {
-    return fail("not a tgm intercode file (bad magic)");
+    const bool text = std::all_of(file.begin(), file.begin() + std::min<std::size_t>(file.size(), 4),
+                                  [](char c) {
+                                    const auto u = static_cast<unsigned char>(c);
+                                    return (u >= 0x20 && u < 0x7f) || u == '\n' || u == '\r' || u == '\t';
+                                  });
+    error = std::string("intercode at byte 0: not a tgm intercode file (bad magic") +
+            (text ? "; it starts as text: G-code under an intercode name?)" : ")");
+    return false;
   }
   std::uint16_t version = 0;
   std::uint8_t n = 0;
@@ -448,8 +474,8 @@ bool read_header(std::string_view file, Program& tables, std::uint64_t& count,
     if (const std::uint32_t c = file_checksum(file); c != stored) {
       char why[160];
       std::snprintf(why, sizeof why,
-                    "checksum mismatch: the file is damaged or was changed (CRC-32 %08x, the "
-                    "file says %08x); compile the program again",
+                    "checksum mismatch: the file is damaged, cut short or was changed (CRC-32 "
+                    "%08x, the file says %08x); compile the program again",
                     static_cast<unsigned>(c), static_cast<unsigned>(stored));
       error = why;
       return false;
@@ -466,6 +492,15 @@ bool read_header(std::string_view file, Program& tables, std::uint64_t& count,
   if (!in.get(count)) return fail("truncated header");
   // Each record takes at least 4 bytes: reject counts the input cannot hold.
   if (count > body.size() / 4) return fail("record count exceeds the file size");
+  // Letters as a config gives them (one upper-case letter per axis, each once): control
+  // characters and quotes went into the JSON dump and the error messages as they were.
+  for (int i = 0; i < n; ++i) {
+    const char c = letters[static_cast<std::size_t>(i)];
+    if (c < 'A' || c > 'Z' || letters.find(c) < static_cast<std::size_t>(i)) {
+      return fail("axis letters must be distinct letters A..Z, not '" +
+                  printable(letters.substr(0, n)) + "'");
+    }
+  }
   tables = Program{};
   tables.number_axes = n;
   tables.axis_letters = letters.substr(0, n);
@@ -543,7 +578,7 @@ bool decode_checked(std::string_view file, Program& out, std::string& error, boo
   for (auto& mp : p.params) {
     for (double& v : mp) {
       if (!in.get(v)) return fail("truncated parameter table");
-      if (std::isnan(v)) return fail("NaN in parameter table");
+      if (!std::isfinite(v)) return fail("a parameter that is not a finite number");
     }
   }
   p.messages.resize(nmsg);
@@ -553,6 +588,7 @@ bool decode_checked(std::string_view file, Program& out, std::string& error, boo
     if (m.size() > kMaxMessageBytes) {
       return fail("a message is longer than " + std::to_string(kMaxMessageBytes) + " bytes");
     }
+    if (utf8_invalid_at(m) != std::string_view::npos) return fail("a message that is not UTF-8 text");
   }
   if (!in.at_end()) return fail("trailing bytes after the message table");
   out = std::move(p);
@@ -744,8 +780,17 @@ void dump_text_record(const Program& p, const Segment& s, std::string& out) {
       out += buf;
     }
     if (s.is_arc()) {
-      std::snprintf(buf, sizeof buf, "  centre(%.4f, %.4f) R%.4f G%d", s.center[0], s.center[1],
-                    s.radius, static_cast<int>(s.plane));
+      // Named by the plane's axes, as the jsonl dump names them: "centre(-1, 5)" of a G18 arc
+      // (Z first) read as X-1 (session 75).
+      const PlaneAxes pa = plane_axes(s.plane, p.axis_letters);
+      out += "  centre(";
+      for (int k = 0; k < 2; ++k) {
+        const int ax = k == 0 ? pa.first : pa.second;
+        std::snprintf(buf, sizeof buf, "%s%c%.4f", k == 0 ? "" : " ",
+                      ax < n ? axis_letter(p, ax) : '?', s.center[static_cast<std::size_t>(k)]);
+        out += buf;
+      }
+      std::snprintf(buf, sizeof buf, ") R%.4f G%d", s.radius, static_cast<int>(s.plane));
       out += buf;
       if (s.turns) out += " turns+" + std::to_string(s.turns);
     }

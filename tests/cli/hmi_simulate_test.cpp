@@ -681,7 +681,7 @@ TEST_F(HmiSimulate, BadInputIsAUsageErrorAndWritesNothing) {
   const fs::path empty = write("empty.ngc", "(nothing but a comment)\n");
   r = run("simulate " + empty.string() + " --config " + kConfig + " --csv " + csv.string());
   EXPECT_EQ(r.exit_code, 2);
-  EXPECT_EQ(r.err, empty.string() + ": the program has no records\n");
+  EXPECT_EQ(r.err, empty.string() + ": error: the program has no records (no move, dwell or M-function)\n");
   EXPECT_TRUE(r.out.empty()) << r.out;
   EXPECT_FALSE(fs::exists(csv));
   const std::string ok = kExample + " --config " + kConfig;

@@ -977,6 +977,32 @@ TEST(Printable, ControlCharactersAreEscapedAndTheRestKept) {
   EXPECT_EQ(printable("back\\slash \"quoted\""), "back\\slash \"quoted\"");
 }
 
+// JSON is UTF-8: a byte that is not (a cp1252 comment, a reason from a client of another
+// encoding) is U+FFFD, and the rest of the text as it was.
+TEST(Printable, JsonStringsAreAlwaysUtf8) {
+  const auto json = [](std::string_view s) {
+    std::string out;
+    append_json_string(out, s);
+    return out;
+  };
+  EXPECT_EQ(json("gek\xc3\xbchlt"), "\"gek\xc3\xbchlt\"");
+  EXPECT_EQ(json("caf\xe9 \xff\xfe!"), "\"caf\\ufffd \\ufffd\\ufffd!\"");
+  EXPECT_EQ(json("\xe2\x82"), "\"\\ufffd\\ufffd\"");           // cut short
+  EXPECT_EQ(json("\xc0\xaf"), "\"\\ufffd\\ufffd\"");           // overlong '/'
+  EXPECT_EQ(json("\xed\xa0\x80"), "\"\\ufffd\\ufffd\\ufffd\"");  // a surrogate
+  EXPECT_EQ(json("\xf0\x9f\x94\xa7 del\x7f"), "\"\xf0\x9f\x94\xa7 del\\u007f\"");
+  EXPECT_EQ(utf8_invalid_at("ok \xe2\x82\xac"), std::string_view::npos);
+  EXPECT_EQ(utf8_invalid_at("ok \xf4\x90\x80\x80"), 3u);  // beyond U+10FFFF
+}
+
+// An M29 text that is not UTF-8 is an error at the byte, with what to do.
+TEST(GcodeErrors, AnM29TextThatIsNotUtf8IsRefusedAtItsByte) {
+  EXPECT_THAT(errors_of("G90\nM29 (caf\xe9 au lait)\nM2\n"),
+              ElementsAre("2:9: M29 message is not UTF-8 text (byte 0xE9): save the program as "
+                          "UTF-8"));
+  EXPECT_THAT(errors_of("M29 (caf\xc3\xa9 au lait)\nM2\n"), ElementsAre());
+}
+
 // Intercode that encodes but does not describe a program is refused with the record and the
 // reason: negative sizes, and M or message records whose side-table entry is not there.
 TEST(Intercode, DecodeRefusesOutOfRangeValuesAndMissingSideTableEntries) {
@@ -1005,6 +1031,27 @@ TEST(Intercode, DecodeRefusesOutOfRangeValuesAndMissingSideTableEntries) {
        "an M record at line 3 names a missing parameter set"},
       {"message without text", [](Program& p) { p.segments[4].aux = 7; },
        "a message record at line 5 names a missing text"},
+      // Session 75: what a writer other than the compiler could put into a file whose
+      // checksum it computed, and the reader took.
+      {"arc of 2^31 - 1 turns", [](Program& p) { p.segments[3].turns = 2147483647; },
+       "value out of range in record 3"},
+      {"negative line", [](Program& p) { p.segments[0].line = -5; },
+       "value out of range in record 0"},
+      {"M3 as a program end",
+       [](Program& p) { p.segments[2].m_kind = MKind::kProgramEnd; },
+       "M-function kind does not match its number in record 2"},
+      {"M3 as a continuous M-function",
+       [](Program& p) { p.segments[2].m_kind = MKind::kContinuous; },
+       "M-function kind does not match its number in record 2"},
+      {"a parameter of -infinity",
+       [](Program& p) { p.params[0][0] = -std::numeric_limits<double>::infinity(); },
+       "a parameter that is not a finite number"},
+      {"a message in cp1252", [](Program& p) { p.messages[0] = "caf\xe9"; },
+       "a message that is not UTF-8 text"},
+      {"control characters for letters", [](Program& p) { p.axis_letters = "X\x01\""; },
+       "axis letters must be distinct letters A..Z, not 'X\\x01\"'"},
+      {"a letter twice", [](Program& p) { p.axis_letters = "XYX"; },
+       "axis letters must be distinct letters A..Z, not 'XYX'"},
   };
   for (const Case& c : cases) {
     Program p = compile_ok("G90 G1 X1 F100\nG4 P1\nM3 S5\nG2 X3 I1\nM29 (hello)\n");

@@ -225,7 +225,7 @@ int run_run(int argc, char** argv) {
     return 2;
   }
   if (program.size() == 0) {
-    std::fprintf(stderr, "%s: the program has no records\n", file.c_str());
+    std::fprintf(stderr, "%s: error: the program has no records (no move, dwell or M-function)\n", file.c_str());
     return 2;
   }
   // Said once the program is compiled for the tool in the spindle (below).

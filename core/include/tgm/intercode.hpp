@@ -31,6 +31,9 @@ inline constexpr double kMaxFeedMmPerMin = 1.0e6;
 inline constexpr std::size_t kMaxMessageBytes = 255;
 //! Largest tool number a T word may select.
 inline constexpr int kMaxTool = 99999;
+//! Most full extra turns of one arc record (Segment::turns). The dialect writes 0 (G2/G3 have
+//! no P word); a record of 2^31 turns from another writer ran until the time limit.
+inline constexpr std::int32_t kMaxArcTurns = 1000;
 //! An arc whose end lies closer than this to its start ends at its start [mm]: a full circle
 //! with I/J/K, an error with R (the compiler and the interpolator hold to the same rule).
 inline constexpr double kFullCircleMm = 1.0e-9;

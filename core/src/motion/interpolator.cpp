@@ -734,7 +734,7 @@ struct Interpolator::Impl {
       if (!(std::fabs(sg.center[0]) <= kMaxCoordinateMm && std::fabs(sg.center[1]) <= kMaxCoordinateMm)) {
         return {"arc centre is not a point within +-1e9 mm"};
       }
-      if (sg.turns < 0) return {"arc turns < 0"};
+      if (sg.turns < 0 || sg.turns > kMaxArcTurns) return {"arc turns must be 0..1000"};
     }
     if (sg.type == SegmentType::kDwell && (!std::isfinite(sg.dwell_s) || sg.dwell_s < 0.0 || sg.dwell_s > 1e6)) {
       return {"dwell must be 0..1e6 s"};
@@ -751,6 +751,10 @@ struct Interpolator::Impl {
     if (sg.type == SegmentType::kMessage &&
         p.messages[static_cast<std::size_t>(sg.aux)].size() > kMaxMessageBytes) {
       return {"message longer than 255 bytes"};
+    }
+    if (sg.type == SegmentType::kMessage &&
+        utf8_invalid_at(p.messages[static_cast<std::size_t>(sg.aux)]) != std::string_view::npos) {
+      return {"message is not UTF-8 text"};
     }
     return {};
   }
