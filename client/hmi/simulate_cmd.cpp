@@ -636,6 +636,12 @@ int run_simulate(int argc, char** argv) {
                    sm.spline().jerk_limit_mm_s3(),
                    static_cast<unsigned long long>(ss.flagged_steps),
                    static_cast<unsigned long long>(ss.passes), ss.max_mm);
+      if (const std::uint64_t early = sim->interpolator().early_smoothing_events(); early > 0) {
+        std::fprintf(report,
+                     "warning:   %llu M-functions and messages reached M_Func before their motion "
+                     "(more than %zu inside the spline's delay), in program order\n",
+                     static_cast<unsigned long long>(early), SmoothingStage::kEventCapacity);
+      }
     }
     if (sm.iir().mask() != 0) {
       std::fprintf(report, "iir:       p %.6g q %.6g f %.6g ms, zeta %.3f, axis mask 0x%x\n",

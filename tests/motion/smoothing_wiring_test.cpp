@@ -411,6 +411,45 @@ TEST(Wiring, SplineDelaysPositionAndMFunctionsByExactlyNSteps) {
   EXPECT_LE(cycles[1], cycles[0] + 80 + 42);
 }
 
+// Continuous M-functions one after another inside the spline's delay (a laser's power after
+// every chord): they reach Last_Cont_M_Func in program order, none before the motion sample
+// it belongs to while they fit the event queue, and in order still when more than it holds
+// arrive at once (then some early, counted). Past 256 each new one used to be handed over at
+// once, ahead of those queued: M1257 before M1256, and the run ended on Last_Cont_M_Func 1256
+// where the program's last was M1300 (session 75).
+TEST(Wiring, ContinuousMFunctionsLeaveTheSplineInProgramOrder) {
+  MachineConfig m = MachineConfig::default_machine();
+  for (const int count : {300, 3000, static_cast<int>(SmoothingStage::kEventCapacity) + 900}) {
+    ProgramBuilder b;
+    b.line({10.0, 0.0, 0.0}, 6000.0);
+    for (int k = 1; k <= count; ++k) b.m(1000 + k, MKind::kContinuous);
+    b.line({20.0, 0.0, 0.0}, 6000.0).end();
+    Interpolator ip = make(m);
+    ASSERT_TRUE(ip.command(kCommandSpline, spline(500, 1'000'000)).ok());
+    ASSERT_TRUE(ip.load(b.program()).ok());
+    ASSERT_TRUE(ip.start().ok());
+    const auto rs = run(ip);
+    ASSERT_EQ(rs.back().status, static_cast<std::int32_t>(InterpolatorStatus::kEnded)) << count;
+    std::int32_t last = 0;
+    std::uint64_t before_sample = 0;
+    for (const Registers& r : rs) {
+      ASSERT_GE(r.last_cont_m_func, last) << count << ": out of program order";
+      if (r.last_cont_m_func != 0 && r.position[0] < 10.0 - 1e-9) ++before_sample;
+      last = r.last_cont_m_func;
+    }
+    EXPECT_EQ(last, 1000 + count) << count;
+    EXPECT_EQ(rs.back().m_func_count, static_cast<std::uint32_t>(count)) << count;
+    if (count <= static_cast<int>(SmoothingStage::kEventCapacity)) {
+      EXPECT_EQ(before_sample, 0u) << count;
+      EXPECT_EQ(ip.early_smoothing_events(), 0u) << count;
+    } else {
+      EXPECT_GT(before_sample, 0u);
+      EXPECT_EQ(ip.early_smoothing_events(),
+                static_cast<std::uint64_t>(count) - SmoothingStage::kEventCapacity);
+    }
+  }
+}
+
 // A square run without corner slow-down (tolerance above the feed): velocity jumps of 100 mm/s
 // per axis at every corner. After the spline (N = 200) the per-axis jerk is below the raw one
 // by the factor the kernel allows, the contour deviation is reported, and the end is exact.

@@ -189,6 +189,10 @@ class Interpolator {
   //! success does not clear it, as it does command_error()).
   std::uint64_t unexecuted_commands() const;
   const std::string& unexecuted_reason() const;
+  //! M-functions and messages that reached M_Func (or the HMIs) before the motion sample they
+  //! belong to, in program order: more than SmoothingStage::kEventCapacity of them inside the
+  //! spline's delay. 0 on any program with fewer.
+  std::uint64_t early_smoothing_events() const;
   //! Ratio register write [inc/mm]: axis 0..Number_Axes-1, |ratio| 1e-6..1e9, only between
   //! programs with the smoothing settled (ratio_may_change: PositionInc jumps by Position x
   //! dRatio).

@@ -226,8 +226,11 @@ struct SmoothingEvent {
 //! Spline then IIR filter, plus the event delay line; what the Interpolator holds.
 class SmoothingStage {
  public:
-  //! Capacity of the event delay line.
-  static constexpr std::size_t kEventCapacity = 256;
+  //! Capacity of the event delay line: the M-functions and messages inside the spline's
+  //! delay (500 steps at most). 256 overflowed on a program of a continuous M-function after
+  //! every 0.01 mm chord (session 75); 4096 holds eight a calculation step over the longest
+  //! delay.
+  static constexpr std::size_t kEventCapacity = 4096;
 
   //! Allocates everything; both stages off. `cycle_time_us` 250 / 500 / 1000.
   SmoothingStage(int axes, int cycle_time_us);
@@ -251,13 +254,17 @@ class SmoothingStage {
 
   //! Queues an event that belongs to the input sample of the last step(); it is released by
   //! pop_event() after the step whose output is that sample (N steps later; at once when the
-  //! spline is off). False when the queue is full (never with fewer than 256 events in N steps).
+  //! spline is off). False when the queue is full (never with fewer than kEventCapacity events
+  //! in N steps).
   bool push_event(const SmoothingEvent& e);
   //! Same, for an event that belongs to the input sample of the *next* step() (raised while
   //! that sample is being computed): released after the step whose output is that sample.
   bool push_event_next(const SmoothingEvent& e);
   //! Next released event, oldest first; false when none is due.
   bool pop_event(SmoothingEvent* e);
+  //! The oldest pending event, due or not (a full queue makes room, keeping the order); false
+  //! when none is pending.
+  bool pop_oldest(SmoothingEvent* e);
   std::size_t pending_events() const { return ev_count_; }
 
   //! Position after spline and IIR [mm] and Speed = (Position - Position one step ago) / dt

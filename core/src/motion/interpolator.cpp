@@ -455,6 +455,7 @@ struct Interpolator::Impl {
   std::int32_t pend_code = 0;
   // Commands accepted at Command_Status 1 that ended without being executed, and why.
   std::uint64_t unexecuted = 0;
+  std::uint64_t early_events = 0;  // events a full smoothing queue released before their sample
   std::string unexecuted_reason;
   std::array<std::int32_t, kCommandParameters> pend_par{};
   std::string cmd_error;
@@ -1569,7 +1570,18 @@ struct Interpolator::Impl {
       ev_line[ev_par_next] = S(q).line;
       ev_par_next = (ev_par_next + 1) % ev_par.size();
     }
-    if (!smooth->push_event_next(e)) apply_event(e);  // 256 events inside the spline: at once
+    if (!smooth->push_event_next(e)) {
+      // More than kEventCapacity events inside the spline: the oldest leaves early, so that
+      // they still reach M_Func in program order. The new one used to be handed over at once,
+      // ahead of every one queued (M1257 before M1256, and Last_Cont_M_Func ended on M1256
+      // where the program's last was M1300: session 75).
+      SmoothingEvent oldest;
+      if (smooth->pop_oldest(&oldest)) {
+        ++early_events;
+        apply_event(oldest);
+      }
+      if (!smooth->push_event_next(e)) apply_event(e);
+    }
   }
 
   // An event leaves the smoothing: the register writes of the hand-over; an M-function after
@@ -4100,6 +4112,9 @@ RequestResult Interpolator::command(std::int32_t code,
 const std::string& Interpolator::command_error() const { return impl_->cmd_error; }
 std::uint64_t Interpolator::unexecuted_commands() const {
   return impl_->unexecuted;
+}
+std::uint64_t Interpolator::early_smoothing_events() const {
+  return impl_->early_events;
 }
 const std::string& Interpolator::unexecuted_reason() const {
   return impl_->unexecuted_reason;

@@ -98,6 +98,14 @@ bool SmoothingStage::pop_event(SmoothingEvent* e) {
   return true;
 }
 
+bool SmoothingStage::pop_oldest(SmoothingEvent* e) {
+  if (ev_count_ == 0) return false;
+  *e = ev_[ev_head_].e;
+  ev_head_ = (ev_head_ + 1) % kEventCapacity;
+  --ev_count_;
+  return true;
+}
+
 bool SmoothingStage::settled() const {
   return spline_.settled() && iir_.settled() && ev_count_ == 0;
 }
