@@ -128,7 +128,10 @@ DdsPort::DdsPort(const DdsConfig& config, const DdsPortOptions& options)
   last_m_count_.assign(n, 0);
   backlog_.resize(n);
   published_.resize(n);
-  published_setpoints_.resize(n);
+  queued_setpoints_.resize(n);
+  standing_setpoint_cycles_ =
+      std::max<std::uint64_t>(1, static_cast<std::uint64_t>(opt_.state_period.count()) * 1000u /
+                                     static_cast<std::uint64_t>(std::max(1, opt_.cycle_time_us)));
   // Chunk objects: enough for every queue plus the window of every sender.
   for (std::size_t i = 0; i < free_chunks_.capacity(); ++i) {
     chunk_pool_.push_back(std::make_unique<ChunkIn>());
@@ -254,6 +257,32 @@ void DdsPort::publish(const Snapshot& s) {
   Snapshot& slot = latest_.write_slot();
   slot = s;
   latest_.publish();
+  // Setpoints: every cycle the positions change (every --setpoint-decimation'th), and with the
+  // state period while they stand.
+  const auto decimation = static_cast<std::uint64_t>(std::max(1, opt_.setpoint_decimation));
+  for (int i = 0; i < s.count && i < static_cast<int>(queued_setpoints_.size()); ++i) {
+    const Registers& reg = s.ip[static_cast<std::size_t>(i)].reg;
+    QueuedSetpoint& q = queued_setpoints_[static_cast<std::size_t>(i)];
+    // Position as well as PositionInc: at the start of a motion the axes move less than an
+    // increment a cycle, and a drive that interpolates between setpoints needs those cycles.
+    const bool moved = !q.any || reg.position != q.position || reg.position_inc != q.position_inc;
+    const bool due =
+        moved ? s.cycle % decimation == 0 : s.cycle - q.cycle >= standing_setpoint_cycles_;
+    if (!due) continue;
+    SetpointOut out;
+    out.interpolator = static_cast<std::uint16_t>(i);
+    out.cycle = s.cycle;
+    out.position = reg.position;
+    out.position_inc = reg.position_inc;
+    if (!setpoints_.push(out)) {
+      setpoints_lost_.fetch_add(1, std::memory_order_relaxed);
+      continue;  // queued again next cycle: q is not moved on
+    }
+    q.any = true;
+    q.cycle = s.cycle;
+    q.position = reg.position;
+    q.position_inc = reg.position_inc;
+  }
   doorbell_.ring();
 }
 
@@ -740,20 +769,16 @@ void DdsPort::publish_loop() {
                 now - p.at >= opt_.progress_period);
       }
       if (send) publish_state(i, s, *snap);
-      // Setpoints: every cycle the publisher sees while the positions change (decimated by
-      // --setpoint-decimation), and with the state period while they stand still.
-      Published& sp = published_setpoints_[static_cast<std::size_t>(i)];
-      const bool moved = !sp.any || s.reg.position_inc != sp.reg.position_inc;
-      if (fresh && (moved || now - sp.at >= opt_.state_period) &&
-          (snapshots_seen_ % static_cast<std::uint64_t>(opt_.setpoint_decimation)) == 0) {
-        sp.any = true;
-        sp.reg.position_inc = s.reg.position_inc;
-        sp.at = now;
-        mapping::to_setpoints(s.reg, static_cast<std::uint16_t>(i), setpoint_sample_);
-        setpoint_sample_.cycle_counter(snap->cycle);
-        setpoint_writer_.write(&setpoint_sample_);
-        ++setpoints_published_;
-      }
+    }
+    // Every setpoint the cycle thread queued, in order (after the states: a drive's new
+    // program shows in the state before its first setpoint, as before).
+    for (SetpointOut sp; setpoints_.pop(sp);) {
+      setpoint_sample_.interpolator(sp.interpolator);
+      setpoint_sample_.cycle_counter(sp.cycle);
+      setpoint_sample_.position() = sp.position;
+      setpoint_sample_.position_inc() = sp.position_inc;
+      setpoint_writer_.write(&setpoint_sample_);
+      ++setpoints_published_;
     }
   }
 }

@@ -122,6 +122,9 @@ class DdsPort final : public CyclePort {
   std::uint64_t states_published() const { return states_published_; }
   std::uint64_t events_published() const { return events_published_; }
   std::uint64_t setpoints_published() const { return setpoints_published_; }
+  //! Setpoints due that the queue to the publisher had no room for (0 unless the publisher
+  //! stalled for about 2 s).
+  std::uint64_t setpoints_lost() const { return setpoints_lost_.load(std::memory_order_relaxed); }
   //! Requests answered REPLY_CODE_BUSY because the request queue was full (valid after stop()).
   std::uint64_t busy_requests() const { return busy_requests_; }
   //! Replies held back until the reply writer had matched the client's reply reader, and those
@@ -336,7 +339,29 @@ class DdsPort final : public CyclePort {
     std::chrono::steady_clock::time_point at{};
   };
   std::vector<Published> published_;
-  std::vector<Published> published_setpoints_;
+  // Setpoints, queued by the cycle thread (publish()) for every cycle due and written by the
+  // publisher, all of them in order: it used to write only the newest snapshot it saw, so a
+  // publisher woken late (normal priority under load) left a quarter of the moving cycles
+  // without a setpoint, gaps of up to 40 cycles, and nothing counted them (session 75).
+  struct SetpointOut {
+    std::uint16_t interpolator = 0;
+    std::uint64_t cycle = 0;
+    std::array<double, kMaxAxes> position{};
+    std::array<std::int64_t, kMaxAxes> position_inc{};
+  };
+  // Cycle thread only: what it queued last per interpolator (every cycle in which Position or
+  // PositionInc changed is queued, a standing position with the state period).
+  struct QueuedSetpoint {
+    bool any = false;
+    std::uint64_t cycle = 0;
+    std::array<double, kMaxAxes> position{};
+    std::array<std::int64_t, kMaxAxes> position_inc{};
+  };
+  std::vector<QueuedSetpoint> queued_setpoints_;
+  std::uint64_t standing_setpoint_cycles_ = 1;  // the state period in cycles
+  // 2 s of three interpolators at a 250 us cycle.
+  SpscQueue<SetpointOut> setpoints_{24576};
+  std::atomic<std::uint64_t> setpoints_lost_{0};  // a full queue: counted, never silent
   // m_func_count of the last event written per interpolator: a new value with M_Func set is a
   // new M-function (for the handshake records).
   std::vector<std::uint32_t> last_m_count_;

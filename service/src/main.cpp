@@ -460,7 +460,7 @@ int service_main(int argc, char** argv) {
       "tgm-service: stopping (%s) after %llu cycles: lateness p50 %.1f us, p99 %.1f us,"
       " p99.9 %.1f us, max %.1f us, missed %llu; cycle work p99.9 %.1f us, max %.1f us;"
       " %llu requests (%llu refused, %llu busy), %llu chunks, %llu segments,"
-      " %llu events (%llu lost), %llu states, %llu setpoints published%s%s%s\n",
+      " %llu events (%llu lost), %llu states, %llu setpoints published (%llu lost)%s%s%s\n",
       sig > 0           ? strsignal(sig)
       : yielded_to != 0 ? "gave way to another service"
                         : "time is up",
@@ -478,6 +478,7 @@ int service_main(int argc, char** argv) {
       static_cast<unsigned long long>(c.lost_events),
       static_cast<unsigned long long>(port->states_published()),
       static_cast<unsigned long long>(port->setpoints_published()),
+      static_cast<unsigned long long>(port->setpoints_lost()),
       engine_options.check_limits
           ? ("; limit excesses " + std::to_string(c.limit_violations)).c_str()
           : "",
@@ -505,7 +506,7 @@ int service_main(int argc, char** argv) {
         " \"replies_held_for_match\": %llu, \"replies_unmatched\": %llu,"
         " \"replies_not_written\": %llu,\n"
         " \"events_published\": %llu, \"lost_events\": %llu, \"states_published\": %llu,"
-        " \"setpoints_published\": %llu,\n"
+        " \"setpoints_published\": %llu, \"setpoints_lost\": %llu,\n"
         " \"limits_checked\": %s, \"limit_violations\": %llu}\n",
         static_cast<unsigned long long>(st.cycles), config.machine.cycle_time_us, engine->count(),
         static_cast<long long>(hist.quantile_ns(0.5)),
@@ -532,6 +533,7 @@ int service_main(int argc, char** argv) {
         static_cast<unsigned long long>(c.lost_events),
         static_cast<unsigned long long>(port->states_published()),
         static_cast<unsigned long long>(port->setpoints_published()),
+        static_cast<unsigned long long>(port->setpoints_lost()),
         engine_options.check_limits ? "true" : "false",
         static_cast<unsigned long long>(c.limit_violations));
   }
