@@ -54,7 +54,8 @@ constexpr const char* kUsage =
     "Hosts the configured interpolators (1..3), runs their cycle every cycle_time_us with\n"
     "absolute deadlines and serves state, setpoints, requests and the program stream over DDS.\n"
     "Stops cleanly on SIGINT / SIGTERM (exit code 0; SIGHUP, a closed terminal, is ignored),\n"
-    "bringing axes that still move to rest on the trajectory first (normal stop, at most 30 s);\n"
+    "bringing axes that still move to rest on the trajectory first (normal stop, at most 30 s;\n"
+    "exit code 1 when they still moved then);\n"
     "a stop that takes longer than 5 s says what it waits for, and a second SIGINT / SIGTERM\n"
     "while stopping exits at once (code 1).\n"
     "\n"
@@ -289,8 +290,23 @@ int service_main(int argc, char** argv) {
     std::printf("tgm-service: looking %lld ms for another tgm-service on DDS domain %d\n",
                 service_check_ms, config.dds.domain_id);
     std::fflush(stdout);
-    if (const std::uint64_t other =
-            port->other_service(std::chrono::milliseconds(service_check_ms))) {
+    // In slices, asking for SIGINT / SIGTERM between them: the signals are blocked for
+    // sigtimedwait, and a service told to stop during its look (up to 10 s) ignored it and
+    // then served the domain before it stopped (session 75).
+    std::uint64_t other = 0;
+    for (long long waited = 0; other == 0 && waited < service_check_ms; waited += 10) {
+      other = port->other_service(
+          std::chrono::milliseconds(std::min<long long>(10, service_check_ms - waited)));
+      const timespec none{};
+      if (const int sig = sigtimedwait(&signals, nullptr, &none); sig > 0 && other == 0) {
+        std::printf(
+            "tgm-service: %s while looking for another tgm-service: exiting, nothing "
+            "served\n",
+            strsignal(sig));
+        return 0;
+      }
+    }
+    if (other != 0) {
       std::fprintf(
           stderr,
           "tgm-service: another tgm-service (instance %016llx) already serves DDS domain %d: "
@@ -419,6 +435,7 @@ int service_main(int argc, char** argv) {
   // Axes in motion are brought to rest on the trajectory before the cycle ends (Engine::
   // wind_down): leaving at once froze the drives' setpoints at full speed. Bounded, and a second
   // signal still exits at once (the watchdog above).
+  bool moving_at_exit = false;
   stage.store("bringing the motion to rest (normal stop on the trajectory)",
               std::memory_order_release);
   loop.wind_down();
@@ -441,7 +458,10 @@ int service_main(int argc, char** argv) {
     } else if (!rest) {
       std::printf(
           "tgm-service: the motion did not come to rest within 30 s: exiting with it "
-          "moving\n");
+          "moving (exit code 1)\n");
+      // Not a clean stop: systemd and scripts saw exit code 0 while the last setpoint was a
+      // moving one (session 75).
+      moving_at_exit = true;
     }
     std::fflush(stdout);
   }
@@ -565,7 +585,7 @@ int service_main(int argc, char** argv) {
   port.reset();
   stopped.store(true, std::memory_order_release);
   watchdog.join();
-  return exit_code;
+  return moving_at_exit ? 1 : exit_code;
 }
 
 }  // namespace

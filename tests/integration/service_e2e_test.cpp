@@ -1408,6 +1408,24 @@ TEST(ServiceProcesses, ASecondServiceOnTheDomainIsRefusedOrReported) {
   EXPECT_EQ(env.service.log().find("already serves"), std::string::npos) << env.service.log();
 }
 
+// SIGTERM during the look for another service (--service-check-ms) ends the service there:
+// the signals were blocked for the main loop's sigtimedwait, so it looked on for up to 10 s
+// and then served the domain before it stopped (session 75).
+TEST(ServiceProcesses, ASignalDuringTheLookForAnotherServiceEndsItThere) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service({"--service-check-ms", "8000"}));
+  env.service.wait_for_log("looking 8000 ms for another tgm-service");
+  const auto sent = std::chrono::steady_clock::now();
+  EXPECT_EQ(env.service.interrupt(kHang, SIGTERM), 0) << env.service.log();
+  EXPECT_LT(std::chrono::steady_clock::now() - sent, 5s) << "it looked on";
+  const std::string log = env.service.log();
+  EXPECT_NE(log.find("tgm-service: Terminated while looking for another tgm-service: exiting, "
+                     "nothing served"),
+            std::string::npos)
+      << log;
+  EXPECT_EQ(log.find("interpolators, cycle"), std::string::npos) << log;
+}
+
 // Two services on one domain that neither gives way (both started with --service-check-ms 0):
 // a client follows the first it heard and never mixes in the other's states (tgm-hmi run said
 // "tgm-service restarted" at every flip, tgm-plc logged a restart at each), and says that there
