@@ -86,6 +86,8 @@ void RtLoop::run(const std::atomic<bool>& stop) {
       const std::int64_t skipped = late / period_ns_;
       stats_.missed_cycles += static_cast<std::uint64_t>(skipped);
       deadline += skipped * period_ns_;
+      last_miss_ns_.store(late, std::memory_order_relaxed);
+      missed_.store(stats_.missed_cycles, std::memory_order_relaxed);
     }
     // The percentile walks the histogram: every 64 cycles is plenty for a published value.
     if ((stats_.cycles & 63u) == 1u) stats_.p999_ns = hist_.quantile_ns(0.999);

@@ -873,7 +873,9 @@ TEST(ServiceProcesses, HmiRunEndsWithAClearErrorWhenTheServiceRestarts) {
         0, [](const msg::InterpolatorState& s) { return s.status() == 1; }, kHang))
         << hmi.log();
   }
-  ASSERT_EQ(env.service.interrupt(), 0);
+  // Killed (a crash, a power cut of its host): a service stopped by a signal says it shuts
+  // down, and the run then ends at its silence (ARunEndsWhenTheServiceShutsDownDuringIt).
+  ASSERT_EQ(env.service.interrupt(kHang, SIGKILL), 128 + SIGKILL);
   hmi.wait_for_log("no state from tgm-service");
   EXPECT_NE(hmi.log().find("no state from tgm-service for 3 s"), std::string::npos) << hmi.log();
   std::this_thread::sleep_for(1500ms);  // 7 progress intervals
@@ -1424,6 +1426,31 @@ TEST(ServiceProcesses, ASignalDuringTheLookForAnotherServiceEndsItThere) {
             std::string::npos)
       << log;
   EXPECT_EQ(log.find("interpolators, cycle"), std::string::npos) << log;
+}
+
+// A service stopped during a run brings the motion to rest, says so, and goes: the run then
+// waited for it without end ("no state for 3 s ... waiting"), and on Ctrl-C said the
+// interpolator "was NOT stopped" (session 75). It ends, exit 1, naming what happened.
+TEST(ServiceProcesses, ARunEndsWhenTheServiceShutsDownDuringIt) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  std::ofstream(env.path("long.ngc")) << "G90 G1 X200 F3000\nM2\n";  // 4 s
+  test::Child run;
+  ASSERT_TRUE(run.start({TGM_HMI_BIN, "run", env.path("long.ngc"), "--config", env.config()},
+                        env.path("run.log")));
+  ASSERT_TRUE(run.wait_for_log("records for interpolator 0")) << run.log();
+  std::this_thread::sleep_for(1s);
+  EXPECT_EQ(env.service.interrupt(kHang, SIGTERM), 0) << env.service.log();
+  EXPECT_EQ(run.wait(20s), 1) << run.log();
+  const std::string log = run.log();
+  EXPECT_NE(log.find("warning (line 1): tgm-service is stopping: normal stop on the trajectory"),
+            std::string::npos)
+      << log;
+  EXPECT_NE(log.find("tgm-hmi run: tgm-service shut down during the run (it said so, then went "
+                     "silent; last seen at Status 4"),
+            std::string::npos)
+      << log;
+  EXPECT_EQ(log.find("NOT stopped"), std::string::npos) << log;
 }
 
 // Two services on one domain that neither gives way (both started with --service-check-ms 0):

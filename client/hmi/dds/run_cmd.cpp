@@ -527,6 +527,7 @@ int run_run(int argc, char** argv) {
               program.size() == 1 ? "" : "s", ip, program_id, config->dds.domain_id);
   std::fflush(stdout);
 
+  bool service_stopping = false;  // it announced its shutdown
   while (true) {
     hmi->poll(2ms);
     if (!sender.pump()) {
@@ -548,6 +549,18 @@ int run_run(int argc, char** argv) {
       break;
     }
     const auto change = silence.update(hmi->state_samples(ip), Clock::now());
+    if (change == client::SilenceWatch::Change::kSilent && service_stopping) {
+      clear_progress();
+      const msg::InterpolatorState* last = hmi->state(ip);
+      std::fprintf(stderr,
+                   "tgm-hmi run: tgm-service shut down during the run (it said so, then went "
+                   "silent; last seen at Status %d, line %d): the program is gone with it; run it "
+                   "again from a known position\n",
+                   last ? static_cast<int>(last->status()) : 0,
+                   last ? static_cast<int>(last->act_line()) : 0);
+      exit_code = 1;
+      break;
+    }
     if (change == client::SilenceWatch::Change::kSilent) {
       clear_progress();
       std::printf(
@@ -576,6 +589,11 @@ int run_run(int argc, char** argv) {
           m.source_line() > 0 ? " (line " + std::to_string(m.source_line()) + ")" : "";
       // An informational message without a line is the service's own (a PLC that is back),
       // not an M29 text of the program.
+      // The service's announcement that it shuts down (Engine::wind_down): its silence after
+      // it ends the run instead of a wait without end (session 75).
+      if (m.severity() == msg::SEVERITY_WARNING &&
+          std::string_view(m.text().c_str()).rfind("tgm-service is stopping", 0) == 0)
+        service_stopping = true;
       std::printf("%s%s: %s\n",
                   err                                     ? "ERROR"
                   : m.severity() == msg::SEVERITY_WARNING ? "warning"
@@ -835,14 +853,16 @@ int run_run(int argc, char** argv) {
       dro += b;
     }
     std::printf(
-        "done: %llu record%s, %d line%s in %.3f s (%llu cycles), distance %.3f mm, "
+        "done: %llu record%s, %d line%s in %.3f s of program time (%llu cycles; %.3f s by the "
+        "clock), distance %.3f mm, "
         "%llu M-function wait%s (%.3f s)%s, %zu message%s\n"
         "  end position%s\n"
         "  service cycle lateness since it started: max %.1f us, p99.9 %.1f us, missed cycles "
         "%llu (%llu during this run)\n",
         static_cast<unsigned long long>(sender.total()), sender.total() == 1 ? "" : "s", last_line,
         last_line == 1 ? "" : "s", program_s,
-        static_cast<unsigned long long>(st->cycle_counter() - start_cycle), st->move_distance(),
+        static_cast<unsigned long long>(st->cycle_counter() - start_cycle),
+        std::chrono::duration<double>(Clock::now() - t0).count(), st->move_distance(),
         static_cast<unsigned long long>(waits.waits), waits.waits == 1 ? "" : "s",
         static_cast<double>(waits.cycles) * cycle_s,
         !events_matched          ? " seen in the state"

@@ -46,6 +46,10 @@ class RtLoop {
   const LatenessStats& stats() const { return stats_; }
   //! Cycles run so far; any thread may read it while run() runs (the systemd watchdog does).
   std::uint64_t heartbeat() const { return heartbeat_.load(std::memory_order_relaxed); }
+  //! Deadlines missed so far (cycles skipped), and the latest start lateness of a cycle that
+  //! missed one [ns]; any thread may read them while run() runs (the main thread reports them).
+  std::uint64_t missed() const { return missed_.load(std::memory_order_relaxed); }
+  std::int64_t last_miss_ns() const { return last_miss_ns_.load(std::memory_order_relaxed); }
 
  private:
   Engine& engine_;
@@ -55,6 +59,8 @@ class RtLoop {
   LatenessHistogram work_;
   LatenessStats stats_;
   std::atomic<std::uint64_t> heartbeat_{0};
+  std::atomic<std::uint64_t> missed_{0};
+  std::atomic<std::int64_t> last_miss_ns_{0};
   std::atomic<bool> wind_down_{false};
   std::atomic<bool> at_rest_{false};
 };
