@@ -245,6 +245,18 @@ int service_main(int argc, char** argv) {
                               " only");
     }
   }
+  // A priority asked for that the kernel refuses is an error, as an unusable --cpu is: it used
+  // to be a line on standard output and a service at normal priority (session 75). The default
+  // (80, not given) stays a try: a development machine runs without the limits.
+  if (rt.realtime) {
+    for (const auto& [flag, priority, given] :
+         {std::tuple{"--rt-priority", rt.priority, rt_priority_given},
+          std::tuple{"--dds-priority", dds_priority, dds_priority > 0}}) {
+      if (!given) continue;
+      if (const std::string why = tgm::service::sched_fifo_refusal(priority); !why.empty())
+        return args.usage_error(std::string(flag) + " " + std::to_string(priority) + ": " + why);
+    }
+  }
   if (dds_priority > 0 && rt.realtime) {
     // Threads inherit the policy of their creator: set it here, before the participant and the
     // port's threads exist, so Fast DDS's receive / event threads and ours run at it.

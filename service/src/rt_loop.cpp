@@ -4,10 +4,12 @@
 #include <sched.h>
 #include <sys/mman.h>
 #include <sys/prctl.h>
+#include <sys/resource.h>
 #include <time.h>
 
 #include <cerrno>
 #include <cstring>
+#include <thread>
 
 namespace tgm::service {
 
@@ -34,7 +36,35 @@ std::int64_t now_ns() {
   for (std::size_t i = 0; i < bytes && i < sizeof buf; i += 4096) buf[i] = 0;
 }
 
+// The soft limit `resource` as text ("unlimited", or the number in `unit` of `scale`).
+std::string limit_text(int resource, unsigned long long scale, const char* unit) {
+  rlimit r{};
+  if (getrlimit(resource, &r) != 0) return "unknown";
+  if (r.rlim_cur == RLIM_INFINITY) return "unlimited";
+  return std::to_string(static_cast<unsigned long long>(r.rlim_cur) / scale) + unit;
+}
+
+// What a refused SCHED_FIFO or mlockall needs: the limits by name, and how to raise them. The
+// messages said only "Operation not permitted" or "Cannot allocate memory" (session 75).
+std::string rtprio_hint() {
+  return "RLIMIT_RTPRIO is " + limit_text(RLIMIT_RTPRIO, 1, "") +
+         ": raise it with LimitRTPRIO= in the systemd unit or ulimit -r, or run as root";
+}
+
 }  // namespace
+
+std::string sched_fifo_refusal(int priority) {
+  int rc = 0;
+  std::thread probe([&] {
+    sched_param p{};
+    p.sched_priority = priority;
+    rc = pthread_setschedparam(pthread_self(), SCHED_FIFO, &p);
+  });
+  probe.join();
+  if (rc == 0) return {};
+  return std::string("SCHED_FIFO priority ") + std::to_string(priority) + " not permitted (" +
+         std::strerror(rc) + "; " + rtprio_hint() + ")";
+}
 
 std::string make_realtime(const RtOptions& o) {
   std::string log;
@@ -57,14 +87,16 @@ std::string make_realtime(const RtOptions& o) {
     prefault_stack(256 * 1024);
     log += "memory locked";
   } else {
-    log += std::string("mlockall not permitted (") + std::strerror(errno) + "), memory not locked";
+    log += std::string("mlockall not permitted (") + std::strerror(errno) + "; RLIMIT_MEMLOCK is " +
+           limit_text(RLIMIT_MEMLOCK, 1024, " KiB") +
+           ": LimitMEMLOCK=infinity in the systemd unit or ulimit -l), memory not locked";
   }
   sched_param p{};
   p.sched_priority = o.priority;
   if (const int rc = pthread_setschedparam(pthread_self(), SCHED_FIFO, &p); rc == 0) {
     log += ", cycle thread SCHED_FIFO priority " + std::to_string(o.priority);
   } else {
-    log += std::string(", SCHED_FIFO not permitted (") + std::strerror(rc) +
+    log += std::string(", SCHED_FIFO not permitted (") + std::strerror(rc) + "; " + rtprio_hint() +
            "): cycle thread runs with normal priority";
   }
   return log;

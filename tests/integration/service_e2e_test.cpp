@@ -1453,6 +1453,38 @@ TEST(ServiceProcesses, ARunEndsWhenTheServiceShutsDownDuringIt) {
   EXPECT_EQ(log.find("NOT stopped"), std::string::npos) << log;
 }
 
+// A SCHED_FIFO priority asked for (--rt-priority, --dds-priority) that the kernel refuses is an
+// error naming the limit to raise: it was a line on standard output and a service at normal
+// priority, exit 0 (session 75). Run as nobody (RLIMIT_RTPRIO 0 there), which needs root here.
+TEST(ServiceProcesses, ARefusedRealTimePriorityThatWasAskedForIsAnError) {
+  const char* setpriv = "/usr/bin/setpriv";  // util-linux
+  if (::geteuid() != 0 || ::access(setpriv, X_OK) != 0) {
+    GTEST_SKIP() << "needs root and setpriv to run the service as another user";
+  }
+  ServiceEnv env;
+  {
+    // A build under a directory nobody may enter (/root) cannot be run so.
+    test::Child probe;
+    ASSERT_TRUE(probe.start(
+        {setpriv, "--reuid=65534", "--regid=65534", "--clear-groups", TGM_SERVICE_BIN, "--version"},
+        env.path("probe.log")));
+    if (probe.wait(kHang) != 0) GTEST_SKIP() << "nobody cannot run " << TGM_SERVICE_BIN;
+  }
+  for (const char* flag : {"--rt-priority", "--dds-priority"}) {
+    test::Child service;
+    ASSERT_TRUE(service.start(
+        {setpriv, "--reuid=65534", "--regid=65534", "--clear-groups", TGM_SERVICE_BIN, "--config",
+         env.config(), flag, "40", "--service-check-ms", "0", "--duration", "1"},
+        env.path("nobody.log")));
+    EXPECT_EQ(service.wait(kHang), 2) << service.log();
+    EXPECT_NE(service.log().find(std::string("tgm-service: ") + flag +
+                                 " 40: SCHED_FIFO priority 40 not permitted (Operation not "
+                                 "permitted; RLIMIT_RTPRIO is 0: raise it with LimitRTPRIO="),
+              std::string::npos)
+        << service.log();
+  }
+}
+
 // Two services on one domain that neither gives way (both started with --service-check-ms 0):
 // a client follows the first it heard and never mixes in the other's states (tgm-hmi run said
 // "tgm-service restarted" at every flip, tgm-plc logged a restart at each), and says that there

@@ -27,6 +27,10 @@ struct RtOptions {
 //! worked.
 std::string make_realtime(const RtOptions& o);
 
+//! Why SCHED_FIFO at `priority` is refused to this process, with the limit to raise; empty when
+//! it is permitted (tried on a thread of its own, which then ends).
+std::string sched_fifo_refusal(int priority);
+
 //! Runs `engine` against `port` every `period_ns` until `stop` becomes true. Call from the
 //! thread that is to be the cycle thread. A cycle that starts a whole period or more late counts
 //! the periods it missed as missed cycles; their deadlines are skipped (no catch-up burst).
