@@ -191,10 +191,17 @@ std::vector<std::string> MachineConfig::validate() const {
                 " selects no axis of any interpolator (bit 0 is axis 0; the largest has " +
                 std::to_string(most_axes) + " axes)");
   }
-  // The checks of Command -1 / -2 (core/SMOOTHING.md), so a bad default is reported at load.
-  if (s.iir_axis_mask != 0 && s.iir_p_e6 > 0 && s.iir_q_e6 > 0 && s.iir_f_e6 > 0) {
+  // The checks of Command -1 / -2 (core/SMOOTHING.md), so a bad default is reported at load:
+  // with the mask 0 too (a typo stayed hidden until the filter was turned on, session 75), and
+  // under the key at fault (an f out of range was said at iir_p_e6's line, as smoothing.iir).
+  if (s.iir_p_e6 > 0 && s.iir_q_e6 > 0 && s.iir_f_e6 > 0) {
     if (const RequestResult r = IirFilter::check(s.iir_p_e6, s.iir_q_e6, s.iir_f_e6); !r.ok()) {
-      e.push_back("smoothing.iir: " + r.reason);
+      const std::string& w = r.reason;
+      const char* key = w.rfind("IIR p ", 0) == 0   ? "smoothing.iir_p_e6"
+                        : w.rfind("IIR q ", 0) == 0 ? "smoothing.iir_q_e6"
+                        : w.rfind("IIR f ", 0) == 0 ? "smoothing.iir_f_e6"
+                                                    : "smoothing.iir";
+      e.push_back(std::string(key) + ": " + w);
     }
   }
   if (s.spline_points >= 50 && s.spline_points <= 500 && finite_positive(s.spline_jerk_mm_s3) &&

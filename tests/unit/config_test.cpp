@@ -691,13 +691,19 @@ TEST(Config, EveryOtherBadValueIsNamedWithItsKeyAndLine) {
             "m.yaml:1: smoothing.spline_jerk_mm_s3: must be at most 2147483647 (Command -2 "
             "carries it as a 32-bit parameter), not 3e+09");
   EXPECT_TRUE(load_config_text("smoothing: {spline_jerk_mm_s3: 2147483647}\n", "m.yaml").config);
-  // Given on lines of their own: the first of the group's keys, and no "not given".
-  load = load_config_text(
-      "smoothing:\n  iir_axis_mask: 7\n  iir_p_e6: 2000000\n  iir_f_e6: 2001000000\n", "m.yaml");
-  ASSERT_EQ(load.errors.size(), 1u);
-  EXPECT_EQ(load.errors[0],
-            "m.yaml:2: smoothing.iir: IIR f (Command_Parameter[2]) must be 1000000..2000000000 "
-            "(1..2000 ms x 1e6), not 2001000000");
+  // One parameter out of range is said at its own key and line (it was said as smoothing.iir
+  // at the group's first line, session 75), also with the filter off (mask 0): a typo stayed
+  // hidden until the filter was turned on.
+  for (const char* mask : {"7", "0"}) {
+    load = load_config_text(std::string("smoothing:\n  iir_axis_mask: ") + mask +
+                                "\n  iir_p_e6: 2000000\n  iir_f_e6: 2001000000\n",
+                            "m.yaml");
+    ASSERT_EQ(load.errors.size(), 1u) << mask;
+    EXPECT_EQ(load.errors[0],
+              "m.yaml:4: smoothing.iir_f_e6: IIR f (Command_Parameter[2]) must be "
+              "1000000..2000000000 (1..2000 ms x 1e6), not 2001000000")
+        << mask;
+  }
 
   // A default that makes a built-in value of the same axes wrong is said once, at the
   // default's line (nine findings without a line when the config lists no interpolators).

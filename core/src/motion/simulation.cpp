@@ -74,7 +74,10 @@ std::optional<Simulation> Simulation::create(const MachineConfig& machine, const
   for (const auto& [code, parameter] : options.commands) {
     const auto c = ip->command(code, parameter);
     if (!c.ok()) {
-      if (error) *error = "Command " + std::to_string(code) + ": " + c.reason;
+      // Prefixed only where the reason does not name its Command itself ("Command -1: Command
+      // -1: the axis mask ...", session 75).
+      const std::string prefix = "Command " + std::to_string(code) + ": ";
+      if (error) *error = c.reason.rfind(prefix, 0) == 0 ? c.reason : prefix + c.reason;
       return std::nullopt;
     }
     if (ip->registers().command_status != 0) {
