@@ -678,6 +678,29 @@ int run_simulate(int argc, char** argv) {
           "(peaks include the emergency ramp, which is held to the emergency deceleration and\n"
           " the jerk scaled by the same ratio, not to the limits above)\n");
     }
+    if (sum.smoothed_measured) {
+      // What the drives get: the checker holds Orig_Position to the limits, and the smoothing
+      // may take Position beyond them (an IIR filter below critical damping overshoots).
+      bool over = false;
+      std::fprintf(report, "after the spline / IIR (Position, to the drives):\n");
+      for (int i = 0; i < n; ++i) {
+        const auto ui = static_cast<std::size_t>(i);
+        const AxisConfig& a = axes[ui];
+        const AxisPeaks& pk = sum.smoothed_peaks[ui];
+        const bool v_over = pk.velocity_mm_s > a.max_velocity_mm_s * share * (1.0 + 1e-9);
+        const bool a_over = pk.acceleration_mm_s2 > a.max_acceleration_mm_s2 * share * (1.0 + 1e-9);
+        over = over || v_over || a_over;
+        std::fprintf(report, "%c      %9.3f / %-9.3f%s   %10.1f / %-10.1f%s\n", a.letter,
+                     pk.velocity_mm_s, a.max_velocity_mm_s, v_over ? " over" : "     ",
+                     pk.acceleration_mm_s2, a.max_acceleration_mm_s2, a_over ? " over" : "     ");
+      }
+      if (over) {
+        std::fprintf(report,
+                     "warning:   the smoothing takes Position beyond an axis limit that the "
+                     "interpolated path keeps (an IIR filter below critical damping overshoots): "
+                     "the drives get that\n");
+      }
+    }
     std::fprintf(report, "violations: %llu\n",
                  static_cast<unsigned long long>(sum.violation_count));
     constexpr std::size_t kListed = 20;

@@ -953,6 +953,46 @@ TEST(Wiring, SimulationEndsWhenEveryAxisArrived) {
   EXPECT_NE(err.find("50..500"), std::string::npos) << err;
 }
 
+// The limit check holds Orig_Position to the limits; Position after the smoothing is what the
+// drives get. At a corner crossed at full speed (a tolerance above the feed), Y's velocity
+// steps from 0 to 233 mm/s: an IIR filter below critical damping overshoots that step by half
+// (356 mm/s against 250), and the summary has the peaks of Position to say so; a critically
+// damped one does not overshoot (its step response is monotone), and without the filter
+// nothing is measured (Position is Orig_Position). Before session 75 the first said
+// "violations: 0" and nothing else.
+TEST(Wiring, TheLimitCheckMeasuresPositionAfterTheSmoothing) {
+  MachineConfig m = MachineConfig::default_machine();
+  for (AxisConfig& a : m.interpolators[0].axes) a.corner_velocity_tolerance_mm_s = 10000.0;
+  const double vmax = m.interpolators[0].axes[1].max_velocity_mm_s;
+  ProgramBuilder b;
+  b.line({50.0, 0.0, 0.0}, 14000.0).line({50.0, 50.0, 0.0}, 14000.0).end();
+  const auto peak_v = [&](std::vector<std::pair<std::int32_t, Params>> commands, bool* measured) {
+    SimulationOptions o;
+    o.check_limits = true;
+    o.commands = std::move(commands);
+    auto sim = Simulation::create(m, o);
+    EXPECT_TRUE(sim);
+    const SimulationSummary s = sim->run(b.program());
+    EXPECT_EQ(s.result, StepResult::kFinished) << s.error;
+    EXPECT_EQ(s.violation_count, 0u);
+    *measured = s.smoothed_measured;
+    return s.smoothed_peaks[1].velocity_mm_s;
+  };
+  bool measured = false;
+  // zeta 0.2: overshoot exp(-pi zeta / sqrt(1 - zeta^2)) = 53 % of a step.
+  const double under =
+      peak_v({{kCommandIir, iir_params(400'000, 1'000'000, 50'000'000, 3)}}, &measured);
+  EXPECT_TRUE(measured);
+  EXPECT_GT(under, 1.4 * vmax);
+  const double critical =
+      peak_v({{kCommandIir, iir_params(2'000'000, 1'000'000, 50'000'000, 3)}}, &measured);
+  EXPECT_TRUE(measured);
+  EXPECT_LE(critical, 14000.0 / 60.0 * (1.0 + 1e-9));
+  EXPECT_GT(critical, 0.99 * 14000.0 / 60.0);
+  EXPECT_EQ(peak_v({}, &measured), 0.0);
+  EXPECT_FALSE(measured);
+}
+
 // A program whose IIR-filtered axis ends far from the origin ends too (Status 3 at the
 // filtered position equal to the end point). Before session 41 the filter's lag stuck at a
 // few units in the last place of such a coordinate (X at 2,400 mm: 1.4e-12 mm), it never came

@@ -208,6 +208,8 @@ SimulationSummary Simulation::run_records(std::size_t total, const AppendRecords
   // The axes stand at the start before the first cycle: the checker differentiates the first
   // cycles against that, as a live run's checker does with the cycles before the start.
   if (checker_) checker_->add_cycle(ip.registers(), {});
+  std::array<double, kMaxAxes> smoothed_prev = ip.registers().speed;  // Speed of the last cycle
+  bool smoothed_prev_valid = true;
   while (true) {
     const double t = static_cast<double>(cycle) * T;
     while (change < changes.size() && changes[change].first <= t) {
@@ -274,6 +276,23 @@ SimulationSummary Simulation::run_records(std::size_t total, const AppendRecords
       } else {
         checker_->add_cycle(reg, ip.corner_events());
       }
+      // Position after the smoothing, while it does more than pass Orig_Position through
+      // (that the checker covers). Acceleration from successive cycles only: a skip of several
+      // (standstill) starts the difference afresh.
+      if (!ip.smoothing().passes_through()) {
+        sum.smoothed_measured = true;
+        for (int i = 0; i < reg.number_axes; ++i) {
+          const auto u = static_cast<std::size_t>(i);
+          AxisPeaks& pk = sum.smoothed_peaks[u];
+          pk.velocity_mm_s = std::max(pk.velocity_mm_s, std::fabs(reg.speed[u]));
+          if (smoothed_prev_valid && done == 1) {
+            pk.acceleration_mm_s2 =
+                std::max(pk.acceleration_mm_s2, std::fabs(reg.speed[u] - smoothed_prev[u]) / T);
+          }
+        }
+      }
+      smoothed_prev = reg.speed;
+      smoothed_prev_valid = done == 1;
     }
     if (on_cycle) on_cycle(reg);
     if (on_block) {
