@@ -25,7 +25,8 @@ constexpr const char* kUsage =
     "  --interpolator N  which interpolator's axes and letters to compile for (0..2)\n"
     "  --dump jsonl      print one JSON object per record to standard output\n"
     "  --dump text       print one readable line per record\n"
-    "  --out FILE        write the binary intercode to FILE (only when there is no error)\n"
+    "  --out FILE        write the binary intercode to FILE (only when there is no error;\n"
+    "                    '-' is standard output, as simulate's --csv -)\n"
     "  --start X20,Y5    where the machine will stand when the program starts [mm] (default:\n"
     "                    zero; axes not named: 0): G91 moves and the axes a G90 line does not\n"
     "                    name start there. The file records it, and `tgm-hmi run` runs the\n"
@@ -167,6 +168,14 @@ int run_compile(int argc, char** argv) {
   if (args.help()) return 0;
   if (args.failed()) return 2;
   if (file.empty()) return args.usage_error("a G-code FILE is required");
+  // '-' is standard output, as `simulate --csv -` has it: it wrote a file named '-' (session
+  // 75). Written there whole at the end (AtomicFile holds what goes to a pipe or a device).
+  if (out_path == "-") {
+    if (!dump.empty()) {
+      return args.usage_error("--out - and --dump both write standard output: give --out a file");
+    }
+    out_path = "/dev/stdout";
+  }
   if (!args.distinct_files({{"FILE", file}, args.config_file()}, {{"--out", out_path}})) {
     return 2;
   }

@@ -50,6 +50,15 @@ TEST_F(HmiCompile, ExampleProgramWritesIntercodeEqualToTheInProcessEncoding) {
   encode_intercode(c.program, expected);
   EXPECT_EQ(slurp(out), expected);
   EXPECT_EQ(temporaries(dir_), 0) << "a temporary file was left";
+  // '-' is standard output, as simulate's --csv - (it wrote a file named '-'); not with --dump.
+  const ProcessResult piped = run("compile " + prog.string() + " --config " + kConfig + " --out -");
+  ASSERT_EQ(piped.exit_code, 0) << piped.err;
+  EXPECT_EQ(piped.out, expected);
+  const ProcessResult both =
+      run("compile " + prog.string() + " --config " + kConfig + " --out - --dump text");
+  EXPECT_EQ(both.exit_code, 2);
+  EXPECT_NE(both.err.find("--out - and --dump both write standard output"), std::string::npos)
+      << both.err;
 }
 
 // G41/G42 offset the path by the radius of D, else of the active tool's table entry; with no
