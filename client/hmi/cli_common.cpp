@@ -155,6 +155,15 @@ bool open_intercode(const std::string& file, const FileView& input, PackedProgra
     std::fprintf(stderr, "%s: error: %s\n", file.c_str(), error.c_str());
     return false;
   }
+  // Version 2 has no checksum: a flipped bit ran as another program without a word (X10 as
+  // X10.5, session 75). Read as before, and said.
+  if (const std::string_view f = out.file();
+      f.size() >= 6 && static_cast<unsigned char>(f[4]) == 2 && f[5] == 0) {
+    std::fprintf(stderr,
+                 "%s: note: version 2 intercode carries no checksum, so damage to it cannot be "
+                 "found; `tgm-hmi compile %s --out NEW` writes it as the current version\n",
+                 file.c_str(), file.c_str());
+  }
   return true;
 }
 

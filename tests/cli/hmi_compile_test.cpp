@@ -351,6 +351,27 @@ TEST_F(HmiCompile, BadCommandLinesAndFilesAreUsageErrors) {
 // Intercode is known by its content: `compile` checks it and dumps it, copies it or sums it up
 // (it was parsed as G-code: 277 errors of binary garbage for the manual's example), and
 // `simulate` runs it under any name. A damaged file is refused; --start is the G-code's.
+// A version 2 file (no checksum) is read as before, with a note that damage to it cannot be
+// found and how to rewrite it: a flipped bit ran as another program without a word.
+TEST_F(HmiCompile, AVersionTwoFileIsReadWithANoteThatItHasNoChecksum) {
+  const CompileResult c = compile_gcode("G90 G1 X10 F1000\nM2\n", {});
+  ASSERT_TRUE(c.ok());
+  std::string bytes;
+  encode_intercode(c.program, bytes);
+  // Version 2: version 4 without the start point after the header and without the checksum.
+  bytes.erase(IntercodeEncoder::kCountOffset + 8, 3 * sizeof(double));
+  bytes.resize(bytes.size() - 4);
+  bytes[4] = 2;
+  const fs::path v2 = write("old.tgmi", bytes);
+  const ProcessResult r = run("compile " + v2.string() + " --config " + kConfig + " --dump text");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("G1  X10.0000"), std::string::npos) << r.out;
+  EXPECT_EQ(r.err, v2.string() +
+                       ": note: version 2 intercode carries no checksum, so damage to "
+                       "it cannot be found; `tgm-hmi compile " +
+                       v2.string() + " --out NEW` writes it as the current version\n");
+}
+
 TEST_F(HmiCompile, IntercodeGivenAsTheProgramIsReadAsIntercode) {
   const fs::path tgmi = dir_ / "ex.tgmi";
   ProcessResult r = run("compile " + std::string(test::kManualExample) + " --config " + kConfig +
