@@ -134,7 +134,7 @@ bool load_packed(const std::string& file, const MachineConfig& machine, int ip, 
     if (out.tables().axis_letters != letters) {
       std::fprintf(stderr,
                    "%s: error: compiled for the axes %s, interpolator %d has %s: compile the "
-                   "G-code for it (tgm-hmi compile --interpolator %d)\n",
+                   "G-code for it (tgm-hmi compile --interpolator %d with this config)\n",
                    file.c_str(), out.tables().axis_letters.c_str(), ip, letters.c_str(), ip);
       return false;
     }

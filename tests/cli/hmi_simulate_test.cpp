@@ -629,7 +629,7 @@ TEST_F(HmiSimulate, IntercodeRunsAsItsGcodeAndOtherAxesAreRefused) {
       r.err,
       rot.string() +
           ": error: compiled for the axes XYC, interpolator 0 has XYZ: compile the G-code for it "
-          "(tgm-hmi compile --interpolator 0)\n");
+          "(tgm-hmi compile --interpolator 0 with this config)\n");
 }
 
 // Memory running out (here a 150 MB address-space limit and a million-line program) ends with
