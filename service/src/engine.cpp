@@ -480,14 +480,20 @@ void Engine::cycle(CyclePort& port, const LatenessStats& lateness) {
     s.ip.step();
     if (s.checker) check_limits(port, i);
     const Registers& reg = s.ip.registers();
-    if (reg.message_count != s.message_seen) {
-      s.message_seen = reg.message_count;
-      const std::string_view text = s.ip.message_text(reg.message_slot);
+    // Every message that came out since the last cycle, in order: M29 lines in a row come out
+    // in one cycle, and only the last was sent (session 75).
+    // (Unsigned: a count that wrapped is still the difference; the ring keeps the last 256.)
+    const std::uint32_t fresh = reg.message_count - s.message_seen;
+    for (std::uint32_t k = fresh > 256u ? fresh - 256u + 1u : 1u; k <= fresh; ++k) {
+      const std::int32_t slot = s.ip.message_slot_of(s.message_seen + k);
+      if (slot < 0) continue;  // more than 256 in one cycle: the ring kept the newest
+      const std::string_view text = s.ip.message_text(slot);
       ++s.message_counter;
       s.message_text.set(text);
-      send_message(port, i, MessageOut::Severity::kInfo, text, s.ip.message_line(reg.message_slot),
+      send_message(port, i, MessageOut::Severity::kInfo, text, s.ip.message_line(slot),
                    s.program_id);
     }
+    s.message_seen = reg.message_count;
     InterpolatorSnapshot& o = snapshot_.ip[static_cast<std::size_t>(i)];
     if (s.events != 0) report_output_steps(port, i, o.reg, reg);
     // A command that waited at Command_Status 1 (its reply said accepted) and then ended

@@ -618,6 +618,36 @@ TEST(Engine, ARatioOrOffsetThatStepsPositionIncIsWarned) {
   EXPECT_EQ(port.messages[0].program_id, 3u);
 }
 
+// M29 lines in a row come out in one cycle: each is sent, in order, with its line. Only the
+// last was (review of the HMI, session 75: "first" of `M29 (first)` `M29 (second)` never
+// reached any HMI, and the compiler's advice to split a long text over several M29 lines lost
+// all but one piece).
+TEST(Engine, MessagesInARowAreEachSent) {
+  Engine e = make_engine();
+  MockPort port;
+  Program p = line_program(3);
+  Segment last = p.segments.back();  // the end
+  p.segments.pop_back();
+  for (const char* text : {"first", "second", "third"}) {
+    Segment t;
+    t.type = SegmentType::kMessage;
+    t.line = static_cast<std::int32_t>(10 + p.messages.size());
+    t.end = p.segments.back().end;
+    t.aux = static_cast<std::int32_t>(p.messages.size());
+    p.messages.push_back(text);
+    p.segments.push_back(t);
+  }
+  p.segments.push_back(last);
+  run_to_end(e, port, p, 5, 20000);
+  ASSERT_EQ(port.last.ip[0].reg.status, static_cast<std::int32_t>(InterpolatorStatus::kEnded));
+  std::vector<std::pair<std::string, std::int32_t>> said;
+  for (const MessageOut& m : port.messages) said.emplace_back(m.text.view(), m.source_line);
+  EXPECT_EQ(said, (std::vector<std::pair<std::string, std::int32_t>>{
+                      {"first", 10}, {"second", 11}, {"third", 12}}));
+  EXPECT_EQ(port.last.ip[0].message_counter, 3u);
+  EXPECT_EQ(port.last.ip[0].message_text.view(), "third");
+}
+
 TEST(Engine, DuplicatesAreDroppedGapsAndForeignProgramsRefused) {
   Engine e = make_engine();
   MockPort port;

@@ -340,6 +340,10 @@ struct Interpolator::Impl {
   std::vector<std::string> msg;
   std::vector<std::int32_t> msg_line;  // source line of each message slot's M29
   std::size_t msg_next = 0;
+  // The slot of each message that came out, by Registers::message_count (mod the ring): a
+  // reader once a cycle takes every one of several that came out in the cycle (it took the
+  // last, and M29 lines in a row lost all but one: session 75).
+  std::array<std::int32_t, kMessageRing> msg_by_count{};
   std::uint64_t tail = 0;     // next q to write
   std::uint64_t cur = 0;      // record being executed (== tail: none)
   std::uint64_t base = 0;     // q of the program's first record (Act_Part = q - base + 1)
@@ -1643,6 +1647,7 @@ struct Interpolator::Impl {
       case kEvMessage:
         reg.message_count += 1;
         reg.message_slot = e.value;
+        msg_by_count[reg.message_count % kMessageRing] = e.value;
         break;
       default:
         break;
@@ -4179,6 +4184,12 @@ std::size_t Interpolator::ring_slots() const {
 }
 bool Interpolator::takes_records() const {
   return impl_->mode != Mode::kEmergency;
+}
+
+std::int32_t Interpolator::message_slot_of(std::uint32_t count) const {
+  const std::uint32_t now = impl_->reg.message_count;
+  if (count == 0 || count > now || now - count >= kMessageRing) return -1;
+  return impl_->msg_by_count[count % kMessageRing];
 }
 
 std::string_view Interpolator::message_text(std::int32_t slot) const {
