@@ -81,6 +81,7 @@ TEST(HmiJson, StatusWritesOneObjectPerLineWithEveryValueReadable) {
   s.message_counter(4);
   s.m_func_line(11);
   s.program_stop(true);
+  s.off_trajectory(true);
   std::atomic<bool> done{false};
   std::thread writer([&] {
     while (!done) {
@@ -98,7 +99,12 @@ TEST(HmiJson, StatusWritesOneObjectPerLineWithEveryValueReadable) {
   ASSERT_EQ(code, 0) << test::read_text(env.path("status.err"));
   ASSERT_EQ(text_code, 0) << test::read_text(env.path("text.err"));
   ASSERT_GE(text_lines.size(), 2u);
-  EXPECT_NE(text_lines[1].find("Run_Flag 0x00020005 (section 5, speed 2), "
+  EXPECT_NE(text_lines[0].find("Status 1 (running, at an M0 program stop: start continues, off "
+                               "the trajectory: the program was dropped)"),
+            std::string::npos)
+      << text_lines[0];
+  EXPECT_NE(text_lines[1].find("Run_Flag 0x00020005 (section 5 WAIT_MFUNC_WAIT_FOR_END, speed 2 "
+                               "accelerating), "
                                "Address_External_Position 4096"),
             std::string::npos)
       << text_lines[1];
@@ -114,7 +120,7 @@ TEST(HmiJson, StatusWritesOneObjectPerLineWithEveryValueReadable) {
   EXPECT_EQ(j["m_func"].as<int>(), 51);
   EXPECT_EQ(j["m_func_line"].as<int>(), 11);
   EXPECT_TRUE(j["program_stop"].as<bool>());
-  EXPECT_FALSE(j["off_trajectory"].as<bool>());
+  EXPECT_TRUE(j["off_trajectory"].as<bool>());
   EXPECT_EQ(j["run_flag"].as<std::uint32_t>(), 0x00020005u);
   // Every register of the manual's table is shown (this one was left out of both views).
   EXPECT_EQ(j["address_external_position"].as<int>(), 4096);

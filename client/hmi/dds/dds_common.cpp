@@ -148,15 +148,30 @@ std::string format_state(const msg::InterpolatorState& s, const std::string& con
     out += t + '\n';
   };
   const auto rf = static_cast<std::uint32_t>(s.run_flag());
-  append_line(out, "Interpolator %d: Status %d (%s%s), Number_Axes %d, Buffer_Size %d", s.number(),
-              s.status(), std::string(client::status_name(s.status())).c_str(),
-              s.program_stop() ? ", at an M0 program stop: start continues" : "", s.number_axes(),
-              s.buffer_size());
+  // Off the trajectory (Command 5, 9 or 2049) the screen looked the same as after Command 4,
+  // whose program a start resumes (review of the HMI, session 75).
+  append_line(out, "Interpolator %d: Status %d (%s%s%s), Number_Axes %d, Buffer_Size %d",
+              s.number(), s.status(), std::string(client::status_name(s.status())).c_str(),
+              s.program_stop() ? ", at an M0 program stop: start continues" : "",
+              s.off_trajectory() ? ", off the trajectory: the program was dropped" : "",
+              s.number_axes(), s.buffer_size());
+  // The manual's names of Run_Flag's two halves, after the numbers.
+  static constexpr const char* kSection[] = {"STOP",       "RUN",        "WAIT_WINDOW",
+                                             "WAIT_PULSE", "WAIT_MFUNC", "WAIT_MFUNC_WAIT_FOR_END"};
+  static constexpr const char* kSpeed[] = {"",
+                                           "no motion",
+                                           "accelerating",
+                                           "speed reached",
+                                           "decelerating",
+                                           "next speed section",
+                                           "decelerating on the last section",
+                                           "emergency ramp"};
+  const std::uint32_t section = rf & 0xFFFFu, speed = rf >> 16;
   append_line(out,
-              "  Command %d, Command_Status %d, Run_Flag 0x%08x (section %u, speed %u), "
+              "  Command %d, Command_Status %d, Run_Flag 0x%08x (section %u %s, speed %u %s), "
               "Address_External_Position %d",
-              s.command(), s.command_status(), rf, rf & 0xFFFFu, rf >> 16,
-              s.address_external_position());
+              s.command(), s.command_status(), rf, section, section < 6 ? kSection[section] : "?",
+              speed, speed >= 1 && speed < 8 ? kSpeed[speed] : "?", s.address_external_position());
   append_line(out,
               "  Act_Part %d, line %d, Act_G_Func %d, Act_M_Func %d, M_Func %d, Last_Cont_M_Func "
               "%d, Tool_Number %d",
