@@ -333,10 +333,13 @@ int service_main(int argc, char** argv) {
   const auto period_ns = static_cast<std::int64_t>(config.machine.cycle_time_us) * 1000;
   std::printf(
       "tgm-service: %d interpolator%s, cycle %d us, DDS domain %d as '%s', instance %016llx,"
-      " version %s\n",
+      " version %s, config %s\n",
       engine->count(), engine->count() == 1 ? "" : "s", config.machine.cycle_time_us,
       config.dds.domain_id, port->participant_name().c_str(),
-      static_cast<unsigned long long>(port->service_instance()), tgm::cli::version());
+      static_cast<unsigned long long>(port->service_instance()), tgm::cli::version(),
+      // Which file it read: a binary copied away from its share/ read the build tree's
+      // default.yaml without a word (review of the installation, session 75).
+      tgm::cli::ArgReader::config_file(config_path).path.c_str());
   std::fflush(stdout);
 
   std::atomic<bool> stop{false};

@@ -225,6 +225,15 @@ TEST_F(ServiceSecurity, TheToolsArgumentsAndTheDomainsItsPermissionsAllow) {
   };
   const std::string log = env_.path("tool.log");
   const std::string dir = env_.path("narrow");
+  // --version, as every binary has it, the same as tgm-service's.
+  EXPECT_EQ(tool("--version", log), 0);
+  EXPECT_EQ(std::system(("'" + std::string(TGM_SERVICE_BIN) + "' --version >'" +
+                         env_.path("service_version.log") + "' 2>&1")
+                            .c_str()),
+            0);
+  std::string service_version = test::read_text(env_.path("service_version.log"));
+  ASSERT_EQ(service_version.rfind("tgm-service ", 0), 0u) << service_version;
+  EXPECT_EQ(test::read_text(log), "tgm-security " + service_version.substr(12));
   EXPECT_EQ(tool("", log), 2);
   EXPECT_NE(test::read_text(log).find("--out DIR is required"), std::string::npos);
   EXPECT_EQ(tool("--out " + dir + " --days 0", log), 2);
