@@ -99,6 +99,16 @@ TEST(HmiJson, StatusWritesOneObjectPerLineWithEveryValueReadable) {
   ASSERT_EQ(code, 0) << test::read_text(env.path("status.err"));
   ASSERT_EQ(text_code, 0) << test::read_text(env.path("text.err"));
   ASSERT_GE(text_lines.size(), 2u);
+  std::string text_all;
+  for (const std::string& l : text_lines) text_all += l + "\n";
+  // Every axis of an entry by its letter, and Command_Parameter (session 75: three unnamed
+  // values, no Command_Parameter).
+  EXPECT_NE(text_all.find("    [0] G2 line 12 plane 17 tool 0 end X20.0000 Y0.0000 Z0.0000 "
+                          "radius 5.0000"),
+            std::string::npos)
+      << text_all;
+  EXPECT_NE(text_all.find("  Command_Parameter: 0 0 0"), std::string::npos) << text_all;
+  EXPECT_NE(text_all.find("  M_Function_Parameter: A1.5 Z-2\n"), std::string::npos) << text_all;
   EXPECT_NE(text_lines[0].find("Status 1 (running, at an M0 program stop: start continues, off "
                                "the trajectory: the program was dropped)"),
             std::string::npos)

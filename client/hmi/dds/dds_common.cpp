@@ -188,13 +188,23 @@ std::string format_state(const msg::InterpolatorState& s, const std::string& con
   axes("  Ratio [inc/mm]       ", -1, [&](std::size_t i) { return s.ratio()[i]; });
   axes("  Offset [inc]         ", 0, [&](std::size_t i) { return s.offset()[i]; });
   axes("  Backlash [inc]       ", 0, [&](std::size_t i) { return s.backlash()[i]; });
-  std::string params;
-  for (std::size_t k = 0; k < kParamLetters; ++k) {
-    if (is_not_set(s.m_function_parameter()[k])) continue;
-    std::snprintf(buf, sizeof buf, " %c%g", static_cast<char>('A' + k), s.m_function_parameter()[k]);
-    params += buf;
-  }
+  // The letters that are set, each value with all its digits (%g showed H99999999 as H1e+08).
+  const auto letters_set = [&](const auto& values) {
+    std::string text;
+    for (std::size_t k = 0; k < kParamLetters; ++k) {
+      if (is_not_set(values[k])) continue;
+      std::snprintf(buf, sizeof buf, " %c%.15g", static_cast<char>('A' + k), values[k]);
+      text += buf;
+    }
+    return text;
+  };
+  const std::string params = letters_set(s.m_function_parameter());
   append_line(out, "  M_Function_Parameter:%s", params.empty() ? " (none)" : params.c_str());
+  std::string command_parameter;
+  for (const std::int32_t p : s.command_parameter()) command_parameter += " " + std::to_string(p);
+  append_line(out, "  Command_Parameter:%s", command_parameter.c_str());
+  // Every axis by its letter (three unnamed values dropped A..E of a 10-axis interpolator), the
+  // angles where they apply and AllParams (review of the HMI, session 75).
   append_line(out, "  LookAheadBuffer:");
   for (std::size_t e = 0; e < s.look_ahead_buffer().size(); ++e) {
     const auto& l = s.look_ahead_buffer()[e];
@@ -202,9 +212,26 @@ std::string format_state(const msg::InterpolatorState& s, const std::string& con
       append_line(out, "    [%zu] invalid", e);
       continue;
     }
-    append_line(out, "    [%zu] %s%d line %d plane %d tool %d end (%.4f, %.4f, %.4f) radius %.4f",
-                e, l.movement_type() == 1 ? "G" : "M", l.movement_code(), l.line(), l.plane(),
-                l.tool(), l.end_pos()[0], l.end_pos()[1], l.end_pos()[2], l.radius());
+    std::string end;
+    for (int a = 0; a < n; ++a) {
+      const auto ua = static_cast<std::size_t>(a);
+      std::snprintf(buf, sizeof buf, " %c%.4f", ua < letters.size() ? letters[ua] : '?',
+                    l.end_pos()[ua]);
+      end += buf;
+    }
+    std::string angles;
+    for (const auto& [name, v] :
+         {std::pair{"tangent", l.tangent()}, std::pair{"start angle", l.start_angle()},
+          std::pair{"end angle", l.end_angle()}}) {
+      if (is_not_set(v)) continue;
+      std::snprintf(buf, sizeof buf, " %s %.3f", name, v);
+      angles += buf;
+    }
+    const std::string all = letters_set(l.all_params());
+    append_line(out, "    [%zu] %s%d line %d plane %d tool %d end%s radius %.4f%s%s%s", e,
+                l.movement_type() == 1 ? "G" : "M", l.movement_code(), l.line(), l.plane(),
+                l.tool(), end.c_str(), l.radius(), angles.c_str(), all.empty() ? "" : " AllParams",
+                all.c_str());
   }
   append_line(out, "  program %u: next_sequence %llu, buffered %d, free %d", s.program_id(),
               static_cast<unsigned long long>(s.next_sequence()), s.buffered_segments(),
