@@ -400,7 +400,10 @@ void Engine::check_limits(CyclePort& port, int i) {
 }
 
 void Engine::peer_notice(CyclePort& port, const PeerNotice& n) {
-  const std::string name(n.client.view());
+  // A name of up to 64 characters (a long --participant-prefix) made the warnings below longer
+  // than a message carries (255 bytes), and they lost their advice at the end: at most 40 here.
+  std::string name(n.client.view());
+  if (name.size() > 40) name = name.substr(0, 37) + "...";
   const std::string who = name.empty() ? std::string("a client") : "'" + name + "'";
   switch (n.kind) {
     case PeerNotice::Kind::kPlcLost:
@@ -448,13 +451,13 @@ void Engine::peer_notice(CyclePort& port, const PeerNotice& n) {
       const std::string records = std::to_string(s.next_sequence) + " records";
       send_message(port, n.interpolator, MessageOut::Severity::kWarning,
                    n.ended ? program + ": its sender " + who + " ended after " + records +
-                                 ": the rest will not come, and the interpolator stops at the end "
-                                 "of what is buffered (Status 8); `tgm-hmi command clear` drops it"
+                                 ": the rest will not come, and the motion stops at the buffer's "
+                                 "end (Status 8); `tgm-hmi command clear` drops it"
                            : program + ": its sender " + who + " gave no sign of life after " +
                                  records +
-                                 " (it stopped, or the network is down): unless it comes back, the "
-                                 "interpolator stops at the end of what is buffered (Status 8); "
-                                 "`tgm-hmi command clear` drops the rest",
+                                 " (stopped, or network down): unless it returns, the motion "
+                                 "stops at the buffer's end (Status 8); `tgm-hmi command clear` "
+                                 "drops the rest",
                    0, n.program_id);
       return;
     }

@@ -285,8 +285,7 @@ TEST(ServiceProcesses, AKilledStreamingHmiAndAKilledPlcAreSaid) {
   watch.wait_for_log("no sign of life from tgm-plc", 10s, 20ms);
   const std::string w = watch.log();
   EXPECT_NE(w.find("its sender 'tgm-hmi-"), std::string::npos) << w;
-  EXPECT_NE(w.find("unless it comes back, the interpolator stops at the end of what is buffered"),
-            std::string::npos)
+  EXPECT_NE(w.find("unless it returns, the motion stops at the buffer's end"), std::string::npos)
       << w;
   EXPECT_NE(w.find("no sign of life from tgm-plc"), std::string::npos) << w;
   EXPECT_EQ(watch.interrupt(), 0) << w;

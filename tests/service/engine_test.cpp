@@ -220,9 +220,9 @@ TEST(Engine, AClientThatIsGoneIsSaid) {
   ASSERT_EQ(port.messages.size(), 2u);
   EXPECT_EQ(port.messages[0].severity, MessageOut::Severity::kWarning);
   EXPECT_EQ(port.messages[0].text.view(),
-            "program 7: its sender 'tgm-hmi-12-abcdef01' gave no sign of life after 20 records (it "
-            "stopped, or the network is down): unless it comes back, the interpolator stops at the "
-            "end of what is buffered (Status 8); `tgm-hmi command clear` drops the rest");
+            "program 7: its sender 'tgm-hmi-12-abcdef01' gave no sign of life after 20 records "
+            "(stopped, or network down): unless it returns, the motion stops at the buffer's end "
+            "(Status 8); `tgm-hmi command clear` drops the rest");
   EXPECT_EQ(port.messages[0].program_id, 7u);
   EXPECT_EQ(port.messages[1].severity, MessageOut::Severity::kInfo);
   EXPECT_EQ(port.messages[1].text.view(), "program 7: its sender 'tgm-hmi-12-abcdef01' is back");
@@ -235,8 +235,22 @@ TEST(Engine, AClientThatIsGoneIsSaid) {
   ASSERT_EQ(port.messages.size(), 1u);
   EXPECT_EQ(port.messages[0].text.view(),
             "program 7: its sender 'tgm-hmi-12-abcdef01' ended after 20 records: the rest will not "
-            "come, and the interpolator stops at the end of what is buffered (Status 8); `tgm-hmi "
-            "command clear` drops it");
+            "come, and the motion stops at the buffer's end (Status 8); `tgm-hmi command clear` "
+            "drops it");
+  // The longest it can be still ends with its advice: a name of 64 characters is cut to 40,
+  // within the 255 bytes a message carries.
+  port.messages.clear();
+  n.client.set(std::string(64, 'n'));
+  n.ended = false;
+  port.peer_notices.push_back(n);
+  e.cycle(port, {});
+  ASSERT_EQ(port.messages.size(), 1u);
+  EXPECT_EQ(port.messages[0].text.view(),
+            "program 7: its sender '" + std::string(37, 'n') +
+                "...' gave no sign of life after 20 records (stopped, or network down): unless "
+                "it returns, the motion stops at the buffer's end (Status 8); `tgm-hmi command "
+                "clear` drops the rest");
+  n.client.set("tgm-hmi-12-abcdef01");
   n.ended = false;
   // Another program's sender, or the sender of a complete stream, is not said.
   port.messages.clear();
