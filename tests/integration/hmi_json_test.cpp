@@ -70,6 +70,9 @@ TEST(HmiJson, StatusWritesOneObjectPerLineWithEveryValueReadable) {
   s.m_function_parameter()[25] = -2;                    // Z
   auto& e = s.look_ahead_buffer()[0];
   for (double& p : e.all_params()) p = 1e39;
+  e.tangent(1e39);  // not set: null
+  e.start_angle(90.0);
+  e.end_angle(1e39);
   e.movement_type(1);
   e.movement_code(2);
   e.line(12);
@@ -104,7 +107,7 @@ TEST(HmiJson, StatusWritesOneObjectPerLineWithEveryValueReadable) {
   // Every axis of an entry by its letter, and Command_Parameter (session 75: three unnamed
   // values, no Command_Parameter).
   EXPECT_NE(text_all.find("    [0] G2 line 12 plane 17 tool 0 end X20.0000 Y0.0000 Z0.0000 "
-                          "radius 5.0000"),
+                          "radius 5.0000 start angle 90.000\n"),
             std::string::npos)
       << text_all;
   EXPECT_NE(text_all.find("  Command_Parameter: 0 0 0"), std::string::npos) << text_all;
@@ -149,6 +152,9 @@ TEST(HmiJson, StatusWritesOneObjectPerLineWithEveryValueReadable) {
   EXPECT_EQ(j["look_ahead_buffer"][0]["end_pos_mm"]["X"].as<double>(), 20.0);
   EXPECT_EQ(j["look_ahead_buffer"][0]["radius_mm"].as<double>(), 5.0);
   EXPECT_EQ(j["look_ahead_buffer"][0]["all_params"].size(), 0u);
+  EXPECT_TRUE(j["look_ahead_buffer"][0]["tangent_deg"].IsNull()) << lines[0];
+  EXPECT_EQ(j["look_ahead_buffer"][0]["start_angle_deg"].as<double>(), 90.0);
+  EXPECT_TRUE(j["look_ahead_buffer"][0]["end_angle_deg"].IsNull()) << lines[0];
   EXPECT_TRUE(j["look_ahead_buffer"][1].IsNull());
   EXPECT_EQ(j["message_counter"].as<int>(), 4);
   EXPECT_EQ(j["message_text"].as<std::string>(), text);

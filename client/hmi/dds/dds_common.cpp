@@ -384,9 +384,18 @@ std::string format_state_json(const msg::InterpolatorState& s, const std::string
     json_field(out, "tool", l.tool());
     axes("end_pos_mm", l.end_pos());
     json_field(out, "radius_mm", l.radius());
-    json_field(out, "tangent_deg", l.tangent());
-    json_field(out, "start_angle_deg", l.start_angle());
-    json_field(out, "end_angle_deg", l.end_angle());
+    // "Does not apply" (> 1e38 in the register) is null, as simulate --lookahead writes it: it
+    // was 1e+39 here (review of the HMI, session 75).
+    for (const auto& [key, v] :
+         {std::pair{"tangent_deg", l.tangent()}, std::pair{"start_angle_deg", l.start_angle()},
+          std::pair{"end_angle_deg", l.end_angle()}}) {
+      json_key(out, key);
+      if (is_not_set(v)) {
+        out += "null";
+      } else {
+        json_number(out, v);
+      }
+    }
     json_params(out, "all_params", l.all_params());
     out += '}';
   }
