@@ -847,10 +847,13 @@ int plc_main(int argc, char** argv) {
         // middle); a program loaded and not yet started is not under way.
         using Status = tgm::InterpolatorStatus;
         const auto is = [status](Status x) { return status == static_cast<int>(x); };
-        const bool under_way = is(Status::kRunning) || is(Status::kEmergencyRamp) ||
-                               is(Status::kUnderrun) ||
-                               (is(Status::kReady) && s->buffered_segments() > 0 &&
-                                (s->move_distance() > 0.0 || s->program_stop()));
+        // And an emergency stop on the trajectory (Command 4) with its program loaded, which a
+        // start resumes: the ratio was sent there, and refused (review of the HMI, session 75).
+        const bool under_way =
+            is(Status::kRunning) || is(Status::kEmergencyRamp) || is(Status::kUnderrun) ||
+            (is(Status::kReady) && s->buffered_segments() > 0 &&
+             (s->move_distance() > 0.0 || s->program_stop())) ||
+            (is(Status::kEmergencyStopped) && s->buffered_segments() > 0 && !s->off_trajectory());
         // Rel_Speed too: a PLC restarted mid-cut reset the operator's override (it was written
         // before this check).
         if (rel_speed && !under_way) {

@@ -693,6 +693,39 @@ TEST(ServiceProcesses, APlcStartedInTheMiddleOfAProgramSendsNoBasicParameters) {
   EXPECT_EQ(run.interrupt(kHang), 130) << run.log();
 }
 
+// The same after an emergency stop on the trajectory (Command 4), whose program a start
+// resumes: the ratio was sent there, and refused, leaving Command_Status -1 on the screens
+// (review of the HMI, session 75).
+TEST(ServiceProcesses, APlcStartedAfterAnEmergencyStopOnTheTrajectorySendsNoBasicParameters) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  std::ofstream(env.path("long.ngc")) << "G90 G1 X200 F3000\nM2\n";
+  test::Child run;
+  client::Client hmi(env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(start_run_until(env, env.path("long.ngc"), run, hmi,
+                              [](const msg::InterpolatorState& s) { return s.act_speed() > 0; }));
+  EXPECT_TRUE(hmi.command(0, 4).accepted);
+  ASSERT_TRUE(hmi.wait_until(
+      0, [](const msg::InterpolatorState& s) { return s.status() == 7; }, kHang));
+  std::string geared = test::read_text(env.config());
+  ASSERT_TRUE(test::replace_first(geared, "ratio_inc_per_mm: 1000", "ratio_inc_per_mm: 2000"));
+  std::ofstream(env.path("geared.yaml")) << geared;
+  test::Child plc;
+  ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.path("geared.yaml"), "--interpolator", "0",
+                         "--duration", "1.5"},
+                        env.path("plc.log")));
+  EXPECT_EQ(plc.wait(kHang), 0) << plc.log();
+  EXPECT_NE(plc.log().find("interpolator 0: basic parameters not sent: a program is under way "
+                           "(status 7 emergency stopped)"),
+            std::string::npos)
+      << plc.log();
+  EXPECT_EQ(plc.log().find("Command 1024"), std::string::npos) << plc.log();
+  hmi.poll(100ms);
+  EXPECT_EQ(hmi.state(0)->ratio()[0], 1000.0);
+  EXPECT_NE(hmi.state(0)->command_status(), -1);
+  EXPECT_EQ(run.interrupt(kHang), 130) << run.log();
+}
+
 // The tool a program leaves in the spindle stays there for the next one: `run` compiles that for
 // Tool_Number (it compiled from the config's initial_tool, 0, so a program without a T word set
 // Tool_Number back to 0 and ran G41/G42 at radius 0).
