@@ -372,9 +372,10 @@ int service_main(int argc, char** argv) {
           std::clamp<long>(static_cast<long>(notifier.watchdog_us() * 250), 1'000'000, slice_ns);
     }
     bool said_stall = false;
-    // Missed deadlines, said while they happen (at most every 10 s): they were only counted,
-    // and a service without real-time priority under load missed 40 % of its cycles without a
-    // line until its exit (session 75).
+    // Missed deadlines, said while they happen (at most once a minute, so that a shared host's
+    // journal is not filled with them): they were only counted, and a service without
+    // real-time priority under load missed 40 % of its cycles without a line until its exit
+    // (session 75).
     std::uint64_t missed_said = 0;
     auto missed_next = std::chrono::steady_clock::now();
     while (port->yielded_to() == 0 &&
@@ -388,13 +389,13 @@ int service_main(int argc, char** argv) {
             "setpoint for %s%s\n",
             static_cast<unsigned long long>(missed - missed_said),
             missed - missed_said == 1 ? "" : "s",
-            missed_said == 0 ? "since the start" : "in the last 10 s",
+            missed_said == 0 ? "since the start" : "since the last report",
             static_cast<unsigned long long>(missed), static_cast<double>(loop.last_miss_ns()) / 1e6,
             missed - missed_said == 1 ? "it" : "them",
             no_realtime ? " (--no-realtime: the cycle thread has no real-time priority)" : "");
         std::fflush(stderr);
         missed_said = missed;
-        missed_next = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+        missed_next = std::chrono::steady_clock::now() + std::chrono::seconds(60);
       }
       if (notifier.enabled()) {
         const std::uint64_t cycles = loop.heartbeat();
