@@ -497,7 +497,7 @@ bool read_header(std::string_view file, Program& tables, std::uint64_t& count,
   for (int i = 0; i < n; ++i) {
     const char c = letters[static_cast<std::size_t>(i)];
     if (c < 'A' || c > 'Z' || letters.find(c) < static_cast<std::size_t>(i)) {
-      return fail("axis letters must be distinct letters A..Z, not '" +
+      return fail(std::string("axis letters must be distinct letters A..Z, not '") +
                   printable(letters.substr(0, n)) + "'");
     }
   }

@@ -47,7 +47,7 @@ std::string limit_text(int resource, unsigned long long scale, const char* unit)
 // What a refused SCHED_FIFO or mlockall needs: the limits by name, and how to raise them. The
 // messages said only "Operation not permitted" or "Cannot allocate memory" (session 75).
 std::string rtprio_hint() {
-  return "RLIMIT_RTPRIO is " + limit_text(RLIMIT_RTPRIO, 1, "") +
+  return std::string("RLIMIT_RTPRIO is ") + limit_text(RLIMIT_RTPRIO, 1, "") +
          ": raise it with LimitRTPRIO= in the systemd unit or ulimit -r, or run as root";
 }
 

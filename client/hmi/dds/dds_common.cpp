@@ -201,7 +201,12 @@ std::string format_state(const msg::InterpolatorState& s, const std::string& con
   const std::string params = letters_set(s.m_function_parameter());
   append_line(out, "  M_Function_Parameter:%s", params.empty() ? " (none)" : params.c_str());
   std::string command_parameter;
-  for (const std::int32_t p : s.command_parameter()) command_parameter += " " + std::to_string(p);
+  // Appended piece by piece: GCC 12 at -O3 warns of an overlapping memcpy inside
+  // `" " + std::to_string(p)` (a false -Wrestrict).
+  for (const std::int32_t p : s.command_parameter()) {
+    command_parameter += ' ';
+    command_parameter += std::to_string(p);
+  }
   append_line(out, "  Command_Parameter:%s", command_parameter.c_str());
   // Every axis by its letter (three unnamed values dropped A..E of a 10-axis interpolator), the
   // angles where they apply and AllParams (review of the HMI, session 75).
