@@ -265,9 +265,10 @@ void DdsPort::publish(const Snapshot& s) {
     QueuedSetpoint& q = queued_setpoints_[static_cast<std::size_t>(i)];
     // Position as well as PositionInc: at the start of a motion the axes move less than an
     // increment a cycle, and a drive that interpolates between setpoints needs those cycles.
-    const bool moved = !q.any || reg.position != q.position || reg.position_inc != q.position_inc;
+    const bool moved =
+        !q.any || reg.position != q.last.position || reg.position_inc != q.last.position_inc;
     const bool due =
-        moved ? s.cycle % decimation == 0 : s.cycle - q.cycle >= standing_setpoint_cycles_;
+        moved ? s.cycle % decimation == 0 : s.cycle - q.last.cycle >= standing_setpoint_cycles_;
     if (!due) continue;
     SetpointOut out;
     out.interpolator = static_cast<std::uint16_t>(i);
@@ -279,9 +280,7 @@ void DdsPort::publish(const Snapshot& s) {
       continue;  // queued again next cycle: q is not moved on
     }
     q.any = true;
-    q.cycle = s.cycle;
-    q.position = reg.position;
-    q.position_inc = reg.position_inc;
+    q.last = out;
   }
   doorbell_.ring();
 }
@@ -757,7 +756,6 @@ void DdsPort::publish_loop() {
     const bool fresh = latest_.read(snap);
     if (snap == nullptr) continue;
     const auto now = Clock::now();
-    if (fresh) ++snapshots_seen_;
     for (int i = 0; i < snap->count; ++i) {
       const InterpolatorSnapshot& s = snap->ip[static_cast<std::size_t>(i)];
       const Published& p = published_[static_cast<std::size_t>(i)];

@@ -353,9 +353,7 @@ class DdsPort final : public CyclePort {
   // PositionInc changed is queued, a standing position with the state period).
   struct QueuedSetpoint {
     bool any = false;
-    std::uint64_t cycle = 0;
-    std::array<double, kMaxAxes> position{};
-    std::array<std::int64_t, kMaxAxes> position_inc{};
+    SetpointOut last;
   };
   std::vector<QueuedSetpoint> queued_setpoints_;
   std::uint64_t standing_setpoint_cycles_ = 1;  // the state period in cycles
@@ -376,7 +374,6 @@ class DdsPort final : public CyclePort {
   std::uint64_t states_published_ = 0;
   std::uint64_t events_published_ = 0;
   std::uint64_t setpoints_published_ = 0;
-  std::uint64_t snapshots_seen_ = 0;
   // take_states (under state_watch_mutex_), then read by other_service and the publisher
   std::mutex state_watch_mutex_;
   tgm::msg::InterpolatorState other_state_sample_;

@@ -92,10 +92,7 @@ bool SmoothingStage::push_event_next(const SmoothingEvent& e) {
 
 bool SmoothingStage::pop_event(SmoothingEvent* e) {
   if (ev_count_ == 0 || ev_[ev_head_].release > steps_) return false;
-  *e = ev_[ev_head_].e;
-  ev_head_ = (ev_head_ + 1) % kEventCapacity;
-  --ev_count_;
-  return true;
+  return pop_oldest(e);
 }
 
 bool SmoothingStage::pop_oldest(SmoothingEvent* e) {
