@@ -223,6 +223,32 @@ TEST(Spline, LongRandomRunStaysExact) {
   EXPECT_GT(s.stats().passes, 0u);
 }
 
+// Far from the origin a standing input flagged every step with a jerk limit of a few mm/s^3:
+// x - 3 x1 + 3 x2 - x3 left rounding noise of an ulp (1.2e-10 mm at 1e6 mm), above the limit's
+// 2e-12 mm: a smoothing pass that never ended, and with settled() going by the flags, an
+// interpolator that stayed in Status 6 after an emergency stop (the service's request storm,
+// seed 2). Third differences are differences of differences now: exactly 0 for a standing input.
+TEST(Spline, SettlesFarFromTheOriginWithATinyJerkLimit) {
+  for (const double jerk : {1.0, 2.0, 1000.0}) {
+    SplineSmoother s(kDt);
+    std::array<double, kMaxAxes> x{987654.321, -123456.789, 0.3, 1e6 - 0.1}, out{};
+    ASSERT_TRUE(s.configure(50, jerk, 4, x.data()).ok());
+    for (int k = 0; k < 40; ++k) {
+      x[0] += 0.001;
+      x[3] -= 0.002;
+      s.step(x.data(), out.data());
+    }
+    const std::uint64_t flagged_moving = s.stats().flagged_steps;
+    EXPECT_GT(flagged_moving, 0u);  // the start and the stop are flagged at these limits
+    for (int k = 0; k < 3 * 50 + 10; ++k) s.step(x.data(), out.data());
+    EXPECT_TRUE(s.settled()) << "jerk " << jerk;
+    EXPECT_LE(s.stats().flagged_steps, flagged_moving + 3) << "jerk " << jerk;
+    for (int a = 0; a < 4; ++a) {
+      EXPECT_EQ(out[static_cast<std::size_t>(a)], x[static_cast<std::size_t>(a)]) << "jerk " << jerk;
+    }
+  }
+}
+
 TEST(Spline, ChecksWithReasons) {
   EXPECT_TRUE(SplineSmoother::check(0, 0).ok());
   EXPECT_TRUE(SplineSmoother::check(50, 1).ok());

@@ -150,7 +150,12 @@ void SplineSmoother::step(const double* in_mm, double* out_mm) {
   for (int i = 0; i < axes_; ++i) {
     const auto ui = static_cast<std::size_t>(i);
     const double x = in_mm[i];
-    d3[i] = x - 3.0 * xin_[p1 + ui] + 3.0 * xin_[p2 + ui] - xin_[p3 + ui];
+    // As differences of differences: a standing input gives exactly 0 at any position (the
+    // expanded x - 3 x1 + 3 x2 - x3 left rounding noise of ~1e-10 mm at 1e6 mm, which a jerk
+    // limit of a few mm/s^3 flagged at every step: a smoothing pass that never ended).
+    const double v1 = x - xin_[p1 + ui], v2 = xin_[p1 + ui] - xin_[p2 + ui],
+                 v3 = xin_[p2 + ui] - xin_[p3 + ui];
+    d3[i] = (v1 - v2) - (v2 - v3);
     flagged |= std::fabs(d3[i]) > lim_d3_;
     changed |= x != xin_[p1 + ui];
     xin_[now + ui] = x;
