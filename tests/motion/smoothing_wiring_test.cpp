@@ -166,9 +166,11 @@ TEST(Wiring, StopStatusesWaitUntilTheSmoothedAxesStand) {
     }
     ASSERT_TRUE(ip.start().ok());
     const Registers& r = ip.registers();
-    int generator_stood = -1, status_at = -1, moving_while_6 = 0;
+    int generator_stood = -1, status_at = -1, moving_while_6 = 0, last_move = -1;
     for (int c = 0; c < 20000 && status_at < 0; ++c) {
+      const auto before = r.position;
       ip.step();
+      if (r.position != before) last_move = c;
       if (c == k.stop_cycle && k.code != 0) {
         ASSERT_TRUE(ip.command(k.code).ok());
       }
@@ -195,6 +197,9 @@ TEST(Wiring, StopStatusesWaitUntilTheSmoothedAxesStand) {
     ASSERT_GE(status_at, 0) << k.name;
     // The spline's 500 steps (100 cycles) lie between the generator's stop and the Status.
     EXPECT_GE(status_at - generator_stood, 50) << k.name;
+    // And the Status comes as soon as the axes stand, not a second spline length later (it
+    // waited 2N + 4 steps after the generator stood, 100 ms here, until session 76).
+    EXPECT_LE(status_at - last_move, 1) << k.name;
     if (k.code == 4) {
       EXPECT_GT(moving_while_6, 10);
     }
@@ -814,7 +819,8 @@ TEST(Wiring, CommandStatusOneWhileWaitingForTheSmoothing) {
   EXPECT_EQ(r.command, 0);
   EXPECT_EQ(ip.smoothing().spline().delay_steps(), 300);
   EXPECT_EQ(r.status, static_cast<std::int32_t>(InterpolatorStatus::kReady));
-  // It took about the drain: 2N + 4 = 404 steps after the path stood, in cycles.
+  // It took about the drain: N + 2 = 202 steps after the path stood (2N + 2 after a flagged
+  // step), in cycles.
   EXPECT_GT(waited, 20);
   EXPECT_LE(waited, 82);
   EXPECT_EQ(r.position, r.orig_position);

@@ -223,6 +223,79 @@ TEST(Spline, LongRandomRunStaysExact) {
   EXPECT_GT(s.stats().passes, 0u);
 }
 
+// settled() is what Status 3/4 and the commands that wait for the smoothing go by: it must
+// never say so while the output will still move, and should say so soon after it stops.
+// Seeded sweep: random N, jerk limits that flag many steps, some or none, random motions that
+// end standing. Oracle: the first step f from which the output equals the standing input
+// exactly, for 3N steps. settled() is false before f; without a flagged step it is true at
+// f + 2 (the margin), and at most N + 6 steps after f otherwise (the correction's reach).
+TEST(Spline, SettledOnlyWhenTheOutputStandsAndSoonAfter) {
+  std::mt19937_64 rng(20261205);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  int unflagged = 0, flagged = 0;
+  for (int trial = 0; trial < 120; ++trial) {
+    const int n = std::uniform_int_distribution<int>(50, 500)(rng);
+    const int axes = std::uniform_int_distribution<int>(1, kMaxAxes)(rng);
+    const double jerk = trial % 3 == 0 ? 1e12 : (trial % 3 == 1 ? 1e4 : kLimit);
+    SplineSmoother s(kDt);
+    std::array<double, kMaxAxes> x{}, out{}, vel{}, acc{};
+    for (int a = 0; a < axes; ++a) x[static_cast<std::size_t>(a)] = 100.0 * u(rng);
+    ASSERT_TRUE(s.configure(n, jerk, axes, x.data()).ok());
+    ASSERT_TRUE(s.settled());
+    // Motion: constant-acceleration pieces (smooth, or with velocity jumps at odd trials).
+    const int moving = std::uniform_int_distribution<int>(5, 3000)(rng);
+    int left = 0;
+    for (int k = 0; k < moving; ++k) {
+      if (left-- <= 0) {
+        for (int a = 0; a < axes; ++a) {
+          const auto ua = static_cast<std::size_t>(a);
+          acc[ua] = 5000.0 * u(rng);
+          if (trial % 2 == 1) vel[ua] = 100.0 * u(rng);
+        }
+        left = std::uniform_int_distribution<int>(1, 400)(rng);
+      }
+      for (int a = 0; a < axes; ++a) {
+        const auto ua = static_cast<std::size_t>(a);
+        vel[ua] += acc[ua] * kDt;
+        x[ua] += vel[ua] * kDt;
+      }
+      s.step(x.data(), out.data());
+    }
+    // Stand for 3N + 10 steps; record when settled() first holds and the outputs.
+    const int standing = 3 * n + 10;
+    int first_settled = -1;
+    std::vector<bool> settled_at(static_cast<std::size_t>(standing));
+    std::vector<bool> on_input(static_cast<std::size_t>(standing));
+    for (int k = 0; k < standing; ++k) {
+      s.step(x.data(), out.data());
+      bool eq = true;
+      for (int a = 0; a < axes; ++a)
+        eq &= out[static_cast<std::size_t>(a)] == x[static_cast<std::size_t>(a)];
+      on_input[static_cast<std::size_t>(k)] = eq;
+      settled_at[static_cast<std::size_t>(k)] = s.settled();
+      if (first_settled < 0 && s.settled()) first_settled = k;
+    }
+    int f = standing;
+    while (f > 0 && on_input[static_cast<std::size_t>(f - 1)]) --f;
+    ASSERT_LT(f, standing - n) << "trial " << trial << ": the output never stood";
+    ASSERT_GE(first_settled, 0) << "trial " << trial;
+    EXPECT_GE(first_settled, f) << "trial " << trial << " N " << n << ": settled while moving";
+    for (int k = first_settled; k < standing; ++k) {
+      ASSERT_TRUE(settled_at[static_cast<std::size_t>(k)]) << "trial " << trial << " step " << k;
+    }
+    if (s.stats().flagged_steps == 0) {
+      ++unflagged;
+      EXPECT_EQ(first_settled, f + 2) << "trial " << trial << " N " << n;
+    } else {
+      ++flagged;
+      EXPECT_LE(first_settled, f + n + 6) << "trial " << trial << " N " << n;
+    }
+  }
+  // Both kinds were drawn.
+  EXPECT_GT(unflagged, 10);
+  EXPECT_GT(flagged, 10);
+}
+
 // Far from the origin a standing input flagged every step with a jerk limit of a few mm/s^3:
 // x - 3 x1 + 3 x2 - x3 left rounding noise of an ulp (1.2e-10 mm at 1e6 mm), above the limit's
 // 2e-12 mm: a smoothing pass that never ended, and with settled() going by the flags, an
@@ -348,7 +421,9 @@ TEST(SmoothingStage, SplineChangeOnlyWhenDrainedAndSpeedIsAfterSmoothing) {
   EXPECT_NEAR(st.speed()[0], 100.0, 1e-6);
   auto r = st.configure_spline(100, 1'000'000);
   EXPECT_EQ(r.code, RequestCode::kWrongState);
-  EXPECT_EQ(r.reason, "Spline: the buffer still holds motion or M-functions (it drains 104 calculation steps after the interpolator stands)");
+  EXPECT_EQ(r.reason,
+            "Spline: the buffer still holds motion or M-functions (it drains within 104 "
+            "calculation steps after the interpolator stands)");
   for (int k = 0; k < 104; ++k) st.step(&x);
   EXPECT_EQ(st.position()[0], x);
   EXPECT_EQ(st.speed()[0], 0.0);

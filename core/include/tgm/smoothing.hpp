@@ -169,7 +169,8 @@ class SplineSmoother {
   int delay_steps() const { return n_; }
   double jerk_limit_mm_s3() const { return jerk_; }
   //! True when the output equals the current input and stays so while the input stands:
-  //! the input has not changed for 2N + 4 steps (or the spline is off).
+  //! the input has not changed for N + 2 steps and no step was flagged in the last 2N + 2
+  //! (or the spline is off).
   bool settled() const;
   const SplineStats& stats() const { return stats_; }
   void clear_stats();

@@ -21,7 +21,7 @@ RequestResult SmoothingStage::configure_spline(std::int64_t points, std::int64_t
   if (!r.ok()) return r;
   if (!spline_.settled() || ev_count_ != 0) {
     return {RequestCode::kWrongState,
-            "Spline: the buffer still holds motion or M-functions (it drains " +
+            "Spline: the buffer still holds motion or M-functions (it drains within " +
                 std::to_string(2 * spline_.delay_steps() + 4) +
                 " calculation steps after the interpolator stands)"};
   }

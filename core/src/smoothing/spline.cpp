@@ -122,7 +122,12 @@ void SplineSmoother::reset(const double* position_mm) {
 void SplineSmoother::clear_stats() { stats_ = SplineStats{}; }
 
 bool SplineSmoother::settled() const {
-  return n_ == 0 || quiet_ >= static_cast<std::uint64_t>(2 * n_ + 4);
+  // The output is the input of N steps ago plus the correction: the first is final once the
+  // input has stood for N + 1 steps, the second is 0 from 2N - 2 steps after the last flagged
+  // step on (see the end of step()); one step of margin on each. A flagged step comes at most
+  // two steps after the input's last change, so 2N + 4 quiet steps imply both.
+  const auto n = static_cast<std::uint64_t>(n_);
+  return n_ == 0 || (quiet_ >= n + 2 && since_flag_ >= 2 * n + 2);
 }
 
 void SplineSmoother::step(const double* in_mm, double* out_mm) {
