@@ -132,8 +132,15 @@ int inspect_intercode(Args& args, const std::string& file, const FileView& input
   if (!dump.empty()) {
     if (!dump_records(program, dump)) return 1;
   } else {
+    // Counted by record: records with equal parameters or texts share one table entry.
     const std::uint64_t records = program.size();
-    const std::size_t ms = tables.params.size(), texts = tables.messages.size();
+    std::size_t ms = 0, texts = 0;
+    auto cursor = program.cursor();
+    Segment seg;
+    while (cursor.next(seg)) {
+      ms += seg.type == SegmentType::kMFunction;
+      texts += seg.type == SegmentType::kMessage;
+    }
     std::fprintf(
         stderr,
         "%s: intercode for the axes %s, compiled from %s: %llu record%s (%zu M-function%s, "
@@ -243,9 +250,12 @@ int run_compile(int argc, char** argv) {
     return 0;
   }
   StreamedIntercode streamed(out, options.axis_letters, options.start_mm);
+  std::size_t ms = 0, texts = 0;  // by record: equal parameters or texts share a table entry
   const CompileResult result = compile_gcode(text, options, [&](const Segment& s) {
     streamed.add(s);
     note(s);
+    ms += s.type == SegmentType::kMFunction;
+    texts += s.type == SegmentType::kMessage;
   });
   // Changed under the compiler: nothing is written, and the diagnostics may be about a mix of
   // two versions of the file.
@@ -259,7 +269,6 @@ int run_compile(int argc, char** argv) {
     std::fprintf(stderr, "%s: error: %s\n", out_path.c_str(), io_error.c_str());
     return 1;
   }
-  const std::size_t ms = result.program.params.size(), texts = result.program.messages.size();
   const auto records = static_cast<unsigned long long>(streamed.records());
   const std::string from =
       start_text.empty() ? std::string()
