@@ -426,6 +426,38 @@ TEST(Buffer, FillWhileRunningKeepsMoving) {
   EXPECT_EQ(ip->registers().orig_position[0], 1000.0);
 }
 
+// A run of zero-time records longer than the ring empties it within one cycle: the simulation
+// restarted before it fed the rest, the start on the empty ring was refused unseen, and the run
+// ended "buffer underrun with no more records" before the second line (session 76's review:
+// 10,000 M1005 in a G26 loop). Every length around the ring's size finishes, in both modes.
+TEST(Buffer, MoreZeroTimeRecordsInARowThanTheRingHolds) {
+  MachineConfig m = machine();
+  m.interpolators[0].buffer_size = 1000;
+  for (const std::size_t run : {998u, 999u, 1000u, 1001u, 2500u}) {
+    for (const bool batch : {false, true}) {
+      ProgramBuilder b;
+      b.line({10.0, 0.0, 0.0}, 6000.0);
+      for (std::size_t k = 0; k < run; ++k) {
+        if (k % 3 == 2) {
+          b.dwell(0.0);
+        } else {
+          b.m(1005, MKind::kContinuous);
+        }
+      }
+      b.line({20.0, 0.0, 0.0}, 6000.0).end();
+      SimulationOptions o;
+      o.fast_forward = batch;
+      auto sim = Simulation::create(m, o);
+      ASSERT_TRUE(sim);
+      const auto s = sim->run(b.program());
+      ASSERT_EQ(s.result, StepResult::kFinished)
+          << run << " records, batch " << batch << ": " << s.error;
+      EXPECT_EQ(sim->interpolator().registers().orig_position[0], 20.0) << run;
+      EXPECT_NEAR(s.distance_mm, 20.0, 1e-9) << run;
+    }
+  }
+}
+
 TEST(MFunctions, ContinuousDoesNotStop) {
   Interpolator ip = make();
   ProgramBuilder b;

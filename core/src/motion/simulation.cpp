@@ -358,13 +358,24 @@ SimulationSummary Simulation::run_records(std::size_t total, const AppendRecords
     }
     if (r == StepResult::kWaiting &&
         reg.status == static_cast<std::int32_t>(InterpolatorStatus::kUnderrun)) {
-      if (next < total) {
-        ip.start();  // more records arrived: the HMI restarts
+      // More records arrive and the HMI restarts. Fed first: a run of zero-time records longer
+      // than the ring (10,000 continuous M-functions in a G26 loop) empties it within one
+      // cycle, and a start on the empty ring was refused unseen; with the last records fed in
+      // the next cycle, the run then ended "underrun with no more records" half-way.
+      const std::size_t fed_before = next;
+      if (ip.free_slots() > 0 && !feed()) {
+        sum.result = StepResult::kErrorInternal;
+        break;
+      }
+      const bool more = next > fed_before || next < total;
+      const auto restarted = ip.start();
+      if (restarted.ok()) {
         started = true;
         stopped = restart.armed = false;
       } else {
         sum.result = r;
-        sum.error = "buffer underrun with no more records";
+        sum.error = more ? "start after an underrun refused: " + restarted.reason
+                         : std::string("buffer underrun with no more records");
         break;
       }
     }
