@@ -582,16 +582,34 @@ bool Engine::wind_down(CyclePort& port) {
     for (int i = 0; i < count(); ++i) {
       Slot& s = ips_[static_cast<std::size_t>(i)];
       const Registers& r = s.ip.registers();
-      // An underrun or an emergency ramp is a stop under way already: it runs on.
-      if (!moving(s) || r.status != static_cast<std::int32_t>(InterpolatorStatus::kRunning))
-        continue;
-      const RequestResult stop = s.ip.command(8);
-      if (stop.ok()) ++wound_down_;
+      const auto status = static_cast<InterpolatorStatus>(r.status);
       char text[200];
-      std::snprintf(
-          text, sizeof text, "tgm-service is stopping: %s at %.0f mm/min on line %d%s%s",
-          stop.ok() ? "normal stop on the trajectory (Command 8)" : "could not stop the motion",
-          r.act_speed, r.act_line, stop.ok() ? "" : ": ", stop.ok() ? "" : stop.reason.c_str());
+      if (moving(s) && status == InterpolatorStatus::kRunning) {
+        const RequestResult stop = s.ip.command(8);
+        if (stop.ok()) ++wound_down_;
+        std::snprintf(
+            text, sizeof text, "tgm-service is stopping: %s at %.0f mm/min on line %d%s%s",
+            stop.ok() ? "normal stop on the trajectory (Command 8)" : "could not stop the motion",
+            r.act_speed, r.act_line, stop.ok() ? "" : ": ", stop.ok() ? "" : stop.reason.c_str());
+      } else if (moving(s)) {
+        // An underrun or an emergency ramp is a stop under way already: it runs on.
+        std::snprintf(text, sizeof text,
+                      "tgm-service is stopping: the stop under way (Status %d) runs to its end, "
+                      "on line %d",
+                      r.status, r.act_line);
+      } else if (status != InterpolatorStatus::kEmpty && status != InterpolatorStatus::kEnded) {
+        // A program that stands (an M-function wait, a dwell, M0, a stop, an underrun) is
+        // dropped with the service: its HMIs are told too, or a `run` took the silence for a
+        // network outage and waited for good (session 76's review).
+        char waiting[32] = "";
+        if (r.m_func != 0) std::snprintf(waiting, sizeof waiting, ", waiting for M%d", r.m_func);
+        std::snprintf(text, sizeof text,
+                      "tgm-service is stopping: the motion stands (Status %d%s) on line %d",
+                      r.status, waiting, r.act_line);
+      } else {
+        continue;  // nothing loaded, or the program ended: nobody waits for it
+      }
+      ++announced_;
       send_message(port, i, MessageOut::Severity::kWarning, text, r.act_line, s.program_id);
     }
   }

@@ -1149,12 +1149,41 @@ TEST(Engine, WindDownStopsTheMotionOnTheTrajectoryAndSaysWhy) {
   for (const MessageOut& each : port.messages) EXPECT_EQ(each.interpolator, 0);
 }
 
+// A program that stands (here at an M-function the PLC has not acknowledged) is not stopped,
+// but its HMIs are told the service goes: without the warning a `tgm-hmi run` waiting at M51
+// took the silence for a network outage and waited for good (session 76's review).
+TEST(Engine, WindDownOfAStandingProgramIsAtOnceAndSaidToItsHmis) {
+  Engine e = make_engine();
+  MockPort port;
+  const Program p = line_program(20, true);
+  port.add_chunk(1, p, 0, p.segments.size(), 9, true);
+  e.cycle(port, {});
+  port.add_request(Role::kHmi, RequestKind::kStart, 1);
+  for (int c = 0; c < 20000 && port.last.ip[1].reg.m_func == 0; ++c) e.cycle(port, {});
+  ASSERT_EQ(port.last.ip[1].reg.m_func, 51);
+  for (int c = 0; c < 100; ++c) e.cycle(port, {});  // the smoothing settles
+  const std::size_t before = port.messages.size();
+  EXPECT_TRUE(e.wind_down(port));
+  EXPECT_EQ(e.wound_down(), 0);
+  EXPECT_EQ(e.announced(), 1);
+  ASSERT_EQ(port.messages.size(), before + 1);
+  const MessageOut& m = port.messages.back();
+  EXPECT_EQ(m.interpolator, 1);
+  EXPECT_EQ(m.severity, MessageOut::Severity::kWarning);
+  EXPECT_EQ(m.program_id, 9u);
+  EXPECT_EQ(std::string(m.text.view()),
+            "tgm-service is stopping: the motion stands (Status 1, waiting for M51) on line 1");
+  EXPECT_TRUE(e.wind_down(port));
+  EXPECT_EQ(port.messages.size(), before + 1);  // said once
+}
+
 TEST(Engine, WindDownOfStandingInterpolatorsIsAtOnceAndSilent) {
   Engine e = make_engine();
   MockPort port;
   e.cycle(port, {});
   EXPECT_TRUE(e.wind_down(port));
   EXPECT_EQ(e.wound_down(), 0);
+  EXPECT_EQ(e.announced(), 0);
   EXPECT_TRUE(port.messages.empty());
 }
 

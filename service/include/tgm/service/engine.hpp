@@ -70,12 +70,16 @@ class Engine {
 
   //! Shutdown (SIGINT / SIGTERM): call after each cycle() once the service is to stop. The
   //! first call brings every interpolator still in motion to a normal stop on the trajectory
-  //! (Command 8) and tells the HMIs why; an emergency ramp already under way runs on. True once
-  //! every interpolator stands with its smoothing settled, so the last setpoints the drives
-  //! get are at rest (leaving the cycle at once froze them at full speed).
+  //! (Command 8); an emergency ramp already under way runs on. Every interpolator that holds
+  //! a program not yet ended, moving or standing, gets a warning "tgm-service is stopping: ..."
+  //! for its HMIs. True once every interpolator stands with its smoothing settled, so the
+  //! last setpoints the drives get are at rest (leaving the cycle at once froze them at full
+  //! speed).
   bool wind_down(CyclePort& port);
   //! Interpolators wind_down() stopped (for the log).
   int wound_down() const { return wound_down_; }
+  //! Warnings wind_down() sent (the service waits for them to be published).
+  int announced() const { return announced_; }
 
   int count() const { return static_cast<int>(ips_.size()); }
   const Interpolator& interpolator(int i) const { return ips_[static_cast<std::size_t>(i)].ip; }
@@ -133,6 +137,7 @@ class Engine {
   std::uint64_t cycles_ = 0;
   bool winding_down_ = false;  // wind_down() has sent its stops
   int wound_down_ = 0;
+  int announced_ = 0;
   Snapshot snapshot_;
 };
 
