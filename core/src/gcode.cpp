@@ -392,9 +392,15 @@ void Compiler::lex() {
 
 std::size_t Compiler::step(std::size_t index, bool relex) {
   if (++executed_ > max_executed_) {
+    std::string where;
+    if (!stack_.empty()) {
+      where = ", here in the subroutine called on line " +
+              std::to_string(blocks_[stack_.back().call_block].line);
+    }
     error(blocks_[index].line, 1,
           "program executes more than " + std::to_string(max_executed_) +
-              " blocks without ending: an endless loop of calls or jumps?");
+              " blocks (10 x max_program_segments + 1,000,000) without ending" + where +
+              ": an endless loop of calls or jumps?");
     ended_ = true;
     return index + 1;
   }
@@ -407,7 +413,10 @@ void Compiler::lex_line(std::size_t begin, std::size_t end, std::int32_t line) {
   b.begin = static_cast<std::uint32_t>(begin);
   b.end = static_cast<std::uint32_t>(end);
   const bool valid = lex_words(b);
-  if (b.word_count == 0 && !b.has_comment && valid) return;  // empty line: no block
+  // An empty or comment-only line is no block: it does nothing, and executed it counted
+  // against the guard for endless loops (a loop body of a dozen comment lines and one move,
+  // 8.5 million times, was refused as endless; session 76's review).
+  if (b.word_count == 0 && valid) return;
   check_block_static(b);
   blocks_.push_back({b.begin, b.end, b.line, b.valid});
   cur_block_ = b;

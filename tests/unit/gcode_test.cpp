@@ -738,7 +738,14 @@ TEST(GcodeErrors, NestingAndSizeLimits) {
   // A loop that makes nothing still ends with an error, not a hang.
   small.compiler.max_program_segments = 10;
   EXPECT_THAT(errors_of("G26 L1 K1000000000\nM2\nG29 L1\nM17\n", small),
-              ElementsAre(::testing::HasSubstr("blocks without ending: an endless loop")));
+              ElementsAre(::testing::HasSubstr(
+                  "executes more than 1000100 blocks (10 x max_program_segments + 1,000,000) "
+                  "without ending, here in the subroutine called on line 1: an endless loop")));
+  // Comment-only lines are no blocks and do not count: 200,000 passes of three blocks
+  // (label, F, M17) and six comment lines stay under the 1,000,100 (nine a pass did not).
+  EXPECT_TRUE(errors_of("G26 L1 K200000\nM2\nG29 L1\n(a)\n(b)\n; c\n(d)\n(e)\n(f)\nF100\nM17\n",
+                        small)
+                  .empty());
 }
 
 TEST(GcodeErrors, CommentsAndMirroring) {
