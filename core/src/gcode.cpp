@@ -207,6 +207,15 @@ class Compiler {
   std::vector<Word> words_;  //!< words of the line being looked at
   std::vector<LineRef> blocks_;
   std::unordered_map<long long, std::size_t> labels_;  // label -> block index
+  //! G25 / G26 / G27 of pass 1, checked against the labels once every line is lexed.
+  struct LabelRef {
+    std::size_t block;
+    std::int32_t line;
+    std::uint32_t column;
+    long long label;
+    bool jump_without_k;  //!< G27 without K: must jump forward
+  };
+  std::vector<LabelRef> label_refs_;
   std::uint32_t axis_mask_ = 0;                        // letters that are axes
   std::array<int, 26> axis_of_letter_{};
   int n_axes_ = 0;
@@ -388,6 +397,19 @@ void Compiler::lex() {
     ++line;
   }
   if (in_order_) resume_ = blocks_.size();
+  // Every call and jump names a label that exists, and a backward jump has its K, also in a
+  // subroutine never called (pass 2 says it again where it runs: reported once).
+  for (const LabelRef& r : label_refs_) {
+    const auto it = labels_.find(r.label);
+    if (it == labels_.end()) {
+      error(r.line, r.column, "unknown label L" + std::to_string(r.label) +
+                                  " (define it with G29 L" + std::to_string(r.label) + ")");
+    } else if (r.jump_without_k && it->second <= r.block) {
+      error(r.line, r.column,
+            "backward jump to L" + std::to_string(r.label) +
+                " without K would loop forever (give K<count>)");
+    }
+  }
 }
 
 std::size_t Compiler::step(std::size_t index, bool relex) {
@@ -768,6 +790,11 @@ void Compiler::check_block_static(Block& b) {
                                        fmt_num(k->value));
           b.valid = false;
         }
+      }
+      if (nonmodal != 29 && has('L') && b.valid) {
+        label_refs_.push_back({blocks_.size(), b.line, word('L')->column,
+                               static_cast<long long>(word('L')->value),
+                               nonmodal == 27 && !has('K')});
       }
       if (nonmodal == 29 && !has('L') && !b.has_comment) {
         error(b.line, ng->column, "G29 needs L<label> or a text note in parentheses");

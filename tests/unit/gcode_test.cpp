@@ -821,6 +821,16 @@ TEST(GcodeErrors, ErrorsPastTheLimitAreCountedInOneLastEntry) {
 
 TEST(GcodeErrors, UncalledSubroutinesAreCheckedToo) {
   EXPECT_THAT(errors_of("M2\nG29 L1\nG1 X1 Q2\nM17\n"), ElementsAre("3:7: unknown word 'Q2'"));
+  // Labels too: a call or jump to a missing label, and a backward jump without K, in code that
+  // never runs (session 76's review: both compiled).
+  EXPECT_THAT(errors_of("G91 G1 F100 X1\nM2\nG29 L1\nG25 L99\nG27 L98\nG27 L1\nM17\n"),
+              ElementsAre("4:5: unknown label L99 (define it with G29 L99)",
+                          "5:5: unknown label L98 (define it with G29 L98)",
+                          "6:5: backward jump to L1 without K would loop forever (give K<count>)"));
+  // Said once where the code runs as well; a forward jump without K and calls of labels
+  // further down stay fine.
+  EXPECT_THAT(errors_of("G25 L7\nM2\n"), ElementsAre("1:5: unknown label L7 (define it with G29 L7)"));
+  EXPECT_TRUE(errors_of("G27 L2\nG29 L1\nG25 L3\nG29 L2\nG26 L3 K2\nM2\nG29 L3\nM17\n").empty());
 }
 
 TEST(Gcode, DiagnosticFormat) {
