@@ -163,6 +163,10 @@ class Compiler {
 
   // Helpers of pass 2.
   bool emit_check(const Block& b);
+  std::string too_big_reason() const {
+    return "program expands to more than " + std::to_string(opt_.compiler.max_program_segments) +
+           " segments (compiler.max_program_segments)";
+  }
   // Records go through tool radius compensation while it is on or still holds records.
   void emit(const Segment& s) {
     if (s.compensation_radius_mm > 0 || !comp_stage_.idle()) {
@@ -172,6 +176,14 @@ class Compiler {
     }
   }
   void out(const Segment& s) {
+    // emit_check() counts what left the compensation, which may still hold a few records and
+    // add corner arcs: the limit is kept here (7 records came out under a limit of 6).
+    if (emitted_ >= opt_.compiler.max_program_segments) {
+      if (!too_big_) error(s.line, 1, too_big_reason());
+      too_big_ = true;
+      ended_ = true;
+      return;
+    }
     ++emitted_;
     if (sink_) {
       (*sink_)(s);
@@ -862,11 +874,7 @@ bool Compiler::emit_check(const Block& b) {
   if (emitted_ < opt_.compiler.max_program_segments) {
     return true;
   }
-  if (!too_big_) {
-    error(b.line, 1,
-          "program expands to more than " + std::to_string(opt_.compiler.max_program_segments) +
-              " segments (compiler.max_program_segments)");
-  }
+  if (!too_big_) error(b.line, 1, too_big_reason());
   too_big_ = true;
   ended_ = true;  // stop expanding
   return false;

@@ -735,6 +735,14 @@ TEST(GcodeErrors, NestingAndSizeLimits) {
   EXPECT_THAT(errors_of("G91 G1 F1\nG29 L1\nX1\nG27 L1 K10\n", small),
               ElementsAre("3:1: program expands to more than 5 segments "
                           "(compiler.max_program_segments)"));
+  // Records the tool radius compensation still holds at the end count too (a square of five
+  // moves with its entry came out as 7 records under a limit of 6; session 76's review).
+  small.compiler.max_program_segments = 6;
+  const std::string square = "G90 G0 X-10 Y-10\nG41 D1\nG1 X0 Y0 F100\nX20\nY20\nX0\nY0\n";
+  EXPECT_THAT(errors_of(square, small),
+              ElementsAre(::testing::HasSubstr("program expands to more than 6 segments")));
+  small.compiler.max_program_segments = 7;
+  EXPECT_EQ(compile_ok(square, small).segments.size(), 7u);
   // A loop that makes nothing still ends with an error, not a hang.
   small.compiler.max_program_segments = 10;
   EXPECT_THAT(errors_of("G26 L1 K1000000000\nM2\nG29 L1\nM17\n", small),
