@@ -414,8 +414,9 @@ void Compiler::lex() {
   for (const LabelRef& r : label_refs_) {
     const auto it = labels_.find(r.label);
     if (it == labels_.end()) {
-      error(r.line, r.column, "unknown label L" + std::to_string(r.label) +
-                                  " (define it with G29 L" + std::to_string(r.label) + ")");
+      error(r.line, r.column,
+            "unknown label L" + std::to_string(r.label) + " (define it with G29 L" +
+                std::to_string(r.label) + ")");
     } else if (r.jump_without_k && it->second <= r.block) {
       error(r.line, r.column,
             "backward jump to L" + std::to_string(r.label) +

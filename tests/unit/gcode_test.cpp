@@ -751,9 +751,9 @@ TEST(GcodeErrors, NestingAndSizeLimits) {
                   "without ending, here in the subroutine called on line 1: an endless loop")));
   // Comment-only lines are no blocks and do not count: 200,000 passes of three blocks
   // (label, F, M17) and six comment lines stay under the 1,000,100 (nine a pass did not).
-  EXPECT_TRUE(errors_of("G26 L1 K200000\nM2\nG29 L1\n(a)\n(b)\n; c\n(d)\n(e)\n(f)\nF100\nM17\n",
-                        small)
-                  .empty());
+  EXPECT_TRUE(
+      errors_of("G26 L1 K200000\nM2\nG29 L1\n(a)\n(b)\n; c\n(d)\n(e)\n(f)\nF100\nM17\n", small)
+          .empty());
 }
 
 TEST(GcodeErrors, CommentsAndMirroring) {
@@ -837,7 +837,8 @@ TEST(GcodeErrors, UncalledSubroutinesAreCheckedToo) {
                           "6:5: backward jump to L1 without K would loop forever (give K<count>)"));
   // Said once where the code runs as well; a forward jump without K and calls of labels
   // further down stay fine.
-  EXPECT_THAT(errors_of("G25 L7\nM2\n"), ElementsAre("1:5: unknown label L7 (define it with G29 L7)"));
+  EXPECT_THAT(errors_of("G25 L7\nM2\n"),
+              ElementsAre("1:5: unknown label L7 (define it with G29 L7)"));
   EXPECT_TRUE(errors_of("G27 L2\nG29 L1\nG25 L3\nG29 L2\nG26 L3 K2\nM2\nG29 L3\nM17\n").empty());
 }
 
