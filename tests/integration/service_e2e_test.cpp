@@ -1942,8 +1942,7 @@ TEST(ServiceProcesses, HmiCommandAndStopSayAcceptedOrWhyNot) {
                               ": no state of interpolator 0 from tgm-service on DDS domain " +
                               std::to_string(env.domain()) +
                               " within 0.5 s (is tgm-service running with the same domain, "
-                              "profiles and security? as another user, it is not reached over "
-                              "shared memory: README, \"Users\")\n");
+                              "profiles and security?)\n");
   }
 }
 

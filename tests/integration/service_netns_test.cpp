@@ -4,10 +4,9 @@
 // this test creates; it removes them even when it fails. Needs root and `ip netns`: skipped
 // otherwise.
 //
-// Transport: Fast DDS shared memory does not connect processes in different network namespaces
-// (as in containers), so the processes use a UDPv4-only copy of config/fastdds_profiles.xml with
-// the three addresses as initial peers (docker/make_udp_profiles.sh; unicast discovery, no
-// dependence on multicast routing across the bridge).
+// Transport: config/fastdds_profiles.xml (UDPv4 only) with the three addresses as initial peers
+// (docker/make_udp_profiles.sh; unicast discovery, no dependence on multicast routing across the
+// bridge).
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -96,7 +95,7 @@ class Namespaces {
   std::vector<std::string> names_;
 };
 
-// config/fastdds_profiles.xml with the tgm_participant on UDPv4 only and the three namespace
+// config/fastdds_profiles.xml (the tgm_participant on UDPv4 only) with the three namespace
 // addresses as initial peers: made by docker/make_udp_profiles.sh, the same script that makes the
 // profiles of docker/compose.yaml.
 std::string udp_profiles(const std::string& dir) {

@@ -14,6 +14,7 @@
 #include <set>
 #include <thread>
 
+#include <fastdds/rtps/transport/UDPv4TransportDescriptor.h>
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 #include <fastdds/dds/domain/qos/DomainParticipantQos.hpp>
 
@@ -109,10 +110,15 @@ std::string ephemeral_hint(std::uint32_t base, std::uint32_t gain) {
 std::string discovery_port_problem(const fdds::DomainParticipantQos& qos, int domain) {
   const auto& wire = qos.wire_protocol();
   const auto& builtin = wire.builtin;
+  // Fast DDS's built-in transports or a UDPv4 one of the profile (tgm's own since session 76)
+  // listen there; other transports do not.
+  bool udp = qos.transport().use_builtin_transports;
+  for (const auto& t : qos.transport().user_transports) {
+    udp = udp || std::dynamic_pointer_cast<eprosima::fastdds::rtps::UDPv4TransportDescriptor>(t);
+  }
   if (builtin.discovery_config.discoveryProtocol !=
           eprosima::fastrtps::rtps::DiscoveryProtocol_t::SIMPLE ||
-      !builtin.metatrafficMulticastLocatorList.empty() || !qos.transport().use_builtin_transports ||
-      !qos.transport().user_transports.empty()) {
+      !builtin.metatrafficMulticastLocatorList.empty() || !udp) {
     return {};  // a profile that chose its own discovery locators or transports
   }
   // Fast DDS's own formula; it ended the process in create_participant had it overflowed.

@@ -101,8 +101,7 @@ int wait_for_service(client::Client& c, const AppConfig& config, int interpolato
   std::fprintf(
       stderr,
       "tgm-hmi %s: no state of interpolator %d from tgm-service on DDS domain %d within %g s "
-      "(is tgm-service running with the same domain, profiles and security? as another user, "
-      "it is not reached over shared memory: README, \"Users\")\n",
+      "(is tgm-service running with the same domain, profiles and security?)\n",
       command, interpolator, config.dds.domain_id, wait_s);
   return 1;
 }
