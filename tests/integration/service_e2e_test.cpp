@@ -882,6 +882,46 @@ TEST(ServiceProcesses, PlcServesARestartedServiceAtOnceAndSeesEqualMFunctionsApa
   EXPECT_LT(std::stoull(log.substr(cycle_at + 7)), first_cycles) << log;
 }
 
+// A tgm-plc that outlives a stopped and a killed tgm-service serves the one after both: it
+// sets the basic parameters of each and acknowledges the next program's M50, with no request
+// left unanswered. Over Fast DDS's shared memory, 3 of 9 trials of a longer form of this
+// sequence (a run streaming and a watch beside it, 8 s between the kill and the restart) left
+// the PLC cut off for good or the last service unseen (session 76's soak review), and tgm is
+// on UDPv4 only since (config/fastdds_profiles.xml). This short form did not show that fault
+// in 8 trials with shared memory (TGM_TEST_PROFILES=tests/bench/service/shm.xml): it checks
+// the PLC's side of the restarts, not the transport.
+TEST(ServiceProcesses, APlcOutlivesAStoppedAndAKilledServiceAndServesTheNext) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  test::Child plc;
+  ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.config()}, env.path("plc.log")));
+  auto wait_found = [&](int n) {
+    for (int i = 0; i < 300 && test::count_of(plc.log(), ": setup done (") < n; ++i) {
+      std::this_thread::sleep_for(50ms);
+    }
+    return test::count_of(plc.log(), ": setup done (");
+  };
+  ASSERT_EQ(wait_found(3), 3) << plc.log();
+  ASSERT_EQ(env.service.interrupt(), 0);
+  test::Child look;  // an HMI while no service runs
+  ASSERT_TRUE(look.start({TGM_HMI_BIN, "status", "--wait", "1", "--config", env.config()},
+                         env.path("status.log")));
+  EXPECT_EQ(look.wait(kHang), 1) << look.log();
+  ASSERT_TRUE(env.start_service());
+  ASSERT_EQ(wait_found(6), 6) << plc.log();
+  ASSERT_EQ(env.service.interrupt(kHang, SIGKILL), 128 + SIGKILL);
+  ASSERT_TRUE(env.start_service());
+  ASSERT_EQ(wait_found(9), 9) << plc.log();
+  std::ofstream(env.path("m.ngc")) << "G1 X5 F3000\nM50\nG1 X10\nM2\n";
+  test::Child hmi;
+  ASSERT_TRUE(hmi.start({TGM_HMI_BIN, "run", env.path("m.ngc"), "--config", env.config()},
+                        env.path("hmi.log")));
+  EXPECT_EQ(hmi.wait(kHang), 0) << hmi.log() << "\n--- plc:\n" << plc.log();
+  EXPECT_EQ(plc.interrupt(), 0);
+  EXPECT_EQ(test::count_of(plc.log(), "M50 acknowledged"), 1) << plc.log();
+  EXPECT_EQ(test::count_of(plc.log(), "no reply within"), 0) << plc.log();
+}
+
 // `tgm-hmi run` under a service that stops mid-program and comes back: it says when the state
 // falls silent, and used to wait for ever after the restart (the new service's state is not its
 // program's); it ends with exit code 1 and says why. While the state is silent its log gets no
