@@ -11,6 +11,7 @@
 
 #include <cerrno>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <string>
@@ -37,9 +38,18 @@ inline std::string profiles_path() {
 //! until session 70; from domain 102 on their ports (7400 + 250 x domain and up) lie in Linux's
 //! default range for outgoing sockets (32768-60999): another program's socket took a test's
 //! discovery port and its participants never matched (CI, session 69). 10..99 stay below it and
-//! clear of domain 0, which tgm uses by default.
+//! clear of domain 0, which tgm uses by default. $TGM_TEST_DOMAIN (0..232) pins the domain
+//! instead, without a lock: for a run beside other work on this machine that keeps to a domain
+//! of its own (one test binary at a time then).
 inline int test_domain() {
   static const int domain = [] {
+    if (const char* pinned = std::getenv("TGM_TEST_DOMAIN"); pinned != nullptr && *pinned != '\0') {
+      char* end = nullptr;
+      const long d = std::strtol(pinned, &end, 10);
+      if (*end == '\0' && d >= 0 && d <= 232) return static_cast<int>(d);
+      std::fprintf(stderr, "TGM_TEST_DOMAIN must be a DDS domain 0..232, not '%s'\n", pinned);
+      std::exit(2);
+    }
     constexpr int kFirst = 10;
     constexpr int kCount = 90;
     const int start = static_cast<int>(::getpid() % kCount);
