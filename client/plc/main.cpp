@@ -104,7 +104,10 @@ constexpr const char* kUsage =
     "                       each may name `interpolator: N` (default 0), the only one its\n"
     "                       actions apply to (with --interpolator, it must be that one), and\n"
     "                       needs at least one action (several run in the order above); at_s\n"
-    "                       counts from the moment the service was found (default 0)\n"
+    "                       counts from the moment the service was found (default 0).\n"
+    "                       Ratio and offset go to the service's axis of that letter (the\n"
+    "                       letters its state publishes; such a step waits for that state):\n"
+    "                       a letter it does not drive is not written, an error (exit code 3)\n"
     "  --try-start          send a start request as the PLC once (the service refuses it)\n"
     "  --no-basic-params    do not send the basic parameters at start\n"
     "  --duration S         stop by itself after S seconds (at most 1e9)\n"
@@ -116,6 +119,10 @@ constexpr const char* kUsage =
     "                       permitted (a real PLC task is real-time; default: normal)\n"
     "  --help               this text\n"
     "  --version            print tgm-plc's version\n"
+    "\n"
+    "Exit codes: 0 stopped (signal or --duration), 1 DDS could not be set up or a report file\n"
+    "could not be written, 2 a bad flag, config or script, 3 the script did not run as written\n"
+    "(an axis write not sent).\n"
     "\n"
     "Under systemd (Type=notify: the installed lib/systemd/system/tgm-plc.service) it says\n"
     "READY=1 once its DDS entities exist, what it serves in STATUS=, and STOPPING=1; with\n"
@@ -342,6 +349,10 @@ int plc_main(int argc, char** argv) {
     return args.usage_error("--interpolator " + std::to_string(only) + ": the config has " +
                             std::to_string(count));
   std::vector<bool> script_done(script.size(), false);
+  // Script writes by axis letter not sent because the service has no axis of that letter: the
+  // count and the first one, said again at exit (exit code 3).
+  int held_writes = 0;
+  std::string first_held;
   // Every step that cannot run, in line order, before any runs (one per step).
   bool script_bad = false;
   for (const auto& s : script) {
@@ -1064,6 +1075,10 @@ int plc_main(int argc, char** argv) {
       for (std::size_t k = 0; k < script.size(); ++k) {
         const tgm::PlcScriptStep& st = script[k];
         if (script_done[k] || t < st.at_s) continue;
+        // Writes by axis letter go to the service's axis of that letter, which its state names:
+        // such a step waits for the state of its interpolator.
+        const tgm::msg::InterpolatorState* ist = plc->state(st.interpolator);
+        if (ist == nullptr && (!st.ratio.empty() || !st.offset_inc.empty())) continue;
         script_done[k] = true;
         char what[320];
         if (st.rel_speed) {
@@ -1073,10 +1088,6 @@ int plc_main(int argc, char** argv) {
                         tgm::client::rel_speed_request(st.interpolator, *st.rel_speed), what, false,
                         1);
         }
-        // Register writes by axis letter: the index is the letter's place in the config (the
-        // service's axes, as the basic parameters assume).
-        const std::string letters = config.machine.axis_letters(st.interpolator);
-        const auto axis_of = [&](char letter) { return static_cast<int>(letters.find(letter)); };
         if (st.number_axes) {
           std::snprintf(what, sizeof what, "script line %d: interpolator %d: Number_Axes = %d",
                         st.line, st.interpolator, *st.number_axes);
@@ -1084,19 +1095,45 @@ int plc_main(int argc, char** argv) {
                         tgm::client::number_axes_request(st.interpolator, *st.number_axes), what,
                         false, 1);
         }
-        for (const auto& [letter, ratio] : st.ratio) {
-          std::snprintf(what, sizeof what, "script line %d: interpolator %d: Ratio %c = %g inc/mm",
-                        st.line, st.interpolator, letter, ratio);
-          queue_request(st.interpolator,
-                        tgm::client::ratio_request(st.interpolator, axis_of(letter), ratio), what,
-                        false, 1);
-        }
-        for (const auto& [letter, offset] : st.offset_inc) {
-          std::snprintf(what, sizeof what, "script line %d: interpolator %d: Offset %c = %lld inc",
-                        st.line, st.interpolator, letter, static_cast<long long>(offset));
-          queue_request(st.interpolator,
-                        tgm::client::offset_request(st.interpolator, axis_of(letter), offset), what,
-                        false, 1);
+        // Register writes by axis letter, to the index of that letter among the axes the service
+        // drives (its state's letters). The index in this PLC's config set another axis when
+        // the two differ (a ratio for C went to the service's Z): a letter the service does not
+        // drive is not written at all, said as an error and in the exit code.
+        const std::string theirs = ist != nullptr ? ist->axis_letters().to_string() : "";
+        for (const tgm::PlcAxisWrite& w : tgm::plc_script_axis_writes(st, theirs)) {
+          const bool ratio = w.reg == tgm::PlcAxisWrite::Register::kRatio;
+          char value[48];
+          if (ratio) {
+            std::snprintf(value, sizeof value, "Ratio %c = %g inc/mm", w.letter,
+                          w.ratio_inc_per_mm);
+          } else {
+            std::snprintf(value, sizeof value, "Offset %c = %lld inc", w.letter,
+                          static_cast<long long>(w.offset_inc));
+          }
+          if (w.axis < 0) {
+            const std::string why =
+                theirs.empty()
+                    ? std::string("the service publishes no axis letters for it")
+                    : "the service has no axis " + std::string(1, w.letter) + ": it drives " +
+                          theirs + " (Number_Axes " + std::to_string(ist->number_axes()) + ")";
+            append_log(pending_log, stamp(),
+                       "script %s:%d: interpolator %d: error: %s not written: %s; the script "
+                       "names the axes of this config (%s)",
+                       script_path.c_str(), st.line, st.interpolator, value, why.c_str(),
+                       config.machine.axis_letters(st.interpolator).c_str());
+            if (held_writes++ == 0) {
+              first_held = script_path + ":" + std::to_string(st.line) + ": interpolator " +
+                           std::to_string(st.interpolator) + ": " + value + ": " + why;
+            }
+            continue;
+          }
+          std::snprintf(what, sizeof what, "script line %d: interpolator %d: %s", st.line,
+                        st.interpolator, value);
+          queue_request(
+              st.interpolator,
+              ratio ? tgm::client::ratio_request(st.interpolator, w.axis, w.ratio_inc_per_mm)
+                    : tgm::client::offset_request(st.interpolator, w.axis, w.offset_inc),
+              what, false, 1);
         }
         if (st.command) {
           // The parameters up to the last one that is not 0, as the script gave them.
@@ -1188,6 +1225,14 @@ int plc_main(int argc, char** argv) {
       std::fprintf(f, "%d,%d,%lld,%lld,%lld,%lld,%lld,%s\n", t.interpolator, t.act_part, ns(t.woke),
                    ns(t.seen), ns(t.ack_call), ns(t.ack_written), ns(t.reply), t.path);
     }
+  }
+  if (held_writes > 0) {
+    std::fprintf(stderr,
+                 "tgm-plc: %d axis write%s of the script %s not sent (the first: %s): give "
+                 "tgm-plc the service's config, or name the service's axes in the script\n",
+                 held_writes, held_writes == 1 ? "" : "s", held_writes == 1 ? "was" : "were",
+                 first_held.c_str());
+    exit_code = 3;
   }
   if (std::string why; trace_file.is_open() && !trace_file.finish(why)) {
     std::fprintf(stderr, "tgm-plc: %s: %s\n", trace_path.c_str(), why.c_str());

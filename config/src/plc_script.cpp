@@ -186,6 +186,32 @@ std::string plc_script_axes_problem(const PlcScriptStep& step, const std::string
   return {};
 }
 
+std::vector<PlcAxisWrite> plc_script_axis_writes(const PlcScriptStep& step,
+                                                 std::string_view service_letters) {
+  const auto axis_of = [&](char letter) {
+    const std::size_t at = service_letters.find(letter);
+    return at == std::string_view::npos ? -1 : static_cast<int>(at);
+  };
+  std::vector<PlcAxisWrite> out;
+  for (const auto& [letter, ratio] : step.ratio) {
+    PlcAxisWrite w;
+    w.reg = PlcAxisWrite::Register::kRatio;
+    w.letter = letter;
+    w.axis = axis_of(letter);
+    w.ratio_inc_per_mm = ratio;
+    out.push_back(w);
+  }
+  for (const auto& [letter, offset] : step.offset_inc) {
+    PlcAxisWrite w;
+    w.reg = PlcAxisWrite::Register::kOffset;
+    w.letter = letter;
+    w.axis = axis_of(letter);
+    w.offset_inc = offset;
+    out.push_back(w);
+  }
+  return out;
+}
+
 namespace {
 
 // A script's problems shown at most (the rest are counted).

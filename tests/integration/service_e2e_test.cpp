@@ -657,6 +657,52 @@ TEST(ServiceProcesses, APlcScriptRefusalIsForTheInterpolatorItNames) {
   EXPECT_EQ(test::count_of(log, "interpolator 1: M51 (line 0) is left waiting"), 1) << log;
 }
 
+// A script's write by axis letter goes to the service's axis of that letter: the stand-in
+// drives Y, X, C where the PLC's config has X, Y, Z. The ratio for X went to axis 0 (the
+// service's Y), and the offset for Z to the service's C, both logged as accepted (review of
+// session 76). Now X goes to axis 1, and Z, which the service does not drive, is not written:
+// an error in the log naming the line and the service's letters, and exit code 3.
+TEST(ServiceProcesses, APlcScriptAxisWriteGoesToTheServicesAxisOfItsLetter) {
+  ServiceEnv env;
+  StandInService service(env);
+  service.st[0].axis_letters("YXC");
+  const std::string script = env.path("axes.yaml");
+  std::ofstream(script) << "- {at_s: 0, ratio: {X: 2000}, offset: {Z: 7}}\n";
+  test::Child plc;
+  ASSERT_NO_FATAL_FAILURE(service.start_plc(env, plc, {"--script", script}));
+  std::vector<msg::Request> writes;
+  std::uint64_t cycle = 0;
+  const std::string answered = "script line 1: interpolator 0: Ratio X = 2000 inc/mm: accepted";
+  const auto deadline = std::chrono::steady_clock::now() + kHang;
+  while (std::chrono::steady_clock::now() < deadline &&
+         plc.log().find(answered) == std::string::npos) {
+    ASSERT_TRUE(service.publish(cycle));
+    msg::Request rq;
+    while (dds::take_next(service.requests, rq)) {
+      writes.push_back(rq);
+      ASSERT_TRUE(service.answer(rq, cycle));
+    }
+    std::this_thread::sleep_for(10ms);
+  }
+  EXPECT_EQ(plc.interrupt(), 3) << plc.log();
+  const std::string log = plc.log();
+  ASSERT_EQ(writes.size(), 1u) << log;
+  EXPECT_EQ(writes[0].kind(), msg::REQUEST_KIND_WRITE_RATIO) << log;
+  EXPECT_EQ(writes[0].axis(), 1) << log;
+  EXPECT_EQ(writes[0].value(), 2000.0) << log;
+  const std::string why = "Offset Z = 7 inc";
+  const std::string service_has = "the service has no axis Z: it drives YXC (Number_Axes 3)";
+  EXPECT_NE(log.find("script " + script + ":1: interpolator 0: error: " + why + " not written: " +
+                     service_has + "; the script names the axes of this config (XYZ)"),
+            std::string::npos)
+      << log;
+  EXPECT_NE(log.find("tgm-plc: 1 axis write of the script was not sent (the first: " + script +
+                     ":1: interpolator 0: " + why + ": " + service_has + ")"),
+            std::string::npos)
+      << log;
+  EXPECT_EQ(log.find("Offset Z = 7 inc: accepted"), std::string::npos) << log;
+}
+
 // A tgm-plc (re)started while a program waits for M51 leaves the machine's parameters alone:
 // its gear ratios were accepted mid-program (the interpolator stands during the wait), and
 // PositionInc jumped by Position x dRatio with the program going on from there.

@@ -90,6 +90,44 @@ TEST(PlcScript, RegisterWritesByAxisLetter) {
             "interpolator 0: ratio of 'C': it has no such axis (XYZ)");
 }
 
+// A write by axis letter goes to the index of that letter among the axes the service drives,
+// not to its place in tgm-plc's config: with a config of Y, X, Z the ratio for X set the
+// service's Y, and with X, Y, C the one for C its Z (review of session 76). A letter the
+// service does not drive has no index (-1): nothing is written.
+TEST(PlcScript, AxisWritesGoToTheServicesAxisOfTheLetter) {
+  const PlcScriptLoad load = parse_plc_script(
+      "- {at_s: 0, offset: {C: 77, X: -5}, ratio: {C: 5000, X: 2000}}\n", "s.yaml");
+  ASSERT_TRUE(load.ok()) << load.error;
+  using R = PlcAxisWrite::Register;
+  const auto shown = [](const std::vector<PlcAxisWrite>& writes) {
+    std::string out;
+    for (const PlcAxisWrite& w : writes) {
+      out += (w.reg == R::kRatio ? "ratio " : "offset ") + std::string(1, w.letter) + "->" +
+             std::to_string(w.axis) + " ";
+    }
+    return out;
+  };
+  // Ratios first, then offsets, each in the order given.
+  EXPECT_EQ(shown(plc_script_axis_writes(load.steps[0], "XYC")),
+            "ratio C->2 ratio X->0 offset C->2 offset X->0 ");
+  EXPECT_EQ(shown(plc_script_axis_writes(load.steps[0], "YXC")),
+            "ratio C->2 ratio X->1 offset C->2 offset X->1 ");
+  EXPECT_EQ(shown(plc_script_axis_writes(load.steps[0], "XYZ")),
+            "ratio C->-1 ratio X->0 offset C->-1 offset X->0 ");
+  // A lower Number_Axes: the service drives only the first letters.
+  EXPECT_EQ(shown(plc_script_axis_writes(load.steps[0], "X")),
+            "ratio C->-1 ratio X->0 offset C->-1 offset X->0 ");
+  // A service that publishes no letters: nothing can be addressed.
+  EXPECT_EQ(shown(plc_script_axis_writes(load.steps[0], "")),
+            "ratio C->-1 ratio X->-1 offset C->-1 offset X->-1 ");
+  const std::vector<PlcAxisWrite> w = plc_script_axis_writes(load.steps[0], "YXC");
+  ASSERT_EQ(w.size(), 4u);
+  EXPECT_EQ(w[0].ratio_inc_per_mm, 5000.0);
+  EXPECT_EQ(w[1].ratio_inc_per_mm, 2000.0);
+  EXPECT_EQ(w[2].offset_inc, 77);
+  EXPECT_EQ(w[3].offset_inc, -5);
+}
+
 // A bad step is named by its line and the reason, and nothing of the script is kept: a script
 // is not run in part (the fuzz target found the steps before a bad one kept).
 TEST(PlcScript, AProblemNamesTheLineAndKeepsNoStep) {

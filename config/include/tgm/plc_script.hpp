@@ -55,6 +55,26 @@ std::string plc_script_interpolator_problem(const PlcScriptStep& step, int count
 //! "PATH:LINE: ".
 std::string plc_script_axes_problem(const PlcScriptStep& step, const std::string& letters);
 
+//! A register write of a step by axis letter (ratio, offset), addressed to the service's axis
+//! of that letter.
+struct PlcAxisWrite {
+  enum class Register { kRatio, kOffset };
+  Register reg = Register::kRatio;
+  char letter = 0;
+  //! The axis index of `letter` among the letters the service publishes for the interpolator
+  //! (InterpolatorState.axis_letters), or -1 when it has no such axis: then nothing may be
+  //! written (the index of the letter in tgm-plc's own config set another drive's ratio).
+  int axis = -1;
+  double ratio_inc_per_mm = 0.0;  //!< kRatio
+  std::int64_t offset_inc = 0;    //!< kOffset
+};
+
+//! The ratio writes of `step`, then its offset writes, each in the order given, with the index
+//! of its letter in `service_letters` (the axes the service drives, in order; "" when it
+//! publishes none: every write then has axis -1).
+std::vector<PlcAxisWrite> plc_script_axis_writes(const PlcScriptStep& step,
+                                                 std::string_view service_letters);
+
 //! Parses script text; `path` names it in messages.
 PlcScriptLoad parse_plc_script(std::string_view text, const std::string& path);
 
