@@ -100,7 +100,8 @@ constexpr const char* kUsage =
     "                           parameters: [0, 2000, 1]          Command_Parameter[0..] (the\n"
     "                                                             rest 0)\n"
     "                         - {at_s: 4, start: true}            try to start (refused)\n"
-    "                         - {at_s: 0, refuse_ack: [51]}       stop acknowledging M51\n"
+    "                         - {at_s: 0, refuse_ack: [51]}       stop acknowledging M51 (an\n"
+    "                                                             M51 that waits already too)\n"
     "                       each may name `interpolator: N` (default 0), the only one its\n"
     "                       actions apply to (with --interpolator, it must be that one), and\n"
     "                       needs at least one action (several run in the order above); at_s\n"
@@ -1010,7 +1011,20 @@ int plc_main(int argc, char** argv) {
       }
       if (sv.ack_m != 0 && now >= sv.ack_at) {
         log_seen();
-        send_from_loop(loop_seen(sv, sv.ack_m, sv.ack_count, true), EventSeen::Via::kLoop);
+        bool refused_since = false;
+        {
+          // Refused after it was scheduled (a script step that raced the event callback's
+          // hand-over): not written either.
+          const std::lock_guard lock(shared_mutex);
+          refused_since = refuse.refused(sv.number, sv.ack_m);
+        }
+        if (refused_since) {
+          append_log(pending_log, stamp(),
+                     "interpolator %d: M%d: refusing to acknowledge (--refuse-ack / script)",
+                     sv.number, sv.ack_m);
+        } else {
+          send_from_loop(loop_seen(sv, sv.ack_m, sv.ack_count, true), EventSeen::Via::kLoop);
+        }
         sv.ack_m = 0;
       }
       // An unanswered acknowledgement (lost on a lossy network, or its reply was): while the
@@ -1018,7 +1032,13 @@ int plc_main(int argc, char** argv) {
       // One that arrived meanwhile makes the service refuse the repeat (it names the count).
       // While the repeat waits for its reply none is sent; unanswered, it arms the next.
       if (sv.unanswered_m != 0) {
-        if (s->m_func() != sv.unanswered_m || s->m_func_count() != sv.unanswered_count) {
+        bool refused_since = false;
+        {
+          const std::lock_guard lock(shared_mutex);
+          refused_since = refuse.refused(sv.number, sv.unanswered_m);
+        }
+        if (s->m_func() != sv.unanswered_m || s->m_func_count() != sv.unanswered_count ||
+            refused_since) {
           sv.unanswered_m = 0;
         } else if (Clock::now() - sv.unanswered_at >= 1s) {
           send_from_loop(loop_seen(sv, sv.unanswered_m, sv.unanswered_count, true),
@@ -1164,6 +1184,19 @@ int plc_main(int argc, char** argv) {
           append_log(pending_log, stamp(),
                      "script line %d: interpolator %d: from now on M%d is not acknowledged",
                      st.line, st.interpolator, m);
+          // "From now on" includes the M-function that already waits: its acknowledgement, due
+          // later (--ack-delay, plc.m_delay_s), is not written, nor is an unanswered one sent
+          // again. It was: the interpolator went on at M51 seconds after this line.
+          Served* sv = find_served(st.interpolator);
+          if (sv != nullptr && sv->ack_m == m) {
+            append_log(pending_log, stamp(),
+                       "script line %d: interpolator %d: M%d (part %d) waits: its "
+                       "acknowledgement, due in %.3f s, is not sent",
+                       st.line, st.interpolator, m, sv->m_part,
+                       std::max(0.0, std::chrono::duration<double>(sv->ack_at - now).count()));
+            sv->ack_m = 0;
+          }
+          if (sv != nullptr && sv->unanswered_m == m) sv->unanswered_m = 0;
         }
       }
     }

@@ -657,6 +657,48 @@ TEST(ServiceProcesses, APlcScriptRefusalIsForTheInterpolatorItNames) {
   EXPECT_EQ(test::count_of(log, "interpolator 1: M51 (line 0) is left waiting"), 1) << log;
 }
 
+// A script's refuse_ack also holds back the acknowledgement of an M-function that waits already
+// and is due later: M51 waits from the first state, due after --ack-delay 0.5 s, and the step
+// at 0.1 s refuses it. The PLC logged "from now on M51 is not acknowledged" and acknowledged it
+// 0.4 s later (review of session 76, F2); now nothing is sent until its --duration ends.
+TEST(ServiceProcesses, APlcScriptRefusalHoldsBackAnAcknowledgementAlreadyDue) {
+  ServiceEnv env;
+  StandInService service(env);
+  service.wait_for_m(0, 51);
+  service.st[0].act_part(2);
+  const std::string script = env.path("refuse.yaml");
+  std::ofstream(script) << "- {at_s: 0.1, refuse_ack: [51]}\n";
+  test::Child plc;
+  ASSERT_NO_FATAL_FAILURE(service.start_plc(
+      env, plc,
+      {"--ack-delay", "0.5", "--script", script, "--duration", "2", "--interpolator", "0"}));
+  std::uint64_t cycle = 0;
+  int acks = 0;
+  const auto deadline = std::chrono::steady_clock::now() + kHang;
+  while (plc.running() && std::chrono::steady_clock::now() < deadline) {
+    ASSERT_TRUE(service.publish(cycle));
+    msg::Request rq;
+    while (dds::take_next(service.requests, rq)) {
+      ++acks;
+      ASSERT_TRUE(service.answer(rq, cycle));
+    }
+    std::this_thread::sleep_for(10ms);
+    plc.wait(0ms);
+  }
+  EXPECT_EQ(plc.wait(kHang), 0) << plc.log();
+  const std::string log = plc.log();
+  EXPECT_EQ(acks, 0) << log;
+  EXPECT_NE(log.find("script line 1: interpolator 0: from now on M51 is not acknowledged"),
+            std::string::npos)
+      << log;
+  EXPECT_NE(log.find("script line 1: interpolator 0: M51 (part 2) waits: its acknowledgement, "
+                     "due in 0."),
+            std::string::npos)
+      << log;
+  EXPECT_EQ(log.find("M51 acknowledged"), std::string::npos) << log;
+  EXPECT_EQ(test::count_of(log, "interpolator 0: M51 (line 0) is left waiting"), 1) << log;
+}
+
 // A script's write by axis letter goes to the service's axis of that letter: the stand-in
 // drives Y, X, C where the PLC's config has X, Y, Z. The ratio for X went to axis 0 (the
 // service's Y), and the offset for Z to the service's C, both logged as accepted (review of
