@@ -111,7 +111,10 @@ constexpr const char* kUsage =
     "                       a letter it does not drive is not written, an error (exit code 3)\n"
     "  --try-start          send a start request as the PLC once (the service refuses it)\n"
     "  --no-basic-params    do not send the basic parameters at start\n"
-    "  --duration S         stop by itself after S seconds (at most 1e9)\n"
+    "  --duration S         stop by itself S seconds after the start (at most 1e9). A script's\n"
+    "                       at_s counts from when the service was found, so it must be below\n"
+    "                       S; steps not run by the end are named on standard error (exit\n"
+    "                       code 3; after a signal too, with exit code 0)\n"
     "  --quiet              log only M-functions, acknowledgements and errors\n"
     "  --no-events          do not subscribe to tgm_event: see M-functions on the state only\n"
     "                       (the main loop acknowledges them all)\n"
@@ -123,7 +126,7 @@ constexpr const char* kUsage =
     "\n"
     "Exit codes: 0 stopped (signal or --duration), 1 DDS could not be set up or a report file\n"
     "could not be written, 2 a bad flag, config or script, 3 the script did not run as written\n"
-    "(an axis write not sent).\n"
+    "(an axis write not sent, or steps not run when --duration ended the run).\n"
     "\n"
     "Under systemd (Type=notify: the installed lib/systemd/system/tgm-plc.service) it says\n"
     "READY=1 once its DDS entities exist, what it serves in STATUS=, and STOPPING=1; with\n"
@@ -393,6 +396,12 @@ int plc_main(int argc, char** argv) {
     }
   }
   if (script_bad) return 2;
+  // --duration counts from the start, at_s from when the service is found: a step at or after
+  // the duration could never run (it was left out without a word, exit code 0).
+  if (const std::string why = tgm::plc_script_duration_problem(script, duration_s, script_path);
+      duration_s > 0.0 && !why.empty()) {
+    return args.usage_error(why);
+  }
 
   struct sigaction sa{};
   sa.sa_handler = on_signal;
@@ -763,10 +772,14 @@ int plc_main(int argc, char** argv) {
     notifier.status(text + " on DDS domain " + std::to_string(config.dds.domain_id));
   };
   flush_log();
+  bool duration_ended = false;
   while (!g_stop) {
     flush_log();
     if (gate.due(++passes)) notifier.watchdog();
-    if (duration_s > 0.0 && stamp() >= duration_s) break;
+    if (duration_s > 0.0 && stamp() >= duration_s) {
+      duration_ended = true;
+      break;
+    }
     plc->poll(5ms);
     take_event_seen();
     take_acked_replies(false);
@@ -1201,6 +1214,7 @@ int plc_main(int argc, char** argv) {
       }
     }
   }
+  const auto loop_ended = Clock::now();
   notifier.stopping();
   // Every M-function seen and every acknowledgement is logged, even when the stop came first.
   // Replies still on their way get a moment (a stop right after an acknowledgement).
@@ -1266,6 +1280,28 @@ int plc_main(int argc, char** argv) {
                  held_writes, held_writes == 1 ? "" : "s", held_writes == 1 ? "was" : "were",
                  first_held.c_str());
     exit_code = 3;
+  }
+  // Steps not due yet (or waiting for their interpolator's state) when the run ended: said,
+  // and after a --duration end the exit code says the script did not run whole (it said 0 with
+  // a stop step left out). A signal is the operator's stop: said, exit code 0.
+  if (const std::string unrun = tgm::plc_script_unrun(script, script_done, script_path);
+      !unrun.empty()) {
+    char when[160];
+    if (found_at) {
+      std::snprintf(when, sizeof when, "%.3f s after tgm-service was found",
+                    std::chrono::duration<double>(loop_ended - *found_at).count());
+    } else {
+      std::snprintf(when, sizeof when, "before tgm-service was found");
+    }
+    if (duration_ended) {
+      std::fprintf(stderr,
+                   "tgm-plc: %s: --duration %g s ended the run %s (at_s counts from then)\n",
+                   unrun.c_str(), duration_s, when);
+      exit_code = 3;
+    } else {
+      std::fprintf(stderr, "tgm-plc: %s: the PLC was stopped by a signal %s\n", unrun.c_str(),
+                   when);
+    }
   }
   if (std::string why; trace_file.is_open() && !trace_file.finish(why)) {
     std::fprintf(stderr, "tgm-plc: %s: %s\n", trace_path.c_str(), why.c_str());

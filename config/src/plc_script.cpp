@@ -4,6 +4,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <cctype>
+#include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <set>
@@ -210,6 +211,46 @@ std::vector<PlcAxisWrite> plc_script_axis_writes(const PlcScriptStep& step,
     out.push_back(w);
   }
   return out;
+}
+
+namespace {
+
+// A number of seconds as the script would give it: the shortest text that reads back the same.
+std::string seconds_text(double s) {
+  char buf[32];
+  const auto end = std::to_chars(buf, buf + sizeof buf, s).ptr;
+  return std::string(buf, end);
+}
+
+}  // namespace
+
+std::string plc_script_duration_problem(const std::vector<PlcScriptStep>& steps, double duration_s,
+                                        const std::string& path) {
+  const PlcScriptStep* late = nullptr;
+  for (const PlcScriptStep& s : steps) {
+    if (s.at_s >= duration_s && (late == nullptr || s.at_s > late->at_s)) late = &s;
+  }
+  if (late == nullptr) return {};
+  return printable("--duration " + seconds_text(duration_s) + " (seconds from the start) ends " +
+                   "the run before the step at " + path + ":" + std::to_string(late->line) +
+                   " (at_s " + seconds_text(late->at_s) +
+                   ", seconds from when tgm-service is found) could run: give a --duration " +
+                   "longer than the script's last at_s");
+}
+
+std::string plc_script_unrun(const std::vector<PlcScriptStep>& steps, const std::vector<bool>& ran,
+                             const std::string& path) {
+  std::size_t unrun = 0;
+  const PlcScriptStep* first = nullptr;
+  for (std::size_t k = 0; k < steps.size(); ++k) {
+    if (k < ran.size() && ran[k]) continue;
+    ++unrun;
+    if (first == nullptr) first = &steps[k];
+  }
+  if (first == nullptr) return {};
+  return printable(std::to_string(unrun) + " of " + std::to_string(steps.size()) + " script step" +
+                   (steps.size() == 1 ? "" : "s") + " never ran" + " (the first: " + path + ":" +
+                   std::to_string(first->line) + ", at_s " + seconds_text(first->at_s) + ")");
 }
 
 namespace {

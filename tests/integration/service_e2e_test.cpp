@@ -2825,6 +2825,48 @@ TEST(ServiceProcesses, PlcScriptStepsRunAtTheirTimesAndAreLoggedWithTheirLine) {
   EXPECT_EQ(hmi.state(0)->number_axes(), 3);
 }
 
+// Script steps still to come when tgm-plc stops are named on standard error, with the first
+// one's line and at_s: with no service on the domain none runs. A --duration end then exits
+// with code 3, a signal (the operator's stop) with 0; both exited 0 without a word about the
+// script (review of session 76, F3). A --duration that ends before a step's at_s could come
+// is refused at the start.
+TEST(ServiceProcesses, PlcScriptStepsThatNeverRanAreNamedAtTheExit) {
+  ServiceEnv env;  // no service started
+  const std::string script = env.path("script.yaml");
+  std::ofstream(script) << "- {at_s: 0, rel_speed: 0.9}\n- {at_s: 0.3, command: 8}\n";
+  test::Child timed;
+  ASSERT_TRUE(timed.start({TGM_PLC_BIN, "--config", env.config(), "--script", script,
+                           "--no-basic-params", "--duration", "0.5"},
+                          env.path("plc_timed.log")));
+  EXPECT_EQ(timed.wait(kHang), 3) << timed.log();
+  EXPECT_NE(timed.log().find("tgm-plc: 2 of 2 script steps never ran (the first: " + script +
+                             ":1, at_s 0): --duration 0.5 s ended the run before tgm-service "
+                             "was found (at_s counts from then)\n"),
+            std::string::npos)
+      << timed.log();
+  test::Child stopped;
+  ASSERT_TRUE(stopped.start(
+      {TGM_PLC_BIN, "--config", env.config(), "--script", script, "--no-basic-params"},
+      env.path("plc_stopped.log")));
+  ASSERT_TRUE(stopped.wait_for_log("PLC emulator on DDS domain", kHang)) << stopped.log();
+  EXPECT_EQ(stopped.interrupt(kHang), 0) << stopped.log();
+  EXPECT_NE(stopped.log().find("tgm-plc: 2 of 2 script steps never ran (the first: " + script +
+                               ":1, at_s 0): the PLC was stopped by a signal before tgm-service "
+                               "was found\n"),
+            std::string::npos)
+      << stopped.log();
+  test::Child short_run;
+  ASSERT_TRUE(short_run.start(
+      {TGM_PLC_BIN, "--config", env.config(), "--script", script, "--duration", "0.3"},
+      env.path("plc_short.log")));
+  EXPECT_EQ(short_run.wait(kHang), 2) << short_run.log();
+  EXPECT_EQ(short_run.log(),
+            "tgm-plc: --duration 0.3 (seconds from the start) ends the run before the step at " +
+                script +
+                ":2 (at_s 0.3, seconds from when tgm-service is found) could run: give a "
+                "--duration longer than the script's last at_s\n(see tgm-plc --help)\n");
+}
+
 // tgm-plc refuses flags that could not do what they say, before it joins DDS: refusing to
 // acknowledge a continuous M-function (the interpolator does not wait for one) did nothing.
 TEST(ServiceProcesses, PlcFlagsThatCannotWorkAreUsageErrors) {

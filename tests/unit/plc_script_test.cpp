@@ -128,6 +128,45 @@ TEST(PlcScript, AxisWritesGoToTheServicesAxisOfTheLetter) {
   EXPECT_EQ(w[3].offset_inc, -5);
 }
 
+// at_s counts from when the service is found, --duration from the PLC's start: a step at or
+// after the duration never runs, and is refused at the start (it was left out without a word).
+TEST(PlcScript, ADurationThatEndsBeforeAStepIsNamed) {
+  const PlcScriptLoad load = parse_plc_script(
+      "- {at_s: 0.2, rel_speed: 0.9}\n- {at_s: 5, command: 8}\n- {at_s: 3, command: 9}\n",
+      "s.yaml");
+  ASSERT_TRUE(load.ok()) << load.error;
+  EXPECT_EQ(plc_script_duration_problem(load.steps, 5.5, "s.yaml"), "");
+  EXPECT_EQ(plc_script_duration_problem(load.steps, 5, "s.yaml"),
+            "--duration 5 (seconds from the start) ends the run before the step at s.yaml:2 "
+            "(at_s 5, seconds from when tgm-service is found) could run: give a --duration "
+            "longer than the script's last at_s");
+  // The latest step is named: the one the duration must exceed.
+  EXPECT_EQ(
+      plc_script_duration_problem(load.steps, 1, "s.yaml")
+          .rfind("--duration 1 (seconds from the start) ends the run before the step at s.yaml:2 "
+                 "(at_s 5,",
+                 0),
+      0u);
+}
+
+// What of a script did not run when the PLC stopped: how many, and the first one's place.
+TEST(PlcScript, StepsThatNeverRanAreCountedAndTheFirstNamed) {
+  const PlcScriptLoad load = parse_plc_script(
+      "- {at_s: 0.2, rel_speed: 0.9}\n- {at_s: 5, command: 8}\n- {at_s: 3.25, command: 9}\n",
+      "s.yaml");
+  ASSERT_TRUE(load.ok()) << load.error;
+  EXPECT_EQ(plc_script_unrun(load.steps, {true, true, true}, "s.yaml"), "");
+  EXPECT_EQ(plc_script_unrun(load.steps, {true, false, true}, "s.yaml"),
+            "1 of 3 script steps never ran (the first: s.yaml:2, at_s 5)");
+  EXPECT_EQ(plc_script_unrun(load.steps, {true, false, false}, "s.yaml"),
+            "2 of 3 script steps never ran (the first: s.yaml:2, at_s 5)");
+  EXPECT_EQ(plc_script_unrun(load.steps, {false, false, false}, "s.yaml"),
+            "3 of 3 script steps never ran (the first: s.yaml:1, at_s 0.2)");
+  const std::vector<PlcScriptStep> one(load.steps.begin() + 2, load.steps.end());
+  EXPECT_EQ(plc_script_unrun(one, {false}, "s.yaml"),
+            "1 of 1 script step never ran (the first: s.yaml:3, at_s 3.25)");
+}
+
 // A bad step is named by its line and the reason, and nothing of the script is kept: a script
 // is not run in part (the fuzz target found the steps before a bad one kept).
 TEST(PlcScript, AProblemNamesTheLineAndKeepsNoStep) {

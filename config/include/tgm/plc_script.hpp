@@ -75,6 +75,18 @@ struct PlcAxisWrite {
 std::vector<PlcAxisWrite> plc_script_axis_writes(const PlcScriptStep& step,
                                                  std::string_view service_letters);
 
+//! Why a run of at most `duration_s` seconds from the PLC's start (--duration) cannot run a step
+//! of `steps`: at_s counts from when the service is found, which is never before the start, so
+//! a step at or after the duration never runs. Names the step of the latest such at_s as
+//! "--duration ... PATH:LINE ..."; "" when every step can run in time.
+std::string plc_script_duration_problem(const std::vector<PlcScriptStep>& steps, double duration_s,
+                                        const std::string& path);
+
+//! "N of M script steps never ran (the first: PATH:LINE, at_s X)" for the steps whose `ran`
+//! is false (same order as `steps`), "" when every one ran.
+std::string plc_script_unrun(const std::vector<PlcScriptStep>& steps, const std::vector<bool>& ran,
+                             const std::string& path);
+
 //! Parses script text; `path` names it in messages.
 PlcScriptLoad parse_plc_script(std::string_view text, const std::string& path);
 
