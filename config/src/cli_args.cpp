@@ -56,6 +56,15 @@ bool ArgReader::flag(const char* name, std::string& value) {
     }
     value = argv_[i_ + 1];
     i_ += 2;
+    // The next flag, the value forgotten: `--handshake-trace --no-events` wrote a file named
+    // "--no-events" and left the events on, `--participant-prefix --quiet` joined as
+    // "--quiet-plc". A value that does start with "--" is given as NAME=VALUE.
+    if (value.rfind("--", 0) == 0) {
+      usage_error(std::string(name) + " needs a value, not the flag '" + value +
+                  "' (a value that starts with -- is given as " + name + "=VALUE)");
+      value.clear();
+      return true;
+    }
   } else if (std::strncmp(arg, name, n) == 0 && arg[n] == '=') {
     value = arg + n + 1;
     ++i_;

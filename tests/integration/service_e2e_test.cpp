@@ -2879,6 +2879,14 @@ TEST(ServiceProcesses, PlcFlagsThatCannotWorkAreUsageErrors) {
       {{"--refuse-ack", "0"}, refuse + "0'\n"},
       {{"--refuse-ack", "51,"}, refuse + "51,'\n"},
       {{"--ack-delay", "-1"}, "tgm-plc: --ack-delay must be 0..3600 s, not '-1'\n"},
+      // The next flag is no value: it wrote a trace file "--no-events" and left the events on,
+      // or joined DDS as "--quiet-plc" (review of session 76, F4).
+      {{"--handshake-trace", "--no-events", "--duration", "0.5"},
+       "tgm-plc: --handshake-trace needs a value, not the flag '--no-events' (a value that "
+       "starts with -- is given as --handshake-trace=VALUE)\n"},
+      {{"--participant-prefix", "--quiet", "--duration", "0.5"},
+       "tgm-plc: --participant-prefix needs a value, not the flag '--quiet' (a value that "
+       "starts with -- is given as --participant-prefix=VALUE)\n"},
   };
   const std::string dir = ::testing::TempDir();
   int k = 0;
@@ -2890,6 +2898,7 @@ TEST(ServiceProcesses, PlcFlagsThatCannotWorkAreUsageErrors) {
     EXPECT_EQ(plc.wait(kHang), 2) << plc.log();
     EXPECT_EQ(plc.log(), says + "(see tgm-plc --help)\n");
   }
+  EXPECT_FALSE(std::filesystem::exists("--no-events"));
 }
 
 // Runs tgm-service, tgm-plc, tgm-hmi status and tgm-hmi run with the default config and

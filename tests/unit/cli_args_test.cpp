@@ -120,12 +120,12 @@ TEST(CliArgs, EveryProblemIsNamedWithTheProgramAndAHintToHelp) {
 }
 
 TEST(CliArgs, OnlyTheFirstProblemIsPrintedAndReadingStops) {
-  Argv a({"--out", "--quiet", "stray"});  // --out takes "--quiet" as its value
+  Argv a({"--out", "a.csv", "stray", "--bogus"});
   ArgReader r(a.argc(), a.argv(), "prog");
   std::string out;
   bool quiet = false;
   ASSERT_TRUE(r.flag("--out", out));
-  EXPECT_EQ(out, "--quiet");
+  EXPECT_EQ(out, "a.csv");
   testing::internal::CaptureStderr();
   EXPECT_FALSE(r.boolean("--quiet", quiet));
   EXPECT_EQ(r.fail(), 2);
@@ -230,6 +230,54 @@ TEST(CliArgs, NumbersAreWholeInRangeAndFinite) {
     EXPECT_EQ(n.big, 7) << c.message;
     EXPECT_EQ(n.seconds, 7.0) << c.message;
   }
+}
+
+// A value flag followed by another flag has lost its value: the next flag was taken as it
+// (`tgm-plc --handshake-trace --no-events` wrote a file "--no-events" and left the events on,
+// `--participant-prefix --quiet` joined DDS as "--quiet-plc"). Refused as a missing value,
+// naming both; the reading stops there, so the flag is not read a second time. A value that
+// starts with "--" on purpose goes after '='; one that starts with a single '-' is a value.
+TEST(CliArgs, AFlagIsNoValueOfTheFlagBeforeIt) {
+  struct Case {
+    std::initializer_list<const char*> args;
+    const char* message;
+  };
+  const Case cases[] = {
+      {{"--out", "--quiet"},
+       "prog sub: --out needs a value, not the flag '--quiet' (a value that starts with -- is "
+       "given as --out=VALUE)\n(see prog sub --help)\n"},
+      {{"--participant-prefix", "--quiet", "x.ngc"},
+       "prog sub: --participant-prefix needs a value, not the flag '--quiet' (a value that "
+       "starts with -- is given as --participant-prefix=VALUE)\n(see prog sub --help)\n"},
+      {{"--domain", "--out", "a.csv"},
+       "prog sub: --domain needs a value, not the flag '--out' (a value that starts with -- is "
+       "given as --domain=VALUE)\n(see prog sub --help)\n"},
+      {{"--out", "--"},
+       "prog sub: --out needs a value, not the flag '--' (a value that starts with -- is given "
+       "as --out=VALUE)\n(see prog sub --help)\n"},
+  };
+  for (const Case& c : cases) {
+    const Parsed p = parse(c.args);
+    EXPECT_TRUE(p.failed) << c.message;
+    EXPECT_EQ(p.stderr_text, c.message);
+    EXPECT_EQ(p.out, "") << c.message;
+    EXPECT_FALSE(p.quiet) << c.message;
+    EXPECT_EQ(p.dds.participant_prefix, "") << c.message;
+  }
+  Parsed p = parse({"--out=--quiet", "--participant-prefix=--cell", "--quiet"});
+  EXPECT_FALSE(p.failed) << p.stderr_text;
+  EXPECT_EQ(p.out, "--quiet");
+  EXPECT_EQ(p.dds.participant_prefix, "--cell");
+  EXPECT_TRUE(p.quiet);
+  p = parse({"--out", "-", "--quiet"});
+  EXPECT_FALSE(p.failed) << p.stderr_text;
+  EXPECT_EQ(p.out, "-");
+  // The numeric flags say the same (they said "must be 0..232, not '--out'").
+  Numbers n = parse_numbers({"--small", "--seconds", "1"});
+  EXPECT_EQ(n.stderr_text,
+            "prog: --small needs a value, not the flag '--seconds' (a value that starts with -- "
+            "is given as --small=VALUE)\n(see prog --help)\n");
+  EXPECT_EQ(n.seconds, 7.0);
 }
 
 TEST(CliArgs, HelpIsConsumedAnywhere) {

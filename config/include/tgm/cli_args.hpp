@@ -25,9 +25,10 @@ class ArgReader {
   //! not read: `SUB --help --domain 999` printed the error and the help, then exited 0).
   bool more() const { return i_ < argc_ && !failed_ && !help_; }
   //! Consumes `name VALUE` or `name=VALUE`; true when the current argument was `name`. A
-  //! missing or empty value is reported (failed() becomes true, `value` is left empty), and so
-  //! is a second `name` unless repeatable(name) was called: one of the two values would be lost
-  //! without a word (`--rel-speed 0.5 ... --rel-speed 2`).
+  //! missing or empty value is reported (failed() becomes true, `value` is left empty), as is a
+  //! VALUE after a space that starts with "--" (the next flag: `--out --quiet`; such a value
+  //! goes as `name=--x`), and so is a second `name` unless repeatable(name) was called: one of
+  //! the two values would be lost without a word (`--rel-speed 0.5 ... --rel-speed 2`).
   bool flag(const char* name, std::string& value);
   //! Lets `name` be given more than once; the caller combines the values (tgm-plc's
   //! --refuse-ack 51 --refuse-ack 52).
