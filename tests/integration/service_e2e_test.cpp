@@ -2586,6 +2586,55 @@ TEST(ServiceProcesses, ThePlcCannotStartAndOtherRolesAreEnforced) {
   EXPECT_EQ(watcher.state(0)->status(), 0);
 }
 
+// tgm-plc's --help says what --quiet leaves out and how many starts --try-start sends, and the
+// PLC does that: the help said "log only M-functions, acknowledgements and errors", yet the
+// start line, each interpolator found and its setup done stay (they should: "setup done" is
+// the line to start a program after), and "send a start request once" sent one per
+// interpolator (review of session 76, F5).
+TEST(ServiceProcesses, PlcQuietAndTryStartDoWhatTheHelpSays) {
+  ServiceEnv env;
+  test::Child help;
+  ASSERT_TRUE(help.start({TGM_PLC_BIN, "--help"}, env.path("help.log")));
+  EXPECT_EQ(help.wait(kHang), 0);
+  const std::string text = help.log();
+  EXPECT_NE(text.find("  --quiet              leave out the lines of the basic parameters the "
+                      "service accepted;\n"
+                      "                       the rest stays: M-functions, acknowledgements, "
+                      "refusals and errors,\n"
+                      "                       script actions, and the run's own lines (the "
+                      "start, each\n"
+                      "                       interpolator found and its setup done, the "
+                      "service restarted or\n"
+                      "                       silent, the summary at exit)\n"),
+            std::string::npos)
+      << text;
+  EXPECT_NE(text.find("  --try-start          send a start request as the PLC to each "
+                      "interpolator served, when\n"
+                      "                       it is found (the service refuses each one)\n"),
+            std::string::npos)
+      << text;
+  ASSERT_TRUE(env.start_service());
+  test::Child plc;
+  ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.config(), "--quiet", "--try-start"},
+                        env.path("plc.log")));
+  const auto deadline = std::chrono::steady_clock::now() + kHang;
+  while (test::count_of(plc.log(), "setup done") < 3 && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(25ms);
+  EXPECT_EQ(plc.interrupt(), 0) << plc.log();
+  const std::string log = plc.log();
+  for (int i = 0; i < 3; ++i) {
+    const std::string ip = "interpolator " + std::to_string(i) + ": ";
+    EXPECT_EQ(test::count_of(log, ip + "trying to start as the PLC: refused (wrong role)"), 1)
+        << log;
+    EXPECT_EQ(test::count_of(log, ip + "found (status"), 1) << log;
+    // Spline, IIR and three gear ratios accepted, the start refused.
+    EXPECT_EQ(test::count_of(log, ip + "setup done (5 of 6 requests accepted)"), 1) << log;
+  }
+  EXPECT_EQ(test::count_of(log, "basic parameters:"), 0) << log;
+  EXPECT_EQ(test::count_of(log, "PLC emulator on DDS domain"), 1) << log;
+  EXPECT_EQ(test::count_of(log, "stopping"), 1) << log;
+}
+
 TEST(ServiceProcesses, HundredThousandRecordsStreamIntoAThousandRecordBufferWhileRunning) {
   test::ConfigEdits edits;
   edits.buffer_size0 = 1000;
