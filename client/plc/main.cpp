@@ -37,6 +37,7 @@
 #include <string>
 #include <vector>
 
+#include "handshake_trace.hpp"
 #include "m_tracker.hpp"
 #include "tgm/atomic_file.hpp"
 #include "tgm/cli_args.hpp"
@@ -123,7 +124,9 @@ constexpr const char* kUsage =
     "                       silent, the summary at exit)\n"
     "  --no-events          do not subscribe to tgm_event: see M-functions on the state only\n"
     "                       (the main loop acknowledges them all)\n"
-    "  --handshake-trace F  write the time stamps of every acknowledgement as CSV to F at exit\n"
+    "  --handshake-trace F  write the time stamps of every acknowledgement and note as CSV to F\n"
+    "                       at exit, a row each with the M number, m_func_count, normal or\n"
+    "                       continuous and the reply (code; accepted, refused or none)\n"
     "  --rt-priority N      run the emulator (all its threads) SCHED_FIFO at N, 1..98, when\n"
     "                       permitted (a real PLC task is real-time; default: normal)\n"
     "  --help               this text\n"
@@ -236,15 +239,6 @@ struct Served {
     unanswered_count = count;
     unanswered_at = at;
   }
-};
-
-// One acknowledgement's time stamps for --handshake-trace (steady clock). `path`: "event" when
-// written from the event callback, "loop" when from the main loop.
-struct AckTrace {
-  int interpolator;
-  std::int32_t act_part;
-  Clock::time_point woke, seen, ack_call, ack_written, reply;
-  const char* path;
 };
 
 int plc_main(int argc, char** argv);
@@ -529,9 +523,9 @@ int plc_main(int argc, char** argv) {
     }
   };
 
-  std::vector<AckTrace> traces;
+  std::vector<tgm::plc::AckTrace> traces;
   if (!trace_path.empty()) traces.reserve(100'000);
-  auto trace = [&](const AckTrace& t) {
+  auto trace = [&](const tgm::plc::AckTrace& t) {
     if (!trace_path.empty() && traces.size() < 1'000'000) traces.push_back(t);
   };
   auto find_served = [&](int i) -> Served* {
@@ -724,10 +718,22 @@ int plc_main(int argc, char** argv) {
         }
       }
       const bool from_event = it->via == EventSeen::Via::kEvent;
-      if (from_event || (it->via == EventSeen::Via::kLoop && it->normal)) {
-        trace({it->interpolator, it->part, it->woke, it->seen, it->ack_call, it->ack_written, t,
-               from_event ? "event" : "loop"});
-      }
+      // Every acknowledgement and note, whoever wrote it (notes written by the main loop and
+      // repeats were left out, so a trace with events had rows that one without lacked).
+      tgm::plc::AckTrace row;
+      row.interpolator = it->interpolator;
+      row.act_part = it->part;
+      row.woke = it->woke;
+      row.seen = it->seen;
+      row.ack_call = it->ack_call;
+      row.ack_written = it->ack_written;
+      row.reply = t;
+      row.path = from_event ? "event" : it->via == EventSeen::Via::kRepeat ? "repeat" : "loop";
+      row.m = it->m;
+      row.m_func_count = it->count;
+      row.normal = it->normal;
+      row.reply_code = r->timed_out ? -1 : static_cast<int>(r->code);
+      trace(row);
       if (it->via == EventSeen::Via::kRepeat) {
         append_log(pending_log, stamp(),
                    "interpolator %d: M%d still waits after an unanswered acknowledgement: sent "
@@ -1267,16 +1273,8 @@ int plc_main(int argc, char** argv) {
   flush_log();
   int exit_code = 0;
   if (std::FILE* f = trace_file.stream()) {
-    auto ns = [](Clock::time_point t) {
-      return static_cast<long long>(
-          std::chrono::duration_cast<std::chrono::nanoseconds>(t.time_since_epoch()).count());
-    };
-    std::fprintf(
-        f, "interpolator,act_part,woke_ns,seen_ns,ack_call_ns,ack_written_ns,reply_ns,path\n");
-    for (const AckTrace& t : traces) {
-      std::fprintf(f, "%d,%d,%lld,%lld,%lld,%lld,%lld,%s\n", t.interpolator, t.act_part, ns(t.woke),
-                   ns(t.seen), ns(t.ack_call), ns(t.ack_written), ns(t.reply), t.path);
-    }
+    std::fputs(tgm::plc::kAckTraceHeader, f);
+    for (const tgm::plc::AckTrace& t : traces) std::fputs(tgm::plc::ack_trace_row(t).c_str(), f);
   }
   if (held_writes > 0) {
     std::fprintf(stderr,

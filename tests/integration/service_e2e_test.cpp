@@ -2586,6 +2586,78 @@ TEST(ServiceProcesses, ThePlcCannotStartAndOtherRolesAreEnforced) {
   EXPECT_EQ(watcher.state(0)->status(), 0);
 }
 
+// tgm-plc --handshake-trace has a row for each acknowledgement and each note of a continuous
+// M-function, alike with and without events, naming the M-function and the answer. Without
+// events the notes were missing (only the event callback's were traced), and no row said
+// which M-function it was or whether the service accepted it (review of session 76, F6).
+TEST(ServiceProcesses, PlcTracesEveryAcknowledgementAndNoteAlikeWithAndWithoutEvents) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  std::ofstream(env.path("m.ngc")) << "G90 G1 X1 F3000\nM51\nG1 X2\nM1234\nG1 X20\nM2\n";
+  for (const bool events : {true, false}) {
+    const std::string mode = events ? "events" : "no_events";
+    const std::string csv = env.path("trace_" + mode + ".csv");
+    std::vector<std::string> args{
+        TGM_PLC_BIN,         "--config",       env.config(), "--ack-delay",       "0",
+        "--no-basic-params", "--interpolator", "0",          "--handshake-trace", csv};
+    if (!events) args.push_back("--no-events");
+    test::Child plc;
+    ASSERT_TRUE(plc.start(args, env.path("plc_" + mode + ".log")));
+    ASSERT_TRUE(plc.wait_for_log("setup done", kHang)) << plc.log();
+    test::Child run;
+    ASSERT_TRUE(run.start({TGM_HMI_BIN, "run", env.path("m.ngc"), "--config", env.config()},
+                          env.path("run_" + mode + ".log")));
+    EXPECT_EQ(run.wait(kHang), 0) << run.log() << plc.log();
+    EXPECT_EQ(plc.interrupt(), 0) << plc.log();
+    const std::string text = test::read_text(csv);
+    std::vector<std::vector<std::string>> rows;
+    std::size_t from = 0;
+    while (from < text.size()) {
+      const std::size_t end = text.find('\n', from);
+      std::vector<std::string> fields;
+      std::size_t f = from;
+      while (true) {
+        const std::size_t comma = text.find(',', f);
+        if (comma == std::string::npos || comma > end) {
+          fields.push_back(text.substr(f, end - f));
+          break;
+        }
+        fields.push_back(text.substr(f, comma - f));
+        f = comma + 1;
+      }
+      rows.push_back(fields);
+      from = end + 1;
+    }
+    ASSERT_EQ(rows.size(), 3u) << mode << "\n" << text << plc.log();
+    EXPECT_EQ(rows[0],
+              (std::vector<std::string>{"interpolator", "act_part", "woke_ns", "seen_ns",
+                                        "ack_call_ns", "ack_written_ns", "reply_ns", "path", "m",
+                                        "m_func_count", "kind", "reply_code", "reply"}));
+    std::map<std::string, std::vector<std::string>> by_m;
+    for (std::size_t k = 1; k < rows.size(); ++k) {
+      ASSERT_EQ(rows[k].size(), 13u) << text;
+      by_m[rows[k][8]] = rows[k];
+    }
+    ASSERT_EQ(by_m.count("51"), 1u) << mode << "\n" << text;
+    ASSERT_EQ(by_m.count("1234"), 1u) << mode << "\n" << text;
+    const std::vector<std::string>& ack = by_m["51"];
+    const std::vector<std::string>& note = by_m["1234"];
+    EXPECT_EQ(ack[10], "normal") << text;
+    EXPECT_EQ(ack[11], "0") << text;
+    EXPECT_EQ(ack[12], "accepted") << text;
+    // The service numbers the M-functions it hands over: the note's is the next after M51's.
+    EXPECT_EQ(std::stoul(note[9]), std::stoul(ack[9]) + 1) << text;
+    EXPECT_EQ(note[10], "continuous") << text;
+    // The note is accepted unless the service moved on to the next M-function first: the
+    // answer is said either way, and matches its code.
+    EXPECT_EQ(note[12], note[11] == "0" ? "accepted" : "refused") << text;
+    if (!events) {
+      EXPECT_EQ(ack[7], "loop") << text;
+      EXPECT_EQ(note[7], "loop") << text;
+    }
+  }
+}
+
 // tgm-plc's --help says what --quiet leaves out and how many starts --try-start sends, and the
 // PLC does that: the help said "log only M-functions, acknowledgements and errors", yet the
 // start line, each interpolator found and its setup done stay (they should: "setup done" is

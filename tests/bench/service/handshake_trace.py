@@ -41,7 +41,15 @@ def main():
     if len(args) != 2:
         sys.exit(__doc__)
     svc = {(int(r["interpolator"]), int(r["act_part"])): r for r in csv.DictReader(open(args[0]))}
-    plc = {(int(r["interpolator"]), int(r["act_part"])): r for r in csv.DictReader(open(args[1]))}
+    # The handshakes of the PLC's trace: since session 76 it also has notes of continuous
+    # M-functions, repeats and acknowledgements the service refused or left unanswered, named in
+    # its kind, path and reply columns (older traces have none of them: every row counts).
+    plc = {}
+    for r in csv.DictReader(open(args[1])):
+        if r.get("kind", "normal") != "normal" or r.get("path") == "repeat" \
+                or r.get("reply", "accepted") != "accepted":
+            continue
+        plc.setdefault((int(r["interpolator"]), int(r["act_part"])), r)
     keys = sorted(set(svc) & set(plc))
     any_svc = next(iter(svc.values()), {})
     # Column names of older traces (before the event topic): the state write was the first one.
