@@ -39,6 +39,7 @@
 
 #include "handshake_trace.hpp"
 #include "m_tracker.hpp"
+#include "params_text.hpp"
 #include "tgm/atomic_file.hpp"
 #include "tgm/cli_args.hpp"
 #include "tgm/cli_numbers.hpp"
@@ -142,19 +143,6 @@ constexpr const char* kUsage =
 
 std::atomic<bool> g_stop{false};
 void on_signal(int) { g_stop = true; }
-
-template <class Params>
-std::string params_text(const Params& params) {
-  std::string out;
-  for (std::size_t k = 0; k < tgm::kParamLetters; ++k) {
-    const double v = params[k];
-    if (tgm::is_not_set(v)) continue;
-    char buf[48];
-    std::snprintf(buf, sizeof buf, "%s%c%g", out.empty() ? "" : " ", static_cast<char>('A' + k), v);
-    out += buf;
-  }
-  return out.empty() ? "none" : out;
-}
 
 using MParams = std::array<double, TGM_M_FUNCTION_PARAMETERS>;
 
@@ -613,7 +601,7 @@ int plc_main(int argc, char** argv) {
                    const MParams& params) {
     append_log(pending_log, stamp(), "interpolator %d: M%d %s (line %d, part %d), parameters: %s",
                i, m, normal ? "normal: the interpolator waits" : "continuous: motion goes on", line,
-               part, params_text(params).c_str());
+               part, tgm::plc::params_text(params).c_str());
   };
   // Acknowledgements (and notes of continuous M-functions) whose reply the main loop still
   // waits for. None is waited for in place: a reply lost for one interpolator must not hold up
