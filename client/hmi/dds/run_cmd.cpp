@@ -21,6 +21,7 @@
 #include "tgm/intercode_io.hpp"
 #include "tgm/printable.hpp"
 #include "tgm/registers.hpp"
+#include "wait_count.hpp"
 
 namespace tgm::hmi {
 
@@ -145,26 +146,6 @@ StdinLine stdin_line() {
   // taken for one: a closed SSH session let the program run on past its M0.
   return StdinLine::kClosed;
 }
-
-// M-function waits seen in a stream of samples (state or events): each record whose section
-// waits for the PLC counts once; its time runs from the first sample that waits to the first
-// that does not.
-struct WaitCount {
-  std::uint64_t waits = 0;
-  std::uint64_t cycles = 0;
-  std::uint64_t from = 0;  // cycle the current wait began; 0 = none
-  std::int32_t part = -1;
-  void see(bool waiting, std::int32_t at_part, std::uint64_t cycle) {
-    if (waiting && at_part != part) {
-      part = at_part;
-      ++waits;
-      from = cycle;
-    } else if (!waiting && from != 0) {
-      cycles += cycle - from;
-      from = 0;
-    }
-  }
-};
 
 }  // namespace
 
