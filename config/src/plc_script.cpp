@@ -194,21 +194,18 @@ std::vector<PlcAxisWrite> plc_script_axis_writes(const PlcScriptStep& step,
     return at == std::string_view::npos ? -1 : static_cast<int>(at);
   };
   std::vector<PlcAxisWrite> out;
-  for (const auto& [letter, ratio] : step.ratio) {
-    PlcAxisWrite w;
-    w.reg = PlcAxisWrite::Register::kRatio;
+  const auto add = [&](PlcAxisWrite::Register reg, char letter) -> PlcAxisWrite& {
+    PlcAxisWrite& w = out.emplace_back();
+    w.reg = reg;
     w.letter = letter;
     w.axis = axis_of(letter);
-    w.ratio_inc_per_mm = ratio;
-    out.push_back(w);
+    return w;
+  };
+  for (const auto& [letter, ratio] : step.ratio) {
+    add(PlcAxisWrite::Register::kRatio, letter).ratio_inc_per_mm = ratio;
   }
   for (const auto& [letter, offset] : step.offset_inc) {
-    PlcAxisWrite w;
-    w.reg = PlcAxisWrite::Register::kOffset;
-    w.letter = letter;
-    w.axis = axis_of(letter);
-    w.offset_inc = offset;
-    out.push_back(w);
+    add(PlcAxisWrite::Register::kOffset, letter).offset_inc = offset;
   }
   return out;
 }
