@@ -485,11 +485,12 @@ void Engine::cycle(CyclePort& port, const LatenessStats& lateness) {
     const Registers& reg = s.ip.registers();
     // Every message that came out since the last cycle, in order: M29 lines in a row come out
     // in one cycle, and only the last was sent (session 75).
-    // (Unsigned: a count that wrapped is still the difference; the ring keeps the last 256.)
+    // (Unsigned: a count that wrapped is still the difference; the ring keeps the last ones.)
+    constexpr std::uint32_t kRing = Interpolator::kMessageRing;
     const std::uint32_t fresh = reg.message_count - s.message_seen;
-    for (std::uint32_t k = fresh > 256u ? fresh - 256u + 1u : 1u; k <= fresh; ++k) {
+    for (std::uint32_t k = fresh > kRing ? fresh - kRing + 1u : 1u; k <= fresh; ++k) {
       const std::int32_t slot = s.ip.message_slot_of(s.message_seen + k);
-      if (slot < 0) continue;  // more than 256 in one cycle: the ring kept the newest
+      if (slot < 0) continue;  // more than the ring in one cycle: it kept the newest
       const std::string_view text = s.ip.message_text(slot);
       ++s.message_counter;
       s.message_text.set(text);

@@ -229,8 +229,10 @@ class Interpolator {
   //! False while an emergency ramp runs (Command 4/5): append() refuses records then, and
   //! callers that stream keep them until it has ended.
   bool takes_records() const;
+  //! M29 messages kept for message_slot_of() and message_text(): the last this many.
+  static constexpr std::uint32_t kMessageRing = 256;
   //! The message_slot of the message that made Registers::message_count `count` (several can
-  //! come out in one cycle); -1 when it is not among the last 256 or not yet out.
+  //! come out in one cycle); -1 when it is not among the last kMessageRing or not yet out.
   std::int32_t message_slot_of(std::uint32_t count) const;
   //! Text of an M29 message by Registers::message_slot ("" when the slot is empty).
   std::string_view message_text(std::int32_t slot) const;
