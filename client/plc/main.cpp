@@ -1134,10 +1134,12 @@ int plc_main(int argc, char** argv) {
         const std::string theirs = ist != nullptr ? ist->axis_letters().to_string() : "";
         for (const tgm::PlcAxisWrite& w : tgm::plc_script_axis_writes(st, theirs)) {
           const bool ratio = w.reg == tgm::PlcAxisWrite::Register::kRatio;
-          char value[48];
+          char value[64];
           if (ratio) {
-            std::snprintf(value, sizeof value, "Ratio %c = %g inc/mm", w.letter,
-                          w.ratio_inc_per_mm);
+            // Every digit (%g's six showed a ratio of 1234.5678 as 1234.57).
+            char digits[32];
+            *std::to_chars(digits, digits + sizeof digits - 1, w.ratio_inc_per_mm).ptr = '\0';
+            std::snprintf(value, sizeof value, "Ratio %c = %s inc/mm", w.letter, digits);
           } else {
             std::snprintf(value, sizeof value, "Offset %c = %lld inc", w.letter,
                           static_cast<long long>(w.offset_inc));

@@ -2905,7 +2905,7 @@ TEST(ServiceProcesses, PlcScriptStepsRunAtTheirTimesAndAreLoggedWithTheirLine) {
                            "- {at_s: 0.4, refuse_ack: [51]}\n"
                            "- {at_s: 0.4, command: 8, interpolator: 1}\n"
                            "- {at_s: 0.5, command: 1024, parameters: [1, 2500, 2]}\n"
-                           "- {at_s: 0.5, offset: {Z: -20, X: 500}, ratio: {Z: 4000}}\n"
+                           "- {at_s: 0.5, offset: {Z: -20, X: 500}, ratio: {Z: 4000.125}}\n"
                            "- {at_s: 0.6, number_axes: 2, interpolator: 1}\n";
   test::Child plc;
   ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.config(), "--script", script,
@@ -2919,7 +2919,7 @@ TEST(ServiceProcesses, PlcScriptStepsRunAtTheirTimesAndAreLoggedWithTheirLine) {
                            "script line 3: interpolator 0: from now on M51 is not acknowledged",
                            "script line 4: interpolator 1: Command 8: ",
                            "script line 5: interpolator 0: Command 1024 [1, 2500, 2]: accepted",
-                           "script line 6: interpolator 0: Ratio Z = 4000 inc/mm: accepted",
+                           "script line 6: interpolator 0: Ratio Z = 4000.125 inc/mm: accepted",
                            "script line 6: interpolator 0: Offset Z = -20 inc: accepted",
                            "script line 6: interpolator 0: Offset X = 500 inc: accepted",
                            "script line 7: interpolator 1: Number_Axes = 2: accepted"}) {
@@ -2936,7 +2936,7 @@ TEST(ServiceProcesses, PlcScriptStepsRunAtTheirTimesAndAreLoggedWithTheirLine) {
   EXPECT_TRUE(hmi.wait_until(
       0,
       [](const msg::InterpolatorState& s) {
-        return s.offset()[0] == 500 && s.offset()[2] == -20 && s.ratio()[2] == 4000.0 &&
+        return s.offset()[0] == 500 && s.offset()[2] == -20 && s.ratio()[2] == 4000.125 &&
                s.position_inc()[0] == 500 && s.position_inc()[2] == -20;
       },
       kHang));
