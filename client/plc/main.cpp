@@ -21,7 +21,6 @@
 #include <array>
 #include <atomic>
 #include <cerrno>
-#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <cstdarg>
@@ -47,6 +46,7 @@
 #include "tgm/command_stage.hpp"
 #include "tgm/dds_overrides.hpp"
 #include "tgm/plc_script.hpp"
+#include "tgm/printable.hpp"
 #include "tgm/registers.hpp"
 #include "tgm/smoothing.hpp"
 #include "tgm/systemd_notify.hpp"
@@ -955,13 +955,10 @@ int plc_main(int argc, char** argv) {
               queue_request(sv.number, tgm::client::command_request(sv.number, 1024, ratio), what,
                             true, 3);
             } else {
-              char value[32];
-              const auto end = std::to_chars(value, value + sizeof value - 1, want).ptr;
-              *end = '\0';  // the shortest text that reads back as the same double
               std::snprintf(what, sizeof what,
                             "interpolator %d: basic parameters: Ratio register of axis %c = %s "
                             "(no 32-bit numerator / denominator of Command 1024 carries it)",
-                            sv.number, letter, value);
+                            sv.number, letter, tgm::shortest_text(want).c_str());
               queue_request(sv.number,
                             tgm::client::ratio_request(sv.number, static_cast<int>(a), want), what,
                             true, 3);
@@ -1137,9 +1134,8 @@ int plc_main(int argc, char** argv) {
           char value[64];
           if (ratio) {
             // Every digit (%g's six showed a ratio of 1234.5678 as 1234.57).
-            char digits[32];
-            *std::to_chars(digits, digits + sizeof digits - 1, w.ratio_inc_per_mm).ptr = '\0';
-            std::snprintf(value, sizeof value, "Ratio %c = %s inc/mm", w.letter, digits);
+            std::snprintf(value, sizeof value, "Ratio %c = %s inc/mm", w.letter,
+                          tgm::shortest_text(w.ratio_inc_per_mm).c_str());
           } else {
             std::snprintf(value, sizeof value, "Offset %c = %lld inc", w.letter,
                           static_cast<long long>(w.offset_inc));

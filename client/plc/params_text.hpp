@@ -2,11 +2,11 @@
 // DDS (unit-tested).
 #pragma once
 
-#include <charconv>
 #include <cstddef>
 #include <string>
 
 #include "tgm/intercode.hpp"
+#include "tgm/printable.hpp"
 
 namespace tgm::plc {
 
@@ -19,12 +19,9 @@ std::string params_text(const Params& params) {
   for (std::size_t k = 0; k < kParamLetters; ++k) {
     const double v = params[k];
     if (is_not_set(v)) continue;
-    char buf[48];
-    char* at = buf;
-    if (!out.empty()) *at++ = ' ';
-    *at++ = static_cast<char>('A' + k);
-    at = std::to_chars(at, buf + sizeof buf, v).ptr;
-    out.append(buf, at);
+    if (!out.empty()) out += ' ';
+    out += static_cast<char>('A' + k);
+    append_shortest(out, v);
   }
   return out.empty() ? "none" : out;
 }

@@ -4,7 +4,6 @@
 #include <yaml-cpp/yaml.h>
 
 #include <cctype>
-#include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <set>
@@ -210,17 +209,6 @@ std::vector<PlcAxisWrite> plc_script_axis_writes(const PlcScriptStep& step,
   return out;
 }
 
-namespace {
-
-// A number of seconds as the script would give it: the shortest text that reads back the same.
-std::string seconds_text(double s) {
-  char buf[32];
-  const auto end = std::to_chars(buf, buf + sizeof buf, s).ptr;
-  return std::string(buf, end);
-}
-
-}  // namespace
-
 std::string plc_script_duration_problem(const std::vector<PlcScriptStep>& steps, double duration_s,
                                         const std::string& path) {
   const PlcScriptStep* late = nullptr;
@@ -228,9 +216,9 @@ std::string plc_script_duration_problem(const std::vector<PlcScriptStep>& steps,
     if (s.at_s >= duration_s && (late == nullptr || s.at_s > late->at_s)) late = &s;
   }
   if (late == nullptr) return {};
-  return printable("--duration " + seconds_text(duration_s) + " (seconds from the start) ends " +
+  return printable("--duration " + shortest_text(duration_s) + " (seconds from the start) ends " +
                    "the run before the step at " + path + ":" + std::to_string(late->line) +
-                   " (at_s " + seconds_text(late->at_s) +
+                   " (at_s " + shortest_text(late->at_s) +
                    ", seconds from when tgm-service is found) could run: give a --duration " +
                    "longer than the script's last at_s");
 }
@@ -247,7 +235,7 @@ std::string plc_script_unrun(const std::vector<PlcScriptStep>& steps, const std:
   if (first == nullptr) return {};
   return printable(std::to_string(unrun) + " of " + std::to_string(steps.size()) + " script step" +
                    (steps.size() == 1 ? "" : "s") + " never ran" + " (the first: " + path + ":" +
-                   std::to_string(first->line) + ", at_s " + seconds_text(first->at_s) + ")");
+                   std::to_string(first->line) + ", at_s " + shortest_text(first->at_s) + ")");
 }
 
 namespace {

@@ -1,7 +1,6 @@
 #include "tgm/intercode_io.hpp"
 
 #include <algorithm>
-#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -130,9 +129,7 @@ class In {
 };
 
 void num(std::string& out, double v) {
-  char buf[32];
-  auto r = std::to_chars(buf, buf + sizeof buf, v);
-  out.append(buf, r.ptr);
+  append_shortest(out, v);
 }
 
 // Side-table lookups of the dumps, safe for any record.

@@ -3,7 +3,6 @@
 #include <signal.h>
 
 #include <algorithm>
-#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <cstdarg>
@@ -274,9 +273,7 @@ void json_number(std::string& out, double v) {
     out += "null";
     return;
   }
-  char buf[32];
-  const auto r = std::to_chars(buf, buf + sizeof buf, v);
-  out.append(buf, r.ptr);
+  append_shortest(out, v);
 }
 void json_number(std::string& out, long long v) {
   out += std::to_string(v);

@@ -3,11 +3,26 @@
 // sequence that would recolour or clear the operator's screen). And numbers for messages.
 #pragma once
 
+#include <charconv>
 #include <cstdio>
 #include <string>
 #include <string_view>
 
 namespace tgm {
+
+//! Appends the shortest text that reads back as the same double ("0.1", "1e-06", "4000.125"):
+//! every digit a message, a log or a dump needs, where printf's %g kept six.
+inline void append_shortest(std::string& out, double v) {
+  char buf[32];  // the longest, "-2.2250738585072014e-308", takes 24
+  out.append(buf, std::to_chars(buf, buf + sizeof buf, v).ptr);
+}
+
+//! append_shortest() as a string of its own.
+inline std::string shortest_text(double v) {
+  std::string out;
+  append_shortest(out, v);
+  return out;
+}
 
 //! `s` with every control character (C0 and DEL) written as \t, \n, \r or \xHH; everything
 //! else, UTF-8 included, as it is.
