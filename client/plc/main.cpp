@@ -528,6 +528,11 @@ int plc_main(int argc, char** argv) {
   tgm::plc::MTracker tracker;
   tgm::plc::RefusedM refuse;
   for (int m : refuse_flag) refuse.refuse_everywhere(m);
+  // Whether M `m` is refused on interpolator `i` now (the main loop's checks).
+  const auto refused_now = [&](int i, std::int32_t m) {
+    const std::lock_guard lock(shared_mutex);
+    return refuse.refused(i, m);
+  };
   std::vector<EventSeen> event_seen;
   event_seen.reserve(256);
   // More than 64 M-functions in a row share cycles in M_Func (core/MOTION.md): between two
@@ -1020,14 +1025,9 @@ int plc_main(int argc, char** argv) {
       }
       if (sv.ack_m != 0 && now >= sv.ack_at) {
         log_seen();
-        bool refused_since = false;
-        {
-          // Refused after it was scheduled (a script step that raced the event callback's
-          // hand-over): not written either.
-          const std::lock_guard lock(shared_mutex);
-          refused_since = refuse.refused(sv.number, sv.ack_m);
-        }
-        if (refused_since) {
+        // Refused after it was scheduled (a script step that raced the event callback's
+        // hand-over): not written either.
+        if (refused_now(sv.number, sv.ack_m)) {
           append_log(pending_log, stamp(),
                      "interpolator %d: M%d: refusing to acknowledge (--refuse-ack / script)",
                      sv.number, sv.ack_m);
@@ -1041,13 +1041,8 @@ int plc_main(int argc, char** argv) {
       // One that arrived meanwhile makes the service refuse the repeat (it names the count).
       // While the repeat waits for its reply none is sent; unanswered, it arms the next.
       if (sv.unanswered_m != 0) {
-        bool refused_since = false;
-        {
-          const std::lock_guard lock(shared_mutex);
-          refused_since = refuse.refused(sv.number, sv.unanswered_m);
-        }
         if (s->m_func() != sv.unanswered_m || s->m_func_count() != sv.unanswered_count ||
-            refused_since) {
+            refused_now(sv.number, sv.unanswered_m)) {
           sv.unanswered_m = 0;
         } else if (Clock::now() - sv.unanswered_at >= 1s) {
           send_from_loop(loop_seen(sv, sv.unanswered_m, sv.unanswered_count, true),
