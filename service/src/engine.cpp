@@ -584,15 +584,16 @@ bool Engine::wind_down(CyclePort& port) {
       Slot& s = ips_[static_cast<std::size_t>(i)];
       const Registers& r = s.ip.registers();
       const auto status = static_cast<InterpolatorStatus>(r.status);
+      const bool moves = moving(s);
       char text[200];
-      if (moving(s) && status == InterpolatorStatus::kRunning) {
+      if (moves && status == InterpolatorStatus::kRunning) {
         const RequestResult stop = s.ip.command(8);
         if (stop.ok()) ++wound_down_;
         std::snprintf(
             text, sizeof text, "tgm-service is stopping: %s at %.0f mm/min on line %d%s%s",
             stop.ok() ? "normal stop on the trajectory (Command 8)" : "could not stop the motion",
             r.act_speed, r.act_line, stop.ok() ? "" : ": ", stop.ok() ? "" : stop.reason.c_str());
-      } else if (moving(s)) {
+      } else if (moves) {
         // An underrun or an emergency ramp is a stop under way already: it runs on.
         std::snprintf(text, sizeof text,
                       "tgm-service is stopping: the stop under way (Status %d) runs to its end, "

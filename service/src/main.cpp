@@ -486,11 +486,11 @@ int service_main(int argc, char** argv) {
     // acquire pairs with the loop's release); without the rest the count is not needed.
     const bool rest = loop.at_rest();
     const int brought = rest ? engine->wound_down() : 0;
-    const int announced = rest ? engine->announced() : 0;
-    // The cycle runs on a little at rest, so that the states and setpoints of the standstill
-    // and the warnings are published (the last cycles of the ramp were still in the port's
-    // queue).
-    if (brought > 0 || announced > 0) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    // The cycle runs on a little at rest, so that the warnings and the states and setpoints of
+    // the standstill are published (the last cycles of the ramp were still in the port's
+    // queue); every interpolator stopped was announced.
+    if (rest && engine->announced() > 0)
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
     if (brought > 0) {
       std::printf(
           "tgm-service: stopped the motion of %d interpolator%s on the trajectory before "
