@@ -113,7 +113,15 @@ int inspect_intercode(Args& args, const std::string& file, const FileView& input
                             " is intercode, which records the point it was compiled from");
   }
   PackedProgram program;
-  if (!open_intercode(file, input, program)) return 2;
+  // M-functions and messages counted by record as the open checks them (records with equal
+  // parameters or texts share one table entry).
+  std::size_t ms = 0, texts = 0;
+  if (!open_intercode(file, input, program, [&](const Segment& s) {
+        ms += s.type == SegmentType::kMFunction;
+        texts += s.type == SegmentType::kMessage;
+      })) {
+    return 2;
+  }
   const Program& tables = program.tables();
   if (!out_path.empty()) {
     std::string io_error;
@@ -132,15 +140,7 @@ int inspect_intercode(Args& args, const std::string& file, const FileView& input
   if (!dump.empty()) {
     if (!dump_records(program, dump)) return 1;
   } else {
-    // Counted by record: records with equal parameters or texts share one table entry.
     const std::uint64_t records = program.size();
-    std::size_t ms = 0, texts = 0;
-    auto cursor = program.cursor();
-    Segment seg;
-    while (cursor.next(seg)) {
-      ms += seg.type == SegmentType::kMFunction;
-      texts += seg.type == SegmentType::kMessage;
-    }
     std::fprintf(
         stderr,
         "%s: intercode for the axes %s, compiled from %s: %llu record%s (%zu M-function%s, "
