@@ -55,7 +55,6 @@ constexpr int kMaxExtendPerStep = 64;     // records scanned for the limits of o
 constexpr int kMaxDecelLimits = 8;        // deceleration limits ahead checked per calculation step
 constexpr double kExcessTol = 1e-12;      // [mm] a braking plan longer than its room by this fails
 constexpr int kMaxExtendPerCycle = 320;   // records added to the look-ahead window per cycle
-constexpr std::size_t kMessageRing = Interpolator::kMessageRing;
 constexpr std::uint64_t kMaxSkipCycles = 1'000'000;  // per advance() call (bounds its work)
 constexpr std::uint64_t kStiffScan = 4;  // records stiff_stretch scans per speed limit, at most
 constexpr double kStiffRatio = 4.0;  // stiff_stretch: lowest jerk before a soft record over its own
