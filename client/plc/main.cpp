@@ -80,8 +80,10 @@ constexpr const char* kUsage =
     "It sees M-functions on the small event topic first: an acknowledgement due at once\n"
     "(delay 0, continuous) is written from the event callback, the rest from the main loop.\n"
     "The basic parameters go by axis index: when the config's axis letters are not those the\n"
-    "service publishes, none are sent and the log says why. Stops cleanly on SIGINT / SIGTERM\n"
-    "(SIGHUP, a closed terminal, is ignored).\n"
+    "service publishes, none are sent and the log says why. A restarted tgm-service starts at\n"
+    "0; with its basic parameters it gets where the emulated drives stand, the last\n"
+    "PositionInc seen (Command 2048). Stops cleanly on SIGINT / SIGTERM (SIGHUP, a closed\n"
+    "terminal, is ignored).\n"
     "\n"
     "  --config YAML        machine config (default: $TGM_CONFIG, the installed or the in-tree\n"
     "                       config/default.yaml)\n"
@@ -222,6 +224,11 @@ struct Served {
   std::int32_t unanswered_m = 0;
   std::uint32_t unanswered_count = 0;
   Clock::time_point unanswered_at{};
+  // The drives' position as this PLC last saw it (PositionInc of the service followed): a
+  // restarted service starts at 0, and the PLC tells it where the axes stand (Command 2048).
+  std::array<long long, tgm::kMaxAxes> last_inc{};
+  std::size_t last_axes = 0;
+  bool restore = false;  // a restarted service gets last_inc once its basic parameters are set
   void left_unanswered(std::int32_t m, std::uint32_t count, Clock::time_point at) {
     unanswered_m = m;
     unanswered_count = count;
@@ -450,6 +457,49 @@ int plc_main(int argc, char** argv) {
     SetupQueue& q = setup[interpolator];
     q.items.push_back(SetupRequest{std::move(request), std::move(what), quiet_ok, attempts});
     ++q.total;
+  };
+  // A restarted service starts every axis at 0, but the drives still stand where the previous
+  // one left them: a real PLC reads their actual positions and sets them (Command 2048, on the
+  // trajectory), or the first setpoints jump there. The emulated drives stand where the last
+  // PositionInc this PLC saw put them. Behind the gear ratios (the service converts the
+  // increments with the ratio it has then).
+  // `not_sent`: why it may not be sent (nullptr: it may).
+  auto restore_position = [&](const Served& sv, const tgm::msg::InterpolatorState& now_state,
+                              const char* not_sent) {
+    const std::size_t axes = std::min<std::size_t>(
+        sv.last_axes, static_cast<std::size_t>(std::max(0, int{now_state.number_axes()})));
+    std::string where;
+    std::array<std::int32_t, tgm::kMaxAxes> params{};
+    bool differs = false, fits = true;
+    const std::string letters = now_state.axis_letters().to_string();
+    for (std::size_t a = 0; a < axes; ++a) {
+      const long long inc = sv.last_inc[a];
+      if (inc != now_state.position_inc()[a]) differs = true;
+      if (inc < INT32_MIN || inc > INT32_MAX) fits = false;
+      params[a] = static_cast<std::int32_t>(std::clamp<long long>(inc, INT32_MIN, INT32_MAX));
+      where += (where.empty() ? "" : " ");
+      where += a < letters.size() ? letters[a] : '?';
+      where += ' ' + std::to_string(inc);
+    }
+    if (!differs) return;
+    if (!fits) not_sent = "an increment beyond Command_Parameter's 32 bits";
+    if (not_sent != nullptr) {
+      append_log(pending_log, stamp(),
+                 "interpolator %d: warning: position not restored (%s): the drives stood at %s "
+                 "inc, the restarted service starts from its own position; set it with Command "
+                 "2048",
+                 sv.number, not_sent, where.c_str());
+      return;
+    }
+    char what[tgm::kMaxAxes * 16 + 160];
+    std::snprintf(what, sizeof what,
+                  "interpolator %d: position restored: Command 2048 with the drives' last "
+                  "increments (%s)",
+                  sv.number, where.c_str());
+    queue_request(sv.number,
+                  tgm::client::command_request(sv.number, tgm::kCommandSetPositionOn,
+                                               std::span<const std::int32_t>(params.data(), axes)),
+                  what, false, 3);
   };
   // Writes the next request of each queue, logs the replies that came, and writes an
   // unanswered one again after 3 s (the clients' request timeout) while it has attempts left.
@@ -827,6 +877,7 @@ int plc_main(int argc, char** argv) {
         sv.found = false;
         sv.ack_m = 0;
         sv.unanswered_m = 0;
+        sv.restore = sv.last_axes > 0;
         events_matched = false;
         SetupQueue& q = setup[sv.number];
         if (!q.items.empty()) {
@@ -970,6 +1021,14 @@ int plc_main(int argc, char** argv) {
             }
           }
         }
+        if (sv.restore) {
+          sv.restore = false;
+          restore_position(sv, *s,
+                           !basic       ? "--no-basic-params"
+                           : !same_axes ? "this config's axes are not the service's"
+                           : under_way  ? "a program is under way"
+                                        : nullptr);
+        }
         if (try_start) {
           std::snprintf(what, sizeof what, "interpolator %d: trying to start as the PLC",
                         sv.number);
@@ -977,6 +1036,9 @@ int plc_main(int argc, char** argv) {
         }
         if (!found_at) found_at = Clock::now();
       }
+      sv.last_axes = std::min<std::size_t>(static_cast<std::size_t>(std::max(0, s->number_axes())),
+                                           sv.last_inc.size());
+      for (std::size_t a = 0; a < sv.last_axes; ++a) sv.last_inc[a] = s->position_inc()[a];
       // A new M-function: M_Func set with an m_func_count that neither this loop nor the event
       // callback has claimed (with events, the callback usually sees it first).
       // (The line logs a copy of the fields: it is written at the end of the pass.)

@@ -919,7 +919,9 @@ TEST(ServiceProcesses, APlcScriptStepForAnInterpolatorNotServedIsAnError) {
 // parameters again and handles M-functions at once. It used to ignore every sample until the new
 // service's cycle counter passed the old one's (a service that had run an hour made the PLC deaf
 // for an hour), and never set the parameters again. Two equal continuous M-functions in a row
-// are two M-functions to the PLC (told apart by m_func_count), in both runs.
+// are two M-functions to the PLC (told apart by m_func_count), in both runs. The new service
+// starts at 0, where the emulated drives are not: the PLC sets their last increments (Command
+// 2048), so its first setpoints are where the first service left the axes.
 TEST(ServiceProcesses, PlcServesARestartedServiceAtOnceAndSeesEqualMFunctionsApart) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());
@@ -952,13 +954,29 @@ TEST(ServiceProcesses, PlcServesARestartedServiceAtOnceAndSeesEqualMFunctionsApa
   const unsigned long long first_cycles = std::stoull(first_log.substr(at + 7));
   ASSERT_TRUE(env.start_service());
   ASSERT_EQ(wait_found(6), 6) << plc.log();
+  test::Child look;
+  ASSERT_TRUE(look.start({TGM_HMI_BIN, "status", "--json", "--config", env.config()},
+                         env.path("status.log")));
+  ASSERT_EQ(look.wait(kHang), 0) << look.log();
+  EXPECT_NE(look.log().find("\"position_inc\":{\"X\":30000,\"Y\":0,\"Z\":0}"), std::string::npos)
+      << look.log();
+  EXPECT_NE(look.log().find("\"orig_position_mm\":{\"X\":30,\"Y\":0,\"Z\":0}"), std::string::npos)
+      << look.log();
   run("hmi2.log");
   EXPECT_EQ(plc.interrupt(), 0);
   const std::string log = plc.log();
   EXPECT_EQ(test::count_of(log, "tgm-service restarted (instance"), 3) << log;
-  // Commands -2, -1 and 1024 for each of the 3 axes, each accepted, from both services.
+  // Commands -2, -1 and 1024 for each of the 3 axes, each accepted, from both services; for
+  // the restarted one's interpolator 0, whose axes stood at X 30 (the default config starts in
+  // G91), Command 2048 too.
   EXPECT_EQ(test::count_of(log, "Command 1024 (gear ratio of axis Z): accepted"), 6) << log;
-  EXPECT_EQ(test::count_of(log, ": setup done (5 of 5 requests accepted)"), 6) << log;
+  EXPECT_EQ(test::count_of(log, ": setup done (5 of 5 requests accepted)"), 5) << log;
+  EXPECT_EQ(test::count_of(log,
+                           "interpolator 0: position restored: Command 2048 with the "
+                           "drives' last increments (X 30000 Y 0 Z 0): accepted"),
+            1)
+      << log;
+  EXPECT_EQ(test::count_of(log, "interpolator 0: setup done (6 of 6 requests accepted)"), 1) << log;
   EXPECT_EQ(test::count_of(log, "M1001 continuous"), 4) << log;
   EXPECT_EQ(test::count_of(log, "M1001 noted"), 4) << log;
   EXPECT_EQ(test::count_of(log, "M50 acknowledged"), 2) << log;
