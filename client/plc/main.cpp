@@ -1085,6 +1085,21 @@ int plc_main(int argc, char** argv) {
           sv.ack_at = now + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(delay_for(s->m_func())));
         }
       }
+      // An acknowledgement not yet due whose M-function went without it: its program dropped
+      // (a stop off the trajectory, a clear) or another client acknowledged it. The state shows
+      // its count with M_Func 0, or a later count. It used to be sent all the same, and refused
+      // ("went with its program") seconds after the PLC's own Command 5.
+      if (sv.ack_m != 0 && s->service_instance() == sv.instance &&
+          (s->m_func_count() > sv.ack_count ||
+           (s->m_func_count() == sv.ack_count && s->m_func() == 0))) {
+        log_seen();
+        append_log(pending_log, stamp(),
+                   "interpolator %d: M%d not acknowledged: it went before its acknowledgement "
+                   "was due (status %d %s, M_Func %d)",
+                   sv.number, sv.ack_m, s->status(),
+                   std::string(tgm::client::status_name(s->status())).c_str(), s->m_func());
+        sv.ack_m = 0;
+      }
       if (sv.ack_m != 0 && now >= sv.ack_at) {
         log_seen();
         // Refused after it was scheduled (a script step that raced the event callback's

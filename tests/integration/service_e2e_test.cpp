@@ -699,6 +699,52 @@ TEST(ServiceProcesses, APlcScriptRefusalHoldsBackAnAcknowledgementAlreadyDue) {
   EXPECT_EQ(test::count_of(log, "interpolator 0: M51 (line 0) is left waiting"), 1) << log;
 }
 
+// An acknowledgement not yet due is not sent when its M-function goes without it: M51 waits,
+// due after --ack-delay 0.8 s, and after 0.3 s the stand-in shows M_Func 0 with the same count
+// (its program dropped, as by a Command 5). The PLC sent it all the same, 2.3 s after its own
+// Command 5 in the review of session 76, and the service refused it.
+TEST(ServiceProcesses, APlcDropsAnAcknowledgementWhoseMFunctionWentBeforeItWasDue) {
+  ServiceEnv env;
+  StandInService service(env);
+  service.wait_for_m(0, 51);
+  service.st[0].act_part(2);
+  test::Child plc;
+  ASSERT_NO_FATAL_FAILURE(service.start_plc(
+      env, plc, {"--ack-delay", "0.8", "--duration", "2", "--interpolator", "0"}));
+  std::uint64_t cycle = 0;
+  int acks = 0;
+  const auto deadline = std::chrono::steady_clock::now() + kHang;
+  bool dropped = false;
+  while (plc.running() && std::chrono::steady_clock::now() < deadline) {
+    if (!dropped && plc.log().find("M51 normal") != std::string::npos) {
+      std::this_thread::sleep_for(300ms);
+      dropped = true;
+      service.st[0].status(7);
+      service.st[0].m_func(0);
+      service.st[0].run_flag(static_cast<std::int32_t>(SectionState::kRun));
+    }
+    ASSERT_TRUE(service.publish(cycle));
+    msg::Request rq;
+    while (dds::take_next(service.requests, rq)) {
+      ++acks;
+      ASSERT_TRUE(service.answer(rq, cycle));
+    }
+    std::this_thread::sleep_for(10ms);
+    plc.wait(0ms);
+  }
+  EXPECT_TRUE(dropped) << plc.log();
+  EXPECT_EQ(plc.wait(kHang), 0) << plc.log();
+  const std::string log = plc.log();
+  EXPECT_EQ(acks, 0) << log;
+  EXPECT_EQ(test::count_of(log,
+                           "interpolator 0: M51 not acknowledged: it went before its "
+                           "acknowledgement was due (status 7 "),
+            1)
+      << log;
+  EXPECT_EQ(log.find("M51 acknowledged"), std::string::npos) << log;
+  EXPECT_EQ(log.find("is left waiting"), std::string::npos) << log;
+}
+
 // A script's write by axis letter goes to the service's axis of that letter: the stand-in
 // drives Y, X, C where the PLC's config has X, Y, Z. The ratio for X went to axis 0 (the
 // service's Y), and the offset for Z to the service's C, both logged as accepted (review of
