@@ -127,6 +127,14 @@ bool load_packed(const std::string& file, const MachineConfig& machine, int ip, 
     std::fprintf(stderr, "%s: error: %s\n", file.c_str(), error.c_str());
     return false;
   }
+  return load_packed(file, input, machine, ip, out, start_mm, intercode, observe, compile_errors);
+}
+
+bool load_packed(const std::string& file, const FileView& input, const MachineConfig& machine,
+                 int ip, PackedProgram& out, const std::array<double, kMaxAxes>* start_mm,
+                 bool* intercode, const SegmentSink& observe, std::size_t* compile_errors) {
+  if (intercode) *intercode = false;
+  if (compile_errors) *compile_errors = 0;
   const std::string letters = machine.axis_letters(ip);
   if (is_intercode(file, input.text())) {
     if (intercode) *intercode = true;
@@ -329,7 +337,9 @@ bool FileView::check_or_report(const std::string& file) const {
   return false;
 }
 
-bool FileView::open(const std::string& path, std::string& error) {
+bool FileView::open(const std::string& name, std::string& error) {
+  // "-" is standard input (a CAM post-processor's pipe), as for most Unix tools.
+  const std::string path = name == "-" ? std::string("/dev/stdin") : name;
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) {
     error = std::string("cannot open: ") + std::strerror(errno);

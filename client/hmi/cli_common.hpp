@@ -116,10 +116,18 @@ bool load_packed(const std::string& file, const MachineConfig& machine, int ip, 
                  const std::array<double, kMaxAxes>* start_mm = nullptr, bool* intercode = nullptr,
                  const SegmentSink& observe = {}, std::size_t* compile_errors = nullptr);
 
+class FileView;
+
+//! load_packed from `input`, FILE opened by the caller: a program loaded twice (`run` compiles
+//! it again from where the interpolator stands) reads FILE once, as a pipe can be read only
+//! once (the second compile of a piped program was empty, and `run` cleared the interpolator
+//! for it).
+bool load_packed(const std::string& file, const FileView& input, const MachineConfig& machine,
+                 int ip, PackedProgram& out, const std::array<double, kMaxAxes>* start_mm,
+                 bool* intercode, const SegmentSink& observe, std::size_t* compile_errors);
+
 //! Every diagnostic of a failed compile on standard error, as `FILE:LINE:COL: error: reason`.
 void print_compile_errors(const std::string& file, const CompileResult& result);
-
-class FileView;
 
 //! load_packed's intercode half: `input` (FILE, open, intercode) copied, checked to be the file
 //! as it was opened (FileView::check) and decoded into `out`, which `observe` sees record by

@@ -2204,7 +2204,7 @@ TEST(ServiceProcesses, HmiRunRefusesProgramsOfOtherAxisLetters) {
               !rotary_plc)
         << plc.log();
   }
-  // Number_Axes 2, written by the PLC: the letters are the first two. G-code is compiled for
+  // Number_Axes 2, written by a PLC: the letters are the first two. G-code is compiled for
   // them (every program was refused, also one of X alone); one that names Z is refused by the
   // compiler, and intercode of XYZ is refused, each saying who cut the axes.
   {
@@ -2222,7 +2222,8 @@ TEST(ServiceProcesses, HmiRunRefusesProgramsOfOtherAxisLetters) {
                             env.path("fewer.log")));
     EXPECT_EQ(fewer.wait(kHang), 0) << fewer.log();
     EXPECT_NE(fewer.log().find("xy.ngc: compiled for the axes XY: interpolator 0 runs with "
-                               "Number_Axes 2, written by the PLC\n"),
+                               "Number_Axes 2 (written by a PLC, or the service's config has fewer "
+                               "axes than this one)\n"),
               std::string::npos)
         << fewer.log();
     EXPECT_NE(fewer.log().find("end position X0.0000 Y0.0000\n"), std::string::npos) << fewer.log();
@@ -2233,7 +2234,8 @@ TEST(ServiceProcesses, HmiRunRefusesProgramsOfOtherAxisLetters) {
                      env.path("with_z.log")));
     EXPECT_EQ(with_z.wait(kHang), 2) << with_z.log();
     EXPECT_NE(
-        with_z.log().find("for the axes XY (Number_Axes 2, written by the PLC), nothing sent"),
+        with_z.log().find("for the axes XY (Number_Axes 2: written by a PLC, or the service's "
+                          "config has fewer axes than this one), nothing sent"),
         std::string::npos)
         << with_z.log();
     test::Child tgmi;
@@ -2242,8 +2244,9 @@ TEST(ServiceProcesses, HmiRunRefusesProgramsOfOtherAxisLetters) {
         env.path("tgmi.log")));
     EXPECT_EQ(tgmi.wait(kHang), 2) << tgmi.log();
     EXPECT_NE(tgmi.log().find("config.yaml.tgmi: error: compiled for the axes XYZ, interpolator 0 "
-                              "runs with Number_Axes 2 (XY), written by the PLC: run the G-code "
-                              "itself, or compile it with a config of those axes"),
+                              "runs with Number_Axes 2 (XY: written by a PLC, or the service's "
+                              "config has fewer axes than this one): run the G-code itself, or "
+                              "compile it with a config of those axes"),
               std::string::npos)
         << tgmi.log();
     // A tgm-plc of the XYZ config sets the ratios of X and Y and says why not Z (Z's Command
@@ -3363,6 +3366,37 @@ TEST(ServiceProcesses, ServiceStopsCleanlyOnSigtermAndRejectsBadFlags) {
   EXPECT_EQ(plc.interrupt(10s, SIGTERM), 0) << plc.log();
   EXPECT_EQ(env.service.interrupt(10s, SIGTERM), 0) << env.service.log();
   EXPECT_NE(env.service.log().find("stopping (Terminated)"), std::string::npos) << env.service.log();
+}
+
+// A program piped into `run` is read once: away from machine zero `run` compiles it a second
+// time from where the interpolator stands, and from a pipe that second compile read nothing.
+// The run then cleared the interpolator, sent 0 records and failed with "nothing loaded"
+// (review of session 77). Both runs from the pipe ("-" is standard input) now run it: from X5
+// to X10 and on to X15 (the default config starts in G91).
+TEST(ServiceProcesses, RunReadsAPipedProgramOnceAlsoAwayFromMachineZero) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  const std::string program = env.path("x5.ngc");
+  std::ofstream(program) << "G1 X5 F3000\nM2\n";
+  test::Child first;
+  ASSERT_TRUE(
+      first.start({TGM_HMI_BIN, "run", program, "--config", env.config()}, env.path("first.log")));
+  ASSERT_EQ(first.wait(kHang), 0) << first.log();
+  for (const char* input : {"-", "/dev/stdin"}) {
+    test::Child piped;
+    const std::string line = std::string("cat '") + program + "' | '" + TGM_HMI_BIN + "' run " +
+                             input + " --config '" + env.config() + "'";
+    ASSERT_TRUE(piped.start({"/bin/sh", "-c", line}, env.path("piped.log")));
+    EXPECT_EQ(piped.wait(kHang), 0) << piped.log();
+    EXPECT_NE(
+        piped.log().find(std::string(input) + ": compiled from where interpolator 0 stands: X"),
+        std::string::npos)
+        << piped.log();
+    EXPECT_NE(piped.log().find(input == std::string("-") ? "end position X10.0000"
+                                                         : "end position X15.0000"),
+              std::string::npos)
+        << piped.log();
+  }
 }
 
 }  // namespace

@@ -34,9 +34,10 @@ constexpr const char* kUsage =
     "usage: tgm-hmi run FILE [--interpolator N] [--config YAML] [OPTIONS]\n"
     "\n"
     "Compiles FILE (G-code, or intercode written by `tgm-hmi compile --out`, *.tgmi or known by\n"
-    "its first bytes), streams it into the interpolator's buffer, starts it and follows it to\n"
-    "the end. A stop on the trajectory (Command 8, or the emergency stop 4) is followed until\n"
-    "`tgm-hmi command start` resumes it. Exit code 0 when the program ended, 1 when it was\n"
+    "its first bytes; - reads standard input), streams it into the interpolator's buffer,\n"
+    "starts it and follows it to the end. A stop on the trajectory (Command 8, or the\n"
+    "emergency stop 4) is followed until `tgm-hmi command start` resumes it. Exit code 0 when the "
+    "program ended, 1 when it was\n"
     "dropped (a stop off the trajectory, 5 or 9) or failed, 2 on bad input.\n"
     "\n"
     "  --interpolator N      interpolator 0..2 (default 0)\n"
@@ -198,8 +199,16 @@ int run_run(int argc, char** argv) {
     note.observe(s);
     last_line = std::max(last_line, s.line);
   };
-  if (std::size_t errors = 0;
-      !load_packed(file, config->machine, ip, program, nullptr, &intercode, observe, &errors)) {
+  // Read once and held for the run: from a pipe, the second compile (from where the
+  // interpolator stands, below) read nothing, and the run cleared the interpolator for an empty
+  // program (review of session 77).
+  FileView source;
+  if (!source.open(file, error)) {
+    std::fprintf(stderr, "%s: error: %s\n", file.c_str(), error.c_str());
+    return 2;
+  }
+  if (std::size_t errors = 0; !load_packed(file, source, config->machine, ip, program, nullptr,
+                                           &intercode, observe, &errors)) {
     if (errors > 0)
       std::fprintf(stderr, "%s: %zu error%s, nothing sent\n", file.c_str(), errors,
                    errors == 1 ? "" : "s");
@@ -276,8 +285,8 @@ int run_run(int argc, char** argv) {
     if (fewer_axes) {
       std::fprintf(stderr,
                    "%s: error: compiled for the axes %s, interpolator %d runs with Number_Axes %d "
-                   "(%s), written by the PLC: run the G-code itself, or compile it with a config "
-                   "of those axes\n",
+                   "(%s: written by a PLC, or the service's config has fewer axes than this one): "
+                   "run the G-code itself, or compile it with a config of those axes\n",
                    file.c_str(), program.tables().axis_letters.c_str(), ip, st->number_axes(),
                    service_letters.c_str());
     } else {
@@ -355,7 +364,7 @@ int run_run(int argc, char** argv) {
       program = PackedProgram{};  // a long program is not held twice
       note = CompensationNote{};
       if (std::size_t errors = 0; !load_packed(
-              file, machine, ip, program, away ? &here : nullptr, nullptr,
+              file, source, machine, ip, program, away ? &here : nullptr, nullptr,
               [&](const Segment& s) { note.observe(s); }, &errors)) {
         if (errors > 0) {
           std::string how;
@@ -363,7 +372,8 @@ int run_run(int argc, char** argv) {
             how = "from where interpolator " + std::to_string(ip) + " stands (" + here_text + ")";
           if (fewer_axes) {
             how += std::string(how.empty() ? "" : ", ") + "for the axes " + service_letters +
-                   " (Number_Axes " + std::to_string(st->number_axes()) + ", written by the PLC)";
+                   " (Number_Axes " + std::to_string(st->number_axes()) +
+                   ": written by a PLC, or the service's config has fewer axes than this one)";
           }
           if (how.empty()) how = "for tool T" + std::to_string(spindle);
           std::fprintf(stderr, "%s: %zu error%s compiled %s, nothing sent\n", file.c_str(), errors,
@@ -371,10 +381,15 @@ int run_run(int argc, char** argv) {
         }
         return 2;
       }
+      if (program.size() == 0) {  // the same text from another point: records all the same
+        std::fprintf(stderr, "%s: error: the program has no records compiled from here\n",
+                     file.c_str());
+        return 2;
+      }
       if (!quiet && fewer_axes) {
         std::fprintf(stderr,
-                     "%s: compiled for the axes %s: interpolator %d runs with Number_Axes %d, "
-                     "written by the PLC\n",
+                     "%s: compiled for the axes %s: interpolator %d runs with Number_Axes %d "
+                     "(written by a PLC, or the service's config has fewer axes than this one)\n",
                      file.c_str(), service_letters.c_str(), ip, st->number_axes());
       }
       if (!quiet && away) {
