@@ -67,7 +67,13 @@ std::vector<std::string> MachineConfig::validate() const {
       const bool letter_ok = L >= 'A' && L <= 'Z' && L != 'D' && L != 'F' && L != 'G' &&
                              L != 'I' && L != 'J' && L != 'K' && L != 'L' && L != 'M' &&
                              L != 'N' && L != 'P' && L != 'R' && L != 'T';
-      if (!letter_ok) {
+      // An axis past the tenth has no built-in letter ('?'): the axis count is the error, said
+      // above (a second, made-up one about '?' followed from it: review of session 77).
+      const bool past_the_tenth =
+          i >= static_cast<std::size_t>(kMaxAxes) && L == default_axis_letter(static_cast<int>(i));
+      if (past_the_tenth) {
+        // no letter of its own to check
+      } else if (!letter_ok) {
         e.push_back(ab + ".letter: '" + std::string(1, L) + "' is not an axis letter " +
                     (L >= 'A' && L <= 'Z'
                          ? "(D F G I J K L M N P R T are G-code words)"

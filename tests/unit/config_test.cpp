@@ -741,6 +741,28 @@ TEST(Config, EveryOtherBadValueIsNamedWithItsKeyAndLine) {
   for (const std::string& e : load.errors) {
     EXPECT_EQ(e.find("not given"), std::string::npos) << e;
   }
+
+  // Eleven or twelve axes without letters: the count is the one error. The axes past the tenth
+  // have no built-in letter, and each was also said to have the letter '?' (review of session
+  // 77); a letter given to one is still checked.
+  for (const char* extra : {"{}", "{}, {}"}) {
+    load = load_config_text(std::string("interpolators:\n  - axes: [{}, {}, {}, {}, {}, {}, {}, "
+                                        "{}, {}, {}, ") +
+                                extra + "]\n",
+                            "a.yaml");
+    EXPECT_FALSE(load.config);
+    ASSERT_EQ(load.errors.size(), 1u) << (load.errors.empty() ? "" : load.errors.back());
+    EXPECT_EQ(load.errors[0], std::string("a.yaml:2: interpolators[0].axes: between 1 and 10 axes "
+                                          "are needed, not ") +
+                                  (std::string(extra) == "{}" ? "11" : "12"));
+  }
+  load = load_config_text(
+      "interpolators:\n  - axes: [{}, {}, {}, {}, {}, {}, {}, {}, {}, {}, {letter: D}]\n",
+      "a.yaml");
+  ASSERT_EQ(load.errors.size(), 2u);
+  EXPECT_TRUE(has_error(load.errors,
+                        "a.yaml:2: interpolators[0].axes[10].letter: 'D' is not an "
+                        "axis letter (D F G I J K L M N P R T are G-code words)"));
 }
 
 }  // namespace
