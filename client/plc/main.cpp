@@ -905,7 +905,7 @@ int plc_main(int argc, char** argv) {
         // structure with the config's smoothing and gear ratios.
         // Queued behind what a script queued for it before it was found, if anything.
         setup[sv.number].report = true;
-        char what[160];
+        char what[320];
         // The basic parameters go by axis index (gear ratios, the IIR axis mask): from a config
         // whose axes are not the service's they would set the wrong axes.
         const std::string mine = config.machine.axis_letters(sv.number);
@@ -1001,20 +1001,25 @@ int plc_main(int argc, char** argv) {
             const double want = axes[a].ratio_inc_per_mm;
             const auto f = tgm::OutputStage::ratio_as_fraction(want);
             const char letter = config.machine.axis_letters(sv.number)[a];
+            // The value, and the service's own where it differs: a PLC config whose ratio is
+            // not the service's replaced it without a word (review of session 77).
+            std::string value = tgm::shortest_text(want) + " inc/mm";
+            if (const double had = s->ratio()[a]; had != want)
+              value += ", the service had " + tgm::shortest_text(had);
             if (f.exact) {
               const std::int32_t ratio[] = {static_cast<std::int32_t>(a), f.numerator_inc,
                                             f.denominator_mm};
               std::snprintf(what, sizeof what,
                             "interpolator %d: basic parameters: Command 1024 (gear ratio of axis "
-                            "%c)",
-                            sv.number, letter);
+                            "%c: %s)",
+                            sv.number, letter, value.c_str());
               queue_request(sv.number, tgm::client::command_request(sv.number, 1024, ratio), what,
                             true, 3);
             } else {
               std::snprintf(what, sizeof what,
                             "interpolator %d: basic parameters: Ratio register of axis %c = %s "
                             "(no 32-bit numerator / denominator of Command 1024 carries it)",
-                            sv.number, letter, tgm::shortest_text(want).c_str());
+                            sv.number, letter, value.c_str());
               queue_request(sv.number,
                             tgm::client::ratio_request(sv.number, static_cast<int>(a), want), what,
                             true, 3);

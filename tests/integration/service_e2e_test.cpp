@@ -928,11 +928,23 @@ TEST(ServiceProcesses, ThePlcSetsTheConfiguredGearRatiosExactly) {
     EXPECT_EQ(plc.log().find("refused"), std::string::npos) << plc.log();
     if (is_fine) {
       EXPECT_NE(plc.log().find("basic parameters: Ratio register of axis Z = 1234.56789012345 "
-                               "(no 32-bit numerator / denominator of Command 1024 carries it): "
-                               "accepted"),
+                               "inc/mm, the service had 4e-04 (no 32-bit numerator / "
+                               "denominator of Command 1024 carries it): accepted"),
                 std::string::npos)
           << plc.log();
     }
+    // Each value, and the service's own where it differs: the first PLC replaced the service's
+    // 1000, the second finds X and Y as the first left them.
+    EXPECT_NE(plc.log().find(is_fine ? "Command 1024 (gear ratio of axis X: -1000 inc/mm): accepted"
+                                     : "Command 1024 (gear ratio of axis X: -1000 inc/mm, the "
+                                       "service had 1000): accepted"),
+              std::string::npos)
+        << plc.log();
+    EXPECT_NE(plc.log().find(is_fine ? "Command 1024 (gear ratio of axis Y: 3e+06 inc/mm): accepted"
+                                     : "Command 1024 (gear ratio of axis Y: 3e+06 inc/mm, the "
+                                       "service had 1000): accepted"),
+              std::string::npos)
+        << plc.log();
     const auto until = std::chrono::steady_clock::now() + 3s;
     while (std::chrono::steady_clock::now() < until) {
       hmi.poll(50ms);
@@ -1015,7 +1027,8 @@ TEST(ServiceProcesses, PlcServesARestartedServiceAtOnceAndSeesEqualMFunctionsApa
   // Commands -2, -1 and 1024 for each of the 3 axes, each accepted, from both services; for
   // the restarted one's interpolator 0, whose axes stood at X 30 (the default config starts in
   // G91), Command 2048 too.
-  EXPECT_EQ(test::count_of(log, "Command 1024 (gear ratio of axis Z): accepted"), 6) << log;
+  EXPECT_EQ(test::count_of(log, "Command 1024 (gear ratio of axis Z: 1000 inc/mm): accepted"), 6)
+      << log;
   EXPECT_EQ(test::count_of(log, ": setup done (5 of 5 requests accepted)"), 5) << log;
   EXPECT_EQ(test::count_of(log,
                            "interpolator 0: position restored: Command 2048 with the "
@@ -2212,7 +2225,8 @@ TEST(ServiceProcesses, HmiRunRefusesProgramsOfOtherAxisLetters) {
             env.path(cfg) + ") has XYC: give tgm-plc the service's config") != std::string::npos,
         rotary_plc)
         << plc.log();
-    EXPECT_EQ(plc.log().find("Command 1024 (gear ratio of axis Z): accepted") != std::string::npos,
+    EXPECT_EQ(plc.log().find("Command 1024 (gear ratio of axis Z: 1000 inc/mm): accepted") !=
+                  std::string::npos,
               !rotary_plc)
         << plc.log();
   }
@@ -2271,7 +2285,8 @@ TEST(ServiceProcesses, HmiRunRefusesProgramsOfOtherAxisLetters) {
                                 "(Number_Axes 2)"),
               std::string::npos)
         << second.log();
-    EXPECT_NE(second.log().find("Command 1024 (gear ratio of axis Y): accepted"), std::string::npos)
+    EXPECT_NE(second.log().find("Command 1024 (gear ratio of axis Y: 1000 inc/mm): accepted"),
+              std::string::npos)
         << second.log();
     EXPECT_EQ(second.log().find("refused"), std::string::npos) << second.log();
     r.value(3);
