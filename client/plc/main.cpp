@@ -205,6 +205,7 @@ struct SetupQueue {
   std::deque<SetupRequest> items;
   int total = 0, accepted = 0;
   bool report = false;  // "setup done" is due once the items are answered
+  const char* withheld = nullptr;  // why the basic parameters were not sent, if they were not
 };
 
 // One interpolator as the PLC sees it (main loop only).
@@ -555,8 +556,14 @@ int plc_main(int argc, char** argv) {
       }
       if (q.items.empty() && q.report) {
         q.report = false;
-        append_log(pending_log, stamp(), "interpolator %d: setup done (%d of %d requests accepted)",
-                   number, q.accepted, q.total);
+        // "setup done (0 of 0 requests accepted)" read as success where nothing was set
+        // (review of session 77).
+        append_log(pending_log, stamp(),
+                   "interpolator %d: setup done (%d of %d requests accepted%s%s)", number,
+                   q.accepted, q.total,
+                   q.withheld != nullptr ? "; basic parameters not sent: " : "",
+                   q.withheld != nullptr ? q.withheld : "");
+        q.withheld = nullptr;
       }
     }
   };
@@ -905,6 +912,7 @@ int plc_main(int argc, char** argv) {
         // structure with the config's smoothing and gear ratios.
         // Queued behind what a script queued for it before it was found, if anything.
         setup[sv.number].report = true;
+        setup[sv.number].withheld = nullptr;
         char what[320];
         // The basic parameters go by axis index (gear ratios, the IIR axis mask): from a config
         // whose axes are not the service's they would set the wrong axes.
@@ -912,6 +920,7 @@ int plc_main(int argc, char** argv) {
         const std::string theirs = s->axis_letters().to_string();
         const bool same_axes = theirs.empty() || mine.compare(0, theirs.size(), theirs) == 0;
         if (basic && !same_axes) {
+          setup[sv.number].withheld = "this config's axes are not the service's";
           append_log(pending_log, stamp(),
                      "interpolator %d: error: basic parameters not sent: the service drives the "
                      "axes %s, this config (%s) has %s: give tgm-plc the service's config",
@@ -949,6 +958,7 @@ int plc_main(int argc, char** argv) {
                      s->rel_speed());
         }
         if (basic && same_axes && under_way) {
+          setup[sv.number].withheld = "a program is under way";
           append_log(pending_log, stamp(),
                      "interpolator %d: basic parameters not sent: a program is under way "
                      "(status %d %s), and they would change the machine in its middle; the "
