@@ -218,6 +218,7 @@ struct Served {
   // A pending acknowledgement.
   std::int32_t ack_m = 0;
   std::uint32_t ack_count = 0;
+  std::uint64_t ack_instance = 0;  // the service instance that showed it
   Clock::time_point ack_at{};
   Clock::time_point seen_at{};
   Clock::time_point woke_at{};
@@ -229,6 +230,7 @@ struct Served {
   // restarted service starts at 0, and the PLC tells it where the axes stand (Command 2048).
   std::array<long long, tgm::kMaxAxes> last_inc{};
   std::size_t last_axes = 0;
+  std::string last_letters;  // the axes of last_inc, by letter (a restart may change them)
   bool restore = false;  // a restarted service gets last_inc once its basic parameters are set
   void left_unanswered(std::int32_t m, std::uint32_t count, Clock::time_point at) {
     unanswered_m = m;
@@ -443,7 +445,7 @@ int plc_main(int argc, char** argv) {
 
   std::vector<Served> served;
   for (int i = 0; i < count; ++i) {
-    if (only < 0 || only == i) served.push_back(Served{i});
+    if (only < 0 || only == i) served.emplace_back().number = i;
   }
   append_log(
       pending_log, stamp(), "PLC emulator on DDS domain %d as '%s', serving %zu interpolator%s, version %s",
@@ -467,23 +469,48 @@ int plc_main(int argc, char** argv) {
   // `not_sent`: why it may not be sent (nullptr: it may).
   auto restore_position = [&](const Served& sv, const tgm::msg::InterpolatorState& now_state,
                               const char* not_sent) {
+    // By letter: a service restarted with another config (XYC corrected to XYZ) would take C's
+    // increments as Z's by index. An axis the old service did not drive keeps the new one's
+    // position, and one it no longer drives is named.
     const std::size_t axes = std::min<std::size_t>(
-        sv.last_axes, static_cast<std::size_t>(std::max(0, int{now_state.number_axes()})));
-    std::string where;
+        static_cast<std::size_t>(std::max(0, int{now_state.number_axes()})), tgm::kMaxAxes);
+    const std::string letters = now_state.axis_letters().to_string();
+    std::string where, kept, gone;
     std::array<std::int32_t, tgm::kMaxAxes> params{};
     bool differs = false, fits = true;
-    const std::string letters = now_state.axis_letters().to_string();
     for (std::size_t a = 0; a < axes; ++a) {
-      const long long inc = sv.last_inc[a];
-      if (inc != now_state.position_inc()[a]) differs = true;
+      const char letter = a < letters.size() ? letters[a] : '?';
+      const std::size_t old = sv.last_letters.find(letter);
+      const long long now_inc = now_state.position_inc()[a];
+      const bool known = old != std::string::npos && old < sv.last_axes;
+      const long long inc = known ? sv.last_inc[old] : now_inc;
+      if (!known) kept += letter;
+      if (inc != now_inc) differs = true;
       if (inc < INT32_MIN || inc > INT32_MAX) fits = false;
       params[a] = static_cast<std::int32_t>(std::clamp<long long>(inc, INT32_MIN, INT32_MAX));
       where += (where.empty() ? "" : " ");
-      where += a < letters.size() ? letters[a] : '?';
+      where += letter;
       where += ' ' + std::to_string(inc);
     }
+    for (std::size_t a = 0; a < sv.last_axes && a < sv.last_letters.size(); ++a) {
+      if (letters.find(sv.last_letters[a]) == std::string::npos && sv.last_inc[a] != 0)
+        gone += sv.last_letters[a];
+    }
+    if (!gone.empty()) {
+      append_log(pending_log, stamp(),
+                 "interpolator %d: warning: the restarted service does not drive %s (it drives "
+                 "%s): %s's last position is not restored",
+                 sv.number, gone.c_str(), letters.c_str(), gone.c_str());
+    }
     if (!differs) return;
-    if (!fits) not_sent = "an increment beyond Command_Parameter's 32 bits";
+    if (!fits) {
+      append_log(pending_log, stamp(),
+                 "interpolator %d: warning: position not restored (an increment beyond "
+                 "Command_Parameter's 32 bits): the drives stood at %s inc, the restarted "
+                 "service starts from its own position",
+                 sv.number, where.c_str());
+      return;
+    }
     if (not_sent != nullptr) {
       append_log(pending_log, stamp(),
                  "interpolator %d: warning: position not restored (%s): the drives stood at %s "
@@ -492,11 +519,12 @@ int plc_main(int argc, char** argv) {
                  sv.number, not_sent, where.c_str());
       return;
     }
-    char what[tgm::kMaxAxes * 16 + 160];
+    char what[tgm::kMaxAxes * 24 + 200];
     std::snprintf(what, sizeof what,
-                  "interpolator %d: position restored: Command 2048 with the drives' last "
-                  "increments (%s)",
-                  sv.number, where.c_str());
+                  "interpolator %d: position restore: Command 2048 with the drives' last "
+                  "increments (%s%s%s%s)",
+                  sv.number, where.c_str(), kept.empty() ? "" : "; ", kept.c_str(),
+                  kept.empty() ? "" : " as the service has it");
     queue_request(sv.number,
                   tgm::client::command_request(sv.number, tgm::kCommandSetPositionOn,
                                                std::span<const std::int32_t>(params.data(), axes)),
@@ -727,6 +755,7 @@ int plc_main(int argc, char** argv) {
         sv->m_part = rec.part;
         sv->ack_m = rec.m;
         sv->ack_count = rec.count;
+        sv->ack_instance = rec.instance;
         sv->seen_at = rec.seen;
         sv->woke_at = rec.woke;
         sv->ack_at = rec.seen + std::chrono::duration_cast<Clock::duration>(
@@ -912,7 +941,7 @@ int plc_main(int argc, char** argv) {
         // structure with the config's smoothing and gear ratios.
         // Queued behind what a script queued for it before it was found, if anything.
         setup[sv.number].report = true;
-        setup[sv.number].withheld = nullptr;
+        setup[sv.number].withheld = basic ? nullptr : "--no-basic-params";
         char what[320];
         // The basic parameters go by axis index (gear ratios, the IIR axis mask): from a config
         // whose axes are not the service's they would set the wrong axes.
@@ -1051,9 +1080,15 @@ int plc_main(int argc, char** argv) {
         }
         if (!found_at) found_at = Clock::now();
       }
-      sv.last_axes = std::min<std::size_t>(static_cast<std::size_t>(std::max(0, s->number_axes())),
-                                           sv.last_inc.size());
-      for (std::size_t a = 0; a < sv.last_axes; ++a) sv.last_inc[a] = s->position_inc()[a];
+      // Not while the PLC's own requests are on their way (a restore among them): a service
+      // restarted again before its Command 2048 was answered showed 0 here, and the position
+      // was lost without a word.
+      if (setup[sv.number].items.empty()) {
+        sv.last_axes = std::min<std::size_t>(
+            static_cast<std::size_t>(std::max(0, s->number_axes())), sv.last_inc.size());
+        for (std::size_t a = 0; a < sv.last_axes; ++a) sv.last_inc[a] = s->position_inc()[a];
+        sv.last_letters = s->axis_letters().to_string();
+      }
       // A new M-function: M_Func set with an m_func_count that neither this loop nor the event
       // callback has claimed (with events, the callback usually sees it first).
       // (The line logs a copy of the fields: it is written at the end of the pass.)
@@ -1097,6 +1132,7 @@ int plc_main(int argc, char** argv) {
         } else {
           sv.ack_m = s->m_func();
           sv.ack_count = s->m_func_count();
+          sv.ack_instance = s->service_instance();
           sv.ack_at = now + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(delay_for(s->m_func())));
         }
       }
@@ -1104,7 +1140,9 @@ int plc_main(int argc, char** argv) {
       // (a stop off the trajectory, a clear) or another client acknowledged it. The state shows
       // its count with M_Func 0, or a later count. It used to be sent all the same, and refused
       // ("went with its program") seconds after the PLC's own Command 5.
-      if (sv.ack_m != 0 && s->service_instance() == sv.instance &&
+      // Only on the state of the instance that showed it: in the moments after a restart the
+      // event of the new one's M-function can come before its first state.
+      if (sv.ack_m != 0 && s->service_instance() == sv.ack_instance &&
           (s->m_func_count() > sv.ack_count ||
            (s->m_func_count() == sv.ack_count && s->m_func() == 0))) {
         log_seen();

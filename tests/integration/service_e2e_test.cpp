@@ -700,7 +700,7 @@ TEST(ServiceProcesses, APlcScriptRefusalHoldsBackAnAcknowledgementAlreadyDue) {
 }
 
 // An acknowledgement not yet due is not sent when its M-function goes without it: M51 waits,
-// due after --ack-delay 0.8 s, and after 0.3 s the stand-in shows M_Func 0 with the same count
+// due after --ack-delay 2.5 s, and after 0.3 s the stand-in shows M_Func 0 with the same count
 // (its program dropped, as by a Command 5). The PLC sent it all the same, 2.3 s after its own
 // Command 5 in the review of session 76, and the service refused it.
 TEST(ServiceProcesses, APlcDropsAnAcknowledgementWhoseMFunctionWentBeforeItWasDue) {
@@ -710,7 +710,7 @@ TEST(ServiceProcesses, APlcDropsAnAcknowledgementWhoseMFunctionWentBeforeItWasDu
   service.st[0].act_part(2);
   test::Child plc;
   ASSERT_NO_FATAL_FAILURE(service.start_plc(
-      env, plc, {"--ack-delay", "0.8", "--duration", "2", "--interpolator", "0"}));
+      env, plc, {"--ack-delay", "2.5", "--duration", "3.5", "--interpolator", "0"}));
   std::uint64_t cycle = 0;
   int acks = 0;
   const auto deadline = std::chrono::steady_clock::now() + kHang;
@@ -1036,7 +1036,7 @@ TEST(ServiceProcesses, PlcServesARestartedServiceAtOnceAndSeesEqualMFunctionsApa
       << log;
   EXPECT_EQ(test::count_of(log, ": setup done (5 of 5 requests accepted)"), 5) << log;
   EXPECT_EQ(test::count_of(log,
-                           "interpolator 0: position restored: Command 2048 with the "
+                           "interpolator 0: position restore: Command 2048 with the "
                            "drives' last increments (X 30000 Y 0 Z 0): accepted"),
             1)
       << log;
@@ -1050,6 +1050,54 @@ TEST(ServiceProcesses, PlcServesARestartedServiceAtOnceAndSeesEqualMFunctionsApa
   const auto cycle_at = log.find("(cycle ", last);
   ASSERT_NE(cycle_at, std::string::npos) << log;
   EXPECT_LT(std::stoull(log.substr(cycle_at + 7)), first_cycles) << log;
+}
+
+// The position goes to a restarted service by axis letter: the service ran XYZ (a PLC config of
+// XYC sends it no basic parameters) and comes back with XYC. X and Y get their increments, C
+// keeps the new service's 0, and Z, which it no longer drives, is named. By index, Z's 1000
+// increments went to C.
+TEST(ServiceProcesses, APlcRestoresARestartedServicesPositionByAxisLetter) {
+  ServiceEnv env;
+  std::string xyc = test::read_text(env.config());
+  ASSERT_TRUE(test::replace_first(xyc, "axes: [{letter: X}, {letter: Y}, {letter: Z}]",
+                                  "axes: [{letter: X}, {letter: Y}, {letter: C}]"));
+  std::ofstream(env.path("xyc.yaml")) << xyc;
+  ASSERT_TRUE(env.start_service());
+  test::Child plc;
+  ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.path("xyc.yaml"), "--interpolator", "0"},
+                        env.path("plc.log")));
+  ASSERT_TRUE(plc.wait_for_log(": setup done (")) << plc.log();
+  EXPECT_NE(plc.log().find("interpolator 0: setup done (0 of 0 requests accepted; basic "
+                           "parameters not sent: this config's axes are not the service's)"),
+            std::string::npos)
+      << plc.log();
+  std::ofstream(env.path("p.ngc")) << "G1 X5 Y2 Z1 F3000\nM2\n";
+  test::Child run;
+  ASSERT_TRUE(run.start({TGM_HMI_BIN, "run", env.path("p.ngc"), "--config", env.config()},
+                        env.path("run.log")));
+  ASSERT_EQ(run.wait(kHang), 0) << run.log();
+  std::this_thread::sleep_for(500ms);  // the PLC takes the last state (every 20 ms at most)
+  ASSERT_EQ(env.service.interrupt(), 0);
+  ASSERT_TRUE(env.start_service({"--config", env.path("xyc.yaml")}));
+  for (int i = 0; i < 300 && test::count_of(plc.log(), ": setup done (") < 2; ++i)
+    std::this_thread::sleep_for(50ms);
+  ASSERT_EQ(test::count_of(plc.log(), ": setup done ("), 2) << plc.log();
+  const std::string log = plc.log();
+  EXPECT_NE(log.find("interpolator 0: warning: the restarted service does not drive Z (it drives "
+                     "XYC): Z's last position is not restored"),
+            std::string::npos)
+      << log;
+  EXPECT_NE(log.find("interpolator 0: position restore: Command 2048 with the drives' last "
+                     "increments (X 5000 Y 2000 C 0; C as the service has it): accepted"),
+            std::string::npos)
+      << log;
+  test::Child look;
+  ASSERT_TRUE(look.start({TGM_HMI_BIN, "status", "--json", "--config", env.path("xyc.yaml")},
+                         env.path("status.log")));
+  ASSERT_EQ(look.wait(kHang), 0) << look.log();
+  EXPECT_NE(look.log().find("\"position_inc\":{\"X\":5000,\"Y\":2000,\"C\":0}"), std::string::npos)
+      << look.log();
+  EXPECT_EQ(plc.interrupt(), 0);
 }
 
 // A tgm-plc that outlives a stopped and a killed tgm-service serves the one after both: it
@@ -1459,9 +1507,9 @@ TEST(ServiceProcesses, AnInterruptedRunSaysWhatOfItsProgramStaysLoaded) {
   // The chunks written and not yet confirmed arrive after the stop: the count says how many
   // records that can be (the service held up to 128 more than it said: review of session 77).
   const std::regex said(
-      "interrupted: normal stop: accepted; only ([0-9]+)( \\(up to ([0-9]+) with the chunks on "
-      "their way\\))? of its 5001 records reached the buffer and stay loaded: a start runs only "
-      "those and then stands in underrun; `tgm-hmi command clear` drops them");
+      "interrupted: normal stop: accepted; only ([0-9]+) of its 5001 records reached the buffer( "
+      "\\(up to ([0-9]+) once the chunks on their way arrive\\))? and stay loaded: a start runs "
+      "only those and then stands in underrun; `tgm-hmi command clear` drops them");
   std::smatch m;
   ASSERT_TRUE(std::regex_search(log, m, said)) << log;
   const int loaded = std::stoi(m[1].str());

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -36,9 +37,9 @@ constexpr const char* kUsage =
     "Compiles FILE (G-code, or intercode written by `tgm-hmi compile --out`, *.tgmi or known by\n"
     "its first bytes; - reads standard input), streams it into the interpolator's buffer,\n"
     "starts it and follows it to the end. A stop on the trajectory (Command 8, or the\n"
-    "emergency stop 4) is followed until `tgm-hmi command start` resumes it. Exit code 0 when the "
-    "program ended, 1 when it was\n"
-    "dropped (a stop off the trajectory, 5 or 9) or failed, 2 on bad input.\n"
+    "emergency stop 4) is followed until `tgm-hmi command start` resumes it. Exit code 0\n"
+    "when the program ended, 1 when it was dropped (a stop off the trajectory, 5 or 9) or\n"
+    "failed, 2 on bad input.\n"
     "\n"
     "  --interpolator N      interpolator 0..2 (default 0)\n"
     "  --config YAML         machine config (default: $TGM_CONFIG, the installed or\n"
@@ -202,7 +203,9 @@ int run_run(int argc, char** argv) {
   // Read once and held for the run: from a pipe, the second compile (from where the
   // interpolator stands, below) read nothing, and the run cleared the interpolator for an empty
   // program (review of session 77).
-  FileView source;
+  // Let go after the last compile (a piped program of up to 1 GiB is not held for hours).
+  std::optional<FileView> source_holder;
+  FileView& source = source_holder.emplace();
   if (!source.open(file, error)) {
     std::fprintf(stderr, "%s: error: %s\n", file.c_str(), error.c_str());
     return 2;
@@ -404,6 +407,7 @@ int run_run(int argc, char** argv) {
       }
     }
   }
+  source_holder.reset();  // compiled for the last time
   note.print(file, intercode);
   // What the program stream cannot carry is found before the clear (the sender checks the
   // whole program when it is made): one that found it later left a half-sent program running
@@ -608,12 +612,14 @@ int run_run(int argc, char** argv) {
         return std::string("the program stays loaded: `tgm-hmi command start` resumes it");
       // Chunks written and not yet confirmed still arrive after the stop (the buffer held up
       // to 128 records more than the count said: review of session 77).
-      std::string count = std::to_string(sender.confirmed());
+      std::string more;
       if (sender.written() > sender.confirmed())
-        count += " (up to " + std::to_string(sender.written()) + " with the chunks on their way)";
-      return "only " + count + " of its " + std::to_string(sender.total()) +
-             " records reached the buffer and stay loaded: a start runs only those and then "
-             "stands in underrun; `tgm-hmi command clear` drops them";
+        more =
+            " (up to " + std::to_string(sender.written()) + " once the chunks on their way arrive)";
+      return "only " + std::to_string(sender.confirmed()) + " of its " +
+             std::to_string(sender.total()) + " records reached the buffer" + more +
+             " and stay loaded: a start runs only those and then stands in underrun; `tgm-hmi "
+             "command clear` drops them";
     };
     if (g_interrupted) {
       clear_progress();
