@@ -546,6 +546,28 @@ struct StandInService {
     }
     return true;
   }
+  // Publishes the states and answers every request until `plc` exits (at most kHang); `each`
+  // runs first in every pass. Returns the number of requests answered.
+  int serve_until_exit(test::Child& plc, const std::function<void()>& each = {}) {
+    std::uint64_t cycle = 0;
+    int answered = 0;
+    const auto deadline = std::chrono::steady_clock::now() + kHang;
+    while (plc.running() && std::chrono::steady_clock::now() < deadline) {
+      if (each) each();
+      if (!publish(cycle)) {
+        ADD_FAILURE() << "the stand-in's state was not written";
+        break;
+      }
+      msg::Request rq;
+      while (dds::take_next(requests, rq)) {
+        ++answered;
+        if (!answer(rq, cycle)) ADD_FAILURE() << "the stand-in's reply was not written";
+      }
+      std::this_thread::sleep_for(10ms);
+      plc.wait(0ms);
+    }
+    return answered;
+  }
   // Accepts acknowledgement `q` in `cycle`: the reply, and its interpolator's M-function
   // released.
   bool answer(const msg::Request& q, std::uint64_t cycle) {
@@ -672,19 +694,7 @@ TEST(ServiceProcesses, APlcScriptRefusalHoldsBackAnAcknowledgementAlreadyDue) {
   ASSERT_NO_FATAL_FAILURE(service.start_plc(
       env, plc,
       {"--ack-delay", "0.5", "--script", script, "--duration", "2", "--interpolator", "0"}));
-  std::uint64_t cycle = 0;
-  int acks = 0;
-  const auto deadline = std::chrono::steady_clock::now() + kHang;
-  while (plc.running() && std::chrono::steady_clock::now() < deadline) {
-    ASSERT_TRUE(service.publish(cycle));
-    msg::Request rq;
-    while (dds::take_next(service.requests, rq)) {
-      ++acks;
-      ASSERT_TRUE(service.answer(rq, cycle));
-    }
-    std::this_thread::sleep_for(10ms);
-    plc.wait(0ms);
-  }
+  const int acks = service.serve_until_exit(plc);
   EXPECT_EQ(plc.wait(kHang), 0) << plc.log();
   const std::string log = plc.log();
   EXPECT_EQ(acks, 0) << log;
@@ -711,27 +721,15 @@ TEST(ServiceProcesses, APlcDropsAnAcknowledgementWhoseMFunctionWentBeforeItWasDu
   test::Child plc;
   ASSERT_NO_FATAL_FAILURE(service.start_plc(
       env, plc, {"--ack-delay", "2.5", "--duration", "3.5", "--interpolator", "0"}));
-  std::uint64_t cycle = 0;
-  int acks = 0;
-  const auto deadline = std::chrono::steady_clock::now() + kHang;
   bool dropped = false;
-  while (plc.running() && std::chrono::steady_clock::now() < deadline) {
-    if (!dropped && plc.log().find("M51 normal") != std::string::npos) {
-      std::this_thread::sleep_for(300ms);
-      dropped = true;
-      service.st[0].status(7);
-      service.st[0].m_func(0);
-      service.st[0].run_flag(static_cast<std::int32_t>(SectionState::kRun));
-    }
-    ASSERT_TRUE(service.publish(cycle));
-    msg::Request rq;
-    while (dds::take_next(service.requests, rq)) {
-      ++acks;
-      ASSERT_TRUE(service.answer(rq, cycle));
-    }
-    std::this_thread::sleep_for(10ms);
-    plc.wait(0ms);
-  }
+  const int acks = service.serve_until_exit(plc, [&] {
+    if (dropped || plc.log().find("M51 normal") == std::string::npos) return;
+    std::this_thread::sleep_for(300ms);
+    dropped = true;
+    service.st[0].status(7);
+    service.st[0].m_func(0);
+    service.st[0].run_flag(static_cast<std::int32_t>(SectionState::kRun));
+  });
   EXPECT_TRUE(dropped) << plc.log();
   EXPECT_EQ(plc.wait(kHang), 0) << plc.log();
   const std::string log = plc.log();
