@@ -122,11 +122,7 @@ bool load_packed(const std::string& file, const MachineConfig& machine, int ip, 
   if (intercode) *intercode = false;
   if (compile_errors) *compile_errors = 0;
   FileView input;
-  std::string error;
-  if (!input.open(file, error)) {
-    std::fprintf(stderr, "%s: error: %s\n", file.c_str(), error.c_str());
-    return false;
-  }
+  if (!input.open_or_report(file)) return false;
   return load_packed(file, input, machine, ip, out, start_mm, intercode, observe, compile_errors);
 }
 
@@ -334,6 +330,13 @@ bool FileView::check_or_report(const std::string& file) const {
   std::string why;
   if (check(why)) return true;
   std::fprintf(stderr, "%s: error: %s\n", file.c_str(), why.c_str());
+  return false;
+}
+
+bool FileView::open_or_report(const std::string& path) {
+  std::string error;
+  if (open(path, error)) return true;
+  std::fprintf(stderr, "%s: error: %s\n", path.c_str(), error.c_str());
   return false;
 }
 

@@ -158,6 +158,8 @@ class FileView {
   FileView& operator=(const FileView&) = delete;
   ~FileView();
   bool open(const std::string& path, std::string& error);
+  //! open() with the reason printed as "FILE: error: ...".
+  bool open_or_report(const std::string& path);
   std::string_view text() const { return text_; }
   //! True when the file is still the one opened (size and modification time, nothing cut from
   //! the mapping); else false with the reason in `why`. Call it once the text has been used:

@@ -194,10 +194,7 @@ int run_compile(int argc, char** argv) {
   if (!machine) return 2;
 
   FileView input;
-  if (std::string err; !input.open(file, err)) {
-    std::fprintf(stderr, "%s: error: %s\n", file.c_str(), err.c_str());
-    return 2;
-  }
+  if (!input.open_or_report(file)) return 2;
   const std::string_view text = input.text();
   if (is_intercode(file, text))
     return inspect_intercode(args, file, input, dump, out_path, start_text);

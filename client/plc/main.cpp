@@ -239,6 +239,11 @@ struct Served {
   }
 };
 
+// The axes a state's interpolator drives (Number_Axes, within 0..kMaxAxes).
+std::size_t driven_axes(const tgm::msg::InterpolatorState& s) {
+  return static_cast<std::size_t>(std::clamp<std::int32_t>(s.number_axes(), 0, tgm::kMaxAxes));
+}
+
 int plc_main(int argc, char** argv);
 
 }  // namespace
@@ -472,8 +477,7 @@ int plc_main(int argc, char** argv) {
     // By letter: a service restarted with another config (XYC corrected to XYZ) would take C's
     // increments as Z's by index. An axis the old service did not drive keeps the new one's
     // position, and one it no longer drives is named.
-    const std::size_t axes = std::min<std::size_t>(
-        static_cast<std::size_t>(std::max(0, int{now_state.number_axes()})), tgm::kMaxAxes);
+    const std::size_t axes = driven_axes(now_state);
     const std::string letters = now_state.axis_letters().to_string();
     std::string where, kept, gone;
     std::array<std::int32_t, tgm::kMaxAxes> params{};
@@ -1084,8 +1088,7 @@ int plc_main(int argc, char** argv) {
       // restarted again before its Command 2048 was answered showed 0 here, and the position
       // was lost without a word.
       if (setup[sv.number].items.empty()) {
-        sv.last_axes = std::min<std::size_t>(
-            static_cast<std::size_t>(std::max(0, s->number_axes())), sv.last_inc.size());
+        sv.last_axes = driven_axes(*s);
         for (std::size_t a = 0; a < sv.last_axes; ++a) sv.last_inc[a] = s->position_inc()[a];
         sv.last_letters = s->axis_letters().to_string();
       }

@@ -206,10 +206,7 @@ int run_run(int argc, char** argv) {
   // Let go after the last compile (a piped program of up to 1 GiB is not held for hours).
   std::optional<FileView> source_holder;
   FileView& source = source_holder.emplace();
-  if (!source.open(file, error)) {
-    std::fprintf(stderr, "%s: error: %s\n", file.c_str(), error.c_str());
-    return 2;
-  }
+  if (!source.open_or_report(file)) return 2;
   if (std::size_t errors = 0; !load_packed(file, source, config->machine, ip, program, nullptr,
                                            &intercode, observe, &errors)) {
     if (errors > 0)
