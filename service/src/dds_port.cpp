@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <climits>
 #include <cstdio>
 #include <map>
@@ -59,6 +60,28 @@ msg::ReplyCode to_msg(ReplyCode c) {
 bool progress_changed(const Registers& a, const Registers& b) {
   return a.act_part != b.act_part || a.free_slots != b.free_slots || a.act_speed != b.act_speed ||
          a.orig_position != b.orig_position || a.position != b.position;
+}
+
+// What a request asks for, apart from its id and client: a repeat of a request (Client::request
+// sends an unanswered one again under its id) must ask for the same. FNV-1a over the fields.
+std::uint64_t request_digest(const msg::Request& r) {
+  std::uint64_t h = 0xcbf29ce484222325ULL;
+  const auto mix = [&h](std::uint64_t v) {
+    for (int b = 0; b < 8; ++b, v >>= 8) {
+      h ^= v & 0xFFU;
+      h *= 0x100000001b3ULL;
+    }
+  };
+  mix(static_cast<std::uint64_t>(r.role()));
+  mix(r.interpolator());
+  mix(static_cast<std::uint64_t>(r.kind()));
+  mix(static_cast<std::uint32_t>(r.command()));
+  for (const std::int32_t p : r.command_parameter()) mix(static_cast<std::uint32_t>(p));
+  mix(r.axis());
+  mix(std::bit_cast<std::uint64_t>(r.value()));
+  mix(static_cast<std::uint32_t>(r.m_func_acknowledged()));
+  mix(r.m_func_count_acknowledged());
+  return h;
 }
 
 // The reason of every REPLY_CODE_BUSY answer.
@@ -318,6 +341,8 @@ void DdsPort::take_requests_locked() {
       const Role role = src.role                           ? *src.role
                         : r.role() == msg::CLIENT_ROLE_PLC ? Role::kPlc
                                                            : Role::kHmi;
+      const std::uint64_t digest = request_digest(r);
+      bool repeat = false;
       {
         // For publish_replies(). Bounded: a participant that never has a reply reader leaves
         // its entries behind.
@@ -327,7 +352,22 @@ void DdsPort::take_requests_locked() {
           client_participants_.clear();
         }
         client_participants_.insert_or_assign(std::string(name), from);
+        // A request that came before: not executed again. Its reply goes out again at once
+        // when the publisher had it; otherwise it is still on its way from the cycles.
+        if (const auto log = recent_requests_.find(name); log != recent_requests_.end()) {
+          for (const RecentRequest& q : log->second) {
+            if (q.id != r.request_id() || q.digest != digest) continue;
+            repeat = true;
+            ++requests_repeated_;
+            if (q.reply) {
+              repeat_replies_.push_back(*q.reply);
+              repeats_pending_.store(true, std::memory_order_release);
+            }
+            break;
+          }
+        }
       }
+      if (repeat) continue;
       {
         const std::lock_guard lock(peers_mutex_);
         if (peers_.size() >= 4096 && peers_.find(from) == peers_.end()) peers_.clear();
@@ -390,7 +430,18 @@ void DdsPort::take_requests_locked() {
           handshakes_.push_back(h);
         }
       }
-      requests_.push(in);
+      {
+        // Logged before the cycles can answer it, so that the publisher finds it.
+        const std::lock_guard lock(reply_match_mutex_);
+        if (recent_requests_.size() >= 1024 &&
+            recent_requests_.find(name) == recent_requests_.end()) {
+          recent_requests_.clear();  // bounded as client_participants_
+        }
+        auto& recent = recent_requests_[std::string(name)];
+        if (recent.size() >= kRecentRequests) recent.pop_front();
+        recent.push_back({r.request_id(), digest, std::nullopt});
+      }
+      requests_.push(in);  // not full: checked above, under request_mutex_
     }
   }
 }
@@ -619,7 +670,11 @@ void DdsPort::ReplyMatchListener::on_publication_matched(fdds::DataWriter*,
   readers += s.current_count_change;
   if (readers > 0) return;
   port_.reply_readers_.erase(p);
-  std::erase_if(port_.client_participants_, [&](const auto& kv) { return kv.second == p; });
+  std::erase_if(port_.client_participants_, [&](const auto& kv) {
+    if (kv.second != p) return false;
+    port_.recent_requests_.erase(kv.first);
+    return true;
+  });
 }
 
 // The reply topic is VOLATILE: a reply written before the reply writer has matched the
@@ -632,7 +687,8 @@ void DdsPort::ReplyMatchListener::on_publication_matched(fdds::DataWriter*,
 // kReplyMatchWait; the cycle thread never waits for it.
 void DdsPort::publish_replies() {
   // The publisher wakes every cycle; most cycles have no reply to write or to hold.
-  if (held_replies_.empty() && replies_.front() == nullptr && busy_replies_.front() == nullptr) {
+  if (held_replies_.empty() && replies_.front() == nullptr && busy_replies_.front() == nullptr &&
+      !repeats_pending_.load(std::memory_order_acquire)) {
     return;
   }
   const auto now = std::chrono::steady_clock::now();
@@ -663,6 +719,11 @@ void DdsPort::publish_replies() {
       reply.code(to_msg(r.code));
       reply.reason(std::string(r.reason.view()));
       reply.cycle_counter(r.cycle);
+      if (const auto log = recent_requests_.find(r.client.view()); log != recent_requests_.end()) {
+        for (RecentRequest& q : log->second) {
+          if (q.id == r.request_id) q.reply = reply;  // busy answers were not logged
+        }
+      }
       const auto from = client_participants_.find(r.client.view());
       const bool hold =
           from != client_participants_.end() && held_replies_.size() < 1024 &&
@@ -676,6 +737,11 @@ void DdsPort::publish_replies() {
         replies_to_write_.push_back(reply);
       }
     }
+    // Repeats: not held (their client has waited already), after the replies above, which
+    // they may repeat.
+    repeats_pending_.store(false, std::memory_order_relaxed);
+    for (msg::Reply& again : repeat_replies_) replies_to_write_.push_back(std::move(again));
+    repeat_replies_.clear();
   }
   for (msg::Reply& w : replies_to_write_) {
     if (!reply_writer_.write(&w)) ++replies_not_written_;

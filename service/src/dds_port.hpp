@@ -131,6 +131,10 @@ class DdsPort final : public CyclePort {
   //! of them written after kReplyMatchWait without that match (valid after stop()).
   std::uint64_t replies_held() const { return replies_held_; }
   std::uint64_t replies_unmatched() const { return replies_unmatched_; }
+  //! Requests that came again (the same client, request_id and content: a client that heard
+  //! no reply sends its request again) and were answered with the first reply, or left to it
+  //! when that was not written yet, instead of being executed twice (valid after stop()).
+  std::uint64_t requests_repeated() const { return requests_repeated_; }
   //! Replies whose write() failed (valid after stop()).
   std::uint64_t replies_not_written() const { return replies_not_written_; }
   //! The reply key of a request to an interpolator the service does not host: one instance for
@@ -229,6 +233,22 @@ class DdsPort final : public CyclePort {
   std::mutex reply_match_mutex_;
   std::map<GuidPrefix, int> reply_readers_;
   std::map<std::string, GuidPrefix, std::less<>> client_participants_;
+  // Also under reply_match_mutex_: each client's latest requests handed to the cycles (at most
+  // kRecentRequests; an entry goes with its participant, as above), with the reply once the
+  // publisher had it. A request that comes again is answered from here, at once and past the
+  // hold of publish_replies: its client heard nothing, so the first reply was lost or is held,
+  // as when the match listener's status merged two readers' matches (the count of one
+  // participant then never rose) and the reply waited out kReplyMatchWait.
+  struct RecentRequest {
+    std::uint64_t id = 0;
+    std::uint64_t digest = 0;
+    std::optional<msg::Reply> reply;
+  };
+  static constexpr std::size_t kRecentRequests = 64;
+  std::map<std::string, std::deque<RecentRequest>, std::less<>> recent_requests_;
+  std::vector<msg::Reply> repeat_replies_;
+  std::atomic<bool> repeats_pending_{false};
+  std::uint64_t requests_repeated_ = 0;
   // Under peers_mutex_ (never held across a DDS call): who each client participant is, from its
   // requests; the participant that sent each interpolator's last program chunk, and its
   // program; the participants whose loss was said (so that a flapping link says it once).

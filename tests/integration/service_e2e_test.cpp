@@ -1973,6 +1973,106 @@ TEST(ServiceProcesses, AReplyWaitsUntilTheClientsReplyReaderIsMatched) {
   EXPECT_NE(stats.find("\"replies_unmatched\": 0,"), std::string::npos) << stats;
 }
 
+// A reply can be lost (the service held one for a match of its client's reply reader that it
+// never saw, and a soak session waited 30 s for the reply to its clear). The client sends an
+// unanswered request again under the same request_id, after 0.5 s and then at twice the last
+// interval, until a reply comes: a stand-in service here leaves the first two writes
+// unanswered and answers the third.
+TEST(ServiceProcesses, AClientSendsAnUnansweredRequestAgainUnderItsId) {
+  ServiceEnv env;
+  dds::Participant fake(env.dds(), "service");
+  auto& requests = fake.reader<msg::RequestPubSubType>(dds::kRequestTopic);
+  auto& replies = fake.writer<msg::ReplyPubSubType>(dds::kReplyTopic);
+  client::Client hmi(env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(dds::wait_for_match(replies, 1, kHang));
+  std::vector<msg::Request> seen;
+  bool answered = false;
+  std::thread stand_in([&] {
+    const auto deadline = std::chrono::steady_clock::now() + kHang;
+    msg::Request q;
+    while (seen.size() < 3 && std::chrono::steady_clock::now() < deadline) {
+      while (seen.size() < 3 && dds::take_next(requests, q)) seen.push_back(q);
+      std::this_thread::sleep_for(5ms);
+    }
+    if (seen.size() < 3) return;
+    msg::Reply r = accepted_reply(seen.back(), 4242);
+    answered = replies.write(&r);
+  });
+  const client::Reply r = hmi.clear(0, 20s);
+  stand_in.join();
+  ASSERT_TRUE(answered) << seen.size() << " requests seen";
+  EXPECT_TRUE(r.accepted) << client::describe(r);
+  EXPECT_EQ(r.cycle, 4242u);
+  EXPECT_EQ(r.sends, 3);
+  for (const msg::Request& q : seen) {
+    EXPECT_EQ(q.request_id(), seen.front().request_id());
+    EXPECT_EQ(q.kind(), msg::REQUEST_KIND_CLEAR);
+    EXPECT_EQ(q.client_name(), seen.front().client_name());
+  }
+  // A request left unanswered for good says how often it went out.
+  client::Reply lost;
+  lost.timed_out = true;
+  lost.sent = true;
+  lost.sends = 4;
+  lost.waited = 8000ms;
+  EXPECT_EQ(client::describe(lost),
+            "no reply within 8.0 s: the request was sent (4 times), but whether tgm-service "
+            "executed it is not known (it may still arrive over a slow or lossy network; check "
+            "the registers)");
+}
+
+// The service executes a request once: the same request again (same client, request_id and
+// content: a client that heard no reply) is answered at once with the first reply, handled in
+// the same cycle; the same id asking for something else is a new request and executed.
+TEST(ServiceProcesses, ARepeatedRequestIsAnsweredWithItsFirstReplyAndNotExecutedAgain) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  dds::Participant plc(env.dds(), "plc");
+  auto& replies = plc.reader<msg::ReplyPubSubType>(dds::kReplyTopic);
+  auto& w = plc.writer<msg::RequestPubSubType>(dds::kRequestTopic);
+  ASSERT_TRUE(dds::wait_for_match(w, 1, kHang));
+  ASSERT_TRUE(dds::wait_for_match(replies, 1, kHang));
+  msg::Request req;
+  req.request_id(7);
+  req.role(msg::CLIENT_ROLE_PLC);
+  req.client_name("repeating-plc");
+  req.interpolator(0);
+  req.kind(msg::REQUEST_KIND_WRITE_REL_SPEED);
+  req.value(0.5);
+  // Writes `q` and waits for one reply to request 7.
+  const auto ask = [&](msg::Request q) -> std::optional<msg::Reply> {
+    if (!w.write(&q)) return std::nullopt;
+    msg::Reply reply;
+    const auto deadline = std::chrono::steady_clock::now() + 20s;
+    while (std::chrono::steady_clock::now() < deadline) {
+      while (dds::take_next(replies, reply)) {
+        if (reply.client_name() == "repeating-plc" && reply.request_id() == 7) return reply;
+      }
+      std::this_thread::sleep_for(5ms);
+    }
+    return std::nullopt;
+  };
+  const auto first = ask(req);
+  ASSERT_TRUE(first) << env.service.log();
+  ASSERT_TRUE(first->accepted()) << first->reason();
+  // Later cycles run before the repeat: a repeat executed again would be handled in one.
+  std::this_thread::sleep_for(100ms);
+  const auto again = ask(req);
+  ASSERT_TRUE(again) << "a repeated request was not answered\n" << env.service.log();
+  EXPECT_TRUE(again->accepted()) << again->reason();
+  EXPECT_EQ(again->cycle_counter(), first->cycle_counter());
+  req.value(0.7);  // the same id for another value: a request of its own
+  const auto other = ask(req);
+  ASSERT_TRUE(other) << env.service.log();
+  EXPECT_TRUE(other->accepted()) << other->reason();
+  EXPECT_GT(other->cycle_counter(), first->cycle_counter());
+  EXPECT_EQ(env.service.interrupt(kHang), 0) << env.service.log();
+  const std::string stats = test::read_text(env.stats_path());
+  EXPECT_NE(stats.find("\"requests\": 2, \"busy_requests\": 0, \"requests_repeated\": 1,"),
+            std::string::npos)
+      << stats;
+}
+
 // The setpoint topic carries every cycle of a motion (DESIGN.md: "PositionInc/Position per
 // cycle, for drives"). The publisher used to write only the newest snapshot it saw: woken late
 // (normal priority), it left 5 % of the moving cycles without a setpoint on an idle machine and

@@ -56,7 +56,9 @@ std::string describe(const Reply& r) {
              " (is it running, with the same domain, profiles and security?); nothing was sent";
     }
     return std::string("no reply within ") + waited +
-           ": the request was sent, but whether tgm-service executed it is not known (it may "
+           (r.sends > 1 ? ": the request was sent (" + std::to_string(r.sends) + " times)"
+                        : std::string(": the request was sent")) +
+           ", but whether tgm-service executed it is not known (it may "
            "still arrive over a slow or lossy network; check the registers)";
   }
   if (r.accepted) return "accepted";
@@ -321,12 +323,31 @@ Reply Client::request(msg::Request r, std::chrono::milliseconds timeout,
   }
   last_written_ = Clock::now();
   out.sent = true;
+  out.sends = 1;
+  // No reply yet: the same request again (the service executes it once and answers a repeat
+  // with the first reply), after kFirstResend, then at twice the last interval.
+  Clock::duration resend_after = kFirstResend;
+  Clock::time_point resend_at = last_written_ + resend_after;
   while (true) {
     poll(std::chrono::nanoseconds(0));
-    if (std::optional<Reply> reply = take_reply(r.request_id())) return *reply;
+    if (std::optional<Reply> reply = take_reply(r.request_id())) {
+      reply->sent = true;
+      reply->sends = out.sends;
+      return *reply;
+    }
     if (give_up()) return out;
-    poll(std::min<std::chrono::nanoseconds>(
-        std::max<Clock::duration>(deadline - Clock::now(), Clock::duration(0)), 20ms));
+    auto now = Clock::now();
+    if (now >= resend_at) {
+      if (request_writer_.write(&r)) {
+        ++out.sends;
+        last_written_ = now;
+      }
+      resend_after *= 2;
+      resend_at = now + resend_after;
+    }
+    now = Clock::now();
+    poll(std::clamp<Clock::duration>(std::min(deadline, resend_at) - now, Clock::duration(0),
+                                     Clock::duration(20ms)));
   }
 }
 

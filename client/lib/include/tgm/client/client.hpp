@@ -67,6 +67,9 @@ struct Reply {
   //! With `timed_out`: the request was written (tgm-service's request reader had matched). It
   //! may still arrive and be executed after the timeout: a lossy network repairs late.
   bool sent = false;
+  //! How often the request was written: again, under the same request_id, when its reply did
+  //! not come (Client::request; tgm-service executes it once and answers each repeat).
+  int sends = 0;
   //! With `timed_out`: how long the reply was waited for.
   std::chrono::milliseconds waited{0};
   //! With `timed_out`: the wait was given up because the caller's cancel flag was set (Ctrl-C),
@@ -226,10 +229,14 @@ class Client {
   //! Sends `r` (request_id, role and client_name are filled in) and polls until its reply,
   //! at most `timeout` (ClientOptions::request_timeout when not given). A `cancel` flag that
   //! becomes true ends the wait within one poll (20 ms): the reply is then `timed_out` and
-  //! `cancelled`; without one, ClientOptions::cancel is the flag.
+  //! `cancelled`; without one, ClientOptions::cancel is the flag. A request without a reply
+  //! after kFirstResend is written again (the same request_id), then after twice the last
+  //! interval, until the reply or the timeout: tgm-service executes it once and answers a
+  //! repeat with its first reply.
   Reply request(msg::Request r, std::chrono::milliseconds timeout,
                 const std::atomic<bool>* cancel = nullptr);
   Reply request(msg::Request r) { return request(std::move(r), request_timeout_); }
+  static constexpr std::chrono::milliseconds kFirstResend{500};
   Reply start(int interpolator);
   Reply stop(int interpolator);
   Reply clear(int interpolator);
