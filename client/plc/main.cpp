@@ -45,6 +45,7 @@
 #include "tgm/client/client.hpp"
 #include "tgm/command_stage.hpp"
 #include "tgm/dds_overrides.hpp"
+#include "tgm/log_time.hpp"
 #include "tgm/plc_script.hpp"
 #include "tgm/printable.hpp"
 #include "tgm/registers.hpp"
@@ -132,6 +133,9 @@ constexpr const char* kUsage =
     "                       continuous and the reply (code; accepted, refused or none)\n"
     "  --rt-priority N      run the emulator (all its threads) SCHED_FIFO at N, 1..98, when\n"
     "                       permitted (a real PLC task is real-time; default: normal)\n"
+    "  --log-time WHEN      local date and time (ms) before each log line: auto (default:\n"
+    "                       unless the output goes to systemd's journal, which stamps it),\n"
+    "                       on or off\n"
     "  --help               this text\n"
     "  --version            print tgm-plc's version\n"
     "\n"
@@ -272,6 +276,7 @@ int plc_main(int argc, char** argv) {
   bool no_events = false;
   double duration_s = 0.0;
   int rt_priority = 0;
+  std::string log_time = "auto";
   tgm::cli::ArgReader args(argc, argv, "tgm-plc");
   args.repeatable("--refuse-ack");  // the lists add up
   while (args.more()) {
@@ -285,9 +290,9 @@ int plc_main(int argc, char** argv) {
       return 0;
     }
     if (args.dds_flag(overrides) || args.flag("--config", config_path) ||
-        args.flag("--handshake-trace", trace_path) || args.boolean("--try-start", try_start) ||
-        args.boolean("--quiet", quiet) || args.boolean("--no-basic-params", no_basic) ||
-        args.boolean("--no-events", no_events)) {
+        args.flag("--handshake-trace", trace_path) || args.flag("--log-time", log_time) ||
+        args.boolean("--try-start", try_start) || args.boolean("--quiet", quiet) ||
+        args.boolean("--no-basic-params", no_basic) || args.boolean("--no-events", no_events)) {
       continue;
     }
     if (args.whole_flag("--interpolator", 0, 2, only) ||
@@ -332,6 +337,9 @@ int plc_main(int argc, char** argv) {
     }
   }
   if (args.failed()) return 2;
+  const std::optional<tgm::LogTime> stamping = tgm::parse_log_time(log_time);
+  if (!stamping)
+    return args.usage_error("--log-time must be auto, on or off, not '" + log_time + "'");
   if (!args.distinct_files(
           {tgm::cli::ArgReader::config_file(config_path), {"--script", script_path}},
           {{"--handshake-trace", trace_path}})) {
@@ -403,6 +411,11 @@ int plc_main(int argc, char** argv) {
   if (const std::string why = tgm::plc_script_duration_problem(script, duration_s, script_path);
       duration_s > 0.0 && !why.empty()) {
     return args.usage_error(why);
+  }
+  // The log from here on, the usage errors above not: they go to whoever started the PLC.
+  if (std::string why; !tgm::stamp_standard_streams(*stamping, why)) {
+    std::fprintf(stderr, "tgm-plc: %s\n", why.c_str());
+    return 1;
   }
 
   struct sigaction sa{};

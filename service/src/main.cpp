@@ -22,6 +22,7 @@
 #include "tgm/cli_args.hpp"
 #include "tgm/cli_numbers.hpp"
 #include "tgm/dds_overrides.hpp"
+#include "tgm/log_time.hpp"
 #include "tgm/service/engine.hpp"
 #include "tgm/service/rt_loop.hpp"
 #include "tgm/systemd_notify.hpp"
@@ -89,6 +90,9 @@ constexpr const char* kUsage =
     "                         figures as JSON at exit\n"
     "  --handshake-trace FILE write the time stamps of every M-function handshake (up to a\n"
     "                         million) as CSV at exit\n"
+    "  --log-time WHEN        local date and time (ms) before each log line: auto (default:\n"
+    "                         unless the output goes to systemd's journal, which stamps it),\n"
+    "                         on or off\n"
     "  --help                 this text\n"
     "  --version              print tgm-service's version\n"
     "\n"
@@ -132,6 +136,7 @@ int service_main(int argc, char** argv) {
   tgm::cli::ArgReader args(argc, argv, "tgm-service");
   bool no_realtime = false;
   bool rt_priority_given = false;
+  std::string log_time = "auto";
   while (args.more()) {
     long long n = 0;
     if (args.help_flag()) {
@@ -144,7 +149,7 @@ int service_main(int argc, char** argv) {
     }
     if (args.dds_flag(overrides) || args.flag("--config", config_path) ||
         args.flag("--stats", stats_path) || args.flag("--handshake-trace", trace_path) ||
-        args.boolean("--no-realtime", no_realtime) ||
+        args.flag("--log-time", log_time) || args.boolean("--no-realtime", no_realtime) ||
         args.boolean("--check-limits", engine_options.check_limits)) {
       continue;
     }
@@ -170,6 +175,9 @@ int service_main(int argc, char** argv) {
     }
   }
   if (args.failed()) return 2;
+  const std::optional<tgm::LogTime> stamping = tgm::parse_log_time(log_time);
+  if (!stamping)
+    return args.usage_error("--log-time must be auto, on or off, not '" + log_time + "'");
   if (!args.distinct_files({tgm::cli::ArgReader::config_file(config_path)},
                            {{"--stats", stats_path}, {"--handshake-trace", trace_path}})) {
     return 2;
@@ -257,6 +265,11 @@ int service_main(int argc, char** argv) {
       if (const std::string why = tgm::service::sched_fifo_refusal(priority); !why.empty())
         return args.usage_error(std::string(flag) + " " + std::to_string(priority) + ": " + why);
     }
+  }
+  // The log from here on, the usage errors above not: they go to whoever started the service.
+  if (std::string why; !tgm::stamp_standard_streams(*stamping, why)) {
+    std::fprintf(stderr, "tgm-service: %s\n", why.c_str());
+    return 1;
   }
   if (dds_priority > 0 && rt.realtime) {
     // Threads inherit the policy of their creator: set it here, before the participant and the

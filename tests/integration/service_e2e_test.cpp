@@ -20,6 +20,7 @@
 #include <optional>
 #include <regex>
 #include <set>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <tuple>
@@ -3424,6 +3425,44 @@ TEST(ServiceProcesses, AStopSignalBringsMovingAxesToRestBeforeTheExit) {
   EXPECT_EQ(x[x.size() - 2], x[x.size() - 3]);
   EXPECT_GT(x.back(), x_at_signal);
   EXPECT_LT(x.back(), 300.0);
+}
+
+// The log of tgm-service and tgm-plc carries the local date and time of each line (--log-time
+// on; auto does the same unless the output is systemd's journal, which stamps it itself); the
+// lines had no time at all. Usage errors are not log lines and stay unstamped.
+TEST(ServiceProcesses, ServiceAndPlcLogLinesCarryTheirTime) {
+  ServiceEnv env;
+  const std::regex stamped(R"(\d{4}-\d\d-\d\d \d\d:\d\d:\d\d\.\d{3} tgm-(service: |plc[: ]).*)");
+  const auto lines = [](const std::string& text) {
+    std::vector<std::string> out;
+    std::istringstream in(text);
+    for (std::string line; std::getline(in, line);) out.push_back(line);
+    return out;
+  };
+  for (const char* when : {"on", "off"}) {
+    test::Child service, plc;
+    ASSERT_TRUE(service.start({TGM_SERVICE_BIN, "--config", env.config(), "--no-realtime",
+                               "--service-check-ms", "0", "--duration", "1", "--log-time", when},
+                              env.path(std::string("service-") + when + ".log")));
+    ASSERT_TRUE(
+        plc.start({TGM_PLC_BIN, "--config", env.config(), "--duration", "1", "--log-time", when},
+                  env.path(std::string("plc-") + when + ".log")));
+    EXPECT_EQ(service.wait(kHang), 0) << service.log();
+    EXPECT_EQ(plc.wait(kHang), 0) << plc.log();
+    for (const test::Child* c : {&service, &plc}) {
+      const std::vector<std::string> all = lines(c->log());
+      EXPECT_GE(all.size(), 2u) << c->log();
+      for (const std::string& line : all) {
+        EXPECT_EQ(std::regex_match(line, stamped), std::string(when) == "on") << line;
+      }
+    }
+  }
+  test::Child bad;
+  ASSERT_TRUE(
+      bad.start({TGM_PLC_BIN, "--config", env.config(), "--log-time", "yes"}, env.path("bad.log")));
+  EXPECT_EQ(bad.wait(kHang), 2);
+  EXPECT_EQ(bad.log(),
+            "tgm-plc: --log-time must be auto, on or off, not 'yes'\n(see tgm-plc --help)\n");
 }
 
 TEST(ServiceProcesses, ServiceStopsCleanlyOnSigtermAndRejectsBadFlags) {
