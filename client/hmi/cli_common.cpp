@@ -341,11 +341,13 @@ bool FileView::open_or_report(const std::string& path) {
 }
 
 bool FileView::open(const std::string& name, std::string& error) {
-  // "-" is standard input (a CAM post-processor's pipe), as for most Unix tools.
-  const std::string path = name == "-" ? std::string("/dev/stdin") : name;
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  // "-" is standard input (a CAM post-processor's pipe), as for most Unix tools. Its own
+  // descriptor, not /dev/stdin: a socket (ssh, inetd, systemd) cannot be opened by a path.
+  const int fd =
+      name == "-" ? ::fcntl(0, F_DUPFD_CLOEXEC, 0) : ::open(name.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) {
-    error = std::string("cannot open: ") + std::strerror(errno);
+    error = std::string(name == "-" ? "cannot read standard input: " : "cannot open: ") +
+            std::strerror(errno);
     return false;
   }
   struct stat st {};
@@ -382,8 +384,14 @@ bool FileView::open(const std::string& name, std::string& error) {
       munmap(p, size);  // unguarded it could kill the process: read it instead
     }
   }
-  if (fd_ < 0) ::close(fd);
-  switch (read_whole_file(path, kMaxStreamedInput, copy_)) {
+  // Read from what was opened (a path opened again can name something else by now); a file
+  // kept open for check() through a second descriptor.
+  const int read_fd = fd_ < 0 ? fd : ::fcntl(fd, F_DUPFD_CLOEXEC, 0);
+  if (read_fd < 0) {
+    error = std::string("cannot read: ") + std::strerror(errno);
+    return false;
+  }
+  switch (read_whole_fd(read_fd, kMaxStreamedInput, copy_)) {
     case ReadResult::kRead:
       break;
     case ReadResult::kCannotOpen:

@@ -57,6 +57,18 @@ ReadResult read_whole_file(const std::string& path, std::size_t limit, std::stri
   return read_stream(f, limit, out);
 }
 
+ReadResult read_whole_fd(int fd, std::size_t limit, std::string& out) {
+  out.clear();
+  std::FILE* f = ::fdopen(fd, "rb");
+  if (!f) {
+    const int e = errno;
+    ::close(fd);
+    errno = e;
+    return ReadResult::kCannotOpen;
+  }
+  return read_stream(f, limit, out);
+}
+
 std::string read_settings_file(const std::string& path, std::string_view kind, std::size_t limit,
                                std::string& out) {
   out.clear();

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/mman.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -60,6 +61,47 @@ TEST_F(FileViewTest, AnUnchangedFileReadsWholeAndChecksOut) {
   std::string why;
   EXPECT_TRUE(view.check(why)) << why;
   EXPECT_TRUE(why.empty());
+}
+
+// "-" reads standard input whatever it is: a pipe, a regular file (`< prog.ngc`), or a socket
+// (ssh, inetd, systemd socket units), which cannot be opened by a path: "-" used to open
+// /dev/stdin and failed there with "cannot open: No such device or address".
+TEST_F(FileViewTest, StandardInputIsReadAlsoWhenItIsASocketOrAFile) {
+  const int saved = ::dup(0);
+  ASSERT_GE(saved, 0);
+  const auto read_dash = [](std::string& text, std::string& error) {
+    FileView view;
+    if (!view.open("-", error)) return false;
+    text = std::string(view.text());
+    return true;
+  };
+  int pair[2];
+  ASSERT_EQ(::socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, pair), 0);
+  const std::string program = "G90 G1 X10 F3000\nM2\n";
+  ASSERT_EQ(::write(pair[1], program.data(), program.size()), static_cast<ssize_t>(program.size()));
+  ::close(pair[1]);
+  ASSERT_EQ(::dup2(pair[0], 0), 0);
+  ::close(pair[0]);
+  std::string text, error;
+  const bool from_socket = read_dash(text, error);
+  const fs::path p = write("prog.ngc", pattern(kSize));
+  const int file = ::open(p.c_str(), O_RDONLY | O_CLOEXEC);
+  ASSERT_GE(file, 0);
+  ASSERT_EQ(::dup2(file, 0), 0);
+  ::close(file);
+  std::string file_text, file_error;
+  const bool from_file = read_dash(file_text, file_error);
+  ::close(0);  // no standard input at all
+  std::string none_text, none_error;
+  const bool from_nothing = read_dash(none_text, none_error);
+  ASSERT_EQ(::dup2(saved, 0), 0);
+  ::close(saved);
+  ASSERT_TRUE(from_socket) << error;
+  EXPECT_EQ(text, program);
+  ASSERT_TRUE(from_file) << file_error;
+  EXPECT_EQ(file_text, pattern(kSize));
+  EXPECT_FALSE(from_nothing);
+  EXPECT_EQ(none_error, "cannot read standard input: Bad file descriptor");
 }
 
 TEST_F(FileViewTest, AFileTruncatedWhileMappedReadsZerosAndIsCutShort) {

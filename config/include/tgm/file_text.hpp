@@ -18,6 +18,9 @@ enum class ReadResult {
 
 //! Reads the whole of `path` into `out`, at most `limit` bytes.
 ReadResult read_whole_file(const std::string& path, std::size_t limit, std::string& out);
+//! The same from the open `fd`, which it closes: also a socket, which cannot be opened by a
+//! path (/dev/stdin of a process whose standard input is a socket).
+ReadResult read_whole_fd(int fd, std::size_t limit, std::string& out);
 
 //! Reads a settings file (a config, a PLC script) of at most `limit` bytes into `out`. Only a
 //! regular file (or a link to one) is read: a directory, FIFO, device or socket is refused
