@@ -26,6 +26,7 @@
 #include <tuple>
 #include <vector>
 
+#include "hand_request.hpp"
 #include "raw_sample.hpp"
 #include "service_test_env.hpp"
 #include "tgm/cli_args.hpp"
@@ -1948,12 +1949,8 @@ TEST(ServiceProcesses, AReplyWaitsUntilTheClientsReplyReaderIsMatched) {
   dds::Participant late(env.dds(), "hmi");
   auto& w = late.writer<msg::RequestPubSubType>(dds::kRequestTopic);
   ASSERT_TRUE(dds::wait_for_match(w, 1, kHang));
-  msg::Request req;
-  req.request_id(7);
-  req.role(msg::CLIENT_ROLE_HMI);
-  req.client_name("late-reader");
-  req.interpolator(0);
-  req.kind(msg::REQUEST_KIND_CLEAR);
+  msg::Request req =
+      test::hand_request(7, msg::CLIENT_ROLE_HMI, "late-reader", msg::REQUEST_KIND_CLEAR);
   ASSERT_TRUE(w.write(&req));
   std::this_thread::sleep_for(300ms);  // answered within a cycle or two
   auto& r = late.reader<msg::ReplyPubSubType>(dds::kReplyTopic);
@@ -2033,25 +2030,13 @@ TEST(ServiceProcesses, ARepeatedRequestIsAnsweredWithItsFirstReplyAndNotExecuted
   auto& w = plc.writer<msg::RequestPubSubType>(dds::kRequestTopic);
   ASSERT_TRUE(dds::wait_for_match(w, 1, kHang));
   ASSERT_TRUE(dds::wait_for_match(replies, 1, kHang));
-  msg::Request req;
-  req.request_id(7);
-  req.role(msg::CLIENT_ROLE_PLC);
-  req.client_name("repeating-plc");
-  req.interpolator(0);
-  req.kind(msg::REQUEST_KIND_WRITE_REL_SPEED);
+  msg::Request req = test::hand_request(7, msg::CLIENT_ROLE_PLC, "repeating-plc",
+                                        msg::REQUEST_KIND_WRITE_REL_SPEED);
   req.value(0.5);
   // Writes `q` and waits for one reply to request 7.
   const auto ask = [&](msg::Request q) -> std::optional<msg::Reply> {
     if (!w.write(&q)) return std::nullopt;
-    msg::Reply reply;
-    const auto deadline = std::chrono::steady_clock::now() + 20s;
-    while (std::chrono::steady_clock::now() < deadline) {
-      while (dds::take_next(replies, reply)) {
-        if (reply.client_name() == "repeating-plc" && reply.request_id() == 7) return reply;
-      }
-      std::this_thread::sleep_for(5ms);
-    }
-    return std::nullopt;
+    return test::await_reply(replies, "repeating-plc", 7, 20s);
   };
   const auto first = ask(req);
   ASSERT_TRUE(first) << env.service.log();

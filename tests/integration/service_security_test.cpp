@@ -15,6 +15,7 @@
 #include <string>
 #include <thread>
 
+#include "hand_request.hpp"
 #include "service_test_env.hpp"
 #include "tgm/client/client.hpp"
 #include "tgm/dds/participant.hpp"
@@ -150,22 +151,9 @@ TEST_F(ServiceSecurity, ARequestsRoleIsThatOfTheIdentityThatWroteIt) {
   auto& replies = forger.reader<msg::ReplyPubSubType>(dds::kReplyTopic);
   ASSERT_TRUE(dds::wait_for_match(requests, 1, kHang));
   ASSERT_TRUE(dds::wait_for_match(replies, 1, kHang));
-  msg::Request r;
-  r.request_id(7);
-  r.client_name("forger");
-  r.role(msg::CLIENT_ROLE_HMI);
-  r.interpolator(0);
-  r.kind(msg::REQUEST_KIND_CLEAR);
+  msg::Request r = test::hand_request(7, msg::CLIENT_ROLE_HMI, "forger", msg::REQUEST_KIND_CLEAR);
   ASSERT_TRUE(requests.write(&r));
-  std::optional<msg::Reply> reply;
-  const auto deadline = std::chrono::steady_clock::now() + kHang;
-  while (!reply && std::chrono::steady_clock::now() < deadline) {
-    msg::Reply got;
-    while (dds::take_next(replies, got)) {
-      if (got.client_name() == "forger" && got.request_id() == 7) reply = got;
-    }
-    std::this_thread::sleep_for(10ms);
-  }
+  const std::optional<msg::Reply> reply = test::await_reply(replies, "forger", 7, kHang);
   ASSERT_TRUE(reply.has_value()) << "no reply to the forged request";
   EXPECT_FALSE(reply->accepted());
   EXPECT_EQ(reply->code(), msg::REPLY_CODE_WRONG_ROLE) << reply->reason();
