@@ -64,7 +64,7 @@ bool progress_changed(const Registers& a, const Registers& b) {
 
 // What a request asks for, apart from its id and client: a repeat of a request (Client::request
 // sends an unanswered one again under its id) must ask for the same. FNV-1a over the fields.
-std::uint64_t request_digest(const msg::Request& r) {
+std::uint64_t request_digest(const msg::Request& r, Role role) {
   std::uint64_t h = 0xcbf29ce484222325ULL;
   const auto mix = [&h](std::uint64_t v) {
     for (int b = 0; b < 8; ++b, v >>= 8) {
@@ -72,7 +72,7 @@ std::uint64_t request_digest(const msg::Request& r) {
       h *= 0x100000001b3ULL;
     }
   };
-  mix(static_cast<std::uint64_t>(r.role()));
+  mix(static_cast<std::uint64_t>(role));  // as executed: a secured topic's, not the sample's
   mix(r.interpolator());
   mix(static_cast<std::uint64_t>(r.kind()));
   mix(static_cast<std::uint32_t>(r.command()));
@@ -341,7 +341,7 @@ void DdsPort::take_requests_locked() {
       const Role role = src.role                           ? *src.role
                         : r.role() == msg::CLIENT_ROLE_PLC ? Role::kPlc
                                                            : Role::kHmi;
-      const std::uint64_t digest = request_digest(r);
+      const std::uint64_t digest = request_digest(r, role);
       bool repeat = false;
       {
         // For publish_replies(). Bounded: a participant that never has a reply reader leaves
@@ -355,11 +355,13 @@ void DdsPort::take_requests_locked() {
         // A request that came before: not executed again. Its reply goes out again at once
         // when the publisher had it; otherwise it is still on its way from the cycles.
         if (const auto log = recent_requests_.find(name); log != recent_requests_.end()) {
-          for (const RecentRequest& q : log->second) {
-            if (q.id != r.request_id() || q.digest != digest) continue;
+          for (const RecentRequest& q : log->second.requests) {
+            if (q.id != r.request_id() || q.digest != digest || q.participant != from) continue;
             repeat = true;
             ++requests_repeated_;
-            if (q.reply) {
+            log->second.last = Clock::now();
+            // Bounded: a client that is not answered sends again.
+            if (q.reply && repeat_replies_.size() < kMaxRepeatReplies) {
               repeat_replies_.push_back(*q.reply);
               repeats_pending_.store(true, std::memory_order_release);
             }
@@ -388,6 +390,19 @@ void DdsPort::take_requests_locked() {
         busy.interpolator = r.interpolator();
         busy.code = ReplyCode::kBusy;
         busy.reason.set(kBusyReason);
+        {
+          // Logged with its answer: a repeat gets "busy" again, never an execution after a
+          // "busy" that its client may already have taken.
+          msg::Reply answer;
+          answer.request_id(r.request_id());
+          answer.client_name(r.client_name());
+          answer.interpolator(reply_key(r.interpolator()));
+          answer.accepted(false);
+          answer.code(msg::REPLY_CODE_BUSY);
+          answer.reason(kBusyReason);
+          const std::lock_guard lock(reply_match_mutex_);
+          log_request_locked(name, {r.request_id(), digest, 0, from, std::move(answer)});
+        }
         if (!busy_replies_.push(busy)) {
           busy_reply_.request_id(r.request_id());
           busy_reply_.client_name(r.client_name());
@@ -399,6 +414,7 @@ void DdsPort::take_requests_locked() {
       }
       RequestIn in;
       in.request_id = r.request_id();
+      in.tag = ++next_tag_;
       in.role = role;
       in.client.set(r.client_name().c_str());
       in.interpolator = r.interpolator();
@@ -433,17 +449,31 @@ void DdsPort::take_requests_locked() {
       {
         // Logged before the cycles can answer it, so that the publisher finds it.
         const std::lock_guard lock(reply_match_mutex_);
-        if (recent_requests_.size() >= 1024 &&
-            recent_requests_.find(name) == recent_requests_.end()) {
-          recent_requests_.clear();  // bounded as client_participants_
-        }
-        auto& recent = recent_requests_[std::string(name)];
-        if (recent.size() >= kRecentRequests) recent.pop_front();
-        recent.push_back({r.request_id(), digest, std::nullopt});
+        log_request_locked(name, {r.request_id(), digest, in.tag, from, std::nullopt});
       }
       requests_.push(in);  // not full: checked above, under request_mutex_
     }
   }
+}
+
+void DdsPort::log_request_locked(std::string_view client, RecentRequest q) {
+  const auto now = Clock::now();
+  auto log = recent_requests_.find(client);
+  if (log == recent_requests_.end()) {
+    if (recent_requests_.size() >= kRecentClients) {
+      std::erase_if(recent_requests_,
+                    [&](const auto& kv) { return now - kv.second.last > kRecentFor; });
+    }
+    if (recent_requests_.size() >= kRecentClients) {
+      recent_requests_.erase(std::min_element(
+          recent_requests_.begin(), recent_requests_.end(),
+          [](const auto& a, const auto& b) { return a.second.last < b.second.last; }));
+    }
+    log = recent_requests_.emplace(std::string(client), RecentLog{}).first;
+  }
+  log->second.last = now;
+  if (log->second.requests.size() >= kRecentRequests) log->second.requests.pop_front();
+  log->second.requests.push_back(std::move(q));
 }
 
 void DdsPort::take_chunks() {
@@ -670,11 +700,7 @@ void DdsPort::ReplyMatchListener::on_publication_matched(fdds::DataWriter*,
   readers += s.current_count_change;
   if (readers > 0) return;
   port_.reply_readers_.erase(p);
-  std::erase_if(port_.client_participants_, [&](const auto& kv) {
-    if (kv.second != p) return false;
-    port_.recent_requests_.erase(kv.first);
-    return true;
-  });
+  std::erase_if(port_.client_participants_, [&](const auto& kv) { return kv.second == p; });
 }
 
 // The reply topic is VOLATILE: a reply written before the reply writer has matched the
@@ -719,9 +745,10 @@ void DdsPort::publish_replies() {
       reply.code(to_msg(r.code));
       reply.reason(std::string(r.reason.view()));
       reply.cycle_counter(r.cycle);
-      if (const auto log = recent_requests_.find(r.client.view()); log != recent_requests_.end()) {
-        for (RecentRequest& q : log->second) {
-          if (q.id == r.request_id) q.reply = reply;  // busy answers were not logged
+      if (const auto log = recent_requests_.find(r.client.view());
+          r.tag != 0 && log != recent_requests_.end()) {
+        for (RecentRequest& q : log->second.requests) {
+          if (q.tag == r.tag) q.reply = reply;
         }
       }
       const auto from = client_participants_.find(r.client.view());

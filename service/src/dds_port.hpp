@@ -27,6 +27,7 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
@@ -233,22 +234,36 @@ class DdsPort final : public CyclePort {
   std::mutex reply_match_mutex_;
   std::map<GuidPrefix, int> reply_readers_;
   std::map<std::string, GuidPrefix, std::less<>> client_participants_;
-  // Also under reply_match_mutex_: each client's latest requests handed to the cycles (at most
-  // kRecentRequests; an entry goes with its participant, as above), with the reply once the
-  // publisher had it. A request that comes again is answered from here, at once and past the
-  // hold of publish_replies: its client heard nothing, so the first reply was lost or is held,
-  // as when the match listener's status merged two readers' matches (the count of one
-  // participant then never rose) and the reply waited out kReplyMatchWait.
+  // Also under reply_match_mutex_: each client's latest requests (by client name, at most
+  // kRecentRequests each), with the participant they came from and, once the publisher had it,
+  // their reply. A request that comes again (same name, participant, id and content) is
+  // answered from here, at once and past the hold of publish_replies: its client heard
+  // nothing, so the first reply was lost or is held, as when the match listener's status merged
+  // two readers' matches (the count of one participant then never rose) and the reply waited
+  // out kReplyMatchWait. A client's log is kept kRecentFor after its last request, whatever
+  // its participant's matches say (a lossy link's participant that was dropped and found again
+  // still resends); kRecentClients bounds the whole, the longest unheard going first.
   struct RecentRequest {
     std::uint64_t id = 0;
     std::uint64_t digest = 0;
+    std::uint64_t tag = 0;
+    GuidPrefix participant;
     std::optional<msg::Reply> reply;
   };
+  struct RecentLog {
+    std::deque<RecentRequest> requests;
+    std::chrono::steady_clock::time_point last{};
+  };
   static constexpr std::size_t kRecentRequests = 64;
-  std::map<std::string, std::deque<RecentRequest>, std::less<>> recent_requests_;
-  std::vector<msg::Reply> repeat_replies_;
+  static constexpr std::size_t kRecentClients = 256;
+  static constexpr std::chrono::seconds kRecentFor{120};
+  void log_request_locked(std::string_view client, RecentRequest q);
+  std::map<std::string, RecentLog, std::less<>> recent_requests_;
+  std::vector<msg::Reply> repeat_replies_;  // at most kMaxRepeatReplies
+  static constexpr std::size_t kMaxRepeatReplies = 1024;
   std::atomic<bool> repeats_pending_{false};
   std::uint64_t requests_repeated_ = 0;
+  std::uint64_t next_tag_ = 0;  // take_requests_locked()
   // Under peers_mutex_ (never held across a DDS call): who each client participant is, from its
   // requests; the participant that sent each interpolator's last program chunk, and its
   // program; the participants whose loss was said (so that a flapping link says it once).

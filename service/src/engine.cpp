@@ -192,6 +192,7 @@ double Engine::cycle_time_s() const { return ips_.front().ip.cycle_time_s(); }
 ReplyOut Engine::apply(const RequestIn& r) {
   ReplyOut out;
   out.request_id = r.request_id;
+  out.tag = r.tag;
   out.client = r.client;
   out.interpolator = r.interpolator;
   out.cycle = cycles_;

@@ -67,8 +67,16 @@ TEST_F(FileViewTest, AnUnchangedFileReadsWholeAndChecksOut) {
 // (ssh, inetd, systemd socket units), which cannot be opened by a path: "-" used to open
 // /dev/stdin and failed there with "cannot open: No such device or address".
 TEST_F(FileViewTest, StandardInputIsReadAlsoWhenItIsASocketOrAFile) {
-  const int saved = ::dup(0);
-  ASSERT_GE(saved, 0);
+  // Descriptor 0 as it was, also when an assertion ends the test early.
+  struct RestoreStdin {
+    int saved = ::dup(0);
+    ~RestoreStdin() {
+      if (saved < 0) return;
+      ::dup2(saved, 0);
+      ::close(saved);
+    }
+  } restore;
+  ASSERT_GE(restore.saved, 0);
   const auto read_dash = [](std::string& text, std::string& error) {
     FileView view;
     if (!view.open("-", error)) return false;
@@ -94,8 +102,6 @@ TEST_F(FileViewTest, StandardInputIsReadAlsoWhenItIsASocketOrAFile) {
   ::close(0);  // no standard input at all
   std::string none_text, none_error;
   const bool from_nothing = read_dash(none_text, none_error);
-  ASSERT_EQ(::dup2(saved, 0), 0);
-  ::close(saved);
   ASSERT_TRUE(from_socket) << error;
   EXPECT_EQ(text, program);
   ASSERT_TRUE(from_file) << file_error;

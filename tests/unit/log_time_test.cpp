@@ -34,17 +34,17 @@ class LocalZone {
   std::string old_;
 };
 
-TEST(LogTime, StampIsLocalDateAndTimeToTheMillisecond) {
+TEST(LogTime, StampIsLocalDateAndTimeToTheMillisecondWithTheOffset) {
   // 2026-12-05 12:20:01.123456 UTC.
   const auto t = system_clock::from_time_t(1796473201) + std::chrono::microseconds(123456);
   {
     LocalZone utc("UTC0");  // POSIX zones: no tzdata needed
-    EXPECT_EQ(log_stamp(t), "2026-12-05 12:20:01.123 ");
-    EXPECT_EQ(log_stamp(system_clock::from_time_t(1796473201)), "2026-12-05 12:20:01.000 ");
-    EXPECT_EQ(log_stamp(t + std::chrono::milliseconds(877)), "2026-12-05 12:20:02.000 ");
+    EXPECT_EQ(log_stamp(t), "2026-12-05 12:20:01.123+0000 ");
+    EXPECT_EQ(log_stamp(system_clock::from_time_t(1796473201)), "2026-12-05 12:20:01.000+0000 ");
+    EXPECT_EQ(log_stamp(t + std::chrono::milliseconds(877)), "2026-12-05 12:20:02.000+0000 ");
   }
   LocalZone cet("CET-1");  // one hour east of UTC
-  EXPECT_EQ(log_stamp(t), "2026-12-05 13:20:01.123 ");
+  EXPECT_EQ(log_stamp(t), "2026-12-05 13:20:01.123+0100 ");
 }
 
 TEST(LogTime, EveryLineIsStampedOnceAlsoWhenWrittenInPieces) {

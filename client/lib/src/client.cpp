@@ -216,6 +216,12 @@ void Client::poll(std::chrono::nanoseconds timeout) {
   msg::Reply reply;
   while (dds::take_next(reply_reader_, reply)) {
     if (reply.client_name() != name_) continue;
+    if (!replied_.insert(reply.request_id()).second) continue;  // a second reply to it
+    replied_order_.push_back(reply.request_id());
+    if (replied_order_.size() > kMaxKeptReplies) {
+      replied_.erase(replied_order_.front());
+      replied_order_.pop_front();
+    }
     replies_.push_back(reply);
     free_slot();
     window_progress_ns_.store(Clock::now().time_since_epoch().count(), std::memory_order_relaxed);
@@ -342,7 +348,7 @@ Reply Client::request(msg::Request r, std::chrono::milliseconds timeout,
         ++out.sends;
         last_written_ = now;
       }
-      resend_after *= 2;
+      resend_after = std::min<Clock::duration>(resend_after * 2, kLongestResend);
       resend_at = now + resend_after;
     }
     now = Clock::now();

@@ -60,6 +60,8 @@ struct FixedText {
 //! A request as the cycle thread sees it.
 struct RequestIn {
   std::uint64_t request_id = 0;
+  //! The port's own number for the request (never 0), echoed in its ReplyOut.
+  std::uint64_t tag = 0;
   Role role = Role::kHmi;
   FixedText<65> client;
   int interpolator = 0;
@@ -79,6 +81,8 @@ struct RequestIn {
 //! The answer to one request.
 struct ReplyOut {
   std::uint64_t request_id = 0;
+  //! RequestIn::tag of the request answered (0: none, a reply of the port's own).
+  std::uint64_t tag = 0;
   FixedText<65> client;
   int interpolator = 0;
   ReplyCode code = ReplyCode::kAccepted;

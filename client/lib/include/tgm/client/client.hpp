@@ -28,10 +28,12 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <deque>
 #include <functional>
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <span>
 #include <string>
 #include <string_view>
@@ -231,12 +233,14 @@ class Client {
   //! becomes true ends the wait within one poll (20 ms): the reply is then `timed_out` and
   //! `cancelled`; without one, ClientOptions::cancel is the flag. A request without a reply
   //! after kFirstResend is written again (the same request_id), then after twice the last
-  //! interval, until the reply or the timeout: tgm-service executes it once and answers a
-  //! repeat with its first reply.
+  //! interval (at most kLongestResend), until the reply or the timeout: tgm-service executes it
+  //! once and answers a repeat with its first reply. send() never writes a request again.
   Reply request(msg::Request r, std::chrono::milliseconds timeout,
                 const std::atomic<bool>* cancel = nullptr);
   Reply request(msg::Request r) { return request(std::move(r), request_timeout_); }
   static constexpr std::chrono::milliseconds kFirstResend{500};
+  //! Below the 120 s that tgm-service keeps a client's requests after its last one.
+  static constexpr std::chrono::milliseconds kLongestResend{60'000};
   Reply start(int interpolator);
   Reply stop(int interpolator);
   Reply clear(int interpolator);
@@ -314,6 +318,10 @@ class Client {
   std::vector<std::uint64_t> state_samples_;
   std::vector<msg::Message> messages_;
   std::vector<msg::Reply> replies_;
+  // The ids of the latest replies taken in (kMaxKeptReplies): a second reply to one request
+  // (a repeat's, and the first one released later) is dropped, and frees no second slot.
+  std::deque<std::uint64_t> replied_order_;
+  std::set<std::uint64_t> replied_;
   std::atomic<std::uint64_t> next_request_id_{1};
   // send() / request() take a slot, poll() frees one per reply to this client.
   std::atomic<int> in_flight_{0};
