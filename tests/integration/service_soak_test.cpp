@@ -14,6 +14,7 @@
 #include <cinttypes>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <optional>
 #include <string>
@@ -192,6 +193,20 @@ TEST(ServiceSoak, ProgramAfterProgramEndsWhereTheSimulationEndsAndMemoryStaysBou
   EXPECT_EQ(plc.interrupt(), 0);
   const std::string plc_log = plc.log();
   EXPECT_EQ(env.service.interrupt(), 0) << env.service.log();
+  // How the requests fared: repeats are requests resent after 0.5 s without a reply (a lost
+  // reply, or a slow one on a loaded machine); unmatched ones waited 30 s for a match.
+  const std::string stats = test::read_text(env.stats_path());
+  const auto field = [&](const char* name) {
+    const std::string key = std::string("\"") + name + "\": ";
+    const std::size_t at = stats.find(key);
+    return at == std::string::npos ? -1LL : std::atoll(stats.c_str() + at + key.size());
+  };
+  std::printf(
+      "soak: %lld requests, %lld repeated, %lld replies held for a match, %lld written "
+      "unmatched after 30 s\n",
+      field("requests"), field("requests_repeated"), field("replies_held_for_match"),
+      field("replies_unmatched"));
+  EXPECT_EQ(field("replies_unmatched"), 0) << stats;
   // Each normal M-function acknowledged once (from the event or the main loop), none refused;
   // each continuous one seen and noted once.
   EXPECT_EQ(test::count_of(plc_log, " acknowledged"), normal_total) << plc_log;
