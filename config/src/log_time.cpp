@@ -11,6 +11,7 @@
 #include <cstring>
 #include <ctime>
 #include <iostream>
+#include <new>
 
 namespace tgm {
 
@@ -108,19 +109,27 @@ ssize_t write_stamped(void* cookie, const char* data, std::size_t size) noexcept
   return static_cast<ssize_t>(size);
 }
 
+// Static storage for the two streams: they are written until the very end of the process
+// (exit() flushes stdout after every destructor), so they are never freed nor destroyed.
+StampedStream g_streams[2];
+
 std::FILE* open_stamped(int fd, int buffering) {
-  // Lives as long as the process: the standard streams are written until exit.
-  auto* s = new StampedStream;
-  s->fd = fd;
+  StampedStream& s = g_streams[fd == 1 ? 0 : 1];
+  s.fd = fd;
   cookie_io_functions_t io{};
   io.write = write_stamped;
-  std::FILE* f = ::fopencookie(s, "w", io);
-  if (f == nullptr) {
-    delete s;
-    return nullptr;
-  }
+  std::FILE* f = ::fopencookie(&s, "w", io);
+  if (f == nullptr) return nullptr;
   std::setvbuf(f, nullptr, buffering, buffering == _IONBF ? 0 : BUFSIZ);
   return f;
+}
+
+// A stream buffer for std::cout / std::cerr that is never destroyed: the library flushes
+// std::cout at exit, after the destructors of function-local statics have run.
+__gnu_cxx::stdio_sync_filebuf<char>* lasting_filebuf(std::FILE* f, int slot) {
+  using Buf = __gnu_cxx::stdio_sync_filebuf<char>;
+  alignas(Buf) static unsigned char storage[2][sizeof(Buf)];
+  return ::new (static_cast<void*>(storage[slot])) Buf(f);
 }
 
 std::string fd_id(int fd) {
@@ -146,15 +155,14 @@ bool stamp_standard_streams(LogTime mode, std::string& why) {
     std::fflush(stdout);
     std::cout.flush();
     stdout = out;  // glibc's standard streams are plain variables
-    static __gnu_cxx::stdio_sync_filebuf<char> out_buf(out);
-    std::cout.rdbuf(&out_buf);
+    std::cout.rdbuf(lasting_filebuf(out, 0));
   }
   if (err != nullptr) {
     std::fflush(stderr);
     stderr = err;
-    static __gnu_cxx::stdio_sync_filebuf<char> err_buf(err);
-    std::cerr.rdbuf(&err_buf);
-    std::clog.rdbuf(&err_buf);
+    auto* err_buf = lasting_filebuf(err, 1);
+    std::cerr.rdbuf(err_buf);
+    std::clog.rdbuf(err_buf);
   }
   return true;
 }
