@@ -143,9 +143,6 @@ DdsPort::DdsPort(const DdsConfig& config, const DdsPortOptions& options)
   // Capacity bounds these (the receiving and the publisher thread push only within it).
   const std::size_t stamps = std::min<std::size_t>(opt_.handshake_samples, 100'000);
   m_applied_.reserve(stamps);
-  busy_reply_.accepted(false);
-  busy_reply_.code(msg::REPLY_CODE_BUSY);
-  busy_reply_.reason(kBusyReason);
   m_published_.reserve(stamps);
   m_pending_.assign(n, -1);
   last_m_count_.assign(n, 0);
@@ -342,11 +339,29 @@ void DdsPort::take_requests_locked() {
                         : r.role() == msg::CLIENT_ROLE_PLC ? Role::kPlc
                                                            : Role::kHmi;
       const std::uint64_t digest = request_digest(r, role);
+      // A client that sends faster than the cycles take requests is answered "busy" at once.
+      // Leaving the sample in the reader would lose it unseen (the reader's history is
+      // KEEP_LAST: newer requests push it out; Fast DDS 2.9 also drops samples a full KEEP_ALL
+      // reader rejects). requests_.full() is checked here, under request_mutex_, where the
+      // cycles can only make room.
+      const bool busy = requests_.full();
+      ReplyOut busy_answer;
+      msg::Reply busy_reply;
+      if (busy) {
+        busy_answer.request_id = r.request_id();
+        busy_answer.client.set(name);
+        busy_answer.interpolator = static_cast<int>(r.interpolator());
+        busy_answer.code = ReplyCode::kBusy;
+        busy_answer.reason.set(kBusyReason);
+        fill_reply(busy_reply, busy_answer);
+      }
+      const std::uint64_t tag = busy ? 0 : ++next_tag_;
       bool repeat = false;
       {
-        // For publish_replies(). Bounded: a participant that never has a reply reader leaves
-        // its entries behind.
+        // One critical section per request: the publisher (publish_replies) finds a request's
+        // participant and its log entry before the cycles can answer it.
         const std::lock_guard lock(reply_match_mutex_);
+        // Bounded: a participant that never has a reply reader leaves its entries behind.
         if (client_participants_.size() >= 4096 &&
             client_participants_.find(name) == client_participants_.end()) {
           client_participants_.clear();
@@ -368,6 +383,12 @@ void DdsPort::take_requests_locked() {
             break;
           }
         }
+        // A "busy" is logged with its answer: a repeat gets "busy" again, never an execution
+        // after a "busy" that its client may already have taken.
+        if (!repeat) {
+          log_request_locked(name, {r.request_id(), digest, tag, from,
+                                    busy ? std::optional<msg::Reply>(busy_reply) : std::nullopt});
+        }
       }
       if (repeat) continue;
       {
@@ -377,44 +398,18 @@ void DdsPort::take_requests_locked() {
         if (peer.name != name) peer.name.assign(name);
         peer.plc = peer.plc || role == Role::kPlc;
       }
-      if (requests_.full()) {
-        // A client sends faster than the cycles take requests. Leaving the sample in the reader
-        // would lose it unseen (the reader's history is KEEP_LAST: newer requests push it out;
-        // Fast DDS 2.9 also drops samples a full KEEP_ALL reader rejects): answer it instead,
-        // through the publisher like every reply (publish_replies: held until the client's reply
-        // reader is matched). Only when that queue is full too, at once from here (busy_reply_
-        // holds the code and the reason from the constructor on).
-        ReplyOut busy;
-        busy.request_id = r.request_id();
-        busy.client.set(name);
-        busy.interpolator = r.interpolator();
-        busy.code = ReplyCode::kBusy;
-        busy.reason.set(kBusyReason);
-        {
-          // Logged with its answer: a repeat gets "busy" again, never an execution after a
-          // "busy" that its client may already have taken.
-          msg::Reply answer;
-          answer.request_id(r.request_id());
-          answer.client_name(r.client_name());
-          answer.interpolator(reply_key(r.interpolator()));
-          answer.accepted(false);
-          answer.code(msg::REPLY_CODE_BUSY);
-          answer.reason(kBusyReason);
-          const std::lock_guard lock(reply_match_mutex_);
-          log_request_locked(name, {r.request_id(), digest, 0, from, std::move(answer)});
-        }
-        if (!busy_replies_.push(busy)) {
-          busy_reply_.request_id(r.request_id());
-          busy_reply_.client_name(r.client_name());
-          busy_reply_.interpolator(reply_key(r.interpolator()));
-          if (!reply_writer_.write(&busy_reply_)) ++replies_not_written_;
+      if (busy) {
+        // Through the publisher like every reply (publish_replies: held until the client's
+        // reply reader is matched); only when that queue is full too, at once from here.
+        if (!busy_replies_.push(busy_answer) && !reply_writer_.write(&busy_reply)) {
+          ++replies_not_written_;
         }
         ++busy_requests_;
         continue;
       }
       RequestIn in;
       in.request_id = r.request_id();
-      in.tag = ++next_tag_;
+      in.tag = tag;
       in.role = role;
       in.client.set(r.client_name().c_str());
       in.interpolator = r.interpolator();
@@ -446,14 +441,19 @@ void DdsPort::take_requests_locked() {
           handshakes_.push_back(h);
         }
       }
-      {
-        // Logged before the cycles can answer it, so that the publisher finds it.
-        const std::lock_guard lock(reply_match_mutex_);
-        log_request_locked(name, {r.request_id(), digest, in.tag, from, std::nullopt});
-      }
       requests_.push(in);  // not full: checked above, under request_mutex_
     }
   }
+}
+
+void DdsPort::fill_reply(msg::Reply& out, const ReplyOut& r) const {
+  out.request_id(r.request_id);
+  out.client_name(std::string(r.client.view()));
+  out.interpolator(reply_key(r.interpolator));
+  out.accepted(r.code == ReplyCode::kAccepted);
+  out.code(to_msg(r.code));
+  out.reason(std::string(r.reason.view()));
+  out.cycle_counter(r.cycle);
 }
 
 void DdsPort::log_request_locked(std::string_view client, RecentRequest q) {
@@ -738,13 +738,7 @@ void DdsPort::publish_replies() {
     ReplyOut r;
     msg::Reply reply;
     while (replies_.pop(r) || busy_replies_.pop(r)) {
-      reply.request_id(r.request_id);
-      reply.client_name(std::string(r.client.view()));
-      reply.interpolator(reply_key(r.interpolator));
-      reply.accepted(r.code == ReplyCode::kAccepted);
-      reply.code(to_msg(r.code));
-      reply.reason(std::string(r.reason.view()));
-      reply.cycle_counter(r.cycle);
+      fill_reply(reply, r);
       if (const auto log = recent_requests_.find(r.client.view());
           r.tag != 0 && log != recent_requests_.end()) {
         for (RecentRequest& q : log->second.requests) {

@@ -258,6 +258,8 @@ class DdsPort final : public CyclePort {
   static constexpr std::size_t kRecentClients = 256;
   static constexpr std::chrono::seconds kRecentFor{120};
   void log_request_locked(std::string_view client, RecentRequest q);
+  //! The reply sample of `r` (every reply the port writes is made here).
+  void fill_reply(msg::Reply& out, const ReplyOut& r) const;
   std::map<std::string, RecentLog, std::less<>> recent_requests_;
   std::vector<msg::Reply> repeat_replies_;  // at most kMaxRepeatReplies
   static constexpr std::size_t kMaxRepeatReplies = 1024;
@@ -328,7 +330,6 @@ class DdsPort final : public CyclePort {
   std::atomic<bool> requests_pending_{false};
   std::vector<HandshakeSample> handshakes_;
   msg::Request request_sample_;
-  msg::Reply busy_reply_;  // REPLY_CODE_BUSY with its reason; request fields set per answer
   std::uint64_t busy_requests_ = 0;
   // publisher thread only: replies waiting for their client's reply reader, in order
   struct HeldReply {
