@@ -72,6 +72,9 @@ constexpr const char* kUsage =
     "                         publisher), 1..98 and below --rt-priority; default 0 = normal\n"
     "  --chunk-budget N       program records appended per cycle, all interpolators together\n"
     "                         (default 1024)\n"
+    "  --request-budget N     requests executed per cycle, all interpolators together\n"
+    "                         (default 32, 1..1024); up to 256 more wait, beyond that a\n"
+    "                         request is answered \"busy\"\n"
     "  --state-period-ms N    publish each state at least every N ms (default 20, 1..50)\n"
     "  --setpoint-decimation N  publish setpoints every Nth cycle (default 1)\n"
     "  --check-limits         check every axis' velocity, acceleration, jerk and corner steps\n"
@@ -165,6 +168,8 @@ int service_main(int argc, char** argv) {
       rt_priority_given = true;
     } else if (args.whole_flag("--chunk-budget", 1, 1'000'000, n)) {
       engine_options.max_segments_per_cycle = static_cast<std::size_t>(n);
+    } else if (args.whole_flag("--request-budget", 1, 1024,
+                               engine_options.max_requests_per_cycle)) {
     } else if (args.whole_flag("--state-period-ms", 1, 50, n)) {
       port_options.state_period = std::chrono::milliseconds(n);
     } else if (args.number_flag("--limit-share", engine_options.limit_share, "a number in (0, 1]",

@@ -2093,6 +2093,71 @@ TEST(ServiceProcesses, ARepeatOfARequestWhoseReplyIsHeldIsAnsweredAtOnce) {
   EXPECT_NE(stats.find("\"replies_held_for_match\": 1,"), std::string::npos) << stats;
 }
 
+// A request answered "busy" (the queue to the cycles full) is logged with that answer: its
+// repeat is answered "busy" again and not executed, since its client may have taken the first
+// "busy" already and given up. The cycles take one request each here (--request-budget 1), so
+// a burst of 400 fills the queue of 256 and the last requests written are answered "busy".
+TEST(ServiceProcesses, ARepeatOfARequestAnsweredBusyIsAnsweredBusyAgain) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service({"--request-budget", "1"}));
+  dds::Participant plc(env.dds(), "plc");
+  auto& replies = plc.reader<msg::ReplyPubSubType>(dds::kReplyTopic);
+  auto& w = plc.writer<msg::RequestPubSubType>(dds::kRequestTopic);
+  ASSERT_TRUE(dds::wait_for_match(w, 1, kHang));
+  ASSERT_TRUE(dds::wait_for_match(replies, 1, kHang));
+  const std::string name = "flooding-plc";
+  const auto request = [&](std::uint64_t id) {
+    msg::Request r =
+        test::hand_request(id, msg::CLIENT_ROLE_PLC, name, msg::REQUEST_KIND_WRITE_REL_SPEED);
+    r.value(0.5);
+    return r;
+  };
+  std::uint64_t id = 0;
+  std::optional<msg::Reply> busy;
+  // The busy answer to the latest request: taken between the writes, as the reader keeps only
+  // the last 100 replies.
+  msg::Reply got;
+  const auto take_replies = [&] {
+    while (dds::take_next(replies, got)) {
+      if (got.client_name() == name && got.code() == msg::REPLY_CODE_BUSY &&
+          (!busy || got.request_id() > busy->request_id())) {
+        busy = got;
+      }
+    }
+  };
+  int bursts = 0;
+  for (const auto give_up = std::chrono::steady_clock::now() + 30s;
+       !busy && std::chrono::steady_clock::now() < give_up;) {
+    ++bursts;
+    for (int k = 0; k < 400; ++k) {
+      msg::Request r = request(++id);
+      w.write(&r);
+      take_replies();
+    }
+    for (const auto until = std::chrono::steady_clock::now() + 200ms;
+         std::chrono::steady_clock::now() < until; std::this_thread::sleep_for(5ms)) {
+      take_replies();
+    }
+    // Fewer than 64 requests written after it: still in its client's log.
+    if (busy && busy->request_id() + 64 <= id) busy.reset();
+  }
+  ASSERT_TRUE(busy) << bursts << " bursts of 400 requests left no late request answered busy\n"
+                    << env.service.log();
+  EXPECT_FALSE(busy->accepted());
+  msg::Request again = request(busy->request_id());
+  ASSERT_TRUE(w.write(&again));
+  const auto reply = test::await_reply(replies, name, busy->request_id(), 20s);
+  ASSERT_TRUE(reply) << "the repeat was not answered\n" << env.service.log();
+  EXPECT_EQ(reply->code(), msg::REPLY_CODE_BUSY) << reply->reason();
+  EXPECT_EQ(reply->reason(), busy->reason());
+  EXPECT_EQ(env.service.interrupt(kHang), 0) << env.service.log();
+  const std::string stats = test::read_text(env.stats_path());
+  EXPECT_NE(stats.find("\"requests_repeated\": 1,"), std::string::npos) << stats;
+  std::printf("%d bursts; request %llu of %llu answered busy twice\n", bursts,
+              static_cast<unsigned long long>(busy->request_id()),
+              static_cast<unsigned long long>(id));
+}
+
 // The setpoint topic carries every cycle of a motion (DESIGN.md: "PositionInc/Position per
 // cycle, for drives"). The publisher used to write only the newest snapshot it saw: woken late
 // (normal priority), it left 5 % of the moving cycles without a setpoint on an idle machine and
