@@ -2,6 +2,8 @@
 // exact reasons, Command_Status sequence, position set, Number_Axes).
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <string>
@@ -119,14 +121,14 @@ TEST(OutputStage, RatioAsFractionRoundTripsDecimalRatios) {
 }
 
 TEST(OutputStage, BacklashRampsOnReversalWithoutStep) {
-  // Backlash 0.02 mm: +0.01 mm moving +, -0.01 mm moving -; ramp at 10 % of 200 mm/s and
-  // 2000 mm/s^2. Per calculation step of 100 us.
+  // Backlash 0.02 mm: +0.01 mm moving +, -0.01 mm moving -; ramp at 10 % of 200 mm/s,
+  // 2000 mm/s^2 and 50,000 mm/s^3. Per calculation step of 100 us.
   OutputStage o(three_axes(0.02));
   const double dt = 100e-6;
   double p[3] = {0.0, 0.0, 0.0};
   o.reset(p);
-  double prev_c = 0.0, prev_v = 0.0, max_dc = 0.0, max_dv = 0.0;
-  int flips = 0, last_dir = 0;
+  double prev_c = 0.0, prev_v = 0.0, prev_a = 0.0, max_v = 0.0, max_a = 0.0, max_j = 0.0;
+  int flips = 0, last_dir = 0, reversal_steps = 0;
   for (int k = 0; k < 4000; ++k) {
     // X: forward 50 mm/s for 0.1 s, back for 0.1 s, forward again.
     const double t = k * dt;
@@ -134,14 +136,19 @@ TEST(OutputStage, BacklashRampsOnReversalWithoutStep) {
     p[0] += v * dt;
     o.update(p, dt);
     const double c = o.compensation_mm(0);
-    max_dc = std::max(max_dc, std::fabs(c - prev_c));
-    max_dv = std::max(max_dv, std::fabs((c - prev_c) / dt - prev_v));
-    prev_v = (c - prev_c) / dt;
+    const double cv = (c - prev_c) / dt, ca = (cv - prev_v) / dt;
+    max_v = std::max(max_v, std::fabs(cv));
+    max_a = std::max(max_a, std::fabs(ca));
+    max_j = std::max(max_j, std::fabs((ca - prev_a) / dt));
+    if (k >= 1000 && k < 2000 && c != prev_c) ++reversal_steps;
+    prev_v = cv;
+    prev_a = ca;
     prev_c = c;
     if (o.direction(0) != last_dir) ++flips;
     last_dir = o.direction(0);
     if (k == 999) {
       EXPECT_EQ(c, 0.01);  // settled moving +
+      EXPECT_TRUE(o.ramp_settled(0));
     }
     if (k == 1999) {
       EXPECT_EQ(c, -0.01);  // settled moving -
@@ -153,10 +160,76 @@ TEST(OutputStage, BacklashRampsOnReversalWithoutStep) {
   }
   EXPECT_EQ(flips, 3);  // 0 -> +, + -> -, - -> +
   EXPECT_EQ(prev_c, 0.01);
-  EXPECT_LE(max_dc, 20.0 * dt + 1e-15);        // rate <= 10 % of the axis velocity limit
-  EXPECT_LE(max_dv, 200.0 * dt + 20.0 + 1e-9);  // acceleration-limited, except the landing
+  // The reversal's 0.02 mm are jerk-bound: the quintic's peak jerk 60 D / T^3 = 5,000 mm/s^3
+  // gives T = cbrt(60 x 0.02 / 5000) = 62.1 ms, 622 steps of 100 us (the last lands).
+  const double T = std::cbrt(60.0 * 0.02 / 5000.0);
+  EXPECT_EQ(reversal_steps, static_cast<int>(std::ceil(T / dt)));
+  EXPECT_LE(max_v, 20.0);    // 10 % of the axis velocity limit
+  EXPECT_LE(max_a, 200.0);   // of the acceleration limit: no landing step
+  EXPECT_LE(max_j, 5000.0);  // and of the jerk limit
+  EXPECT_GT(max_j, 4500.0);  // which binds
+  EXPECT_NEAR(max_v, 1.875 * 0.02 / T, 0.005 * 1.875 * 0.02 / T);  // the quintic's peak, 15/8 D / T
   EXPECT_EQ(o.direction(1), 0);
   EXPECT_EQ(o.compensation_mm(1), 0.0);
+}
+
+// Seeded random sweep: backlash, limits, step and a motion of random reversals. The
+// compensation's velocity, acceleration and jerk (differences of its samples) stay within 10 %
+// of the axis limits, and once the motion keeps one direction it settles on +-backlash/2.
+TEST(OutputStage, BacklashRampKeepsItsSharesOfEveryLimit) {
+  std::uint64_t state = 79;
+  const auto uniform = [&](double lo, double hi) {
+    state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+    return lo + (hi - lo) * static_cast<double>(state >> 11) * 0x1.0p-53;
+  };
+  for (int run = 0; run < 200; ++run) {
+    InterpolatorConfig cfg = three_axes(uniform(1e-4, 0.5));
+    AxisConfig& a = cfg.axes[0];
+    a.max_velocity_mm_s = uniform(10.0, 500.0);
+    a.max_acceleration_mm_s2 = uniform(100.0, 20000.0);
+    a.max_jerk_mm_s3 = std::exp(uniform(std::log(1e3), std::log(1e7)));
+    const double dt = std::array{50e-6, 100e-6, 200e-6}[run % 3];
+    SCOPED_TRACE("run " + std::to_string(run) + ": backlash " + std::to_string(a.backlash_mm) +
+                 " mm, v " + std::to_string(a.max_velocity_mm_s) + ", a " +
+                 std::to_string(a.max_acceleration_mm_s2) + ", j " +
+                 std::to_string(a.max_jerk_mm_s3) + ", dt " + std::to_string(dt));
+    const double vmax = 0.1 * a.max_velocity_mm_s, amax = 0.1 * a.max_acceleration_mm_s2,
+                 jmax = 0.1 * a.max_jerk_mm_s3;
+    OutputStage o(cfg);
+    double p[3] = {0.0, 0.0, 0.0};
+    o.reset(p);
+    double prev_c = 0.0, prev_v = 0.0, prev_a = 0.0, max_v = 0.0, max_a = 0.0, max_j = 0.0;
+    // Random pieces of motion, then one direction for longer than the longest ramp.
+    const double longest = std::cbrt(60.0 * a.backlash_mm / jmax) +
+                           std::sqrt(5.78 * a.backlash_mm / amax) + 1.9 * a.backlash_mm / vmax;
+    const int settle = static_cast<int>(2.0 * longest / dt) + 10;
+    double speed = 0.0;
+    int left = 0;
+    for (int k = 0; k < 5000 + settle; ++k) {
+      if (k < 5000 && left-- <= 0) {
+        speed = uniform(-100.0, 100.0);
+        left = static_cast<int>(uniform(1.0, 300.0));
+      }
+      if (k == 5000) speed = speed >= 0.0 ? 20.0 : -20.0;
+      p[0] += speed * dt;
+      o.update(p, dt);
+      const double c = o.compensation_mm(0);
+      const double cv = (c - prev_c) / dt, ca = (cv - prev_v) / dt, cj = (ca - prev_a) / dt;
+      max_v = std::max(max_v, std::fabs(cv));
+      max_a = std::max(max_a, std::fabs(ca));
+      max_j = std::max(max_j, std::fabs(cj));
+      prev_c = c;
+      prev_v = cv;
+      prev_a = ca;
+    }
+    // Rounding of the samples (<= 0.25 mm): 1e-16 mm, over dt^3 = 1.25e-13 s^3 at most 1e-3.
+    EXPECT_LE(max_v, vmax * (1.0 + 1e-9));
+    EXPECT_LE(max_a, amax * (1.0 + 1e-9) + 1e-6);
+    EXPECT_LE(max_j, jmax * (1.0 + 1e-9) + 0.05);
+    EXPECT_TRUE(o.ramp_settled(0));
+    EXPECT_EQ(o.compensation_mm(0), o.direction(0) * 0.5 * a.backlash_mm);
+    EXPECT_NE(o.direction(0), 0);
+  }
 }
 
 TEST(OutputStage, TinyJitterIsNotAReversal) {

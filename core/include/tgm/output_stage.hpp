@@ -14,7 +14,7 @@ namespace tgm {
 
 //! Accepted |Offset| [inc] (|Ratio|: kMinRatio..kMaxRatio, config.hpp).
 inline constexpr std::int64_t kMaxOffsetInc = 1'000'000'000'000'000;
-//! Share of the axis velocity / acceleration limits the backlash ramp uses.
+//! Share of the axis velocity / acceleration / jerk limits the backlash ramp uses.
 inline constexpr double kBacklashRampShare = 0.1;
 //! Travel against the last direction that counts as a reversal [mm].
 inline constexpr double kReversalThresholdMm = 1e-6;
@@ -80,14 +80,16 @@ class OutputStage {
   //! update() with a position that keeps the detected direction changes nothing.
   bool ramp_settled(int axis) const {
     const auto ui = static_cast<std::size_t>(axis);
-    return comp_[ui] == dir_[ui] * half_backlash_[ui] && comp_v_[ui] == 0.0;
+    return ramp_duration_[ui] == 0.0 && comp_[ui] == dir_[ui] * half_backlash_[ui];
   }
 
  private:
   int axes_ = 0;
-  std::array<double, kMaxAxes> ratio_{}, half_backlash_{}, ramp_v_{}, ramp_a_{};
+  std::array<double, kMaxAxes> ratio_{}, half_backlash_{}, ramp_v_{}, ramp_a_{}, ramp_j_{};
   std::array<std::int64_t, kMaxAxes> offset_{};
   std::array<double, kMaxAxes> pos_{}, extreme_{}, comp_{}, comp_v_{};
+  // The ramp in progress (duration 0: none): from, to [mm], elapsed and duration [s].
+  std::array<double, kMaxAxes> ramp_from_{}, ramp_to_{}, ramp_elapsed_{}, ramp_duration_{};
   std::array<int, kMaxAxes> dir_{};
 };
 

@@ -13,6 +13,11 @@ namespace {
 
 RequestResult refuse(RequestCode c, std::string why) { return {c, std::move(why)}; }
 
+// Peaks of the minimum-jerk quintic's derivatives on [0, 1] (the backlash ramp, update()).
+constexpr double kQuinticPeakVelocity = 15.0 / 8.0;
+constexpr double kQuinticPeakAcceleration = 5.773502691896257645;  // 10 / sqrt(3)
+constexpr double kQuinticPeakJerk = 60.0;
+
 }  // namespace
 
 OutputStage::OutputStage(const InterpolatorConfig& config)
@@ -24,6 +29,7 @@ OutputStage::OutputStage(const InterpolatorConfig& config)
     half_backlash_[ui] = 0.5 * a.backlash_mm;
     ramp_v_[ui] = kBacklashRampShare * a.max_velocity_mm_s;
     ramp_a_[ui] = kBacklashRampShare * a.max_acceleration_mm_s2;
+    ramp_j_[ui] = kBacklashRampShare * a.max_jerk_mm_s3;
   }
 }
 
@@ -66,23 +72,36 @@ void OutputStage::update(const double* position_mm, double dt_s) {
         x = p;
       }
     }
-    // Ramp of the compensation towards +-backlash/2: velocity and acceleration limited, so
-    // the setpoint gets no step (SMOOTHING.md).
-    const double target = d * half_backlash_[ui];
+    // Ramp of the compensation towards +-backlash/2 (SMOOTHING.md): from rest to rest along
+    // the minimum-jerk quintic s(u) = u^3 (10 - 15 u + 6 u^2), u = t / T, whose peaks are
+    // |s'| = 15/8 (u = 1/2), |s''| = 10/sqrt(3) and |s'''| = 60 (u = 0 and 1); T is the
+    // shortest duration that keeps the compensation's velocity, acceleration and jerk within
+    // their shares. The setpoint gets no step, and its velocity none either. A reversal during
+    // a ramp is taken up by the next ramp, which starts where this one comes to rest.
     double& c = comp_[ui];
-    double& v = comp_v_[ui];
-    const double err = target - c;
-    if (err == 0.0 && v == 0.0) continue;
-    const double a = ramp_a_[ui], vmax = ramp_v_[ui];
-    const double want = std::copysign(std::min(vmax, std::sqrt(2.0 * a * std::fabs(err))), err);
-    v += std::clamp(want - v, -a * dt_s, a * dt_s);
-    const double stepv = v * dt_s;
-    if ((err > 0.0 && stepv >= err) || (err < 0.0 && stepv <= err) || err == 0.0) {
-      c = target;
-      v = 0.0;
-    } else {
-      c += stepv;
+    double& T = ramp_duration_[ui];
+    if (T == 0.0) {
+      const double target = d * half_backlash_[ui];
+      if (c == target) continue;
+      const double dist = std::fabs(target - c);
+      ramp_from_[ui] = c;
+      ramp_to_[ui] = target;
+      ramp_elapsed_[ui] = 0.0;
+      T = std::max({kQuinticPeakVelocity * dist / ramp_v_[ui],
+                    std::sqrt(kQuinticPeakAcceleration * dist / ramp_a_[ui]),
+                    std::cbrt(kQuinticPeakJerk * dist / ramp_j_[ui])});
     }
+    double& t = ramp_elapsed_[ui];
+    t += dt_s;
+    if (!(t < T)) {
+      c = ramp_to_[ui];
+      comp_v_[ui] = 0.0;
+      T = 0.0;
+      continue;
+    }
+    const double u = t / T, span = ramp_to_[ui] - ramp_from_[ui];
+    c = ramp_from_[ui] + span * (u * u * u * (10.0 + u * (-15.0 + 6.0 * u)));
+    comp_v_[ui] = span * 30.0 * u * u * (1.0 - u) * (1.0 - u) / T;
   }
 }
 
