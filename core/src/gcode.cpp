@@ -139,11 +139,25 @@ class Compiler {
   // --- diagnostics
   void error(int line, std::uint32_t column, std::string reason) {
     if (!reporting_) return;
+    // A line that runs again (a loop, a subroutine called K times) reports its error once, with
+    // a count: an end point beyond the bound in each of 100,000 passes was 10,000 lines.
+    const std::uint64_t place =
+        (static_cast<std::uint64_t>(static_cast<std::uint32_t>(line)) << 32) | column;
+    if (running_ != 0) {
+      if (const auto it = run_errors_.find(place);
+          it != run_errors_.end() && error_run_[it->second] != running_) {
+        ++error_repeats_[it->second];
+        return;
+      }
+    }
     if (errors_.size() >= kMaxErrors) {
       ++suppressed_;
       return;
     }
+    if (running_ != 0) run_errors_.try_emplace(place, errors_.size());
     errors_.push_back({line, static_cast<int>(column), std::move(reason)});
+    error_run_.push_back(running_);
+    error_repeats_.push_back(0);
   }
 
   // --- pass 1
@@ -158,8 +172,9 @@ class Compiler {
   void execute();
   // Returns the index of the next block to execute.
   std::size_t execute_block(std::size_t index, bool relex);
-  // execute_block with the endless-loop guard.
+  // execute_block with the endless-loop guard, numbered for error().
   std::size_t step(std::size_t index, bool relex);
+  std::size_t step_once(std::size_t index, bool relex);
 
   // Helpers of pass 2.
   bool emit_check(const Block& b);
@@ -209,6 +224,14 @@ class Compiler {
   std::int64_t emitted_ = 0;
   std::vector<Diagnostic> errors_;
   std::size_t suppressed_ = 0;
+  //! Per entry of errors_: the step() that reported it (0: pass 1) and how often a later
+  //! step() reported an error at its place again.
+  std::vector<std::uint64_t> error_run_;
+  std::vector<std::uint64_t> error_repeats_;
+  //! (line, column) -> entry of errors_, for the errors of step().
+  std::unordered_map<std::uint64_t, std::size_t> run_errors_;
+  std::uint64_t steps_ = 0;    //!< step() calls so far
+  std::uint64_t running_ = 0;  //!< the step() running (its number), 0 outside step()
 
   bool reporting_ = true;  //!< false while pass 2 lexes a line again
   bool in_order_ = true;   //!< still executing each line as it is lexed
@@ -426,6 +449,13 @@ void Compiler::lex() {
 }
 
 std::size_t Compiler::step(std::size_t index, bool relex) {
+  running_ = ++steps_;
+  const std::size_t next = step_once(index, relex);
+  running_ = 0;
+  return next;
+}
+
+std::size_t Compiler::step_once(std::size_t index, bool relex) {
   if (++executed_ > max_executed_) {
     std::string where;
     if (!stack_.empty()) {
@@ -452,7 +482,9 @@ void Compiler::lex_line(std::size_t begin, std::size_t end, std::int32_t line) {
   // against the guard for endless loops (a loop body of a dozen comment lines and one move,
   // 8.5 million times, was refused as endless; session 76's review).
   if (b.word_count == 0 && valid) return;
-  check_block_static(b);
+  // A line whose words could not be read gets those errors only: its checks would report the
+  // unread words as missing ("G29 L99999999999": "G29 needs L<label>").
+  if (valid) check_block_static(b);
   blocks_.push_back({b.begin, b.end, b.line, b.valid});
   cur_block_ = b;
 }
@@ -488,12 +520,19 @@ bool Compiler::lex_words(Block& b) {
     if (c == '(') {
       const std::size_t open = i;
       std::size_t j = i + 1;
-      while (j < end && src_[j] != ')') {
+      // A nested '(' is an error; the comment still ends where its parentheses balance, so
+      // that the rest of it ("((a) b)": " b)") is not read as words.
+      int depth = 1;
+      bool nested = false;
+      for (; j < end; ++j) {
         if (src_[j] == '(') {
-          error(line, col(j), "'(' inside a comment: comments do not nest");
+          if (!nested) error(line, col(j), "'(' inside a comment: comments do not nest");
+          nested = true;
           b.valid = false;
+          ++depth;
+        } else if (src_[j] == ')' && --depth == 0) {
+          break;
         }
-        ++j;
       }
       if (j >= end) {
         error(line, col(open), "comment '(' is not closed on this line");
@@ -544,22 +583,27 @@ bool Compiler::lex_words(Block& b) {
     ++i;
     double v = 0.0;
     if (!parse_number(i, end, v)) {
+      const auto letter = [](char d) { return (d >= 'A' && d <= 'Z') || (d >= 'a' && d <= 'z'); };
+      // Name what follows the letter, so "XNAN", "X+-1" or "G1X" are clear.
+      std::size_t q = wstart + 1;
+      while (q < end && is_space(src_[q])) ++q;
       std::string reason = std::string("word ") + L + " needs a number";
-      // Name what follows, so "XNAN" or "G1X" are clear.
-      if (i < end && src_[i] != '(' && src_[i] != ';') {
-        std::size_t j = i;
-        while (j < end && !is_space(src_[j]) && j - i < 16) ++j;
-        reason += ", not '" + quoted_source(src_.substr(i, j - i)) + "'";
+      if (q < end && src_[q] != '(' && src_[q] != ';') {
+        std::size_t j = q;
+        while (j < end && !is_space(src_[j]) && j - q < 16) ++j;
+        reason += ", not '" + quoted_source(src_.substr(q, j - q)) + "'";
       }
       error(line, col(wstart), reason);
       b.valid = false;
-      while (i < end && !is_space(src_[i]) && src_[i] != '(' && src_[i] != ';' &&
-             !((src_[i] >= 'A' && src_[i] <= 'Z') || (src_[i] >= 'a' && src_[i] <= 'z'))) {
-        ++i;
-      }
-      // Also skip the letters of a word like "NAN" so they give no further errors.
-      while (i < end && ((src_[i] >= 'A' && src_[i] <= 'Z') || (src_[i] >= 'a' && src_[i] <= 'z'))) {
-        ++i;
+      // Skip the rest of the bad word: the text written onto the letter ("NAN", "+-1"), or
+      // after blanks when it starts with no letter ("X -"); a word after a blank ("Y X1") is a
+      // word of its own.
+      i = wstart + 1;
+      std::size_t k = i;
+      while (k < end && (src_[k] == ' ' || src_[k] == '\t')) ++k;
+      if (k < end && (k == i || !letter(src_[k]))) {
+        i = k;
+        while (i < end && !is_space(src_[i]) && src_[i] != '(' && src_[i] != ';') ++i;
       }
       continue;
     }
@@ -1398,6 +1442,12 @@ CompileResult Compiler::run() {
   execute();
   comp_stage_.finish();
 
+  for (std::size_t k = 0; k < errors_.size(); ++k) {
+    if (const std::uint64_t n = error_repeats_[k]; n > 0) {
+      errors_[k].reason += " (" + std::to_string(n) + (n == 1 ? " more time" : " more times") +
+                           ", as the line ran again)";
+    }
+  }
   std::stable_sort(errors_.begin(), errors_.end(), [](const Diagnostic& a, const Diagnostic& b) {
     return a.line != b.line ? a.line < b.line : a.column < b.column;
   });
@@ -1409,8 +1459,8 @@ CompileResult Compiler::run() {
                 errors_.end());
   result.errors_not_shown = suppressed_;
   if (suppressed_ > 0) {
-    errors_.push_back({errors_.back().line, errors_.back().column,
-                       std::to_string(suppressed_) + " further errors not shown"});
+    // Line 0: no place (format_diagnostic then names the file only).
+    errors_.push_back({0, 0, std::to_string(suppressed_) + " further errors not shown"});
   }
   result.errors = std::move(errors_);
   if (result.errors.empty()) result.program = std::move(program_);
@@ -1420,6 +1470,7 @@ CompileResult Compiler::run() {
 }  // namespace
 
 std::string format_diagnostic(std::string_view file, const Diagnostic& d) {
+  if (d.line <= 0) return std::string(file) + ": error: " + d.reason;
   return std::string(file) + ":" + std::to_string(d.line) + ":" + std::to_string(d.column) +
          ": error: " + d.reason;
 }

@@ -505,8 +505,17 @@ TEST(GcodeErrors, NumbersMissingNotFiniteOrOutOfRange) {
   EXPECT_THAT(errors_of("G1 X\n"), ElementsAre("1:4: word X needs a number"));
   // Quoted source text never carries control codes or stray UTF-8 bytes into a terminal.
   EXPECT_THAT(errors_of("G1 X\x1b[2J\xe2\x80\n"),
-              ElementsAre("1:4: word X needs a number, not '\\x1B[2J\\xE2\\x80'",
-                          "1:9: unexpected byte 0xE2"));
+              ElementsAre("1:4: word X needs a number, not '\\x1B[2J\\xE2\\x80'"));
+  // The text that is no number is quoted, and skipped as one: no errors follow from it.
+  EXPECT_THAT(errors_of("G1 X+-1 Y2\n"), ElementsAre("1:4: word X needs a number, not '+-1'"));
+  EXPECT_THAT(errors_of("G1 X - Y2\n"), ElementsAre("1:4: word X needs a number, not '-'"));
+  EXPECT_THAT(errors_of("G1 X+-1Y2\n"), ElementsAre("1:4: word X needs a number, not '+-1Y2'"));
+  // A word after a blank is a word of its own, and a CR before the line feed is no text.
+  EXPECT_THAT(errors_of("G90\nG1 Y X1\n"), ElementsAre("2:4: word Y needs a number, not 'X1'"));
+  EXPECT_THAT(errors_of("G90\r\nG1 Y\r\nM2\r\n"), ElementsAre("2:4: word Y needs a number"));
+  // A word that cannot be read is not reported missing as well.
+  EXPECT_THAT(errors_of("G29 L99999999999\nM2\n"),
+              ElementsAre("1:5: value of L is out of range (|value| <= 1e9): 'L99999999999'"));
   // A long word is quoted by its first 40 characters and its length, not echoed whole.
   EXPECT_THAT(errors_of("G1 X1" + std::string(400, '0') + "\n"),
               ElementsAre("1:4: value of X is out of range (|value| <= 1e9): 'X1" +
@@ -758,9 +767,11 @@ TEST(GcodeErrors, NestingAndSizeLimits) {
 
 TEST(GcodeErrors, CommentsAndMirroring) {
   EXPECT_THAT(errors_of("G1 X1 (open\n"), ElementsAre("1:7: comment '(' is not closed on this line"));
+  // The comment ends where its parentheses balance: its rest is not read as words.
   EXPECT_THAT(errors_of("(a (b) c)\n"),
-              ElementsAre("1:4: '(' inside a comment: comments do not nest",
-                          "1:8: word C needs a number, not ')'"));
+              ElementsAre("1:4: '(' inside a comment: comments do not nest"));
+  EXPECT_THAT(errors_of("G1 X1 ((nested) still)\n"),
+              ElementsAre("1:8: '(' inside a comment: comments do not nest"));
   CompileOptions two = options();
   two.axis_letters = "XY";
   EXPECT_THAT(errors_of("M83\n", two),
@@ -819,12 +830,31 @@ TEST(GcodeErrors, ErrorsPastTheLimitAreCountedInOneLastEntry) {
   const auto errs = errors_of(text);
   ASSERT_EQ(errs.size(), 10'001u);
   EXPECT_EQ(errs[9'999], "10000:1: unknown word 'Q1'");
-  EXPECT_EQ(errs.back(), "10000:1: 3 further errors not shown");
+  // At no place: it was given the last error's, which read as a location.
+  EXPECT_EQ(errs.back(), "0:0: 3 further errors not shown");
   // The count says all of them (tgm-hmi compile's "10001 errors" counted the note as one).
   const CompileResult r = compile_gcode(text, options());
   EXPECT_EQ(r.errors_not_shown, 3u);
   EXPECT_EQ(r.error_count(), 10'003u);
   EXPECT_EQ(compile_gcode("Q1\nQ2\n", options()).error_count(), 2u);
+}
+
+// An error of a line that runs again (a loop pass, another call) is reported once, with the
+// count of its repeats: each pass of a K100000 loop was one more line of 10,000.
+TEST(GcodeErrors, AnErrorOfALineThatRunsAgainIsReportedOnceWithItsCount) {
+  EXPECT_THAT(errors_of("G91\nG29 L1\nG0 X600000000\nG27 L1 K5\nM2\n"),
+              ElementsAre("3:4: end point X1200000000 is beyond +-1e9 mm (after incremental moves "
+                          "and offsets) (4 more times, as the line ran again)"));
+  const CompileResult r =
+      compile_gcode("G91\nG29 L1\nG0 X600000000\nG27 L1 K100000\nM2\n", options());
+  ASSERT_EQ(r.errors.size(), 1u);
+  EXPECT_EQ(r.errors_not_shown, 0u);
+  EXPECT_NE(r.errors[0].reason.find("(99999 more times, as the line ran again)"), std::string::npos)
+      << r.errors[0].reason;
+  // A subroutine called three times: beyond the bound in the second and third call.
+  EXPECT_THAT(errors_of("G26 L1 K3\nM2\nG29 L1\nG91 G0 X600000000\nM17\n"),
+              ElementsAre("4:8: end point X1200000000 is beyond +-1e9 mm (after incremental "
+                          "moves and offsets) (1 more time, as the line ran again)"));
 }
 
 TEST(GcodeErrors, UncalledSubroutinesAreCheckedToo) {

@@ -14,12 +14,12 @@ namespace tgm {
 
 //! One compile error at a place in the source.
 struct Diagnostic {
-  int line = 0;    //!< 1-based source line
+  int line = 0;    //!< 1-based source line; 0: at no place (the options, the count of the rest)
   int column = 0;  //!< 1-based column of the offending text
   std::string reason;
 };
 
-//! "FILE:LINE:COL: error: reason".
+//! "FILE:LINE:COL: error: reason"; "FILE: error: reason" at line 0.
 std::string format_diagnostic(std::string_view file, const Diagnostic& d);
 
 //! What the compiler needs to know about the machine.
