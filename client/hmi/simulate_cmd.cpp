@@ -590,8 +590,14 @@ int run_simulate(int argc, char** argv) {
                 (csv_every > 1 ? " (the output files hold the run up to here)"
                                : " (the output files hold every cycle up to here)")
           : sum.error + (sum.time_limit_reached ? " (--max-time S raises it)" : "");
-  std::fprintf(report, "result:    %s%s%s\n", finished ? "finished" : "NOT finished",
-               why.empty() ? "" : ": ", why.c_str());
+  if (finished && !io_ok) {
+    // The run is whole, a file of it is not: said here as well as below (the line said
+    // "finished" and nothing else, with exit code 1).
+    std::fprintf(report, "result:    finished, but an output file could not be written (below)\n");
+  } else {
+    std::fprintf(report, "result:    %s%s%s\n", finished ? "finished" : "NOT finished",
+                 why.empty() ? "" : ": ", why.c_str());
+  }
   // A program of a few cycles takes less time than setting up its run: "simulated 0x faster
   // than real time" read as a fault. Its wall time says more.
   const double speed = wall > 0.0 ? sum.program_time_s / wall : 0.0;

@@ -530,16 +530,18 @@ TEST_F(HmiSimulate, AnOutputPathThatCannotBeOpenedIsAUsageError) {
                        "--help)\n");
 }
 
-// An output file the disk does not take: the summary is still printed, then each file that
-// failed is named with the reason, and the exit code is 1 (it said "error writing the output
-// files", naming none).
+// An output file the disk does not take: the summary is still printed, its result line says
+// that a file failed, each file that failed is named with the reason below it, and the exit
+// code is 1 (it said "error writing the output files", naming none; then "finished" alone).
 TEST_F(HmiSimulate, AnOutputThatCannotBeWrittenIsNamedWithTheReason) {
   const fs::path prog = write("line.ngc", "G90 G1 X6 F600\nM2\n");
   const fs::path csv = dir_ / "ok.csv";
   const ProcessResult r = run("simulate " + prog.string() + " --config " + kConfig + " --csv " +
                               csv.string() + " --blocks /dev/full --quiet");
   EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
-  EXPECT_NE(r.out.find("result:    finished\n"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("result:    finished, but an output file could not be written (below)\n"),
+            std::string::npos)
+      << r.out;
   EXPECT_EQ(r.err,
             "tgm-hmi simulate: cannot write --blocks /dev/full: No space left on device (the file "
             "is incomplete)\n");
