@@ -358,7 +358,21 @@ TEST(Commands, ValidAndInvalidParametersWithExactReasons) {
        standing(),
        RequestCode::kOutOfRange,
        "Command -1: the axis mask (Command_Parameter[3]) 8 selects none of axes 0..2 (bit 0 is "
-       "axis 0)"},
+       "axis 0; bits above 9 are ignored)"},
+      // Only bits the manual ignores (above 9): the filter stayed off without a word.
+      {-1,
+       {2'000'000, 1'000'000, 6'000'000, 1024},
+       standing(),
+       RequestCode::kOutOfRange,
+       "Command -1: the axis mask (Command_Parameter[3]) 1024 selects none of axes 0..2 (bit 0 "
+       "is axis 0; bits above 9 are ignored)"},
+      // A negative mask is named as written (it was "1016" for -8).
+      {-1,
+       {2'000'000, 1'000'000, 6'000'000, -8},
+       standing(),
+       RequestCode::kOutOfRange,
+       "Command -1: the axis mask (Command_Parameter[3]) -8 selects none of axes 0..2 (bit 0 "
+       "is axis 0; bits above 9 are ignored)"},
       {-1, {2'000'000, 1'000'000, 6'000'000, 0x3FF}, standing(), RequestCode::kAccepted, ""},
       {-1,
        {0, 1'000'000, 6'000'000, 1},

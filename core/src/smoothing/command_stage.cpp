@@ -60,17 +60,18 @@ RequestResult check_command(std::int32_t code,
       return {};
     case kCommandIir: {
       const std::uint32_t mask = static_cast<std::uint32_t>(p[3]) & 0x3FFu;
-      if (mask != 0) {
+      // 0 switches the filter off. Any other mask must select an axis: one of axes the
+      // interpolator does not have was done, and filtered nothing (an axis counted from 1: mask
+      // 8 for Z of three), as was one of bits above 9 only (1024), which the manual ignores.
+      if (p[3] != 0) {
         RequestResult r = IirFilter::check(p[0], p[1], p[2]);
         if (!r.ok()) return r;
-        // A mask of axes the interpolator does not have was done, and filtered nothing (an axis
-        // counted from 1: mask 8 for Z of three). Bits beyond them are ignored (0x3FF: all).
         const int axes = std::clamp(c.configured_axes, 1, kMaxAxes);
         if (IirFilter::mask_of_axes(mask, axes) == 0) {
           return refuse(RequestCode::kOutOfRange,
-                        "Command -1: the axis mask (Command_Parameter[3]) " + std::to_string(mask) +
+                        "Command -1: the axis mask (Command_Parameter[3]) " + std::to_string(p[3]) +
                             " selects none of axes 0.." + std::to_string(axes - 1) +
-                            " (bit 0 is axis 0)");
+                            " (bit 0 is axis 0; bits above 9 are ignored)");
         }
       }
       if (!c.standing) {
