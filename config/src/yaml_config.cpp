@@ -123,6 +123,12 @@ class Reader {
     return true;
   }
 
+  // map() for a top-level section, which may be empty: "plc:" followed by comments only is
+  // null in YAML, and reads as {} (an empty file does too); false then, as nothing is to read.
+  bool section(const YAML::Node& n, const std::string& path, const std::set<std::string>& known) {
+    return !n.IsNull() && map(n, path, known);
+  }
+
   // A key given twice in one mapping is an error: yaml-cpp keeps both, and a lookup would
   // silently take the first.
   void unique_keys(const YAML::Node& n, const std::string& path) {
@@ -380,7 +386,10 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
   // Every axis starts from the built-in machine's axis (the values config/default.yaml lists),
   // changed by axis_defaults, then by its own keys.
   AxisConfig defaults = MachineConfig::default_machine().interpolators.front().axes.front();
-  if (root["axis_defaults"]) read_axis(r, root["axis_defaults"], "axis_defaults", defaults, false);
+  // A section whose keys are all commented out ("axis_defaults:" and comments) is empty.
+  if (root["axis_defaults"] && !root["axis_defaults"].IsNull()) {
+    read_axis(r, root["axis_defaults"], "axis_defaults", defaults, false);
+  }
 
   if (const auto ips = root["interpolators"]) {
     r.note(ips, "interpolators");
@@ -449,9 +458,9 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
   }
 
   if (const auto c = root["compiler"]) {
-    if (r.map(c, "compiler",
-              {"distance_mode", "default_feed_mm_per_min", "initial_tool", "plc_redefined_m",
-               "max_program_segments", "max_call_depth"})) {
+    if (r.section(c, "compiler",
+                  {"distance_mode", "default_feed_mm_per_min", "initial_tool", "plc_redefined_m",
+                   "max_program_segments", "max_call_depth"})) {
       if (c["distance_mode"]) {
         std::string mode;
         if (!r.string(c, "compiler", "distance_mode", mode)) {
@@ -495,9 +504,9 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
 
   if (const auto s = root["smoothing"]) {
     r.note(s, "smoothing");
-    if (r.map(s, "smoothing",
-              {"spline_points", "spline_jerk_mm_s3", "iir_p_e6", "iir_q_e6", "iir_f_e6",
-               "iir_axis_mask"})) {
+    if (r.section(s, "smoothing",
+                  {"spline_points", "spline_jerk_mm_s3", "iir_p_e6", "iir_q_e6", "iir_f_e6",
+                   "iir_axis_mask"})) {
       auto& sm = m.smoothing;
       r.integer(s, "smoothing", "spline_points", sm.spline_points);
       r.number(s, "smoothing", "spline_jerk_mm_s3", sm.spline_jerk_mm_s3);
@@ -509,7 +518,7 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
   }
 
   if (const auto d = root["dds"]) {
-    if (r.map(d, "dds", {"domain_id", "profiles_file", "participant_prefix", "security"})) {
+    if (r.section(d, "dds", {"domain_id", "profiles_file", "participant_prefix", "security"})) {
       r.integer(d, "dds", "domain_id", cfg.dds.domain_id);
       r.string(d, "dds", "profiles_file", cfg.dds.profiles_file);
       r.string(d, "dds", "participant_prefix", cfg.dds.participant_prefix);
@@ -521,8 +530,11 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
                 "must name the Fast DDS profiles file (the shipped one: fastdds_profiles.xml), "
                 "not an empty string");
       }
-      if (d["participant_prefix"] && cfg.dds.participant_prefix.empty()) {
-        r.error(d["participant_prefix"], "dds.participant_prefix", "must not be empty");
+      if (d["participant_prefix"]) {
+        if (const std::string why = DdsConfig::prefix_problem(cfg.dds.participant_prefix);
+            !why.empty()) {
+          r.error(d["participant_prefix"], "dds.participant_prefix", why);
+        }
       }
       if (cfg.dds.domain_id < 0 || cfg.dds.domain_id > 232) {
         r.error(d["domain_id"], "dds.domain_id", "must be 0..232");
@@ -531,7 +543,7 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
   }
 
   if (const auto p = root["plc"]) {
-    if (r.map(p, "plc", {"default_m_delay_s", "m_delay_s"})) {
+    if (r.section(p, "plc", {"default_m_delay_s", "m_delay_s"})) {
       r.number(p, "plc", "default_m_delay_s", cfg.plc.default_m_delay_s);
       if (cfg.plc.default_m_delay_s < 0 || cfg.plc.default_m_delay_s > 3600) {
         r.error(p["default_m_delay_s"], "plc.default_m_delay_s", "must be 0..3600 s");
@@ -669,6 +681,20 @@ std::optional<AppConfig> load_config_or_report(const std::string& path,
                  load.errors.size() == 1 ? "" : "s");
   }
   return std::move(load.config);
+}
+
+std::string DdsConfig::prefix_problem(std::string_view prefix) {
+  if (prefix.empty()) return "must not be empty";
+  if (prefix.size() > kMaxPrefix) {
+    return "is " + std::to_string(prefix.size()) + " bytes long: at most " +
+           std::to_string(kMaxPrefix) + " (Fast DDS cuts participant names at 255)";
+  }
+  for (const char c : prefix) {
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) {
+      return "must not hold control characters";
+    }
+  }
+  return {};
 }
 
 std::string default_config_path() {

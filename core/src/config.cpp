@@ -12,6 +12,9 @@ namespace tgm {
 
 namespace {
 
+// Largest tool radius and |length| [mm]: a D word's bound.
+constexpr double kMaxToolMm = 1e9;
+
 bool finite_positive(double v) { return std::isfinite(v) && v > 0.0; }
 
 // Spline jerks [mm/s^3] below this round into Command -2's 32-bit Command_Parameter (2^31 - 1).
@@ -83,10 +86,10 @@ std::vector<std::string> MachineConfig::validate() const {
       }
       auto in_range = [&](const char* key, double v, double lo, double hi, const char* unit) {
         if (!finite_positive(v)) {
-          e.push_back(ab + "." + key + ": must be > 0, not " + number_text(v));
+          e.push_back(ab + "." + key + ": must be > 0, not " + exact_number_text(v));
         } else if (v < lo || v > hi) {
-          e.push_back(ab + "." + key + ": must be " + number_text(lo) + ".." + number_text(hi) +
-                      " " + unit + ", not " + number_text(v));
+          e.push_back(ab + "." + key + ": must be " + exact_number_text(lo) + ".." +
+                      exact_number_text(hi) + " " + unit + ", not " + exact_number_text(v));
         }
       };
       in_range("max_velocity_mm_s", a.max_velocity_mm_s, kMinVelocity, kMaxVelocity, "mm/s");
@@ -103,23 +106,24 @@ std::vector<std::string> MachineConfig::validate() const {
           finite_positive(a.max_acceleration_mm_s2) &&
           a.emergency_deceleration_mm_s2 < a.max_acceleration_mm_s2) {
         e.push_back(
-            ab + ".emergency_deceleration_mm_s2: " + number_text(a.emergency_deceleration_mm_s2) +
-            " is below max_acceleration_mm_s2 " + number_text(a.max_acceleration_mm_s2) +
+            ab +
+            ".emergency_deceleration_mm_s2: " + exact_number_text(a.emergency_deceleration_mm_s2) +
+            " is below max_acceleration_mm_s2 " + exact_number_text(a.max_acceleration_mm_s2) +
             " (an emergency stop brakes at least as hard as a normal one)");
       }
       // The range a Ratio write accepts (1e300 gave PositionInc values of -2^63).
       if (!(std::fabs(a.ratio_inc_per_mm) >= kMinRatio &&
             std::fabs(a.ratio_inc_per_mm) <= kMaxRatio)) {
         e.push_back(ab + ".ratio_inc_per_mm: |ratio| must be 1e-06..1e+09 inc/mm, not " +
-                    number_text(a.ratio_inc_per_mm));
+                    exact_number_text(a.ratio_inc_per_mm));
       }
       if (!std::isfinite(a.backlash_mm) || a.backlash_mm < 0.0 || a.backlash_mm > 10.0) {
-        e.push_back(ab + ".backlash_mm: must be 0..10 mm, not " + number_text(a.backlash_mm));
+        e.push_back(ab + ".backlash_mm: must be 0..10 mm, not " + exact_number_text(a.backlash_mm));
       }
       if (finite_positive(a.rapid_velocity_mm_s) && finite_positive(a.max_velocity_mm_s) &&
           a.rapid_velocity_mm_s > a.max_velocity_mm_s) {
-        e.push_back(ab + ".rapid_velocity_mm_s: " + number_text(a.rapid_velocity_mm_s) +
-                    " exceeds max_velocity_mm_s " + number_text(a.max_velocity_mm_s));
+        e.push_back(ab + ".rapid_velocity_mm_s: " + exact_number_text(a.rapid_velocity_mm_s) +
+                    " exceeds max_velocity_mm_s " + exact_number_text(a.max_velocity_mm_s));
       }
     }
   }
@@ -135,10 +139,14 @@ std::vector<std::string> MachineConfig::validate() const {
     if (!tool_numbers.insert(t.number).second) {
       e.push_back(tb + ".number: tool " + std::to_string(t.number) + " is listed twice");
     }
-    if (!std::isfinite(t.radius_mm) || t.radius_mm < 0.0) {
-      e.push_back(tb + ".radius_mm: must be >= 0, not " + number_text(t.radius_mm));
+    // Bounded as a D word and a coordinate are (1e308 was taken, and every compensated move
+    // was then refused).
+    if (!std::isfinite(t.radius_mm) || t.radius_mm < 0.0 || t.radius_mm > kMaxToolMm) {
+      e.push_back(tb + ".radius_mm: must be 0..1e9 mm, not " + exact_number_text(t.radius_mm));
     }
-    if (!std::isfinite(t.length_mm)) e.push_back(tb + ".length_mm: must be a finite number");
+    if (!std::isfinite(t.length_mm) || std::fabs(t.length_mm) > kMaxToolMm) {
+      e.push_back(tb + ".length_mm: must be -1e9..1e9 mm, not " + exact_number_text(t.length_mm));
+    }
   }
   const auto& c = compiler;
   // The range of an F word: 1e308 compiled and then every record without an F was refused by
@@ -146,7 +154,7 @@ std::vector<std::string> MachineConfig::validate() const {
   if (!finite_positive(c.default_feed_mm_per_min) || c.default_feed_mm_per_min > kMaxFeedMmPerMin) {
     e.push_back("compiler.default_feed_mm_per_min: must be > 0 and at most " +
                 std::to_string(static_cast<long long>(kMaxFeedMmPerMin)) + " mm/min, not " +
-                number_text(c.default_feed_mm_per_min));
+                exact_number_text(c.default_feed_mm_per_min));
   }
   if (c.initial_tool < 0 || c.initial_tool > kMaxTool) {
     e.push_back("compiler.initial_tool: must be 0.." + std::to_string(kMaxTool) + ", not " +
@@ -175,14 +183,14 @@ std::vector<std::string> MachineConfig::validate() const {
   }
   if (!finite_positive(s.spline_jerk_mm_s3)) {
     e.push_back("smoothing.spline_jerk_mm_s3: must be > 0, not " +
-                number_text(s.spline_jerk_mm_s3));
+                exact_number_text(s.spline_jerk_mm_s3));
   } else if (s.spline_jerk_mm_s3 >= kCarriedJerkBound) {
     // Command -2 carries it in a 32-bit Command_Parameter, whether or not the spline is on:
     // tgm-plc sent 3e9 as -2147483648.
     e.push_back(
         "smoothing.spline_jerk_mm_s3: must be at most 2147483647 (Command -2 carries it as a "
         "32-bit parameter), not " +
-        number_text(s.spline_jerk_mm_s3));
+        exact_number_text(s.spline_jerk_mm_s3));
   }
   if (s.iir_p_e6 <= 0) e.push_back("smoothing.iir_p_e6: must be > 0");
   if (s.iir_q_e6 <= 0) e.push_back("smoothing.iir_q_e6: must be > 0");
@@ -218,7 +226,7 @@ std::vector<std::string> MachineConfig::validate() const {
       e.push_back(
           "smoothing.spline_jerk_mm_s3: must be at least 0.5 (Command -2 takes it rounded "
           "to whole mm/s^3), not " +
-          number_text(s.spline_jerk_mm_s3));
+          exact_number_text(s.spline_jerk_mm_s3));
     } else if (const RequestResult r =
                    SplineSmoother::check(s.spline_points, std::llround(s.spline_jerk_mm_s3));
                !r.ok()) {

@@ -360,6 +360,23 @@ TEST(CliArgs, TheProfilesFileMustBeARegularFile) {
 
 // --security overrides dds.security ('off' turns it off); the files of a role are checked
 // before Fast DDS sees them, and a missing one is named.
+// --participant-prefix is checked as dds.participant_prefix is (DdsConfig::prefix_problem).
+TEST(CliArgs, AParticipantPrefixFastDdsWouldCutIsRefused) {
+  DdsOverrides o;
+  std::string error;
+  EXPECT_TRUE(o.take("--participant-prefix", std::string(201, 'p'), error));
+  EXPECT_EQ(error,
+            "--participant-prefix is 201 bytes long: at most 200 (Fast DDS cuts participant "
+            "names at 255)");
+  error.clear();
+  EXPECT_TRUE(o.take("--participant-prefix", "", error));
+  EXPECT_EQ(error, "--participant-prefix must not be empty");
+  error.clear();
+  EXPECT_TRUE(o.take("--participant-prefix", "cell-2", error));
+  EXPECT_EQ(error, "");
+  EXPECT_EQ(o.participant_prefix, "cell-2");
+}
+
 TEST(CliArgs, SecurityOverrideAndItsFiles) {
   DdsConfig c;
   c.security_dir = "/etc/tgm/sec";

@@ -314,6 +314,28 @@ TEST(Config, WholeNumbersAreDecimalAndNeverWrapRound) {
                         "m.yaml:2: dds.profiles_file: must name the Fast DDS profiles file (the "
                         "shipped one: fastdds_profiles.xml), not an empty string"));
   EXPECT_TRUE(has_error(load.errors, "m.yaml:3: dds.participant_prefix: must not be empty"));
+  // A prefix Fast DDS would cut (participant names end at 255 bytes, and a PLC is known by its
+  // name's "-plc"), or one with control characters, is refused; 200 bytes are taken.
+  load = load_config_text("dds:\n  participant_prefix: " + std::string(201, 'a') + "\n", "m.yaml");
+  EXPECT_FALSE(load.config);
+  EXPECT_TRUE(has_error(load.errors,
+                        "m.yaml:2: dds.participant_prefix: is 201 bytes long: at most 200 (Fast "
+                        "DDS cuts participant names at 255)"));
+  load = load_config_text("dds:\n  participant_prefix: \"a\\tb\"\n", "m.yaml");
+  EXPECT_TRUE(
+      has_error(load.errors, "m.yaml:2: dds.participant_prefix: must not hold control characters"));
+  load = load_config_text("dds:\n  participant_prefix: " + std::string(200, 'a') + "\n", "m.yaml");
+  ASSERT_TRUE(load.config) << load.errors.front();
+  // A section whose keys are all commented out is empty, as an empty file is: the defaults.
+  // (Not the tools: "tools:" alone is an error, as it could mean none or default.yaml's.)
+  load = load_config_text(
+      "axis_defaults:\n  # backlash_mm: 0\n"
+      "compiler:\n  # initial_tool: 1\nsmoothing:\n# spline_points: 0\ndds:\nplc:\n"
+      "  # default_m_delay_s: 0.1\ncycle_time_us: 1000\n",
+      "m.yaml");
+  ASSERT_TRUE(load.config) << load.errors.front();
+  EXPECT_EQ(load.config->machine.cycle_time_us, 1000);
+  EXPECT_EQ(load.config->plc.m_delay_s, shipped.config->plc.m_delay_s);
   // One M-function written two ways is given twice (the later entry won).
   load = load_config_text("plc:\n  m_delay_s: {51: 0.2, 051: 5}\n", "m.yaml");
   EXPECT_FALSE(load.config);
@@ -589,6 +611,25 @@ TEST(Config, AnEmptyListItemIsNamedAtItsDash) {
   }
 }
 
+// A value just outside its range is printed with the digits that show it: six significant
+// digits said "must be 0.01..100000 mm/s, not 100000".
+TEST(Config, AValueJustOutsideItsRangeIsPrintedWithItsDigits) {
+  auto load = load_config_text(
+      "interpolators:\n"
+      "  - axes:\n"
+      "      - {letter: X, max_velocity_mm_s: 250, rapid_velocity_mm_s: 250.0000001}\n"
+      "      - {letter: Y, max_velocity_mm_s: 100000.0001}\n",
+      "m.yaml");
+  EXPECT_FALSE(load.config);
+  for (const char* want :
+       {"m.yaml:3: interpolators[0].axes[0].rapid_velocity_mm_s: 250.0000001 exceeds "
+        "max_velocity_mm_s 250",
+        "m.yaml:4: interpolators[0].axes[1].max_velocity_mm_s: must be 0.01..100000 mm/s, not "
+        "100000.0001"}) {
+    EXPECT_TRUE(has_error(load.errors, want)) << "missing: " << want;
+  }
+}
+
 // Every other check of MachineConfig::validate, each named with its key, its value and the
 // reason, and with the line of the YAML that set it. Line coverage (session 44) showed that no
 // test had given any of these values.
@@ -601,8 +642,8 @@ TEST(Config, EveryOtherBadValueIsNamedWithItsKeyAndLine) {
       "      - {letter: Z, max_velocity_mm_s: 100, rapid_velocity_mm_s: 200}\n"
       "tools:\n"
       "  - {number: 4, radius_mm: -1, length_mm: 1}\n"
-      "  - {number: 4, radius_mm: 1, length_mm: 1}\n"
-      "  - {number: 0, radius_mm: 2}\n"
+      "  - {number: 4, radius_mm: 1, length_mm: -2e9}\n"
+      "  - {number: 0, radius_mm: 1e308}\n"
       "  - {radius_mm: 2}\n"
       "compiler:\n"
       "  default_feed_mm_per_min: 0\n"
@@ -621,8 +662,11 @@ TEST(Config, EveryOtherBadValueIsNamedWithItsKeyAndLine) {
         "T are G-code words)",
         "m.yaml:4: interpolators[0].axes[1].backlash_mm: must be 0..10 mm, not 11",
         "m.yaml:5: interpolators[0].axes[2].rapid_velocity_mm_s: 200 exceeds max_velocity_mm_s 100",
-        "m.yaml:7: tools[0].radius_mm: must be >= 0, not -1",
+        "m.yaml:7: tools[0].radius_mm: must be 0..1e9 mm, not -1",
         "m.yaml:8: tools[1].number: tool 4 is listed twice",
+        // As a D word and a coordinate: 1e308 was taken.
+        "m.yaml:8: tools[1].length_mm: must be -1e9..1e9 mm, not -2e+09",
+        "m.yaml:9: tools[2].radius_mm: must be 0..1e9 mm, not 1e+308",
         "m.yaml:9: tools[2].number: must be 1..99999 (what a T word selects; T0 is no tool), not "
         "0",
         "m.yaml:10: tools[3].number: is required (the T word that selects the tool)",
@@ -638,7 +682,7 @@ TEST(Config, EveryOtherBadValueIsNamedWithItsKeyAndLine) {
         "0; the largest has 3 axes)"}) {
     EXPECT_TRUE(has_error(load.errors, want)) << "missing: " << want;
   }
-  EXPECT_EQ(load.errors.size(), 14u);
+  EXPECT_EQ(load.errors.size(), 16u);
   // The F word's range: 1e308 loaded, and each record without an F was refused mid-program.
   const auto fast = load_config_text("compiler:\n  default_feed_mm_per_min: 1e308\n", "f.yaml");
   EXPECT_FALSE(fast.config);

@@ -49,7 +49,9 @@ struct DdsOverrides {
       return true;
     }
     if (flag == "--participant-prefix") {
-      if (value.empty()) error = "--participant-prefix must not be empty";
+      if (const std::string why = DdsConfig::prefix_problem(value); !why.empty()) {
+        error = "--participant-prefix " + why;
+      }
       participant_prefix = value;
       return true;
     }

@@ -6,6 +6,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "tgm/config.hpp"
@@ -20,6 +21,11 @@ struct DdsConfig {
   std::string profiles_file = "fastdds_profiles.xml";
   //! Prefix of participant names ("<prefix>-service", "<prefix>-plc", "<prefix>-hmi").
   std::string participant_prefix = "tgm";
+  //! Longest participant_prefix [bytes]: Fast DDS cuts participant names at 255 without a word,
+  //! and a PLC is known by its name's "-plc".
+  static constexpr std::size_t kMaxPrefix = 200;
+  //! Why `prefix` cannot be a participant_prefix ("" when it can).
+  static std::string prefix_problem(std::string_view prefix);
   //! DDS Security: the directory config/security/tgm-security wrote (CA, governance, each
   //! role's identity and permissions); a relative path is taken relative to the YAML file.
   //! Empty: no security (anyone on the network may join the domain).

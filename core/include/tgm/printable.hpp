@@ -5,8 +5,10 @@
 
 #include <charconv>
 #include <cstdio>
+#include <cstdlib>
 #include <string>
 #include <string_view>
+#include <system_error>
 
 namespace tgm {
 
@@ -140,6 +142,17 @@ inline std::string number_text(double v) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.6g", v);
   return buf;
+}
+
+//! number_text when its six digits read back as `v`, else the shortest text that does: a value
+//! just outside a range is not printed as the bound ("must be 0.01..100000, not 100000" for
+//! 100000.0001).
+inline std::string exact_number_text(double v) {
+  std::string six = number_text(v);
+  if (std::strtod(six.c_str(), nullptr) == v) return six;
+  char buf[32];
+  const auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v);
+  return ec == std::errc() ? std::string(buf, end) : six;
 }
 
 }  // namespace tgm
