@@ -3387,6 +3387,18 @@ TEST(ServiceProcesses, AProfilesFileFastDdsRejectsIsAConfigError) {
       {"--profiles", bad}, 2,
       "DDS profiles file '" + bad + "' was rejected by Fast DDS (Fast DDS return code 1)",
       "profiles");
+  // Fast DDS's own reason goes to standard error, plain: its default log wrote it to standard
+  // output with terminal colours, into the JSON of `status --json`.
+  const test::ShellRun status =
+      test::run_shell(std::string(TGM_HMI_BIN) + " status --json --wait 1 --profiles '" + bad +
+                          "' --domain " + std::to_string(test::test_domain()),
+                      ::testing::TempDir(), "rejected-profiles-status");
+  EXPECT_EQ(status.exit_code, 2) << status.err;
+  EXPECT_EQ(status.out, "");
+  EXPECT_NE(status.err.find("Fast DDS error [XMLPARSER]: Error parsing '" + bad + "'"),
+            std::string::npos)
+      << status.err;
+  EXPECT_EQ(status.err.find('\x1b'), std::string::npos) << status.err;
 }
 
 // Another program's socket on the domain's discovery port left every binary running deaf

@@ -8,8 +8,10 @@
 #include <algorithm>
 #include <array>
 #include <cerrno>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <mutex>
 #include <set>
 #include <thread>
@@ -17,6 +19,7 @@
 #include <fastdds/rtps/transport/UDPv4TransportDescriptor.h>
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 #include <fastdds/dds/domain/qos/DomainParticipantQos.hpp>
+#include <fastdds/dds/log/Log.hpp>
 
 #include "tgm/dds_overrides.hpp"
 
@@ -143,9 +146,34 @@ std::string discovery_port_problem(const fdds::DomainParticipantQos& qos, int do
          ephemeral_hint(wire.port.portBase, wire.port.domainIDGain);
 }
 
+// Fast DDS's own log lines go to standard error without colour codes, as tgm's do. Its default
+// consumer wrote them to standard output with terminal colours: into `tgm-hmi status --json`'s
+// JSON, and after the tgm message that pointed "above" to them.
+class PlainErrorLog final : public eprosima::fastdds::dds::LogConsumer {
+ public:
+  void Consume(const eprosima::fastdds::dds::Log::Entry& e) override {
+    using Log = eprosima::fastdds::dds::Log;
+    const char* kind = e.kind == Log::Kind::Error     ? "error"
+                       : e.kind == Log::Kind::Warning ? "warning"
+                                                      : "info";
+    std::fprintf(stderr, "Fast DDS %s [%s]: %s\n", kind,
+                 e.context.category != nullptr ? e.context.category : "", e.message.c_str());
+  }
+};
+
+void use_plain_log() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    using Log = eprosima::fastdds::dds::Log;
+    Log::ClearConsumers();
+    Log::RegisterConsumer(std::make_unique<PlainErrorLog>());
+  });
+}
+
 }  // namespace
 
 void load_profiles(const std::string& path) {
+  use_plain_log();
   static std::mutex mutex;
   static std::set<std::string> loaded;
   std::error_code ec;
@@ -158,8 +186,8 @@ void load_profiles(const std::string& path) {
   const ReturnCode_t rc =
       fdds::DomainParticipantFactory::get_instance()->load_XML_profiles_file(path);
   if (!ok(rc)) {
-    throw SetupError("DDS profiles file '" + path + "' was rejected by Fast DDS (" +
-                     code_text(rc) + "); see the Fast DDS log above for the line");
+    throw SetupError("DDS profiles file '" + path + "' was rejected by Fast DDS (" + code_text(rc) +
+                     "); Fast DDS's reason is in its log lines on standard error");
   }
   loaded.insert(key);
 }
@@ -177,6 +205,7 @@ std::string config_problem(const DdsConfig& config, std::string_view role) {
 
 Participant::Participant(const DdsConfig& config, std::string_view role, std::string_view profile)
     : name_(config.participant_prefix + "-" + std::string(role)), domain_id_(config.domain_id) {
+  use_plain_log();
   if (config.domain_id < 0 || config.domain_id > 232) {
     throw SetupError("DDS domain id " + std::to_string(config.domain_id) + " outside 0..232");
   }
@@ -281,7 +310,7 @@ std::string Participant::entity_error(std::string_view kind, const std::string& 
                     "domain " +
                         std::to_string(domain_id_) + " (tgm-security --domains), "
                   : std::string()) +
-         "unknown profile or inconsistent QoS; see the Fast DDS log above)";
+         "unknown profile or inconsistent QoS; see Fast DDS's log lines on standard error)";
 }
 
 fdds::DataWriter& Participant::writer(fdds::Topic& topic, std::string_view profile,
