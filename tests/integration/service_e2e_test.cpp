@@ -2537,6 +2537,27 @@ TEST(ServiceProcesses, HmiRunRefusesProgramsOfOtherAxisLetters) {
       << right.log();
 }
 
+// `run --timeout S` bounds the whole run, the wait for the service too (it waited 10 s
+// whatever S was), and the waits of --timeout and --m0-continue are bounded (1e300 s printed
+// "continuing shortly" and waited for ever).
+TEST(ServiceProcesses, RunTimeoutBoundsTheWaitForTheServiceAndItsWaitsAreBounded) {
+  const std::string dir = ::testing::TempDir();
+  std::ofstream(dir + "/timeout.ngc") << "G90 G1 X1 F600\nM2\n";
+  const std::string run = std::string(TGM_HMI_BIN) + " run " + dir + "/timeout.ngc --domain " +
+                          std::to_string(test::test_domain()) + " --quiet";
+  const test::ShellRun none = test::run_shell(run + " --timeout 1.5", dir, "run-timeout");
+  EXPECT_EQ(none.exit_code, 1) << none.err;
+  EXPECT_NE(none.err.find("no state of interpolator 0 from tgm-service on DDS domain " +
+                          std::to_string(test::test_domain()) + " within 1.5 s"),
+            std::string::npos)
+      << none.err;
+  for (const char* flag : {"--timeout 2e9", "--m0-continue 1e300"}) {
+    const test::ShellRun bad = test::run_shell(run + " " + flag, dir, "run-bounds");
+    EXPECT_EQ(bad.exit_code, 2) << flag << ": " << bad.err;
+    EXPECT_NE(bad.err.find("at most 1e9"), std::string::npos) << flag << ": " << bad.err;
+  }
+}
+
 // The state carries the service's cycle time: tgm-hmi run times the program by it, not by its
 // own config's (an HMI with the default 500 us config against a service at 1 ms printed half
 // the program time), and status shows it.

@@ -366,8 +366,11 @@ int run_command(int argc, char** argv) {
     if (words.size() > 1) return args.usage_error("'" + what + "' takes no parameters");
   } else if (parse_integer(what, LLONG_MIN, LLONG_MAX, code)) {
     if (code < -1'000'000 || code > 1'000'000)
+      // Codes within the bound go to the service, which names the codes it knows: the
+      // message claimed -2..2049 here and sent 2050.
       return args.usage_error("Command code " + what +
-                              " is out of range (the Command codes lie in -2..2049)");
+                              " is out of range -1000000..1000000 (the known codes lie in "
+                              "-2..2049; tgm-service names them)");
     is_code = true;
     if (words.size() > 13) return args.usage_error("at most 12 Command parameters");
     for (std::size_t k = 1; k < words.size(); ++k) {

@@ -162,9 +162,13 @@ int run_run(int argc, char** argv) {
     if (args.boolean("--from-here", from_here)) continue;
     if (args.flag("--plot", plot_path)) continue;
     if (progress_interval_flag(args, interval_s)) continue;
-    if (args.number_flag("--m0-continue", m0_s, "seconds >= 0", [](double v) { return v >= 0.0; }))
+    // Bounded as simulate's --max-time: 1e300 s printed "continuing shortly" and waited for
+    // ever (a wait of that many seconds never ends on a steady clock counted in nanoseconds).
+    if (args.number_flag("--m0-continue", m0_s, "seconds, >= 0 and at most 1e9",
+                         [](double v) { return v >= 0.0 && v <= 1e9; }))
       continue;
-    if (args.number_flag("--timeout", timeout_s, "seconds > 0", [](double v) { return v > 0.0; }))
+    if (args.number_flag("--timeout", timeout_s, "seconds, > 0 and at most 1e9",
+                         [](double v) { return v > 0.0 && v <= 1e9; }))
       continue;
     if (args.boolean("--quiet", quiet)) continue;
     if (args.common()) continue;
@@ -242,7 +246,13 @@ int run_run(int argc, char** argv) {
     std::fprintf(stderr, "tgm-hmi run: %s\n", e.what());
     return 1;
   }
-  if (const int rc = wait_for_service(*hmi, *config, ip, "run"); rc != 0) return rc;
+  // --timeout bounds the whole run, the wait for the service too (it waited 10 s regardless).
+  if (const int rc =
+          wait_for_service(*hmi, *config, ip, "run",
+                           timeout_s > 0.0 ? std::min(timeout_s, kServiceWaitS) : kServiceWaitS);
+      rc != 0) {
+    return rc;
+  }
   try {
     hmi->on_event([&](const client::Event& ev) {
       const msg::InterpolatorEvent& e = ev.sample;
@@ -752,10 +762,13 @@ int run_run(int argc, char** argv) {
           m0_wait = true;
           m0_since = Clock::now();
           clear_progress();
+          char in[64];
+          std::snprintf(in, sizeof in, "continuing in %.0f s", m0_s);
           std::printf("M0 program stop at line %d: %s\n", st->act_line(),
-                      m0_s >= 0 || !stdin_tty ? "continuing shortly"
-                      : stdin_closed          ? "`tgm-hmi command start` continues"
-                                              : "press Enter to continue");
+                      m0_s > 10.0               ? in
+                      : m0_s >= 0 || !stdin_tty ? "continuing shortly"
+                      : stdin_closed            ? "`tgm-hmi command start` continues"
+                                                : "press Enter to continue");
           std::fflush(stdout);
         }
         const double wait = m0_s >= 0 ? m0_s : stdin_tty ? -1.0 : 1.0;
