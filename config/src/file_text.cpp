@@ -111,7 +111,7 @@ std::string read_settings_file(const std::string& path, std::string_view kind, s
     case ReadResult::kTooLarge:
       break;
   }
-  // A whole number of MiB when it is one (the 16 MiB of a config), else bytes.
+  // A whole number of MiB when it is one (the 1 MiB of a config), else bytes.
   const std::string size = limit % (std::size_t{1} << 20) == 0
                                ? std::to_string(limit >> 20) + " MiB"
                                : std::to_string(limit) + " bytes";

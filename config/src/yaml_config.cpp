@@ -11,6 +11,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -149,7 +150,7 @@ class Reader {
     if (!n) return;
     double v = 0;
     if (!scalar_double(n, v)) {
-      error(n, join(path, key), "must be a number, not '" + text(n) + "'");
+      error(n, join(path, key), not_a_number(n));
       return;
     }
     note(n, join(path, key));
@@ -219,6 +220,27 @@ class Reader {
   // Numbers are read as the command line reads them (cli_numbers.hpp): the whole scalar,
   // finite; whole numbers in base 10 (with base 0, 0500 was octal 320) and within long long
   // (an overflow was clamped and then narrowed to -1).
+  // Why `n` is no number: text that reads as one but not as a finite double is named so
+  // ("1e400" was "must be a number", which points at the wrong fix).
+  std::string not_a_number(const YAML::Node& n) const {
+    if (n.IsScalar()) {
+      const std::string& t = n.Scalar();
+      char* end = nullptr;
+      errno = 0;
+      const double d = std::strtod(t.c_str(), &end);
+      if (!t.empty() && end == t.c_str() + t.size() && !std::isnan(d)) {
+        if (std::isinf(d)) {
+          return "must be a finite number, not '" + text(n) + "' (beyond the range of a double)";
+        }
+        if (errno == ERANGE) {
+          return "must be a number, not '" + text(n) +
+                 "' (too small for a double: it would read as 0)";
+        }
+      }
+    }
+    return "must be a number, not '" + text(n) + "'";
+  }
+
   static bool scalar_double(const YAML::Node& n, double& v) {
     return n.IsScalar() && parse_finite(n.Scalar(), v);
   }

@@ -6,6 +6,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <future>
@@ -357,6 +358,15 @@ TEST(Config, DecimalNumbersArePlainBaseTenAndNeverReadAsZero) {
     EXPECT_TRUE(has_error(load.errors, "m.yaml:1: axis_defaults.max_jerk_mm_s3: must be a number"))
         << text << (load.errors.empty() ? "" : load.errors.front());
   }
+  // Text that reads as a number but not as a finite double says why.
+  EXPECT_TRUE(has_error(
+      load_config_text("axis_defaults: {max_jerk_mm_s3: 1e-400}\n", "m.yaml").errors,
+      "m.yaml:1: axis_defaults.max_jerk_mm_s3: must be a number, not '1e-400' (too small for a "
+      "double: it would read as 0)"));
+  EXPECT_TRUE(has_error(
+      load_config_text("axis_defaults: {max_jerk_mm_s3: 1e400}\n", "m.yaml").errors,
+      "m.yaml:1: axis_defaults.max_jerk_mm_s3: must be a finite number, not '1e400' (beyond the "
+      "range of a double)"));
   const ConfigLoad load = load_config_text("axis_defaults: {max_jerk_mm_s3: 2.5E+4}\n", "m.yaml");
   ASSERT_TRUE(load.config) << load.errors.front();
   EXPECT_EQ(load.config->machine.interpolators[0].axes[0].max_jerk_mm_s3, 25000.0);
@@ -474,8 +484,27 @@ TEST(Config, DirectoryIsAnErrorNotAnEmptyConfig) {
   EXPECT_EQ(load.errors[0], TGM_SOURCE_DIR "/config: is a directory, not a config file");
 }
 
+// A config larger than 1 MiB is refused before yaml-cpp reads it: at about 500 bytes a node,
+// a 16 MB list of zeros (under the 16 MiB bound it had) took 4.3 GB and 39 s.
+TEST(Config, AConfigOverOneMibIsRefusedUnread) {
+  const std::string path =
+      ::testing::TempDir() + "big_config_" + std::to_string(::getpid()) + ".yaml";
+  std::string text = "cycle_time_us: 500\n";
+  while (text.size() <= kMaxConfigBytes) text += "# padding, as a long comment block would be\n";
+  std::ofstream(path) << text;
+  const ConfigLoad load = load_config_file(path);
+  EXPECT_FALSE(load.config);
+  EXPECT_EQ(load.errors, std::vector<std::string>{path + ": more than 1 MiB: not a config file"});
+  text.resize(kMaxConfigBytes);
+  text.back() = '\n';
+  std::ofstream(path) << text;
+  const ConfigLoad whole = load_config_file(path);
+  EXPECT_TRUE(whole.config) << whole.errors.front();
+  std::remove(path.c_str());
+}
+
 // Only a regular file is read as a config: a FIFO without a writer blocked the start in open()
-// for good, and a device is said as what it is (it was read up to the 16 MiB bound). Read on
+// for good, and a device is said as what it is (it was read up to the bound). Read on
 // another thread: should it block again, a writer frees it and the test fails, not hangs.
 TEST(Config, AFifoOrADeviceIsAnErrorAndNeverBlocks) {
   namespace fs = std::filesystem;

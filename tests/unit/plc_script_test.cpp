@@ -407,7 +407,7 @@ TEST(PlcScript, OnlyTheStopsAndTheStageCommandsMayBeSent) {
 }
 
 // Files that are no script: a directory (an uncaught exception aborted the PLC), one that is
-// not there, a device without end (read up to the config bound, 16 MiB).
+// not there, a device without end (read up to the config bound).
 TEST(PlcScript, FilesThatAreNoScriptAreNamed) {
   const std::string dir = ::testing::TempDir() + "plc_script_test_" + std::to_string(::getpid());
   std::filesystem::create_directories(dir);
