@@ -2347,8 +2347,8 @@ TEST(ServiceProcesses, HmiCommandAndStopSayAcceptedOrWhyNot) {
        "(-2147483648..2147483647)\n"},
       {{"command", "20000000"},
        2,
-       "tgm-hmi command: Command code 20000000 is out of range (the Command codes lie in "
-       "-2..2049)\n"},
+       "tgm-hmi command: Command code 20000000 is out of range -1000000..1000000 (the known "
+       "codes lie in -2..2049; tgm-service names them)\n"},
       {{"command", "clear", "--timeout", "0"},
        2,
        "tgm-hmi command: --timeout must be seconds in (0, 3600], not '0'\n"},
