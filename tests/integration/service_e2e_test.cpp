@@ -160,7 +160,8 @@ TEST(ServiceProcesses, ManualExampleEndToEndWithPlcAndHmiProcesses) {
   EXPECT_NE(out.find("done: 13 records"), std::string::npos) << out;
   // G42 with no tool (T0) and no D compensates by nothing: the operator is told so before the
   // program runs.
-  EXPECT_NE(out.find("manual_example.ngc:4: note: G42 (tool radius compensation) with radius 0"),
+  EXPECT_NE(out.find("manual_example.ngc:4: note: the first move under G42 (tool radius "
+                     "compensation) with radius 0"),
             std::string::npos)
       << out;
   // Counted from the event topic (a wait acknowledged at once can be shorter than the state's
@@ -3420,6 +3421,27 @@ TEST(ServiceProcesses, AProfilesFileFastDdsRejectsIsAConfigError) {
             std::string::npos)
       << status.err;
   EXPECT_EQ(status.err.find('\x1b'), std::string::npos) << status.err;
+}
+
+// A well-formed profiles file without tgm's profiles is a bad config too (exit code 2, named
+// before DDS is joined; it was exit code 1 at the participant's creation), and the message
+// lists what is missing: here the shipped file less its message reader profile.
+TEST(ServiceProcesses, AProfilesFileWithoutTgmsProfilesIsAConfigError) {
+  std::ifstream in(std::string(TGM_SOURCE_DIR) + "/config/fastdds_profiles.xml");
+  std::stringstream text;
+  text << in.rdbuf();
+  std::string xml = text.str();
+  const std::string from = "profile_name=\"tgm_message_reader\"";
+  const std::size_t at = xml.find(from);
+  ASSERT_NE(at, std::string::npos);
+  xml.replace(at, from.size(), "profile_name=\"someone_elses_reader\"");
+  const std::string partial = ::testing::TempDir() + "/partial-profiles.xml";
+  std::ofstream(partial) << xml;
+  expect_every_binary_fails_its_start({"--profiles", partial}, 2,
+                                      "DDS profiles file '" + partial +
+                                          "' lacks the profile 'tgm_message_reader' that tgm "
+                                          "creates its participant and topics from",
+                                      "partial-profiles");
 }
 
 // Another program's socket on the domain's discovery port left every binary running deaf

@@ -15,8 +15,10 @@
 #include <mutex>
 #include <set>
 #include <thread>
+#include <vector>
 
 #include <fastdds/rtps/transport/UDPv4TransportDescriptor.h>
+#include <fastrtps/xmlparser/XMLProfileManager.h>
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 #include <fastdds/dds/domain/qos/DomainParticipantQos.hpp>
 #include <fastdds/dds/log/Log.hpp>
@@ -200,7 +202,36 @@ std::string config_problem(const DdsConfig& config, std::string_view role) {
   } catch (const SetupError& e) {
     return e.what();
   }
-  return {};
+  // A well-formed file without the profiles tgm creates its entities from is as bad a config
+  // as a malformed one: found here, before DDS is joined, not as a failure to set DDS up.
+  std::vector<std::string_view> missing;
+  namespace xml = eprosima::fastrtps::xmlparser;
+  eprosima::fastrtps::ParticipantAttributes participant;
+  if (xml::XMLProfileManager::fillParticipantAttributes(
+          std::string(kParticipantProfile), participant, false) != xml::XMLP_ret::XML_OK) {
+    missing.push_back(kParticipantProfile);
+  }
+  for (const TopicSpec& t : kAllTopics) {
+    eprosima::fastrtps::PublisherAttributes w;
+    eprosima::fastrtps::SubscriberAttributes r;
+    if (xml::XMLProfileManager::fillPublisherAttributes(std::string(t.writer_profile), w, false) !=
+        xml::XMLP_ret::XML_OK) {
+      missing.push_back(t.writer_profile);
+    }
+    if (xml::XMLProfileManager::fillSubscriberAttributes(std::string(t.reader_profile), r, false) !=
+        xml::XMLP_ret::XML_OK) {
+      missing.push_back(t.reader_profile);
+    }
+  }
+  if (missing.empty()) return {};
+  std::string names;
+  for (const std::string_view m : missing) {
+    names += (names.empty() ? "'" : ", '") + std::string(m) + "'";
+  }
+  return "DDS profiles file '" + config.profiles_file + "' lacks the profile" +
+         (missing.size() > 1 ? "s " : " ") + names +
+         " that tgm creates its participant and topics from (config/fastdds_profiles.xml "
+         "defines them all; start from a copy of it)";
 }
 
 Participant::Participant(const DdsConfig& config, std::string_view role, std::string_view profile)
