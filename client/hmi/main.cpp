@@ -29,12 +29,29 @@ constexpr const char* kUsage =
 #endif
     "\n"
     "Every command takes --config YAML (default: $TGM_CONFIG, the installed or the in-tree\n"
-    "config/default.yaml) and --help;\n"
+    "config/default.yaml) and --help (or: tgm-hmi help COMMAND); -- ends the options, so\n"
+    "a file whose name starts with - can follow it;\n"
     "tgm-hmi --version prints the version.\n";
 
 }  // namespace
 
 namespace {
+
+using Subcommand = int (*)(int, char**);
+
+// The subcommand named `cmd`, or nullptr.
+Subcommand subcommand(std::string_view cmd) {
+  if (cmd == "compile") return tgm::hmi::run_compile;
+  if (cmd == "simulate") return tgm::hmi::run_simulate;
+#ifdef TGM_HMI_DDS
+  if (cmd == "run") return tgm::hmi::run_run;
+  if (cmd == "status") return tgm::hmi::run_status;
+  if (cmd == "watch") return tgm::hmi::run_watch;
+  if (cmd == "stop") return tgm::hmi::run_stop;
+  if (cmd == "command") return tgm::hmi::run_command;
+#endif
+  return nullptr;
+}
 
 int run_command(int argc, char** argv) {
   if (argc < 2) {
@@ -42,6 +59,22 @@ int run_command(int argc, char** argv) {
     return 2;
   }
   const std::string_view cmd = argv[1];
+  // `help COMMAND` is `COMMAND --help`, as in git.
+  if (cmd == "help" && argc == 3) {
+    const Subcommand sub = subcommand(argv[2]);
+    if (sub == nullptr) {
+      std::fprintf(stderr, "tgm-hmi help: unknown command '%s'\n\n%s", argv[2], kUsage);
+      return 2;
+    }
+    char help[] = "--help";
+    char* sub_argv[] = {argv[2], help, nullptr};
+    return sub(2, sub_argv);
+  }
+  if (cmd == "help" && argc > 3) {
+    std::fprintf(stderr, "tgm-hmi help: takes one command, not '%s' after '%s'\n", argv[3],
+                 argv[2]);
+    return 2;
+  }
   if (cmd == "--help" || cmd == "-h" || cmd == "help") {
     std::fputs(kUsage, stdout);
     return 0;
@@ -51,15 +84,7 @@ int run_command(int argc, char** argv) {
     return 0;
   }
   // Subcommands see argv starting at their own name.
-  if (cmd == "compile") return tgm::hmi::run_compile(argc - 1, argv + 1);
-  if (cmd == "simulate") return tgm::hmi::run_simulate(argc - 1, argv + 1);
-#ifdef TGM_HMI_DDS
-  if (cmd == "run") return tgm::hmi::run_run(argc - 1, argv + 1);
-  if (cmd == "status") return tgm::hmi::run_status(argc - 1, argv + 1);
-  if (cmd == "watch") return tgm::hmi::run_watch(argc - 1, argv + 1);
-  if (cmd == "stop") return tgm::hmi::run_stop(argc - 1, argv + 1);
-  if (cmd == "command") return tgm::hmi::run_command(argc - 1, argv + 1);
-#endif
+  if (const Subcommand sub = subcommand(cmd)) return sub(argc - 1, argv + 1);
   std::fprintf(stderr, "tgm-hmi: unknown command '%s'\n\n%s", argv[1], kUsage);
   return 2;
 }

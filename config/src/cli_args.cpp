@@ -44,7 +44,16 @@ bool same_file(const std::string& a, const std::string& b) {
 ArgReader::ArgReader(int argc, char** argv, std::string program)
     : argc_(argc), argv_(argv), program_(std::move(program)) {}
 
+bool ArgReader::more() {
+  if (!options_ended_ && i_ < argc_ && std::strcmp(argv_[i_], "--") == 0) {
+    options_ended_ = true;
+    ++i_;
+  }
+  return i_ < argc_ && !failed_ && !help_;
+}
+
 bool ArgReader::flag(const char* name, std::string& value) {
+  if (options_ended_) return false;
   const char* arg = argv_[i_];
   const std::size_t n = std::strlen(name);
   if (std::strcmp(arg, name) == 0) {
@@ -129,6 +138,7 @@ ArgReader::NamedFile ArgReader::config_file(const std::string& config_flag) {
 }
 
 bool ArgReader::boolean(const char* name, bool& value) {
+  if (options_ended_) return false;
   const char* arg = argv_[i_];
   const std::size_t n = std::strlen(name);
   if (std::strncmp(arg, name, n) != 0 || (arg[n] != '\0' && arg[n] != '=')) return false;
@@ -176,12 +186,14 @@ const char* version() {
 }
 
 bool ArgReader::version_flag() {
+  if (options_ended_) return false;
   if (std::strcmp(argv_[i_], "--version") != 0) return false;
   ++i_;
   return true;
 }
 
 bool ArgReader::help_flag() {
+  if (options_ended_) return false;
   const char* arg = argv_[i_];
   if (std::strcmp(arg, "--help") != 0 && std::strcmp(arg, "-h") != 0) return false;
   help_ = true;
@@ -191,7 +203,7 @@ bool ArgReader::help_flag() {
 
 bool ArgReader::positional(std::string& value) {
   const char* arg = argv_[i_];
-  if (!value.empty() || (arg[0] == '-' && arg[1] != '\0')) return false;
+  if (!value.empty() || (!options_ended_ && arg[0] == '-' && arg[1] != '\0')) return false;
   value = arg;
   ++i_;
   return true;
@@ -221,7 +233,7 @@ bool ArgReader::dds_flag(DdsOverrides& o) {
 int ArgReader::fail() {
   const char* arg = argv_[i_];
   ++i_;
-  if (arg[0] == '-' && arg[1] != '\0')
+  if (!options_ended_ && arg[0] == '-' && arg[1] != '\0')
     return usage_error(std::string("unknown option '") + arg + "'");
   return usage_error(std::string("unexpected argument '") + arg + "'");
 }

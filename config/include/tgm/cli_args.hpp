@@ -22,8 +22,10 @@ class ArgReader {
   ArgReader(int argc, char** argv, std::string program);
 
   //! Arguments are left, none was malformed and --help was not given (what follows --help is
-  //! not read: `SUB --help --domain 999` printed the error and the help, then exited 0).
-  bool more() const { return i_ < argc_ && !failed_ && !help_; }
+  //! not read: `SUB --help --domain 999` printed the error and the help, then exited 0). The
+  //! first `--` is passed over and ends the options: what follows it is read as positionals
+  //! only, so a file named "-x.ngc" can be given as `-- -x.ngc`.
+  bool more();
   //! Consumes `name VALUE` or `name=VALUE`; true when the current argument was `name`. A
   //! missing or empty value is reported (failed() becomes true, `value` is left empty), as is a
   //! VALUE after a space that starts with "--" (the next flag: `--out --quiet`; such a value
@@ -87,6 +89,7 @@ class ArgReader {
   std::string program_;
   bool help_ = false;
   bool failed_ = false;
+  bool options_ended_ = false;           // `--` was read
   std::vector<std::string> given_;       // value flags read so far
   std::vector<std::string> repeatable_;  // repeatable(): may be given more than once
 };
