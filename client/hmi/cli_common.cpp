@@ -207,16 +207,26 @@ bool compile_packed(const std::string& file, const FileView& input, const Compil
   return true;
 }
 
-void CompensationNote::print(const std::string& file, bool intercode) const {
-  if (!seen_) return;
-  const std::string line = std::to_string(first_.line);
-  const std::string where = intercode ? file + " (source line " + line + ")" : file + ":" + line;
-  std::fprintf(stderr,
-               "%s: note: G%d (tool radius compensation) with radius 0 (tool T%d): the tool "
-               "centre follows the programmed contour; D<mm> on the G%d line, or a T with a "
-               "radius in the tool table, offsets it\n",
-               where.c_str(), static_cast<int>(first_.compensation), static_cast<int>(first_.tool),
-               static_cast<int>(first_.compensation));
+void ProgramNotes::print(const std::string& file, bool intercode) const {
+  const auto where = [&](std::int32_t line) {
+    return intercode ? file + " (source line " + std::to_string(line) + ")"
+                     : file + ":" + std::to_string(line);
+  };
+  if (compensation_seen_) {
+    std::fprintf(stderr,
+                 "%s: note: the first move under G%d (tool radius compensation) with radius 0 "
+                 "(tool T%d): the tool centre follows the programmed contour; D<mm> on the G%d "
+                 "line, or a T with a radius in the tool table, offsets it\n",
+                 where(compensation_.line).c_str(), static_cast<int>(compensation_.compensation),
+                 static_cast<int>(compensation_.tool),
+                 static_cast<int>(compensation_.compensation));
+  }
+  if (records_ && !ends_) {
+    std::fprintf(stderr,
+                 "%s: note: the program has no M2 or M30: it ends after this line's record, "
+                 "where the motion stops (a file cut short reads the same: is it whole?)\n",
+                 where(last_line_).c_str());
+  }
 }
 
 namespace {

@@ -1,6 +1,7 @@
 // Command-line plumbing shared by the tgm-hmi subcommands: flags, config loading, file I/O.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstdio>
 #include <optional>
@@ -76,29 +77,38 @@ bool same_point(const std::array<double, kMaxAxes>& a, const std::array<double, 
 //! if it is not intercode).
 bool is_intercode(const std::string& file, std::string_view bytes);
 
-//! G41/G42 at radius 0 (no D on the line and tool T0, or a table radius of 0) leaves the tool
-//! centre on the programmed contour: a program that moves so gets one note naming the first
-//! such record, so the user who asked for compensation is not misled (compile, simulate, run).
-class CompensationNote {
+//! Notes on a compiled program that is not wrong but may not be what its author meant,
+//! printed to standard error by compile, simulate and run:
+//! - G41/G42 at radius 0 (no D on the line and tool T0, or a table radius of 0) leaves the tool
+//!   centre on the programmed contour: one note names the first record that moves so, so the
+//!   user who asked for compensation is not misled;
+//! - a program without M2 or M30 just stops after its last record, which is also how a file
+//!   cut short by a post-processor that died reads: one note names that record's line.
+class ProgramNotes {
  public:
   void observe(const Segment& s) {
-    if (!seen_ && s.compensation != Compensation::kOff && s.compensation_radius_mm == 0.0 &&
-        s.is_motion()) {
-      seen_ = true;
-      first_ = s;
+    if (!compensation_seen_ && s.compensation != Compensation::kOff &&
+        s.compensation_radius_mm == 0.0 && s.is_motion()) {
+      compensation_seen_ = true;
+      compensation_ = s;
     }
+    if (s.type == SegmentType::kMFunction && s.m_kind == MKind::kProgramEnd) ends_ = true;
+    records_ = true;
+    last_line_ = std::max(last_line_, s.line);
   }
-  //! A record that moves with compensation on at radius 0 was observed (the ones after it do
-  //! not matter): the operator asked for G41/G42 and the tool path is the programmed one.
-  bool seen() const { return seen_; }
-  //! Prints the note to standard error (nothing when no such motion was observed), at
-  //! FILE:LINE, or for an `intercode` FILE at "FILE (source line LINE)": the line is one of the
-  //! G-code it was compiled from, not of the binary file.
+  //! Nothing a later record could change is left to observe.
+  bool complete() const { return compensation_seen_ && ends_; }
+  //! Prints the notes to standard error (nothing when there is nothing to note), at FILE:LINE,
+  //! or for an `intercode` FILE at "FILE (source line LINE)": the line is one of the G-code it
+  //! was compiled from, not of the binary file.
   void print(const std::string& file, bool intercode = false) const;
 
  private:
-  bool seen_ = false;
-  Segment first_{};
+  bool compensation_seen_ = false;
+  Segment compensation_{};
+  bool ends_ = false;
+  bool records_ = false;
+  std::int32_t last_line_ = 0;
 };
 
 //! FILE as the program of interpolator `ip` of `machine`, held as intercode (PackedProgram,

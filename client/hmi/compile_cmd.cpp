@@ -151,10 +151,10 @@ int inspect_intercode(Args& args, const std::string& file, const FileView& input
         static_cast<unsigned long long>(records), records == 1 ? "" : "s", ms, ms == 1 ? "" : "s",
         texts, texts == 1 ? "" : "s", out_path.empty() ? "" : " written to ", out_path.c_str());
   }
-  CompensationNote compensation;
+  ProgramNotes notes;
   auto cursor = program.cursor();
-  for (Segment seg; !compensation.seen() && cursor.next(seg);) compensation.observe(seg);
-  compensation.print(file, true);
+  for (Segment seg; !notes.complete() && cursor.next(seg);) notes.observe(seg);
+  notes.print(file, true);
   return 0;
 }
 
@@ -213,8 +213,8 @@ int run_compile(int argc, char** argv) {
   if (!out_path.empty() && !out.open(out_path, io_error)) {
     return args.usage_error("--out " + out_path + ": " + io_error);
   }
-  CompensationNote compensation;
-  const auto note = [&](const Segment& s) { compensation.observe(s); };
+  ProgramNotes notes;
+  const auto note = [&](const Segment& s) { notes.observe(s); };
   // After the diagnostics themselves: their number, and the exit code of a program with errors.
   const auto no_intercode = [&](std::size_t errors) {
     std::fprintf(stderr, "%s: %zu error%s, no intercode written\n", file.c_str(), errors,
@@ -244,7 +244,7 @@ int run_compile(int argc, char** argv) {
       return 1;
     }
     if (!dump_records(program, dump)) return 1;
-    compensation.print(file);
+    notes.print(file);
     return 0;
   }
   StreamedIntercode streamed(out, options.axis_letters, options.start_mm);
@@ -275,7 +275,7 @@ int run_compile(int argc, char** argv) {
                records, records == 1 ? "" : "s", ms, ms == 1 ? "" : "s", texts,
                texts == 1 ? "" : "s", from.c_str(), out_path.empty() ? "" : " written to ",
                out_path.c_str());
-  compensation.print(file);
+  notes.print(file);
   return 0;
 }
 

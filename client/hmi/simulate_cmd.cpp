@@ -317,7 +317,7 @@ int run_simulate(int argc, char** argv) {
   // Held as intercode: a program of millions of lines took 152 bytes a record as Segments.
   PackedProgram program;
   bool intercode = false;
-  CompensationNote note;
+  ProgramNotes note;
   if (!load_packed(file, machine, ip_index, program, &start, &intercode,
                    [&note](const Segment& s) { note.observe(s); }))
     return 2;
@@ -581,8 +581,9 @@ int run_simulate(int argc, char** argv) {
   std::FILE* const report =
       csv_path == "-" || blocks_path == "-" || la_path == "-" ? stderr : stdout;
   const bool finished = sum.result == StepResult::kFinished;
-  std::fprintf(report, "program:   %s (%zu records, interpolator %d, %d us cycle)\n", file.c_str(),
-               static_cast<std::size_t>(program.size()), ip_index, machine.cycle_time_us);
+  const auto records = static_cast<std::size_t>(program.size());
+  std::fprintf(report, "program:   %s (%zu record%s, interpolator %d, %d us cycle)\n", file.c_str(),
+               records, records == 1 ? "" : "s", ip_index, machine.cycle_time_us);
   const std::string why =
       output_failed ? std::string("stopped: an output file could not be written (below)")
       : interrupted != 0

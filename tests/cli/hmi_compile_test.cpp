@@ -67,7 +67,8 @@ TEST_F(HmiCompile, ExampleProgramWritesIntercodeEqualToTheInProcessEncoding) {
 // no note.
 TEST_F(HmiCompile, CompensationIsAppliedAndRadiusZeroIsNotedOnce) {
   const std::string note =
-      "note: G42 (tool radius compensation) with radius 0 (tool T0): the tool centre follows the "
+      "note: the first move under G42 (tool radius compensation) with radius 0 (tool T0): the tool "
+      "centre follows the "
       "programmed contour; D<mm> on the G42 line, or a T with a radius in the tool table, "
       "offsets it";
   const ProcessResult ex =
@@ -91,7 +92,8 @@ TEST_F(HmiCompile, CompensationIsAppliedAndRadiusZeroIsNotedOnce) {
       // the binary file's.
       const std::string where = prog == tgmi ? " (source line 4)" : ":4";
       EXPECT_NE(r.err.find(prog.filename().string() + where +
-                           ": note: G41 (tool radius compensation) with radius 0 (tool T0)"),
+                           ": note: the first move under G41 (tool radius compensation) with "
+                           "radius 0 (tool T0)"),
                 std::string::npos)
           << cmd << r.err;
     }
@@ -380,7 +382,8 @@ TEST_F(HmiCompile, IntercodeGivenAsTheProgramIsReadAsIntercode) {
   const std::string bytes = slurp(tgmi);
   const fs::path renamed = write("ex.bin", bytes);
   const std::string note =
-      " (source line 4): note: G42 (tool radius compensation) with radius 0 (tool T0): the tool "
+      " (source line 4): note: the first move under G42 (tool radius compensation) with radius 0 "
+      "(tool T0): the tool "
       "centre follows the programmed contour; D<mm> on the G42 line, or a T with a radius in the "
       "tool table, offsets it\n";
   r = run("compile " + renamed.string() + " --config " + kConfig);
@@ -532,6 +535,73 @@ TEST_F(HmiCompile, HelpIsPrintedAndSucceeds) {
   r = run("compile --help");
   EXPECT_EQ(r.exit_code, 0);
   EXPECT_NE(r.out.find("usage: tgm-hmi compile FILE"), std::string::npos);
+  // `help COMMAND` is `COMMAND --help` (it printed the general usage).
+  for (const char* cmd : {"compile", "simulate"}) {
+    r = run(std::string("help ") + cmd);
+    EXPECT_EQ(r.exit_code, 0) << cmd << r.err;
+    EXPECT_EQ(r.out.rfind(std::string("usage: tgm-hmi ") + cmd + " FILE", 0), 0u) << r.out;
+  }
+  r = run("help compyle");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.err.rfind("tgm-hmi help: unknown command 'compyle'", 0), 0u) << r.err;
+  r = run("help compile simulate");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("takes one command, not 'simulate'"), std::string::npos) << r.err;
+}
+
+// `--` ends the options: a program named "-x.ngc" follows it (it was "unknown option '--'"),
+// and a flag after it is a file name, not a flag.
+TEST_F(HmiCompile, DoubleDashEndsTheOptions) {
+  write("-x.ngc", "G90 G1 X1 F600\nM2\n");
+  ProcessResult r = run("compile --config " + std::string(kConfig) + " -- -x.ngc",
+                        "cd " + dir_.string() + " && ");
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("-x.ngc: 2 records"), std::string::npos) << r.err;
+  r = run("simulate -- -x.ngc --config " + std::string(kConfig), "cd " + dir_.string() + " && ");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("unexpected argument '--config'"), std::string::npos) << r.err;
+  r = run("compile -- --help");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--help: error: cannot open"), std::string::npos) << r.err;
+  // Without it, a name that starts with - is still an option.
+  r = run("compile -x.ngc", "cd " + dir_.string() + " && ");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("unknown option '-x.ngc'"), std::string::npos) << r.err;
+}
+
+// A program without M2 or M30 stops after its last record, as a file that a post-processor
+// left cut short at a line does: compile, simulate and a .tgmi of it note the line; a program
+// with an end does not get the note.
+TEST_F(HmiCompile, AProgramWithoutM2OrM30IsNoted) {
+  const fs::path cut = write("cut.ngc", "G90\nG1 X10 F600\n\nG1 Y10\n(rest lost)\n");
+  const fs::path tgmi = dir_ / "cut.tgmi";
+  ASSERT_EQ(
+      run("compile " + cut.string() + " --config " + kConfig + " --out " + tgmi.string()).exit_code,
+      0);
+  const std::string note =
+      ": note: the program has no M2 or M30: it ends after this line's record, where the motion "
+      "stops (a file cut short reads the same: is it whole?)";
+  for (const fs::path& prog : {cut, tgmi}) {
+    for (const char* cmd : {"compile ", "simulate ", "compile --dump text "}) {
+      const ProcessResult r = run(cmd + prog.string() + " --config " + kConfig);
+      ASSERT_EQ(r.exit_code, 0) << cmd << r.err;
+      const std::string where = prog == tgmi ? " (source line 4)" : ":4";
+      EXPECT_NE(r.err.find(prog.filename().string() + where + note), std::string::npos)
+          << cmd << prog << r.err;
+    }
+  }
+  for (const char* end : {"M2", "M30"}) {
+    const fs::path whole = write("whole.ngc", std::string("G90\nG1 X10 F600\n") + end + "\n");
+    for (const char* cmd : {"compile ", "simulate "}) {
+      const ProcessResult r = run(cmd + whole.string() + " --config " + kConfig);
+      ASSERT_EQ(r.exit_code, 0) << cmd << r.err;
+      EXPECT_EQ(r.err.find("note:"), std::string::npos) << cmd << end << r.err;
+    }
+  }
+  // One record: "1 record" (it said "1 records").
+  const fs::path one = write("one.ngc", "G1 X1 F600\n");
+  const ProcessResult r = run("simulate " + one.string() + " --config " + kConfig);
+  EXPECT_NE(r.out.find("(1 record, interpolator 0"), std::string::npos) << r.out;
 }
 
 }  // namespace
