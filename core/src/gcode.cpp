@@ -773,6 +773,14 @@ void Compiler::check_block_static(Block& b) {
               std::string("M29 message is not UTF-8 text (byte ") + buf +
                   "): save the program as UTF-8");
         b.valid = false;
+      } else if (const std::size_t ctl = control_char_at(text); ctl != std::string_view::npos) {
+        char buf[16];
+        std::snprintf(buf, sizeof buf, "0x%02X", static_cast<unsigned char>(text[ctl]));
+        error(b.line, static_cast<std::uint32_t>(b.comment_offset + ctl - b.begin + 1),
+              std::string("M29 message holds the control character ") + buf +
+                  ": an HMI shows the text as it is, so only printable text (and tabs) may "
+                  "be in it");
+        b.valid = false;
       }
     }
     if (!plc && m == 29 && b.has_comment && b.comment_length > kMaxMessageBytes) {

@@ -586,6 +586,9 @@ bool decode_checked(std::string_view file, Program& out, std::string& error, boo
       return fail("a message is longer than " + std::to_string(kMaxMessageBytes) + " bytes");
     }
     if (utf8_invalid_at(m) != std::string_view::npos) return fail("a message that is not UTF-8 text");
+    if (control_char_at(m) != std::string_view::npos) {
+      return fail("a message with a control character");
+    }
   }
   if (!in.at_end()) return fail("trailing bytes after the message table");
   out = std::move(p);

@@ -844,6 +844,9 @@ TEST(Requests, BadRecordsAreNamedWithRecordLineAndReason) {
   pf.segments[0].aux = 0;
   r = ip->load(pf);
   EXPECT_EQ(r.reason, "record 0 (line 1): message longer than 255 bytes");
+  pf.messages[0] = "bell\x07";
+  r = ip->load(pf);
+  EXPECT_EQ(r.reason, "record 0 (line 1): message holds a control character");
   EXPECT_EQ(ip->registers().free_slots, m.interpolators[0].buffer_size);
 }
 

@@ -1014,10 +1014,14 @@ TEST(Intercode, AWindowHoldsTheRecordsAskedForWhereverTheyStart) {
 // Both dumps of every record kind the example program lacks: a continuous M-function, M0, an
 // M-function with parameters, a message whose comment holds a quote, a backslash, a tab and a
 // control character (JSON-escaped in the jsonl dump, as written in the text dump) and a dwell.
+// The compiler and the intercode reader refuse a control character in a message: it is put in
+// by hand, as a program made in memory could hold it.
 TEST(Intercode, DumpsShowEveryRecordKind) {
-  const Program p = compile_ok(
-      "G90 T1 G1 X1 F100\nM1003\nM0\nM3 S1200 Q2.5\nM29 (say \"hi\" \\ back\ttab\001x)\nG4 "
+  Program p = compile_ok(
+      "G90 T1 G1 X1 F100\nM1003\nM0\nM3 S1200 Q2.5\nM29 (say \"hi\" \\ back\ttab)\nG4 "
       "P0.25\nM2\n");
+  ASSERT_EQ(p.messages.size(), 1u);
+  p.messages[0] += "\001x";
   std::string jsonl, text;
   dump_jsonl(p, jsonl);
   dump_text(p, text);
@@ -1090,6 +1094,23 @@ TEST(GcodeErrors, AnM29TextThatIsNotUtf8IsRefusedAtItsByte) {
   EXPECT_THAT(errors_of("M29 (caf\xc3\xa9 au lait)\nM2\n"), ElementsAre());
 }
 
+// Control characters in an M29 text reached every HMI's terminal as they were: an escape
+// sequence, a bell. Refused at the byte; a tab is text.
+TEST(GcodeErrors, AnM29TextWithAControlCharacterIsRefusedAtIt) {
+  EXPECT_THAT(errors_of("G90\nM29 (tool \x1b[2Jchange)\nM2\n"),
+              ElementsAre("2:11: M29 message holds the control character 0x1B: an HMI shows the "
+                          "text as it is, so only printable text (and tabs) may be in it"));
+  EXPECT_THAT(
+      errors_of("M29 (ring\x07)\nM2\n"),
+      ElementsAre(testing::StartsWith("1:10: M29 message holds the control character 0x07")));
+  EXPECT_THAT(
+      errors_of("M29 (del\x7f)\nM2\n"),
+      ElementsAre(testing::StartsWith("1:9: M29 message holds the control character 0x7F")));
+  EXPECT_THAT(errors_of("M29 (tool\tchange)\nM2\n"), ElementsAre());
+  EXPECT_EQ(control_char_at("a\tb \xe2\x82\xac"), std::string_view::npos);
+  EXPECT_EQ(control_char_at("ab\r"), 2u);
+}
+
 // Intercode that encodes but does not describe a program is refused with the record and the
 // reason: negative sizes, and M or message records whose side-table entry is not there.
 TEST(Intercode, DecodeRefusesOutOfRangeValuesAndMissingSideTableEntries) {
@@ -1124,8 +1145,7 @@ TEST(Intercode, DecodeRefusesOutOfRangeValuesAndMissingSideTableEntries) {
        "value out of range in record 3"},
       {"negative line", [](Program& p) { p.segments[0].line = -5; },
        "value out of range in record 0"},
-      {"M3 as a program end",
-       [](Program& p) { p.segments[2].m_kind = MKind::kProgramEnd; },
+      {"M3 as a program end", [](Program& p) { p.segments[2].m_kind = MKind::kProgramEnd; },
        "M-function kind does not match its number in record 2"},
       {"M3 as a continuous M-function",
        [](Program& p) { p.segments[2].m_kind = MKind::kContinuous; },
@@ -1135,6 +1155,8 @@ TEST(Intercode, DecodeRefusesOutOfRangeValuesAndMissingSideTableEntries) {
        "a parameter that is not a finite number"},
       {"a message in cp1252", [](Program& p) { p.messages[0] = "caf\xe9"; },
        "a message that is not UTF-8 text"},
+      {"a message with an escape sequence", [](Program& p) { p.messages[0] = "\x1b[31mred"; },
+       "a message with a control character"},
       {"control characters for letters", [](Program& p) { p.axis_letters = "X\x01\""; },
        "axis letters must be distinct letters A..Z, not 'X\\x01\"'"},
       {"a letter twice", [](Program& p) { p.axis_letters = "XYX"; },

@@ -89,6 +89,17 @@ inline std::size_t utf8_invalid_at(std::string_view s) {
   return std::string_view::npos;
 }
 
+//! Offset of the first control character of `s` (a byte below 0x20 other than a tab, or DEL);
+//! npos when it has none. Message texts are shown on terminals and panels: an escape sequence
+//! or a bell in an M29 text reached every HMI as it was.
+inline std::size_t control_char_at(std::string_view s) {
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    const auto c = static_cast<unsigned char>(s[i]);
+    if ((c < 0x20 && c != '\t') || c == 0x7f) return i;
+  }
+  return std::string_view::npos;
+}
+
 //! Appends `s` as a JSON string: quotes, backslashes and control characters escaped, UTF-8 as
 //! it is, and each byte that is not well-formed UTF-8 as U+FFFD (JSON is UTF-8: a raw 0xFF made
 //! a line no JSON parser reads).

@@ -760,6 +760,10 @@ struct Interpolator::Impl {
         utf8_invalid_at(p.messages[static_cast<std::size_t>(sg.aux)]) != std::string_view::npos) {
       return {"message is not UTF-8 text"};
     }
+    if (sg.type == SegmentType::kMessage &&
+        control_char_at(p.messages[static_cast<std::size_t>(sg.aux)]) != std::string_view::npos) {
+      return {"message holds a control character"};
+    }
     return {};
   }
 
