@@ -160,6 +160,11 @@ class Compiler {
     error_repeats_.push_back(0);
   }
 
+  // Turns the byte columns of errors_ (sorted by line) into character columns, as editors
+  // count them: an error after an 'ä' on its line was one column further right than shown.
+  // One pass over the source, with lex()'s line ends; a byte that is not UTF-8 is one column.
+  void to_character_columns();
+
   // --- pass 1
   void lex();
   void lex_line(std::size_t begin, std::size_t end, std::int32_t line);
@@ -564,6 +569,20 @@ bool Compiler::lex_words(Block& b) {
                       "to run it");
       } else if (uc >= 0x21 && uc < 0x7f) {
         std::snprintf(buf, sizeof buf, "unexpected character '%c'", c);
+      } else if (const std::size_t n = utf8_sequence_length(src_.substr(i, end - i)); n > 1) {
+        // A letter of another alphabet or a symbol, named as an editor shows it: it was
+        // "unexpected byte 0xC3" for an 'ä'. One an editor does not show (C1 controls, spaces
+        // and marks of no width, a byte-order mark inside the text) by its code point alone.
+        const unsigned cp = utf8_code_point(src_.substr(i, n));
+        const bool invisible = cp <= 0x9F || cp == 0xA0 || cp == 0xAD || cp == 0xFEFF ||
+                               (cp >= 0x2000 && cp <= 0x200F) || (cp >= 0x2028 && cp <= 0x202F) ||
+                               (cp >= 0x205F && cp <= 0x206F);
+        if (invisible) {
+          std::snprintf(buf, sizeof buf, "unexpected invisible character U+%04X", cp);
+        } else {
+          std::snprintf(buf, sizeof buf, "unexpected character '%.*s' (U+%04X)",
+                        static_cast<int>(n), src_.data() + i, cp);
+        }
       } else {
         std::snprintf(buf, sizeof buf, "unexpected byte 0x%02X", uc);
       }
@@ -1374,6 +1393,46 @@ void Compiler::execute() {
   }
 }
 
+void Compiler::to_character_columns() {
+  std::size_t begin = src_.compare(0, 3, "\xEF\xBB\xBF") == 0 ? 3 : 0;
+  const std::size_t n = src_.size();
+  std::int32_t line = 1;
+  std::size_t end = 0;  // of line `line`
+  bool end_known = false;
+  const auto line_end = [&] {
+    const void* nl = std::memchr(src_.data() + begin, '\n', n - begin);
+    std::size_t e = nl ? static_cast<std::size_t>(static_cast<const char*>(nl) - src_.data()) : n;
+    if (e - begin > 1) {
+      if (const void* cr = std::memchr(src_.data() + begin, '\r', e - begin - 1)) {
+        e = static_cast<std::size_t>(static_cast<const char*>(cr) - src_.data());
+      }
+    }
+    return e;
+  };
+  for (Diagnostic& d : errors_) {
+    if (d.line < line || d.column < 1) continue;  // no place, or not in order
+    while (line < d.line && begin < n) {
+      begin = (end_known ? end : line_end()) + 1;
+      end_known = false;
+      ++line;
+    }
+    if (line != d.line || begin >= n) continue;
+    if (!end_known) {
+      end = line_end();
+      end_known = true;
+    }
+    const std::size_t at = begin + static_cast<std::size_t>(d.column) - 1;
+    std::size_t chars = 0;
+    std::size_t i = begin;
+    while (i < at && i < end) {
+      const std::size_t len = utf8_sequence_length(src_.substr(i, end - i));
+      i += len == 0 ? 1 : len;
+      ++chars;
+    }
+    d.column = static_cast<int>(chars + (at > i ? at - i : 0) + 1);
+  }
+}
+
 CompileResult Compiler::run() {
   CompileResult result;
   n_axes_ = static_cast<int>(opt_.axis_letters.size());
@@ -1465,6 +1524,7 @@ CompileResult Compiler::run() {
                               return a.line == b.line && a.column == b.column && a.reason == b.reason;
                             }),
                 errors_.end());
+  to_character_columns();
   result.errors_not_shown = suppressed_;
   if (suppressed_ > 0) {
     // Line 0: no place (format_diagnostic then names the file only).

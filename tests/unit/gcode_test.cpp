@@ -167,7 +167,7 @@ TEST(Gcode, EveryKindOfLineEndAndAByteOrderMark) {
   EXPECT_THAT(errors_of("G90\rG1 X1 Q2\r"), ::testing::ElementsAre("2:7: unknown word 'Q2'"));
   // A mark anywhere else is a byte like any other.
   EXPECT_THAT(errors_of("G90\n\xEF\xBB\xBFG1 X1\n"),
-              ::testing::ElementsAre("2:1: unexpected byte 0xEF"));
+              ::testing::ElementsAre("2:1: unexpected invisible character U+FEFF"));
 }
 
 TEST(Gcode, DistanceModesAndModalMotion) {
@@ -1092,6 +1092,28 @@ TEST(GcodeErrors, AnM29TextThatIsNotUtf8IsRefusedAtItsByte) {
               ElementsAre("2:9: M29 message is not UTF-8 text (byte 0xE9): save the program as "
                           "UTF-8"));
   EXPECT_THAT(errors_of("M29 (caf\xc3\xa9 au lait)\nM2\n"), ElementsAre());
+}
+
+// Columns count characters, as editors do (they counted bytes: an error after "(äöü)" was
+// three columns further right than an editor shows it), also after a byte-order mark, with
+// CR LF line ends, in the second pass and on the lines after; a byte that is not UTF-8 counts
+// one. A letter of another alphabet is named, not its first byte.
+TEST(GcodeErrors, ColumnsCountCharactersAndForeignLettersAreNamed) {
+  EXPECT_THAT(errors_of("G90\n(\xc3\xa4\xc3\xb6\xc3\xbc) G1 X\nM2\n"),
+              ElementsAre("2:10: word X needs a number"));
+  EXPECT_THAT(errors_of("G90\nG1 X1 \xc3\xa4\nM2\n"),
+              ElementsAre("2:7: unexpected character '\xc3\xa4' (U+00E4)"));
+  EXPECT_THAT(errors_of("G90\nG1 X1\xc2\xa0Y1\nM2\n"),  // a no-break space
+              ElementsAre("2:6: unexpected invisible character U+00A0"));
+  EXPECT_THAT(errors_of("\xef\xbb\xbf(\xe2\x82\xac\xf0\x9f\x98\x80) G1 X\xe9 Y1 \xe2\x82\xac\r\n"
+                        "(\xc3\xa4) G1 Y\r\nM2\r\n"),
+              ElementsAre("1:9: word X needs a number, not '\\xE9'",
+                          "1:15: unexpected character '\xe2\x82\xac' (U+20AC)",
+                          "2:8: word Y needs a number"));
+  // Pass 2: a subroutine's error on a line with a multi-byte comment.
+  EXPECT_THAT(errors_of("G91\nG26 L5 K1\nM2\nG29 L5\n(\xc3\xa4) G0 X600000000\n"
+                        "(\xc3\xa4\xc3\xa4) G0 X600000000\nM17\n"),
+              ElementsAre(testing::StartsWith("6:9: end point X1200000000 is beyond")));
 }
 
 // Control characters in an M29 text reached every HMI's terminal as they were: an escape

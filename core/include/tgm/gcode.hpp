@@ -15,7 +15,8 @@ namespace tgm {
 //! One compile error at a place in the source.
 struct Diagnostic {
   int line = 0;    //!< 1-based source line; 0: at no place (the options, the count of the rest)
-  int column = 0;  //!< 1-based column of the offending text
+  int column = 0;  //!< 1-based column of the offending text, in characters as editors count
+                   //!< them (a UTF-8 sequence is one, a byte that is not UTF-8 one)
   std::string reason;
 };
 

@@ -79,6 +79,27 @@ inline std::size_t utf8_sequence_length(std::string_view s) {
   return n;
 }
 
+//! The code point of `s`, a whole well-formed UTF-8 sequence (utf8_sequence_length(s) ==
+//! s.size()).
+inline unsigned utf8_code_point(std::string_view s) {
+  const auto b = [&](std::size_t i) {
+    return static_cast<unsigned>(static_cast<unsigned char>(s[i]));
+  };
+  switch (s.size()) {
+    case 1:
+      return b(0);
+    case 2:
+      return ((b(0) & 0x1Fu) << 6) | (b(1) & 0x3Fu);
+    case 3:
+      return ((b(0) & 0x0Fu) << 12) | ((b(1) & 0x3Fu) << 6) | (b(2) & 0x3Fu);
+    case 4:
+      return ((b(0) & 0x07u) << 18) | ((b(1) & 0x3Fu) << 12) | ((b(2) & 0x3Fu) << 6) |
+             (b(3) & 0x3Fu);
+    default:
+      return 0xFFFDu;
+  }
+}
+
 //! Offset of the first byte of `s` that is not well-formed UTF-8; npos when all of it is.
 inline std::size_t utf8_invalid_at(std::string_view s) {
   for (std::size_t i = 0; i < s.size();) {
