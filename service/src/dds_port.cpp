@@ -158,8 +158,14 @@ DdsPort::DdsPort(const DdsConfig& config, const DdsPortOptions& options)
     chunk_pool_.back()->program.segments.reserve(mapping::kMaxChunkSegments);
     free_chunks_.push(chunk_pool_.back().get());
   }
+  // What came before the listener is taken before the listener is set, never after: Fast DDS
+  // calls on_data_available holding the reader's lock, and take_states takes the reader's lock
+  // under state_watch_mutex_, so a take here while a sample's callback ran was a lock-order
+  // deadlock that hung the start for good, deaf to SIGTERM (review of session 80: a service
+  // started while another published). A sample between the two is taken with the next one,
+  // which another service publishes within its state period.
+  take_states();
   state_reader_.set_listener(&state_watch_, fdds::StatusMask::data_available());
-  take_states();  // what came before the listener
   // Discovery only (no status: the readers' and writers' own listeners or WaitSets keep those),
   // from here on: a tgm-plc already running is then seen while the service looks for another.
   participant_.get().set_listener(&peer_watch_, fdds::StatusMask::none());
