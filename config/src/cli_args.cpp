@@ -101,7 +101,12 @@ bool ArgReader::distinct_files(const std::vector<NamedFile>& inputs,
     if (out.path.empty()) continue;
     for (std::size_t k = 0; k < seen.size(); ++k) {
       const NamedFile& other = *seen[k];
-      if (!same_file(out.path, other.path)) continue;
+      // "-" is standard input as an input and standard output as an output: two different
+      // streams (`post | tgm-hmi simulate - --csv - | plot` was refused), but one stream for
+      // two outputs.
+      const bool dash = out.path == "-" || other.path == "-";
+      if (dash ? !(out.path == other.path && k >= input_count) : !same_file(out.path, other.path))
+        continue;
       usage_error(std::string(out.what) + " '" + out.path + "' is the same file as " + other.what +
                   " '" + other.path + "'" +
                   (k < input_count ? ": writing it would destroy the input"

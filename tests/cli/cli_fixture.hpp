@@ -45,11 +45,13 @@ class CliTest : public ::testing::Test {
     return p;
   }
 
-  //! `tgm-hmi ARGS`, waited for; `shell_before` runs first in the same shell (e.g. a ulimit).
-  ProcessResult run(const std::string& args, const std::string& shell_before = "") {
+  //! `tgm-hmi ARGS`, waited for; `shell_before` runs first in the same shell (e.g. a ulimit);
+  //! standard input is `stdin_from` (default: /dev/null).
+  ProcessResult run(const std::string& args, const std::string& shell_before = "",
+                    const std::string& stdin_from = "/dev/null") {
     const fs::path out = dir_ / "stdout", err = dir_ / "stderr";
     const std::string cmd = shell_before + std::string(TGM_HMI) + " " + args + " >" + out.string() +
-                            " 2>" + err.string() + " </dev/null";
+                            " 2>" + err.string() + " <" + stdin_from;
     const int status = std::system(cmd.c_str());
     ProcessResult r;
     r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;

@@ -167,6 +167,19 @@ TEST_F(HmiSimulate, AnOutputNamedDashIsStandardOutputAndTheSummaryMovesToStandar
   const ProcessResult both = run(base + " --csv - --blocks -");
   EXPECT_EQ(both.exit_code, 2);
   EXPECT_NE(both.err.find("both outputs would be written into it"), std::string::npos) << both.err;
+  // The program from standard input and the CSV to standard output, for a pipe: "-" as FILE
+  // and "-" as an output are two streams (it was refused as the same file).
+  for (const char* out : {" --csv -", " --blocks -"}) {
+    const ProcessResult piped =
+        run("simulate - --config " + std::string(kConfig) + out, "", kExample);
+    ASSERT_EQ(piped.exit_code, 0) << out << piped.err;
+    EXPECT_EQ(piped.out, out == std::string(" --csv -") ? csv.out : blocks.out) << out;
+  }
+  const ProcessResult piped_both =
+      run("simulate - --config " + std::string(kConfig) + " --csv - --blocks -", "", kExample);
+  EXPECT_EQ(piped_both.exit_code, 2);
+  EXPECT_NE(piped_both.err.find("both outputs would be written into it"), std::string::npos)
+      << piped_both.err;
 }
 
 TEST_F(HmiSimulate, OverrideStretchesAFeedLimitedLine) {
