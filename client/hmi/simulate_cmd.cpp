@@ -38,7 +38,7 @@ constexpr const char* kUsage =
     "[--blocks OUT]\n"
     "                             [--spline POINTS,JERK] [--iir P,Q,F,MASK] [--lookahead OUT]\n"
     "                             [--stop-at T[:CODE],...] [--restart-after S] [--max-time S]\n"
-    "                             [--start X..,Y..]\n"
+    "                             [--start X..,Y..] [--progress-interval S] [--quiet]\n"
     "\n"
     "Compiles FILE (G-code, or intercode written by `tgm-hmi compile --out`, *.tgmi or known by\n"
     "its first bytes; - reads standard input) and runs it through interpolator N (default 0)\n"
