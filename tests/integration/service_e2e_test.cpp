@@ -2628,6 +2628,31 @@ TEST(ServiceProcesses, HmiRunEndsWhenAnotherHmiClearsItsProgram) {
       << run.log();
 }
 
+// A new run clears a program that stands unfinished (here: stopped at its M51): it says so,
+// with the program and where it stood (it dropped it without a word), and the run that
+// followed it hears that it was cleared.
+TEST(ServiceProcesses, HmiRunSaysItClearsAnUnfinishedProgram) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  test::Child first;
+  client::Client hmi(env.dds(), client::Role::kHmi);
+  ASSERT_NO_FATAL_FAILURE(run_until_m51(env, first, hmi));
+  const std::uint32_t held = hmi.state(0)->program_id();
+  ASSERT_NO_FATAL_FAILURE(stop_until_standing(hmi));
+  std::ofstream(env.path("next.ngc")) << "G90 G1 X0 F600\nM2\n";
+  test::Child second;
+  ASSERT_TRUE(second.start({TGM_HMI_BIN, "run", env.path("next.ngc"), "--config", env.config(),
+                            "--quiet", "--timeout", "60"},
+                           env.path("second.log")));
+  EXPECT_EQ(second.wait(kHang), 0) << second.log();
+  EXPECT_NE(second.log().find("tgm-hmi run: interpolator 0 held program " + std::to_string(held) +
+                              ", not finished (ready at line 2): cleared for this one\n"),
+            std::string::npos)
+      << second.log();
+  EXPECT_EQ(first.wait(kHang), 1) << first.log();
+  EXPECT_NE(first.log().find("cleared by someone else"), std::string::npos) << first.log();
+}
+
 // A position set (Command 2048, the PLC's) while the program stands after a stop dropped the
 // program behind an "accepted" (the run then said so and exited 1). It is refused now, with
 // what to do, and the run's program stays loaded: a start resumes it

@@ -426,10 +426,23 @@ int run_run(int argc, char** argv) {
     return 2;
   }
   if (st->status() != 0) {
+    // A program that did not end (stopped, in an underrun, after an emergency stop) is
+    // dropped by the clear: said, with where it stood, since another HMI may still follow it
+    // or its sender may have died half-way (the clear dropped it without a word).
+    const bool unfinished = st->status() != 3 && st->program_id() != 0;
+    const std::uint32_t held = st->program_id();
+    const int held_line = st->act_line();
+    const std::string held_status(client::status_name(st->status()));
     const client::Reply r = hmi->clear(ip, kFirstRequestTimeout, &g_interrupted);
     if (!r.accepted) {
       std::fprintf(stderr, "tgm-hmi run: clearing interpolator %d: %s\n", ip, client::describe(r).c_str());
       return r.cancelled ? 130 : 1;
+    }
+    if (unfinished) {
+      std::fprintf(stderr,
+                   "tgm-hmi run: interpolator %d held program %u, not finished (%s at line %d): "
+                   "cleared for this one\n",
+                   ip, held, held_status.c_str(), held_line);
     }
   }
 
