@@ -1225,11 +1225,15 @@ TEST(ServiceProcesses, HmiRunEndsAtAnEmergencyStopOffTheTrajectory) {
 // once it runs past part 100. From this process (watch): a `tgm-hmi command` under
 // AddressSanitizer may take seconds to start, and the stream could be complete by then.
 void run_into_an_emergency_stop(ServiceEnv& env, int records, test::Child& hmi,
-                                client::Client& watch) {
+                                client::Client& watch, bool quiet = true) {
   write_tenth_steps(env.path("long.ngc"), records, 3000);
-  ASSERT_TRUE(
-      hmi.start({TGM_HMI_BIN, "run", env.path("long.ngc"), "--config", env.config(), "--quiet"},
-                env.path("hmi.log")));
+  std::vector<std::string> args{TGM_HMI_BIN, "run", env.path("long.ngc"), "--config", env.config()};
+  if (quiet) {
+    args.emplace_back("--quiet");
+  } else {
+    args.insert(args.end(), {"--progress-interval", "0.1"});
+  }
+  ASSERT_TRUE(hmi.start(args, env.path("hmi.log")));
   ASSERT_TRUE(watch.wait_until(
       0, [](const msg::InterpolatorState& s) { return s.status() == 1 && s.act_part() > 100; },
       kHang))
@@ -1251,9 +1255,11 @@ TEST(ServiceProcesses, HmiRunStreamsOnAfterAnEmergencyStopOnTheTrajectory) {
   constexpr int kRecords = 5000;
   test::Child hmi;
   client::Client watch(env.dds(), client::Role::kHmi);
-  ASSERT_NO_FATAL_FAILURE(run_into_an_emergency_stop(env, kRecords, hmi, watch));
+  ASSERT_NO_FATAL_FAILURE(run_into_an_emergency_stop(env, kRecords, hmi, watch, false));
   ASSERT_TRUE(watch.wait_until(
       0, [](const msg::InterpolatorState& s) { return s.status() == 7; }, kHang));
+  // The progress display goes on through the hold, saying so (it froze until the start).
+  ASSERT_TRUE(hmi.wait_for_log(" F0 emergency stopped\n", kHang)) << hmi.log();
   // Records are still to be sent, and the run is still there to send them.
   EXPECT_LT(watch.state(0)->next_sequence(), static_cast<std::uint64_t>(kRecords));
   EXPECT_EQ(watch.state(0)->off_trajectory(), false);

@@ -500,8 +500,13 @@ int run_run(int argc, char** argv) {
   // Said once; the run goes on if the service comes back.
   client::SilenceWatch silence(3s);
   dds::MalformedWatch malformed;
+  // Flushed: what follows goes to standard error, and a terminal's line-buffered standard
+  // output held the "\r\033[K" back, so the message was appended to the progress line.
   auto clear_progress = [&] {
-    if (tty && progress_shown) std::printf("\r\033[K");
+    if (tty && progress_shown) {
+      std::printf("\r\033[K");
+      std::fflush(stdout);
+    }
     progress_shown = false;
   };
   // The normal stop that ends the run, repeated until the service answers it. Tried once, a
@@ -728,7 +733,10 @@ int run_run(int argc, char** argv) {
       exit_code = 1;
       break;
     }
-    if (status == InterpolatorStatus::kEmergencyRamp) continue;
+    // An emergency stop on the trajectory holds the program (start resumes it): the run goes
+    // on showing its progress, "emergency stopped" (the display froze for the whole hold).
+    const bool estop_hold = status == InterpolatorStatus::kEmergencyRamp ||
+                            status == InterpolatorStatus::kEmergencyStopped;
     if (status == InterpolatorStatus::kEmergencyStopped) {
       // The Command register is back at 0 once the ramp has ended: the trajectory tells 4 from 5.
       if (st->off_trajectory()) {
@@ -761,13 +769,14 @@ int run_run(int argc, char** argv) {
             st->act_line());
         std::fflush(stdout);
       }
-      continue;
     }
     if (status == InterpolatorStatus::kUnderrun && st->buffered_segments() > 0) {
       fresh_after = hmi->start(ip).cycle;  // the buffer ran empty and got more: go on
       continue;
     }
-    if (status == InterpolatorStatus::kReady) {
+    if (estop_hold) {
+      // (stop_reported stays: the hold was said once)
+    } else if (status == InterpolatorStatus::kReady) {
       // Standing at an M0 (program_stop), not stopped by a stop command: start continues it.
       const bool at_m0 = st->program_stop();
       if (at_m0) {
