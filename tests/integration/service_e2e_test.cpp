@@ -2659,6 +2659,32 @@ TEST(ServiceProcesses, HmiRunSaysItClearsAnUnfinishedProgram) {
   EXPECT_NE(first.log().find("cleared by someone else"), std::string::npos) << first.log();
 }
 
+// `status` after a stop off the trajectory: "the program was dropped" only where one was
+// loaded; on an empty interpolator it said so too, of a program that never was.
+TEST(ServiceProcesses, StatusSaysAProgramWasDroppedOnlyWhenOneWas) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  client::Client hmi(env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(hmi.command(0, 9).accepted);
+  ASSERT_TRUE(hmi.wait_until(
+      0, [](const msg::InterpolatorState& s) { return s.off_trajectory(); }, kHang));
+  const std::string status = "'" TGM_HMI_BIN "' status --config '" + env.config() + "'";
+  const test::ShellRun empty = test::run_shell(status, env.path(""), "status-empty");
+  EXPECT_EQ(empty.exit_code, 0) << empty.err;
+  EXPECT_NE(empty.out.find("Status 0 (empty, off the trajectory: no program; load one or set the "
+                           "position)"),
+            std::string::npos)
+      << empty.out;
+  test::Child run;
+  ASSERT_NO_FATAL_FAILURE(run_until_m51(env, run, hmi));
+  ASSERT_NO_FATAL_FAILURE(stop_until_standing(hmi));
+  ASSERT_TRUE(hmi.command(0, 9).accepted);
+  EXPECT_EQ(run.wait(kHang), 1) << run.log();
+  const test::ShellRun dropped = test::run_shell(status, env.path(""), "status-dropped");
+  EXPECT_NE(dropped.out.find("off the trajectory: the program was dropped)"), std::string::npos)
+      << dropped.out;
+}
+
 // A position set (Command 2048, the PLC's) while the program stands after a stop dropped the
 // program behind an "accepted" (the run then said so and exited 1). It is refused now, with
 // what to do, and the run's program stays loaded: a start resumes it

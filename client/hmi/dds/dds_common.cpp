@@ -152,7 +152,12 @@ std::string format_state(const msg::InterpolatorState& s, const std::string& con
   append_line(out, "Interpolator %d: Status %d (%s%s%s), Number_Axes %d, Buffer_Size %d",
               s.number(), s.status(), std::string(client::status_name(s.status())).c_str(),
               s.program_stop() ? ", at an M0 program stop: start continues" : "",
-              s.off_trajectory() ? ", off the trajectory: the program was dropped" : "",
+              !s.off_trajectory()   ? ""
+              : s.program_id() != 0 ? ", off the trajectory: the program was dropped"
+                                    // A stop off the trajectory with nothing loaded (it said
+                                    // "the program was dropped" where none had been).
+                                    : ", off the trajectory: no program; load one or set the "
+                                      "position",
               s.number_axes(), s.buffer_size());
   // The manual's names of Run_Flag's two halves, after the numbers.
   static constexpr const char* kSection[] = {"STOP",       "RUN",        "WAIT_WINDOW",
