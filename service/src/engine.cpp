@@ -301,9 +301,12 @@ void Engine::apply_chunks(CyclePort& port, int i, std::size_t& budget) {
         continue;
       }
       if (!standing_without_program(s.ip.registers())) {
-        refuse_chunk(port, i, *c, "interpolator " + std::to_string(i) + " still holds program " +
-                                      std::to_string(s.program_id) + " (status " +
-                                      std::to_string(s.ip.registers().status) + "): clear it first");
+        refuse_chunk(port, i, *c,
+                     "interpolator " + std::to_string(i) + " still holds program " +
+                         std::to_string(s.program_id) + " (status " +
+                         std::to_string(s.ip.registers().status) +
+                         "), another sender's (an HMI may have loaded it just "
+                         "now): clear it first only if it is not wanted");
         port.pop_chunk(i);
         continue;
       }
