@@ -85,6 +85,7 @@ TEST(HmiJson, StatusWritesOneObjectPerLineWithEveryValueReadable) {
   s.m_func_line(11);
   s.program_stop(true);
   s.off_trajectory(true);
+  s.program_id(4711);  // a program was loaded: "the program was dropped"
   std::atomic<bool> done{false};
   std::thread writer([&] {
     while (!done) {
