@@ -2659,6 +2659,46 @@ TEST(ServiceProcesses, HmiRunSaysItClearsAnUnfinishedProgram) {
   EXPECT_NE(first.log().find("cleared by someone else"), std::string::npos) << first.log();
 }
 
+// A streaming `tgm-hmi run` that stops for seconds (SIGSTOP: a stalled or suspended operator
+// PC) is dropped by the service's discovery after the 1 s participant lease; resumed, it may
+// find the service at once again and never be dropped itself, and then Fast DDS did not match
+// its endpoints again: no chunk arrived, the program stood half-executed in an underrun and the
+// run waited for good (3 of 5 freezes of 3-5 s, live review of session 80). Three freezes.
+TEST(ServiceProcesses, AStreamingRunThatFreezesForSecondsStreamsOnAfterwards) {
+  test::ConfigEdits edits;
+  edits.buffer_size0 = 1000;
+  ServiceEnv env(edits);
+  ASSERT_TRUE(env.start_service());
+  constexpr int kRecords = 4000;  // 400 mm at F6000: 4 s of motion, four buffers' worth
+  write_tenth_steps(env.path("long.ngc"), kRecords, 6000);
+  client::Client watch(env.dds(), client::Role::kHmi);
+  for (int k = 0; k < 3; ++k) {
+    SCOPED_TRACE("freeze " + std::to_string(k));
+    test::Child run;
+    ASSERT_TRUE(run.start({TGM_HMI_BIN, "run", env.path("long.ngc"), "--config", env.config(),
+                           "--timeout", "60", "--progress-interval", "0.5"},
+                          env.path("freeze" + std::to_string(k) + ".log")));
+    ASSERT_TRUE(watch.wait_until(
+        0,
+        [](const msg::InterpolatorState& s) {
+          return s.status() == 1 && s.next_sequence() > 200 && s.next_sequence() < 2000;
+        },
+        kHang))
+        << run.log();
+    ::kill(run.pid(), SIGSTOP);
+    std::this_thread::sleep_for(std::chrono::seconds(4));
+    ::kill(run.pid(), SIGCONT);
+    EXPECT_EQ(run.wait(std::chrono::seconds(40)), 0) << run.log();
+    EXPECT_TRUE(watch.wait_until(
+        0,
+        [](const msg::InterpolatorState& s) {
+          return s.status() == 3 && s.next_sequence() == kRecords + 1;
+        },
+        kHang))
+        << run.log();
+  }
+}
+
 // `status` after a stop off the trajectory: "the program was dropped" only where one was
 // loaded; on an empty interpolator it said so too, of a program that never was.
 TEST(ServiceProcesses, StatusSaysAProgramWasDroppedOnlyWhenOneWas) {

@@ -75,6 +75,13 @@ struct PlotData {
 // of the speed until a million of each, then thinned (PlotSeries): a run of hours stays bounded.
 constexpr std::size_t kMaxPlotPoints = std::size_t{1} << 20;
 
+// A stream that waits this long with the service's buffer empty, or a service silent this
+// long, is taken for a link broken one way: the run joins DDS again (Client::rejoin), at most
+// once per kRejoinEvery.
+constexpr std::chrono::seconds kStallBeforeRejoin{2};
+constexpr std::chrono::seconds kSilenceBeforeRejoin{5};
+constexpr std::chrono::seconds kRejoinEvery{10};
+
 // How long the clear and the start wait for their reply. Each can be the run's first request,
 // and its endpoints are matched only then: on a link losing 10 % of its datagrams the start of
 // a fully streamed program found no match within the 3 s of a `tgm-hmi command` and the run
@@ -553,6 +560,11 @@ int run_run(int argc, char** argv) {
   std::fflush(stdout);
 
   bool service_stopping = false;  // it announced its shutdown
+  Clock::time_point starving_since{};  // the stream waits with the service's buffer empty
+  Clock::time_point rejoined_at{};     // the last Client::rejoin
+  bool rewrite_after_rejoin = false;
+  bool rejoined_in_silence = false;
+  std::vector<std::string> former_names;  // of the participants left at a rejoin
   while (true) {
     hmi->poll(2ms);
     if (!sender.pump()) {
@@ -601,9 +613,67 @@ int run_run(int argc, char** argv) {
       clear_progress();
       std::printf("tgm-hmi run: %s\n", bad.c_str());
     }
+    // A link broken one way (Client::rejoin): the service takes none of the records in flight
+    // although its buffer ran empty, or nothing comes from it at all. Seen after this process
+    // stood still for seconds (SIGSTOP, a stalled PC): the service had dropped it, Fast DDS
+    // never matched it again, and the program stood half-executed in an underrun while the
+    // run waited for good (3 of 5 freezes, live review of session 80). A new participant is
+    // discovered afresh; the records in flight are written again, which the service takes
+    // from where it stands. At most every 10 s; after a silence the rewrite waits for the
+    // first state that shows the underrun.
+    {
+      const auto now = Clock::now();
+      const bool starving = st->program_id() == program_id &&
+                            st->status() == static_cast<int>(InterpolatorStatus::kUnderrun) &&
+                            st->buffered_segments() == 0 && sender.written() > sender.confirmed();
+      if (!starving) {
+        starving_since = {};
+      } else if (starving_since == Clock::time_point{}) {
+        starving_since = now;
+      }
+      if (starving && rewrite_after_rejoin) {
+        sender.rewrite();
+        rewrite_after_rejoin = false;
+        starving_since = {};
+      }
+      const bool stalled =
+          starving_since != Clock::time_point{} && now - starving_since >= kStallBeforeRejoin;
+      // Once per silence: a service that is down stays silent, and a new participant every
+      // 10 s would only fill the output.
+      if (!silence.silent()) rejoined_in_silence = false;
+      const bool silent = silence.silent() && !rejoined_in_silence &&
+                          silence.since_last(now) >= kSilenceBeforeRejoin;
+      if ((stalled || silent) && now - rejoined_at >= kRejoinEvery) {
+        rejoined_in_silence = silence.silent();
+        clear_progress();
+        std::printf(
+            "tgm-hmi run: %s: joining DDS again as a new participant (the link may have broken "
+            "one way, as after this process stood still for seconds)\n",
+            stalled ? "tgm-service has taken none of the records in flight although its buffer "
+                      "ran empty"
+                    : "no state from tgm-service for 5 s");
+        std::fflush(stdout);
+        former_names.push_back(hmi->participant().name());
+        hmi->rejoin();
+        rejoined_at = now;
+        starving_since = {};
+        if (stalled) {
+          sender.rewrite();
+        } else {
+          rewrite_after_rejoin = true;
+        }
+      }
+    }
     count_events();
     for (const msg::Message& m : hmi->take_messages()) {
       if (m.interpolator() != ip) continue;
+      // The service's words on this run's former participant, which left at a rejoin: its
+      // stream goes on from the new one.
+      if (std::any_of(former_names.begin(), former_names.end(), [&](const std::string& n) {
+            return std::string_view(m.text().c_str()).find("its sender '" + n + "'") !=
+                   std::string_view::npos;
+          }))
+        continue;
       // Another program's messages (an earlier run's M29 texts and warnings) are not shown.
       if (m.program_id() != 0 ? m.program_id() != program_id : m.cycle() < run_from_cycle) continue;
       clear_progress();

@@ -82,29 +82,54 @@ Client::Client(const DdsConfig& config, Role role, const ClientOptions& options)
     : role_(role),
       request_timeout_(options.request_timeout),
       default_cancel_(options.cancel),
-      participant_(config, role == Role::kPlc ? "plc" : "hmi"),
-      name_(unique_client_name(participant_.name())),
-      state_reader_(participant_.reader<msg::InterpolatorStatePubSubType>(dds::kStateTopic)),
-      reply_reader_(participant_.reader<msg::ReplyPubSubType>(dds::kReplyTopic)),
-      message_reader_(participant_.reader<msg::MessagePubSubType>(dds::kMessageTopic)),
-      request_writer_(participant_.writer<msg::RequestPubSubType>(
-          config.security_dir.empty() ? dds::kRequestTopic
-          : role == Role::kPlc        ? dds::kRequestPlcTopic
-                                      : dds::kRequestHmiTopic)) {
-  if (role == Role::kHmi) {
-    program_writer_ = &participant_.writer<msg::ProgramChunkPubSubType>(dds::kProgramTopic);
-  }
-  if (options.setpoints) {
-    setpoint_reader_ = &participant_.reader<msg::SetpointsPubSubType>(dds::kSetpointsTopic);
-    waiter_.emplace(std::initializer_list<fdds::DataReader*>{&state_reader_, &reply_reader_,
-                                                             &message_reader_, setpoint_reader_});
-  } else {
-    waiter_.emplace(std::initializer_list<fdds::DataReader*>{&state_reader_, &reply_reader_,
-                                                             &message_reader_});
-  }
+      config_(config),
+      setpoints_(options.setpoints) {
+  join();
+  name_ = unique_client_name(participant_->name());
   states_.resize(kMaxInterpolators);
   state_samples_.resize(kMaxInterpolators, 0);
   follow_.resize(kMaxInterpolators);
+}
+
+void Client::join() {
+  participant_ = std::make_unique<dds::Participant>(config_, role_ == Role::kPlc ? "plc" : "hmi");
+  dds::Participant& p = *participant_;
+  state_reader_ = &p.reader<msg::InterpolatorStatePubSubType>(dds::kStateTopic);
+  reply_reader_ = &p.reader<msg::ReplyPubSubType>(dds::kReplyTopic);
+  message_reader_ = &p.reader<msg::MessagePubSubType>(dds::kMessageTopic);
+  request_writer_ =
+      &p.writer<msg::RequestPubSubType>(config_.security_dir.empty() ? dds::kRequestTopic
+                                        : role_ == Role::kPlc        ? dds::kRequestPlcTopic
+                                                                     : dds::kRequestHmiTopic);
+  if (role_ == Role::kHmi) {
+    program_writer_ = &p.writer<msg::ProgramChunkPubSubType>(dds::kProgramTopic);
+  }
+  if (setpoints_) {
+    setpoint_reader_ = &p.reader<msg::SetpointsPubSubType>(dds::kSetpointsTopic);
+    waiter_.emplace(std::initializer_list<fdds::DataReader*>{state_reader_, reply_reader_,
+                                                             message_reader_, setpoint_reader_});
+  } else {
+    waiter_.emplace(
+        std::initializer_list<fdds::DataReader*>{state_reader_, reply_reader_, message_reader_});
+  }
+}
+
+void Client::rejoin() {
+  if (event_reader_ != nullptr) event_reader_->set_listener(nullptr);
+  waiter_.reset();
+  state_reader_ = reply_reader_ = message_reader_ = setpoint_reader_ = event_reader_ = nullptr;
+  request_writer_ = program_writer_ = nullptr;
+  participant_.reset();  // its entities first, then the participant (a clean leave)
+  join();
+  ++rejoins_;
+  if (event_listener_) {
+    event_reader_ = &participant_->reader<msg::InterpolatorEventPubSubType>(dds::kEventTopic);
+    if (event_reader_->set_listener(event_listener_.get(), fdds::StatusMask::data_available()) !=
+        eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
+      throw dds::SetupError("tgm::client::Client::rejoin: cannot attach the listener to the " +
+                            std::string(dds::kEventTopic.name) + " reader");
+    }
+  }
 }
 
 fdds::DataWriter& Client::program_writer() {
@@ -157,7 +182,7 @@ void Client::on_event(EventHandler handler) {
   if (event_listener_)
     throw dds::SetupError("tgm::client::Client::on_event: a handler is already set");
   if (!handler) throw dds::SetupError("tgm::client::Client::on_event: empty handler");
-  event_reader_ = &participant_.reader<msg::InterpolatorEventPubSubType>(dds::kEventTopic);
+  event_reader_ = &participant_->reader<msg::InterpolatorEventPubSubType>(dds::kEventTopic);
   event_listener_ = std::make_unique<EventListener>(*this, std::move(handler));
   if (event_reader_->set_listener(event_listener_.get(), fdds::StatusMask::data_available()) !=
       eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
@@ -190,7 +215,7 @@ void Client::poll(std::chrono::nanoseconds timeout) {
   // as alive however long this client did not poll (its silence is judged by polls).
   batch_.clear();
   std::array<bool, kMaxInterpolators> followed_heard{};
-  while (dds::take_next(state_reader_, state_scratch_)) {
+  while (dds::take_next(*state_reader_, state_scratch_)) {
     const std::size_t i = state_scratch_.interpolator();
     if (i >= states_.size()) continue;
     followed_heard[i] =
@@ -214,7 +239,7 @@ void Client::poll(std::chrono::nanoseconds timeout) {
     if (on_state) on_state(s);
   }
   msg::Reply reply;
-  while (dds::take_next(reply_reader_, reply)) {
+  while (dds::take_next(*reply_reader_, reply)) {
     if (reply.client_name() != name_) continue;
     if (!replied_.insert(reply.request_id()).second) continue;  // a second reply to it
     replied_order_.push_back(reply.request_id());
@@ -230,7 +255,7 @@ void Client::poll(std::chrono::nanoseconds timeout) {
     replies_.erase(replies_.begin(), replies_.end() - static_cast<std::ptrdiff_t>(kMaxKeptReplies));
   }
   msg::Message m;
-  while (dds::take_next(message_reader_, m)) messages_.push_back(m);
+  while (dds::take_next(*message_reader_, m)) messages_.push_back(m);
   if (setpoint_reader_ != nullptr) {
     while (dds::take_next(*setpoint_reader_, setpoints_scratch_)) {
       if (on_setpoints) on_setpoints(setpoints_scratch_);
@@ -314,7 +339,7 @@ Reply Client::request(msg::Request r, std::chrono::milliseconds timeout,
     }
     return true;
   };
-  if (!matched(request_writer_) || !matched(reply_reader_)) return out;
+  if (!matched(*request_writer_) || !matched(*reply_reader_)) return out;
   // A free place in the window (kRequestsInFlight), waiting for replies to earlier send()s.
   while (!take_slot()) {
     if (give_up()) return out;
@@ -322,7 +347,7 @@ Reply Client::request(msg::Request r, std::chrono::milliseconds timeout,
         std::max<Clock::duration>(deadline - Clock::now(), Clock::duration(0)), 20ms));
   }
   fill(r);
-  if (!request_writer_.write(&r)) {
+  if (!request_writer_->write(&r)) {
     free_slot();
     out.timed_out = true;
     return out;
@@ -344,7 +369,7 @@ Reply Client::request(msg::Request r, std::chrono::milliseconds timeout,
     if (give_up()) return out;
     auto now = Clock::now();
     if (now >= resend_at) {
-      if (request_writer_.write(&r)) {
+      if (request_writer_->write(&r)) {
         ++out.sends;
         last_written_ = now;
       }
@@ -391,14 +416,14 @@ void Client::fill(msg::Request& r) {
 std::uint64_t Client::send(msg::Request r) {
   // The request topic is VOLATILE: written before the service's reader matched, it is lost.
   fdds::PublicationMatchedStatus matched;
-  if (request_writer_.get_publication_matched_status(matched) !=
+  if (request_writer_->get_publication_matched_status(matched) !=
           eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK ||
       matched.current_count < 1) {
     return 0;
   }
   if (!take_slot()) return 0;
   fill(r);
-  if (request_writer_.write(&r)) return r.request_id();
+  if (request_writer_->write(&r)) return r.request_id();
   free_slot();
   return 0;
 }
@@ -541,6 +566,7 @@ ProgramSender::ProgramSender(Client& client, const PackedProgram& program, int i
                              std::uint32_t program_id)
     : client_(client),
       window_(program),
+      packed_(&program),
       interpolator_(interpolator),
       program_id_(program_id),
       total_(program.size()) {
@@ -572,7 +598,10 @@ bool ProgramSender::pump() {
   const msg::InterpolatorState* s = client_.state(interpolator_);
   if (s == nullptr) return true;
   if (s->program_id() == program_id_) confirmed_ = std::max<std::uint64_t>(confirmed_, s->next_sequence());
-  while (!chunk_ends_.empty() && chunk_ends_.front() <= confirmed_) chunk_ends_.erase(chunk_ends_.begin());
+  while (!chunk_ends_.empty() && chunk_ends_.front() <= confirmed_) {
+    taken_end_ = chunk_ends_.front();
+    chunk_ends_.erase(chunk_ends_.begin());
+  }
   if (!matched_) {
     fdds::PublicationMatchedStatus st;
     client_.program_writer().get_publication_matched_status(st);
@@ -595,7 +624,7 @@ bool ProgramSender::pump() {
     const std::uint64_t end = base + end_in;
     chunk_.sequence_number(next_);
     chunk_.end_of_program(end == total_);
-    const std::uint64_t in_flight = next_ - confirmed_;
+    const std::uint64_t in_flight = next_ > confirmed_ ? next_ - confirmed_ : 0;
     const std::uint64_t n = end - next_;
     if (in_flight > 0 && in_flight + n > free_slots) break;
     if (!client_.program_writer().write(&chunk_)) {
@@ -607,6 +636,15 @@ bool ProgramSender::pump() {
     if (chunk_.end_of_program()) end_written_ = true;
   }
   return true;
+}
+
+void ProgramSender::rewrite() {
+  if (confirmed_ >= next_) return;  // nothing in flight
+  next_ = taken_end_;
+  chunk_ends_.clear();
+  end_written_ = false;
+  matched_ = false;
+  if (packed_ != nullptr) window_.emplace(*packed_);  // a window does not move back
 }
 
 std::uint32_t new_program_id() {

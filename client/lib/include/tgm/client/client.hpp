@@ -259,9 +259,20 @@ class Client {
   Reply ack_m_func(int interpolator, std::int32_t m = 0, std::uint32_t count = 0);
   Reply set_rel_speed(int interpolator, double rel_speed);
 
+  //! Leaves DDS and joins it again as a new participant (a new GUID), with the same name, the
+  //! states, replies and event callback kept. For a link that broke one way: after this process
+  //! stood still for longer than the participant lease (SIGSTOP, a stalled PC), the service
+  //! dropped it, and when this process did not drop the service in turn, Fast DDS 2.9 never
+  //! matched its endpoints again (it holds the service's acknowledgements of the old session).
+  //! A new participant is discovered afresh on both sides. Requests in flight are not lost:
+  //! request() writes again what has no reply.
+  void rejoin();
+  //! Times rejoin() was called.
+  int rejoins() const { return rejoins_; }
+
   Role role() const { return role_; }
   const std::string& name() const { return name_; }
-  dds::Participant& participant() { return participant_; }
+  dds::Participant& participant() { return *participant_; }
   //! The program stream's writer. Only an HMI client has one (DESIGN.md section 1: the PLC does
   //! not fill the buffer; with DDS Security its permissions do not allow it either): throws
   //! dds::SetupError for a PLC client.
@@ -293,14 +304,19 @@ class Client {
   Role role_;
   std::chrono::milliseconds request_timeout_;
   const std::atomic<bool>* default_cancel_ = nullptr;  // ClientOptions::cancel
-  dds::Participant participant_;
+  // Creates the participant and its readers and writers (not the event reader).
+  void join();
+  DdsConfig config_;
+  bool setpoints_;
+  int rejoins_ = 0;
+  std::unique_ptr<dds::Participant> participant_;
   std::string name_;
-  eprosima::fastdds::dds::DataReader& state_reader_;
-  eprosima::fastdds::dds::DataReader& reply_reader_;
-  eprosima::fastdds::dds::DataReader& message_reader_;
+  eprosima::fastdds::dds::DataReader* state_reader_ = nullptr;
+  eprosima::fastdds::dds::DataReader* reply_reader_ = nullptr;
+  eprosima::fastdds::dds::DataReader* message_reader_ = nullptr;
   eprosima::fastdds::dds::DataReader* setpoint_reader_ = nullptr;
   eprosima::fastdds::dds::DataReader* event_reader_ = nullptr;
-  eprosima::fastdds::dds::DataWriter& request_writer_;
+  eprosima::fastdds::dds::DataWriter* request_writer_ = nullptr;
   eprosima::fastdds::dds::DataWriter* program_writer_ = nullptr;  // HMI only
   std::chrono::steady_clock::time_point last_wake_{};
   std::chrono::steady_clock::time_point last_written_{};
@@ -359,6 +375,12 @@ class ProgramSender {
   bool all_confirmed() const { return confirmed_ >= total_; }
   const std::string& error() const { return error_; }
   std::uint32_t program_id() const { return program_id_; }
+  //! Writes the chunks from the one the service has taken only in part (or the next one) again,
+  //! once the writer has matched: after Client::rejoin(), whose new writer the service has not
+  //! heard from. The service drops what it applied already. Only while its buffer is empty
+  //! (an underrun): a chunk it holds in part, waiting for room, would make the rewritten one
+  //! a gap.
+  void rewrite();
 
  private:
   // The records from `first` on as a Program, `first` at index first - base(): the whole
@@ -369,6 +391,7 @@ class ProgramSender {
   Client& client_;
   const Program* program_ = nullptr;             // a whole program
   std::optional<PackedProgram::Window> window_;  // or a packed one
+  const PackedProgram* packed_ = nullptr;        // (its program, for rewrite())
   int interpolator_;
   std::uint32_t program_id_;
   std::uint64_t total_;
@@ -377,6 +400,7 @@ class ProgramSender {
   bool end_written_ = false;
   bool matched_ = false;
   std::vector<std::uint64_t> chunk_ends_;  // end index of each chunk in flight
+  std::uint64_t taken_end_ = 0;            // end of the last chunk taken whole
   msg::ProgramChunk chunk_;
   std::string error_;
 };
