@@ -2689,6 +2689,8 @@ TEST(ServiceProcesses, AStreamingRunThatFreezesForSecondsStreamsOnAfterwards) {
     std::this_thread::sleep_for(std::chrono::seconds(4));
     ::kill(run.pid(), SIGCONT);
     EXPECT_EQ(run.wait(std::chrono::seconds(40)), 0) << run.log();
+    // The service's word that the former participant ended is not this run's end.
+    EXPECT_EQ(run.log().find("the rest will not come"), std::string::npos) << run.log();
     EXPECT_TRUE(watch.wait_until(
         0,
         [](const msg::InterpolatorState& s) {

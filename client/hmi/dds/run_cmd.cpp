@@ -564,7 +564,7 @@ int run_run(int argc, char** argv) {
   Clock::time_point rejoined_at{};     // the last Client::rejoin
   bool rewrite_after_rejoin = false;
   bool rejoined_in_silence = false;
-  std::vector<std::string> former_names;  // of the participants left at a rejoin
+  bool rejoined = false;  // Client::rejoin was called
   while (true) {
     hmi->poll(2ms);
     if (!sender.pump()) {
@@ -653,7 +653,7 @@ int run_run(int argc, char** argv) {
                       "ran empty"
                     : "no state from tgm-service for 5 s");
         std::fflush(stdout);
-        former_names.push_back(hmi->participant().name());
+        rejoined = true;
         hmi->rejoin();
         rejoined_at = now;
         starving_since = {};
@@ -667,12 +667,11 @@ int run_run(int argc, char** argv) {
     count_events();
     for (const msg::Message& m : hmi->take_messages()) {
       if (m.interpolator() != ip) continue;
-      // The service's words on this run's former participant, which left at a rejoin: its
-      // stream goes on from the new one.
-      if (std::any_of(former_names.begin(), former_names.end(), [&](const std::string& n) {
-            return std::string_view(m.text().c_str()).find("its sender '" + n + "'") !=
-                   std::string_view::npos;
-          }))
+      // After a rejoin, the service's words on this run as a sender: they concern its former
+      // participant (lost, then ended at the rejoin), whose stream goes on from the new one
+      // under the same client name.
+      if (rejoined && std::string_view(m.text().c_str()).find("its sender '" + hmi->name() + "'") !=
+                          std::string_view::npos)
         continue;
       // Another program's messages (an earlier run's M29 texts and warnings) are not shown.
       if (m.program_id() != 0 ? m.program_id() != program_id : m.cycle() < run_from_cycle) continue;
