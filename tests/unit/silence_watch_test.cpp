@@ -32,6 +32,20 @@ TEST(SilenceWatch, SaysOnceWhenTheStateStopsAndOnceWhenItComesBack) {
   EXPECT_EQ(w.update(11, t0 + 15s + 1ms), Change::kSilent);  // a second silence is said again
 }
 
+TEST(SilenceWatch, LastedIsSaidOncePerSilence) {
+  const std::chrono::steady_clock::time_point t0{};
+  SilenceWatch w(3s);
+  EXPECT_EQ(w.update(1, t0), Change::kNone);
+  EXPECT_FALSE(w.lasted(5s, t0 + 6s));  // not silent yet: update() has not said so
+  EXPECT_EQ(w.update(1, t0 + 4s), Change::kSilent);
+  EXPECT_FALSE(w.lasted(5s, t0 + 4s));
+  EXPECT_TRUE(w.lasted(5s, t0 + 5s));
+  EXPECT_FALSE(w.lasted(5s, t0 + 20s));  // said once
+  EXPECT_EQ(w.update(2, t0 + 21s), Change::kBack);
+  EXPECT_EQ(w.update(2, t0 + 24s + 1ms), Change::kSilent);
+  EXPECT_TRUE(w.lasted(5s, t0 + 26s));  // a second silence is said again
+}
+
 TEST(SilenceWatch, ACountThatNeverComesIsSilenceFromTheFirstCall) {
   const std::chrono::steady_clock::time_point t0{};
   SilenceWatch w(3s);

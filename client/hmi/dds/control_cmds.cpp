@@ -223,7 +223,6 @@ int run_watch(int argc, char** argv) {
   // A service that stops publishing leaves its last state here: watch kept showing it, "running"
   // at a standstill, without a word.
   client::SilenceWatch silence(3s);
-  bool rejoined_in_silence = false;
   // The service instance followed: another one (a restarted service) is said once, since its
   // registers start afresh (Status 0) and what ran before is gone; they switched silently.
   std::uint64_t followed = c.client->service_followed(ip);
@@ -248,10 +247,7 @@ int run_watch(int argc, char** argv) {
     const auto change = silence.update(c.client->state_samples(ip), now);
     // Once per silence of 5 s, a new participant: after this process stood still for seconds
     // the link can break one way for good (Client::rejoin; `run` does the same).
-    if (!silence.silent()) {
-      rejoined_in_silence = false;
-    } else if (!rejoined_in_silence && silence.since_last(now) >= std::chrono::seconds(5)) {
-      rejoined_in_silence = true;
+    if (silence.lasted(std::chrono::seconds(5), now)) {
       std::fprintf(stderr,
                    "tgm-hmi watch: no state from tgm-service for 5 s: joining DDS again as a new "
                    "participant (the link may have broken one way, as after this process stood "

@@ -563,7 +563,6 @@ int run_run(int argc, char** argv) {
   Clock::time_point starving_since{};  // the stream waits with the service's buffer empty
   Clock::time_point rejoined_at{};     // the last Client::rejoin
   bool rewrite_after_rejoin = false;
-  bool rejoined_in_silence = false;
   bool rejoined = false;  // Client::rejoin was called
   while (true) {
     hmi->poll(2ms);
@@ -640,11 +639,11 @@ int run_run(int argc, char** argv) {
           starving_since != Clock::time_point{} && now - starving_since >= kStallBeforeRejoin;
       // Once per silence: a service that is down stays silent, and a new participant every
       // 10 s would only fill the output.
-      if (!silence.silent()) rejoined_in_silence = false;
-      const bool silent = silence.silent() && !rejoined_in_silence &&
-                          silence.since_last(now) >= kSilenceBeforeRejoin;
-      if ((stalled || silent) && now - rejoined_at >= kRejoinEvery) {
-        rejoined_in_silence = silence.silent();
+      const bool may_rejoin = now - rejoined_at >= kRejoinEvery;
+      const bool silent = may_rejoin && silence.lasted(kSilenceBeforeRejoin, now);
+      if (may_rejoin && (stalled || silent)) {
+        // A rejoin for a stall within a silence is that silence's rejoin too.
+        if (stalled) silence.lasted(std::chrono::seconds(0), now);
         clear_progress();
         std::printf(
             "tgm-hmi run: %s: joining DDS again as a new participant (the link may have broken "

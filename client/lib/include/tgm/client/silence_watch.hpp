@@ -22,6 +22,7 @@ class SilenceWatch {
       samples_ = samples;
       at_ = now;
       silent_ = false;
+      long_said_ = false;
       return back ? Change::kBack : Change::kNone;
     }
     if (silent_ || now - at_ <= limit_) return Change::kNone;
@@ -30,6 +31,14 @@ class SilenceWatch {
   }
   //! True from the update that said kSilent until one that says kBack.
   bool silent() const { return silent_; }
+  //! True once per silence: at the first call when it has lasted `after` (tgm-hmi run and
+  //! watch join DDS again then, Client::rejoin).
+  bool lasted(std::chrono::steady_clock::duration after,
+              std::chrono::steady_clock::time_point now) {
+    if (!silent_ || long_said_ || since_last(now) < after) return false;
+    long_said_ = true;
+    return true;
+  }
   //! Time from the last new sample to `now` (0 before the first update).
   std::chrono::steady_clock::duration since_last(std::chrono::steady_clock::time_point now) const {
     return started_ ? now - at_ : std::chrono::steady_clock::duration{};
@@ -43,6 +52,7 @@ class SilenceWatch {
   std::chrono::steady_clock::duration limit_;
   bool started_ = false;
   bool silent_ = false;
+  bool long_said_ = false;  // lasted() said this silence
   std::uint64_t samples_ = 0;
   std::chrono::steady_clock::time_point at_{};
 };
