@@ -561,9 +561,8 @@ int run_run(int argc, char** argv) {
 
   bool service_stopping = false;  // it announced its shutdown
   Clock::time_point starving_since{};  // the stream waits with the service's buffer empty
-  Clock::time_point rejoined_at{};     // the last Client::rejoin
+  Clock::time_point rejoined_at{};     // the last Client::rejoin ({}: none yet)
   bool rewrite_after_rejoin = false;
-  bool rejoined = false;  // Client::rejoin was called
   while (true) {
     hmi->poll(2ms);
     if (!sender.pump()) {
@@ -652,7 +651,6 @@ int run_run(int argc, char** argv) {
                       "ran empty"
                     : "no state from tgm-service for 5 s");
         std::fflush(stdout);
-        rejoined = true;
         hmi->rejoin();
         rejoined_at = now;
         starving_since = {};
@@ -669,8 +667,9 @@ int run_run(int argc, char** argv) {
       // After a rejoin, the service's words on this run as a sender: they concern its former
       // participant (lost, then ended at the rejoin), whose stream goes on from the new one
       // under the same client name.
-      if (rejoined && std::string_view(m.text().c_str()).find("its sender '" + hmi->name() + "'") !=
-                          std::string_view::npos)
+      if (rejoined_at != Clock::time_point{} &&
+          std::string_view(m.text().c_str()).find("its sender '" + hmi->name() + "'") !=
+              std::string_view::npos)
         continue;
       // Another program's messages (an earlier run's M29 texts and warnings) are not shown.
       if (m.program_id() != 0 ? m.program_id() != program_id : m.cycle() < run_from_cycle) continue;

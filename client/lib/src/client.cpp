@@ -121,14 +121,16 @@ void Client::rejoin() {
   request_writer_ = program_writer_ = nullptr;
   participant_.reset();  // its entities first, then the participant (a clean leave)
   join();
-  ++rejoins_;
-  if (event_listener_) {
-    event_reader_ = &participant_->reader<msg::InterpolatorEventPubSubType>(dds::kEventTopic);
-    if (event_reader_->set_listener(event_listener_.get(), fdds::StatusMask::data_available()) !=
-        eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
-      throw dds::SetupError("tgm::client::Client::rejoin: cannot attach the listener to the " +
-                            std::string(dds::kEventTopic.name) + " reader");
-    }
+  if (event_listener_) attach_events("rejoin");
+}
+
+void Client::attach_events(const char* caller) {
+  event_reader_ = &participant_->reader<msg::InterpolatorEventPubSubType>(dds::kEventTopic);
+  if (event_reader_->set_listener(event_listener_.get(), fdds::StatusMask::data_available()) !=
+      eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
+    throw dds::SetupError(std::string("tgm::client::Client::") + caller +
+                          ": cannot attach the listener to the " +
+                          std::string(dds::kEventTopic.name) + " reader");
   }
 }
 
@@ -182,13 +184,8 @@ void Client::on_event(EventHandler handler) {
   if (event_listener_)
     throw dds::SetupError("tgm::client::Client::on_event: a handler is already set");
   if (!handler) throw dds::SetupError("tgm::client::Client::on_event: empty handler");
-  event_reader_ = &participant_->reader<msg::InterpolatorEventPubSubType>(dds::kEventTopic);
   event_listener_ = std::make_unique<EventListener>(*this, std::move(handler));
-  if (event_reader_->set_listener(event_listener_.get(), fdds::StatusMask::data_available()) !=
-      eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
-    throw dds::SetupError("tgm::client::Client::on_event: cannot attach the listener to the " +
-                          std::string(dds::kEventTopic.name) + " reader");
-  }
+  attach_events("on_event");
 }
 
 bool Client::wait_for_event_match(std::chrono::milliseconds timeout,

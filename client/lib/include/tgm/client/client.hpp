@@ -267,8 +267,6 @@ class Client {
   //! A new participant is discovered afresh on both sides. Requests in flight are not lost:
   //! request() writes again what has no reply.
   void rejoin();
-  //! Times rejoin() was called.
-  int rejoins() const { return rejoins_; }
 
   Role role() const { return role_; }
   const std::string& name() const { return name_; }
@@ -306,9 +304,11 @@ class Client {
   const std::atomic<bool>* default_cancel_ = nullptr;  // ClientOptions::cancel
   // Creates the participant and its readers and writers (not the event reader).
   void join();
+  // Creates the event reader and attaches event_listener_ to it; `caller` names the method in
+  // the SetupError.
+  void attach_events(const char* caller);
   DdsConfig config_;
   bool setpoints_;
-  int rejoins_ = 0;
   std::unique_ptr<dds::Participant> participant_;
   std::string name_;
   eprosima::fastdds::dds::DataReader* state_reader_ = nullptr;
