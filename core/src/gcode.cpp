@@ -165,6 +165,11 @@ class Compiler {
   // One pass over the source, with lex()'s line ends; a byte that is not UTF-8 is one column.
   void to_character_columns();
 
+  // Where the text starts (after a UTF-8 byte-order mark), and the end of the line that
+  // starts at `begin`: at its line feed, or at a carriage return that no line feed follows.
+  std::size_t text_begin() const;
+  std::size_t line_end(std::size_t begin) const;
+
   // --- pass 1
   void lex();
   void lex_line(std::size_t begin, std::size_t end, std::int32_t line);
@@ -401,26 +406,35 @@ bool Compiler::parse_number(std::size_t& i, std::size_t end, double& out) {
   return true;
 }
 
-void Compiler::lex() {
-  std::size_t begin = 0;
-  std::int32_t line = 1;
-  const std::size_t n = src_.size();
+std::size_t Compiler::text_begin() const {
   // A UTF-8 byte-order mark (Windows editors write one) is no part of the program: it was
   // "unexpected byte 0xEF" and cost the first line.
-  if (src_.size() >= 3 && src_.compare(0, 3, "\xEF\xBB\xBF") == 0) begin = 3;
+  return src_.size() >= 3 && src_.compare(0, 3, "\xEF\xBB\xBF") == 0 ? 3 : 0;
+}
+
+std::size_t Compiler::line_end(std::size_t begin) const {
+  const std::size_t n = src_.size();
+  const void* nl = std::memchr(src_.data() + begin, '\n', n - begin);
+  std::size_t end = nl ? static_cast<std::size_t>(static_cast<const char*>(nl) - src_.data()) : n;
+  // A carriage return that a line feed does not follow ends a line too (old Mac line ends,
+  // or a file pieced together from both): it was read as a blank, and a whole CR file as
+  // one line of contradicting words. The CR of a CR LF pair stays the line's last blank.
+  if (end - begin > 1) {
+    if (const void* cr = std::memchr(src_.data() + begin, '\r', end - begin - 1)) {
+      end = static_cast<std::size_t>(static_cast<const char*>(cr) - src_.data());
+    }
+  }
+  return end;
+}
+
+void Compiler::lex() {
+  std::size_t begin = text_begin();
+  std::int32_t line = 1;
+  const std::size_t n = src_.size();
   blocks_.reserve(n / 16 + 1);
   words_.reserve(64);
   while (begin < n) {
-    const void* nl = std::memchr(src_.data() + begin, '\n', n - begin);
-    std::size_t end = nl ? static_cast<std::size_t>(static_cast<const char*>(nl) - src_.data()) : n;
-    // A carriage return that a line feed does not follow ends a line too (old Mac line ends,
-    // or a file pieced together from both): it was read as a blank, and a whole CR file as
-    // one line of contradicting words. The CR of a CR LF pair stays the line's last blank.
-    if (end - begin > 1) {
-      if (const void* cr = std::memchr(src_.data() + begin, '\r', end - begin - 1)) {
-        end = static_cast<std::size_t>(static_cast<const char*>(cr) - src_.data());
-      }
-    }
+    const std::size_t end = line_end(begin);
     const std::size_t before = blocks_.size();
     lex_line(begin, end, line);
     // While the program runs straight down, each line executes as soon as it is lexed, with
@@ -1394,33 +1408,18 @@ void Compiler::execute() {
 }
 
 void Compiler::to_character_columns() {
-  std::size_t begin = src_.compare(0, 3, "\xEF\xBB\xBF") == 0 ? 3 : 0;
+  std::size_t begin = text_begin();
   const std::size_t n = src_.size();
   std::int32_t line = 1;
-  std::size_t end = 0;  // of line `line`
-  bool end_known = false;
-  const auto line_end = [&] {
-    const void* nl = std::memchr(src_.data() + begin, '\n', n - begin);
-    std::size_t e = nl ? static_cast<std::size_t>(static_cast<const char*>(nl) - src_.data()) : n;
-    if (e - begin > 1) {
-      if (const void* cr = std::memchr(src_.data() + begin, '\r', e - begin - 1)) {
-        e = static_cast<std::size_t>(static_cast<const char*>(cr) - src_.data());
-      }
-    }
-    return e;
-  };
+  std::size_t end = begin < n ? line_end(begin) : n;  // of line `line`
   for (Diagnostic& d : errors_) {
     if (d.line < line || d.column < 1) continue;  // no place, or not in order
     while (line < d.line && begin < n) {
-      begin = (end_known ? end : line_end()) + 1;
-      end_known = false;
+      begin = end + 1;
+      end = begin < n ? line_end(begin) : n;
       ++line;
     }
     if (line != d.line || begin >= n) continue;
-    if (!end_known) {
-      end = line_end();
-      end_known = true;
-    }
     const std::size_t at = begin + static_cast<std::size_t>(d.column) - 1;
     std::size_t chars = 0;
     std::size_t i = begin;
