@@ -1,4 +1,4 @@
-// G-code compiler (DESIGN.md section 4).
+// G-code compiler: the dialect of core/GCODE.md (DESIGN.md section 4, made precise).
 //
 // Two passes over the text:
 //  1. Lexing and the checks that need no modal state: every line becomes a block of words

@@ -1,6 +1,6 @@
 // Fuzz target: arbitrary bytes as a G-code program.
 //
-// Invariants (DESIGN.md section 4): the compiler never crashes or hangs; a program with errors
+// Invariants (core/GCODE.md): the compiler never crashes or hangs; a program with errors
 // yields no records and every error has a place and a reason; a program without errors has
 // finite numbers only and survives encode -> decode -> encode unchanged; the dumps do not crash.
 #include <cstddef>

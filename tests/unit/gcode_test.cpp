@@ -1,4 +1,4 @@
-// G-code compiler: the dialect of DESIGN.md section 4, pinned known values and the exact text of
+// G-code compiler: the dialect of core/GCODE.md, pinned known values and the exact text of
 // every error class.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>

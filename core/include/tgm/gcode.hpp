@@ -1,4 +1,4 @@
-// The G-code compiler: G-code text -> intercode (DESIGN.md section 4).
+// The G-code compiler: G-code text -> intercode (the dialect: core/GCODE.md).
 #pragma once
 
 #include <array>
