@@ -203,6 +203,7 @@ struct SetupRequest {
   std::string what;           // the log line before ": <reply>"
   bool quiet_ok = false;      // under --quiet, logged only when refused or unanswered
   int attempts = 1;           // written this often at most while unanswered (basic parameters: 3)
+  bool report = false;        // the setup report: not counted, logged only when not accepted
   int attempt = 0;            // the attempt written last
   std::uint64_t id = 0;       // request_id once written
   Clock::time_point since{};  // when this attempt was first tried, or written
@@ -572,8 +573,8 @@ int plc_main(int argc, char** argv) {
           if (now - r.since < 3s) break;
         } else if (r.id != 0) {
           if (std::optional<tgm::client::Reply> reply = plc->take_reply(r.id)) {
-            if (reply->accepted) ++q.accepted;
-            if (!quiet || !r.quiet_ok || !reply->accepted) {
+            if (reply->accepted && !r.report) ++q.accepted;
+            if (!reply->accepted || (!r.report && (!quiet || !r.quiet_ok))) {
               append_log(pending_log, stamp(), "%s: %s", r.what.c_str(),
                          tgm::client::describe(*reply).c_str());
             }
@@ -1091,6 +1092,19 @@ int plc_main(int argc, char** argv) {
                            : !same_axes ? "this config's axes are not the service's"
                            : under_way  ? "a program is under way"
                                         : nullptr);
+        }
+        // Last, where the service waits for it (plc.setup_before_start: its state shows
+        // plc_setup 1): it starts no program before this report, so a program waiting for a
+        // restarted service does not start from 0 before the position restore above (review
+        // of session 80). Sent whatever came of the requests before it (their refusals are
+        // logged): the PLC has done what it does.
+        if (s->plc_setup() == 1) {
+          std::snprintf(what, sizeof what, "interpolator %d: setup report to the service",
+                        sv.number);
+          SetupQueue& sq = setup[sv.number];
+          sq.items.push_back(
+              SetupRequest{tgm::client::plc_setup_done_request(sv.number), what, true, 3});
+          sq.items.back().report = true;
         }
         if (try_start) {
           std::snprintf(what, sizeof what, "interpolator %d: trying to start as the PLC",

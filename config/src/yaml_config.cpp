@@ -565,7 +565,8 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
   }
 
   if (const auto p = root["plc"]) {
-    if (r.section(p, "plc", {"default_m_delay_s", "m_delay_s"})) {
+    if (r.section(p, "plc", {"default_m_delay_s", "m_delay_s", "setup_before_start"})) {
+      r.boolean(p, "plc", "setup_before_start", cfg.plc.setup_before_start);
       r.number(p, "plc", "default_m_delay_s", cfg.plc.default_m_delay_s);
       if (cfg.plc.default_m_delay_s < 0 || cfg.plc.default_m_delay_s > 3600) {
         r.error(p["default_m_delay_s"], "plc.default_m_delay_s", "must be 0..3600 s");

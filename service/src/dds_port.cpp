@@ -40,6 +40,8 @@ RequestKind from_msg(msg::RequestKind k) {
     case msg::REQUEST_KIND_START: return RequestKind::kStart;
     case msg::REQUEST_KIND_STOP: return RequestKind::kStop;
     case msg::REQUEST_KIND_CLEAR: return RequestKind::kClear;
+    case msg::REQUEST_KIND_PLC_SETUP_DONE:
+      return RequestKind::kPlcSetupDone;
   }
   return RequestKind::kUnknown;
 }
@@ -673,6 +675,7 @@ void DdsPort::publish_state(int i, const InterpolatorSnapshot& s, const Snapshot
   state_sample_.message_counter(s.message_counter);
   state_sample_.message_text(std::string(s.message_text.view()));
   state_sample_.axis_letters(std::string(s.axis_letters.view()));
+  state_sample_.plc_setup(s.plc_setup);
   state_sample_.cycle_counter(all.cycle);
   state_sample_.cycle_time_us(opt_.cycle_time_us);
   state_sample_.lateness_last_ns(all.lateness.last_ns);
@@ -694,6 +697,7 @@ void DdsPort::publish_state(int i, const InterpolatorSnapshot& s, const Snapshot
   p.program_id = s.program_id;
   p.next_sequence = s.next_sequence;
   p.message_counter = s.message_counter;
+  p.plc_setup = s.plc_setup;
   p.at = Clock::now();
 }
 
@@ -855,7 +859,7 @@ void DdsPort::publish_loop() {
       bool send = !p.any || now - p.at >= opt_.state_period || evented[static_cast<std::size_t>(i)];
       if (!send && fresh) {
         send = event_due(s.reg, s.program_id, p.reg, p.program_id) ||
-               s.message_counter != p.message_counter ||
+               s.message_counter != p.message_counter || s.plc_setup != p.plc_setup ||
                ((s.next_sequence != p.next_sequence || progress_changed(s.reg, p.reg)) &&
                 now - p.at >= opt_.progress_period);
       }

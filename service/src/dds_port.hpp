@@ -372,6 +372,7 @@ class DdsPort final : public CyclePort {
     std::uint32_t program_id = 0;
     std::uint64_t next_sequence = 0;
     std::uint32_t message_counter = 0;
+    std::uint8_t plc_setup = 0;
     std::chrono::steady_clock::time_point at{};
   };
   std::vector<Published> published_;

@@ -75,6 +75,9 @@ const KindRule kKinds[] = {
      [](Interpolator& ip, const RequestIn&) { return ip.command(8); }},
     {RequestKind::kClear, kHmi, "clear",
      [](Interpolator& ip, const RequestIn&) { return ip.clear(); }},
+    // Recorded by Engine::apply (EngineOptions::require_plc_setup).
+    {RequestKind::kPlcSetupDone, kPlc, "setup report",
+     [](Interpolator&, const RequestIn&) { return RequestResult{}; }},
 };
 
 struct CommandRule {
@@ -217,15 +220,22 @@ ReplyOut Engine::apply(const RequestIn& r) {
   if (std::string why = role_violation(r.role, r.kind, r.command); !why.empty()) {
     return refuse(ReplyCode::kWrongRole, why);
   }
-  Interpolator& ip = ips_[static_cast<std::size_t>(r.interpolator)].ip;
+  Slot& slot = ips_[static_cast<std::size_t>(r.interpolator)];
+  if (r.kind == RequestKind::kStart && opt_.require_plc_setup && !slot.plc_setup_done) {
+    return refuse(ReplyCode::kWrongState,
+                  "the PLC has not set interpolator " + std::to_string(r.interpolator) +
+                      " up since tgm-service started (position, gear ratios): start tgm-plc, "
+                      "or wait for its setup (plc.setup_before_start in the service's config)");
+  }
+  Interpolator& ip = slot.ip;
   const RequestResult res =
       k->handler != nullptr ? k->handler(ip, r) : ip.command(r.command, r.command_parameter);
   if (!res.ok()) return refuse(to_reply(res.code), res.reason);
   if (r.kind == RequestKind::kClear) {
-    Slot& s = ips_[static_cast<std::size_t>(r.interpolator)];
-    s.program_id = 0;
-    s.next_sequence = 0;
+    slot.program_id = 0;
+    slot.next_sequence = 0;
   }
+  if (r.kind == RequestKind::kPlcSetupDone) slot.plc_setup_done = true;
   return out;
 }
 
@@ -530,6 +540,7 @@ void Engine::cycle(CyclePort& port, const LatenessStats& lateness) {
     o.message_counter = s.message_counter;
     o.message_text = s.message_text;
     o.axis_letters.set(s.active_letters());
+    o.plc_setup = !opt_.require_plc_setup ? 0 : s.plc_setup_done ? 2 : 1;
   }
   port.publish(snapshot_);
 }

@@ -204,6 +204,7 @@ int service_main(int argc, char** argv) {
   if (std::string why = tgm::dds::config_problem(config.dds, "service"); !why.empty())
     return args.usage_error(why);
 
+  engine_options.require_plc_setup = config.plc.setup_before_start;
   std::string error;
   auto engine = tgm::service::Engine::create(config.machine, engine_options, &error);
   if (!engine) {

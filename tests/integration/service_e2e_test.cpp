@@ -1053,6 +1053,94 @@ TEST(ServiceProcesses, PlcServesARestartedServiceAtOnceAndSeesEqualMFunctionsApa
   EXPECT_LT(std::stoull(log.substr(cycle_at + 7)), first_cycles) << log;
 }
 
+// plc.setup_before_start: without a PLC the service starts no program, and every HMI command
+// says why (run after its wait, status, command start); once tgm-plc has set the interpolator up
+// (its report follows its basic parameters), the same run runs.
+TEST(ServiceProcesses, WithSetupBeforeStartAProgramWaitsForThePlc) {
+  test::ConfigEdits edits;
+  edits.plc_setup_before_start = true;
+  ServiceEnv env(edits);
+  ASSERT_TRUE(env.start_service());
+  std::ofstream(env.path("p.ngc")) << "G1 X5 F3000\nM2\n";
+  const std::vector<std::string> run_args{
+      TGM_HMI_BIN, "run", env.path("p.ngc"), "--config", env.config(), "--timeout", "2"};
+  test::Child early;
+  ASSERT_TRUE(early.start(run_args, env.path("early.log")));
+  EXPECT_EQ(early.wait(kHang), 1) << early.log();
+  EXPECT_NE(early.log().find("tgm-hmi run: waiting for the PLC to set interpolator 0 up"),
+            std::string::npos)
+      << early.log();
+  EXPECT_NE(early.log().find("tgm-hmi run: the PLC has not set interpolator 0 up within 2 s of "
+                             "the service's start, and the service starts no program before "
+                             "(plc.setup_before_start in its config): start tgm-plc, or on a "
+                             "machine without a PLC set plc.setup_before_start: false\n"),
+            std::string::npos)
+      << early.log();
+  test::Child look;
+  ASSERT_TRUE(look.start({TGM_HMI_BIN, "status", "--config", env.config()}, env.path("st.log")));
+  EXPECT_EQ(look.wait(kHang), 0) << look.log();
+  EXPECT_NE(look.log().find("Status 0 (empty, not yet set up by the PLC: a start waits for it)"),
+            std::string::npos)
+      << look.log();
+  test::Child start;
+  ASSERT_TRUE(start.start({TGM_HMI_BIN, "command", "start", "--config", env.config()},
+                          env.path("start.log")));
+  EXPECT_EQ(start.wait(kHang), 1) << start.log();
+  EXPECT_NE(start.log().find("the PLC has not set interpolator 0 up since tgm-service started "
+                             "(position, gear ratios): start tgm-plc"),
+            std::string::npos)
+      << start.log();
+  // tgm-plc reports the setup once it has set the interpolator up.
+  test::Child plc;
+  ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.config(), "--interpolator", "0"},
+                        env.path("plc.log")));
+  test::Child later;
+  ASSERT_TRUE(later.start(run_args, env.path("later.log")));
+  EXPECT_EQ(later.wait(kHang), 0) << later.log() << "\n--- plc:\n" << plc.log();
+  EXPECT_NEAR(test::run_end_position(later.log())[0], 5.0, 1e-9) << later.log();
+  EXPECT_EQ(plc.interrupt(), 0);
+  EXPECT_NE(plc.log().find("interpolator 0: setup done (5 of 5 requests accepted)"),
+            std::string::npos)
+      << plc.log();
+  EXPECT_EQ(plc.log().find("setup report"), std::string::npos) << plc.log();
+}
+
+// A service that crashed and comes back while a `run` waits for it stands at 0, where the
+// drives stand at X 5: the run compiles and starts only after tgm-plc's position restore, so
+// the program's G91 move goes from X 5 to X 8 (review of session 80: the run could start before
+// the restore, Command 2048 was then refused as "a program is loaded", and the program ran from
+// X 0 while the drives stood at X 5).
+TEST(ServiceProcesses, ARunWaitingForACrashedServiceStartsAfterThePlcRestoresThePosition) {
+  test::ConfigEdits edits;
+  edits.plc_setup_before_start = true;
+  edits.interpolators = 1;
+  ServiceEnv env(edits);
+  ASSERT_TRUE(env.start_service());
+  test::Child plc;
+  ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.config()}, env.path("plc.log")));
+  std::ofstream(env.path("a.ngc")) << "G1 X5 F3000\nM2\n";
+  std::ofstream(env.path("b.ngc")) << "G91 G1 X3 F3000\nM2\n";
+  test::Child first;
+  ASSERT_TRUE(first.start({TGM_HMI_BIN, "run", env.path("a.ngc"), "--config", env.config()},
+                          env.path("first.log")));
+  ASSERT_EQ(first.wait(kHang), 0) << first.log() << "\n--- plc:\n" << plc.log();
+  ASSERT_EQ(env.service.interrupt(std::chrono::seconds(10), SIGKILL), 128 + SIGKILL)
+      << env.service.log();
+  for (int round = 0; round < 3; ++round) {
+    test::Child second;
+    ASSERT_TRUE(second.start({TGM_HMI_BIN, "run", env.path("b.ngc"), "--config", env.config()},
+                             env.path("second" + std::to_string(round) + ".log")));
+    std::this_thread::sleep_for(300ms);
+    ASSERT_TRUE(env.start_service());
+    ASSERT_EQ(second.wait(kHang), 0) << second.log() << "\n--- plc:\n" << plc.log();
+    EXPECT_NEAR(test::run_end_position(second.log())[0], 8.0 + 3.0 * round, 1e-9)
+        << second.log() << "\n--- plc:\n"
+        << plc.log();
+    ASSERT_EQ(env.service.interrupt(std::chrono::seconds(10), SIGKILL), 128 + SIGKILL);
+  }
+  EXPECT_EQ(plc.interrupt(), 0);
+}
+
 // The position goes to a restarted service by axis letter: the service ran XYZ (a PLC config of
 // XYC sends it no basic parameters) and comes back with XYC. X and Y get their increments, C
 // keeps the new service's 0, and Z, which it no longer drives, is named. By index, Z's 1000

@@ -27,6 +27,9 @@ struct ConfigEdits {
   int buffer_size0 = 10000;
   //! How many of the default config's three interpolators the config keeps (1..3).
   int interpolators = 3;
+  //! plc.setup_before_start (default.yaml: true). Off unless a test wants it: most tests run
+  //! programs without a tgm-plc.
+  bool plc_setup_before_start = false;
   std::string profiles = profiles_path();
   int domain = test_domain();
 };
@@ -53,6 +56,9 @@ class ServiceEnv {
                              "profiles_file: " + e.profiles);
     ok = ok && replace_first(yaml, "domain_id: 0", "domain_id: " + std::to_string(e.domain));
     ok = ok && replace_first(yaml, "buffer_size: 10000", "buffer_size: " + std::to_string(e.buffer_size0));
+    ok = ok && replace_first(yaml, "setup_before_start: true",
+                             std::string("setup_before_start: ") +
+                                 (e.plc_setup_before_start ? "true" : "false"));
     EXPECT_TRUE(ok) << "config/default.yaml changed: the test's edits no longer apply";
     config_ = (dir_ / "config.yaml").string();
     std::ofstream(config_) << yaml;

@@ -100,6 +100,56 @@ TEST(Engine, RoleTableFollowsDesignSectionOne) {
   }
 }
 
+// EngineOptions::require_plc_setup (config plc.setup_before_start): a start is refused, saying
+// why, until the PLC reports its setup of that interpolator; the HMI cannot report it; the
+// snapshot shows the gate (0 off, 1 waiting, 2 set up) per interpolator.
+TEST(Engine, AStartWaitsForThePlcsSetupReportWhereTheConfigWantsIt) {
+  EngineOptions o;
+  o.require_plc_setup = true;
+  Engine e = make_engine(o);
+  MockPort port;
+  const Program p = line_program(5);
+  port.add_chunk(0, p, 0, p.segments.size(), 3, true);
+  port.add_request(Role::kHmi, RequestKind::kStart);
+  port.add_request(Role::kHmi, RequestKind::kPlcSetupDone);
+  e.cycle(port, {});
+  ASSERT_EQ(port.replies.size(), 2u);
+  EXPECT_EQ(port.replies[0].code, ReplyCode::kWrongState);
+  EXPECT_EQ(port.replies[0].reason.view(),
+            "the PLC has not set interpolator 0 up since tgm-service started (position, gear "
+            "ratios): start tgm-plc, or wait for its setup (plc.setup_before_start in the "
+            "service's config)");
+  EXPECT_EQ(port.replies[1].code, ReplyCode::kWrongRole);
+  EXPECT_EQ(port.last.ip[0].plc_setup, 1);
+  EXPECT_EQ(port.last.ip[1].plc_setup, 1);
+  EXPECT_EQ(port.last.ip[0].reg.status, static_cast<std::int32_t>(InterpolatorStatus::kReady));
+  // The report is per interpolator: 1's does not set 0 up.
+  port.add_request(Role::kPlc, RequestKind::kPlcSetupDone, 1);
+  port.add_request(Role::kHmi, RequestKind::kStart);
+  e.cycle(port, {});
+  ASSERT_EQ(port.replies.size(), 4u);
+  EXPECT_EQ(port.replies[2].code, ReplyCode::kAccepted);
+  EXPECT_EQ(port.replies[3].code, ReplyCode::kWrongState);
+  EXPECT_EQ(port.last.ip[0].plc_setup, 1);
+  EXPECT_EQ(port.last.ip[1].plc_setup, 2);
+  port.add_request(Role::kPlc, RequestKind::kPlcSetupDone);
+  port.add_request(Role::kHmi, RequestKind::kStart);
+  e.cycle(port, {});
+  ASSERT_EQ(port.replies.size(), 6u);
+  EXPECT_EQ(port.replies[4].code, ReplyCode::kAccepted);
+  EXPECT_EQ(port.replies[5].code, ReplyCode::kAccepted) << port.replies[5].reason.view();
+  EXPECT_EQ(port.last.ip[0].plc_setup, 2);
+  EXPECT_EQ(port.last.ip[0].reg.status, static_cast<std::int32_t>(InterpolatorStatus::kRunning));
+  // Without the option the gate is off and shown so.
+  Engine plain = make_engine();
+  MockPort other;
+  other.add_request(Role::kHmi, RequestKind::kStart);
+  plain.cycle(other, {});
+  EXPECT_EQ(other.last.ip[0].plc_setup, 0);
+  ASSERT_EQ(other.replies.size(), 1u);
+  EXPECT_EQ(other.replies[0].reason.view().find("the PLC has not set"), std::string::npos);
+}
+
 TEST(Engine, RepliesSayWhy) {
   Engine e = make_engine();
   MockPort port;

@@ -61,6 +61,7 @@ TEST(Config, DefaultYamlLoadsAndMatchesBuiltInDefaults) {
   EXPECT_DOUBLE_EQ(m.interpolators[1].axes[2].max_jerk_mm_s3, 30000.0);
   EXPECT_TRUE(m.compiler.start_incremental);
   EXPECT_DOUBLE_EQ(load.config->plc.m_delay_s.at(51), 0.2);
+  EXPECT_TRUE(load.config->plc.setup_before_start);
 }
 
 // A file that is not a config (here 200 "kN: 1" lines, as a log or a program given by mistake)
@@ -290,6 +291,8 @@ TEST(Config, WholeNumbersAreDecimalAndNeverWrapRound) {
       {"plc:\n  m_delay_s: {1001: 1}\n",
        "plc.m_delay_s.1001: key must be a normal M-function 1..999"},
       {"plc:\n  m_delay_s: {-3: 1}\n", "plc.m_delay_s.-3: key must be a normal M-function 1..999"},
+      {"plc:\n  setup_before_start: later\n",
+       "m.yaml:2: plc.setup_before_start: must be true or false, not 'later'"},
   };
   for (const auto& [text, error] : refused) {
     const ConfigLoad refusal = load_config_text(text, "m.yaml");
@@ -298,6 +301,10 @@ TEST(Config, WholeNumbersAreDecimalAndNeverWrapRound) {
   }
   ConfigLoad load = load_config_text("plc:\n  m_delay_s: {1: 1, 999: 2}\n", "m.yaml");
   ASSERT_TRUE(load.config) << load.errors.front();
+  EXPECT_TRUE(load.config->plc.setup_before_start);  // the default where the key is left out
+  const ConfigLoad off = load_config_text("plc:\n  setup_before_start: false\n", "m.yaml");
+  ASSERT_TRUE(off.config) << off.errors.front();
+  EXPECT_FALSE(off.config->plc.setup_before_start);
   EXPECT_DOUBLE_EQ(load.config->plc.m_delay_s.at(999), 2.0);
   // The file's table replaces default.yaml's whole; left out, default.yaml's holds (it was
   // empty, and M51 got default_m_delay_s's 0.1 s where default.yaml shows 0.2 s).

@@ -105,6 +105,46 @@ int wait_for_service(client::Client& c, const AppConfig& config, int interpolato
   return 1;
 }
 
+int wait_for_plc_setup(client::Client& c, int interpolator, const char* command, double wait_s) {
+  using Clock = std::chrono::steady_clock;
+  const auto t0 = Clock::now();
+  const auto deadline =
+      t0 + std::chrono::milliseconds(static_cast<long long>(std::ceil(wait_s * 1000.0)));
+  const auto set_up = [](const msg::InterpolatorState& s) { return s.plc_setup() != 1; };
+  bool said = false;
+  while (true) {
+    // tgm-plc sets a service up within a second of finding it: said only when it takes longer.
+    const auto until = said ? deadline : std::min(deadline, t0 + std::chrono::seconds(1));
+    const auto slice = std::max<Clock::duration>(until - Clock::now(), Clock::duration(0));
+    if (c.wait_until(interpolator, set_up,
+                     std::chrono::duration_cast<std::chrono::milliseconds>(slice),
+                     &g_interrupted)) {
+      return 0;
+    }
+    if (g_interrupted) {
+      std::fprintf(stderr,
+                   "tgm-hmi %s: interrupted while waiting for the PLC's setup of interpolator %d\n",
+                   command, interpolator);
+      return 130;
+    }
+    if (Clock::now() >= deadline) break;
+    if (!said) {
+      said = true;
+      std::fprintf(stderr,
+                   "tgm-hmi %s: waiting for the PLC to set interpolator %d up (the service's "
+                   "config has plc.setup_before_start)\n",
+                   command, interpolator);
+    }
+  }
+  std::fprintf(stderr,
+               "tgm-hmi %s: the PLC has not set interpolator %d up within %g s of the service's "
+               "start, and the service starts no program before (plc.setup_before_start in its "
+               "config): start tgm-plc, or on a machine without a PLC set "
+               "plc.setup_before_start: false\n",
+               command, interpolator, wait_s);
+  return 1;
+}
+
 namespace {
 // One line of format_state: printf's format, checked by the compiler against the arguments
 // (a lambda forwarding its format could not be), then a newline.
@@ -149,8 +189,9 @@ std::string format_state(const msg::InterpolatorState& s, const std::string& con
   const auto rf = static_cast<std::uint32_t>(s.run_flag());
   // Off the trajectory (Command 5, 9 or 2049) the screen looked the same as after Command 4,
   // whose program a start resumes (review of the HMI, session 75).
-  append_line(out, "Interpolator %d: Status %d (%s%s%s), Number_Axes %d, Buffer_Size %d",
+  append_line(out, "Interpolator %d: Status %d (%s%s%s%s), Number_Axes %d, Buffer_Size %d",
               s.number(), s.status(), std::string(client::status_name(s.status())).c_str(),
+              s.plc_setup() == 1 ? ", not yet set up by the PLC: a start waits for it" : "",
               s.program_stop() ? ", at an M0 program stop: start continues" : "",
               !s.off_trajectory()   ? ""
               : s.program_id() != 0 ? ", off the trajectory: the program was dropped"
@@ -365,6 +406,7 @@ std::string format_state_json(const msg::InterpolatorState& s, const std::string
   json_field(out, "limit_factor", static_cast<int>(s.limit_factor()));
   json_field(out, "off_trajectory", static_cast<bool>(s.off_trajectory()));
   json_field(out, "program_stop", static_cast<bool>(s.program_stop()));
+  json_field(out, "plc_setup", static_cast<int>(s.plc_setup()));
   axes("orig_position_mm", s.orig_position());
   axes("position_mm", s.position());
   axes("position_inc", s.position_inc());

@@ -35,6 +35,10 @@ inline constexpr double kServiceWaitS = 10.0;
 //! exit code: 0 with the state, 1 without it, 130 when interrupted (g_interrupted) first.
 int wait_for_service(client::Client& c, const AppConfig& config, int interpolator,
                      const char* command, double wait_s = kServiceWaitS);
+//! Waits while the state of `interpolator` shows that the service wants the PLC's setup
+//! first (InterpolatorState.plc_setup 1): 0 once it does not, 1 after `wait_s` with the
+//! reason printed, 130 on Ctrl-C.
+int wait_for_plc_setup(client::Client& c, int interpolator, const char* command, double wait_s);
 
 //! The registers of one interpolator as readable lines, the axes named by the service's
 //! letters (`config_letters` when the state has none).

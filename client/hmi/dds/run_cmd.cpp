@@ -39,7 +39,8 @@ constexpr const char* kUsage =
     "starts it and follows it to the end. A stop on the trajectory (Command 8, or the\n"
     "emergency stop 4) is followed until `tgm-hmi command start` resumes it. Exit code 0\n"
     "when the program ended, 1 when it was dropped (a stop off the trajectory, 5 or 9) or\n"
-    "failed, 2 on bad input.\n"
+    "failed, 2 on bad input. Where the service's config has plc.setup_before_start, it first\n"
+    "waits for the PLC to set the interpolator up (up to 10 s, or --timeout).\n"
     "\n"
     "  --interpolator N      interpolator 0..2 (default 0)\n"
     "  --config YAML         machine config (default: $TGM_CONFIG, the installed or\n"
@@ -286,6 +287,14 @@ int run_run(int argc, char** argv) {
                  "are counted from the state and may miss short ones\n");
   }
 
+  // A service that wants the PLC's setup first (plc.setup_before_start) stands at 0 after a
+  // restart until tgm-plc restores the drives' position: compiled from that 0, the program
+  // would run from the wrong point, and its start was refused anyway (review of session 80).
+  if (const int rc = wait_for_plc_setup(
+          *hmi, ip, "run", timeout_s > 0.0 ? std::min(timeout_s, kServiceWaitS) : kServiceWaitS);
+      rc != 0) {
+    return rc;
+  }
   // Take the interpolator over: clear what it holds (only while it stands).
   const msg::InterpolatorState* st = hmi->state(ip);
   // Positions go by axis index: a program compiled with a config whose letters differ from the

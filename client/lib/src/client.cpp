@@ -461,6 +461,10 @@ msg::Request start_request(int interpolator) {
   return make(interpolator, msg::REQUEST_KIND_START);
 }
 
+msg::Request plc_setup_done_request(int interpolator) {
+  return make(interpolator, msg::REQUEST_KIND_PLC_SETUP_DONE);
+}
+
 msg::Request command_request(int interpolator, std::int32_t code,
                              std::span<const std::int32_t> params) {
   msg::Request r = make(interpolator, msg::REQUEST_KIND_COMMAND);

@@ -38,6 +38,10 @@ struct PlcConfig {
   double default_m_delay_s = 0.1;
   //! Time per M-number [s] (default.yaml's table; a table in the file replaces it whole).
   std::map<int, double> m_delay_s{{50, 0.2}, {51, 0.2}};
+  //! tgm-service refuses a start until a PLC has reported its setup of the interpolator since
+  //! the service started (tgm-plc reports it once it has set the basic parameters, the gear
+  //! ratios and, after a restart, the drives' position). Off for a machine without a PLC.
+  bool setup_before_start = true;
 };
 
 //! The whole YAML file.

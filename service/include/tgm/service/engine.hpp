@@ -38,6 +38,12 @@ struct EngineOptions {
   //! The part of each limit the checker holds the motion to (`--limit-share`,
   //! LimitChecker::create).
   double limit_share = 1.0;
+  //! A start is refused until a PLC has reported its setup of the interpolator
+  //! (RequestKind::kPlcSetupDone) since the engine was made: config plc.setup_before_start.
+  //! A restarted service stands at 0 where the drives stand elsewhere, and without the PLC's
+  //! gear ratios; the PLC sets both, and a program started before it would run from the wrong
+  //! point.
+  bool require_plc_setup = false;
 };
 
 //! What the engine counted (for the log at shutdown and for tests).
@@ -108,6 +114,7 @@ class Engine {
     FixedText<256> message_text;
     std::uint64_t events = 0;  // EventOut::counter of the last event queued
     std::string letters;       // the config's axis letters (Number_Axes takes the first ones)
+    bool plc_setup_done = false;  // a PLC reported its setup (EngineOptions::require_plc_setup)
     //! The letters of the Number_Axes axes in use.
     std::string_view active_letters() const {
       return std::string_view(letters).substr(0,

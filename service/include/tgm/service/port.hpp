@@ -29,6 +29,7 @@ enum class RequestKind : std::uint8_t {
   kStart = 6,
   kStop = 7,
   kClear = 8,
+  kPlcSetupDone = 9,
   kUnknown = 255,
 };
 
@@ -177,6 +178,8 @@ struct InterpolatorSnapshot {
   FixedText<256> message_text;
   //! Letters of the Number_Axes axes ("XYZ").
   FixedText<kMaxAxes + 1> axis_letters;
+  //! InterpolatorState.plc_setup: 0 not required, 1 not yet reported, 2 reported.
+  std::uint8_t plc_setup = 0;
 };
 
 //! Everything the publisher needs after one cycle.

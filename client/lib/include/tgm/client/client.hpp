@@ -103,6 +103,8 @@ msg::Request rel_speed_request(int interpolator, double rel_speed);
 msg::Request number_axes_request(int interpolator, int number_axes);
 msg::Request ratio_request(int interpolator, int axis, double ratio_inc_per_mm);
 msg::Request offset_request(int interpolator, int axis, std::int64_t offset_inc);
+//! The PLC's report that it has set the interpolator up (InterpolatorState.plc_setup).
+msg::Request plc_setup_done_request(int interpolator);
 
 //! One event sample as the event callback gets it.
 struct Event {
