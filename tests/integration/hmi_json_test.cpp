@@ -220,6 +220,10 @@ TEST(HmiJson, StatusAndWatchShowTheRealServicesRegisters) {
     const auto cycle = j["cycle_counter"].as<std::uint64_t>();
     EXPECT_GT(cycle, last) << line;
     last = cycle;
+    // The service publishes every few milliseconds: each state shown is fresh.
+    const double age = j["state_age_s"].as<double>();
+    EXPECT_GE(age, 0.0) << line;
+    EXPECT_LT(age, 1.0) << line;
   }
 }
 

@@ -1279,6 +1279,17 @@ TEST(ServiceProcesses, HmiRunEndsWithAClearErrorWhenTheServiceRestarts) {
   EXPECT_NE(watched.find("tgm-hmi watch: tgm-service restarted (instance ", silent),
             std::string::npos)
       << watched;
+  // Standard output says it too: each JSON line's state_age_s, the time since that state
+  // arrived, grew through the silence (3 s and more) and fell again with the new service.
+  std::vector<double> ages;
+  for (std::size_t at = watched.find("\"state_age_s\":"); at != std::string::npos;
+       at = watched.find("\"state_age_s\":", at + 1)) {
+    ages.push_back(std::strtod(watched.c_str() + at + 14, nullptr));
+  }
+  ASSERT_GE(ages.size(), 10u) << watched;
+  EXPECT_LT(ages.front(), 1.0) << watched;
+  EXPECT_GE(*std::max_element(ages.begin(), ages.end()), 3.0) << watched;
+  EXPECT_LT(ages.back(), 1.0) << watched;
 }
 
 // An emergency stop off the trajectory (Command 5) drops the program: the run ends with exit

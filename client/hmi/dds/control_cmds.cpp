@@ -43,7 +43,8 @@ constexpr const char* kWatchUsage =
     "began (the service keeps the last 32) are marked 'earlier', with their age. On a terminal\n"
     "the newest 5 stay on every screen.\n"
     "  --json   one line of JSON per sample (see tgm-hmi status --help), nothing else on\n"
-    "           standard output; warnings go to standard error\n"
+    "           standard output, with state_age_s: the seconds since that state arrived (it\n"
+    "           grows when the service stops publishing); warnings go to standard error\n"
     "  --wait S wait up to S seconds for the service's first state (default 10, at most 3600)\n";
 constexpr const char* kStopUsage =
     "usage: tgm-hmi stop [--interpolator N] [--timeout S] [--config YAML] [DDS overrides]\n"
@@ -252,7 +253,11 @@ int run_watch(int argc, char** argv) {
                    "tgm-hmi watch: no state from tgm-service for 5 s: joining DDS again as a new "
                    "participant (the link may have broken one way, as after this process stood "
                    "still for seconds)\n");
-      c.client->rejoin();
+      if (const std::string why = c.client->rejoin(); !why.empty()) {
+        std::fprintf(stderr,
+                     "tgm-hmi watch: warning: could not join DDS again (%s): going on as before\n",
+                     why.c_str());
+      }
     }
     const std::string stale =
         silence.silent()
@@ -267,9 +272,10 @@ int run_watch(int argc, char** argv) {
         std::fprintf(stderr, "tgm-hmi watch: tgm-service is back\n");
       }
       // Standard output stays JSON Lines: the rest goes to standard error, once per change.
-      std::fputs(
-          format_state_json(*c.client->state(ip), c.config->machine.axis_letters(ip)).c_str(),
-          stdout);
+      std::fputs(format_state_json(*c.client->state(ip), c.config->machine.axis_letters(ip),
+                                   std::chrono::duration<double>(silence.since_last(now)).count())
+                     .c_str(),
+                 stdout);
       if (const int rc = flush_watch_output(); rc >= 0) return rc;
       if (const std::uint64_t bad = dds::malformed_samples(); bad != malformed_said) {
         malformed_said = bad;

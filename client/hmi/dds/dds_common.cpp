@@ -354,7 +354,8 @@ void json_params(std::string& out, const char* key, const Params& p) {
 }
 }  // namespace
 
-std::string format_state_json(const msg::InterpolatorState& s, const std::string& config_letters) {
+std::string format_state_json(const msg::InterpolatorState& s, const std::string& config_letters,
+                              double age_s) {
   const std::string letters =
       s.axis_letters().size() == 0 ? config_letters : s.axis_letters().to_string();
   const int n = std::max(1, std::min<int>(s.number_axes(), kMaxAxes));
@@ -467,6 +468,7 @@ std::string format_state_json(const msg::InterpolatorState& s, const std::string
   json_field(out, "message_counter", s.message_counter());
   json_key(out, "message_text");
   append_json_string(out, s.message_text().to_string());
+  if (age_s >= 0.0) json_field(out, "state_age_s", std::round(age_s * 1000.0) / 1000.0);
   out += "}\n";
   return out;
 }

@@ -45,6 +45,9 @@ int wait_for_plc_setup(client::Client& c, int interpolator, const char* command,
 std::string format_state(const msg::InterpolatorState& s, const std::string& config_letters);
 //! The same as one line of JSON (JSON Lines): the IDL's field names, units in the key where
 //! the register has one, per-axis values keyed by letter, not-finite numbers as null.
-std::string format_state_json(const msg::InterpolatorState& s, const std::string& config_letters);
+//! `age_s` >= 0: written as "state_age_s", the time since the state arrived [s] (watch: a
+//! service that stopped publishing leaves its last state, and a script sees it age).
+std::string format_state_json(const msg::InterpolatorState& s, const std::string& config_letters,
+                              double age_s = -1.0);
 
 }  // namespace tgm::hmi

@@ -42,7 +42,8 @@ constexpr const char* kUsage =
     "failed, 2 on bad input. Where the service's config has plc.setup_before_start, it first\n"
     "waits for the PLC to set the interpolator up (up to 10 s, or --timeout).\n"
     "\n"
-    "  --interpolator N      interpolator 0..2 (default 0)\n"
+    "  --interpolator N      interpolator 0 up to the config's interpolators - 1 (at most\n"
+    "                        2; default 0)\n"
     "  --config YAML         machine config (default: $TGM_CONFIG, the installed or\n"
     "                        the in-tree config/default.yaml)\n"
     "  --domain N, --profiles FILE, --participant-prefix P, --security DIR   DDS overrides\n"
@@ -660,7 +661,11 @@ int run_run(int argc, char** argv) {
                       "ran empty"
                     : "no state from tgm-service for 5 s");
         std::fflush(stdout);
-        hmi->rejoin();
+        if (const std::string why = hmi->rejoin(); !why.empty()) {
+          std::fprintf(stderr,
+                       "tgm-hmi run: warning: could not join DDS again (%s): going on as before\n",
+                       why.c_str());
+        }
         rejoined_at = now;
         starving_since = {};
         if (stalled) {

@@ -91,8 +91,10 @@ Client::Client(const DdsConfig& config, Role role, const ClientOptions& options)
   follow_.resize(kMaxInterpolators);
 }
 
-void Client::join() {
-  participant_ = std::make_unique<dds::Participant>(config_, role_ == Role::kPlc ? "plc" : "hmi");
+void Client::join(std::unique_ptr<dds::Participant> made) {
+  participant_ = made != nullptr ? std::move(made)
+                                 : std::make_unique<dds::Participant>(
+                                       config_, role_ == Role::kPlc ? "plc" : "hmi");
   dds::Participant& p = *participant_;
   state_reader_ = &p.reader<msg::InterpolatorStatePubSubType>(dds::kStateTopic);
   reply_reader_ = &p.reader<msg::ReplyPubSubType>(dds::kReplyTopic);
@@ -114,14 +116,23 @@ void Client::join() {
   }
 }
 
-void Client::rejoin() {
+std::string Client::rejoin() {
+  // Made first: a participant that cannot be made (a port taken meanwhile) used to leave the
+  // client without one, and the run ended in an "internal error".
+  std::unique_ptr<dds::Participant> fresh;
+  try {
+    fresh = std::make_unique<dds::Participant>(config_, role_ == Role::kPlc ? "plc" : "hmi");
+  } catch (const dds::SetupError& e) {
+    return e.what();
+  }
   if (event_reader_ != nullptr) event_reader_->set_listener(nullptr);
   waiter_.reset();
   state_reader_ = reply_reader_ = message_reader_ = setpoint_reader_ = event_reader_ = nullptr;
   request_writer_ = program_writer_ = nullptr;
   participant_.reset();  // its entities first, then the participant (a clean leave)
-  join();
+  join(std::move(fresh));
   if (event_listener_) attach_events("rejoin");
+  return {};
 }
 
 void Client::attach_events(const char* caller) {

@@ -267,8 +267,10 @@ class Client {
   //! dropped it, and when this process did not drop the service in turn, Fast DDS 2.9 never
   //! matched its endpoints again (it holds the service's acknowledgements of the old session).
   //! A new participant is discovered afresh on both sides. Requests in flight are not lost:
-  //! request() writes again what has no reply.
-  void rejoin();
+  //! request() writes again what has no reply. The new participant is made before the old one
+  //! leaves: when it cannot be made (its ports taken meanwhile), the client stays as it was and
+  //! the reason is returned; empty when it rejoined.
+  std::string rejoin();
 
   Role role() const { return role_; }
   const std::string& name() const { return name_; }
@@ -304,8 +306,9 @@ class Client {
   Role role_;
   std::chrono::milliseconds request_timeout_;
   const std::atomic<bool>* default_cancel_ = nullptr;  // ClientOptions::cancel
-  // Creates the participant and its readers and writers (not the event reader).
-  void join();
+  // Takes `made` (a new participant when null) with its readers and writers (not the event
+  // reader).
+  void join(std::unique_ptr<dds::Participant> made = nullptr);
   // Creates the event reader and attaches event_listener_ to it; `caller` names the method in
   // the SetupError.
   void attach_events(const char* caller);
