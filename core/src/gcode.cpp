@@ -49,8 +49,17 @@ std::string fmt_num(double v) {
   return buf;
 }
 
-//! Source text quoted in a message: bytes outside printable ASCII as \xNN, so a binary or
-//! mis-encoded file cannot put control codes or broken UTF-8 into the terminal or the log.
+//! A code point an editor does not show: C0 and C1 controls, spaces and marks of no width, a
+//! byte-order mark inside the text. Named by its number in messages, never printed.
+bool invisible_code_point(unsigned cp) {
+  return cp <= 0x9F || cp == 0xA0 || cp == 0xAD || cp == 0xFEFF || (cp >= 0x2000 && cp <= 0x200F) ||
+         (cp >= 0x2028 && cp <= 0x202F) || (cp >= 0x205F && cp <= 0x206F);
+}
+
+//! Source text quoted in a message: printable ASCII and visible UTF-8 characters as they are
+//! (an 'ä' reads as in the editor, as in "unexpected character"), every other byte as \xNN,
+//! so a binary or mis-encoded file cannot put control codes or broken UTF-8 into the terminal
+//! or the log.
 std::string quoted_source(std::string_view text) {
   // A word of a hundred thousand digits is quoted by its start and its length, not whole.
   constexpr std::size_t kMaxQuoted = 40;
@@ -58,15 +67,22 @@ std::string quoted_source(std::string_view text) {
   if (full > kMaxQuoted) text = text.substr(0, kMaxQuoted);
   std::string out;
   out.reserve(text.size() + 32);
-  for (const char c : text) {
-    const auto uc = static_cast<unsigned char>(c);
+  for (std::size_t i = 0; i < text.size();) {
+    const auto uc = static_cast<unsigned char>(text[i]);
     if (uc >= 0x20 && uc < 0x7f) {
-      out += c;
-    } else {
-      char buf[8];
-      std::snprintf(buf, sizeof buf, "\\x%02X", uc);
-      out += buf;
+      out += text[i++];
+      continue;
     }
+    if (const std::size_t n = utf8_sequence_length(text.substr(i));
+        n > 1 && !invisible_code_point(utf8_code_point(text.substr(i, n)))) {
+      out += text.substr(i, n);
+      i += n;
+      continue;
+    }
+    char buf[8];
+    std::snprintf(buf, sizeof buf, "\\x%02X", uc);
+    out += buf;
+    ++i;
   }
   if (full > kMaxQuoted) out += "... (" + std::to_string(full) + " characters)";
   return out;
@@ -588,10 +604,7 @@ bool Compiler::lex_words(Block& b) {
         // "unexpected byte 0xC3" for an 'ä'. One an editor does not show (C1 controls, spaces
         // and marks of no width, a byte-order mark inside the text) by its code point alone.
         const unsigned cp = utf8_code_point(src_.substr(i, n));
-        const bool invisible = cp <= 0x9F || cp == 0xA0 || cp == 0xAD || cp == 0xFEFF ||
-                               (cp >= 0x2000 && cp <= 0x200F) || (cp >= 0x2028 && cp <= 0x202F) ||
-                               (cp >= 0x205F && cp <= 0x206F);
-        if (invisible) {
+        if (invisible_code_point(cp)) {
           std::snprintf(buf, sizeof buf, "unexpected invisible character U+%04X", cp);
         } else {
           std::snprintf(buf, sizeof buf, "unexpected character '%.*s' (U+%04X)",

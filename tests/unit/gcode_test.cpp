@@ -1110,6 +1110,16 @@ TEST(GcodeErrors, ColumnsCountCharactersAndForeignLettersAreNamed) {
               ElementsAre("1:9: word X needs a number, not '\\xE9'",
                           "1:15: unexpected character '\xe2\x82\xac' (U+20AC)",
                           "2:8: word Y needs a number"));
+  // Quoted text shows a visible character as the editor does, and an invisible one or a
+  // stray byte as \xNN (it showed every byte of 'ä' so).
+  EXPECT_THAT(errors_of("G1 X\xc3\xa4"
+                        "1 Y\xc2\xa0"
+                        "2 Z\xe9\n"),
+              ElementsAre("1:4: word X needs a number, not '\xc3\xa4"
+                          "1'",
+                          "1:8: word Y needs a number, not '\\xC2\\xA0"
+                          "2'",
+                          "1:12: word Z needs a number, not '\\xE9'"));
   // Pass 2: a subroutine's error on a line with a multi-byte comment.
   EXPECT_THAT(errors_of("G91\nG26 L5 K1\nM2\nG29 L5\n(\xc3\xa4) G0 X600000000\n"
                         "(\xc3\xa4\xc3\xa4) G0 X600000000\nM17\n"),
