@@ -19,6 +19,7 @@
 
 #include "tgm/gcode.hpp"
 #include "tgm/intercode_io.hpp"
+#include "tgm/printable.hpp"
 
 namespace tgm::hmi {
 
@@ -212,7 +213,21 @@ void ProgramNotes::print(const std::string& file, bool intercode) const {
     return intercode ? file + " (source line " + std::to_string(line) + ")"
                      : file + ":" + std::to_string(line);
   };
-  if (compensation_seen_) {
+  double table_radius = 0.0;
+  for (const ToolConfig& t : tools_) {
+    if (t.number == compensation_.tool) table_radius = t.radius_mm;
+  }
+  if (compensation_seen_ && table_radius > 0.0) {
+    // The radius is 0 although the tool has one: a D0 on the G41/G42 line (the note said to use
+    // a T with a radius, which the program had).
+    std::fprintf(stderr,
+                 "%s: note: the first move under G%d (tool radius compensation) with radius 0 "
+                 "(D0 on the G%d line, where tool T%d has %s mm in the tool table): the tool "
+                 "centre follows the programmed contour\n",
+                 where(compensation_.line).c_str(), static_cast<int>(compensation_.compensation),
+                 static_cast<int>(compensation_.compensation), static_cast<int>(compensation_.tool),
+                 shortest_text(table_radius).c_str());
+  } else if (compensation_seen_) {
     std::fprintf(stderr,
                  "%s: note: the first move under G%d (tool radius compensation) with radius 0 "
                  "(tool T%d): the tool centre follows the programmed contour; D<mm> on the G%d "

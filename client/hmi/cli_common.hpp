@@ -7,6 +7,8 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
+#include <vector>
 
 #include "tgm/atomic_file.hpp"
 #include "tgm/cli_args.hpp"
@@ -86,6 +88,9 @@ bool is_intercode(const std::string& file, std::string_view bytes);
 //!   cut short by a post-processor that died reads: one note names that record's line.
 class ProgramNotes {
  public:
+  //! `tools`: the config's tool table, to tell a D0 on the G41/G42 line from a tool without a
+  //! radius (empty for intercode of unknown origin).
+  explicit ProgramNotes(std::vector<ToolConfig> tools = {}) : tools_(std::move(tools)) {}
   void observe(const Segment& s) {
     if (!compensation_seen_ && s.compensation != Compensation::kOff &&
         s.compensation_radius_mm == 0.0 && s.is_motion()) {
@@ -104,6 +109,7 @@ class ProgramNotes {
   void print(const std::string& file, bool intercode = false) const;
 
  private:
+  std::vector<ToolConfig> tools_;
   bool compensation_seen_ = false;
   Segment compensation_{};
   bool ends_ = false;

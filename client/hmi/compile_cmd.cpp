@@ -214,7 +214,7 @@ int run_compile(int argc, char** argv) {
   if (!out_path.empty() && !out.open(out_path, io_error)) {
     return args.usage_error("--out " + out_path + ": " + io_error);
   }
-  ProgramNotes notes;
+  ProgramNotes notes(machine->tools);
   const auto note = [&](const Segment& s) { notes.observe(s); };
   // After the diagnostics themselves: their number, and the exit code of a program with errors.
   const auto no_intercode = [&](std::size_t errors) {

@@ -317,7 +317,7 @@ int run_simulate(int argc, char** argv) {
   // Held as intercode: a program of millions of lines took 152 bytes a record as Segments.
   PackedProgram program;
   bool intercode = false;
-  ProgramNotes note;
+  ProgramNotes note(machine.tools);
   if (!load_packed(file, machine, ip_index, program, &start, &intercode,
                    [&note](const Segment& s) { note.observe(s); }))
     return 2;

@@ -99,6 +99,17 @@ TEST_F(HmiCompile, CompensationIsAppliedAndRadiusZeroIsNotedOnce) {
     }
   }
 
+  // D0 with a tool that has a radius: the note names the D0 (it advised a T with a radius,
+  // which the program had).
+  const fs::path d0 = write("d0.ngc", "T1\nG90 G1 X1 F600\nG41 D0\nG1 X5\nM2\n");
+  const ProcessResult d0_run = run("compile " + d0.string() + " --config " + kConfig);
+  ASSERT_EQ(d0_run.exit_code, 0) << d0_run.err;
+  EXPECT_NE(d0_run.err.find("d0.ngc:4: note: the first move under G41 (tool radius compensation) "
+                            "with radius 0 (D0 on the G41 line, where tool T1 has 3 mm in the "
+                            "tool table): the tool centre follows the programmed contour\n"),
+            std::string::npos)
+      << d0_run.err;
+
   // D 2.5 on the left: the entry from X1 ends where the offset lines of X5 and Y5 meet
   // (concave corner), the rise runs at X2.5, G40's move leads back to the contour.
   const fs::path left =

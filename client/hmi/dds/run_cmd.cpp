@@ -207,7 +207,7 @@ int run_run(int argc, char** argv) {
   // Held as intercode: a program of millions of lines took 152 bytes a record as Segments.
   PackedProgram program;
   bool intercode = false;
-  ProgramNotes note;
+  ProgramNotes note(config->machine.tools);
   std::int32_t last_line = 0;
   const auto observe = [&](const Segment& s) {
     note.observe(s);
@@ -389,7 +389,7 @@ int run_run(int argc, char** argv) {
     }
     if (away || other_tool || fewer_axes) {
       program = PackedProgram{};  // a long program is not held twice
-      note = ProgramNotes{};
+      note = ProgramNotes{config->machine.tools};
       if (std::size_t errors = 0; !load_packed(
               file, source, machine, ip, program, away ? &here : nullptr, nullptr,
               [&](const Segment& s) { note.observe(s); }, &errors)) {
