@@ -272,10 +272,11 @@ int run_watch(int argc, char** argv) {
         std::fprintf(stderr, "tgm-hmi watch: tgm-service is back\n");
       }
       // Standard output stays JSON Lines: the rest goes to standard error, once per change.
-      std::fputs(format_state_json(*c.client->state(ip), c.config->machine.axis_letters(ip),
-                                   std::chrono::duration<double>(silence.since_last(now)).count())
-                     .c_str(),
-                 stdout);
+      std::fputs(
+          format_state_json(*c.client->state(ip), c.config->machine.axis_letters(ip),
+                            std::chrono::duration<double>(now - c.client->state_taken(ip)).count())
+              .c_str(),
+          stdout);
       if (const int rc = flush_watch_output(); rc >= 0) return rc;
       if (const std::uint64_t bad = dds::malformed_samples(); bad != malformed_said) {
         malformed_said = bad;

@@ -307,6 +307,11 @@ std::uint64_t Client::other_service(int interpolator) const {
   return f.other != 0 && Clock::now() - f.other_at < 3s ? f.other : 0;
 }
 
+std::chrono::steady_clock::time_point Client::state_taken(int interpolator) const {
+  if (interpolator < 0 || static_cast<std::size_t>(interpolator) >= follow_.size()) return {};
+  return follow_[static_cast<std::size_t>(interpolator)].last;
+}
+
 std::uint64_t Client::state_samples(int interpolator) const {
   if (interpolator < 0 || static_cast<std::size_t>(interpolator) >= states_.size()) return 0;
   return state_samples_[static_cast<std::size_t>(interpolator)];

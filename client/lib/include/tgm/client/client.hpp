@@ -166,6 +166,9 @@ class Client {
   static constexpr std::chrono::milliseconds kServiceSwitch{1000};
   //! State samples received for `interpolator` so far.
   std::uint64_t state_samples(int interpolator) const;
+  //! When poll() took the newest state of `interpolator` (of the service followed); the epoch
+  //! when none came. poll() waits on the readers, so this is when it arrived.
+  std::chrono::steady_clock::time_point state_taken(int interpolator) const;
   //! Messages (M29 texts, errors) received since the last call.
   std::vector<msg::Message> take_messages();
 
