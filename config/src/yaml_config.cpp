@@ -193,7 +193,7 @@ class Reader {
     } else if (s == "false" || s == "no" || s == "off") {
       out = false;
     } else {
-      error(n, join(path, key), "must be true or false, not '" + s + "'");
+      error(n, join(path, key), "must be true or false (also yes / no, on / off), not '" + s + "'");
     }
   }
 

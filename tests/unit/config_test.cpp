@@ -292,7 +292,8 @@ TEST(Config, WholeNumbersAreDecimalAndNeverWrapRound) {
        "plc.m_delay_s.1001: key must be a normal M-function 1..999"},
       {"plc:\n  m_delay_s: {-3: 1}\n", "plc.m_delay_s.-3: key must be a normal M-function 1..999"},
       {"plc:\n  setup_before_start: later\n",
-       "m.yaml:2: plc.setup_before_start: must be true or false, not 'later'"},
+       "m.yaml:2: plc.setup_before_start: must be true or false (also yes / no, on / off), not "
+       "'later'"},
   };
   for (const auto& [text, error] : refused) {
     const ConfigLoad refusal = load_config_text(text, "m.yaml");
