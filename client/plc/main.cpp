@@ -83,8 +83,10 @@ constexpr const char* kUsage =
     "The basic parameters go by axis index: when the config's axis letters are not those the\n"
     "service publishes, none are sent and the log says why. A restarted tgm-service starts at\n"
     "0; with its basic parameters it gets where the emulated drives stand, the last\n"
-    "PositionInc seen (Command 2048). Stops cleanly on SIGINT / SIGTERM (SIGHUP, a closed\n"
-    "terminal, is ignored).\n"
+    "PositionInc seen (Command 2048). Where the service's config has plc.setup_before_start\n"
+    "(its state shows plc_setup 1), it then reports the setup, which a start waits for; not\n"
+    "when a setup request was refused or not sent (--no-basic-params, other axes): the log\n"
+    "says so. Stops cleanly on SIGINT / SIGTERM (SIGHUP, a closed terminal, is ignored).\n"
     "\n"
     "  --config YAML        machine config (default: $TGM_CONFIG, the installed or the in-tree\n"
     "                       config/default.yaml)\n"
@@ -203,7 +205,7 @@ struct SetupRequest {
   std::string what;           // the log line before ": <reply>"
   bool quiet_ok = false;      // under --quiet, logged only when refused or unanswered
   int attempts = 1;           // written this often at most while unanswered (basic parameters: 3)
-  bool report = false;        // the setup report: not counted, logged only when not accepted
+  bool report = false;        // the setup report: not counted in total / accepted
   int attempt = 0;            // the attempt written last
   std::uint64_t id = 0;       // request_id once written
   Clock::time_point since{};  // when this attempt was first tried, or written
@@ -211,8 +213,10 @@ struct SetupRequest {
 struct SetupQueue {
   std::deque<SetupRequest> items;
   int total = 0, accepted = 0;
+  int failed = 0;       // counted items refused or given up unanswered
   bool report = false;  // "setup done" is due once the items are answered
   const char* withheld = nullptr;  // why the basic parameters were not sent, if they were not
+  const char* unrestored = nullptr;  // why the drives' position was not restored, if it was not
 };
 
 // One interpolator as the PLC sees it (main loop only).
@@ -529,6 +533,7 @@ int plc_main(int argc, char** argv) {
                  "Command_Parameter's 32 bits): the drives stood at %s inc, the restarted "
                  "service starts from its own position",
                  sv.number, where.c_str());
+      setup[sv.number].unrestored = "the drives' position does not fit Command 2048";
       return;
     }
     if (not_sent != nullptr) {
@@ -560,6 +565,25 @@ int plc_main(int argc, char** argv) {
       while (!q.items.empty()) {
         SetupRequest& r = q.items.front();
         const auto now = Clock::now();
+        // The report says the machine is set up: not where a setup request was refused or not
+        // sent (a loaded program kept the position restore out, another config's axes, no
+        // basic parameters), or the service would start programs from the wrong position or
+        // with the wrong gear ratios (review of session 81).
+        if (r.report && r.id == 0 &&
+            (q.failed > 0 || q.withheld != nullptr || q.unrestored != nullptr)) {
+          const std::string why = q.withheld != nullptr ? std::string(q.withheld)
+                                  : q.unrestored != nullptr
+                                      ? std::string(q.unrestored)
+                                      : std::to_string(q.failed) + " of " +
+                                            std::to_string(q.total) +
+                                            " setup requests refused or unanswered";
+          append_log(pending_log, stamp(),
+                     "interpolator %d: error: setup not reported to tgm-service (%s): it starts "
+                     "no program there until a PLC has set it up (plc.setup_before_start)",
+                     number, why.c_str());
+          q.items.pop_front();
+          continue;
+        }
         if (r.id == 0 && write) {
           if (r.since == Clock::time_point{}) {
             r.since = now;
@@ -574,7 +598,8 @@ int plc_main(int argc, char** argv) {
         } else if (r.id != 0) {
           if (std::optional<tgm::client::Reply> reply = plc->take_reply(r.id)) {
             if (reply->accepted && !r.report) ++q.accepted;
-            if (!reply->accepted || (!r.report && (!quiet || !r.quiet_ok))) {
+            if (!reply->accepted && !r.report) ++q.failed;
+            if (!quiet || !r.quiet_ok || !reply->accepted) {
               append_log(pending_log, stamp(), "%s: %s", r.what.c_str(),
                          tgm::client::describe(*reply).c_str());
             }
@@ -596,6 +621,7 @@ int plc_main(int argc, char** argv) {
           r.since = Clock::time_point{};
           continue;
         }
+        if (!r.report) ++q.failed;
         append_log(pending_log, stamp(), "%s: %s", r.what.c_str(),
                    !final      ? tgm::client::describe(none).c_str()
                    : r.id != 0 ? "no reply before the stop"
@@ -612,6 +638,7 @@ int plc_main(int argc, char** argv) {
                    q.withheld != nullptr ? "; basic parameters not sent: " : "",
                    q.withheld != nullptr ? q.withheld : "");
         q.withheld = nullptr;
+        q.unrestored = nullptr;
       }
     }
   };
@@ -1099,7 +1126,7 @@ int plc_main(int argc, char** argv) {
         // of session 80). Sent whatever came of the requests before it (their refusals are
         // logged): the PLC has done what it does.
         if (s->plc_setup() == 1) {
-          std::snprintf(what, sizeof what, "interpolator %d: setup report to the service",
+          std::snprintf(what, sizeof what, "interpolator %d: setup reported to tgm-service",
                         sv.number);
           SetupQueue& sq = setup[sv.number];
           sq.items.push_back(

@@ -224,8 +224,9 @@ ReplyOut Engine::apply(const RequestIn& r) {
   if (r.kind == RequestKind::kStart && opt_.require_plc_setup && !slot.plc_setup_done) {
     return refuse(ReplyCode::kWrongState,
                   "the PLC has not set interpolator " + std::to_string(r.interpolator) +
-                      " up since tgm-service started (position, gear ratios): start tgm-plc, "
-                      "or wait for its setup (plc.setup_before_start in the service's config)");
+                      " up since tgm-service started (position, gear ratios): start tgm-plc or "
+                      "wait for its setup; a PLC of your own reports it with "
+                      "REQUEST_KIND_PLC_SETUP_DONE (plc.setup_before_start)");
   }
   Interpolator& ip = slot.ip;
   const RequestResult res =
@@ -275,6 +276,18 @@ void Engine::apply_chunks(CyclePort& port, int i, std::size_t& budget) {
     // dropped.
     if (c->program_id == 0) {
       refuse_chunk(port, i, *c, "program id 0 is no program (number programs from 1)");
+      port.pop_chunk(i);
+      continue;
+    }
+    // Before the PLC's setup (EngineOptions::require_plc_setup) a loaded program would keep the
+    // PLC from setting the position (Command 2048 is refused while one is loaded), and a start
+    // once the report came would run it from 0 where the drives stand elsewhere (review of
+    // session 81).
+    if (opt_.require_plc_setup && !s.plc_setup_done) {
+      refuse_chunk(port, i, *c,
+                   "the PLC has not set interpolator " + std::to_string(i) +
+                       " up since tgm-service started (position, gear ratios): send it once "
+                       "the state shows plc_setup 2 (plc.setup_before_start)");
       port.pop_chunk(i);
       continue;
     }

@@ -42,9 +42,12 @@ cleanup() {
 trap cleanup EXIT
 
 # The default machine with an absolute profiles path, this benchmark's domain and a 100,000-record
-# buffer on interpolator 0 (the streaming run needs the whole program in the buffer).
+# buffer on interpolator 0 (the streaming run needs the whole program in the buffer). No PLC
+# setup before a start: the PLC here runs with --no-basic-params (it reports no setup then),
+# and the stream benchmark loads programs without one.
 sed -e "s|# profiles_file: fastdds_profiles.xml|profiles_file: $PWD/config/fastdds_profiles.xml|" \
     -e "s#domain_id: 0#domain_id: $domain#" \
+    -e "s#setup_before_start: true#setup_before_start: false#" \
     -e "0,/buffer_size: 10000/s//buffer_size: 100000/" config/default.yaml > "$tmp/config.yaml"
 cfg=(--config "$tmp/config.yaml")
 # SECURITY_DIR=DIR: every process with DDS Security (config/security/tgm-security --out DIR).

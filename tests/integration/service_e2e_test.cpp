@@ -1054,8 +1054,9 @@ TEST(ServiceProcesses, PlcServesARestartedServiceAtOnceAndSeesEqualMFunctionsApa
 }
 
 // plc.setup_before_start: without a PLC the service starts no program, and every HMI command
-// says why (run after its wait, status, command start); once tgm-plc has set the interpolator up
-// (its report follows its basic parameters), the same run runs.
+// says why (run after its wait, status, command start); a tgm-plc that sets nothing up
+// (--no-basic-params) does not report a setup and says so (review of session 81); once tgm-plc
+// has set the interpolator up (its report follows its basic parameters), the same run runs.
 TEST(ServiceProcesses, WithSetupBeforeStartAProgramWaitsForThePlc) {
   test::ConfigEdits edits;
   edits.plc_setup_before_start = true;
@@ -1070,10 +1071,15 @@ TEST(ServiceProcesses, WithSetupBeforeStartAProgramWaitsForThePlc) {
   EXPECT_NE(early.log().find("tgm-hmi run: waiting for the PLC to set interpolator 0 up"),
             std::string::npos)
       << early.log();
-  EXPECT_NE(early.log().find("tgm-hmi run: the PLC has not set interpolator 0 up within 2 s of "
-                             "the service's start, and the service starts no program before "
-                             "(plc.setup_before_start in its config): start tgm-plc, or on a "
-                             "machine without a PLC set plc.setup_before_start: false\n"),
+  EXPECT_NE(early.log().find("tgm-hmi run: the PLC has not set interpolator 0 up in the "),
+            std::string::npos)
+      << early.log();
+  EXPECT_NE(early.log().find(" s waited, and the service starts no program before "
+                             "(plc.setup_before_start in its config): start tgm-plc (its log says "
+                             "why it did not report the setup, if it runs), use a PLC that sends "
+                             "the report (REQUEST_KIND_PLC_SETUP_DONE; tgm-plc before version 0.2 "
+                             "does not), or on a machine without a PLC set "
+                             "plc.setup_before_start: false\n"),
             std::string::npos)
       << early.log();
   test::Child look;
@@ -1090,19 +1096,38 @@ TEST(ServiceProcesses, WithSetupBeforeStartAProgramWaitsForThePlc) {
                              "(position, gear ratios): start tgm-plc"),
             std::string::npos)
       << start.log();
+  test::Child bare;
+  ASSERT_TRUE(bare.start({TGM_PLC_BIN, "--config", env.config(), "--interpolator", "0",
+                          "--no-basic-params", "--duration", "2"},
+                         env.path("bare.log")));
+  EXPECT_EQ(bare.wait(kHang), 0) << bare.log();
+  EXPECT_NE(bare.log().find("interpolator 0: error: setup not reported to tgm-service "
+                            "(--no-basic-params): it starts no program there until a PLC has "
+                            "set it up (plc.setup_before_start)"),
+            std::string::npos)
+      << bare.log();
+  test::Child still;
+  ASSERT_TRUE(
+      still.start({TGM_HMI_BIN, "status", "--config", env.config()}, env.path("still.log")));
+  EXPECT_EQ(still.wait(kHang), 0) << still.log();
+  EXPECT_NE(still.log().find("not yet set up by the PLC"), std::string::npos) << still.log();
   // tgm-plc reports the setup once it has set the interpolator up.
   test::Child plc;
   ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.config(), "--interpolator", "0"},
                         env.path("plc.log")));
   test::Child later;
-  ASSERT_TRUE(later.start(run_args, env.path("later.log")));
+  ASSERT_TRUE(later.start(
+      {TGM_HMI_BIN, "run", env.path("p.ngc"), "--config", env.config(), "--timeout", "30"},
+      env.path("later.log")));
   EXPECT_EQ(later.wait(kHang), 0) << later.log() << "\n--- plc:\n" << plc.log();
   EXPECT_NEAR(test::run_end_position(later.log())[0], 5.0, 1e-9) << later.log();
   EXPECT_EQ(plc.interrupt(), 0);
   EXPECT_NE(plc.log().find("interpolator 0: setup done (5 of 5 requests accepted)"),
             std::string::npos)
       << plc.log();
-  EXPECT_EQ(plc.log().find("setup report"), std::string::npos) << plc.log();
+  EXPECT_NE(plc.log().find("interpolator 0: setup reported to tgm-service: accepted"),
+            std::string::npos)
+      << plc.log();
 }
 
 // A service that crashed and comes back while a `run` waits for it stands at 0, where the

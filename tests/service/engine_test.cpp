@@ -100,9 +100,10 @@ TEST(Engine, RoleTableFollowsDesignSectionOne) {
   }
 }
 
-// EngineOptions::require_plc_setup (config plc.setup_before_start): a start is refused, saying
-// why, until the PLC reports its setup of that interpolator; the HMI cannot report it; the
-// snapshot shows the gate (0 off, 1 waiting, 2 set up) per interpolator.
+// EngineOptions::require_plc_setup (config plc.setup_before_start): a start and a program are
+// refused, saying why, until the PLC reports its setup of that interpolator (a program loaded
+// before would keep the PLC's Command 2048 out, review of session 81); the HMI cannot report
+// it; the snapshot shows the gate (0 off, 1 waiting, 2 set up) per interpolator.
 TEST(Engine, AStartWaitsForThePlcsSetupReportWhereTheConfigWantsIt) {
   EngineOptions o;
   o.require_plc_setup = true;
@@ -113,16 +114,21 @@ TEST(Engine, AStartWaitsForThePlcsSetupReportWhereTheConfigWantsIt) {
   port.add_request(Role::kHmi, RequestKind::kStart);
   port.add_request(Role::kHmi, RequestKind::kPlcSetupDone);
   e.cycle(port, {});
+  ASSERT_EQ(port.messages.size(), 1u);
+  EXPECT_EQ(port.messages[0].text.view(),
+            "program 3 refused: the PLC has not set interpolator 0 up since tgm-service started "
+            "(position, gear ratios): send it once the state shows plc_setup 2 "
+            "(plc.setup_before_start)");
+  EXPECT_EQ(port.last.ip[0].reg.status, static_cast<std::int32_t>(InterpolatorStatus::kEmpty));
   ASSERT_EQ(port.replies.size(), 2u);
   EXPECT_EQ(port.replies[0].code, ReplyCode::kWrongState);
   EXPECT_EQ(port.replies[0].reason.view(),
             "the PLC has not set interpolator 0 up since tgm-service started (position, gear "
-            "ratios): start tgm-plc, or wait for its setup (plc.setup_before_start in the "
-            "service's config)");
+            "ratios): start tgm-plc or wait for its setup; a PLC of your own reports it with "
+            "REQUEST_KIND_PLC_SETUP_DONE (plc.setup_before_start)");
   EXPECT_EQ(port.replies[1].code, ReplyCode::kWrongRole);
   EXPECT_EQ(port.last.ip[0].plc_setup, 1);
   EXPECT_EQ(port.last.ip[1].plc_setup, 1);
-  EXPECT_EQ(port.last.ip[0].reg.status, static_cast<std::int32_t>(InterpolatorStatus::kReady));
   // The report is per interpolator: 1's does not set 0 up.
   port.add_request(Role::kPlc, RequestKind::kPlcSetupDone, 1);
   port.add_request(Role::kHmi, RequestKind::kStart);
@@ -133,6 +139,10 @@ TEST(Engine, AStartWaitsForThePlcsSetupReportWhereTheConfigWantsIt) {
   EXPECT_EQ(port.last.ip[0].plc_setup, 1);
   EXPECT_EQ(port.last.ip[1].plc_setup, 2);
   port.add_request(Role::kPlc, RequestKind::kPlcSetupDone);
+  e.cycle(port, {});
+  port.add_chunk(0, p, 0, p.segments.size(), 4, true);
+  e.cycle(port, {});
+  EXPECT_EQ(port.last.ip[0].program_id, 4u);
   port.add_request(Role::kHmi, RequestKind::kStart);
   e.cycle(port, {});
   ASSERT_EQ(port.replies.size(), 6u);

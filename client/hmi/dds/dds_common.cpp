@@ -137,10 +137,11 @@ int wait_for_plc_setup(client::Client& c, int interpolator, const char* command,
     }
   }
   std::fprintf(stderr,
-               "tgm-hmi %s: the PLC has not set interpolator %d up within %g s of the service's "
-               "start, and the service starts no program before (plc.setup_before_start in its "
-               "config): start tgm-plc, or on a machine without a PLC set "
-               "plc.setup_before_start: false\n",
+               "tgm-hmi %s: the PLC has not set interpolator %d up in the %.3g s waited, and the "
+               "service starts no program before (plc.setup_before_start in its config): start "
+               "tgm-plc (its log says why it did not report the setup, if it runs), use a PLC "
+               "that sends the report (REQUEST_KIND_PLC_SETUP_DONE; tgm-plc before version "
+               "0.2 does not), or on a machine without a PLC set plc.setup_before_start: false\n",
                command, interpolator, wait_s);
   return 1;
 }

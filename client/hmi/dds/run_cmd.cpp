@@ -256,6 +256,7 @@ int run_run(int argc, char** argv) {
     return 1;
   }
   // --timeout bounds the whole run, the wait for the service too (it waited 10 s regardless).
+  const auto began = std::chrono::steady_clock::now();
   if (const int rc =
           wait_for_service(*hmi, *config, ip, "run",
                            timeout_s > 0.0 ? std::min(timeout_s, kServiceWaitS) : kServiceWaitS);
@@ -291,9 +292,16 @@ int run_run(int argc, char** argv) {
   // A service that wants the PLC's setup first (plc.setup_before_start) stands at 0 after a
   // restart until tgm-plc restores the drives' position: compiled from that 0, the program
   // would run from the wrong point, and its start was refused anyway (review of session 80).
-  if (const int rc = wait_for_plc_setup(
-          *hmi, ip, "run", timeout_s > 0.0 ? std::min(timeout_s, kServiceWaitS) : kServiceWaitS);
-      rc != 0) {
+  // --timeout is the bound here too, what is left of it (a PLC bringing its fieldbus up may
+  // need longer than the 10 s that were the bound whatever --timeout said: review of session 81).
+  const double setup_wait_s =
+      timeout_s > 0.0
+          ? std::max(
+                0.0,
+                timeout_s -
+                    std::chrono::duration<double>(std::chrono::steady_clock::now() - began).count())
+          : kServiceWaitS;
+  if (const int rc = wait_for_plc_setup(*hmi, ip, "run", setup_wait_s); rc != 0) {
     return rc;
   }
   // Take the interpolator over: clear what it holds (only while it stands).
