@@ -1123,8 +1123,7 @@ int plc_main(int argc, char** argv) {
         // Last, where the service waits for it (plc.setup_before_start: its state shows
         // plc_setup 1): it starts no program before this report, so a program waiting for a
         // restarted service does not start from 0 before the position restore above (review
-        // of session 80). Sent whatever came of the requests before it (their refusals are
-        // logged): the PLC has done what it does.
+        // of session 80). Sent only when every request before it was accepted (pump_setup).
         if (s->plc_setup() == 1) {
           std::snprintf(what, sizeof what, "interpolator %d: setup reported to tgm-service",
                         sv.number);
