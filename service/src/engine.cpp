@@ -130,6 +130,12 @@ ReplyCode to_reply(RequestCode c) {
   return ReplyCode::kBadRequest;
 }
 
+// The start of both refusals while an interpolator waits for the PLC's setup report.
+std::string no_plc_setup_yet(int interpolator) {
+  return "the PLC has not set interpolator " + std::to_string(interpolator) +
+         " up since tgm-service started (position, gear ratios)";
+}
+
 bool standing_without_program(const Registers& r) {
   const auto s = static_cast<InterpolatorStatus>(r.status);
   return s == InterpolatorStatus::kEmpty || s == InterpolatorStatus::kEnded ||
@@ -221,11 +227,10 @@ ReplyOut Engine::apply(const RequestIn& r) {
     return refuse(ReplyCode::kWrongRole, why);
   }
   Slot& slot = ips_[static_cast<std::size_t>(r.interpolator)];
-  if (r.kind == RequestKind::kStart && opt_.require_plc_setup && !slot.plc_setup_done) {
+  if (r.kind == RequestKind::kStart && awaits_plc_setup(slot)) {
     return refuse(ReplyCode::kWrongState,
-                  "the PLC has not set interpolator " + std::to_string(r.interpolator) +
-                      " up since tgm-service started (position, gear ratios): start tgm-plc or "
-                      "wait for its setup; a PLC of your own reports it with "
+                  no_plc_setup_yet(r.interpolator) +
+                      ": start tgm-plc or wait for its setup; a PLC of your own reports it with "
                       "REQUEST_KIND_PLC_SETUP_DONE (plc.setup_before_start)");
   }
   Interpolator& ip = slot.ip;
@@ -283,11 +288,10 @@ void Engine::apply_chunks(CyclePort& port, int i, std::size_t& budget) {
     // PLC from setting the position (Command 2048 is refused while one is loaded), and a start
     // once the report came would run it from 0 where the drives stand elsewhere (review of
     // session 81).
-    if (opt_.require_plc_setup && !s.plc_setup_done) {
+    if (awaits_plc_setup(s)) {
       refuse_chunk(port, i, *c,
-                   "the PLC has not set interpolator " + std::to_string(i) +
-                       " up since tgm-service started (position, gear ratios): send it once "
-                       "the state shows plc_setup 2 (plc.setup_before_start)");
+                   no_plc_setup_yet(i) +
+                       ": send it once the state shows plc_setup 2 (plc.setup_before_start)");
       port.pop_chunk(i);
       continue;
     }
@@ -553,7 +557,7 @@ void Engine::cycle(CyclePort& port, const LatenessStats& lateness) {
     o.message_counter = s.message_counter;
     o.message_text = s.message_text;
     o.axis_letters.set(s.active_letters());
-    o.plc_setup = !opt_.require_plc_setup ? 0 : s.plc_setup_done ? 2 : 1;
+    o.plc_setup = !opt_.require_plc_setup ? 0 : awaits_plc_setup(s) ? 1 : 2;
   }
   port.publish(snapshot_);
 }

@@ -122,6 +122,9 @@ class Engine {
     }
   };
   Engine(std::vector<Slot> ips, const EngineOptions& o) : ips_(std::move(ips)), opt_(o) {}
+  //! True while `s` waits for the PLC's setup report (EngineOptions::require_plc_setup): its
+  //! starts and programs are refused.
+  bool awaits_plc_setup(const Slot& s) const { return opt_.require_plc_setup && !s.plc_setup_done; }
   ReplyOut apply(const RequestIn& r);
   //! Appends what interpolator i's queued chunks allow within `budget`, which it lowers.
   void apply_chunks(CyclePort& port, int i, std::size_t& budget);
