@@ -84,17 +84,19 @@ Client::Client(const DdsConfig& config, Role role, const ClientOptions& options)
       default_cancel_(options.cancel),
       config_(config),
       setpoints_(options.setpoints) {
-  join();
+  join(make_participant());
   name_ = unique_client_name(participant_->name());
   states_.resize(kMaxInterpolators);
   state_samples_.resize(kMaxInterpolators, 0);
   follow_.resize(kMaxInterpolators);
 }
 
+std::unique_ptr<dds::Participant> Client::make_participant() const {
+  return std::make_unique<dds::Participant>(config_, role_ == Role::kPlc ? "plc" : "hmi");
+}
+
 void Client::join(std::unique_ptr<dds::Participant> made) {
-  participant_ = made != nullptr ? std::move(made)
-                                 : std::make_unique<dds::Participant>(
-                                       config_, role_ == Role::kPlc ? "plc" : "hmi");
+  participant_ = std::move(made);
   dds::Participant& p = *participant_;
   state_reader_ = &p.reader<msg::InterpolatorStatePubSubType>(dds::kStateTopic);
   reply_reader_ = &p.reader<msg::ReplyPubSubType>(dds::kReplyTopic);
@@ -121,7 +123,7 @@ std::string Client::rejoin() {
   // client without one, and the run ended in an "internal error".
   std::unique_ptr<dds::Participant> fresh;
   try {
-    fresh = std::make_unique<dds::Participant>(config_, role_ == Role::kPlc ? "plc" : "hmi");
+    fresh = make_participant();
   } catch (const dds::SetupError& e) {
     return e.what();
   }

@@ -309,9 +309,10 @@ class Client {
   Role role_;
   std::chrono::milliseconds request_timeout_;
   const std::atomic<bool>* default_cancel_ = nullptr;  // ClientOptions::cancel
-  // Takes `made` (a new participant when null) with its readers and writers (not the event
-  // reader).
-  void join(std::unique_ptr<dds::Participant> made = nullptr);
+  // A new participant of this client's role (SetupError when it cannot be made).
+  std::unique_ptr<dds::Participant> make_participant() const;
+  // Takes `made` with its readers and writers (not the event reader).
+  void join(std::unique_ptr<dds::Participant> made);
   // Creates the event reader and attaches event_listener_ to it; `caller` names the method in
   // the SetupError.
   void attach_events(const char* caller);
