@@ -50,11 +50,18 @@ int make_client(Args& args, const DdsOverrides& o, std::optional<AppConfig>& con
   return 0;
 }
 
+namespace {
+// `from` + `wait_s` seconds, rounded up to whole milliseconds (the waits' bound).
+std::chrono::steady_clock::time_point deadline_after(std::chrono::steady_clock::time_point from,
+                                                     double wait_s) {
+  return from + std::chrono::milliseconds(static_cast<long long>(std::ceil(wait_s * 1000.0)));
+}
+}  // namespace
+
 int wait_for_service(client::Client& c, const AppConfig& config, int interpolator,
                      const char* command, double wait_s) {
   using Clock = std::chrono::steady_clock;
-  const auto deadline =
-      Clock::now() + std::chrono::milliseconds(static_cast<long long>(std::ceil(wait_s * 1000.0)));
+  const auto deadline = deadline_after(Clock::now(), wait_s);
   // A service publishes the states of all the interpolators it hosts every few milliseconds
   // (--state-period-ms, at most 50): when others arrive for a second and this one does not,
   // the service's config has fewer interpolators than this one's. The wait ran out the whole
@@ -108,8 +115,7 @@ int wait_for_service(client::Client& c, const AppConfig& config, int interpolato
 int wait_for_plc_setup(client::Client& c, int interpolator, const char* command, double wait_s) {
   using Clock = std::chrono::steady_clock;
   const auto t0 = Clock::now();
-  const auto deadline =
-      t0 + std::chrono::milliseconds(static_cast<long long>(std::ceil(wait_s * 1000.0)));
+  const auto deadline = deadline_after(t0, wait_s);
   const auto set_up = [](const msg::InterpolatorState& s) { return s.plc_setup() != 1; };
   bool said = false;
   while (true) {
