@@ -500,7 +500,21 @@ void Engine::cycle(CyclePort& port, const LatenessStats& lateness) {
   for (int n = 0; n < opt_.max_requests_per_cycle; ++n) {
     RequestIn r;
     if (!port.next_request(r)) break;
-    if (!port.reply(apply(r))) ++counters_.lost_replies;
+    const bool awaited = r.kind == RequestKind::kPlcSetupDone && r.interpolator >= 0 &&
+                         r.interpolator < count() &&
+                         awaits_plc_setup(ips_[static_cast<std::size_t>(r.interpolator)]);
+    const ReplyOut reply = apply(r);
+    if (!port.reply(reply)) ++counters_.lost_replies;
+    // The gate opens once per service run: said where the HMIs read (`tgm-hmi watch`), so that
+    // whoever waited for a start can see why it is accepted now (review of session 81).
+    if (awaited && reply.code == ReplyCode::kAccepted) {
+      const std::string who(r.client.view());
+      send_message(port, r.interpolator, MessageOut::Severity::kInfo,
+                   "set up by the PLC" +
+                       (who.empty() ? std::string() : " '" + who.substr(0, 64) + "'") +
+                       " (position, gear ratios): starts and programs are accepted",
+                   0, 0);
+    }
   }
   std::size_t budget = opt_.max_segments_per_cycle;
   const int first = static_cast<int>(cycles_ % static_cast<std::uint64_t>(count()));

@@ -138,16 +138,28 @@ TEST(Engine, AStartWaitsForThePlcsSetupReportWhereTheConfigWantsIt) {
   EXPECT_EQ(port.replies[3].code, ReplyCode::kWrongState);
   EXPECT_EQ(port.last.ip[0].plc_setup, 1);
   EXPECT_EQ(port.last.ip[1].plc_setup, 2);
+  // The opened gate is said once, to that interpolator's readers; a repeated report is not.
+  ASSERT_EQ(port.messages.size(), 2u);
+  EXPECT_EQ(port.messages[1].interpolator, 1);
+  EXPECT_EQ(port.messages[1].severity, MessageOut::Severity::kInfo);
+  EXPECT_EQ(port.messages[1].text.view(),
+            "set up by the PLC 'test' (position, gear ratios): starts and programs are accepted");
+  port.add_request(Role::kPlc, RequestKind::kPlcSetupDone, 1);
   port.add_request(Role::kPlc, RequestKind::kPlcSetupDone);
   e.cycle(port, {});
+  ASSERT_EQ(port.replies.size(), 6u);
+  EXPECT_EQ(port.replies[4].code, ReplyCode::kAccepted);
+  ASSERT_EQ(port.messages.size(), 3u);
+  EXPECT_EQ(port.messages[2].interpolator, 0);
   port.add_chunk(0, p, 0, p.segments.size(), 4, true);
   e.cycle(port, {});
   EXPECT_EQ(port.last.ip[0].program_id, 4u);
   port.add_request(Role::kHmi, RequestKind::kStart);
   e.cycle(port, {});
-  ASSERT_EQ(port.replies.size(), 6u);
-  EXPECT_EQ(port.replies[4].code, ReplyCode::kAccepted);
-  EXPECT_EQ(port.replies[5].code, ReplyCode::kAccepted) << port.replies[5].reason.view();
+  ASSERT_EQ(port.replies.size(), 7u);
+  EXPECT_EQ(port.replies[5].code, ReplyCode::kAccepted);
+  EXPECT_EQ(port.replies[6].code, ReplyCode::kAccepted) << port.replies[6].reason.view();
+  EXPECT_EQ(port.messages.size(), 3u);
   EXPECT_EQ(port.last.ip[0].plc_setup, 2);
   EXPECT_EQ(port.last.ip[0].reg.status, static_cast<std::int32_t>(InterpolatorStatus::kRunning));
   // Without the option the gate is off and shown so.
@@ -158,6 +170,9 @@ TEST(Engine, AStartWaitsForThePlcsSetupReportWhereTheConfigWantsIt) {
   EXPECT_EQ(other.last.ip[0].plc_setup, 0);
   ASSERT_EQ(other.replies.size(), 1u);
   EXPECT_EQ(other.replies[0].reason.view().find("the PLC has not set"), std::string::npos);
+  other.add_request(Role::kPlc, RequestKind::kPlcSetupDone);
+  plain.cycle(other, {});
+  EXPECT_TRUE(other.messages.empty());
 }
 
 TEST(Engine, RepliesSayWhy) {
