@@ -1082,6 +1082,24 @@ TEST(ServiceProcesses, WithSetupBeforeStartAProgramWaitsForThePlc) {
                              "plc.setup_before_start: false\n"),
             std::string::npos)
       << early.log();
+  // On a terminal (script(1) gives it one) the waiting line counts down in place, once a
+  // second (at most 4 lines in 3 s: waits truncated to 0 ms in the last millisecond spun,
+  // each rewriting it, in one of two runs by hand).
+  std::string line;
+  for (const std::string& a : run_args) line += (line.empty() ? "" : " ") + a;
+  line.replace(line.rfind("--timeout 2"), std::string::npos, "--timeout 3");
+  test::Child tty;
+  ASSERT_TRUE(tty.start({"/usr/bin/script", "-qec", line, "/dev/null"}, env.path("tty.log")));
+  EXPECT_EQ(tty.wait(kHang), 1) << tty.log();
+  EXPECT_NE(tty.log().find("\rtgm-hmi run: waiting for the PLC to set interpolator 0 up: 1 s "
+                           "left\x1b[K"),
+            std::string::npos)
+      << tty.log();
+  EXPECT_GE(test::count_of(tty.log(), " s left\x1b[K"), 2) << tty.log();
+  EXPECT_LE(test::count_of(tty.log(), " s left\x1b[K"), 4) << tty.log();
+  EXPECT_NE(tty.log().find("\x1b[K\r\ntgm-hmi run: the PLC has not set interpolator 0 up in the "),
+            std::string::npos)
+      << tty.log();
   test::Child look;
   ASSERT_TRUE(look.start({TGM_HMI_BIN, "status", "--config", env.config()}, env.path("st.log")));
   EXPECT_EQ(look.wait(kHang), 0) << look.log();

@@ -1,6 +1,7 @@
 #include "dds_common.hpp"
 
 #include <signal.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -117,31 +118,49 @@ int wait_for_plc_setup(client::Client& c, int interpolator, const char* command,
   const auto t0 = Clock::now();
   const auto deadline = deadline_after(t0, wait_s);
   const auto set_up = [](const msg::InterpolatorState& s) { return s.plc_setup() != 1; };
+  // On a terminal the waiting line counts down, rewritten in place each second (review of
+  // session 81: one line and then silence until the give-up looked like a hang); into a file
+  // or a pipe it is written once.
+  const bool tty = ::isatty(2) != 0;
   bool said = false;
+  const auto end_line = [&] {
+    if (said && tty) std::fputc('\n', stderr);
+  };
   while (true) {
     // tgm-plc sets a service up within a second of finding it: said only when it takes longer.
-    const auto until = said ? deadline : std::min(deadline, t0 + std::chrono::seconds(1));
+    const auto until =
+        said ? (tty ? std::min(deadline, Clock::now() + std::chrono::seconds(1)) : deadline)
+             : std::min(deadline, t0 + std::chrono::seconds(1));
     const auto slice = std::max<Clock::duration>(until - Clock::now(), Clock::duration(0));
-    if (c.wait_until(interpolator, set_up,
-                     std::chrono::duration_cast<std::chrono::milliseconds>(slice),
+    // Rounded up: truncated, the last fraction of a millisecond spun through waits of 0 ms.
+    if (c.wait_until(interpolator, set_up, std::chrono::ceil<std::chrono::milliseconds>(slice),
                      &g_interrupted)) {
+      end_line();
       return 0;
     }
     if (g_interrupted) {
+      end_line();
       std::fprintf(stderr,
                    "tgm-hmi %s: interrupted while waiting for the PLC's setup of interpolator %d\n",
                    command, interpolator);
       return 130;
     }
-    if (Clock::now() >= deadline) break;
-    if (!said) {
-      said = true;
-      std::fprintf(stderr,
-                   "tgm-hmi %s: waiting for the PLC to set interpolator %d up (the service's "
-                   "config has plc.setup_before_start)\n",
-                   command, interpolator);
+    const auto now = Clock::now();
+    if (now >= deadline) break;
+    const std::string what = "tgm-hmi " + std::string(command) +
+                             ": waiting for the PLC to set interpolator " +
+                             std::to_string(interpolator) + " up";
+    if (tty) {
+      // Short enough for an 80-column line, which \r can rewrite; the give-up says the rest.
+      const double left = std::chrono::duration<double>(deadline - now).count();
+      std::fprintf(stderr, "\r%s: %.0f s left\033[K", what.c_str(), std::ceil(left));
+      std::fflush(stderr);
+    } else if (!said) {
+      std::fprintf(stderr, "%s (the service's config has plc.setup_before_start)\n", what.c_str());
     }
+    said = true;
   }
+  end_line();
   std::fprintf(stderr,
                "tgm-hmi %s: the PLC has not set interpolator %d up in the %.3g s waited, and the "
                "service starts no program before (plc.setup_before_start in its config): start "
