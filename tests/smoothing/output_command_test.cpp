@@ -232,6 +232,7 @@ TEST(OutputStage, BacklashRampKeepsItsSharesOfEveryLimit) {
   }
 }
 
+// Travel back below the threshold (one increment, at least 1e-6 mm) keeps the direction.
 TEST(OutputStage, TinyJitterIsNotAReversal) {
   OutputStage o(three_axes(0.02));
   double p[3] = {0.0, 0.0, 0.0};
@@ -241,12 +242,30 @@ TEST(OutputStage, TinyJitterIsNotAReversal) {
     o.update(p, 1e-4);
   }
   ASSERT_EQ(o.direction(0), 1);
-  p[0] -= 0.5e-6;  // below the 1e-6 mm threshold
+  // One increment (1 / 1,000 mm) is the threshold here: the spline's overshoot at a stopping
+  // corner, 0.25..0.5 um, is no reversal.
+  p[0] -= 0.5e-3;
   o.update(p, 1e-4);
   EXPECT_EQ(o.direction(0), 1);
-  p[0] -= 1e-6;
+  p[0] -= 0.49e-3;
+  o.update(p, 1e-4);
+  EXPECT_EQ(o.direction(0), 1);
+  p[0] -= 0.02e-3;
   o.update(p, 1e-4);
   EXPECT_EQ(o.direction(0), -1);
+  // A fine ratio (1e7 inc/mm): 1e-6 mm is the threshold.
+  ASSERT_TRUE(o.write_ratio(1, 1e7).ok());
+  for (int k = 0; k < 100; ++k) {
+    p[1] += 0.001;
+    o.update(p, 1e-4);
+  }
+  ASSERT_EQ(o.direction(1), 1);
+  p[1] -= 0.5e-6;
+  o.update(p, 1e-4);
+  EXPECT_EQ(o.direction(1), 1);
+  p[1] -= 1e-6;
+  o.update(p, 1e-4);
+  EXPECT_EQ(o.direction(1), -1);
 }
 
 // ---- Commands ----

@@ -16,7 +16,8 @@ namespace tgm {
 inline constexpr std::int64_t kMaxOffsetInc = 1'000'000'000'000'000;
 //! Share of the axis velocity / acceleration / jerk limits the backlash ramp uses.
 inline constexpr double kBacklashRampShare = 0.1;
-//! Travel against the last direction that counts as a reversal [mm].
+//! Travel against the last direction that counts as a reversal [mm], at the least: a reversal
+//! is also more than one increment (1 / |Ratio|) back, one the setpoint can show.
 inline constexpr double kReversalThresholdMm = 1e-6;
 
 //! Per-axis Ratio, Offset and backlash compensation of one interpolator. No allocation.

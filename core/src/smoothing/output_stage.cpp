@@ -46,28 +46,31 @@ void OutputStage::update(const double* position_mm, double dt_s) {
     const double p = position_mm[i];
     pos_[ui] = p;
     // Direction: follow the extreme in the current direction; a reversal is travel of more than
-    // the threshold back from it.
+    // the threshold back from it, and more than one increment: the spline overshoots an axis
+    // that stops at a corner by 0.25..0.5 um, which PositionInc at 1,000 inc/mm never shows,
+    // and the whole backlash was driven back and forth for it (review of session 82).
+    const double threshold = std::max(kReversalThresholdMm, 1.0 / std::fabs(ratio_[ui]));
     int& d = dir_[ui];
     double& x = extreme_[ui];
     if (d == 0) {
-      if (p - x > kReversalThresholdMm) {
+      if (p - x > threshold) {
         d = 1;
         x = p;
-      } else if (x - p > kReversalThresholdMm) {
+      } else if (x - p > threshold) {
         d = -1;
         x = p;
       }
     } else if (d == 1) {
       if (p > x) {
         x = p;
-      } else if (x - p > kReversalThresholdMm) {
+      } else if (x - p > threshold) {
         d = -1;
         x = p;
       }
     } else {
       if (p < x) {
         x = p;
-      } else if (p - x > kReversalThresholdMm) {
+      } else if (p - x > threshold) {
         d = 1;
         x = p;
       }
