@@ -133,6 +133,54 @@ TEST(LimitCheckerQuantities, TheEmergencyRampIsJudgedAtTheEmergencyDeceleration)
   EXPECT_EQ(expect_only(*hard, LimitQuantity::kAcceleration, 0, 2500.0, 2000.0, 3, 20), 18u);
 }
 
+// Corner steps that each keep the tolerance but add up: X's velocity steps by 0.9 mm/s (within
+// the 1 mm/s) twice a cycle, 1,800 mm/s^2 on average, as short chords of an arc did (review
+// of session 82). Between the steps X moves at constant speed, so the per-cycle check, which
+// takes the steps out, finds nothing; the velocity change over the 10-cycle window is 18 mm/s
+// against 1,000 mm/s^2 x 10 ms plus one tolerance. Steps once every two cycles (450 mm/s^2)
+// pass.
+TEST(LimitCheckerQuantities, CornerStepsThatAddUpAreAMeanAccelerationExcess) {
+  const auto run = [](int steps_per_two_cycles, LimitChecker& ch) {
+    std::vector<double> t_step;  // absolute times of the steps; cycle c's sample is at c T
+    for (std::uint64_t c = 1; c <= 40; ++c) {
+      std::vector<CornerEvent> events;
+      if (c >= 2) {
+        const std::vector<double> fractions =
+            steps_per_two_cycles == 4
+                ? std::vector<double>{0.25, 0.75}
+                : (c % 2 == 0 ? std::vector<double>{0.5} : std::vector<double>{});
+        for (const double f : fractions) {
+          CornerEvent e;
+          e.cycle = c;
+          e.fraction = f;
+          e.dv[0] = 0.9;
+          events.push_back(e);
+          t_step.push_back((static_cast<double>(c) - 1.0 + f) * kT);
+        }
+      }
+      Registers r;
+      r.number_axes = 3;
+      r.cycle = c;
+      r.act_line = static_cast<std::int32_t>(c);
+      r.status = static_cast<std::int32_t>(InterpolatorStatus::kRunning);
+      const double now = static_cast<double>(c) * kT;
+      for (const double ts : t_step) r.orig_position[0] += 0.9 * (now - ts);
+      ch.add_cycle(r, events);
+    }
+  };
+  auto ch = LimitChecker::create(round_axes(), kCycleUs);
+  ASSERT_TRUE(ch);
+  EXPECT_EQ(ch->window_cycles(), 10);
+  run(4, *ch);
+  // From cycle 12 on (12 samples make the first window) every cycle: 18 mm/s over 10 ms.
+  EXPECT_EQ(expect_only(*ch, LimitQuantity::kMeanAcceleration, 0, 1800.0, 1100.0, 12, 40), 29u);
+  EXPECT_STREQ(limit_quantity_name(LimitQuantity::kMeanAcceleration), "mean_acceleration");
+  EXPECT_LT(ch->peaks()[0].acceleration_mm_s2, 1e-6);
+  auto slow = LimitChecker::create(round_axes(), kCycleUs);
+  run(1, *slow);
+  EXPECT_EQ(slow->violation_count(), 0u);
+}
+
 // A share below 1 scales every limit: 110 mm/s passes at share 1 against 120 and is reported
 // at share 0.5 against 60.
 TEST(LimitCheckerQuantities, TheShareScalesTheLimits) {

@@ -30,9 +30,14 @@ enum class LimitQuantity : std::uint8_t {
   kAcceleration = 1,
   kJerk = 2,
   kCornerStep = 3,  //!< velocity step at a corner above corner_velocity_tolerance_mm_s
+  //! The velocity change over a window of about 10 ms (LimitChecker::window_cycles), corner
+  //! steps included, as a mean acceleration; its limit is the acceleration limit plus one
+  //! corner tolerance spread over the window. Catches steps that each keep the tolerance but
+  //! add up (a run of short chords).
+  kMeanAcceleration = 4,
 };
 
-//! "velocity", "acceleration", "jerk", "corner_step".
+//! "velocity", "acceleration", "jerk", "corner_step", "mean_acceleration".
 const char* limit_quantity_name(LimitQuantity q);
 
 //! One excess.
@@ -86,6 +91,9 @@ class LimitChecker {
   double velocity_limit(int axis) const { return vmax_[static_cast<std::size_t>(axis)]; }
   double acceleration_limit(int axis) const { return amax_[static_cast<std::size_t>(axis)]; }
   double jerk_limit(int axis) const { return jmax_[static_cast<std::size_t>(axis)]; }
+  //! Cycles of the mean-acceleration window: 10 ms rounded, 4..kMaxWindow.
+  int window_cycles() const { return k_; }
+  static constexpr int kMaxWindow = 40;
 
  private:
   LimitChecker() = default;
@@ -117,6 +125,18 @@ class LimitChecker {
   unsigned head_ = 0;
   int samples_ = 0;
   std::size_t slot(int k) const { return (head_ - static_cast<unsigned>(k)) & 3u; }
+  // The last window_cycles() + 2 positions, a ring (newest at wx_[wh_]), for the velocity
+  // change over the window; wn_ counts the samples of the series (up to the ring's size).
+  int k_ = 4;
+  std::array<std::array<double, kMaxAxes>, kMaxWindow + 2> wx_{};
+  int wh_ = 0, wn_ = 0;
+  int em_left_ = 0;  // cycles the window still holds a sample of the emergency ramp
+  // Per axis: cycles the window still holds an acceleration excess reported per cycle (the
+  // mean over the window says nothing new then).
+  std::array<int, kMaxAxes> acc_left_{};
+  const std::array<double, kMaxAxes>& window_sample(int k) const {
+    return wx_[static_cast<std::size_t>((wh_ - k + (kMaxWindow + 2)) % (kMaxWindow + 2))];
+  }
   std::vector<Event> events_;
   std::vector<std::array<double, 4>> kink_dt_;  // add(): time from events_[j] to sample k
   std::uint64_t count_ = 0;

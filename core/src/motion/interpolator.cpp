@@ -524,6 +524,27 @@ struct Interpolator::Impl {
     return kArcSafety * c;
   }
 
+  // The turn at a line's start junction, taken as part of a run of chords as chord_turn_limit
+  // takes it, needs v^2 |dt_i| / spacing of each axis' acceleration at the junction's speed
+  // limit wg: the line's tangential limit leaves that room, as an arc's leaves room for its
+  // centripetal terms. Along a run of chords turning at half of each limit the two could add
+  // up to 1.35 x A (a diagonal chord at its tangential limit, the turn's half across it); a
+  // lone corner is crossed at the tolerance's speed, where the turn needs nothing. Only the
+  // start junction is known when the line is stored; in a run every junction starts a line.
+  void leave_room_for_the_turn(const std::array<double, kMaxAxes>& tin,
+                               const std::array<double, kMaxAxes>& tout, double spacing,
+                               Rec& r) const {
+    const double v2 = r.wg * r.wg;
+    double at = r.at;
+    for (int i = 0; i < n; ++i) {
+      const double u = std::fabs(r.g.dir[i]);
+      const double d = std::fabs(tout[i] - tin[i]);
+      if (u < 1e-12 || d <= 1e-12) continue;
+      at = std::min(at, kLimitSafety * (amax[i] - v2 * d / spacing) / u);
+    }
+    r.at = std::max(at, 1e-6);
+  }
+
   // Geometry and caps of a motion record starting at `start`; false = not a motion (too short).
   // r is freshly value-initialised (store): its geometry is all zero.
   bool plan_motion(const Segment& sg, const std::array<double, kMaxAxes>& start, Rec& r) const {
@@ -842,6 +863,7 @@ struct Interpolator::Impl {
         r.wg = w;
         r.wg_reason = why;
         r.wf = std::min(pt_f, r.f);
+        if (!r.g.arc) leave_room_for_the_turn(pt_tangent, t0, std::min(pt_length, r.g.length), r);
       } else {
         r.wg = std::min(r.m, 2.0 * r.f);
         r.wg_reason = r.m_reason;

@@ -11,6 +11,8 @@ const char* limit_quantity_name(LimitQuantity q) {
     case LimitQuantity::kAcceleration: return "acceleration";
     case LimitQuantity::kJerk: return "jerk";
     case LimitQuantity::kCornerStep: return "corner_step";
+    case LimitQuantity::kMeanAcceleration:
+      return "mean_acceleration";
   }
   return "?";
 }
@@ -28,6 +30,7 @@ std::optional<LimitChecker> LimitChecker::create(const InterpolatorConfig& axes,
   LimitChecker c;
   c.n_ = static_cast<int>(axes.axes.size());
   c.T_ = cycle_time_us * 1e-6;
+  c.k_ = std::clamp(static_cast<int>(std::lround(0.01 / c.T_)), 4, kMaxWindow);
   for (std::size_t i = 0; i < axes.axes.size(); ++i) {
     const AxisConfig& a = axes.axes[i];
     c.vmax_[i] = share * a.max_velocity_mm_s;
@@ -47,6 +50,9 @@ std::optional<LimitChecker> LimitChecker::create(const InterpolatorConfig& axes,
 
 void LimitChecker::reset() {
   samples_ = 0;
+  wn_ = 0;
+  em_left_ = 0;
+  acc_left_.fill(0);
   events_.clear();
 }
 
@@ -90,6 +96,14 @@ bool LimitChecker::history_is(const std::array<double, kMaxAxes>& orig) const {
       if (x[static_cast<std::size_t>(i)] != orig[static_cast<std::size_t>(i)]) return false;
     }
   }
+  // The window too: a skipped cycle must leave it as stepping would (all at `orig`).
+  if (wn_ < k_ + 2 || em_left_ > 0) return false;
+  for (int k = 0; k < k_ + 2; ++k) {
+    const auto& x = window_sample(k);
+    for (int i = 0; i < n_; ++i) {
+      if (x[static_cast<std::size_t>(i)] != orig[static_cast<std::size_t>(i)]) return false;
+    }
+  }
   return true;
 }
 
@@ -105,8 +119,16 @@ void LimitChecker::add(std::uint64_t cycle, std::int32_t line, std::int32_t stat
   }
   // Cycles must be consecutive; otherwise start a new series. (The older pairs of the history
   // were checked when they came in.)
-  if (samples_ > 0 && last_cycle_ + 1 != cycle) samples_ = 0;
+  if (samples_ > 0 && last_cycle_ + 1 != cycle) {
+    samples_ = 0;
+    wn_ = 0;
+    em_left_ = 0;
+    acc_left_.fill(0);
+  }
   last_cycle_ = cycle;
+  wh_ = (wh_ + 1) % (kMaxWindow + 2);
+  wx_[static_cast<std::size_t>(wh_)] = orig;
+  if (wn_ < k_ + 2) ++wn_;
   // The emergency ramp's limits hold for its cycles (Status 6) and for the cycle that ends it
   // (the step to Status 7): a ramp from a crawl, or one of a high emergency / normal ratio,
   // may start and end inside one cycle and never show Status 6 (at 1 ms cycles, a stop 3 ms
@@ -116,6 +138,11 @@ void LimitChecker::add(std::uint64_t cycle, std::int32_t line, std::int32_t stat
   emergency_[s0] = status == static_cast<std::int32_t>(InterpolatorStatus::kEmergencyRamp) ||
                    (status == stopped && last_status_ != stopped);
   last_status_ = status;
+  if (emergency_[s0]) {
+    em_left_ = k_ + 1;
+  } else if (em_left_ > 0) {
+    --em_left_;
+  }
   if (samples_ < 4) ++samples_;
   for (const CornerEvent& e : events) {
     events_.push_back({e.cycle, e.fraction, e.dv, e.da});
@@ -180,6 +207,7 @@ void LimitChecker::add(std::uint64_t cycle, std::int32_t line, std::int32_t stat
       peaks_[ui].acceleration_mm_s2 = std::max(peaks_[ui].acceleration_mm_s2, std::fabs(a));
       if (std::fabs(a) > lim * (1.0 + kRelativeTolerance) + 8.0 * ulp / (T * T)) {
         report(cycle, line, i, LimitQuantity::kAcceleration, std::fabs(a), lim);
+        acc_left_[ui] = k_ + 2;
       }
     }
     if (ns >= 4) {
@@ -197,6 +225,30 @@ void LimitChecker::add(std::uint64_t cycle, std::int32_t line, std::int32_t stat
       peaks_[ui].jerk_mm_s3 = std::max(peaks_[ui].jerk_mm_s3, std::fabs(j));
       if (std::fabs(j) > lim * (1.0 + kRelativeTolerance) + 16.0 * ulp / (T * T * T)) {
         report(cycle, line, i, LimitQuantity::kJerk, std::fabs(j), lim);
+      }
+    }
+  }
+  // The velocity change over the window, corner steps included: each step may keep the
+  // tolerance while many of them add up (short chords crossed several junctions a cycle and
+  // gave the drives 4,000 mm/s^2 against 1,500, review of session 82). Allowed: the
+  // acceleration limit over the window plus one corner's step.
+  if (wn_ >= k_ + 2) {
+    const auto& w0 = window_sample(0);
+    const auto& w1 = window_sample(1);
+    const auto& wk = window_sample(k_);
+    const auto& wk1 = window_sample(k_ + 1);
+    const double span = k_ * T;
+    for (int i = 0; i < n_; ++i) {
+      const auto ui = static_cast<std::size_t>(i);
+      const double dv = ((w0[ui] - w1[ui]) - (wk[ui] - wk1[ui])) / T;
+      const double lim = em_left_ > 0 ? emax_[ui] : amax_[ui];
+      if (acc_left_[ui] > 0) {
+        --acc_left_[ui];
+        continue;
+      }
+      if (std::fabs(dv) > (lim * span + tol_[ui]) * (1.0 + kRelativeTolerance) + 8.0 * ulp / T) {
+        report(cycle, line, i, LimitQuantity::kMeanAcceleration, std::fabs(dv) / span,
+               lim + tol_[ui] / span);
       }
     }
   }
