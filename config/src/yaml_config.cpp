@@ -267,7 +267,9 @@ const std::set<std::string> kAxisKeys = {"letter",
                                          "emergency_deceleration_mm_s2",
                                          "corner_velocity_tolerance_mm_s",
                                          "ratio_inc_per_mm",
-                                         "backlash_mm"};
+                                         "backlash_mm",
+                                         "min_position_mm",
+                                         "max_position_mm"};
 
 void read_axis(Reader& r, const YAML::Node& n, const std::string& path, AxisConfig& a,
                bool letter_allowed) {
@@ -293,6 +295,8 @@ void read_axis(Reader& r, const YAML::Node& n, const std::string& path, AxisConf
   r.number(n, path, "corner_velocity_tolerance_mm_s", a.corner_velocity_tolerance_mm_s);
   r.number(n, path, "ratio_inc_per_mm", a.ratio_inc_per_mm);
   r.number(n, path, "backlash_mm", a.backlash_mm);
+  r.number(n, path, "min_position_mm", a.min_position_mm);
+  r.number(n, path, "max_position_mm", a.max_position_mm);
 }
 
 // Notes the axis_defaults keys that axis `path` (its own node `axis`, maybe undefined) takes.

@@ -120,6 +120,20 @@ std::vector<std::string> MachineConfig::validate() const {
       if (!std::isfinite(a.backlash_mm) || a.backlash_mm < 0.0 || a.backlash_mm > 10.0) {
         e.push_back(ab + ".backlash_mm: must be 0..10 mm, not " + exact_number_text(a.backlash_mm));
       }
+      const bool min_ok = std::fabs(a.min_position_mm) <= 1.0e9;  // false for NaN
+      const bool max_ok = std::fabs(a.max_position_mm) <= 1.0e9;
+      if (!min_ok) {
+        e.push_back(ab + ".min_position_mm: must be -1e9..1e9 mm, not " +
+                    exact_number_text(a.min_position_mm));
+      }
+      if (!max_ok) {
+        e.push_back(ab + ".max_position_mm: must be -1e9..1e9 mm, not " +
+                    exact_number_text(a.max_position_mm));
+      }
+      if (min_ok && max_ok && !(a.min_position_mm < a.max_position_mm)) {
+        e.push_back(ab + ".max_position_mm: " + exact_number_text(a.max_position_mm) +
+                    " is not above min_position_mm " + exact_number_text(a.min_position_mm));
+      }
       if (finite_positive(a.rapid_velocity_mm_s) && finite_positive(a.max_velocity_mm_s) &&
           a.rapid_velocity_mm_s > a.max_velocity_mm_s) {
         e.push_back(ab + ".rapid_velocity_mm_s: " + exact_number_text(a.rapid_velocity_mm_s) +

@@ -24,6 +24,7 @@
 #include "cutter_compensation.hpp"
 #include "tgm/intercode_io.hpp"
 #include "tgm/printable.hpp"
+#include "tgm/soft_limits.hpp"
 
 namespace tgm {
 
@@ -226,6 +227,17 @@ class Compiler {
       return;
     }
     ++emitted_;
+    if (s.is_motion()) {
+      // Every record, those cutter compensation makes among them, from where the one before
+      // it ended.
+      if (!opt_.machine_axes.axes.empty()) {
+        if (std::string why = soft_limit_problem(s, out_pos_.data(), opt_.machine_axes);
+            !why.empty()) {
+          error(s.line, 1, why);
+        }
+      }
+      out_pos_ = s.end;
+    }
     if (sink_) {
       (*sink_)(s);
     } else {
@@ -248,6 +260,7 @@ class Compiler {
   const CompileOptions& opt_;
   const SegmentSink* sink_;
   std::int64_t emitted_ = 0;
+  std::array<double, kMaxAxes> out_pos_ = opt_.start_mm;  // where the last record put out ends
   std::vector<Diagnostic> errors_;
   std::size_t suppressed_ = 0;
   //! Per entry of errors_: the step() that reported it (0: pass 1) and how often a later
@@ -1560,6 +1573,9 @@ CompileOptions CompileOptions::from_machine(const MachineConfig& m, int n) {
   o.axis_letters = m.axis_letters(n);
   o.compiler = m.compiler;
   o.tools = m.tools;
+  if (tgm::has_soft_limits(m.interpolators[static_cast<std::size_t>(n)])) {
+    o.machine_axes = m.interpolators[static_cast<std::size_t>(n)];
+  }
   return o;
 }
 

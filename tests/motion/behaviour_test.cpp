@@ -116,6 +116,34 @@ TEST(ShortSegments, ARunOfChordsKeepsTheAccelerationOfTheArcItTraces) {
   EXPECT_LT(top, 101.0);
 }
 
+// The soft limits hold for programs that did not come through the compiler with this config
+// (another client's, an old intercode file): load refuses the record that leaves them, with
+// its line, and loads nothing of the program; an arc is refused where its sweep leaves them.
+TEST(SoftLimits, LoadRefusesARecordBeyondThemWithItsLine) {
+  MachineConfig m = machine();
+  m.interpolators[0].axes[0].max_position_mm = 100.0;
+  auto made = Interpolator::create(m, 0);
+  ASSERT_TRUE(made);
+  Interpolator& ip = *made;
+  ProgramBuilder b;
+  b.line({50.0, 0.0, 0.0}, 3000.0).line({120.0, 0.0, 0.0}, 3000.0).end();
+  const RequestResult r = ip.load(b.program());
+  EXPECT_FALSE(r.ok());
+  EXPECT_EQ(r.reason,
+            "record 1 (line 2): end point X120 is beyond the soft limit of axis X "
+            "(max_position_mm 100 in the config)");
+  EXPECT_EQ(ip.registers().status, static_cast<std::int32_t>(InterpolatorStatus::kEmpty));
+  ProgramBuilder arc;
+  arc.line({80.0, 25.0, 0.0}, 3000.0).arc(false, {80.0, -25.0, 0.0}, {80.0, 0.0}, 3000.0).end();
+  const RequestResult a = ip.load(arc.program());
+  EXPECT_EQ(a.reason,
+            "record 1 (line 2): the arc passes X105, beyond the soft limit of axis X "
+            "(max_position_mm 100 in the config)");
+  ProgramBuilder inside;
+  inside.line({100.0, 0.0, 0.0}, 3000.0).end();
+  EXPECT_TRUE(ip.load(inside.program()).ok());
+}
+
 TEST(ShortSegments, FeedIsNotExceededWhileTheJerkLimitFallsAhead) {
   // 0.05 mm chords whose direction turns towards +Y (heading 1.1 rad, +0.01 rad per chord):
   // each chord's tangential jerk limit is a little lower than the one before, so a landing on

@@ -848,3 +848,36 @@ TEST(Config, EveryOtherBadValueIsNamedWithItsKeyAndLine) {
 
 }  // namespace
 }  // namespace tgm
+
+namespace tgm {
+namespace {
+
+// Soft limits per axis: read, defaulting to +-1e9 (none), and refused where they make no
+// range.
+TEST(Config, SoftLimitsAreReadAndMustMakeARange) {
+  auto load = load_config_text(
+      "interpolators:\n  - axes: [{letter: X, min_position_mm: -5, max_position_mm: 400}, "
+      "{letter: Y}]\n",
+      "s.yaml");
+  ASSERT_TRUE(load.config) << load.errors.front();
+  const auto& axes = load.config->machine.interpolators[0].axes;
+  EXPECT_EQ(axes[0].min_position_mm, -5.0);
+  EXPECT_EQ(axes[0].max_position_mm, 400.0);
+  EXPECT_EQ(axes[1].min_position_mm, -1e9);
+  EXPECT_EQ(axes[1].max_position_mm, 1e9);
+  load = load_config_text(
+      "interpolators:\n  - axes: [{letter: X, min_position_mm: 10, max_position_mm: 10}, "
+      "{letter: Y, max_position_mm: 2e9}]\n",
+      "s.yaml");
+  EXPECT_FALSE(load.config);
+  ASSERT_EQ(load.errors.size(), 2u);  // and no summary line: the caller counts them
+  EXPECT_EQ(load.errors[0],
+            "s.yaml:2: interpolators[0].axes[0].max_position_mm: 10 is not above "
+            "min_position_mm 10");
+  EXPECT_EQ(load.errors[1],
+            "s.yaml:2: interpolators[0].axes[1].max_position_mm: must be -1e9..1e9 mm, not "
+            "2e+09");
+}
+
+}  // namespace
+}  // namespace tgm

@@ -13,6 +13,7 @@
 #include "tgm/gcode.hpp"
 #include "tgm/intercode_io.hpp"
 #include "tgm/printable.hpp"
+#include "tgm/soft_limits.hpp"
 
 namespace tgm {
 namespace {
@@ -1392,6 +1393,44 @@ TEST(Intercode, VersionTwoAndThreeFilesAreReadAsCompiledFromZero) {
   v2[4] = 5;
   EXPECT_FALSE(decode_intercode(v2, q, err));
   EXPECT_NE(err.find("unsupported version 5 (this build reads 2 to 4)"), std::string::npos) << err;
+}
+
+}  // namespace
+}  // namespace tgm
+
+namespace tgm {
+namespace {
+
+// Soft limits (config axes[].min_position_mm / max_position_mm): every record that leaves
+// them is an error at its line, lines at their end point, arcs wherever their sweep goes; a
+// move that starts outside and comes back is free, and so is an arc's start.
+TEST(GcodeSoftLimits, ABlockBeyondASoftLimitIsAnErrorAtItsLine) {
+  CompileOptions o = options();
+  MachineConfig m = MachineConfig::default_machine();
+  o.machine_axes = m.interpolators[0];
+  o.machine_axes.axes[0].min_position_mm = -1.0;
+  o.machine_axes.axes[0].max_position_mm = 100.0;
+  o.machine_axes.axes[1].max_position_mm = 50.0;
+  EXPECT_THAT(errors_of("G90 F3000\nG1 X50 Y10\nG1 X120\nG2 X80 Y10 I-20 J0\nG1 X-5\nM2\n", o),
+              ::testing::ElementsAre(
+                  "3:1: end point X120 is beyond the soft limit of axis X (max_position_mm 100 "
+                  "in the config)",
+                  "5:1: end point X-5 is beyond the soft limit of axis X (min_position_mm -1 "
+                  "in the config)"));
+  // A half circle about X 80 Y 10 of radius 25 (CW from its top) passes X 105; on its end
+  // points it stays within every limit. Its CCW twin passes X 55 only.
+  EXPECT_THAT(errors_of("G90 F3000\nG1 X80 Y35\nG2 X80 Y-15 I0 J-25\nM2\n", o),
+              ::testing::ElementsAre("3:1: the arc passes X105, beyond the soft limit of axis "
+                                     "X (max_position_mm 100 in the config)"));
+  compile_ok("G90 F3000\nG1 X80 Y35\nG3 X80 Y-15 I0 J-25\nM2\n", o);
+  // A program that starts outside may come back; one on the limit itself is within it.
+  o.start_mm = {150.0, 0.0, 0.0};
+  compile_ok("G90 F3000\nG1 X100 Y50\nG1 X-1\nM2\n", o);
+  // Without axes (tests, and configs without soft limits) nothing is checked.
+  EXPECT_TRUE(errors_of("G90 G1 X1000 F3000\nM2\n").empty());
+  EXPECT_FALSE(has_soft_limits(m.interpolators[0]));
+  EXPECT_TRUE(has_soft_limits(o.machine_axes));
+  EXPECT_TRUE(CompileOptions::from_machine(m, 0).machine_axes.axes.empty());
 }
 
 }  // namespace

@@ -43,6 +43,10 @@ struct AxisConfig {
   double ratio_inc_per_mm = 1000.0;
   //! Backlash compensated on direction reversal [mm].
   double backlash_mm = 0.0;
+  //! Soft limits: the range this axis may be commanded to [mm, machine coordinates]; the
+  //! defaults, +-1e9, are the bound of every coordinate (no soft limit). tgm/soft_limits.hpp.
+  double min_position_mm = -1.0e9;
+  double max_position_mm = 1.0e9;
 };
 
 //! One interpolator (axis group).

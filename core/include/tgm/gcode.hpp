@@ -31,6 +31,9 @@ struct CompileOptions {
   std::vector<ToolConfig> tools;
   //! Machine position the program starts from [mm] (G91 moves and arcs are relative to it).
   std::array<double, kMaxAxes> start_mm{};
+  //! The interpolator's axes, for their soft limits (tgm/soft_limits.hpp): a record that
+  //! leaves them is an error at its line. No axes: not checked.
+  InterpolatorConfig machine_axes;
 
   //! Options for interpolator `n` of a machine.
   static CompileOptions from_machine(const MachineConfig& m, int n);

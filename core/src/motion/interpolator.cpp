@@ -8,6 +8,7 @@
 // window, and chooses the highest end-of-step acceleration from which every one of them can still
 // be met.
 #include "tgm/interpolator.hpp"
+#include "tgm/soft_limits.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -309,6 +310,7 @@ double norm_angle_deg(double rad) {
 struct Interpolator::Impl {
   // ---- configuration ----
   InterpolatorConfig cfg;
+  bool soft_limits = false;  // some axis of cfg has one (tgm/soft_limits.hpp)
   InterpolatorOptions opt;
   int number = 0;
   int n = 0;               // axes
@@ -3724,6 +3726,7 @@ std::optional<Interpolator> Interpolator::create(const MachineConfig& machine, i
   auto impl = std::make_unique<Impl>();
   Impl& m = *impl;
   m.cfg = machine.interpolators[static_cast<std::size_t>(number)];
+  m.soft_limits = has_soft_limits(m.cfg);
   m.opt = options;
   m.number = number;
   m.n = static_cast<int>(m.cfg.axes.size());
@@ -3908,6 +3911,11 @@ RequestResult Interpolator::append(const Program& program, std::size_t first, st
     std::string why = m.validate(program, i);
     const Segment& sg = program.segments[i];
     if (why.empty() && sg.is_arc()) why = m.arc_start_problem(program, i, start, first_motion);
+    if (why.empty() && m.soft_limits && sg.is_motion()) {
+      if (std::string beyond = soft_limit_problem(sg, start, m.cfg); !beyond.empty()) {
+        why = "record " + std::to_string(i) + " (line " + std::to_string(sg.line) + "): " + beyond;
+      }
+    }
     if (!why.empty()) return refuse(RequestCode::kInvalid, why);
     if (sg.is_motion()) {
       start = sg.end.data();
