@@ -511,19 +511,33 @@ struct Interpolator::Impl {
   // circle's v^3 / r^2 with r = spacing / |dt|). Held to the share an arc's centripetal terms
   // get (half of each limit, with the arc margin); a lone corner between long records is far
   // from it.
+  // `w` is the junction's limit from everything else: the roots are taken only where this
+  // limit binds below it (this runs once per record stored, one per cycle on short chords).
   double chord_turn_limit(const std::array<double, kMaxAxes>& tin,
-                          const std::array<double, kMaxAxes>& tout, double spacing) const {
+                          const std::array<double, kMaxAxes>& tout, double spacing,
+                          double w) const {
+    constexpr double kInvSafety = 1.0 / kArcSafety;
+    const double wm = w * kInvSafety;  // the root's value at which it equals w
+    const double wm2 = wm * wm, wm3 = wm2 * wm;
     double turn2 = 0.0;
     for (int i = 0; i < n; ++i) turn2 += (tout[i] - tin[i]) * (tout[i] - tin[i]);
-    const double turn = std::sqrt(turn2);
+    const double l2 = spacing * spacing;
     double c = kInf;
+    double turn = -1.0;  // sqrt(turn2) once needed
     for (int i = 0; i < n; ++i) {
       const double d = std::fabs(tout[i] - tin[i]);
       if (d <= 1e-12) continue;
-      c = std::min(c, std::sqrt(0.5 * amax[i] * spacing / d));
-      c = std::min(c, std::cbrt(0.5 * jmax[i] * spacing * spacing / (d * turn)));
+      // v^2 <= A l / (2 d) and v^3 <= J l^2 / (2 d turn), compared with wm without a division
+      // or a root (the jerk's squared: (J l^2 / 2)^2 < wm^6 d^2 turn^2).
+      const double a = 0.5 * amax[i] * spacing;
+      if (a < wm2 * d) c = std::min(c, std::sqrt(a / d));
+      const double j = 0.5 * jmax[i] * l2;
+      if (j * j < wm3 * wm3 * d * d * turn2) {
+        if (turn < 0.0) turn = std::sqrt(turn2);
+        c = std::min(c, std::cbrt(j / (d * turn)));
+      }
     }
-    return kArcSafety * c;
+    return std::min(w, kArcSafety * c);
   }
 
   // The turn at a line's start junction, taken as part of a run of chords as chord_turn_limit
@@ -536,13 +550,15 @@ struct Interpolator::Impl {
   void leave_room_for_the_turn(const std::array<double, kMaxAxes>& tin,
                                const std::array<double, kMaxAxes>& tout, double spacing,
                                Rec& r) const {
-    const double v2 = r.wg * r.wg;
+    const double v2 = r.wg * r.wg / spacing;
     double at = r.at;
     for (int i = 0; i < n; ++i) {
       const double u = std::fabs(r.g.dir[i]);
       const double d = std::fabs(tout[i] - tin[i]);
       if (u < 1e-12 || d <= 1e-12) continue;
-      at = std::min(at, kLimitSafety * (amax[i] - v2 * d / spacing) / u);
+      // (A_i - v^2 d / l) / u below `at`, compared without the division first.
+      const double room = kLimitSafety * (amax[i] - v2 * d);
+      if (room < at * u) at = room / u;
     }
     r.at = std::max(at, 1e-6);
   }
@@ -856,12 +872,12 @@ struct Interpolator::Impl {
             why = f;
           }
         };
-        take(chord_turn_limit(pt_tangent, t0, std::min(pt_length, r.g.length)),
-             LimitFactor::kCorner);
         take(pt_m, pt_m_reason);
         take(r.m, r.m_reason);
         take(2.0 * pt_f, LimitFactor::kFeed);
         take(2.0 * r.f, LimitFactor::kFeed);
+        take(chord_turn_limit(pt_tangent, t0, std::min(pt_length, r.g.length), w),
+             LimitFactor::kCorner);
         r.wg = w;
         r.wg_reason = why;
         r.wf = std::min(pt_f, r.f);
