@@ -41,9 +41,8 @@ int run_until(Interpolator& ip, P pred, int max = 200000) {
   return -1;
 }
 
-TEST(ShortSegments, CircleOfChordsRunsAtFeed) {
-  // Radius 50 mm, 0.05 mm chords, F6000, default machine: >= 95 % of the length at feed.
-  const double r = 50.0, chord = 0.05, feed = 6000.0;
+// A full circle of radius r about the origin in G1 chords of about `chord`, from (r, 0).
+Program circle_of_chords(double r, double chord, double feed) {
   const int n = static_cast<int>(std::ceil(2 * kPi * r / chord));
   ProgramBuilder b(3, {r, 0.0, 0.0});
   for (int i = 1; i <= n; ++i) {
@@ -51,13 +50,20 @@ TEST(ShortSegments, CircleOfChordsRunsAtFeed) {
     b.line({r * std::cos(a), r * std::sin(a), 0.0}, feed);
   }
   b.end();
+  return b.program();
+}
+
+TEST(ShortSegments, CircleOfChordsRunsAtFeed) {
+  // Radius 50 mm, 0.05 mm chords, F6000, default machine: >= 95 % of the length at feed.
+  const double r = 50.0, feed = 6000.0;
+  const Program p = circle_of_chords(r, 0.05, feed);
   SimulationOptions o;
   o.check_limits = true;
   auto sim = Simulation::create(machine(), o);
   ASSERT_TRUE(sim);
   ASSERT_TRUE(sim->interpolator().set_position({r, 0.0, 0.0}).ok());
   double at_feed = 0.0, prev = 0.0;
-  const auto s = sim->run(b.program(), [&](const Registers& g) {
+  const auto s = sim->run(p, [&](const Registers& g) {
     if (g.act_speed >= 0.99 * feed) at_feed += g.move_distance - prev;
     prev = g.move_distance;
   });
@@ -78,14 +84,8 @@ TEST(ShortSegments, CircleOfChordsRunsAtFeed) {
 // over 20 cycles (10 ms, where one step of the tolerance adds at most 200 mm/s^2) stays near
 // the limit; the speed is the arc's (0.97 sqrt(A/2 r) = 84 mm/s, up to 100 on the diagonals).
 TEST(ShortSegments, ARunOfChordsKeepsTheAccelerationOfTheArcItTraces) {
-  const double r = 10.0, chord = 0.05, feed = 12000.0;
-  const int n = static_cast<int>(std::ceil(2 * kPi * r / chord));
-  ProgramBuilder b(3, {r, 0.0, 0.0});
-  for (int i = 1; i <= n; ++i) {
-    const double a = 2 * kPi * i / n;
-    b.line({r * std::cos(a), r * std::sin(a), 0.0}, feed);
-  }
-  b.end();
+  const double r = 10.0;
+  const Program p = circle_of_chords(r, 0.05, 12000.0);
   const MachineConfig m = machine();
   SimulationOptions o;
   o.check_limits = true;  // its mean acceleration over 10 ms saw the 4,000 mm/s^2
@@ -94,7 +94,7 @@ TEST(ShortSegments, ARunOfChordsKeepsTheAccelerationOfTheArcItTraces) {
   ASSERT_TRUE(sim->interpolator().set_position({r, 0.0, 0.0}).ok());
   std::vector<std::array<double, 2>> xy;
   double top = 0.0;
-  const auto s = sim->run(b.program(), [&](const Registers& g) {
+  const auto s = sim->run(p, [&](const Registers& g) {
     xy.push_back({g.orig_position[0], g.orig_position[1]});
     top = std::max(top, g.act_speed / 60.0);
   });
