@@ -513,7 +513,7 @@ void Engine::cycle(CyclePort& port, const LatenessStats& lateness) {
       send_message(port, r.interpolator, MessageOut::Severity::kInfo,
                    "set up by the PLC" +
                        (who.empty() ? std::string() : " '" + who.substr(0, 64) + "'") +
-                       " (position, gear ratios): starts and programs are accepted",
+                       ": starts and programs are accepted",
                    0, 0);
     }
   }

@@ -143,7 +143,7 @@ TEST(Engine, AStartWaitsForThePlcsSetupReportWhereTheConfigWantsIt) {
   EXPECT_EQ(port.messages[1].interpolator, 1);
   EXPECT_EQ(port.messages[1].severity, MessageOut::Severity::kInfo);
   EXPECT_EQ(port.messages[1].text.view(),
-            "set up by the PLC 'test' (position, gear ratios): starts and programs are accepted");
+            "set up by the PLC 'test': starts and programs are accepted");
   port.add_request(Role::kPlc, RequestKind::kPlcSetupDone, 1);
   port.add_request(Role::kPlc, RequestKind::kPlcSetupDone);
   e.cycle(port, {});

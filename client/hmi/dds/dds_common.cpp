@@ -135,7 +135,8 @@ int wait_for_plc_setup(client::Client& c, int interpolator, const char* command,
     // Rounded up: truncated, the last fraction of a millisecond spun through waits of 0 ms.
     if (c.wait_until(interpolator, set_up, std::chrono::ceil<std::chrono::milliseconds>(slice),
                      &g_interrupted)) {
-      end_line();
+      // The wait is over: its countdown goes, rather than stay behind with seconds left.
+      if (said && tty) std::fputs("\r\033[K", stderr);
       return 0;
     }
     if (g_interrupted) {
