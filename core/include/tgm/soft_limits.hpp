@@ -1,7 +1,8 @@
 // Software travel limits: the range [min_position_mm, max_position_mm] each axis may be
 // commanded to (config `axes`). The compiler refuses a block that leaves it, with its line;
-// the interpolator refuses such a record when a program is loaded (the service's safety net
-// for programs that did not come through the compiler with this config).
+// the interpolator refuses such a record as it is appended to the ring (the service's safety
+// net for programs that did not come through the compiler with this config: for a record
+// beyond the first buffer_size, mid-run, where the motion stops at the buffer's end).
 #pragma once
 
 #include <string>
