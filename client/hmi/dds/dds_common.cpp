@@ -126,6 +126,9 @@ int wait_for_plc_setup(client::Client& c, int interpolator, const char* command,
   const auto end_line = [&] {
     if (said && tty) std::fputc('\n', stderr);
   };
+  const std::string what = "tgm-hmi " + std::string(command) +
+                           ": waiting for the PLC to set interpolator " +
+                           std::to_string(interpolator) + " up";
   while (true) {
     // tgm-plc sets a service up within a second of finding it: said only when it takes longer.
     const auto until =
@@ -148,9 +151,6 @@ int wait_for_plc_setup(client::Client& c, int interpolator, const char* command,
     }
     const auto now = Clock::now();
     if (now >= deadline) break;
-    const std::string what = "tgm-hmi " + std::string(command) +
-                             ": waiting for the PLC to set interpolator " +
-                             std::to_string(interpolator) + " up";
     if (tty) {
       // Short enough for an 80-column line, which \r can rewrite; the give-up says the rest.
       const double left = std::chrono::duration<double>(deadline - now).count();
