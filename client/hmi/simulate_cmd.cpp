@@ -690,9 +690,11 @@ int run_simulate(int argc, char** argv) {
     }
     if (sum.smoothed_measured) {
       // What the drives get: the checker holds Orig_Position to the limits, and the smoothing
-      // may take Position beyond them (an IIR filter below critical damping overshoots).
+      // may take Position beyond them (an IIR filter below critical damping overshoots); the
+      // backlash ramp adds to that, within the share the planner leaves free.
       bool over = false;
-      std::fprintf(report, "after the spline / IIR (Position, to the drives):\n");
+      std::fprintf(report,
+                   "to the drives (Position after the spline / IIR, plus the backlash ramp):\n");
       for (int i = 0; i < n; ++i) {
         const auto ui = static_cast<std::size_t>(i);
         const AxisConfig& a = axes[ui];
@@ -706,9 +708,9 @@ int run_simulate(int argc, char** argv) {
       }
       if (over) {
         std::fprintf(report,
-                     "warning:   the smoothing takes Position beyond an axis limit that the "
-                     "interpolated path keeps (an IIR filter below critical damping overshoots): "
-                     "the drives get that\n");
+                     "warning:   the setpoint goes beyond an axis limit that the interpolated "
+                     "path keeps (an IIR filter below critical damping overshoots): the drives "
+                     "get that\n");
       }
     }
     std::fprintf(report, "violations: %llu\n",

@@ -268,6 +268,7 @@ const std::set<std::string> kAxisKeys = {"letter",
                                          "corner_velocity_tolerance_mm_s",
                                          "ratio_inc_per_mm",
                                          "backlash_mm",
+                                         "backlash_ramp_share",
                                          "min_position_mm",
                                          "max_position_mm"};
 
@@ -295,6 +296,7 @@ void read_axis(Reader& r, const YAML::Node& n, const std::string& path, AxisConf
   r.number(n, path, "corner_velocity_tolerance_mm_s", a.corner_velocity_tolerance_mm_s);
   r.number(n, path, "ratio_inc_per_mm", a.ratio_inc_per_mm);
   r.number(n, path, "backlash_mm", a.backlash_mm);
+  r.number(n, path, "backlash_ramp_share", a.backlash_ramp_share);
   r.number(n, path, "min_position_mm", a.min_position_mm);
   r.number(n, path, "max_position_mm", a.max_position_mm);
 }

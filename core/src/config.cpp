@@ -120,6 +120,25 @@ std::vector<std::string> MachineConfig::validate() const {
       if (!std::isfinite(a.backlash_mm) || a.backlash_mm < 0.0 || a.backlash_mm > 10.0) {
         e.push_back(ab + ".backlash_mm: must be 0..10 mm, not " + exact_number_text(a.backlash_mm));
       }
+      if (!(a.backlash_ramp_share >= 0.01 && a.backlash_ramp_share <= 0.5)) {  // NaN too
+        e.push_back(ab +
+                    ".backlash_ramp_share: must be 0.01..0.5 (a share of the axis limits), not " +
+                    exact_number_text(a.backlash_ramp_share));
+      } else if (a.backlash_mm > 0.0) {
+        // The planner moves the axis at the rest of its limits: that too within the range the
+        // motion core is tested at (MOTION.md, Accepted machine limits).
+        const double rest = planned_limit_share(a);
+        const auto planned = [&](const char* key, double limit, double lo, const char* unit) {
+          if (finite_positive(limit) && rest * limit < lo) {
+            e.push_back(ab + ".backlash_ramp_share: " + exact_number_text(a.backlash_ramp_share) +
+                        " leaves " + key + " " + exact_number_text(rest * limit) +
+                        " to the motion, below " + exact_number_text(lo) + " " + unit);
+          }
+        };
+        planned("max_velocity_mm_s", a.max_velocity_mm_s, kMinVelocity, "mm/s");
+        planned("max_acceleration_mm_s2", a.max_acceleration_mm_s2, kMinAcceleration, "mm/s^2");
+        planned("max_jerk_mm_s3", a.max_jerk_mm_s3, kMinJerk, "mm/s^3");
+      }
       const bool min_ok = std::fabs(a.min_position_mm) <= 1.0e9;  // false for NaN
       const bool max_ok = std::fabs(a.max_position_mm) <= 1.0e9;
       if (!min_ok) {

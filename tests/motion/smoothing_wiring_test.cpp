@@ -1001,6 +1001,42 @@ TEST(Wiring, TheLimitCheckMeasuresPositionAfterTheSmoothing) {
   EXPECT_FALSE(measured);
 }
 
+// The backlash ramp takes its share of the limits on top of the motion, so the planner plans an
+// axis with backlash at the rest. A reversal at a stop: X back from 20 mm at full
+// acceleration, a backlash of 0.05 mm whose ramp is bound by acceleration (J high: the
+// quintic's acceleration peak, 10/sqrt(3) D / T^2, is the share of A, 9 ms into the ramp while
+// the motion still accelerates). Planned at the full limits (before session 83), the drive
+// setpoint reached 1.1 x A there, and the summary measured only the smoothed Position, not the
+// setpoint. Share 0.1 and 0.3: Orig_Position peaks at (1 - share) x A, the setpoint at A.
+TEST(Wiring, TheBacklashRampHasItsShareOfTheLimitsFree) {
+  for (const double share : {0.1, 0.3}) {
+    SCOPED_TRACE(share);
+    MachineConfig m = MachineConfig::default_machine();
+    for (AxisConfig& a : m.interpolators[0].axes) a.max_jerk_mm_s3 = 1e6;
+    AxisConfig& x = m.interpolators[0].axes[0];
+    x.backlash_mm = 0.05;
+    x.backlash_ramp_share = share;
+    const double A = x.max_acceleration_mm_s2;
+    ProgramBuilder b;
+    b.line({20.0, 0.0, 0.0}, 15000.0).line({0.0, 0.0, 0.0}, 15000.0).end();
+    SimulationOptions o;
+    o.check_limits = true;
+    auto sim = Simulation::create(m, o);
+    ASSERT_TRUE(sim);
+    const SimulationSummary s = sim->run(b.program());
+    ASSERT_EQ(s.result, StepResult::kFinished) << s.error;
+    EXPECT_EQ(s.violation_count, 0u);
+    // The ramp happened and ended where it should: -backlash/2 after motion in -X.
+    EXPECT_NEAR(sim->interpolator().output().compensation_mm(0), -0.025, 1e-12);
+    EXPECT_LE(s.peaks[0].acceleration_mm_s2, (1.0 - share) * A * (1.0 + 1e-6));
+    EXPECT_GE(s.peaks[0].acceleration_mm_s2, (1.0 - share) * A * 0.99);
+    ASSERT_TRUE(s.smoothed_measured);
+    // Per-cycle differences of the setpoint velocity: 1 % for the discretisation.
+    EXPECT_LE(s.smoothed_peaks[0].acceleration_mm_s2, A * 1.01);
+    EXPECT_GE(s.smoothed_peaks[0].acceleration_mm_s2, A * 0.97);
+  }
+}
+
 // A program whose IIR-filtered axis ends far from the origin ends too (Status 3 at the
 // filtered position equal to the end point). Before session 41 the filter's lag stuck at a
 // few units in the last place of such a coordinate (X at 2,400 mm: 1.4e-12 mm), it never came

@@ -51,6 +51,34 @@ TEST(Config, RatioHasTheRangeOfARatioWrite) {
   }
 }
 
+// An axis with backlash is planned at 1 - backlash_ramp_share of its limits: the share has a
+// range, and what it leaves must stay within the range the motion core is tested at.
+TEST(Config, BacklashRampShareHasARangeAndLeavesTestedLimits) {
+  for (const double bad : {0.0, 0.005, 0.51, 1.0, -0.1, std::nan("")}) {
+    MachineConfig m = MachineConfig::default_machine();
+    m.interpolators[0].axes[2].backlash_ramp_share = bad;
+    const auto problems = m.validate();
+    ASSERT_EQ(problems.size(), 1u) << bad;
+    EXPECT_NE(problems[0].find("interpolators[0].axes[2].backlash_ramp_share: must be 0.01..0.5"),
+              std::string::npos)
+        << problems[0];
+  }
+  MachineConfig m = MachineConfig::default_machine();
+  AxisConfig& z = m.interpolators[0].axes[2];
+  z.backlash_ramp_share = 0.5;
+  z.max_acceleration_mm_s2 = 0.15;
+  z.emergency_deceleration_mm_s2 = 0.15;
+  EXPECT_TRUE(m.validate().empty()) << "no backlash: the motion has the whole limit";
+  z.backlash_mm = 0.01;
+  const auto problems = m.validate();
+  ASSERT_EQ(problems.size(), 1u);
+  EXPECT_EQ(problems[0],
+            "interpolators[0].axes[2].backlash_ramp_share: 0.5 leaves max_acceleration_mm_s2 "
+            "0.075 to the motion, below 0.1 mm/s^2");
+  z.backlash_ramp_share = 0.3;
+  EXPECT_TRUE(m.validate().empty());
+}
+
 TEST(Config, DefaultYamlLoadsAndMatchesBuiltInDefaults) {
   const auto load = load_config_file(TGM_SOURCE_DIR "/config/default.yaml");
   ASSERT_TRUE(load.errors.empty()) << load.errors.front();
@@ -409,8 +437,9 @@ TEST(Config, ASecondDocumentIsAnError) {
 // axis_defaults reach the axes whether or not the interpolators are listed, and an axis listed
 // without axis_defaults has the built-in machine's limits (those of config/default.yaml).
 TEST(Config, AxisDefaultsApplyToTheBuiltInAxesToo) {
-  auto load =
-      load_config_text("axis_defaults: {max_jerk_mm_s3: 1234, backlash_mm: 0.01}\n", "m.yaml");
+  auto load = load_config_text(
+      "axis_defaults: {max_jerk_mm_s3: 1234, backlash_mm: 0.01, backlash_ramp_share: 0.25}\n",
+      "m.yaml");
   ASSERT_TRUE(load.config) << load.errors.front();
   const MachineConfig builtin = MachineConfig::default_machine();
   ASSERT_EQ(load.config->machine.interpolators.size(), builtin.interpolators.size());
@@ -421,6 +450,7 @@ TEST(Config, AxisDefaultsApplyToTheBuiltInAxesToo) {
       EXPECT_EQ(axes[i].letter, builtin.interpolators[k].axes[i].letter);
       EXPECT_DOUBLE_EQ(axes[i].max_jerk_mm_s3, 1234.0);
       EXPECT_DOUBLE_EQ(axes[i].backlash_mm, 0.01);
+      EXPECT_DOUBLE_EQ(axes[i].backlash_ramp_share, 0.25);
       EXPECT_DOUBLE_EQ(axes[i].max_velocity_mm_s,
                        builtin.interpolators[k].axes[i].max_velocity_mm_s);
     }
@@ -675,7 +705,7 @@ TEST(Config, EveryOtherBadValueIsNamedWithItsKeyAndLine) {
       "interpolators:\n"
       "  - axes:\n"
       "      - {letter: G}\n"
-      "      - {letter: Y, backlash_mm: 11}\n"
+      "      - {letter: Y, backlash_mm: 11, backlash_ramp_share: 0.6}\n"
       "      - {letter: Z, max_velocity_mm_s: 100, rapid_velocity_mm_s: 200}\n"
       "tools:\n"
       "  - {number: 4, radius_mm: -1, length_mm: 1}\n"
@@ -698,6 +728,8 @@ TEST(Config, EveryOtherBadValueIsNamedWithItsKeyAndLine) {
         "R "
         "T are G-code words)",
         "m.yaml:4: interpolators[0].axes[1].backlash_mm: must be 0..10 mm, not 11",
+        "m.yaml:4: interpolators[0].axes[1].backlash_ramp_share: must be 0.01..0.5 (a share of "
+        "the axis limits), not 0.6",
         "m.yaml:5: interpolators[0].axes[2].rapid_velocity_mm_s: 200 exceeds max_velocity_mm_s 100",
         "m.yaml:7: tools[0].radius_mm: must be 0..1e9 mm, not -1",
         "m.yaml:8: tools[1].number: tool 4 is listed twice",
@@ -719,7 +751,7 @@ TEST(Config, EveryOtherBadValueIsNamedWithItsKeyAndLine) {
         "0; the largest has 3 axes)"}) {
     EXPECT_TRUE(has_error(load.errors, want)) << "missing: " << want;
   }
-  EXPECT_EQ(load.errors.size(), 16u);
+  EXPECT_EQ(load.errors.size(), 17u);
   // The F word's range: 1e308 loaded, and each record without an F was refused mid-program.
   const auto fast = load_config_text("compiler:\n  default_feed_mm_per_min: 1e308\n", "f.yaml");
   EXPECT_FALSE(fast.config);

@@ -43,11 +43,21 @@ struct AxisConfig {
   double ratio_inc_per_mm = 1000.0;
   //! Backlash compensated on direction reversal [mm].
   double backlash_mm = 0.0;
+  //! Share of the velocity, acceleration and jerk limits the backlash ramp takes, 0.01..0.5.
+  //! An axis with backlash is planned at the rest of its limits (planned_limit_share), so the
+  //! drive setpoint, motion and ramp together, stays within them.
+  double backlash_ramp_share = 0.1;
   //! Soft limits: the range this axis may be commanded to [mm, machine coordinates]; the
   //! defaults, +-1e9, are the bound of every coordinate (no soft limit). tgm/soft_limits.hpp.
   double min_position_mm = -1.0e9;
   double max_position_mm = 1.0e9;
 };
+
+//! Share of the axis limits the motion planner may use: 1 - backlash_ramp_share for an axis
+//! with backlash, else 1.
+inline double planned_limit_share(const AxisConfig& a) {
+  return a.backlash_mm > 0.0 ? 1.0 - a.backlash_ramp_share : 1.0;
+}
 
 //! One interpolator (axis group).
 struct InterpolatorConfig {

@@ -14,8 +14,6 @@ namespace tgm {
 
 //! Accepted |Offset| [inc] (|Ratio|: kMinRatio..kMaxRatio, config.hpp).
 inline constexpr std::int64_t kMaxOffsetInc = 1'000'000'000'000'000;
-//! Share of the axis velocity / acceleration / jerk limits the backlash ramp uses.
-inline constexpr double kBacklashRampShare = 0.1;
 //! Travel against the last direction that counts as a reversal [mm], at the least: a reversal
 //! is also more than one increment (1 / |Ratio|) back, one the setpoint can show.
 inline constexpr double kReversalThresholdMm = 1e-6;
@@ -23,8 +21,9 @@ inline constexpr double kReversalThresholdMm = 1e-6;
 //! Per-axis Ratio, Offset and backlash compensation of one interpolator. No allocation.
 class OutputStage {
  public:
-  //! Ratio from `ratio_inc_per_mm`, backlash from `backlash_mm` and the ramp from the velocity /
-  //! acceleration limits of each configured axis; Offset 0; compensation 0 (direction unknown).
+  //! Ratio from `ratio_inc_per_mm`, backlash from `backlash_mm` and the ramp from
+  //! `backlash_ramp_share` of the velocity / acceleration / jerk limits of each configured axis;
+  //! Offset 0; compensation 0 (direction unknown).
   explicit OutputStage(const InterpolatorConfig& config);
 
   //! New reference position (Command 2048 / 2049): direction tracking restarts there; the

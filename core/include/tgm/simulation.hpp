@@ -107,11 +107,13 @@ struct SimulationSummary {
   std::array<AxisPeaks, kMaxAxes> peaks{};
   std::uint64_t violation_count = 0;
   std::vector<LimitViolation> violations;
-  //! With the limit checker on and the spline or IIR filter on: the peaks of Position after
-  //! the smoothing, what the drives get (|v| from Speed, |a| from its change per cycle; jerk
-  //! and corner steps 0). The checker holds Orig_Position to the limits; an IIR filter below
+  //! With the limit checker on and the spline or IIR filter on, or an axis with backlash: the
+  //! peaks of the drive setpoint, Position after the smoothing plus the backlash compensation
+  //! (|v| from Speed plus the compensation's rate, |a| from its change per cycle; jerk and
+  //! corner steps 0). The checker holds Orig_Position to the limits; an IIR filter below
   //! critical damping overshoots them here (|v| 356 against 250 mm/s, said as "violations: 0",
-  //! session 75), which the summary says.
+  //! session 75), which the summary says; a backlash ramp adds its share on top of the motion,
+  //! which the planner leaves free (planned_limit_share).
   bool smoothed_measured = false;
   std::array<AxisPeaks, kMaxAxes> smoothed_peaks{};
 };

@@ -3766,17 +3766,21 @@ std::optional<Interpolator> Interpolator::create(const MachineConfig& machine, i
   for (int i = 0; i < m.n; ++i) {
     const AxisConfig& a = m.cfg.axes[static_cast<std::size_t>(i)];
     const auto ui = static_cast<std::size_t>(i);
-    m.vmax[ui] = a.max_velocity_mm_s;
-    m.amax[ui] = a.max_acceleration_mm_s2;
+    // An axis with backlash leaves its ramp's share of the limits free (config.hpp,
+    // planned_limit_share): planned at the full limits, a reversal's ramp on top of the
+    // motion's own acceleration took the drive setpoint to 1.1 x A (session 82's review).
+    const double share = planned_limit_share(a);
+    m.vmax[ui] = share * a.max_velocity_mm_s;
+    m.amax[ui] = share * a.max_acceleration_mm_s2;
     // The generator holds one jerk per calculation step and its braking plans assume it can
     // follow a bang-bang jerk profile; with J dt far above A (J >= 1e8 mm/s^3 at 100 us) a plan's
     // ramps are shorter than a step and corners were crossed up to 30 % too fast. Full
     // acceleration is reached in four steps at the least (a few hundred us, which no machine's
     // cycle time notices; at J = A / (2 dt) the stop at a program's end still clamped).
-    m.jmax[ui] = std::min(a.max_jerk_mm_s3, a.max_acceleration_mm_s2 / (4.0 * m.dt));
-    m.rapid[ui] = a.rapid_velocity_mm_s;
+    m.jmax[ui] = std::min(share * a.max_jerk_mm_s3, m.amax[ui] / (4.0 * m.dt));
+    m.rapid[ui] = std::min(a.rapid_velocity_mm_s, m.vmax[ui]);
     m.tol[ui] = a.corner_velocity_tolerance_mm_s;
-    m.rho = std::min(m.rho, a.emergency_deceleration_mm_s2 / a.max_acceleration_mm_s2);
+    m.rho = std::min(m.rho, a.emergency_deceleration_mm_s2 / m.amax[ui]);
   }
   // Smoothing and output stages (allocate here only), started from the config's defaults.
   m.smooth.emplace(m.n, machine.cycle_time_us);

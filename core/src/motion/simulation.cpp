@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "tgm/output_stage.hpp"
 #include "tgm/smoothing.hpp"
 
 namespace tgm {
@@ -208,7 +209,19 @@ SimulationSummary Simulation::run_records(std::size_t total, const AppendRecords
   // The axes stand at the start before the first cycle: the checker differentiates the first
   // cycles against that, as a live run's checker does with the cycles before the start.
   if (checker_) checker_->add_cycle(ip.registers(), {});
-  std::array<double, kMaxAxes> smoothed_prev = ip.registers().speed;  // Speed of the last cycle
+  // The drives' setpoint velocity: Speed (Position after the spline / IIR) plus the rate of
+  // the backlash compensation, as PositionInc moves.
+  const OutputStage& out = ip.output();
+  bool has_backlash = false;
+  for (int i = 0; i < out.axes(); ++i) has_backlash = has_backlash || out.backlash_mm(i) > 0.0;
+  const auto setpoint_velocity = [&](const Registers& reg) {
+    std::array<double, kMaxAxes> v = reg.speed;
+    for (int i = 0; i < reg.number_axes && i < out.axes(); ++i) {
+      v[static_cast<std::size_t>(i)] += out.compensation_rate_mm_s(i);
+    }
+    return v;
+  };
+  std::array<double, kMaxAxes> smoothed_prev = setpoint_velocity(ip.registers());  // last cycle's
   bool smoothed_prev_valid = true;
   while (true) {
     const double t = static_cast<double>(cycle) * T;
@@ -276,22 +289,28 @@ SimulationSummary Simulation::run_records(std::size_t total, const AppendRecords
       } else {
         checker_->add_cycle(reg, ip.corner_events());
       }
-      // Position after the smoothing, while it does more than pass Orig_Position through
-      // (that the checker covers). Acceleration from successive cycles only: a skip of several
-      // (standstill) starts the difference afresh.
-      if (!ip.smoothing().passes_through()) {
+      // The drive setpoint (Position after the smoothing, plus the backlash compensation),
+      // while it does more than pass Orig_Position through (that the checker covers).
+      // Acceleration from successive cycles only: a skip of several (standstill) starts the
+      // difference afresh.
+      // Unsmoothed, a corner's velocity step (within its tolerance, which the checker holds)
+      // reaches the setpoint as it is: not an acceleration.
+      const std::array<double, kMaxAxes> v = setpoint_velocity(reg);
+      const bool unsmoothed = ip.smoothing().passes_through();
+      if (!unsmoothed || has_backlash) {
         sum.smoothed_measured = true;
+        const bool corner = unsmoothed && !ip.corner_events().empty();
         for (int i = 0; i < reg.number_axes; ++i) {
           const auto u = static_cast<std::size_t>(i);
           AxisPeaks& pk = sum.smoothed_peaks[u];
-          pk.velocity_mm_s = std::max(pk.velocity_mm_s, std::fabs(reg.speed[u]));
-          if (smoothed_prev_valid && done == 1) {
+          pk.velocity_mm_s = std::max(pk.velocity_mm_s, std::fabs(v[u]));
+          if (smoothed_prev_valid && done == 1 && !corner) {
             pk.acceleration_mm_s2 =
-                std::max(pk.acceleration_mm_s2, std::fabs(reg.speed[u] - smoothed_prev[u]) / T);
+                std::max(pk.acceleration_mm_s2, std::fabs(v[u] - smoothed_prev[u]) / T);
           }
         }
       }
-      smoothed_prev = reg.speed;
+      smoothed_prev = v;
       smoothed_prev_valid = done == 1;
     }
     if (on_cycle) on_cycle(reg);

@@ -27,9 +27,11 @@ OutputStage::OutputStage(const InterpolatorConfig& config)
     const AxisConfig& a = config.axes[ui];
     ratio_[ui] = a.ratio_inc_per_mm;
     half_backlash_[ui] = 0.5 * a.backlash_mm;
-    ramp_v_[ui] = kBacklashRampShare * a.max_velocity_mm_s;
-    ramp_a_[ui] = kBacklashRampShare * a.max_acceleration_mm_s2;
-    ramp_j_[ui] = kBacklashRampShare * a.max_jerk_mm_s3;
+    // The planner leaves this share of the limits free on an axis with backlash
+    // (planned_limit_share): motion and ramp together stay within the limits.
+    ramp_v_[ui] = a.backlash_ramp_share * a.max_velocity_mm_s;
+    ramp_a_[ui] = a.backlash_ramp_share * a.max_acceleration_mm_s2;
+    ramp_j_[ui] = a.backlash_ramp_share * a.max_jerk_mm_s3;
   }
 }
 
