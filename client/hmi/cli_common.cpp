@@ -20,6 +20,7 @@
 #include "tgm/gcode.hpp"
 #include "tgm/intercode_io.hpp"
 #include "tgm/printable.hpp"
+#include "tgm/soft_limits.hpp"
 
 namespace tgm::hmi {
 
@@ -143,11 +144,41 @@ bool load_packed(const std::string& file, const FileView& input, const MachineCo
                    file.c_str(), out.tables().axis_letters.c_str(), ip, letters.c_str(), ip);
       return false;
     }
-    return true;
+    // Said with their count here: `compile_errors` counts the compiler's diagnostics.
+    return print_soft_limit_errors(file, out,
+                                   machine.interpolators[static_cast<std::size_t>(ip)]) == 0;
   }
   CompileOptions options = CompileOptions::from_machine(machine, ip);
   if (start_mm) options.start_mm = *start_mm;
   return compile_packed(file, input, options, out, observe, compile_errors);
+}
+
+std::size_t print_soft_limit_errors(const std::string& file, const PackedProgram& program,
+                                    const InterpolatorConfig& axes) {
+  if (!has_soft_limits(axes)) return 0;
+  // Every record from the point the program was compiled from, as the compiler checks G-code
+  // (a record's start is where the motion record before it ends).
+  std::array<double, kMaxAxes> at = program.tables().start_mm;
+  std::size_t beyond = 0;
+  constexpr std::size_t kListed = 20;
+  auto cursor = program.cursor();
+  for (Segment s; cursor.next(s);) {
+    if (!s.is_motion()) continue;
+    if (const std::string why = soft_limit_problem(s, at.data(), axes); !why.empty()) {
+      if (++beyond <= kListed) {
+        std::fprintf(stderr, "%s (source line %d): error: %s\n", file.c_str(), s.line, why.c_str());
+      }
+    }
+    at = s.end;
+  }
+  if (beyond > kListed) {
+    std::fprintf(stderr, "%s: ... and %zu more\n", file.c_str(), beyond - kListed);
+  }
+  if (beyond > 0) {
+    std::fprintf(stderr, "%s: %zu record%s beyond the soft limits\n", file.c_str(), beyond,
+                 beyond == 1 ? "" : "s");
+  }
+  return beyond;
 }
 
 bool open_intercode(const std::string& file, const FileView& input, PackedProgram& out,

@@ -145,6 +145,13 @@ bool load_packed(const std::string& file, const FileView& input, const MachineCo
 //! Every diagnostic of a failed compile on standard error, as `FILE:LINE:COL: error: reason`.
 void print_compile_errors(const std::string& file, const CompileResult& result);
 
+//! Intercode checked against the soft limits of `axes` (tgm/soft_limits.hpp) from the point it
+//! was compiled from: each record beyond them on standard error as "FILE (source line N):
+//! error: reason" (the first 20), then their number. Returns the number; 0 without soft limits.
+//! The compiler checks G-code itself; load_packed calls this for intercode.
+std::size_t print_soft_limit_errors(const std::string& file, const PackedProgram& program,
+                                    const InterpolatorConfig& axes);
+
 //! load_packed's intercode half: `input` (FILE, open, intercode) copied, checked to be the file
 //! as it was opened (FileView::check) and decoded into `out`, which `observe` sees record by
 //! record. Prints why not ("FILE: error: ...") and returns false.

@@ -297,6 +297,48 @@ TEST_F(HmiSimulate, IntercodeStartsWhereItWasCompiledFrom) {
   EXPECT_EQ(r.exit_code, 0) << r.err;
 }
 
+// Intercode compiled without the config's soft limits is checked against them when it is
+// read, as the compiler checks G-code: every record beyond one named with its source line,
+// nothing run. Before session 83 only the interpolator's check at append caught it, a
+// buffer's worth at a time: "record 2 (line 4): ..." and, in tgm-hmi run, a record beyond the
+// first buffer_size stopped the motion mid-program.
+TEST_F(HmiSimulate, IntercodeBeyondTheSoftLimitsIsRefusedWithItsLines) {
+  const fs::path src =
+      write("far.ngc", "G90 G1 X50 F6000\nG1 X120\nG1 X50\nG2 X50 Y0 I-30 J0\nG1 Z-5\nM2\n");
+  const fs::path tgmi = dir_ / "far.tgmi";
+  ProcessResult r =
+      run("compile " + src.string() + " --config " + kConfig + " --out " + tgmi.string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const fs::path limited = write("limited.yaml",
+                                 "interpolators:\n  - axes: [{letter: X, max_position_mm: 100}, "
+                                 "{letter: Y, min_position_mm: -20}, {letter: Z}]\n");
+  r = run("simulate " + tgmi.string() + " --config " + limited.string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.out, "");
+  EXPECT_EQ(r.err, tgmi.string() +
+                       " (source line 2): error: end point X120 is beyond the soft limit of axis "
+                       "X (max_position_mm 100 in the config)\n" +
+                       tgmi.string() +
+                       " (source line 4): error: the arc passes Y-30, beyond the soft limit of "
+                       "axis Y (min_position_mm -20 in the config)\n" +
+                       tgmi.string() + ": 2 records beyond the soft limits\n")
+      << r.err;
+  // The compiler says the same of the G-code (line 3 comes back from beyond: allowed).
+  r = run("compile " + src.string() + " --config " + limited.string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find(src.string() +
+                       ":2:1: error: end point X120 is beyond the soft limit of axis X "
+                       "(max_position_mm 100 in the config)\n" +
+                       src.string() +
+                       ":4:1: error: the arc passes Y-30, beyond the soft limit of axis Y "
+                       "(min_position_mm -20 in the config)\n"),
+            std::string::npos)
+      << r.err;
+  // Within them it runs.
+  r = run("simulate " + tgmi.string() + " --config " + kConfig);
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+}
+
 // The Backlash register is in the CSV (backlash_<axis>): LinuxCNC's convention, half the
 // configured backlash towards the last direction of motion, 0 before the first, ramped at a
 // reversal; in every row PositionInc = round(Position x Ratio) + Backlash (no Offset here).
