@@ -12,10 +12,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <memory>
 #include <utility>
 #include <vector>
+
+#include <sys/mman.h>
 
 #include "path_geometry.hpp"
 #include "tgm/command_stage.hpp"
@@ -126,6 +129,25 @@ struct Rec {
   double tan0_deg = std::numeric_limits<double>::quiet_NaN();
   Geometry g;
 };
+
+// Asks the kernel for transparent huge pages on the 2 MB-aligned part of [p, p + bytes): a
+// hint that may be ignored. The rings of a 10,000-record buffer are 6.3 MB; written first as
+// a program loads, they took 1,500 page faults of 4 kB, which on this VM cost more than the
+// motion of a one-lap short-segment circle (with ev_par below: `tgm-hmi simulate` of that
+// circle 121..131 -> 219..243 x real time, session 83; tests/bench/BENCHMARKS.md).
+// tgm-service writes its rings at create (preallocate_ring), not in the cycle.
+void advise_huge_pages(void* p, std::size_t bytes) {
+#ifdef MADV_HUGEPAGE
+  constexpr std::uintptr_t kHuge = std::uintptr_t{2} << 20;
+  const auto a = reinterpret_cast<std::uintptr_t>(p);
+  const std::uintptr_t lo = (a + kHuge - 1) & ~(kHuge - 1);
+  const std::uintptr_t hi = (a + bytes) & ~(kHuge - 1);
+  if (hi > lo) (void)::madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_HUGEPAGE);
+#else
+  (void)p;
+  (void)bytes;
+#endif
+}
 
 // An allocator whose vector(n) leaves trivial elements uninitialised: the deques below are
 // sized for the whole ring at create but only written as records enter them, and a large
@@ -444,9 +466,14 @@ struct Interpolator::Impl {
   // M parameters of the events in flight, inside the smoothing and waiting in m_deferred (the
   // ring slot may be reused meanwhile).
   static constexpr std::size_t kMaxDeferredM = 64;
-  std::array<MParams, SmoothingStage::kEventCapacity + kMaxDeferredM + 1> ev_par{};
+  // On the heap, sized at create and left unwritten until events arrive (UninitAllocator): as
+  // arrays in Impl they were 0.9 MB that create value-initialised, page by page, for every
+  // Interpolator (a third of the 6 ms a one-line `tgm-hmi simulate` took, session 83). A slot
+  // is read only by the tag of an event that wrote it.
+  static constexpr std::size_t kEventSlots = SmoothingStage::kEventCapacity + kMaxDeferredM + 1;
+  std::vector<MParams, UninitAllocator<MParams>> ev_par;
   std::size_t ev_par_next = 0;
-  std::array<std::int32_t, SmoothingStage::kEventCapacity + kMaxDeferredM + 1> ev_line{};  // by tag
+  std::vector<std::int32_t, UninitAllocator<std::int32_t>> ev_line;  // by tag
   // At most one M-function reaches M_Func per cycle: a PLC reading the registers once a cycle
   // sees each of two M records with nothing between them (they would otherwise leave the
   // smoothing in the same calculation step, the second overwriting the first). The later ones
@@ -3799,6 +3826,11 @@ std::optional<Interpolator> Interpolator::create(const MachineConfig& machine, i
   m.seg.reserve(m.cap);
   m.rec.reserve(m.cap);
   m.par.reserve(m.cap);
+  advise_huge_pages(m.seg.data(), m.cap * sizeof(Segment));
+  advise_huge_pages(m.rec.data(), m.cap * sizeof(Rec));
+  advise_huge_pages(m.par.data(), m.cap * sizeof(MParams));
+  m.ev_par.resize(Impl::kEventSlots);
+  m.ev_line.resize(Impl::kEventSlots);
   if (options.preallocate_ring) {
     m.grow_rings(m.cap);
     m.par.resize(m.cap);
