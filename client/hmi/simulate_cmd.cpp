@@ -682,6 +682,16 @@ int run_simulate(int argc, char** argv) {
           sum.peaks[ui].acceleration_mm_s2, a.max_acceleration_mm_s2, sum.peaks[ui].jerk_mm_s3,
           a.max_jerk_mm_s3, sum.peaks[ui].corner_step_mm_s, a.corner_velocity_tolerance_mm_s);
     }
+    for (int i = 0; i < n; ++i) {
+      // Why such an axis peaks below its limits: the planner leaves the ramp its share.
+      const AxisConfig& a = axes[static_cast<std::size_t>(i)];
+      if (a.backlash_mm > 0.0) {
+        std::fprintf(report,
+                     "(%c has backlash: its path is planned at %g x the limits above, the "
+                     "backlash ramp has the rest)\n",
+                     a.letter, planned_limit_share(a));
+      }
+    }
     if (std::any_of(stops.begin(), stops.end(), [](const auto& st) { return st.second == 4; })) {
       std::fprintf(
           report,

@@ -375,6 +375,26 @@ TEST_F(HmiSimulate, TheCsvShowsTheBacklashOfEveryAxis) {
   EXPECT_TRUE(seen_y.count(-50.0) && seen_y.count(50.0));
   EXPECT_EQ(t.rows.back()[t.col("backlash_X")], 25.0);  // last moved in +X
   EXPECT_EQ(t.rows.back()[t.col("backlash_Y")], 50.0);  // last moved in -Y: -0.025 x -2000
+  // With the checker, the summary says why these axes peak below their limits, and gives
+  // the setpoint's peaks with the ramp (Z's share set to 0.2).
+  const fs::path shared = write("shared.yaml",
+                                "axis_defaults: {backlash_mm: 0.05}\n"
+                                "interpolators:\n"
+                                "  - axes: [{letter: X}, {letter: Y, backlash_mm: 0}, "
+                                "{letter: Z, backlash_ramp_share: 0.2}]\n");
+  const ProcessResult c =
+      run("simulate " + prog.string() + " --config " + shared.string() + " --check-limits");
+  ASSERT_EQ(c.exit_code, 0) << c.out << c.err;
+  EXPECT_NE(c.out.find("(X has backlash: its path is planned at 0.9 x the limits above, the "
+                       "backlash ramp has the rest)\n(Z has backlash: its path is planned at "
+                       "0.8 x the limits above, the backlash ramp has the rest)\n"),
+            std::string::npos)
+      << c.out;
+  EXPECT_EQ(c.out.find("(Y has backlash"), std::string::npos) << c.out;
+  EXPECT_NE(c.out.find("to the drives (Position after the spline / IIR, plus the backlash "
+                       "ramp):\nX "),
+            std::string::npos)
+      << c.out;
 }
 
 // --spline and --iir as the README gives them reach the interpolator as Command -2 and -1
