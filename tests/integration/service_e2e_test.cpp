@@ -326,9 +326,15 @@ TEST(ClientName, IsUniquePerClientAndFitsTheTopicsBound) {
   const std::string a = client::unique_client_name("tgm-hmi");
   const std::string b = client::unique_client_name("tgm-hmi");
   EXPECT_NE(a, b);
-  const std::string pid = "-" + std::to_string(::getpid()) + "-";
+  // Appended, not `"-" + std::to_string(...)`: GCC 12 at -O3 took that for an overlapping
+  // memcpy (-Werror=restrict in a Release build of the tests).
+  std::string pid = "-";
+  pid += std::to_string(::getpid());
+  pid += '-';
+  std::string prefix = "tgm-hmi";
+  prefix += pid;
   for (const std::string& n : {a, b}) {
-    EXPECT_EQ(n.rfind("tgm-hmi" + pid, 0), 0u) << n;
+    EXPECT_EQ(n.rfind(prefix, 0), 0u) << n;
     EXPECT_EQ(n.size(), 7 + pid.size() + 8) << n;
     EXPECT_EQ(n.find_first_not_of("0123456789abcdef", 7 + pid.size()), std::string::npos) << n;
   }
