@@ -390,9 +390,10 @@ Program short_segment_circle(int laps, int decimals = 0) {
 
 // Arg: decimals the chord ends are rounded to (0: exact). Rounded to 3 decimals (1 um, as CAM
 // posts often write), each chord's direction is off by up to 0.02 rad, twenty times the
-// circle's turn per chord, and the chord-turn limit takes each junction's noise as a turn
-// (core/MOTION.md, Known gaps): session 83 measured 2.544 at 3 decimals, 1.084 at 4, 1.0385
-// exact.
+// circle's turn per chord. Session 83's chord-turn limit took each junction's noise as a turn
+// (2.544 at 3 decimals, 1.084 at 4, 1.0385 exact); the windowed one of session 84 lets the
+// alternating steps cancel (1.175, 1.0385, 1.0385; at 3 decimals the corner tolerance holds
+// the rest: core/MOTION.md, Planner).
 void BM_ShortSegmentRatio(benchmark::State& state) {
   const Program prog = short_segment_circle(1, static_cast<int>(state.range(0)));
   double ratio = 0.0;

@@ -42,15 +42,32 @@ int run_until(Interpolator& ip, P pred, int max = 200000) {
 }
 
 // A full circle of radius r about the origin in G1 chords of about `chord`, from (r, 0).
-Program circle_of_chords(double r, double chord, double feed) {
+// `decimals` > 0: the chord ends rounded to that many decimals, as CAM posts write them.
+Program circle_of_chords(double r, double chord, double feed, int decimals = 0) {
   const int n = static_cast<int>(std::ceil(2 * kPi * r / chord));
+  const double scale = decimals > 0 ? std::pow(10.0, decimals) : 0.0;
+  auto round = [&](double x) { return scale > 0.0 ? std::round(x * scale) / scale : x; };
   ProgramBuilder b(3, {r, 0.0, 0.0});
   for (int i = 1; i <= n; ++i) {
     const double a = 2 * kPi * i / n;
-    b.line({r * std::cos(a), r * std::sin(a), 0.0}, feed);
+    b.line({round(r * std::cos(a)), round(r * std::sin(a)), 0.0}, feed);
   }
   b.end();
   return b.program();
+}
+
+// Peak |second difference| of X and Y over k cycles each side: the acceleration the drives
+// see over 2 k cycles, a junction's step of the tolerance spread over them.
+double windowed_acceleration(const std::vector<std::array<double, 2>>& xy, int k, double T) {
+  double peak = 0.0;
+  const auto uk = static_cast<std::size_t>(k);
+  for (std::size_t i = uk; i + uk < xy.size(); ++i) {
+    for (std::size_t ax = 0; ax < 2; ++ax) {
+      const double a = (xy[i + uk][ax] - 2.0 * xy[i][ax] + xy[i - uk][ax]) / (k * T * k * T);
+      peak = std::max(peak, std::fabs(a));
+    }
+  }
+  return peak;
 }
 
 TEST(ShortSegments, CircleOfChordsRunsAtFeed) {
@@ -100,20 +117,81 @@ TEST(ShortSegments, ARunOfChordsKeepsTheAccelerationOfTheArcItTraces) {
   });
   ASSERT_EQ(s.result, StepResult::kFinished) << s.error;
   EXPECT_EQ(s.violation_count, 0u);
-  const double T = m.cycle_time_us * 1e-6;
-  const int k = 20;
-  double peak = 0.0;
-  for (std::size_t i = k; i + k < xy.size(); ++i) {
-    for (int ax = 0; ax < 2; ++ax) {
-      const auto u = static_cast<std::size_t>(ax);
-      const double a = (xy[i + k][u] - 2.0 * xy[i][u] + xy[i - k][u]) / (k * T * k * T);
-      peak = std::max(peak, std::fabs(a));
-    }
-  }
+  const double peak = windowed_acceleration(xy, 20, m.cycle_time_us * 1e-6);
   const double A = m.interpolators[0].axes[0].max_acceleration_mm_s2;
   EXPECT_LT(peak, 1.1 * A);
   EXPECT_GT(top, 0.97 * std::sqrt(0.5 * A * r) * 0.99);
   EXPECT_LT(top, 101.0);
+}
+
+struct ChordRun {
+  SimulationSummary summary;
+  double peak_acceleration = 0.0;  // over 20 cycles each side
+  double time_ratio = 0.0;         // program time over the feed-limited bound
+};
+
+ChordRun run_circle(const MachineConfig& m, double r, double feed, int decimals) {
+  SimulationOptions o;
+  o.check_limits = true;
+  auto sim = Simulation::create(m, o);
+  EXPECT_TRUE(sim);
+  ChordRun run;
+  if (!sim) return run;
+  EXPECT_TRUE(sim->interpolator().set_position({r, 0.0, 0.0}).ok());
+  std::vector<std::array<double, 2>> xy;
+  run.summary = sim->run(circle_of_chords(r, 0.05, feed, decimals), [&](const Registers& g) {
+    xy.push_back({g.orig_position[0], g.orig_position[1]});
+  });
+  run.peak_acceleration = windowed_acceleration(xy, 20, m.cycle_time_us * 1e-6);
+  run.time_ratio = run.summary.program_time_s / (run.summary.distance_mm / (feed / 60.0));
+  return run;
+}
+
+// CAM posts round the chord ends to 3 or 4 decimals: on 0.05 mm chords of a circle of 50 mm
+// a 1 um rounding turns each chord by up to 0.02 rad, twenty times the circle's turn, in
+// steps of alternating sign. A chord-turn limit that took one junction's turn over one chord
+// as the curvature read a radius of about 2.5 mm and ran the circle at 46 mm/s instead of
+// 100 (2.54 x the feed-limited time, session 83). Over the checker's 10 ms window the
+// alternating steps cancel (session 84): what is left at 3 decimals is the corner tolerance,
+// whose 2 mm/s some of the rounded junctions' steps exceed at 100 mm/s (with 3 mm/s the
+// circle runs at the exact one's time); at 4 decimals nothing is lost.
+TEST(ShortSegments, RoundedChordEndsAreNotReadAsCurvature) {
+  MachineConfig m = machine();
+  const ChordRun exact = run_circle(m, 50.0, 6000.0, 0);
+  const ChordRun four = run_circle(m, 50.0, 6000.0, 4);
+  const ChordRun three = run_circle(m, 50.0, 6000.0, 3);
+  for (const ChordRun* c : {&exact, &four, &three}) {
+    ASSERT_EQ(c->summary.result, StepResult::kFinished) << c->summary.error;
+    EXPECT_EQ(c->summary.violation_count, 0u);
+    EXPECT_EQ(c->summary.hard_stops, 0u);
+  }
+  EXPECT_LT(exact.time_ratio, 1.05);
+  EXPECT_LT(four.time_ratio, exact.time_ratio * 1.001);
+  EXPECT_LT(three.time_ratio, 1.25);
+  for (AxisConfig& a : m.interpolators[0].axes) a.corner_velocity_tolerance_mm_s = 3.0;
+  const ChordRun loose = run_circle(m, 50.0, 6000.0, 3);
+  ASSERT_EQ(loose.summary.result, StepResult::kFinished) << loose.summary.error;
+  EXPECT_EQ(loose.summary.violation_count, 0u);
+  EXPECT_LT(loose.time_ratio, exact.time_ratio * 1.001);
+}
+
+// The rounding noise must not hide a real turn: the circle of radius 10 mm at F12000 (the
+// arc's speed 84..100 mm/s) keeps its acceleration with the chord ends rounded to 3 decimals
+// as it does exact (ARunOfChordsKeepsTheAccelerationOfTheArcItTraces). The tolerance is 3
+// mm/s: at 2 the rounded junctions' steps of up to 2.4 mm/s would set the speed instead.
+TEST(ShortSegments, RoundedChordsOfATightCircleKeepTheAcceleration) {
+  MachineConfig m = machine();
+  for (AxisConfig& a : m.interpolators[0].axes) a.corner_velocity_tolerance_mm_s = 3.0;
+  const double A = m.interpolators[0].axes[0].max_acceleration_mm_s2;
+  for (const int decimals : {0, 4, 3}) {
+    const ChordRun c = run_circle(m, 10.0, 12000.0, decimals);
+    ASSERT_EQ(c.summary.result, StepResult::kFinished) << decimals << ": " << c.summary.error;
+    EXPECT_EQ(c.summary.violation_count, 0u) << decimals;
+    EXPECT_LT(c.peak_acceleration, 1.1 * A) << decimals;
+    // At the arc's speed, not crawling: at most 1.3 x the time at 0.97 sqrt(A/2 r).
+    const double v = 0.97 * std::sqrt(0.5 * A * 10.0);
+    EXPECT_LT(c.summary.program_time_s, 1.3 * c.summary.distance_mm / v) << decimals;
+  }
 }
 
 // The soft limits hold for programs that did not come through the compiler with this config
@@ -443,10 +521,12 @@ TEST(Stops, StopWhileBrakingForACornerKeepsTheCorner) {
     EXPECT_EQ(s.stops, 1u) << "Command " << code;
     EXPECT_EQ(s.violation_count, 0u) << "Command " << code;
     EXPECT_EQ(s.hard_stops, 0u) << "Command " << code;
-    // Past the corner only after the restart, slowly (the corner limit of a right angle with a
-    // velocity step tolerance of 2 mm/s is well below 2 mm/s).
+    // Past the corner only after the restart, slowly: the corner limit of a right angle with
+    // a velocity step tolerance of 2 mm/s is 0.999 x 2 mm/s, and the first sample past it
+    // may carry part of a cycle's acceleration on Y (session 84 saw 2.0006 when the line
+    // after the corner no longer gave 0.05 % of its tangential limit to the turn).
     EXPECT_GE(corner_speed, 0.0) << "Command " << code;
-    EXPECT_LT(corner_speed, 2.0) << "Command " << code;
+    EXPECT_LT(corner_speed, 2.1) << "Command " << code;
     EXPECT_EQ(s.end_position[2], -5.0) << "Command " << code;
   }
 }

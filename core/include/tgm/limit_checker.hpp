@@ -11,7 +11,9 @@
 // point noise (MOTION.md, "Limit checker").
 #pragma once
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <optional>
 #include <span>
@@ -94,6 +96,11 @@ class LimitChecker {
   //! Cycles of the mean-acceleration window: 10 ms rounded, 4..kMaxWindow.
   int window_cycles() const { return k_; }
   static constexpr int kMaxWindow = 40;
+  //! The window for a cycle of `cycle_s` seconds; the planner's chord-turn limit holds the
+  //! same mean acceleration (core/MOTION.md, Planner).
+  static int window_cycles_for(double cycle_s) {
+    return std::clamp(static_cast<int>(std::lround(0.01 / cycle_s)), 4, kMaxWindow);
+  }
 
  private:
   LimitChecker() = default;

@@ -23,6 +23,7 @@
 #include "path_geometry.hpp"
 #include "tgm/command_stage.hpp"
 #include "tgm/jerk_profile.hpp"
+#include "tgm/limit_checker.hpp"
 #include "tgm/output_stage.hpp"
 #include "tgm/printable.hpp"
 #include "tgm/smoothing.hpp"
@@ -383,6 +384,17 @@ struct Interpolator::Impl {
   double pt_f = 0.0, pt_m = 0.0, pt_length = 0.0;
   LimitFactor pt_m_reason = LimitFactor::kAxisVelocity;
   double s_tail = 0.0;
+  // The last junctions of the run of motion being planned, for chord_turn_limit: the tangent
+  // into each, per axis, and its path position. A ring, newest at jh_head, written twice (at
+  // e and e + kTurnHistory) so that the last kTurnHistory lie in one run of memory.
+  static constexpr int kTurnHistory = 16;
+  std::array<std::array<double, 2 * kTurnHistory>, kMaxAxes> jh_tin{};
+  std::array<double, 2 * kTurnHistory> jh_s{};
+  int jh_head = 0;
+  int jh_count = 0;
+  double turn_w = 0.0, inv_turn_w = 0.0;  // the limit checker's mean-acceleration window [s]
+  // 2 / A_i, 2 / J_i: the chord-turn share (half of each limit) inverted.
+  std::array<double, kMaxAxes> inv_half_a{}, inv_half_j{};
 
   // ---- execution ----
   Mode mode = Mode::kIdle;
@@ -532,62 +544,170 @@ struct Interpolator::Impl {
   // A run of short chords turns the path as an arc does, but in steps the corner tolerance
   // accepts one by one: at 200 mm/s, 0.05 mm chords of a circle of 10 mm radius each step
   // X and Y by 1 mm/s, within a 2 mm/s tolerance, 4,000 times a second, and the drives saw
-  // 4,000 mm/s^2 against a limit of 1,500 (review of session 82). The steps of one junction
-  // recur after `spacing` (the shorter of its two records) at the earliest: v |dt_i| / (spacing
-  // / v) is the axis acceleration that implies, and v^3 |dt_i| |dt| / spacing^2 its jerk (a
-  // circle's v^3 / r^2 with r = spacing / |dt|). Held to the share an arc's centripetal terms
-  // get (half of each limit, with the arc margin); a lone corner between long records is far
-  // from it.
-  // `w` is the junction's limit from everything else: the roots are taken only where this
-  // limit binds below it (this runs once per record stored, one per cycle on short chords).
-  double chord_turn_limit(const std::array<double, kMaxAxes>& tin,
-                          const std::array<double, kMaxAxes>& tout, double spacing,
-                          double w) const {
-    constexpr double kInvSafety = 1.0 / kArcSafety;
-    const double wm = w * kInvSafety;  // the root's value at which it equals w
-    const double wm2 = wm * wm, wm3 = wm2 * wm;
-    double turn2 = 0.0;
-    for (int i = 0; i < n; ++i) turn2 += (tout[i] - tin[i]) * (tout[i] - tin[i]);
-    const double l2 = spacing * spacing;
-    double c = kInf;
-    double turn = -1.0;  // sqrt(turn2) once needed
+  // 4,000 mm/s^2 against a limit of 1,500 (review of session 82). What adds up is the
+  // velocity change over a window of time, the limit checker's mean acceleration: the steps
+  // a window W of it covers at speed v are those of the junctions within v W of path, and
+  // the run's tangent turns by Delta (the tangent after the last minus the one into the
+  // first) across them. Steps that alternate, as the chords of coordinates rounded to 1 um
+  // do (0.02 rad each on 0.05 mm chords, twenty times the turn of a circle of 50 mm), cancel
+  // there; a turn that keeps its sign adds up (session 84). Held to the share of an arc's
+  // centripetal terms (half of each limit, with the arc margin):
+  //   - a window of m >= 2 junctions, D of path from the first to the last, binds from v =
+  //     D / W on: v |Delta_i| <= A_i W / 2 (one junction alone is the tolerance's);
+  //   - below that speed, at its mean curvature as an arc's rate: v^2 |Delta_i| / (D + l)
+  //     <= A_i / 2. W does not cover its path at the junction's speed, but the motion
+  //     between two junctions may run faster than at either and cover it (a wide sweep's
+  //     soft axis took two steps of a 0.015 mm polyline in one window at 1.45 mm/s);
+  //   - the curvature over a window, kappa = |Delta| / (D + l), bounds the jerk as an
+  //     arc's, v^3 kappa_i kappa <= J_i / 2, at the speeds where it is the widest window
+  //     within v W (with m = 1 and D = 0 this is the one junction's |dt| / l);
+  //   - beyond the kTurnHistory junctions kept, the widest window's turn is extrapolated at
+  //     its rate: v^2 |Delta_i| / (D + l) <= A_i / 2.
+  // Scanned from the shortest window: the limit is the speed where one first binds. `w` is
+  // the junction's limit from everything else; windows that fit only above it are not read
+  // (this runs once per record stored, one per cycle on short chords). The junction at
+  // s_tail with tangent `t0` after it must be in the history (note_junction).
+  double chord_turn_limit(const std::array<double, kMaxAxes>& t0, double l, double w) const {
+    const double wm = w * (1.0 / kArcSafety);  // the raw limit at which it equals w
+    // The windows m = 1..mm start below wm; window m's first junction is at b + 1 - m.
+    const std::size_t b = newest_junction();
+    const double reach = wm * turn_w;
+    int mm = 1;
+    while (mm < jh_count && s_tail - jh_s[b - static_cast<std::size_t>(mm)] < reach) ++mm;
+    // Per window of the history, by slot x = kTurnHistory - m (oldest first; the slots below
+    // the history's are not written): qr = max_i 2 |Delta_i| / A_i, qj = max_i 2 |Delta_i| /
+    // J_i, t2 = |Delta|^2, axis by axis over the history's contiguous run (it vectorises),
+    // then rr = qr / (D + l), the inverse square of the window's rate limit.
+    constexpr std::size_t kH = kTurnHistory;
+    const std::size_t eh = b + 1 - kH;                               // slot 0's junction
+    const std::size_t xh = kH - static_cast<std::size_t>(jh_count);  // the oldest window's slot
+    std::array<double, kH> qr, qj, t2, rr;
+    for (std::size_t x = xh; x < kH; ++x) qr[x] = qj[x] = t2[x] = 0.0;
     for (int i = 0; i < n; ++i) {
-      const double d = std::fabs(tout[i] - tin[i]);
-      if (d <= 1e-12) continue;
-      // v^2 <= A l / (2 d) and v^3 <= J l^2 / (2 d turn), compared with wm without a division
-      // or a root (the jerk's squared: (J l^2 / 2)^2 < wm^6 d^2 turn^2).
-      const double a = 0.5 * amax[i] * spacing;
-      if (a < wm2 * d) c = std::min(c, std::sqrt(a / d));
-      const double j = 0.5 * jmax[i] * l2;
-      if (j * j < wm3 * wm3 * d * d * turn2) {
-        if (turn < 0.0) turn = std::sqrt(turn2);
-        c = std::min(c, std::cbrt(j / (d * turn)));
+      const auto u = static_cast<std::size_t>(i);
+      const double* tin = jh_tin[u].data() + eh;
+      const double ti = t0[u], ca = inv_half_a[u], cj = inv_half_j[u];
+      for (std::size_t x = xh; x < kH; ++x) {
+        const double d = ti - tin[x];
+        const double ad = std::fabs(d);
+        qr[x] = std::max(qr[x], ad * ca);
+        qj[x] = std::max(qj[x], ad * cj);
+        t2[x] += d * d;
       }
     }
-    return std::min(w, kArcSafety * c);
+    for (std::size_t x = xh; x < kH; ++x) rr[x] = qr[x] / (s_tail - jh_s[eh + x] + l);
+    // rs[x]: max of rr over the windows wider than slot x's (m' > m), those that W does not
+    // cover at the speeds of window m's region: the rate of their mean curvature binds there.
+    std::array<double, kH> rs;
+    double wider = 0.0;
+    for (std::size_t x = xh; x < kH; ++x) {
+      rs[x] = wider;
+      wider = std::max(wider, rr[x]);
+    }
+    const std::size_t x_mm = kH - static_cast<std::size_t>(mm);  // the widest window's slot
+    double inv_a = 0.0;  // max over windows m >= 2 so far of 2 |Delta_i| / (A_i W)
+    int m0 = 1;          // the first window the scan below reads
+    if (mm >= 3) {
+      // Mostly nothing binds in the windows before the widest below w: their speeds lie
+      // below its lo (D_mm / W < wm), and with that bound for all of them at once (maxima
+      // over the windows) the scan starts at the widest.
+      const double lo_mm = (s_tail - jh_s[eh + x_mm]) * inv_turn_w;
+      double a_before = 0.0, g = 0.0;  // max qr of m = 2..mm-1; max of jd^2 |Delta|^2 / span^4
+      for (std::size_t x = x_mm + 1; x < kH; ++x) {
+        const double span = s_tail - jh_s[eh + x] + l, span2 = span * span;
+        g = std::max(g, qj[x] * qj[x] * t2[x] / (span2 * span2));
+        if (x + 1 < kH) a_before = std::max(a_before, qr[x]);
+      }
+      a_before *= inv_turn_w;
+      const double lo3 = lo_mm * lo_mm * lo_mm;
+      if (a_before * lo_mm <= 1.0 && g * lo3 * lo3 <= 1.0 && rs[kH - 1] * lo_mm * lo_mm <= 1.0) {
+        inv_a = a_before;
+        m0 = mm;
+      }
+    }
+    for (int m = m0; m <= mm; ++m) {
+      const std::size_t x = kH - static_cast<std::size_t>(m);  // window m's slot
+      const std::size_t e = eh + x;
+      if (m >= 2) inv_a = std::max(inv_a, qr[x] * inv_turn_w);
+      const bool last = m == jh_count;
+      const double hi = last ? kInf : (s_tail - jh_s[e - 1]) * inv_turn_w;
+      const double top = std::min(hi, wm);  // the window's speeds below w
+      const double span = s_tail - jh_s[e] + l, span2 = span * span;
+      // Compared with the top without a root first: 1 / the jerk's limit cubed is jd |Delta|
+      // / span^2, 1 / the rate's squared rd.
+      const double jd = qj[x], turn2 = t2[x], jt = jd * top * top * top;
+      const bool jerk_binds = jt * jt * turn2 > span2 * span2;
+      // The wider windows' rates; beyond the history, this one's extrapolated.
+      const double rd = last && jh_count == kTurnHistory ? std::max(rs[x], rr[x]) : rs[x];
+      const bool rate_binds = rd * top * top > 1.0;
+      if (inv_a * top > 1.0 || jerk_binds || rate_binds) {
+        // A term that does not bind below the top does not lower the limit (it is below it).
+        double f = inv_a * top > 1.0 ? 1.0 / inv_a : kInf;
+        if (jerk_binds) f = std::min(f, std::cbrt(span2 / (jd * std::sqrt(turn2))));
+        if (rate_binds) f = std::min(f, 1.0 / std::sqrt(rd));
+        return std::min(w, kArcSafety * std::max((s_tail - jh_s[e]) * inv_turn_w, f));
+      }
+      if (hi >= wm) break;  // nothing binds below w
+    }
+    return w;
   }
 
-  // The turn at a line's start junction, taken as part of a run of chords as chord_turn_limit
-  // takes it, needs v^2 |dt_i| / spacing of each axis' acceleration at the junction's speed
-  // limit wg: the line's tangential limit leaves that room, as an arc's leaves room for its
-  // centripetal terms. Along a run of chords turning at half of each limit the two could add
-  // up to 1.35 x A (a diagonal chord at its tangential limit, the turn's half across it); a
-  // lone corner is crossed at the tolerance's speed, where the turn needs nothing. Only the
-  // start junction is known when the line is stored; in a run every junction starts a line.
-  void leave_room_for_the_turn(const std::array<double, kMaxAxes>& tin,
-                               const std::array<double, kMaxAxes>& tout, double spacing,
-                               Rec& r) const {
-    const double v2 = r.wg * r.wg / spacing;
+  // The turn at a line's start junction, taken as chord_turn_limit takes it, needs of each
+  // axis' acceleration at the junction's speed limit wg: wg |Delta_i| / W for the windows
+  // within wg W, and wg^2 |Delta_i| / (D + l) for the wider ones (and for the widest kept,
+  // when all fit: the rate beyond the history). The line's tangential limit leaves that room,
+  // as an arc's leaves room for its centripetal terms. Along a run of chords turning at half
+  // of each limit the two could add up to 1.35 x A (a diagonal chord at its tangential limit,
+  // the turn's half across it); a lone corner is crossed at the tolerance's speed, where the
+  // turn needs nothing. Only the start junction is known when the line is stored; in a run
+  // every junction starts a line.
+  void leave_room_for_the_turn(const std::array<double, kMaxAxes>& t0, double l, Rec& r) const {
+    if (jh_count < 2) return;
+    const double v = r.wg;
+    const double reach = v * turn_w;
+    // Windows m = 2..mw fit within v W, mw + 1..jh_count do not.
+    const std::size_t b = newest_junction();
+    int mw = 1;
+    while (mw < jh_count && s_tail - jh_s[b - static_cast<std::size_t>(mw)] <= reach) ++mw;
+    const std::size_t e_old = b + 1 - static_cast<std::size_t>(jh_count);
+    const std::size_t e_fit = b + 1 - static_cast<std::size_t>(mw);  // oldest fitting
+    const bool extrapolate = mw == kTurnHistory;
+    std::array<double, kTurnHistory> inv_span;  // v^2 / (D + l) of the windows that do not fit
+    for (std::size_t e = e_old; e < e_fit; ++e)
+      inv_span[e - e_old] = v * v / (s_tail - jh_s[e] + l);
+    const double rate_k = extrapolate ? v * v / (s_tail - jh_s[e_fit] + l) : 0.0;
     double at = r.at;
     for (int i = 0; i < n; ++i) {
-      const double u = std::fabs(r.g.dir[i]);
-      const double d = std::fabs(tout[i] - tin[i]);
-      if (u < 1e-12 || d <= 1e-12) continue;
-      // (A_i - v^2 d / l) / u below `at`, compared without the division first.
-      const double room = kLimitSafety * (amax[i] - v2 * d);
-      if (room < at * u) at = room / u;
+      const auto u = static_cast<std::size_t>(i);
+      const double du = std::fabs(r.g.dir[i]);
+      if (du < 1e-12) continue;
+      const double* tin = jh_tin[u].data();
+      double turn = 0.0;  // the largest |Delta_i| of the fitting windows
+      for (std::size_t e = e_fit; e < b; ++e) turn = std::max(turn, std::fabs(t0[u] - tin[e]));
+      double need = std::max(v * turn * inv_turn_w, rate_k * std::fabs(t0[u] - tin[e_fit]));
+      for (std::size_t e = e_old; e < e_fit; ++e) {
+        need = std::max(need, inv_span[e - e_old] * std::fabs(t0[u] - tin[e]));
+      }
+      // (A_i - need_i) / u below `at`, compared without the division first.
+      const double room = kLimitSafety * (amax[i] - need);
+      if (room < at * du) at = room / du;
     }
     r.at = std::max(at, 1e-6);
+  }
+
+  // Index of the newest junction in the history; the m-th newest is at newest - (m - 1),
+  // for m <= jh_count.
+  std::size_t newest_junction() const { return static_cast<std::size_t>(jh_head + kTurnHistory); }
+  // A junction of the run at s_tail, `tin` the tangent into it.
+  void note_junction(const std::array<double, kMaxAxes>& tin) {
+    jh_head = jh_head + 1 == kTurnHistory ? 0 : jh_head + 1;
+    const auto e = static_cast<std::size_t>(jh_head);
+    for (int i = 0; i < n; ++i) {
+      const auto u = static_cast<std::size_t>(i);
+      jh_tin[u][e] = jh_tin[u][e + kTurnHistory] = tin[u];
+    }
+    jh_s[e] = jh_s[e + kTurnHistory] = s_tail;
+    jh_count = std::min(jh_count + 1, kTurnHistory);
   }
 
   // Geometry and caps of a motion record starting at `start`; false = not a motion (too short).
@@ -903,8 +1023,8 @@ struct Interpolator::Impl {
         take(r.m, r.m_reason);
         take(2.0 * pt_f, LimitFactor::kFeed);
         take(2.0 * r.f, LimitFactor::kFeed);
-        take(chord_turn_limit(pt_tangent, t0, std::min(pt_length, r.g.length), w),
-             LimitFactor::kCorner);
+        note_junction(pt_tangent);
+        take(chord_turn_limit(t0, std::min(pt_length, r.g.length), w), LimitFactor::kCorner);
         r.wg = w;
         r.wg_reason = why;
         r.wf = std::min(pt_f, r.f);
@@ -912,12 +1032,13 @@ struct Interpolator::Impl {
         // at its start is one step, which the tolerance takes; held to the room for its whole
         // length, 100 mm after 0.05 mm chords took 8 % longer (review of session 82).
         if (!r.g.arc && r.g.length <= 2.0 * pt_length) {
-          leave_room_for_the_turn(pt_tangent, t0, std::min(pt_length, r.g.length), r);
+          leave_room_for_the_turn(t0, std::min(pt_length, r.g.length), r);
         }
       } else {
         r.wg = std::min(r.m, 2.0 * r.f);
         r.wg_reason = r.m_reason;
         r.wf = r.f;
+        jh_count = 0;  // a new run starts from rest
       }
       motion::geometry_tangent(r.g, n, r.g.length, pt_tangent.data());
       pt_end = r.g.end;
@@ -2098,6 +2219,7 @@ struct Interpolator::Impl {
     pt_have_motion = false;
     pt_stop_since = true;
     s_tail = 0.0;
+    jh_count = 0;
   }
 
   // Bracket [xs, xu] of a limit's largest passing x: g(xs) <= 0 (when have_gs), g(xu) > 0,
@@ -3808,6 +3930,13 @@ std::optional<Interpolator> Interpolator::create(const MachineConfig& machine, i
     m.rapid[ui] = std::min(a.rapid_velocity_mm_s, m.vmax[ui]);
     m.tol[ui] = a.corner_velocity_tolerance_mm_s;
     m.rho = std::min(m.rho, a.emergency_deceleration_mm_s2 / m.amax[ui]);
+  }
+  m.turn_w = LimitChecker::window_cycles_for(m.T) * m.T;
+  m.inv_turn_w = 1.0 / m.turn_w;
+  for (int i = 0; i < m.n; ++i) {
+    const auto ui = static_cast<std::size_t>(i);
+    m.inv_half_a[ui] = 2.0 / m.amax[ui];
+    m.inv_half_j[ui] = 2.0 / m.jmax[ui];
   }
   // Smoothing and output stages (allocate here only), started from the config's defaults.
   m.smooth.emplace(m.n, machine.cycle_time_us);

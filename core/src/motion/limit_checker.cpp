@@ -30,7 +30,7 @@ std::optional<LimitChecker> LimitChecker::create(const InterpolatorConfig& axes,
   LimitChecker c;
   c.n_ = static_cast<int>(axes.axes.size());
   c.T_ = cycle_time_us * 1e-6;
-  c.k_ = std::clamp(static_cast<int>(std::lround(0.01 / c.T_)), 4, kMaxWindow);
+  c.k_ = window_cycles_for(c.T_);
   for (std::size_t i = 0; i < axes.axes.size(); ++i) {
     const AxisConfig& a = axes.axes[i];
     c.vmax_[i] = share * a.max_velocity_mm_s;
