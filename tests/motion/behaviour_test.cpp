@@ -12,6 +12,7 @@
 
 #include "limit_findings.hpp"
 #include "program_builder.hpp"
+#include "random_program.hpp"
 #include "soft_axis_cases.hpp"
 #include "tgm/interpolator.hpp"
 #include "tgm/limit_checker.hpp"
@@ -191,6 +192,109 @@ TEST(ShortSegments, RoundedChordsOfATightCircleKeepTheAcceleration) {
     // At the arc's speed, not crawling: at most 1.3 x the time at 0.97 sqrt(A/2 r).
     const double v = 0.97 * std::sqrt(0.5 * A * 10.0);
     EXPECT_LT(c.summary.program_time_s, 1.3 * c.summary.distance_mm / v) << decimals;
+  }
+}
+
+// A run of chords for the chord-turn limit: `chords` G1 moves of 0.01..0.2 mm in the XY plane
+// (Z drifting), turning at a curvature that changes every 40..240 chords (straight, or a radius
+// of 2..300 mm either way), at a feed that changes with it, the ends rounded to `decimals`
+// (0: exact) as CAM posts write them.
+Program random_chord_run(std::mt19937_64& rng, int chords, int decimals) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const double scale = decimals > 0 ? std::pow(10.0, decimals) : 0.0;
+  auto round = [&](double x) { return scale > 0.0 ? std::round(x * scale) / scale : x; };
+  ProgramBuilder b(3);
+  double x = 0.0, y = 0.0, z = 0.0, heading = 2.0 * kPi * u(rng), kappa = 0.0, chord = 0.05;
+  double feed = 3000.0;
+  for (int i = 0, next = 0; i < chords; ++i) {
+    if (i == next) {
+      next = i + 40 + static_cast<int>(200.0 * u(rng));
+      kappa = u(rng) < 0.25 ? 0.0 : (u(rng) < 0.5 ? -1.0 : 1.0) / (2.0 + 298.0 * u(rng));
+      chord = 0.01 + 0.19 * u(rng);
+      feed = 600.0 + 14400.0 * u(rng);
+    }
+    heading += kappa * chord;
+    x += chord * std::cos(heading);
+    y += chord * std::sin(heading);
+    z += 0.002 * (u(rng) - 0.5);
+    b.line({round(x), round(y), round(z)}, feed);
+  }
+  b.end();
+  return b.program();
+}
+
+// chord_turn_limit and leave_room_for_the_turn skip their scans of the junction history where
+// a bound on every window's turn shows that nothing binds (session 85);
+// InterpolatorOptions::full_turn_scan runs them at every junction. The two must move the same
+// way bit for bit: circles of chords exact and rounded, and seeded random runs of chords on
+// random and wide machines (the bound clears about a third of the exact circle's junctions).
+TEST(ShortSegments, TheTurnBoundSkipsOnlyScansThatFindNothing) {
+  struct Case {
+    std::string name;
+    MachineConfig machine;
+    Program program;
+    std::array<double, kMaxAxes> start{};
+  };
+  std::vector<Case> cases;
+  for (const int d : {0, 4, 3}) {
+    cases.push_back({"circle r 50 mm F6000, decimals " + std::to_string(d),
+                     machine(),
+                     circle_of_chords(50.0, 0.05, 6000.0, d),
+                     {50.0}});
+  }
+  // At the arc's speed, where the turn takes half of each acceleration limit.
+  cases.push_back(
+      {"circle r 10 mm F12000, exact", machine(), circle_of_chords(10.0, 0.05, 12000.0), {10.0}});
+  MachineConfig loose = machine();
+  for (AxisConfig& a : loose.interpolators[0].axes) a.corner_velocity_tolerance_mm_s = 3.0;
+  cases.push_back({"circle r 10 mm F12000, decimals 3, tolerance 3 mm/s",
+                   loose,
+                   circle_of_chords(10.0, 0.05, 12000.0, 3),
+                   {10.0}});
+  std::mt19937_64 rng(85);
+  for (int k = 0; k < 8; ++k) {
+    MachineConfig m = k % 2 == 0 ? test::random_machine(rng, 3) : test::wide_machine(rng, 3);
+    const int decimals = std::array<int, 3>{0, 3, 4}[static_cast<std::size_t>(k % 3)];
+    cases.push_back({"random run " + std::to_string(k) + ", decimals " + std::to_string(decimals),
+                     m,
+                     random_chord_run(rng, 1500, decimals),
+                     {}});
+  }
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    InterpolatorOptions full;
+    full.full_turn_scan = true;
+    auto skip = Interpolator::create(c.machine, 0);
+    auto ref = Interpolator::create(c.machine, 0, full);
+    ASSERT_TRUE(skip && ref);
+    ASSERT_TRUE(skip->set_position(c.start).ok());
+    ASSERT_TRUE(ref->set_position(c.start).ok());
+    const Program& prog = c.program;
+    std::size_t next_skip = 0, next_ref = 0;
+    auto feed = [&](Interpolator& ip, std::size_t& next) {
+      std::size_t took = 0;
+      ip.append(prog, next, prog.segments.size() - next, true, &took);
+      next += took;
+    };
+    feed(*skip, next_skip);
+    feed(*ref, next_ref);
+    ASSERT_TRUE(skip->start().ok());
+    ASSERT_TRUE(ref->start().ok());
+    StepResult rs = StepResult::kWorking;
+    int cycles = 0;
+    for (; cycles < 3000000 && rs == StepResult::kWorking; ++cycles) {
+      feed(*skip, next_skip);
+      feed(*ref, next_ref);
+      rs = skip->step();
+      ASSERT_EQ(rs, ref->step()) << "cycle " << cycles;
+      const Registers& a = skip->registers();
+      const Registers& b = ref->registers();
+      ASSERT_EQ(a.orig_position, b.orig_position) << "cycle " << cycles;
+      ASSERT_EQ(a.act_speed, b.act_speed) << "cycle " << cycles;
+      ASSERT_EQ(a.limit_factor, b.limit_factor) << "cycle " << cycles;
+    }
+    EXPECT_EQ(rs, StepResult::kFinished) << "after " << cycles << " cycles";
+    EXPECT_EQ(next_skip, prog.segments.size());
   }
 }
 

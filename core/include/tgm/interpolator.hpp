@@ -105,6 +105,10 @@ struct InterpolatorOptions {
   //! Rebuild the LookAheadBuffer table from the ring in every cycle instead of updating it as
   //! `cur` moves on and records arrive (the reference the tests compare the update with).
   bool full_lookahead_fill = false;
+  //! Scan every window of the chord-turn history at every junction instead of skipping the
+  //! scans where a bound on the turn shows that nothing binds (the reference the tests compare
+  //! the skip with: the trajectories must be the same bit for bit).
+  bool full_turn_scan = false;
   //! Construct every ring slot at create (tgm-service). Off, the rings grow as records are
   //! stored, doubling: an append that crossed a doubling wrote up to half the ring (about
   //! 3 MB of 10,000 slots) on the cycle thread, 0.2 ms even with the memory locked and faulted

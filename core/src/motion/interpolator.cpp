@@ -395,6 +395,11 @@ struct Interpolator::Impl {
   double turn_w = 0.0, inv_turn_w = 0.0;  // the limit checker's mean-acceleration window [s]
   // 2 / A_i, 2 / J_i: the chord-turn share (half of each limit) inverted.
   std::array<double, kMaxAxes> inv_half_a{}, inv_half_j{};
+  // A bound on every window's turn at a junction (turn_bound).
+  struct TurnBound {
+    std::array<double, kMaxAxes> d{};     // per axis: |Delta_i| <= d_i in every window
+    double qr = 0.0, qj = 0.0, t2 = 0.0;  // max_i 2 d_i / A_i, max_i 2 d_i / J_i, sum_i d_i^2
+  };
 
   // ---- execution ----
   Mode mode = Mode::kIdle;
@@ -567,27 +572,38 @@ struct Interpolator::Impl {
   // the junction's limit from everything else; windows that fit only above it are not read
   // (this runs once per record stored, one per cycle on short chords). The junction at
   // s_tail with tangent `t0` after it must be in the history (note_junction).
-  double chord_turn_limit(const std::array<double, kMaxAxes>& t0, double l, double w) const {
+  double chord_turn_limit(const TurnBound& tb, const std::array<double, kMaxAxes>& t0, double l,
+                          double w) const {
     const double wm = w * (1.0 / kArcSafety);  // the raw limit at which it equals w
+    if (!opt.full_turn_scan && turn_is_slack(tb, l, wm)) return w;
     // The windows m = 1..mm start below wm; window m's first junction is at b + 1 - m.
     const std::size_t b = newest_junction();
-    const double reach = wm * turn_w;
-    int mm = 1;
-    while (mm < jh_count && s_tail - jh_s[b - static_cast<std::size_t>(mm)] < reach) ++mm;
+    const int mm = windows_within(wm * turn_w, /*strict=*/true);
     // Per window of the history, by slot x = kTurnHistory - m (oldest first; the slots below
-    // the history's are not written): qr = max_i 2 |Delta_i| / A_i, qj = max_i 2 |Delta_i| /
-    // J_i, t2 = |Delta|^2, axis by axis over the history's contiguous run (it vectorises),
-    // then rr = qr / (D + l), the inverse square of the window's rate limit.
+    // the history's hold an earlier run's tangents, computed along and not read): qr = max_i
+    // 2 |Delta_i| / A_i, qj = max_i 2 |Delta_i| / J_i, t2 = |Delta|^2, axis by axis over all
+    // the slots (a fixed count: it vectorises without a remainder), then rr = qr / (D + l),
+    // the inverse square of the window's rate limit.
     constexpr std::size_t kH = kTurnHistory;
     const std::size_t eh = b + 1 - kH;                               // slot 0's junction
     const std::size_t xh = kH - static_cast<std::size_t>(jh_count);  // the oldest window's slot
     std::array<double, kH> qr, qj, t2, rr;
-    for (std::size_t x = xh; x < kH; ++x) qr[x] = qj[x] = t2[x] = 0.0;
-    for (int i = 0; i < n; ++i) {
+    {
+      const double* tin = jh_tin[0].data() + eh;
+      const double ti = t0[0], ca = inv_half_a[0], cj = inv_half_j[0];
+      for (std::size_t x = 0; x < kH; ++x) {
+        const double d = ti - tin[x];
+        const double ad = std::fabs(d);
+        qr[x] = ad * ca;
+        qj[x] = ad * cj;
+        t2[x] = d * d;
+      }
+    }
+    for (int i = 1; i < n; ++i) {
       const auto u = static_cast<std::size_t>(i);
       const double* tin = jh_tin[u].data() + eh;
       const double ti = t0[u], ca = inv_half_a[u], cj = inv_half_j[u];
-      for (std::size_t x = xh; x < kH; ++x) {
+      for (std::size_t x = 0; x < kH; ++x) {
         const double d = ti - tin[x];
         const double ad = std::fabs(d);
         qr[x] = std::max(qr[x], ad * ca);
@@ -661,26 +677,38 @@ struct Interpolator::Impl {
   // the turn's half across it); a lone corner is crossed at the tolerance's speed, where the
   // turn needs nothing. Only the start junction is known when the line is stored; in a run
   // every junction starts a line.
-  void leave_room_for_the_turn(const std::array<double, kMaxAxes>& t0, double l, Rec& r) const {
+  void leave_room_for_the_turn(const TurnBound& tb, const std::array<double, kMaxAxes>& t0,
+                               double l, Rec& r) const {
     if (jh_count < 2) return;
     const double v = r.wg;
-    const double reach = v * turn_w;
     // Windows m = 2..mw fit within v W, mw + 1..jh_count do not.
     const std::size_t b = newest_junction();
-    int mw = 1;
-    while (mw < jh_count && s_tail - jh_s[b - static_cast<std::size_t>(mw)] <= reach) ++mw;
+    const int mw = windows_within(v * turn_w, /*strict=*/false);
     const std::size_t e_old = b + 1 - static_cast<std::size_t>(jh_count);
     const std::size_t e_fit = b + 1 - static_cast<std::size_t>(mw);  // oldest fitting
     const bool extrapolate = mw == kTurnHistory;
-    std::array<double, kTurnHistory> inv_span;  // v^2 / (D + l) of the windows that do not fit
-    for (std::size_t e = e_old; e < e_fit; ++e)
-      inv_span[e - e_old] = v * v / (s_tail - jh_s[e] + l);
     const double rate_k = extrapolate ? v * v / (s_tail - jh_s[e_fit] + l) : 0.0;
+    // The largest v^2 / (D + l) of the windows that do not fit: the newest of them's.
+    const double span_k = e_fit > e_old ? v * v / (s_tail - jh_s[e_fit - 1] + l) : 0.0;
+    std::array<double, kTurnHistory> inv_span;  // v^2 / (D + l) of the windows that do not fit
+    bool have_inv_span = false;
     double at = r.at;
     for (int i = 0; i < n; ++i) {
       const auto u = static_cast<std::size_t>(i);
       const double du = std::fabs(r.g.dir[i]);
       if (du < 1e-12) continue;
+      if (!opt.full_turn_scan) {
+        // The need with the axis' turn bound for every window's: an axis it leaves room for is
+        // left as it is (TurnBound).
+        const double d = tb.d[u];
+        const double need = std::max({v * d * inv_turn_w, rate_k * d, span_k * d});
+        if (kLimitSafety * (amax[i] - need) >= at * du) continue;
+      }
+      if (!have_inv_span) {
+        for (std::size_t e = e_old; e < e_fit; ++e)
+          inv_span[e - e_old] = v * v / (s_tail - jh_s[e] + l);
+        have_inv_span = true;
+      }
       const double* tin = jh_tin[u].data();
       double turn = 0.0;  // the largest |Delta_i| of the fitting windows
       for (std::size_t e = e_fit; e < b; ++e) turn = std::max(turn, std::fabs(t0[u] - tin[e]));
@@ -698,6 +726,78 @@ struct Interpolator::Impl {
   // Index of the newest junction in the history; the m-th newest is at newest - (m - 1),
   // for m <= jh_count.
   std::size_t newest_junction() const { return static_cast<std::size_t>(jh_head + kTurnHistory); }
+  // The windows m = 1..(the result) of the history: those whose first junction lies less than
+  // (`strict`) or at most `reach` of path before s_tail; m = 1, the newest junction alone, is
+  // always one.
+  int windows_within(double reach, bool strict) const {
+    const std::size_t b = newest_junction();
+    int m = 1;
+    if (strict) {
+      while (m < jh_count && s_tail - jh_s[b - static_cast<std::size_t>(m)] < reach) ++m;
+    } else {
+      while (m < jh_count && s_tail - jh_s[b - static_cast<std::size_t>(m)] <= reach) ++m;
+    }
+    return m;
+  }
+
+  // A bound on the turn of every window of the history, per axis the largest |t0_i - tin_i|
+  // over the kTurnHistory slots that end at the newest junction (slots older than the run hold
+  // an earlier run's tangents, which only widen it). Floating point rounds monotonically, so a
+  // term that chord_turn_limit or leave_room_for_the_turn computes from a window's turn is at
+  // most the same expression of the bound: where the bound shows that nothing binds, the scans
+  // would find the same, and they are skipped with the results bit for bit the same
+  // (InterpolatorOptions::full_turn_scan scans always, for the test that compares). On the
+  // exact circle of issue 3 it skips 38 % of chord_turn_limit's scans, about 1,400
+  // instructions each, and every exact need of leave_room_for_the_turn (session 85).
+  TurnBound turn_bound(const std::array<double, kMaxAxes>& t0) const {
+    TurnBound tb;
+    const std::size_t eh = newest_junction() + 1 - kTurnHistory;
+    for (int i = 0; i < n; ++i) {
+      const auto u = static_cast<std::size_t>(i);
+      const double* tin = jh_tin[u].data() + eh;
+      double lo = tin[0], hi = tin[0];
+      for (std::size_t x = 1; x < kTurnHistory; ++x) {
+        lo = std::min(lo, tin[x]);
+        hi = std::max(hi, tin[x]);
+      }
+      const double d = std::max(t0[u] - lo, hi - t0[u]);
+      tb.d[u] = d;
+      tb.qr = std::max(tb.qr, d * inv_half_a[u]);
+      tb.qj = std::max(tb.qj, d * inv_half_j[u]);
+      tb.t2 += d * d;
+    }
+    return tb;
+  }
+
+  // True when the bound shows that chord_turn_limit's scan finds nothing binding below wm:
+  // every term of every window of the history at the speeds the scan reads it at, with the
+  // window's turn replaced by the bound (the windows past where the scan stops are read as
+  // well, which only makes this the stricter).
+  bool turn_is_slack(const TurnBound& tb, double l, double wm) const {
+    constexpr std::size_t kH = kTurnHistory;
+    const std::size_t eh = newest_junction() + 1 - kH;
+    const std::size_t xh = kH - static_cast<std::size_t>(jh_count);  // the oldest window's slot
+    const double qr = tb.qr, qj = tb.qj, t2 = tb.t2;
+    if (jh_count >= 2 && qr * inv_turn_w * wm > 1.0) return false;
+    {
+      // The oldest window: read up to wm; beyond a full history, its rate extrapolated.
+      const double span = s_tail - jh_s[eh + xh] + l, span2 = span * span;
+      const double jt = qj * wm * wm * wm;
+      if (jt * jt * t2 > span2 * span2) return false;
+      if (jh_count == kH && qr / span * wm * wm > 1.0) return false;
+    }
+    // The others up to where the next wider one starts; the rates of the wider windows, whose
+    // spans are at least the next wider one's.
+    for (std::size_t x = xh + 1; x < kH; ++x) {
+      const double d_wider = s_tail - jh_s[eh + x - 1];
+      const double top = std::min(d_wider * inv_turn_w, wm);
+      const double span = s_tail - jh_s[eh + x] + l, span2 = span * span;
+      const double jt = qj * top * top * top;
+      if (jt * jt * t2 > span2 * span2 || qr / (d_wider + l) * top * top > 1.0) return false;
+    }
+    return true;
+  }
+
   // A junction of the run at s_tail, `tin` the tangent into it.
   void note_junction(const std::array<double, kMaxAxes>& tin) {
     jh_head = jh_head + 1 == kTurnHistory ? 0 : jh_head + 1;
@@ -1024,7 +1124,8 @@ struct Interpolator::Impl {
         take(2.0 * pt_f, LimitFactor::kFeed);
         take(2.0 * r.f, LimitFactor::kFeed);
         note_junction(pt_tangent);
-        take(chord_turn_limit(t0, std::min(pt_length, r.g.length), w), LimitFactor::kCorner);
+        const TurnBound tb = turn_bound(t0);
+        take(chord_turn_limit(tb, t0, std::min(pt_length, r.g.length), w), LimitFactor::kCorner);
         r.wg = w;
         r.wg_reason = why;
         r.wf = std::min(pt_f, r.f);
@@ -1032,7 +1133,7 @@ struct Interpolator::Impl {
         // at its start is one step, which the tolerance takes; held to the room for its whole
         // length, 100 mm after 0.05 mm chords took 8 % longer (review of session 82).
         if (!r.g.arc && r.g.length <= 2.0 * pt_length) {
-          leave_room_for_the_turn(t0, std::min(pt_length, r.g.length), r);
+          leave_room_for_the_turn(tb, t0, std::min(pt_length, r.g.length), r);
         }
       } else {
         r.wg = std::min(r.m, 2.0 * r.f);
@@ -3927,17 +4028,14 @@ std::optional<Interpolator> Interpolator::create(const MachineConfig& machine, i
     // acceleration is reached in four steps at the least (a few hundred us, which no machine's
     // cycle time notices; at J = A / (2 dt) the stop at a program's end still clamped).
     m.jmax[ui] = std::min(share * a.max_jerk_mm_s3, m.amax[ui] / (4.0 * m.dt));
+    m.inv_half_a[ui] = 2.0 / m.amax[ui];
+    m.inv_half_j[ui] = 2.0 / m.jmax[ui];
     m.rapid[ui] = std::min(a.rapid_velocity_mm_s, m.vmax[ui]);
     m.tol[ui] = a.corner_velocity_tolerance_mm_s;
     m.rho = std::min(m.rho, a.emergency_deceleration_mm_s2 / m.amax[ui]);
   }
   m.turn_w = LimitChecker::window_cycles_for(m.T) * m.T;
   m.inv_turn_w = 1.0 / m.turn_w;
-  for (int i = 0; i < m.n; ++i) {
-    const auto ui = static_cast<std::size_t>(i);
-    m.inv_half_a[ui] = 2.0 / m.amax[ui];
-    m.inv_half_j[ui] = 2.0 / m.jmax[ui];
-  }
   // Smoothing and output stages (allocate here only), started from the config's defaults.
   m.smooth.emplace(m.n, machine.cycle_time_us);
   m.ostage.emplace(m.cfg);
