@@ -875,16 +875,20 @@ void Compiler::check_block_static(Block& b) {
     error(b.line, d->column, "compensation radius D must be >= 0, not " + fmt_num(d->value));
     b.valid = false;
   }
-  if (const Word* r = word('R'); r && r->value == 0) {
-    error(b.line, r->column, "arc radius R must not be 0");
-    b.valid = false;
-  }
   if (const Word* l = word('L'); l && (!integral(l->value) || l->value < 0)) {
     error(b.line, l->column, "label L must be a whole number >= 0, not " + fmt_num(l->value));
     b.valid = false;
   }
   const int nonmodal = gnum(GGroup::kNonModal);
   const int motion = gnum(GGroup::kMotion);
+  // R0 on an arc; off an arc, R is out of place whatever its value (the execution says so).
+  if (const Word* r = word('R'); r && r->value == 0) {
+    const int mode = motion >= 0 ? motion : motion_;
+    if (mode == 2 || mode == 3) {
+      error(b.line, r->column, "arc radius R must not be 0");
+      b.valid = false;
+    }
+  }
   const bool axis_words = (b.letters & axis_mask_) != 0;
   const Word* ng = g_of[static_cast<std::size_t>(GGroup::kNonModal)];
   switch (nonmodal) {

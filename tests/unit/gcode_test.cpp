@@ -638,6 +638,11 @@ TEST(GcodeErrors, MissingWords) {
 
 TEST(GcodeErrors, WordsOutOfPlace) {
   EXPECT_THAT(errors_of("G1 X1 I2\n"), ElementsAre("1:7: I is only used by an arc move (G2/G3)"));
+  // R0 off an arc is out of place too, not a radius of 0 (a closing-note item for long).
+  EXPECT_THAT(errors_of("G1 X1 R0\n"), ElementsAre("1:7: R is only used by an arc move (G2/G3)"));
+  EXPECT_THAT(errors_of("G2 X1 R1\nG1 X2 R0\n"),
+              ElementsAre("2:7: R is only used by an arc move (G2/G3)"));
+  EXPECT_THAT(errors_of("G3 X1 R1\nX2 R0\n"), ElementsAre("2:4: arc radius R must not be 0"));
   EXPECT_THAT(errors_of("G1 X1 P2\n"), ElementsAre("1:7: P (dwell seconds) is only used with G4"));
   EXPECT_THAT(errors_of("G1 X1 L2\n"),
               ElementsAre("1:7: L (label) is only used by G25, G26, G27 and G29"));
