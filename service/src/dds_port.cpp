@@ -568,6 +568,21 @@ void DdsPort::participant_changed(const GuidPrefix& participant, std::string_vie
       name_seen.substr(name_seen.size() - kPlcSuffix.size()) == kPlcSuffix &&
       peers_.find(participant) == peers_.end()) {
     if (peers_.size() >= 4096) peers_.clear();
+    // A second tgm-plc beside one that is there: both acknowledge the M-functions. Meant for a
+    // script run beside the machine's PLC; by mistake (a PLC on another host with the same
+    // domain and prefix) it is said, as nothing else would show it.
+    for (const auto& [guid, other] : peers_) {
+      if (!other.plc || lost_.count(guid) != 0) continue;
+      PeerNotice n;
+      n.kind = PeerNotice::Kind::kPlcJoined;
+      n.client.set(name_seen);
+      n.other_plc.set(other.name);
+      if (peer_notices_.push(n)) {
+        std::fprintf(stderr, "tgm-service: tgm-plc '%.*s' joined beside tgm-plc '%s'\n",
+                     static_cast<int>(name_seen.size()), name_seen.data(), other.name.c_str());
+      }
+      break;
+    }
     peers_[participant] = Peer{std::string(name_seen), true};
   }
   // Said once per loss: a dropped participant (its lease lapsed) is kept in lost_ until it is

@@ -465,6 +465,19 @@ void Engine::peer_notice(CyclePort& port, const PeerNotice& n) {
         send_message(port, i, MessageOut::Severity::kWarning, text, 0, s.program_id);
       }
       return;
+    case PeerNotice::Kind::kPlcJoined: {
+      std::string other(n.other_plc.view());
+      if (other.size() > 40) other = other.substr(0, 37) + "...";
+      // A warning: two PLCs answer every M-function, and each may set what the other did not
+      // mean to (a script beside the machine's PLC is the case it is meant for).
+      for (int i = 0; i < count(); ++i) {
+        send_message(port, i, MessageOut::Severity::kWarning,
+                     "tgm-plc " + who + " joined beside tgm-plc '" + other +
+                         "': both acknowledge the M-functions (stop one unless that is meant)",
+                     0, ips_[static_cast<std::size_t>(i)].program_id);
+      }
+      return;
+    }
     case PeerNotice::Kind::kStreamLost:
     case PeerNotice::Kind::kStreamBack: {
       if (n.interpolator < 0 || n.interpolator >= count()) return;

@@ -294,8 +294,9 @@ TEST(ServiceProcesses, AKilledStreamingHmiAndAKilledPlcAreSaid) {
   EXPECT_EQ(watch.interrupt(), 0) << w;
 }
 
-// A second tgm-plc (a script run beside the machine's PLC) that ends is no lost PLC: the HMIs
-// were warned that M-functions "wait until a PLC answers" while the first acknowledged them.
+// A second tgm-plc (a script run beside the machine's PLC) is said when it joins, as both
+// acknowledge the M-functions; when it ends, it is no lost PLC: the HMIs were warned that
+// M-functions "wait until a PLC answers" while the first acknowledged them.
 TEST(ServiceProcesses, ASecondPlcThatEndsIsNoLostPlc) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());
@@ -310,6 +311,9 @@ TEST(ServiceProcesses, ASecondPlcThatEndsIsNoLostPlc) {
   EXPECT_EQ(second.wait(kHang), 0) << second.log();
   watch.wait_for_log("is there and acknowledges the M-functions", 30s, 20ms);
   const std::string w = watch.log();
+  EXPECT_NE(w.find("' joined beside tgm-plc 'tgm-plc-"), std::string::npos) << w;
+  EXPECT_NE(env.service.log().find("joined beside tgm-plc"), std::string::npos)
+      << env.service.log();
   EXPECT_NE(w.find("ended; tgm-plc 'tgm-plc-"), std::string::npos) << w << env.service.log();
   EXPECT_EQ(w.find("wait for an acknowledgement until a PLC answers"), std::string::npos) << w;
   // The machine's PLC ends too: now the M-functions wait.

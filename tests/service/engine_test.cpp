@@ -370,6 +370,25 @@ TEST(Engine, AClientThatIsGoneIsSaid) {
   EXPECT_EQ(port.messages[0].text.view(),
             "tgm-plc 'tgm-plc-4-12345678' ended; tgm-plc 'tgm-plc-3-0badc0de' is there and "
             "acknowledges the M-functions");
+  // A second PLC that joins while one is there: a warning on every interpolator, as both
+  // acknowledge the M-functions (an old closing-note item: nothing showed it).
+  port.messages.clear();
+  PeerNotice joined;
+  joined.kind = PeerNotice::Kind::kPlcJoined;
+  joined.client.set("tgm-plc-5-abcdef01");
+  joined.other_plc.set("tgm-plc-3-0badc0de");
+  port.peer_notices.push_back(joined);
+  e.cycle(port, {});
+  ASSERT_EQ(port.messages.size(), 3u);
+  for (int i = 0; i < 3; ++i) {
+    const auto& m = port.messages[static_cast<std::size_t>(i)];
+    EXPECT_EQ(m.interpolator, i);
+    EXPECT_EQ(m.severity, MessageOut::Severity::kWarning);
+    EXPECT_EQ(m.text.view(),
+              "tgm-plc 'tgm-plc-5-abcdef01' joined beside tgm-plc 'tgm-plc-3-0badc0de': both "
+              "acknowledge the M-functions (stop one unless that is meant)");
+  }
+  EXPECT_EQ(port.messages[0].program_id, 7u);
 }
 
 // Program id 0 is no program: refused with a message (a refusal of program 0 used to be

@@ -129,12 +129,16 @@ struct PeerNotice {
     kPlcBack = 1,
     kStreamLost = 2,  //!< the sender of `interpolator`'s program stream
     kStreamBack = 3,
+    //! a tgm-plc (a participant named <prefix>-plc) joined while `other_plc` is there: both
+    //! acknowledge the M-functions
+    kPlcJoined = 4,
   };
   Kind kind = Kind::kPlcLost;
   //! *Lost: the client's process ended (it left the domain), not a lapse of its lease.
   bool ended = false;
   FixedText<65> client;          //!< its client (or participant) name; empty when unknown
-  //! kPlcLost: another tgm-plc that is still there (empty when none is known).
+  //! kPlcLost: another tgm-plc that is still there (empty when none is known); kPlcJoined:
+  //! the one that was there first.
   FixedText<65> other_plc;
   int interpolator = 0;          //!< kStream*: the interpolator its last chunk was for
   std::uint32_t program_id = 0;  //!< kStream*: the program of that chunk
