@@ -397,6 +397,12 @@ bool FileView::open_or_report(const std::string& path) {
 }
 
 bool FileView::open(const std::string& name, std::string& error) {
+  // A named pipe opens once a writer opens it, and is read as a pipe is: said first, as the
+  // command would otherwise wait without a word (a closing-note item since the early sessions).
+  if (struct stat pst{}; name != "-" && ::stat(name.c_str(), &pst) == 0 && S_ISFIFO(pst.st_mode)) {
+    std::fprintf(stderr, "%s: a named pipe: waiting for a writer to open it (Ctrl-C stops)\n",
+                 name.c_str());
+  }
   // "-" is standard input (a CAM post-processor's pipe), as for most Unix tools. Its own
   // descriptor, not /dev/stdin: a socket (ssh, inetd, systemd) cannot be opened by a path.
   const int fd =

@@ -334,6 +334,16 @@ TEST_F(HmiCompile, BadCommandLinesAndFilesAreUsageErrors) {
   r = run("compile /dev/zero --config " + std::string(kConfig));
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_EQ(r.err, "/dev/zero: error: is a device, not a file\n");
+  // A named pipe is read as a pipe once a writer opens it; until then the wait is said.
+  const fs::path fifo = dir_ / "post.fifo";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  r = run(
+      "compile " + fifo.string() + " --config " + kConfig,
+      "(timeout 20 sh -c 'sleep 0.3; printf \"G1 X1 F100\\nM30\\n\" >" + fifo.string() + "' &) ; ");
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err, fifo.string() +
+                       ": a named pipe: waiting for a writer to open it (Ctrl-C stops)\n" +
+                       fifo.string() + ": 2 records (1 M-function, 0 messages)\n");
   const fs::path prog = write("p.ngc", "G1 X1 F100\n");
   r = run("compile " + prog.string() + " --config /dev/zero");
   EXPECT_EQ(r.exit_code, 2);
