@@ -557,6 +557,13 @@ void DdsPort::PeerWatch::on_participant_discovery(
 // DESIGN.md section 6 asks for about 100 ms, which the writers' 100 ms liveliness lease was to
 // give, but Fast DDS 2.9 reported those lapses only sometimes (a killed tgm-hmi was never
 // reported in one of two set-ups), where discovery drops every dead participant.
+const DdsPort::Peer* DdsPort::live_plc_other_than(const GuidPrefix& participant) const {
+  for (const auto& [guid, peer] : peers_) {
+    if (guid != participant && peer.plc && lost_.count(guid) == 0) return &peer;
+  }
+  return nullptr;
+}
+
 void DdsPort::participant_changed(const GuidPrefix& participant, std::string_view name_seen,
                                   bool gone, bool dropped) {
   if (stopping_) return;
@@ -571,17 +578,15 @@ void DdsPort::participant_changed(const GuidPrefix& participant, std::string_vie
     // A second tgm-plc beside one that is there: both acknowledge the M-functions. Meant for a
     // script run beside the machine's PLC; by mistake (a PLC on another host with the same
     // domain and prefix) it is said, as nothing else would show it.
-    for (const auto& [guid, other] : peers_) {
-      if (!other.plc || lost_.count(guid) != 0) continue;
+    if (const Peer* other = live_plc_other_than(participant)) {
       PeerNotice n;
       n.kind = PeerNotice::Kind::kPlcJoined;
       n.client.set(name_seen);
-      n.other_plc.set(other.name);
+      n.other_plc.set(other->name);
       if (peer_notices_.push(n)) {
         std::fprintf(stderr, "tgm-service: tgm-plc '%.*s' joined beside tgm-plc '%s'\n",
-                     static_cast<int>(name_seen.size()), name_seen.data(), other.name.c_str());
+                     static_cast<int>(name_seen.size()), name_seen.data(), other->name.c_str());
       }
-      break;
     }
     peers_[participant] = Peer{std::string(name_seen), true};
   }
@@ -610,11 +615,7 @@ void DdsPort::participant_changed(const GuidPrefix& participant, std::string_vie
     n.client.set(name);
     // Another PLC that is there still acknowledges the M-functions (a tgm-plc --script run
     // beside the machine's PLC ends, the machine's goes on).
-    for (const auto& [guid, other] : peers_) {
-      if (guid == participant || !other.plc || lost_.count(guid) != 0) continue;
-      n.other_plc.set(other.name);
-      break;
-    }
+    if (const Peer* other = live_plc_other_than(participant)) n.other_plc.set(other->name);
     if (peer_notices_.push(n))
       std::fprintf(stderr, "tgm-service: tgm-plc %s %s\n", who.c_str(), why);
   }

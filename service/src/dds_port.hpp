@@ -283,6 +283,8 @@ class DdsPort final : public CyclePort {
   std::vector<StreamFrom> stream_from_;
   std::set<GuidPrefix> lost_;
   SpscQueue<PeerNotice> peer_notices_{64};  // pushed under peers_mutex_
+  // A tgm-plc other than `participant` that is there (not lost), or null; under peers_mutex_.
+  const Peer* live_plc_other_than(const GuidPrefix& participant) const;
 
   DdsPortOptions opt_;
   std::uint64_t service_instance_ = 0;

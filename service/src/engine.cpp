@@ -434,8 +434,10 @@ void Engine::check_limits(CyclePort& port, int i) {
 void Engine::peer_notice(CyclePort& port, const PeerNotice& n) {
   // A name of up to 64 characters (a long --participant-prefix) made the warnings below longer
   // than a message carries (255 bytes), and they lost their advice at the end: at most 40 here.
-  std::string name(n.client.view());
-  if (name.size() > 40) name = name.substr(0, 37) + "...";
+  const auto shortened = [](std::string_view s) {
+    return s.size() > 40 ? std::string(s.substr(0, 37)) + "..." : std::string(s);
+  };
+  const std::string name = shortened(n.client.view());
   const std::string who = name.empty() ? std::string("a client") : "'" + name + "'";
   switch (n.kind) {
     case PeerNotice::Kind::kPlcLost:
@@ -466,8 +468,7 @@ void Engine::peer_notice(CyclePort& port, const PeerNotice& n) {
       }
       return;
     case PeerNotice::Kind::kPlcJoined: {
-      std::string other(n.other_plc.view());
-      if (other.size() > 40) other = other.substr(0, 37) + "...";
+      const std::string other = shortened(n.other_plc.view());
       // A warning: two PLCs answer every M-function, and each may set what the other did not
       // mean to (a script beside the machine's PLC is the case it is meant for).
       for (int i = 0; i < count(); ++i) {
