@@ -455,7 +455,7 @@ void Engine::peer_notice(CyclePort& port, const PeerNotice& n) {
         if (!n.other_plc.view().empty()) {
           // Not a warning: the M-functions are still acknowledged.
           send_message(port, i, MessageOut::Severity::kInfo,
-                       text + "; tgm-plc '" + std::string(n.other_plc.view()) +
+                       text + "; tgm-plc '" + shortened(n.other_plc.view()) +
                            "' is there and acknowledges the M-functions",
                        0, s.program_id);
           continue;

@@ -370,6 +370,19 @@ TEST(Engine, AClientThatIsGoneIsSaid) {
   EXPECT_EQ(port.messages[0].text.view(),
             "tgm-plc 'tgm-plc-4-12345678' ended; tgm-plc 'tgm-plc-3-0badc0de' is there and "
             "acknowledges the M-functions");
+  // Both names of 64 characters (a long --participant-prefix) are cut to 40 each, as every
+  // name in these notices is: the whole text stays within the 255 bytes a message carries.
+  port.messages.clear();
+  plc.client.set(std::string(64, 'a'));
+  plc.other_plc.set(std::string(64, 'b'));
+  port.peer_notices.push_back(plc);
+  e.cycle(port, {});
+  ASSERT_EQ(port.messages.size(), 3u);
+  EXPECT_EQ(port.messages[0].text.view(), "tgm-plc '" + std::string(37, 'a') +
+                                              "...' ended; tgm-plc '" + std::string(37, 'b') +
+                                              "...' is there and acknowledges the M-functions");
+  plc.client.set("tgm-plc-4-12345678");
+  plc.other_plc.set("tgm-plc-3-0badc0de");
   // A second PLC that joins while one is there: a warning on every interpolator, as both
   // acknowledge the M-functions (an old closing-note item: nothing showed it).
   port.messages.clear();
