@@ -546,8 +546,9 @@ void DdsPort::PeerWatch::on_participant_discovery(
   const bool dropped = info.status == Info::DROPPED_PARTICIPANT;
   const bool gone = dropped || info.status == Info::REMOVED_PARTICIPANT;
   if (gone || info.status == Info::DISCOVERED_PARTICIPANT) {
+    const std::string announced = dds::participant_client_name(info.info.m_userData.data_vec());
     port_.participant_changed(info.info.m_guid.guidPrefix, info.info.m_participantName.c_str(),
-                              gone, dropped);
+                              announced, gone, dropped);
   }
 }
 
@@ -565,7 +566,7 @@ const DdsPort::Peer* DdsPort::live_plc_other_than(const GuidPrefix& participant)
 }
 
 void DdsPort::participant_changed(const GuidPrefix& participant, std::string_view name_seen,
-                                  bool gone, bool dropped) {
+                                  std::string_view announced, bool gone, bool dropped) {
   if (stopping_) return;
   const std::lock_guard lock(peers_mutex_);
   // A tgm-plc's participant is named <prefix>-plc: known as a PLC before its first request (one
@@ -578,17 +579,20 @@ void DdsPort::participant_changed(const GuidPrefix& participant, std::string_vie
     // A second tgm-plc beside one that is there: both acknowledge the M-functions. Meant for a
     // script run beside the machine's PLC; by mistake (a PLC on another host with the same
     // domain and prefix) it is said, as nothing else would show it.
+    // Named as its requests will name it when it announced that (tgm::client does), else by
+    // its participant's name.
+    const std::string_view name = announced.empty() ? name_seen : announced;
     if (const Peer* other = live_plc_other_than(participant)) {
       PeerNotice n;
       n.kind = PeerNotice::Kind::kPlcJoined;
-      n.client.set(name_seen);
+      n.client.set(name);
       n.other_plc.set(other->name);
       if (peer_notices_.push(n)) {
         std::fprintf(stderr, "tgm-service: tgm-plc '%.*s' joined beside tgm-plc '%s'\n",
-                     static_cast<int>(name_seen.size()), name_seen.data(), other->name.c_str());
+                     static_cast<int>(name.size()), name.data(), other->name.c_str());
       }
     }
-    peers_[participant] = Peer{std::string(name_seen), true};
+    peers_[participant] = Peer{std::string(name), true};
   }
   // Said once per loss: a dropped participant (its lease lapsed) is kept in lost_ until it is
   // back or ends; one that ended is forgotten (its GUID never comes back), so that every run of

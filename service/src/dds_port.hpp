@@ -196,8 +196,10 @@ class DdsPort final : public CyclePort {
   // died, or the network to it is down: DROPPED) or that left (its process ended: REMOVED),
   // and one that is back. A PLC (named <prefix>-plc, or that sent requests as the PLC) or the
   // sender of a program stream becomes a PeerNotice for the cycle thread, and a log line.
-  void participant_changed(const GuidPrefix& participant, std::string_view name, bool gone,
-                           bool dropped);
+  // `announced`: the client name in its USER_DATA (dds::participant_client_name; empty if none),
+  // the peer's name from discovery on, as its requests will carry it.
+  void participant_changed(const GuidPrefix& participant, std::string_view name,
+                           std::string_view announced, bool gone, bool dropped);
   class PeerWatch final : public eprosima::fastdds::dds::DomainParticipantListener {
    public:
     explicit PeerWatch(DdsPort& port) : port_(port) {}

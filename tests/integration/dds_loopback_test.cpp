@@ -284,6 +284,21 @@ TEST(DdsLoopback, RequestGetsItsReply) {
 // bind fail without a word: the participant was created and never matched anything (two
 // participants of this suite on a domain in the ephemeral range, CI session 69). Such a
 // participant is refused with the port and the reason; once the port is free, it is created.
+// A client announces its name in its participant's USER_DATA; anything on the domain may write
+// those bytes, so only a printable name within the topics' bound counts.
+TEST(DdsLoopback, AnnouncedClientNamesArePrintableAndBounded) {
+  auto bytes = [](std::string_view s) { return std::vector<unsigned char>(s.begin(), s.end()); };
+  EXPECT_EQ(dds::participant_client_name(bytes("tgm-plc-12873-f69fb842")),
+            "tgm-plc-12873-f69fb842");
+  EXPECT_EQ(dds::participant_client_name(bytes(std::string(64, 'p'))), std::string(64, 'p'));
+  EXPECT_EQ(dds::participant_client_name(bytes(std::string(65, 'p'))), "");
+  EXPECT_EQ(dds::participant_client_name({}), "");
+  EXPECT_EQ(dds::participant_client_name(bytes("tgm-plc\n")), "");
+  EXPECT_EQ(dds::participant_client_name(bytes(std::string("a\0b", 3))), "");
+  EXPECT_EQ(dds::participant_client_name({'t', 0xc3, 0xa4}), "");
+  EXPECT_EQ(dds::participant_client_name(bytes("a~ b")), "a~ b");
+}
+
 TEST(DdsLoopback, AParticipantWhoseDiscoveryPortIsTakenIsRefusedWithThePort) {
   const int domain = test::test_domain();
   const int port = test::discovery_port(domain);

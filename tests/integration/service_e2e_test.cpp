@@ -311,10 +311,20 @@ TEST(ServiceProcesses, ASecondPlcThatEndsIsNoLostPlc) {
   EXPECT_EQ(second.wait(kHang), 0) << second.log();
   watch.wait_for_log("is there and acknowledges the M-functions", 30s, 20ms);
   const std::string w = watch.log();
-  EXPECT_NE(w.find("' joined beside tgm-plc 'tgm-plc-"), std::string::npos) << w;
-  EXPECT_NE(env.service.log().find("joined beside tgm-plc"), std::string::npos)
+  // Both named as their requests name them, the second from its discovery on (it announces
+  // its name in its participant's USER_DATA; it was 'tgm-plc', the participant's name).
+  const std::string slog = second.log();
+  const std::size_t as = slog.find(" as 'tgm-plc-");
+  ASSERT_NE(as, std::string::npos) << slog;
+  const std::string name = slog.substr(as + 5, slog.find('\'', as + 5) - (as + 5));
+  EXPECT_NE(w.find("tgm-plc '" + name + "' joined beside tgm-plc 'tgm-plc-"), std::string::npos)
+      << name << "\n"
+      << w;
+  EXPECT_NE(env.service.log().find("tgm-plc '" + name + "' joined beside tgm-plc 'tgm-plc-"),
+            std::string::npos)
       << env.service.log();
-  EXPECT_NE(w.find("ended; tgm-plc 'tgm-plc-"), std::string::npos) << w << env.service.log();
+  EXPECT_NE(w.find("tgm-plc '" + name + "' ended; tgm-plc 'tgm-plc-"), std::string::npos)
+      << w << env.service.log();
   EXPECT_EQ(w.find("wait for an acknowledgement until a PLC answers"), std::string::npos) << w;
   // The machine's PLC ends too: now the M-functions wait.
   EXPECT_EQ(plc.interrupt(kHang), 0) << plc.log();

@@ -234,7 +234,16 @@ std::string config_problem(const DdsConfig& config, std::string_view role) {
          "defines them all; start from a copy of it)";
 }
 
-Participant::Participant(const DdsConfig& config, std::string_view role, std::string_view profile)
+std::string participant_client_name(const std::vector<unsigned char>& user_data) {
+  if (user_data.empty() || user_data.size() > kMaxClientName) return {};
+  for (const unsigned char c : user_data) {
+    if (c < 0x20 || c > 0x7e) return {};
+  }
+  return std::string(user_data.begin(), user_data.end());
+}
+
+Participant::Participant(const DdsConfig& config, std::string_view role, std::string_view profile,
+                         std::string_view client_name)
     : name_(config.participant_prefix + "-" + std::string(role)), domain_id_(config.domain_id) {
   use_plain_log();
   if (config.domain_id < 0 || config.domain_id > 232) {
@@ -249,6 +258,10 @@ Participant::Participant(const DdsConfig& config, std::string_view role, std::st
                      config.profiles_file + "'");
   }
   qos.name(name_);
+  if (!client_name.empty()) {
+    qos.user_data().data_vec(
+        std::vector<eprosima::fastrtps::rtps::octet>(client_name.begin(), client_name.end()));
+  }
   if (!config.security_dir.empty()) {
     if (std::string why = dds_security_problem(config, role); !why.empty()) throw SetupError(why);
     add_security(qos, dds_security_files(config.security_dir, role));

@@ -32,6 +32,8 @@ std::string_view reply_code_name(msg::ReplyCode c) {
   return "unknown reply code";
 }
 
+static_assert(dds::kMaxClientName == TGM_MAX_NAME, "the participant's USER_DATA carries the name");
+
 std::string unique_client_name(std::string_view participant) {
   char tail[32];
   std::snprintf(tail, sizeof tail, "-%ld-%08x", static_cast<long>(::getpid()),
@@ -84,15 +86,19 @@ Client::Client(const DdsConfig& config, Role role, const ClientOptions& options)
       default_cancel_(options.cancel),
       config_(config),
       setpoints_(options.setpoints) {
+  // Named before the participant exists: it announces the name in its USER_DATA, so that the
+  // service can say which client joined or left before its first request (a second tgm-plc was
+  // 'tgm-plc', the participant's name, beside 'tgm-plc-12873-f69fb842').
+  name_ = unique_client_name(config_.participant_prefix + (role_ == Role::kPlc ? "-plc" : "-hmi"));
   join(make_participant());
-  name_ = unique_client_name(participant_->name());
   states_.resize(kMaxInterpolators);
   state_samples_.resize(kMaxInterpolators, 0);
   follow_.resize(kMaxInterpolators);
 }
 
 std::unique_ptr<dds::Participant> Client::make_participant() const {
-  return std::make_unique<dds::Participant>(config_, role_ == Role::kPlc ? "plc" : "hmi");
+  return std::make_unique<dds::Participant>(config_, role_ == Role::kPlc ? "plc" : "hmi",
+                                            dds::kParticipantProfile, name_);
 }
 
 void Client::join(std::unique_ptr<dds::Participant> made) {

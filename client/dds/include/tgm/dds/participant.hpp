@@ -99,14 +99,26 @@ void load_profiles(const std::string& path);
 //! DDS). Empty when all is well.
 std::string config_problem(const DdsConfig& config, std::string_view role);
 
+//! The longest client name: the bound of the topics' client_name (TGM_MAX_NAME in idl/tgm.idl;
+//! tgm::client asserts that the two agree).
+inline constexpr std::size_t kMaxClientName = 64;
+
+//! The client name a participant announced in its USER_DATA (Participant's `client_name`), or
+//! empty when it announced none or something else: anything on the domain may write those
+//! bytes, so only 1..kMaxClientName printable ASCII characters count as a name.
+std::string participant_client_name(const std::vector<unsigned char>& user_data);
+
 //! One DomainParticipant with one Publisher and one Subscriber. Owns every entity it creates;
 //! the destructor deletes them all (delete_contained_entities), then the participant.
 class Participant {
  public:
   //! Loads `config.profiles_file`, creates the participant from `profile` on
-  //! `config.domain_id`, named "<participant_prefix>-<role>". Throws SetupError.
+  //! `config.domain_id`, named "<participant_prefix>-<role>". A `client_name` (tgm::client's
+  //! unique name, the one its requests carry) goes into the participant's USER_DATA, which
+  //! discovery hands to every other participant: the service names a client by it before its
+  //! first request (participant_client_name). Throws SetupError.
   Participant(const DdsConfig& config, std::string_view role,
-              std::string_view profile = kParticipantProfile);
+              std::string_view profile = kParticipantProfile, std::string_view client_name = {});
   ~Participant();
   Participant(const Participant&) = delete;
   Participant& operator=(const Participant&) = delete;
