@@ -576,12 +576,12 @@ void DdsPort::participant_changed(const GuidPrefix& participant, std::string_vie
       name_seen.substr(name_seen.size() - kPlcSuffix.size()) == kPlcSuffix &&
       peers_.find(participant) == peers_.end()) {
     if (peers_.size() >= 4096) peers_.clear();
-    // A second tgm-plc beside one that is there: both acknowledge the M-functions. Meant for a
-    // script run beside the machine's PLC; by mistake (a PLC on another host with the same
-    // domain and prefix) it is said, as nothing else would show it.
     // Named as its requests will name it when it announced that (tgm::client does), else by
     // its participant's name.
     const std::string_view name = announced.empty() ? name_seen : announced;
+    // A second tgm-plc beside one that is there: both acknowledge the M-functions. Meant for a
+    // script run beside the machine's PLC; by mistake (a PLC on another host with the same
+    // domain and prefix) it is said, as nothing else would show it.
     if (const Peer* other = live_plc_other_than(participant)) {
       PeerNotice n;
       n.kind = PeerNotice::Kind::kPlcJoined;

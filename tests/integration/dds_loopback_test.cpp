@@ -279,11 +279,6 @@ TEST(DdsLoopback, RequestGetsItsReply) {
   EXPECT_NE(replies[1].reason().to_string().find("outside"), std::string::npos);
 }
 
-// A socket of another program on the domain's discovery port (7400 + 250 x domain), bound
-// without SO_REUSEADDR as an outgoing socket the kernel handed that port is, made Fast DDS's
-// bind fail without a word: the participant was created and never matched anything (two
-// participants of this suite on a domain in the ephemeral range, CI session 69). Such a
-// participant is refused with the port and the reason; once the port is free, it is created.
 // A client announces its name in its participant's USER_DATA; anything on the domain may write
 // those bytes, so only a printable name within the topics' bound counts.
 TEST(DdsLoopback, AnnouncedClientNamesArePrintableAndBounded) {
@@ -299,6 +294,11 @@ TEST(DdsLoopback, AnnouncedClientNamesArePrintableAndBounded) {
   EXPECT_EQ(dds::participant_client_name(bytes("a~ b")), "a~ b");
 }
 
+// A socket of another program on the domain's discovery port (7400 + 250 x domain), bound
+// without SO_REUSEADDR as an outgoing socket the kernel handed that port is, made Fast DDS's
+// bind fail without a word: the participant was created and never matched anything (two
+// participants of this suite on a domain in the ephemeral range, CI session 69). Such a
+// participant is refused with the port and the reason; once the port is free, it is created.
 TEST(DdsLoopback, AParticipantWhoseDiscoveryPortIsTakenIsRefusedWithThePort) {
   const int domain = test::test_domain();
   const int port = test::discovery_port(domain);
