@@ -89,8 +89,9 @@ constexpr const char* kUsage =
     "\n"
     "The run ends when every axis, delayed or filtered, stands where the program ends.\n"
     "Prints program time, distance, per-axis peaks against the limits, violations and the time\n"
-    "spent per limit factor. Ctrl-C (SIGINT) or SIGTERM ends the run where it is: the output\n"
-    "files hold every cycle up to there, the summary says so, exit code 128 + the signal.\n"
+    "spent per limit factor, with its share of the moving time. Ctrl-C (SIGINT) or SIGTERM ends\n"
+    "the run where it is: the output files hold every cycle up to there, the summary says so,\n"
+    "exit code 128 + the signal.\n"
     "Exit code otherwise: 0 finished, 1 did not finish or limits were exceeded, 2 bad input\n"
     "(usage, config, G-code errors as FILE:LINE:COL: error: reason).\n";
 
@@ -740,11 +741,14 @@ int run_simulate(int argc, char** argv) {
                    static_cast<unsigned long long>(sum.violation_count - kListed));
     }
   }
+  // Each factor's share too: on a CAM program "corner 3190.680 s" of 5,683 s said more as 56 %.
+  double factored_s = 0.0;
+  for (std::size_t k = 1; k < sum.factor_time_s.size(); ++k) factored_s += sum.factor_time_s[k];
   std::fprintf(report, "limited by (time):");
   for (std::size_t k = 1; k < sum.factor_time_s.size(); ++k) {
     if (sum.factor_time_s[k] > 0.0) {
-      std::fprintf(report, " %s %.3f s", limit_factor_name(static_cast<LimitFactor>(k)),
-                   sum.factor_time_s[k]);
+      std::fprintf(report, " %s %.3f s (%.0f %%)", limit_factor_name(static_cast<LimitFactor>(k)),
+                   sum.factor_time_s[k], 100.0 * sum.factor_time_s[k] / factored_s);
     }
   }
   std::fprintf(report, "\n");

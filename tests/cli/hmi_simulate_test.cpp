@@ -13,6 +13,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <map>
 #include <set>
 #include <sstream>
 #include <string>
@@ -115,6 +116,45 @@ TEST_F(HmiSimulate, ManualExampleWritesEveryColumnAndEndsCleanUnderTheChecker) {
     ASSERT_EQ(f.size(), 8u) << brows[i];
     EXPECT_TRUE(names.count(f[7])) << brows[i];
   }
+}
+
+// "limited by (time)": per factor the time of the cycles the CSV files under it (to a cycle,
+// printed to a millisecond) and its share of their sum; the cycles filed under "none" (the
+// motion stands) are not listed.
+TEST_F(HmiSimulate, TimeByLimitFactorAddsUpTheCsvsCycles) {
+  const fs::path csv = dir_ / "run.csv";
+  const ProcessResult r =
+      run("simulate " + kExample + " --config " + kConfig + " --csv " + csv.string());
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  std::map<std::string, double> from_csv;
+  const auto rows = lines(slurp(csv));
+  ASSERT_GT(rows.size(), 1000u);
+  for (std::size_t i = 1; i < rows.size(); ++i) from_csv[split(rows[i], ',').back()] += 0.0005;
+  const std::size_t at = r.out.find("limited by (time):");
+  ASSERT_NE(at, std::string::npos) << r.out;
+  std::stringstream line(r.out.substr(at + 18, r.out.find('\n', at) - (at + 18)));
+  std::map<std::string, std::pair<double, int>> summary;  // seconds, percent
+  for (std::string name, s_word, pct, pct_word; line >> name;) {
+    double t = 0.0;
+    ASSERT_TRUE(line >> t >> s_word >> pct >> pct_word) << r.out;
+    EXPECT_EQ(s_word, "s");
+    EXPECT_EQ(pct_word, "%)");
+    ASSERT_EQ(pct.front(), '(') << pct;
+    summary[name] = {t, std::atoi(pct.c_str() + 1)};
+  }
+  double total = 0.0;
+  for (const auto& [name, seconds] : from_csv) {
+    if (name == "none") continue;
+    ASSERT_TRUE(summary.count(name)) << name << " is in the CSV, not in: " << r.out;
+    EXPECT_NEAR(summary[name].first, seconds, 0.0005 + 1e-9) << name;
+    total += seconds;
+  }
+  EXPECT_EQ(summary.size(), from_csv.size() - from_csv.count("none")) << r.out;
+  EXPECT_GE(summary.size(), 3u) << r.out;
+  for (const auto& [name, sp] : summary) {
+    EXPECT_NEAR(sp.second, 100.0 * from_csv[name] / total, 0.5 + 1e-6) << name;
+  }
+  EXPECT_GE(summary["feed"].second, 90) << r.out;  // the example's long moves run at their feed
 }
 
 // --csv-every N: the rows of the full CSV (the same text) at every N-th cycle, at each cycle
