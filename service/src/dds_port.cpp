@@ -552,12 +552,6 @@ void DdsPort::PeerWatch::on_participant_discovery(
   }
 }
 
-// A Fast DDS thread. Until session 73 nothing watched the clients: a killed tgm-plc or a
-// streaming tgm-hmi was never noticed, and the program ran dry in an underrun without a word.
-// A participant that dies is dropped when its lease (1 s, config/fastdds_profiles.xml) lapses;
-// DESIGN.md section 6 asks for about 100 ms, which the writers' 100 ms liveliness lease was to
-// give, but Fast DDS 2.9 reported those lapses only sometimes (a killed tgm-hmi was never
-// reported in one of two set-ups), where discovery drops every dead participant.
 const DdsPort::Peer* DdsPort::live_plc_other_than(const GuidPrefix& participant) const {
   for (const auto& [guid, peer] : peers_) {
     if (guid != participant && peer.plc && lost_.count(guid) == 0) return &peer;
@@ -565,6 +559,12 @@ const DdsPort::Peer* DdsPort::live_plc_other_than(const GuidPrefix& participant)
   return nullptr;
 }
 
+// A Fast DDS thread. Until session 73 nothing watched the clients: a killed tgm-plc or a
+// streaming tgm-hmi was never noticed, and the program ran dry in an underrun without a word.
+// A participant that dies is dropped when its lease (1 s, config/fastdds_profiles.xml) lapses;
+// DESIGN.md section 6 asks for about 100 ms, which the writers' 100 ms liveliness lease was to
+// give, but Fast DDS 2.9 reported those lapses only sometimes (a killed tgm-hmi was never
+// reported in one of two set-ups), where discovery drops every dead participant.
 void DdsPort::participant_changed(const GuidPrefix& participant, std::string_view name_seen,
                                   std::string_view announced, bool gone, bool dropped) {
   if (stopping_) return;

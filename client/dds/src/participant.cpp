@@ -234,6 +234,10 @@ std::string config_problem(const DdsConfig& config, std::string_view role) {
          "defines them all; start from a copy of it)";
 }
 
+std::string participant_name(const DdsConfig& config, std::string_view role) {
+  return config.participant_prefix + "-" + std::string(role);
+}
+
 std::string participant_client_name(const std::vector<unsigned char>& user_data) {
   if (user_data.empty() || user_data.size() > kMaxClientName) return {};
   for (const unsigned char c : user_data) {
@@ -244,7 +248,7 @@ std::string participant_client_name(const std::vector<unsigned char>& user_data)
 
 Participant::Participant(const DdsConfig& config, std::string_view role, std::string_view profile,
                          std::string_view client_name)
-    : name_(config.participant_prefix + "-" + std::string(role)), domain_id_(config.domain_id) {
+    : name_(participant_name(config, role)), domain_id_(config.domain_id) {
   use_plain_log();
   if (config.domain_id < 0 || config.domain_id > 232) {
     throw SetupError("DDS domain id " + std::to_string(config.domain_id) + " outside 0..232");

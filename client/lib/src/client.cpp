@@ -89,7 +89,7 @@ Client::Client(const DdsConfig& config, Role role, const ClientOptions& options)
   // Named before the participant exists: it announces the name in its USER_DATA, so that the
   // service can say which client joined or left before its first request (a second tgm-plc was
   // 'tgm-plc', the participant's name, beside 'tgm-plc-12873-f69fb842').
-  name_ = unique_client_name(config_.participant_prefix + (role_ == Role::kPlc ? "-plc" : "-hmi"));
+  name_ = unique_client_name(dds::participant_name(config_, participant_role()));
   join(make_participant());
   states_.resize(kMaxInterpolators);
   state_samples_.resize(kMaxInterpolators, 0);
@@ -97,8 +97,8 @@ Client::Client(const DdsConfig& config, Role role, const ClientOptions& options)
 }
 
 std::unique_ptr<dds::Participant> Client::make_participant() const {
-  return std::make_unique<dds::Participant>(config_, role_ == Role::kPlc ? "plc" : "hmi",
-                                            dds::kParticipantProfile, name_);
+  return std::make_unique<dds::Participant>(config_, participant_role(), dds::kParticipantProfile,
+                                            name_);
 }
 
 void Client::join(std::unique_ptr<dds::Participant> made) {

@@ -99,6 +99,9 @@ void load_profiles(const std::string& path);
 //! DDS). Empty when all is well.
 std::string config_problem(const DdsConfig& config, std::string_view role);
 
+//! The name of the participant of `role`: "<participant_prefix>-<role>".
+std::string participant_name(const DdsConfig& config, std::string_view role);
+
 //! The longest client name: the bound of the topics' client_name (TGM_MAX_NAME in idl/tgm.idl;
 //! tgm::client asserts that the two agree).
 inline constexpr std::size_t kMaxClientName = 64;

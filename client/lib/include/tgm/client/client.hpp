@@ -311,6 +311,8 @@ class Client {
   const std::atomic<bool>* default_cancel_ = nullptr;  // ClientOptions::cancel
   // A new participant of this client's role (SetupError when it cannot be made).
   std::unique_ptr<dds::Participant> make_participant() const;
+  // The role its participant is named and authenticated as: "plc" or "hmi".
+  const char* participant_role() const { return role_ == Role::kPlc ? "plc" : "hmi"; }
   // Takes `made` with its readers and writers (not the event reader).
   void join(std::unique_ptr<dds::Participant> made);
   // Creates the event reader and attaches event_listener_ to it; `caller` names the method in
