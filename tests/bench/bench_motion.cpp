@@ -31,6 +31,7 @@
 #include <vector>
 
 #include "../motion/program_builder.hpp"
+#include "gen/motion_programs.hpp"
 #include "tgm/cli_args.hpp"
 #include "tgm/gcode.hpp"
 #include "tgm/interpolator.hpp"
@@ -51,82 +52,9 @@ double percentile(const std::vector<double>& sorted, double p) {
                          static_cast<std::size_t>(p * static_cast<double>(sorted.size())))];
 }
 
-MachineConfig machine_with_axes(int axes) {
-  MachineConfig m = MachineConfig::default_machine();
-  auto& ip = m.interpolators[0];
-  const tgm::AxisConfig base = ip.axes[0];
-  ip.axes.clear();
-  for (int i = 0; i < axes; ++i) {
-    tgm::AxisConfig a = base;
-    a.letter = tgm::default_axis_letter(i);
-    ip.axes.push_back(a);
-  }
-  ip.buffer_size = 10000;
-  return m;
-}
-
-// A CAM-like program: polylines of 0.02..0.5 mm chords along wavy curves, arcs, helices and
-// longer moves, all axes moving a little, one normal M-function every 500 records.
-Program cam_program(int axes, int records, unsigned seed) {
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  ProgramBuilder b(axes);
-  std::array<double, tgm::kMaxAxes> p{};
-  double heading = 0.0;
-  int count = 0;
-  while (count < records) {
-    const double kind = u(rng);
-    if (kind < 0.7) {
-      const int n = 50 + static_cast<int>(u(rng) * 200);
-      const double step = 0.02 + 0.48 * u(rng);
-      const double curv = (u(rng) - 0.5) * 0.4;
-      for (int i = 0; i < n; ++i, ++count) {
-        heading += curv * step;
-        p[0] += step * std::cos(heading);
-        if (axes > 1) p[1] += step * std::sin(heading);
-        for (int a = 2; a < axes; ++a) p[static_cast<std::size_t>(a)] += 0.001 * std::sin(0.01 * count + a);
-        b.line_to(p, 4000.0);
-      }
-    } else if (kind < 0.85 && axes >= 2) {
-      const double r = 2.0 + 20.0 * u(rng);
-      const std::array<double, 2> c = {p[0] - r, p[1]};
-      auto e = p;
-      const double ang = 0.5 + 2.0 * u(rng);
-      e[0] = c[0] + r * std::cos(ang);
-      e[1] = c[1] + r * std::sin(ang);
-      if (axes > 2) e[2] += 1.0;
-      b.arc(true, e, c, 3000.0);
-      p = e;
-      ++count;
-    } else {
-      p[0] += 20.0 * (u(rng) - 0.5);
-      if (axes > 1) p[1] += 20.0 * (u(rng) - 0.5);
-      b.line_to(p, 8000.0);
-      ++count;
-    }
-    if (count % 500 < 2) {
-      b.m(10, tgm::MKind::kNormal);
-      ++count;
-    }
-  }
-  b.end();
-  return b.program();
-}
-
-// Between two cycles, as the PLC and the operator would: stream what fits of `prog` from
-// record `next` on, acknowledge an M-function, start again after M0 or an underrun.
-const tgm::Registers& play_between_cycles(tgm::Interpolator& ip, const Program& prog, std::size_t& next) {
-  if (next < prog.segments.size() && ip.free_slots() > 0) {
-    std::size_t took = 0;
-    const std::size_t c = std::min(prog.segments.size() - next, ip.free_slots());
-    ip.append(prog, next, c, next + c == prog.segments.size(), &took);
-    next += took;
-  }
-  const auto& r = ip.registers();
-  if (r.m_func != 0) ip.write_m_func(0);
-  if (r.status == 4 || r.status == 8) ip.start();
-  return r;
-}
+using tgm::bench::cam_program;
+using tgm::bench::machine_with_axes;
+using tgm::bench::play_between_cycles;
 
 void BM_Step(benchmark::State& state) {
   const int axes = static_cast<int>(state.range(0));
@@ -256,7 +184,8 @@ void BM_StepReplay(benchmark::State& state) {
       const auto t0 = std::chrono::steady_clock::now();
       benchmark::DoNotOptimize(ip->step());
       const auto t1 = std::chrono::steady_clock::now();
-      best[index] = std::min(best[index], std::chrono::duration<double, std::nano>(t1 - t0).count());
+      best[index] =
+          std::min(best[index], std::chrono::duration<double, std::nano>(t1 - t0).count());
     }
   }
   double sum = 0.0;
@@ -335,7 +264,8 @@ void BM_SimulationRegimes(benchmark::State& state) {
       std::uint64_t done = 0;
       const auto t0 = std::chrono::steady_clock::now();
       const tgm::StepResult res = ip->advance(1'000'000, &done);
-      const double ns = std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - t0).count();
+      const double ns =
+          std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - t0).count();
       const auto f = std::min<std::size_t>(static_cast<std::size_t>(r.limit_factor), kFactors - 1);
       if (done > 1) {
         skip_ns += ns;
