@@ -543,9 +543,9 @@ struct Interpolator::Impl {
   std::size_t slots_used = 0;  // slots [0, slots_used) have held a record
   void grow_rings(std::size_t k) {
     k = std::min(cap, std::max(k + kRingHeadroom, 2 * rec.size()));
-    // create() reserves cap slots, so the new slots' pages are part of the allocation (not
-    // after copy_state_from, whose copies hold what they were given): resize writes every one
-    // of them next.
+    // create() reserves cap slots (a copy_state_from assigns into them), so the new slots'
+    // pages are part of the allocation, and resize writes every one of them next. The checks
+    // keep the call inside the allocation should a ring ever hold less.
     if (k <= seg.capacity()) prefault(seg.data() + seg.size(), (k - seg.size()) * sizeof(Segment));
     if (k <= rec.capacity()) prefault(rec.data() + rec.size(), (k - rec.size()) * sizeof(Rec));
     seg.resize(k);
