@@ -131,6 +131,15 @@ struct Rec {
   Geometry g;
 };
 
+// madvise(advice) on the whole `block`-aligned blocks inside [p, p + bytes) (block: a power
+// of two). A hint: a failure (an advice the kernel does not know) changes nothing.
+void advise_inside(void* p, std::size_t bytes, std::uintptr_t block, int advice) {
+  const auto a = reinterpret_cast<std::uintptr_t>(p);
+  const std::uintptr_t lo = (a + block - 1) & ~(block - 1);
+  const std::uintptr_t hi = (a + bytes) & ~(block - 1);
+  if (hi > lo) (void)::madvise(reinterpret_cast<void*>(lo), hi - lo, advice);
+}
+
 // Asks the kernel for transparent huge pages on the 2 MB-aligned part of [p, p + bytes): a
 // hint that may be ignored. The rings of a 10,000-record buffer are 6.3 MB; written first as
 // a program loads, they took 1,500 page faults of 4 kB, which on this VM cost more than the
@@ -139,11 +148,7 @@ struct Rec {
 // tgm-service writes its rings at create (preallocate_ring), not in the cycle.
 void advise_huge_pages(void* p, std::size_t bytes) {
 #ifdef MADV_HUGEPAGE
-  constexpr std::uintptr_t kHuge = std::uintptr_t{2} << 20;
-  const auto a = reinterpret_cast<std::uintptr_t>(p);
-  const std::uintptr_t lo = (a + kHuge - 1) & ~(kHuge - 1);
-  const std::uintptr_t hi = (a + bytes) & ~(kHuge - 1);
-  if (hi > lo) (void)::madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_HUGEPAGE);
+  advise_inside(p, bytes, std::uintptr_t{2} << 20, MADV_HUGEPAGE);
 #else
   (void)p;
   (void)bytes;
@@ -152,17 +157,13 @@ void advise_huge_pages(void* p, std::size_t bytes) {
 
 // Maps the whole pages inside [p, p + bytes) in one call, before they are first written. Page
 // by page, the first writes of the record rings (6.3 MB at 10,000 records) cost a trap each,
-// about 10 us on this project's VMs: `tgm-hmi simulate` of the ten-lap short-segment circle
-// runs about 15 % faster with the rings mapped this way (tests/bench/BENCHMARKS.md, session
-// 87). The data is not touched. Without MADV_POPULATE_WRITE (Linux 5.14) the call fails and
-// the pages fault in as before.
+// about 10 us on this project's VMs (the huge pages above are seldom granted there):
+// `tgm-hmi simulate` of the ten-lap short-segment circle runs about 15 % faster with the
+// rings mapped this way (tests/bench/BENCHMARKS.md, session 87). The data is not touched.
+// Without MADV_POPULATE_WRITE (Linux 5.14) the pages fault in as before.
 void prefault(void* p, std::size_t bytes) {
 #ifdef MADV_POPULATE_WRITE
-  constexpr std::uintptr_t kPage = 4096;
-  const auto a = reinterpret_cast<std::uintptr_t>(p);
-  const std::uintptr_t lo = (a + kPage - 1) & ~(kPage - 1);
-  const std::uintptr_t hi = (a + bytes) & ~(kPage - 1);
-  if (hi > lo) (void)::madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_POPULATE_WRITE);
+  advise_inside(p, bytes, 4096, MADV_POPULATE_WRITE);
 #else
   (void)p;
   (void)bytes;
