@@ -24,7 +24,6 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
-#include <random>
 #include <sstream>
 #include <string>
 #include <tuple>
@@ -145,22 +144,10 @@ void BM_StepReplay(benchmark::State& state) {
       next = 0;
       continue;
     }
-    snap->copy_state_from(*ip);
-    auto t0 = std::chrono::steady_clock::now();
-    benchmark::DoNotOptimize(ip->step());
-    auto t1 = std::chrono::steady_clock::now();
-    double ns = std::chrono::duration<double, std::nano>(t1 - t0).count();
-    raw_max = std::max(raw_max, ns);
-    if (ns > 1000.0) {
-      ++replayed;
-      for (int k = 0; k < 7; ++k) {
-        ip->copy_state_from(*snap);
-        t0 = std::chrono::steady_clock::now();
-        benchmark::DoNotOptimize(ip->step());
-        t1 = std::chrono::steady_clock::now();
-        ns = std::min(ns, std::chrono::duration<double, std::nano>(t1 - t0).count());
-      }
-    }
+    const tgm::bench::TimedStep t = tgm::bench::timed_step(*ip, *snap);
+    const double ns = t.ns;
+    raw_max = std::max(raw_max, t.first_ns);
+    if (t.replayed) ++replayed;
     if (slowest.size() < kKept || ns > std::get<0>(slowest.front())) {
       std::size_t slot = kept.size();
       if (slowest.size() < kKept) {

@@ -12,7 +12,6 @@
 // instrumentation is off between them, so a profile of a step late in the program takes
 // seconds. tests/bench/BENCHMARKS.md, session 87, shows what the slowest steps did.
 #include <algorithm>
-#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <string>
@@ -115,7 +114,6 @@ int main(int argc, char** argv) {
   std::vector<std::pair<double, long long>> timed;  // (fastest ns, step)
   if (pick.empty()) timed.reserve(static_cast<std::size_t>(steps));
   std::size_t p = 0;
-  using Clock = std::chrono::steady_clock;
   for (long long k = 0; k < steps; ++k) {
     // The step numbers count the loop's passes, as BM_StepReplay's iterations do, the passes
     // that only restart an ended program included.
@@ -149,18 +147,7 @@ int main(int argc, char** argv) {
       }
       continue;
     }
-    snap->copy_state_from(*ip);
-    auto t0 = Clock::now();
-    ip->step();
-    double ns = std::chrono::duration<double, std::nano>(Clock::now() - t0).count();
-    if (ns > 1000.0) {
-      for (int j = 0; j < 7; ++j) {
-        ip->copy_state_from(*snap);
-        t0 = Clock::now();
-        ip->step();
-        ns = std::min(ns, std::chrono::duration<double, std::nano>(Clock::now() - t0).count());
-      }
-    }
+    const double ns = tgm::bench::timed_step(*ip, *snap).ns;
     timed.emplace_back(ns, k);
     if ((k + 1) % 20000 == 0) std::fprintf(stderr, "\r%lld / %lld steps", k + 1, steps);
   }
