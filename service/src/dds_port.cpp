@@ -353,17 +353,35 @@ void DdsPort::take_requests_locked() {
       // reader rejects). requests_.full() is checked here, under request_mutex_, where the
       // cycles can only make room.
       const bool busy = requests_.full();
-      ReplyOut busy_answer;
-      msg::Reply busy_reply;
-      if (busy) {
-        busy_answer.request_id = r.request_id();
-        busy_answer.client.set(name);
-        busy_answer.interpolator = static_cast<int>(r.interpolator());
-        busy_answer.code = ReplyCode::kBusy;
-        busy_answer.reason.set(kBusyReason);
-        fill_reply(busy_reply, busy_answer);
+      // A repeat first sent to the instance this one replaced (Request.attempt): that one may
+      // have executed it, and nothing here can tell. Unless this instance saw the request
+      // (a repeat of it below), it is answered without being executed, as a "busy" is.
+      const bool stale =
+          r.attempt() > 1 && r.service_instance() != 0 && r.service_instance() != service_instance_;
+      ReplyOut door_answer;  // busy or stale: answered here, not executed
+      msg::Reply door_reply;
+      if (busy || stale) {
+        door_answer.request_id = r.request_id();
+        door_answer.client.set(name);
+        door_answer.interpolator = static_cast<int>(r.interpolator());
+        if (stale) {
+          door_answer.code = ReplyCode::kWrongState;
+          char why[256];
+          std::snprintf(why, sizeof why,
+                        "a repeat of a request first sent to tgm-service instance %016llx, which "
+                        "this one (%016llx) replaced: not executed, as that one may have; read "
+                        "the registers and send it again if needed",
+                        static_cast<unsigned long long>(r.service_instance()),
+                        static_cast<unsigned long long>(service_instance_));
+          door_answer.reason.set(why);
+        } else {
+          door_answer.code = ReplyCode::kBusy;
+          door_answer.reason.set(kBusyReason);
+        }
+        fill_reply(door_reply, door_answer);
       }
-      const std::uint64_t tag = busy ? 0 : ++next_tag_;
+      const bool at_door = busy || stale;
+      const std::uint64_t tag = at_door ? 0 : ++next_tag_;
       bool repeat = false;
       {
         // One critical section per request: the publisher (publish_replies) finds a request's
@@ -392,10 +410,12 @@ void DdsPort::take_requests_locked() {
           }
         }
         // A "busy" is logged with its answer: a repeat gets "busy" again, never an execution
-        // after a "busy" that its client may already have taken.
+        // after a "busy" that its client may already have taken (a stale repeat's answer
+        // likewise).
         if (!repeat) {
-          log_request_locked(name, {r.request_id(), digest, tag, from,
-                                    busy ? std::optional<msg::Reply>(busy_reply) : std::nullopt});
+          log_request_locked(name,
+                             {r.request_id(), digest, tag, from,
+                              at_door ? std::optional<msg::Reply>(door_reply) : std::nullopt});
         }
       }
       if (repeat) continue;
@@ -406,13 +426,13 @@ void DdsPort::take_requests_locked() {
         if (peer.name != name) peer.name.assign(name);
         peer.plc = peer.plc || role == Role::kPlc;
       }
-      if (busy) {
+      if (at_door) {
         // Through the publisher like every reply (publish_replies: held until the client's
         // reply reader is matched); only when that queue is full too, at once from here.
-        if (!busy_replies_.push(busy_answer) && !reply_writer_.write(&busy_reply)) {
+        if (!busy_replies_.push(door_answer) && !reply_writer_.write(&door_reply)) {
           ++replies_not_written_;
         }
-        ++busy_requests_;
+        ++(stale ? stale_repeats_ : busy_requests_);
         continue;
       }
       RequestIn in;

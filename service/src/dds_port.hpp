@@ -136,6 +136,10 @@ class DdsPort final : public CyclePort {
   //! no reply sends its request again) and were answered with the first reply, or left to it
   //! when that was not written yet, instead of being executed twice (valid after stop()).
   std::uint64_t requests_repeated() const { return requests_repeated_; }
+  //! Repeats of requests first sent to another service instance (a restarted service's
+  //! predecessor) that this one had not seen: answered REPLY_CODE_WRONG_STATE, not executed
+  //! (valid after stop()).
+  std::uint64_t stale_repeats() const { return stale_repeats_; }
   //! Replies whose write() failed (valid after stop()).
   std::uint64_t replies_not_written() const { return replies_not_written_; }
   //! The reply key of a request to an interpolator the service does not host: one instance for
@@ -320,7 +324,8 @@ class DdsPort final : public CyclePort {
   // threads for milliseconds) must not make the cycle thread drop answers.
   SpscQueue<ReplyOut> replies_{1024};
   SpscQueue<MessageOut> messages_{256};
-  // request taking (under request_mutex_) -> publisher: REPLY_CODE_BUSY answers
+  // request taking (under request_mutex_) -> publisher: the answers given there, not executed
+  // (REPLY_CODE_BUSY, and the stale repeats' REPLY_CODE_WRONG_STATE)
   SpscQueue<ReplyOut> busy_replies_{256};
   // Every cycle with an event-register change, of all interpolators: 4 s of the busiest
   // program seen (a change in every other cycle) at a 1 ms cycle.
@@ -335,6 +340,7 @@ class DdsPort final : public CyclePort {
   std::vector<HandshakeSample> handshakes_;
   msg::Request request_sample_;
   std::uint64_t busy_requests_ = 0;
+  std::uint64_t stale_repeats_ = 0;
   // publisher thread only: replies waiting for their client's reply reader, in order
   struct HeldReply {
     msg::Reply reply;

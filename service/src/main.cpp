@@ -581,7 +581,7 @@ int service_main(int argc, char** argv) {
         " \"handshake_ns\": {\"count\": %zu, \"min\": %lld, \"p50\": %lld, \"p99\": %lld,"
         " \"max\": %lld},\n"
         " \"requests\": %llu, \"busy_requests\": %llu, \"requests_repeated\": %llu,"
-        " \"chunks\": %llu, \"segments\": %llu,"
+        " \"stale_repeats\": %llu, \"chunks\": %llu, \"segments\": %llu,"
         " \"duplicate_chunks\": %llu,"
         " \"refused_chunks\": %llu, \"lost_replies\": %llu, \"lost_messages\": %llu,\n"
         " \"replies_held_for_match\": %llu, \"replies_unmatched\": %llu,"
@@ -603,6 +603,7 @@ int service_main(int argc, char** argv) {
         static_cast<long long>(percentile(rt_ns, 1.0)), static_cast<unsigned long long>(c.requests),
         static_cast<unsigned long long>(port->busy_requests()),
         static_cast<unsigned long long>(port->requests_repeated()),
+        static_cast<unsigned long long>(port->stale_repeats()),
         static_cast<unsigned long long>(c.chunks), static_cast<unsigned long long>(c.segments),
         static_cast<unsigned long long>(c.duplicate_chunks),
         static_cast<unsigned long long>(c.refused_chunks),

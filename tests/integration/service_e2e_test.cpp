@@ -2235,6 +2235,99 @@ TEST(ServiceProcesses, ARepeatedRequestIsAnsweredWithItsFirstReplyAndNotExecuted
       << stats;
 }
 
+// A repeat (Request.attempt > 1) first sent to another service instance, which this one has
+// not seen, may have been executed by that instance before it went (a restarted service has
+// lost its log of requests): it is answered "not executed", and its own repeat the same way. A
+// repeat for this instance that it has not seen (the first write was lost) is executed, and so
+// is a first write that names another instance.
+TEST(ServiceProcesses, ARepeatFirstSentToAReplacedServiceIsNotExecuted) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  client::Client watcher(env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(watcher.wait_for_state(0, kHang));
+  const std::uint64_t own = watcher.state(0)->service_instance();
+  const std::uint64_t gone = own ^ 0x5a5a5a5a5a5a5a5aULL;
+  dds::Participant plc(env.dds(), "plc");
+  auto& replies = plc.reader<msg::ReplyPubSubType>(dds::kReplyTopic);
+  auto& w = plc.writer<msg::RequestPubSubType>(dds::kRequestTopic);
+  ASSERT_TRUE(dds::wait_for_match(w, 1, kHang));
+  ASSERT_TRUE(dds::wait_for_match(replies, 1, kHang));
+  const auto ask = [&](std::uint64_t id, double value, std::uint64_t instance,
+                       std::uint32_t attempt) -> std::optional<msg::Reply> {
+    msg::Request q =
+        test::hand_request(id, msg::CLIENT_ROLE_PLC, "late-plc", msg::REQUEST_KIND_WRITE_REL_SPEED);
+    q.value(value);
+    q.service_instance(instance);
+    q.attempt(attempt);
+    if (!w.write(&q)) return std::nullopt;
+    return test::await_reply(replies, "late-plc", id, 20s);
+  };
+  const auto stale = ask(11, 0.3, gone, 2);
+  ASSERT_TRUE(stale) << env.service.log();
+  EXPECT_FALSE(stale->accepted());
+  EXPECT_EQ(stale->code(), msg::REPLY_CODE_WRONG_STATE);
+  char gone_hex[17];
+  std::snprintf(gone_hex, sizeof gone_hex, "%016llx", static_cast<unsigned long long>(gone));
+  EXPECT_NE(stale->reason().to_string().find(std::string("first sent to tgm-service instance ") +
+                                             gone_hex + ", which this one"),
+            std::string::npos)
+      << stale->reason().to_string();
+  const auto stale_again = ask(11, 0.3, gone, 3);
+  ASSERT_TRUE(stale_again) << env.service.log();
+  EXPECT_EQ(stale_again->code(), msg::REPLY_CODE_WRONG_STATE);
+  const auto lost_first = ask(12, 0.4, own, 2);
+  ASSERT_TRUE(lost_first) << env.service.log();
+  EXPECT_TRUE(lost_first->accepted()) << lost_first->reason();
+  ASSERT_TRUE(watcher.wait_until(
+      0, [](const msg::InterpolatorState& st) { return st.rel_speed() == 0.4; }, kHang));
+  const auto first_write = ask(13, 0.6, gone, 1);
+  ASSERT_TRUE(first_write) << env.service.log();
+  EXPECT_TRUE(first_write->accepted()) << first_write->reason();
+  ASSERT_TRUE(watcher.wait_until(
+      0, [](const msg::InterpolatorState& st) { return st.rel_speed() == 0.6; }, kHang));
+  EXPECT_EQ(env.service.interrupt(kHang), 0) << env.service.log();
+  const std::string stats = test::read_text(env.stats_path());
+  EXPECT_NE(stats.find("\"requests\": 2, \"busy_requests\": 0, \"requests_repeated\": 1, "
+                       "\"stale_repeats\": 1,"),
+            std::string::npos)
+      << stats;
+}
+
+// The case it is for: tgm::client::Client writes a request to a service that stops answering
+// (SIGSTOP: it may or may not execute it) and is killed; a new service comes up on the domain,
+// and the client's repeat reaches it. The new one does not execute it and says why; the client
+// has its answer instead of a timeout.
+TEST(ServiceProcesses, AClientsRepeatToARestartedServiceIsAnsweredNotExecuted) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  client::Client plc(env.dds(), client::Role::kPlc);
+  ASSERT_TRUE(plc.wait_for_state(0, kHang));
+  const std::uint64_t first = plc.state(0)->service_instance();
+  ASSERT_EQ(::kill(env.service.pid(), SIGSTOP), 0);
+  std::thread restart([&] {
+    std::this_thread::sleep_for(300ms);
+    env.service.interrupt(kHang, SIGKILL);
+    env.start_service();
+  });
+  const client::Reply reply = plc.request(client::rel_speed_request(0, 0.3), 40s);
+  restart.join();
+  ASSERT_FALSE(reply.timed_out) << env.service.log();
+  EXPECT_GE(reply.sends, 2);
+  EXPECT_EQ(reply.code, msg::REPLY_CODE_WRONG_STATE) << reply.reason;
+  char first_hex[17];
+  std::snprintf(first_hex, sizeof first_hex, "%016llx", static_cast<unsigned long long>(first));
+  EXPECT_NE(reply.reason.find(std::string("first sent to tgm-service instance ") + first_hex),
+            std::string::npos)
+      << reply.reason;
+  ASSERT_TRUE(plc.wait_until(
+      0, [&](const msg::InterpolatorState& st) { return st.service_instance() != first; }, kHang));
+  EXPECT_EQ(plc.state(0)->rel_speed(), 1.0);  // the new service's own
+  // A request written now goes to the new service and is executed.
+  const client::Reply next = plc.request(client::rel_speed_request(0, 0.3), 20s);
+  EXPECT_TRUE(next.accepted) << next.reason;
+  EXPECT_EQ(env.service.interrupt(kHang), 0) << env.service.log();
+}
+
 // The case repeats are for: a reply held for its client's reply reader (here the requesting
 // participant has none, so the service holds the reply up to 30 s). The repeat is answered at
 // once, past the hold: another participant's reply reader sees it long before the 30 s.

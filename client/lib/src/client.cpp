@@ -377,7 +377,9 @@ Reply Client::request(msg::Request r, std::chrono::milliseconds timeout,
   out.sent = true;
   out.sends = 1;
   // No reply yet: the same request again (the service executes it once and answers a repeat
-  // with the first reply), after kFirstResend, then at twice the last interval.
+  // with the first reply), after kFirstResend, then at twice the last interval. A repeat that
+  // reaches a service that replaced the one this client followed at the first write is
+  // answered "not executed" (Request.attempt).
   Clock::duration resend_after = kFirstResend;
   Clock::time_point resend_at = last_written_ + resend_after;
   while (true) {
@@ -390,6 +392,7 @@ Reply Client::request(msg::Request r, std::chrono::milliseconds timeout,
     if (give_up()) return out;
     auto now = Clock::now();
     if (now >= resend_at) {
+      r.attempt(static_cast<std::uint32_t>(out.sends + 1));
       if (request_writer_->write(&r)) {
         ++out.sends;
         last_written_ = now;
@@ -432,6 +435,9 @@ void Client::fill(msg::Request& r) {
   r.request_id(next_request_id_.fetch_add(1, std::memory_order_relaxed));
   r.role(role_ == Role::kPlc ? msg::CLIENT_ROLE_PLC : msg::CLIENT_ROLE_HMI);
   r.client_name(name_);
+  // The service a repeat is meant for: one that replaced it does not execute the repeat.
+  r.service_instance(service_followed(static_cast<int>(r.interpolator())));
+  r.attempt(1);
 }
 
 std::uint64_t Client::send(msg::Request r) {

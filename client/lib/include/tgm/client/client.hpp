@@ -239,7 +239,10 @@ class Client {
   //! `cancelled`; without one, ClientOptions::cancel is the flag. A request without a reply
   //! after kFirstResend is written again (the same request_id), then after twice the last
   //! interval (at most kLongestResend), until the reply or the timeout: tgm-service executes it
-  //! once and answers a repeat with its first reply. send() never writes a request again.
+  //! once and answers a repeat with its first reply. A repeat that reaches a service that
+  //! replaced (restarted after) the one this client followed at the first write is answered
+  //! REPLY_CODE_WRONG_STATE and not executed: the one it replaced may have executed it.
+  //! send() never writes a request again.
   Reply request(msg::Request r, std::chrono::milliseconds timeout,
                 const std::atomic<bool>* cancel = nullptr);
   Reply request(msg::Request r) { return request(std::move(r), request_timeout_); }
