@@ -368,9 +368,10 @@ void DdsPort::take_requests_locked() {
           door_answer.code = ReplyCode::kWrongState;
           char why[256];
           std::snprintf(why, sizeof why,
-                        "a repeat of a request first sent to tgm-service instance %016llx, which "
-                        "this one (%016llx) replaced: not executed, as that one may have; read "
-                        "the registers and send it again if needed",
+                        "a repeat of a request first sent to tgm-service instance %016llx (since "
+                        "restarted, or another service on the domain): not executed by this one "
+                        "(%016llx), as that one may have; read the registers and send it again "
+                        "if needed",
                         static_cast<unsigned long long>(r.service_instance()),
                         static_cast<unsigned long long>(service_instance_));
           door_answer.reason.set(why);

@@ -2269,7 +2269,7 @@ TEST(ServiceProcesses, ARepeatFirstSentToAReplacedServiceIsNotExecuted) {
   char gone_hex[17];
   std::snprintf(gone_hex, sizeof gone_hex, "%016llx", static_cast<unsigned long long>(gone));
   EXPECT_NE(stale->reason().to_string().find(std::string("first sent to tgm-service instance ") +
-                                             gone_hex + ", which this one"),
+                                             gone_hex + " (since restarted"),
             std::string::npos)
       << stale->reason().to_string();
   const auto stale_again = ask(11, 0.3, gone, 3);
