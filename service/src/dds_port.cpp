@@ -353,8 +353,9 @@ void DdsPort::take_requests_locked() {
       // reader rejects). requests_.full() is checked here, under request_mutex_, where the
       // cycles can only make room.
       const bool busy = requests_.full();
-      // A repeat first sent to the instance this one replaced (Request.attempt): that one may
-      // have executed it, and nothing here can tell. Unless this instance saw the request
+      // A repeat first sent to another instance (Request.attempt: the one this one replaced,
+      // or another service on the domain): that one may have executed it, and nothing here
+      // can tell. Unless this instance saw the request
       // (a repeat of it below), it is answered without being executed, as a "busy" is.
       const bool stale =
           r.attempt() > 1 && r.service_instance() != 0 && r.service_instance() != service_instance_;

@@ -136,9 +136,9 @@ class DdsPort final : public CyclePort {
   //! no reply sends its request again) and were answered with the first reply, or left to it
   //! when that was not written yet, instead of being executed twice (valid after stop()).
   std::uint64_t requests_repeated() const { return requests_repeated_; }
-  //! Repeats of requests first sent to another service instance (a restarted service's
-  //! predecessor) that this one had not seen: answered REPLY_CODE_WRONG_STATE, not executed
-  //! (valid after stop()).
+  //! Repeats of requests first sent to another service instance (the one this service
+  //! replaced, or another service on the domain) that this one had not seen: answered
+  //! REPLY_CODE_WRONG_STATE, not executed (valid after stop()).
   std::uint64_t stale_repeats() const { return stale_repeats_; }
   //! Replies whose write() failed (valid after stop()).
   std::uint64_t replies_not_written() const { return replies_not_written_; }
