@@ -20,6 +20,7 @@
 #include "tgm/gcode.hpp"
 #include "tgm/intercode_io.hpp"
 #include "tgm/printable.hpp"
+#include "tgm/resume.hpp"
 #include "tgm/soft_limits.hpp"
 
 namespace tgm::hmi {
@@ -474,6 +475,70 @@ bool FileView::open(const std::string& name, std::string& error) {
 bool progress_interval_flag(Args& args, double& out) {
   return args.number_flag("--progress-interval", out, "seconds in (0, 86400]",
                           [](double v) { return v > 0.0 && v <= 86400.0; });
+}
+
+bool ResumeFlags::read(Args& args) {
+  return args.whole_flag("--from-line", 1LL, static_cast<long long>(INT32_MAX), line) ||
+         args.whole_flag("--occurrence", 1LL, static_cast<long long>(INT32_MAX), occurrence) ||
+         args.number_flag("--approach-feed", approach_feed, "mm/min, > 0 and at most 1e6",
+                          [](double v) { return v > 0.0 && v <= kMaxFeedMmPerMin; });
+}
+
+bool ResumeFlags::check(Args& args) const {
+  if (given()) return true;
+  const char* alone =
+      occurrence > 0 ? "--occurrence" : (approach_feed > 0.0 ? "--approach-feed" : nullptr);
+  if (alone == nullptr) return true;
+  args.usage_error(std::string(alone) + " needs --from-line N");
+  return false;
+}
+
+bool resume_program(const std::string& file, PackedProgram& program, const ResumeFlags& flags,
+                    const std::array<double, kMaxAxes>& here, double default_feed_mm_per_min) {
+  ResumeOptions o;
+  o.line = static_cast<std::int32_t>(flags.line);
+  o.occurrence = flags.occurrence > 0 ? static_cast<std::uint64_t>(flags.occurrence) : 1;
+  o.here = here;
+  o.approach_feed_mm_per_min =
+      flags.approach_feed > 0.0 ? flags.approach_feed : default_feed_mm_per_min;
+  Resume r;
+  std::string error;
+  if (!resume_from_line(program, o, r, error)) {
+    std::fprintf(stderr, "%s: error: --from-line: %s\n", file.c_str(), error.c_str());
+    return false;
+  }
+  const std::string& letters = program.tables().axis_letters;
+  std::string where =
+      "record " + std::to_string(r.first_record + 1) + " of " + std::to_string(program.size());
+  if (r.occurrences > 1) {
+    where += ", the run " + std::to_string(o.occurrence) + " of " + std::to_string(r.occurrences) +
+             " of this line (--occurrence picks another)";
+  }
+  if (r.approach) {
+    std::fprintf(stderr, "%s: resuming at line %d (%s): approach from %s to %s at %g mm/min\n",
+                 file.c_str(), o.line, where.c_str(), point_text(here, letters).c_str(),
+                 point_text(r.resume_point, letters).c_str(), o.approach_feed_mm_per_min);
+  } else {
+    std::fprintf(stderr, "%s: resuming at line %d (%s): the machine stands where it starts (%s)\n",
+                 file.c_str(), o.line, where.c_str(), point_text(here, letters).c_str());
+  }
+  if (r.skipped_m > 0) {
+    std::string list;
+    for (const SkippedM& m : r.last_skipped_m) {
+      list += (list.empty() ? "" : ", ") + std::string("M") + std::to_string(m.m) + " (line " +
+              std::to_string(m.line) + ")";
+    }
+    std::fprintf(stderr,
+                 "%s: note: %llu PLC M-function%s before line %d never reach%s the PLC%s: %s. "
+                 "Bring the machine into the state %s leave%s (spindle, coolant, clamps) before "
+                 "the start\n",
+                 file.c_str(), static_cast<unsigned long long>(r.skipped_m),
+                 r.skipped_m == 1 ? "" : "s", o.line, r.skipped_m == 1 ? "es" : "",
+                 r.skipped_m > r.last_skipped_m.size() ? ", the last of them" : "", list.c_str(),
+                 r.skipped_m == 1 ? "it" : "they", r.skipped_m == 1 ? "s" : "");
+  }
+  program = std::move(r.program);
+  return true;
 }
 
 namespace {

@@ -206,6 +206,38 @@ class FileView {
 //! day (a bad value is reported through `args`).
 bool progress_interval_flag(Args& args, double& out);
 
+//! The block search flags of `run` and `simulate` (tgm/resume.hpp): --from-line N,
+//! --occurrence K, --approach-feed F.
+struct ResumeFlags {
+  long long line = 0;        // 0: not given
+  long long occurrence = 0;  // 0: not given (the first)
+  double approach_feed = 0;  // 0: not given (the config's default feed)
+  //! Consumes one of the flags.
+  bool read(Args& args);
+  //! The flags that need --from-line without it: a usage error through `args` (returns false).
+  bool check(Args& args) const;
+  bool given() const { return line > 0; }
+};
+
+//! The usage text of the flags (for kUsage of `run` and `simulate`).
+#define TGM_HMI_RESUME_USAGE                                                                      \
+  "  --from-line N         block search: run the program from source line N on (its first\n"      \
+  "                        record; compiled whole, so every modal state is the full run's),\n"    \
+  "                        after a straight approach from where the machine stands to where\n"    \
+  "                        line N starts. The PLC M-functions before it are skipped and\n"        \
+  "                        listed: bring the machine into their state first\n"                    \
+  "  --occurrence K        with --from-line: the K-th run of line N's records (a subroutine or\n" \
+  "                        a loop repeats a line; default 1)\n"                                   \
+  "  --approach-feed F     with --from-line: feed of the approach [mm/min] (default: the\n"       \
+  "                        config's compiler.default_feed_mm_per_min)\n"
+
+//! Replaces `program` by its block search from `here` (flags.given() must hold) and says what
+//! it did on standard error: where it resumes, the approach, and the PLC M-functions skipped
+//! (always: the machine must be brought into their state). False, with "FILE: error: ..." said,
+//! when the line cannot be resumed at.
+bool resume_program(const std::string& file, PackedProgram& program, const ResumeFlags& flags,
+                    const std::array<double, kMaxAxes>& here, double default_feed_mm_per_min);
+
 //! Writes `text` to standard output and flushes it. On failure prints "tgm-hmi CMD: cannot
 //! write WHAT: reason" and returns false; main() then does not report standard output again.
 bool write_stdout(std::string_view text, const char* command, const char* what);

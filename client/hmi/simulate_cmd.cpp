@@ -39,6 +39,8 @@ constexpr const char* kUsage =
     "                             [--spline POINTS,JERK] [--iir P,Q,F,MASK] [--lookahead OUT]\n"
     "                             [--stop-at T[:CODE],...] [--restart-after S] [--max-time S]\n"
     "                             [--start X..,Y..] [--progress-interval S] [--quiet]\n"
+    "                             [--from-line N [--occurrence K] [--approach-feed F]\n"
+    "                              [--here X..,Y..]]\n"
     "\n"
     "Compiles FILE (G-code, or intercode written by `tgm-hmi compile --out`, *.tgmi or known by\n"
     "its first bytes; - reads standard input) and runs it through interpolator N (default 0)\n"
@@ -85,7 +87,9 @@ constexpr const char* kUsage =
     "  --max-time S     give up after S seconds of program time (default 86400, up to 1e9)\n"
     "  --progress-interval S  when standard error is not a terminal, a progress line there\n"
     "                   every S seconds (default 10); on a terminal the line is redrawn\n"
-    "  --quiet          no progress display\n"
+    "  --quiet          no progress display\n" TGM_HMI_RESUME_USAGE
+    "  --here X5,Y5     with --from-line: where the machine stands [mm] (default: where the\n"
+    "                   program starts, --start)\n"
     "\n"
     "The run ends when every axis, delayed or filtered, stands where the program ends.\n"
     "Prints program time, distance, per-axis peaks against the limits, violations and the time\n"
@@ -205,7 +209,9 @@ File open_out(const std::string& path, std::string& why) {
 
 int run_simulate(int argc, char** argv) {
   Args args(argc, argv, "simulate", kUsage);
-  std::string file, csv_path, blocks_path, spline_text, iir_text, la_path, stop_text, start_text;
+  std::string file, csv_path, blocks_path, spline_text, iir_text, la_path, stop_text, start_text,
+      here_text;
+  ResumeFlags resume;
   bool check_limits = false, quiet = false;
   double rel = 1.0, m_ack = -1.0, interval_s = 10.0, restart_s = -1.0;  // restart: -1 = not given
   double max_time_s = SimulationOptions{}.max_time_s;
@@ -232,6 +238,8 @@ int run_simulate(int argc, char** argv) {
     }
     if (args.flag("--stop-at", stop_text)) continue;
     if (args.flag("--start", start_text)) continue;
+    if (args.flag("--here", here_text)) continue;
+    if (resume.read(args)) continue;
     if (args.number_flag("--restart-after", restart_s, "seconds 0..3600",
                          [](double v) { return v >= 0.0 && v <= 3600.0; })) {
       continue;
@@ -250,6 +258,8 @@ int run_simulate(int argc, char** argv) {
   if (args.failed()) return 2;
   if (file.empty()) return args.usage_error("a G-code FILE is required");
   if (csv_every > 0 && csv_path.empty()) return args.usage_error("--csv-every needs --csv OUT");
+  if (!resume.check(args)) return 2;
+  if (!here_text.empty() && !resume.given()) return args.usage_error("--here needs --from-line N");
   if (restart_s >= 0.0 && stop_text.empty()) {
     return args.usage_error(
         "--restart-after needs --stop-at T (it times the restart after each stop)");
@@ -346,6 +356,18 @@ int run_simulate(int argc, char** argv) {
     start = program.tables().start_mm;
   }
   note.print(file, intercode);
+  if (resume.given()) {
+    // The machine stands at --here (or where the program starts) and approaches line N.
+    std::array<double, kMaxAxes> here = start;
+    if (std::string why;
+        !here_text.empty() && !parse_start(here_text, machine.axis_letters(ip_index), here, why)) {
+      return args.usage_error("--here: " + why);
+    }
+    if (!resume_program(file, program, resume, here, machine.compiler.default_feed_mm_per_min)) {
+      return 2;
+    }
+    start = here;
+  }
 
   SimulationOptions so;
   so.interpolator = ip_index;

@@ -1000,5 +1000,58 @@ TEST_F(HmiSimulate, InterruptWithCsvEveryStillWritesTheLastCycle) {
   EXPECT_EQ(at.back(), n);
 }
 
+// Block search: --from-line compiles the whole program from --start and runs it from line N on,
+// after an approach from --here; it names the PLC M-functions it skips. The end point is the
+// whole program's, and bad lines and flags are refused with the reason.
+TEST_F(HmiSimulate, FromLineApproachesTheLineAndRunsTheRestOfTheProgram) {
+  // G91 from X20: line 4 starts at X25 (after line 2's X+5 and the M51) and ends at X30.
+  const fs::path prog = write("inc.ngc", "G91\nG1 X5 F3000\nM51 S7\nG1 X5\nG1 Y5\nM2\n");
+  const std::string base = "simulate " + prog.string() + " --config " + kConfig + " --quiet";
+  const ProcessResult r =
+      run(base + " --start X20 --from-line 4 --here X0,Y-3 --approach-feed 1200 --check-limits");
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_NE(r.err.find("resuming at line 4 (record 3 of 5): approach from X0 Y-3 Z0 to X25 Y0 Z0 "
+                       "at 1200 mm/min"),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("1 PLC M-function before line 4 never reaches the PLC: M51 (line 3)"),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.out.find("(4 records, interpolator 0"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("end:       X=30.000000 Y=5.000000 Z=0.000000"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("0 M-functions acknowledged"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("violations: 0"), std::string::npos) << r.out;
+  // The approach is a move of its own at its feed: 25.18 mm at 20 mm/s, then 10 mm at 50 mm/s.
+  EXPECT_GT(number_before(r.out, " s program time"), 25.179 / 20.0 + 10.0 / 50.0) << r.out;
+
+  // Standing where the line starts: no approach.
+  const ProcessResult at = run(base + " --start X20 --from-line 4 --here X25");
+  ASSERT_EQ(at.exit_code, 0) << at.out << at.err;
+  EXPECT_NE(at.err.find("the machine stands where it starts (X25 Y0 Z0)"), std::string::npos)
+      << at.err;
+  EXPECT_NE(at.out.find("(3 records"), std::string::npos) << at.out;
+
+  const struct {
+    std::string flags, says;
+  } bad[] = {
+      {" --from-line 1", "error: --from-line: line 1 makes no record"},
+      {" --from-line 7",
+       "error: --from-line: line 7 lies after the program's last record (line 6)"},
+      {" --from-line 4 --occurrence 2", "line 4 runs 1 time in the program"},
+      {" --from-line 0", "--from-line must be 1..2147483647, not '0'"},
+      {" --occurrence 2", "--occurrence needs --from-line N"},
+      {" --approach-feed 100", "--approach-feed needs --from-line N"},
+      {" --here X1", "--here needs --from-line N"},
+      {" --from-line 4 --approach-feed 0", "--approach-feed must be mm/min, > 0"},
+      {" --from-line 4 --here Q1", "--here: "},
+  };
+  for (const auto& b : bad) {
+    const ProcessResult e = run(base + b.flags);
+    EXPECT_EQ(e.exit_code, 2) << b.flags << "\n" << e.out << e.err;
+    EXPECT_NE(e.err.find(b.says), std::string::npos) << b.flags << "\n" << e.err;
+    EXPECT_EQ(e.out.find("result:"), std::string::npos) << b.flags << ": it ran\n" << e.out;
+  }
+}
+
 }  // namespace
 }  // namespace tgm

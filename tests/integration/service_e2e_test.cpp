@@ -255,6 +255,47 @@ TEST(ServiceProcesses, MFunctionWaitsUntilThePlcAcksAndNotLonger) {
 // writers' liveliness, said in its log and to the HMIs (a `tgm-hmi watch` shows it). Nothing
 // read the liveliness before: the program ran dry in an underrun, and an M-function waited for
 // a dead PLC, without a word.
+// Block search over DDS: `tgm-hmi run --from-line` compiles the whole program from --start,
+// approaches line N from where the interpolator stands and runs the rest; the PLC M-function
+// before it is named and never reaches M_Func. A line without records is refused before
+// anything reaches the service.
+TEST(ServiceProcesses, ABlockSearchRunsFromALineAfterAnApproach) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  // G91 from X20: line 4 starts at X25, the program ends at X30 Y5.
+  std::ofstream(env.path("inc.ngc")) << "G91\nG1 X5 F3000\nM51 S7\nG1 X5\nG1 Y5\nM2\n";
+  test::Child bad;
+  ASSERT_TRUE(bad.start(
+      {TGM_HMI_BIN, "run", env.path("inc.ngc"), "--config", env.config(), "--from-line", "1"},
+      env.path("bad.log")));
+  EXPECT_EQ(bad.wait(kHang), 2) << bad.log();
+  EXPECT_NE(bad.log().find("error: --from-line: line 1 makes no record"), std::string::npos)
+      << bad.log();
+  EXPECT_EQ(bad.log().find("records for interpolator"), std::string::npos) << bad.log();
+
+  test::Child hmi;
+  ASSERT_TRUE(
+      hmi.start({TGM_HMI_BIN, "run", env.path("inc.ngc"), "--config", env.config(), "--from-line",
+                 "4", "--start", "X20", "--approach-feed", "2400", "--quiet"},
+                env.path("hmi.log")));
+  EXPECT_EQ(hmi.wait(kHang), 0) << hmi.log() << env.service.log();
+  const std::string log = hmi.log();
+  EXPECT_NE(log.find("resuming at line 4 (record 3 of 5): approach from X0 Y0 Z0 to X25 Y0 Z0 at "
+                     "2400 mm/min"),
+            std::string::npos)
+      << log;
+  EXPECT_NE(log.find("1 PLC M-function before line 4 never reaches the PLC: M51 (line 3)"),
+            std::string::npos)
+      << log;
+  EXPECT_NE(log.find("done: 4 records"), std::string::npos) << log;
+  EXPECT_NE(log.find("program start X20 Y0 Z0"), std::string::npos) << log;
+  EXPECT_NE(log.find("0 M-function waits"), std::string::npos) << log;
+  const auto end = test::run_end_position(log);
+  EXPECT_NEAR(end[0], 30.0, 1e-4) << log;
+  EXPECT_NEAR(end[1], 5.0, 1e-4) << log;
+  EXPECT_NEAR(end[2], 0.0, 1e-4) << log;
+}
+
 TEST(ServiceProcesses, AKilledStreamingHmiAndAKilledPlcAreSaid) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());

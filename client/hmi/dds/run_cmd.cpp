@@ -56,7 +56,12 @@ constexpr const char* kUsage =
     "none)\n"
     "  --quiet               no progress display, only messages and the summary\n"
     "  --from-here           run a .tgmi file from where the interpolator stands although it\n"
-    "                        was compiled from another point (its first move goes from here)\n"
+    "                        was compiled from another point (its first move goes from "
+    "here)\n" TGM_HMI_RESUME_USAGE
+    "  --start X20,Y5        with --from-line and G-code: where the program was started from\n"
+    "                        the first time [mm] (default: zero), so that its G91 moves and the\n"
+    "                        axes its G90 lines do not name go where they went then\n"
+
     "\n"
     "A G-code FILE is compiled from where the interpolator stands. A .tgmi file runs only from\n"
     "the point it was compiled from (tgm-hmi compile --start), unless --from-here.\n"
@@ -165,10 +170,14 @@ int run_run(int argc, char** argv) {
   DdsOverrides overrides;
   std::string file, plot_path, error;
   bool quiet = false, from_here = false;
+  ResumeFlags resume;
+  std::string start_text;
   double interval_s = 1.0, m0_s = -1.0, timeout_s = 0.0;
   while (args.more()) {
     if (args.dds_flag(overrides)) continue;
     if (args.boolean("--from-here", from_here)) continue;
+    if (resume.read(args)) continue;
+    if (args.flag("--start", start_text)) continue;
     if (args.flag("--plot", plot_path)) continue;
     if (progress_interval_flag(args, interval_s)) continue;
     // Bounded as simulate's --max-time: 1e300 s printed "continuing shortly" and waited for
@@ -187,6 +196,17 @@ int run_run(int argc, char** argv) {
   if (args.help()) return 0;
   if (args.failed()) return 2;
   if (file.empty()) return args.usage_error("a program FILE is required");
+  if (!resume.check(args)) return 2;
+  if (!start_text.empty() && !resume.given()) {
+    return args.usage_error(
+        "--start needs --from-line N (without it a program runs from where the interpolator "
+        "stands)");
+  }
+  if (from_here && resume.given()) {
+    return args.usage_error(
+        "--from-here and --from-line: the block search approaches line N "
+        "from where the interpolator stands already; leave --from-here out");
+  }
   if (!args.distinct_files({{"FILE", file}, args.config_file()}, {{"--plot", plot_path}})) {
     return 2;
   }
@@ -204,6 +224,12 @@ int run_run(int argc, char** argv) {
     return args.usage_error(why);
   const int ip = args.interpolator();
   const std::string letters = config->machine.axis_letters(ip);
+  // Block search: the G-code is compiled from where it first started, not from here.
+  std::array<double, kMaxAxes> resume_start{};
+  if (std::string why;
+      !start_text.empty() && !parse_start(start_text, letters, resume_start, why)) {
+    return args.usage_error("--start: " + why);
+  }
   // Held as intercode: a program of millions of lines took 152 bytes a record as Segments.
   PackedProgram program;
   bool intercode = false;
@@ -360,7 +386,18 @@ int run_run(int argc, char** argv) {
   }
   const std::string here_text = point_text(here, run_letters);
   if (intercode) {
-    if (same_point(here, program.tables().start_mm, program.tables().number_axes)) {
+    if (resume.given()) {
+      // The block search approaches line N from here.
+      if (!start_text.empty() &&
+          !same_point(resume_start, program.tables().start_mm, program.tables().number_axes)) {
+        std::fprintf(stderr,
+                     "%s: error: compiled from %s, not from --start %s: leave --start out\n",
+                     file.c_str(),
+                     point_text(program.tables().start_mm, program.tables().axis_letters).c_str(),
+                     point_text(resume_start, program.tables().axis_letters).c_str());
+        return 2;
+      }
+    } else if (same_point(here, program.tables().start_mm, program.tables().number_axes)) {
       // Runs as compiled.
     } else if (!from_here) {
       std::fprintf(stderr,
@@ -395,15 +432,22 @@ int run_run(int argc, char** argv) {
     if (fewer_axes) {
       machine.interpolators[static_cast<std::size_t>(ip)].axes.resize(service_letters.size());
     }
-    if (away || other_tool || fewer_axes) {
+    // A block search compiles from where the program first started (--start), the whole
+    // program, and approaches line N from here (resume_program, below).
+    const bool resume_away = resume.given() && !same_point(resume_start, {}, kMaxAxes);
+    const bool from_point = resume.given() ? resume_away : away;
+    const std::array<double, kMaxAxes>& compile_start = resume.given() ? resume_start : here;
+    if (from_point || other_tool || fewer_axes) {
       program = PackedProgram{};  // a long program is not held twice
       note = ProgramNotes{config->machine.tools};
       if (std::size_t errors = 0; !load_packed(
-              file, source, machine, ip, program, away ? &here : nullptr, nullptr,
+              file, source, machine, ip, program, from_point ? &compile_start : nullptr, nullptr,
               [&](const Segment& s) { note.observe(s); }, &errors)) {
         if (errors > 0) {
           std::string how;
-          if (away)
+          if (resume_away)
+            how = "from --start " + point_text(resume_start, letters);
+          else if (from_point)
             how = "from where interpolator " + std::to_string(ip) + " stands (" + here_text + ")";
           if (fewer_axes) {
             how += std::string(how.empty() ? "" : ", ") + "for the axes " + service_letters +
@@ -427,7 +471,7 @@ int run_run(int argc, char** argv) {
                      "(written by a PLC, or the service's config has fewer axes than this one)\n",
                      file.c_str(), service_letters.c_str(), ip, st->number_axes());
       }
-      if (!quiet && away) {
+      if (!quiet && from_point && !resume.given()) {
         std::fprintf(stderr, "%s: compiled from where interpolator %d stands: %s\n", file.c_str(),
                      ip, here_text.c_str());
       }
@@ -441,6 +485,14 @@ int run_run(int argc, char** argv) {
   }
   source_holder.reset();  // compiled for the last time
   note.print(file, intercode);
+  // Where the program starts as compiled (a G91 program's moves depend on it): the --start of
+  // a later block search, said at the start of the run.
+  const std::array<double, kMaxAxes> origin =
+      resume.given() && !intercode ? resume_start : program.tables().start_mm;
+  if (resume.given() && !resume_program(file, program, resume, here,
+                                        config->machine.compiler.default_feed_mm_per_min)) {
+    return 2;
+  }
   // What the program stream cannot carry is found before the clear (the sender checks the
   // whole program when it is made): one that found it later left a half-sent program running
   // (a 300-byte M29 text at line 19,970 stopped the stream with the machine moving).
@@ -572,9 +624,11 @@ int run_run(int argc, char** argv) {
         last ? static_cast<int>(last->status()) : 0, last ? static_cast<int>(last->act_line()) : 0,
         ip);
   };
-  std::printf("tgm-hmi run: %s: %zu record%s for interpolator %d (program %u), DDS domain %d\n",
-              file.c_str(), static_cast<std::size_t>(program.size()),
-              program.size() == 1 ? "" : "s", ip, program_id, config->dds.domain_id);
+  std::printf(
+      "tgm-hmi run: %s: %zu record%s for interpolator %d (program %u), DDS domain %d, "
+      "program start %s\n",
+      file.c_str(), static_cast<std::size_t>(program.size()), program.size() == 1 ? "" : "s", ip,
+      program_id, config->dds.domain_id, point_text(origin, program.tables().axis_letters).c_str());
   std::fflush(stdout);
 
   bool service_stopping = false;  // it announced its shutdown
