@@ -6,7 +6,9 @@
 // its velocity, acceleration and jerk limits (corners within their tolerance), and a program
 // that finishes ends at its last motion's end point. The run is cut off after kMaxProgramS of
 // program time (a fuzzed feed of F0.001 over a long move is slow, not wrong). Most runs also
-// change the override and some give stops on the trajectory (see `Operator`).
+// change the override and some give stops on the trajectory (see `Operator`); one in eight is
+// resumed at the line of one of its records (block search) and run from there.
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstddef>
@@ -17,6 +19,7 @@
 #include <random>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "../motion/random_program.hpp"
@@ -25,6 +28,7 @@
 #include "tgm/config.hpp"
 #include "tgm/gcode.hpp"
 #include "tgm/intercode_io.hpp"
+#include "tgm/resume.hpp"
 #include "tgm/simulation.hpp"
 
 namespace {
@@ -162,6 +166,23 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     tgm::PackedProgram packed;
     TGM_FUZZ_CHECK(tgm::PackedProgram::from_program(r.program, packed, error),
                    "a compiled program does not encode: " + error);
+    // Half of those resume at the line of a record (block search, tgm/resume.hpp): an approach
+    // from machine zero, where the run stands, then the program's records from that line on.
+    // Its last motion ends where the whole program's does.
+    if (op.uniform() < 0.5) {
+      const double pick = op.uniform();
+      const std::size_t at =
+          std::min(r.program.segments.size() - 1,
+                   static_cast<std::size_t>(pick * static_cast<double>(r.program.segments.size())));
+      tgm::ResumeOptions ro;
+      ro.line = r.program.segments[at].line;
+      ro.approach_feed_mm_per_min = 50.0 + 4950.0 * op.uniform();
+      tgm::Resume resumed;
+      TGM_FUZZ_CHECK(
+          tgm::resume_from_line(packed, ro, resumed, error),
+          "line " + std::to_string(ro.line) + " of a record cannot be resumed at: " + error);
+      packed = std::move(resumed.program);
+    }
     s = sim->run(packed);
   } else {
     s = sim->run(r.program);
