@@ -477,6 +477,17 @@ bool progress_interval_flag(Args& args, double& out) {
                           [](double v) { return v > 0.0 && v <= 86400.0; });
 }
 
+std::string shell_word(const std::string& word) {
+  const bool plain = !word.empty() && std::all_of(word.begin(), word.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) != 0 ||
+           std::strchr("_./,:=+-", c) != nullptr;
+  });
+  if (plain) return word;
+  std::string out = "'";
+  for (char c : word) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return out + "'";
+}
+
 bool ResumeFlags::read(Args& args) {
   return args.whole_flag("--from-line", 1LL, static_cast<long long>(INT32_MAX), line) ||
          args.whole_flag("--occurrence", 1LL, static_cast<long long>(INT32_MAX), occurrence) ||

@@ -206,6 +206,10 @@ class FileView {
 //! day (a bad value is reported through `args`).
 bool progress_interval_flag(Args& args, double& out);
 
+//! `word` as one word of a POSIX shell command line: as it is when it holds only letters,
+//! digits and _ . / , : = + -, else in single quotes.
+std::string shell_word(const std::string& word);
+
 //! The block search flags of `run` and `simulate` (tgm/resume.hpp): --from-line N,
 //! --occurrence K, --approach-feed F.
 struct ResumeFlags {

@@ -296,6 +296,58 @@ TEST(ServiceProcesses, ABlockSearchRunsFromALineAfterAnApproach) {
   EXPECT_NEAR(end[2], 0.0, 1e-4) << log;
 }
 
+// A program dropped off the trajectory (Command 9) ends the run with the block search that goes
+// on from the line it stood at, with the point the program started from; that command, run as
+// printed, approaches the line's start and finishes the program at its end point.
+TEST(ServiceProcesses, ADroppedProgramSaysTheBlockSearchThatGoesOnAndItDoes) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  std::ofstream(env.path("to5.ngc")) << "G90 G1 X5 F6000\nM2\n";
+  test::Child first;
+  ASSERT_TRUE(
+      first.start({TGM_HMI_BIN, "run", env.path("to5.ngc"), "--config", env.config(), "--quiet"},
+                  env.path("first.log")));
+  ASSERT_EQ(first.wait(kHang), 0) << first.log();
+  // G91 from X5: 20 mm lines at 10 mm/s; line 3 runs from X25 Y20 to X5 Y20.
+  std::ofstream(env.path("square.ngc")) << "G91 G1 X20 F600\nG1 Y20\nG1 X-20\nG1 Y-20\nM2\n";
+  test::Child hmi;
+  ASSERT_TRUE(hmi.start({TGM_HMI_BIN, "run", env.path("square.ngc"), "--config", env.config()},
+                        env.path("hmi.log")));
+  client::Client watch(env.dds(), client::Role::kHmi);
+  ASSERT_TRUE(watch.wait_until(
+      0, [](const msg::InterpolatorState& s) { return s.status() == 1 && s.act_line() == 3; },
+      kHang))
+      << hmi.log();
+  const client::Reply off = watch.command(0, 9);
+  ASSERT_TRUE(off.accepted) << client::describe(off);
+  EXPECT_EQ(hmi.wait(kHang), 1) << hmi.log();
+  const std::string log = hmi.log();
+  const std::string said = "to go on from line 3 once the path is clear: tgm-hmi run ";
+  const auto at = log.find(said);
+  ASSERT_NE(at, std::string::npos) << log;
+  const std::string cmd = log.substr(at + said.size(), log.find('\n', at) - at - said.size());
+  EXPECT_EQ(cmd,
+            env.path("square.ngc") + " --from-line 3 --start X5,Y0,Z0 --config " + env.config())
+      << log;
+
+  // Run as printed (its words: the paths hold no spaces here); the approach at the config's
+  // default feed (ServiceEnv: 6000 mm/min).
+  std::vector<std::string> argv{TGM_HMI_BIN, "run"};
+  std::istringstream words(cmd);
+  for (std::string w; words >> w;) argv.push_back(w);
+  argv.push_back("--quiet");
+  test::Child again;
+  ASSERT_TRUE(again.start(argv, env.path("again.log")));
+  EXPECT_EQ(again.wait(kHang), 0) << again.log();
+  const std::string again_log = again.log();
+  EXPECT_NE(again_log.find("resuming at line 3 (record 3 of 5): approach from "), std::string::npos)
+      << again_log;
+  EXPECT_NE(again_log.find(" to X25 Y20 Z0 at 6000 mm/min"), std::string::npos) << again_log;
+  const auto end = test::run_end_position(again_log);
+  EXPECT_NEAR(end[0], 5.0, 1e-4) << again_log;
+  EXPECT_NEAR(end[1], 0.0, 1e-4) << again_log;
+}
+
 TEST(ServiceProcesses, AKilledStreamingHmiAndAKilledPlcAreSaid) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());

@@ -572,6 +572,44 @@ int run_run(int argc, char** argv) {
   // The source line where the program last stood: a program that is dropped takes its section
   // registers with it (Act_Line 0), and the run says where it was.
   int line_seen = 0;
+  std::int32_t part_seen = 0;  // its record (Act_Part, 1-based)
+  // After the program was dropped: the block search that goes on from the line it stood at
+  // (that line again from its start, after an approach).
+  const auto say_resume = [&]() {
+    if (line_seen <= 0 || part_seen <= 0) return;
+    // Which run of the line's records that was, among the records sent.
+    std::uint64_t runs = 0, index = 0;
+    std::int32_t prev = 0;
+    Segment s;
+    for (auto c = program.cursor(); index < static_cast<std::uint64_t>(part_seen) && c.next(s);
+         ++index) {
+      if (s.line == line_seen && (index == 0 || prev != line_seen)) ++runs;
+      prev = s.line;
+    }
+    std::string cmd =
+        "tgm-hmi run " + shell_word(file) + " --from-line " + std::to_string(line_seen);
+    bool occurrence_known = true;
+    if (resume.given()) {
+      // The approach and the first records kept are one run of the line resumed at; of
+      // another line the runs before the cut are not known here.
+      if (line_seen == resume.line) {
+        runs += static_cast<std::uint64_t>(std::max(resume.occurrence, 1LL)) - 1;
+      } else {
+        occurrence_known = false;
+      }
+    }
+    if (occurrence_known && runs > 1) cmd += " --occurrence " + std::to_string(runs);
+    if (!intercode && !same_point(origin, {}, kMaxAxes)) {
+      cmd += " --start " + point_text(origin, program.tables().axis_letters, ',');
+    }
+    if (ip != 0) cmd += " --interpolator " + std::to_string(ip);
+    if (!args.config_file().path.empty()) cmd += " --config " + shell_word(args.config_file().path);
+    std::fprintf(stderr, "tgm-hmi run: to go on from line %d once the path is clear: %s%s\n",
+                 line_seen, cmd.c_str(),
+                 occurrence_known ? ""
+                                  : " (and --occurrence K if line's records ran more than once "
+                                    "before: count from the program's start)");
+  };
   int exit_code = 0;
   bool progress_shown = false;
   // Said once; the run goes on if the service comes back.
@@ -855,7 +893,10 @@ int run_run(int argc, char** argv) {
     const auto status = static_cast<InterpolatorStatus>(st->status());
     // (A stop off the trajectory clears Act_Line with the program: the line it stopped at is
     // the last one seen.)
-    if (status != InterpolatorStatus::kEmpty && st->act_line() != 0) line_seen = st->act_line();
+    if (status != InterpolatorStatus::kEmpty && st->act_line() != 0) {
+      line_seen = st->act_line();
+      part_seen = st->act_part();
+    }
     if (status == InterpolatorStatus::kEnded && sender.all_confirmed()) break;
     if (status == InterpolatorStatus::kEmpty) {
       clear_progress();
@@ -873,6 +914,7 @@ int run_run(int argc, char** argv) {
                      "dropped the program\n",
                      line_seen);
       }
+      say_resume();
       exit_code = 1;
       break;
     }
@@ -897,6 +939,7 @@ int run_run(int argc, char** argv) {
                        "program was dropped\n",
                        line_seen);
         }
+        say_resume();
         exit_code = 1;
         break;
       }
