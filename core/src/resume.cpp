@@ -5,6 +5,7 @@
 #include <cmath>
 #include <string>
 #include <utility>
+#include <vector>
 
 namespace tgm {
 
@@ -116,6 +117,63 @@ bool resume_from_line(const PackedProgram& in, const ResumeOptions& o, Resume& o
     return false;
   }
   out = std::move(r);
+  return true;
+}
+
+bool single_block(const PackedProgram& in, PackedProgram& out, std::uint64_t& stops,
+                  std::string& error) {
+  const Program& tables = in.tables();
+  const int n = tables.number_axes;
+  std::string file;
+  IntercodeEncoder encoder(file, n, tables.axis_letters, tables.start_mm);
+  const auto stop_params = static_cast<std::int32_t>(tables.params.size());
+  std::array<double, kMaxAxes> at = tables.start_mm;  // end of the last move
+  std::uint64_t count = 0;
+  Segment s, held;
+  bool holding = false;
+  // The block of `held` ends where the next record's line differs (or the program does).
+  const auto end_block = [&]() {
+    encoder.add(held);
+    if (held.is_motion()) at = held.end;
+    const bool stops_already =
+        held.type == SegmentType::kMFunction &&
+        (held.m_kind == MKind::kProgramStop || held.m_kind == MKind::kProgramEnd);
+    if (stops_already) return;
+    Segment m0;
+    m0.type = SegmentType::kMFunction;
+    m0.m_kind = MKind::kProgramStop;
+    m0.m = 0;
+    m0.line = held.line;
+    m0.plane = held.plane;
+    m0.tool = held.tool;
+    m0.aux = stop_params;
+    m0.end = at;
+    encoder.add(m0);
+    ++count;
+  };
+  for (auto cursor = in.cursor(); cursor.next(s);) {
+    if (holding) {
+      if (s.line == held.line) {
+        encoder.add(held);
+        if (held.is_motion()) at = held.end;
+      } else {
+        end_block();
+      }
+    }
+    held = s;
+    holding = true;
+  }
+  if (holding) end_block();
+  std::vector<MParams> params = tables.params;
+  params.push_back(unset_params());
+  encoder.finish(params, tables.messages);
+  PackedProgram result;
+  if (!PackedProgram::open(std::move(file), result, error)) {
+    error = "the single-block program does not decode (" + error + "): a defect, please report it";
+    return false;
+  }
+  out = std::move(result);
+  stops = count;
   return true;
 }
 

@@ -348,6 +348,31 @@ TEST(ServiceProcesses, ADroppedProgramSaysTheBlockSearchThatGoesOnAndItDoes) {
   EXPECT_NEAR(end[1], 0.0, 1e-4) << again_log;
 }
 
+// Single block: the run stops after each block (a program stop the run continues, here after
+// --m0-continue) and ends where the program does.
+TEST(ServiceProcesses, SingleBlockStopsAfterEachBlock) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  std::ofstream(env.path("sb.ngc")) << "G90\nG1 X5 F3000\nG1 Y5\nM2\n";
+  test::Child hmi;
+  ASSERT_TRUE(hmi.start({TGM_HMI_BIN, "run", env.path("sb.ngc"), "--config", env.config(),
+                         "--single-block", "--m0-continue", "0.2", "--quiet"},
+                        env.path("hmi.log")));
+  EXPECT_EQ(hmi.wait(kHang), 0) << hmi.log();
+  const std::string log = hmi.log();
+  EXPECT_NE(log.find("single block: a program stop after each of 2 blocks"), std::string::npos)
+      << log;
+  const auto first = log.find("stopped after line 2 (single block): continuing shortly");
+  const auto second = log.find("stopped after line 3 (single block): continuing shortly");
+  EXPECT_NE(first, std::string::npos) << log;
+  EXPECT_NE(second, std::string::npos) << log;
+  EXPECT_LT(first, second) << log;
+  EXPECT_NE(log.find("done: 5 records"), std::string::npos) << log;  // 3 and the 2 stops
+  const auto end = test::run_end_position(log);
+  EXPECT_NEAR(end[0], 5.0, 1e-4) << log;
+  EXPECT_NEAR(end[1], 5.0, 1e-4) << log;
+}
+
 TEST(ServiceProcesses, AKilledStreamingHmiAndAKilledPlcAreSaid) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());

@@ -1,5 +1,6 @@
 // Block search (tgm/resume.hpp): a program resumed at a source line runs the approach from where
 // the machine stands and then exactly the records the whole program has from that line on.
+// Single block: a program stop after each block, the same end.
 // Known values on G-code, the errors, and a seeded sweep (--resume-seed=N, --resume-count=N) of
 // random programs resumed at a random line from a random point, run through the interpolator
 // with the limit checker on.
@@ -197,9 +198,62 @@ TEST(Resume, LinesWithoutRecordsAndBadOptionsAreRefusedWithTheReason) {
   EXPECT_NE(error.find("axis Y"), std::string::npos) << error;
 }
 
+TEST(SingleBlock, EveryBlockEndsInAProgramStopButOneThatStopsOrEndsAlready) {
+  const PackedProgram whole = packed(kProgram);
+  const std::vector<Segment> all = records(whole);
+  PackedProgram sb;
+  std::uint64_t stops = 0;
+  std::string error;
+  ASSERT_TRUE(single_block(whole, sb, stops, error)) << error;
+  EXPECT_EQ(stops, 6u);  // after lines 2, 3, 4, 5, 6 and 8; line 9 is the M2
+  const std::vector<Segment> got = records(sb);
+  ASSERT_EQ(got.size(), all.size() + 6);
+  for (std::size_t k = 0; k + 1 < all.size(); ++k) {
+    expect_same_record(got[2 * k], all[k], "record " + std::to_string(k));
+    const Segment& m0 = got[2 * k + 1];
+    EXPECT_EQ(m0.type, SegmentType::kMFunction);
+    EXPECT_EQ(m0.m_kind, MKind::kProgramStop);
+    EXPECT_EQ(m0.m, 0);
+    EXPECT_EQ(m0.line, all[k].line);
+    EXPECT_EQ(m0.aux, static_cast<std::int32_t>(whole.tables().params.size()));
+  }
+  expect_same_record(got.back(), all.back(), "the M2");
+  ASSERT_EQ(sb.tables().params.size(), whole.tables().params.size() + 1);
+  for (double p : sb.tables().params.back()) EXPECT_TRUE(is_not_set(p));
+
+  // A program stop already there (line 2's M0): no second one after it.
+  const PackedProgram with_m0 = packed("G90 G1 X1 F600\nM0\nG1 X2\nM2\n");
+  ASSERT_TRUE(single_block(with_m0, sb, stops, error)) << error;
+  EXPECT_EQ(stops, 2u);  // after lines 1 and 3
+  EXPECT_EQ(records(sb).size(), 6u);
+}
+
+TEST(SingleBlock, RunsToTheSameEndStoppingAfterEachBlock) {
+  const PackedProgram whole = packed(kProgram);
+  PackedProgram sb;
+  std::uint64_t stops = 0;
+  std::string error;
+  ASSERT_TRUE(single_block(whole, sb, stops, error)) << error;
+  SimulationOptions so;
+  so.check_limits = true;
+  so.m_ack_s = 0.0;
+  auto a = Simulation::create(MachineConfig::default_machine(), so);
+  auto b = Simulation::create(MachineConfig::default_machine(), so);
+  ASSERT_TRUE(a && b);
+  const SimulationSummary straight = a->run(whole), stepped = b->run(sb);
+  ASSERT_EQ(straight.result, StepResult::kFinished) << straight.error;
+  ASSERT_EQ(stepped.result, StepResult::kFinished) << stepped.error;
+  EXPECT_EQ(stepped.end_position, straight.end_position);
+  EXPECT_EQ(stepped.violation_count, 0u);
+  // Each stop brings the motion to rest (the simulation's operator starts again at once): the
+  // corners the straight run crossed at speed cost time.
+  EXPECT_GT(stepped.program_time_s, straight.program_time_s + 0.01);
+}
+
 // Random programs (the sweeps' generator) on random machines, resumed at a random record's line
 // from a random point near the program: the run finishes at the program's end point, within
-// every limit, and after the approach runs exactly the whole program's records from there.
+// every limit, and after the approach runs exactly the whole program's records from there. The
+// whole program in single block finishes at the same end, within every limit.
 TEST(ResumeSweep, ResumedProgramsRunTheirTailFromAnywhere) {
   const std::uint64_t seed = test::param_u64("resume-seed", "TGM_RESUME_SEED", 1);
   const std::uint64_t count = test::param_u64("resume-count", "TGM_RESUME_COUNT", 40);
@@ -254,6 +308,22 @@ TEST(ResumeSweep, ResumedProgramsRunTheirTailFromAnywhere) {
       EXPECT_NEAR(s.end_position[static_cast<std::size_t>(i)], g.end[static_cast<std::size_t>(i)],
                   1e-9)
           << ctx << " axis " << i;
+    }
+    // Single block on the whole program: the same end, within every limit.
+    PackedProgram sb;
+    std::uint64_t stops = 0;
+    ASSERT_TRUE(single_block(whole, sb, stops, error)) << ctx << ": " << error;
+    SimulationOptions sbo = so;
+    sbo.start_mm = g.program.start_mm;
+    auto sbs = Simulation::create(m, sbo);
+    ASSERT_TRUE(sbs) << ctx;
+    const SimulationSummary t = sbs->run(sb);
+    ASSERT_EQ(t.result, StepResult::kFinished) << ctx << " single block: " << t.error;
+    EXPECT_EQ(t.violation_count, 0u) << ctx << " single block";
+    for (int i = 0; i < axes; ++i) {
+      EXPECT_NEAR(t.end_position[static_cast<std::size_t>(i)], g.end[static_cast<std::size_t>(i)],
+                  1e-9)
+          << ctx << " single block, axis " << i;
     }
     if (::testing::Test::HasFailure()) break;
   }

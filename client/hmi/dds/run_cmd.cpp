@@ -22,6 +22,7 @@
 #include "tgm/intercode_io.hpp"
 #include "tgm/printable.hpp"
 #include "tgm/registers.hpp"
+#include "tgm/resume.hpp"
 #include "wait_count.hpp"
 
 namespace tgm::hmi {
@@ -61,6 +62,8 @@ constexpr const char* kUsage =
     "  --start X20,Y5        with --from-line and G-code: where the program was started from\n"
     "                        the first time [mm] (default: zero), so that its G91 moves and the\n"
     "                        axes its G90 lines do not name go where they went then\n"
+    "  --single-block        stop after each block (a program stop, as an M0: Enter, or\n"
+    "                        --m0-continue S, runs the next), to prove out a new program\n"
 
     "\n"
     "A G-code FILE is compiled from where the interpolator stands. A .tgmi file runs only from\n"
@@ -169,7 +172,7 @@ int run_run(int argc, char** argv) {
   Args args(argc, argv, "run", kUsage);
   DdsOverrides overrides;
   std::string file, plot_path, error;
-  bool quiet = false, from_here = false;
+  bool quiet = false, from_here = false, single = false;
   ResumeFlags resume;
   std::string start_text;
   double interval_s = 1.0, m0_s = -1.0, timeout_s = 0.0;
@@ -178,6 +181,7 @@ int run_run(int argc, char** argv) {
     if (args.boolean("--from-here", from_here)) continue;
     if (resume.read(args)) continue;
     if (args.flag("--start", start_text)) continue;
+    if (args.boolean("--single-block", single)) continue;
     if (args.flag("--plot", plot_path)) continue;
     if (progress_interval_flag(args, interval_s)) continue;
     // Bounded as simulate's --max-time: 1e300 s printed "continuing shortly" and waited for
@@ -492,6 +496,15 @@ int run_run(int argc, char** argv) {
   if (resume.given() && !resume_program(file, program, resume, here,
                                         config->machine.compiler.default_feed_mm_per_min)) {
     return 2;
+  }
+  if (single) {
+    std::uint64_t stops = 0;
+    if (std::string why; !single_block(program, program, stops, why)) {
+      std::fprintf(stderr, "%s: error: --single-block: %s\n", file.c_str(), why.c_str());
+      return 2;
+    }
+    std::fprintf(stderr, "%s: single block: a program stop after each of %llu blocks\n",
+                 file.c_str(), static_cast<unsigned long long>(stops));
   }
   // What the program stream cannot carry is found before the clear (the sender checks the
   // whole program when it is made): one that found it later left a half-sent program running
@@ -972,7 +985,9 @@ int run_run(int argc, char** argv) {
           clear_progress();
           char in[64];
           std::snprintf(in, sizeof in, "continuing in %.0f s", m0_s);
-          std::printf("M0 program stop at line %d: %s\n", st->act_line(),
+          std::printf(single ? "stopped after line %d (single block): %s\n"
+                             : "M0 program stop at line %d: %s\n",
+                      st->act_line(),
                       m0_s > 10.0               ? in
                       : m0_s >= 0 || !stdin_tty ? "continuing shortly"
                       : stdin_closed            ? "`tgm-hmi command start` continues"

@@ -64,4 +64,14 @@ struct Resume {
 bool resume_from_line(const PackedProgram& in, const ResumeOptions& o, Resume& out,
                       std::string& error);
 
+//! Single block, the other operator mode that runs a program other than straight through: `in`
+//! with a program stop (M0: the motion stops, the start continues) after each block, i.e.
+//! after the last record of each run of one source line's records, except a block that ends
+//! in a program stop or the program's end already. The stops carry their block's line and a
+//! parameter set of their own with every letter unset (appended to the tables). `stops` is
+//! how many were put in; `out` may be `in`. False, with the reason, only if the result does not
+//! decode (a defect).
+bool single_block(const PackedProgram& in, PackedProgram& out, std::uint64_t& stops,
+                  std::string& error);
+
 }  // namespace tgm
