@@ -64,7 +64,6 @@ constexpr const char* kUsage =
     "                        axes its G90 lines do not name go where they went then\n"
     "  --single-block        stop after each block (a program stop, as an M0: Enter, or\n"
     "                        --m0-continue S, runs the next), to prove out a new program\n"
-
     "\n"
     "A G-code FILE is compiled from where the interpolator stands. A .tgmi file runs only from\n"
     "the point it was compiled from (tgm-hmi compile --start), unless --from-here.\n"
@@ -620,8 +619,8 @@ int run_run(int argc, char** argv) {
     std::fprintf(stderr, "tgm-hmi run: to go on from line %d once the path is clear: %s%s\n",
                  line_seen, cmd.c_str(),
                  occurrence_known ? ""
-                                  : " (and --occurrence K if line's records ran more than once "
-                                    "before: count from the program's start)");
+                                  : " (and --occurrence K if the line's records ran more than "
+                                    "once before: count from the program's start)");
   };
   int exit_code = 0;
   bool progress_shown = false;
