@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <thread>
 
 #include "service_test_env.hpp"
 
@@ -69,7 +70,8 @@ TEST(SdkInstall, AnExternalProjectBuildsAPlcThatHandlesTheHandshake) {
   tgm::test::Child plc;
   ASSERT_TRUE(
       plc.start({plc_bin, "--config", env.config(), "--ack-delay", "0.3"}, env.path("plc.log")));
-  ASSERT_TRUE(plc.wait_for_log("serving 3 interpolator(s)", 30s)) << plc.log() << env.service.log();
+  ASSERT_TRUE(plc.wait_for_log("interpolator 2: setup reported", 30s))
+      << plc.log() << env.service.log();
   for (int i = 0; i < 3; ++i) {
     EXPECT_NE(plc.log().find("interpolator " + std::to_string(i) + ": setup reported: accepted"),
               std::string::npos)
@@ -93,6 +95,14 @@ TEST(SdkInstall, AnExternalProjectBuildsAPlcThatHandlesTheHandshake) {
   EXPECT_LT(waited, 3.0) << hmi_log;
 
   ASSERT_TRUE(plc.wait_for_log("M1005 acknowledged", 10s)) << plc.log();
+  // A restarted service (a new instance) gets the setup report again.
+  ASSERT_EQ(env.service.interrupt(), 0) << env.service.log();
+  ASSERT_TRUE(env.start_service());
+  const auto reports = [&] {
+    return tgm::test::count_of(plc.log(), "interpolator 0: setup reported: accepted");
+  };
+  for (int k = 0; k < 600 && reports() < 2; ++k) std::this_thread::sleep_for(50ms);
+  EXPECT_EQ(reports(), 2) << plc.log() << env.service.log();
   EXPECT_EQ(plc.interrupt(10s, SIGTERM), 0) << plc.log();
   const std::string log = plc.log();
   const auto at = [&](const std::string& text) {

@@ -3,7 +3,8 @@
 // your own has to keep with tgm-service (the manual's M-functions, DESIGN section 1):
 //
 //   1. report the setup of each interpolator when the config asks for it
-//      (plc.setup_before_start): until then the service refuses to start the interpolator;
+//      (plc.setup_before_start): until then the service refuses to start the interpolator,
+//      and a restarted service (a new service_instance in the state) asks for it again;
 //   2. see every M-function the service hands to M_Func: the event topic delivers each one as
 //      it happens; the state, read once at the start, shows one that was pending before;
 //   3. acknowledge it by writing M_Func = 0, naming it by number and m_func_count: a normal one
@@ -40,7 +41,7 @@ constexpr const char* kUsage =
     "  --config YAML   the tgm config (default: the installed config/default.yaml)\n"
     "  --ack-delay S   seconds a normal M-function takes, 0..3600 (default 0.1)\n"
     "  --wait S        seconds to wait for tgm-service at the start, 1..3600 (default 10)\n"
-    "Exit codes: 0 stopped by a signal, 1 no tgm-service or a refused setup, 2 bad usage.\n";
+    "Exit codes: 0 stopped by a signal, 1 no tgm-service, 2 bad usage.\n";
 
 std::atomic<bool> g_stop{false};
 void on_signal(int) {
@@ -139,6 +140,7 @@ int main(int argc, char** argv) {
     const auto wait = std::chrono::milliseconds(static_cast<long long>(wait_s * 1000.0));
     for (int i = 0; i < interpolators; ++i) {
       if (!plc.wait_for_state(i, wait, &g_stop)) {
+        if (g_stop) return 0;
         std::fprintf(stderr,
                      "tgm-minimal-plc: no state of interpolator %d from tgm-service on "
                      "DDS domain %d within %g s: is it running with this config?\n",
@@ -152,17 +154,20 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "tgm-minimal-plc: the event topic did not match within %g s\n", wait_s);
       return 1;
     }
-    for (int i = 0; i < interpolators; ++i) {
-      if (config->plc.setup_before_start) {
-        // A real PLC sets the interpolator up first (ratios, Number_Axes, the drives' position:
-        // ratio_request(), number_axes_request(), offset_request()), then reports it.
-        const tgm::client::Reply r = plc.request(tgm::client::plc_setup_done_request(i));
-        std::printf("interpolator %d: setup reported: %s\n", i, tgm::client::describe(r).c_str());
-        if (!r.accepted) return 1;
-      }
-    }
     std::printf("serving %d interpolator(s) on DDS domain %d; normal M-functions take %g s\n",
                 interpolators, config->dds.domain_id, ack_delay_s);
+    // The service instance each interpolator's setup was reported to: a restarted service
+    // (a new instance) waits for the report again.
+    std::vector<std::uint64_t> set_up(static_cast<std::size_t>(interpolators), 0);
+    const auto report_setup = [&](int i, std::uint64_t instance) {
+      if (!config->plc.setup_before_start || set_up[static_cast<std::size_t>(i)] == instance)
+        return;
+      set_up[static_cast<std::size_t>(i)] = instance;
+      // A real PLC sets the interpolator up first (ratios, Number_Axes, the drives' position:
+      // ratio_request(), number_axes_request(), offset_request()), then reports it.
+      const tgm::client::Reply r = plc.request(tgm::client::plc_setup_done_request(i));
+      std::printf("interpolator %d: setup reported: %s\n", i, tgm::client::describe(r).c_str());
+    };
 
     // Per interpolator: the service instance followed and the highest m_func_count handled.
     std::map<int, std::pair<std::uint64_t, std::uint32_t>> handled;
@@ -198,7 +203,9 @@ int main(int argc, char** argv) {
       for (const Seen& e : taken) handle(e);
       for (int i = 0; i < interpolators; ++i) {
         const auto* s = plc.state(i);
-        if (s != nullptr && s->m_func() != 0) handle(seen_of(*s));
+        if (s == nullptr) continue;
+        report_setup(i, s->service_instance());
+        if (s->m_func() != 0) handle(seen_of(*s));
       }
       const auto now = Clock::now();
       for (std::size_t k = 0; k < due.size();) {
