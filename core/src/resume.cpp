@@ -15,6 +15,12 @@ std::string line_text(std::int32_t line) {
   return "line " + std::to_string(line);
 }
 
+// A record of `line` after one of `prev_line` starts a run of that line's records (the first
+// record's prev_line is 0, which no source line is).
+bool starts_run(const Segment& s, std::int32_t prev_line, std::int32_t line) {
+  return s.line == line && prev_line != line;
+}
+
 }  // namespace
 
 bool resume_from_line(const PackedProgram& in, const ResumeOptions& o, Resume& out,
@@ -57,7 +63,7 @@ bool resume_from_line(const PackedProgram& in, const ResumeOptions& o, Resume& o
   Segment s;
   for (auto cursor = in.cursor(); cursor.next(s); ++index) {
     last_line = std::max(last_line, s.line);
-    const bool run_starts = s.line == o.line && (index == 0 || prev_line != o.line);
+    const bool run_starts = starts_run(s, prev_line, o.line);
     prev_line = s.line;
     if (run_starts && ++r.occurrences == o.occurrence) {
       keeping = true;
@@ -120,6 +126,22 @@ bool resume_from_line(const PackedProgram& in, const ResumeOptions& o, Resume& o
   return true;
 }
 
+std::uint64_t occurrence_at(const PackedProgram& p, std::uint64_t index) {
+  if (index >= p.size()) return 0;
+  Segment s;
+  auto find = p.cursor();
+  while (find.read() <= index) find.next(s);
+  const std::int32_t line = s.line;
+  std::uint64_t runs = 0;
+  std::int32_t prev_line = 0;
+  auto cursor = p.cursor();
+  for (std::uint64_t k = 0; k <= index && cursor.next(s); ++k) {
+    if (starts_run(s, prev_line, line)) ++runs;
+    prev_line = s.line;
+  }
+  return runs;
+}
+
 bool single_block(const PackedProgram& in, PackedProgram& out, std::uint64_t& stops,
                   std::string& error) {
   const Program& tables = in.tables();
@@ -131,10 +153,9 @@ bool single_block(const PackedProgram& in, PackedProgram& out, std::uint64_t& st
   std::uint64_t count = 0;
   Segment s, held;
   bool holding = false;
-  // The block of `held` ends where the next record's line differs (or the program does).
-  const auto end_block = [&]() {
-    encoder.add(held);
-    if (held.is_motion()) at = held.end;
+  // After `held`, the last record of its block (the next record's line differs, or the
+  // program ends there).
+  const auto stop_after_held = [&]() {
     const bool stops_already =
         held.type == SegmentType::kMFunction &&
         (held.m_kind == MKind::kProgramStop || held.m_kind == MKind::kProgramEnd);
@@ -152,18 +173,13 @@ bool single_block(const PackedProgram& in, PackedProgram& out, std::uint64_t& st
     ++count;
   };
   for (auto cursor = in.cursor(); cursor.next(s);) {
-    if (holding) {
-      if (s.line == held.line) {
-        encoder.add(held);
-        if (held.is_motion()) at = held.end;
-      } else {
-        end_block();
-      }
-    }
+    if (holding && s.line != held.line) stop_after_held();
+    encoder.add(s);
+    if (s.is_motion()) at = s.end;
     held = s;
     holding = true;
   }
-  if (holding) end_block();
+  if (holding) stop_after_held();
   std::vector<MParams> params = tables.params;
   params.push_back(unset_params());
   encoder.finish(params, tables.messages);

@@ -167,6 +167,15 @@ TEST(Resume, ARepeatedLineIsResumedAtTheOccurrenceAsked) {
   o.occurrence = 3;
   EXPECT_FALSE(resume_from_line(whole, o, r, error));
   EXPECT_NE(error.find("line 7 runs 2 times"), std::string::npos) << error;
+
+  // Records: X1 (line 2), X+1 (7), Y+1 (8), X+1 (7), Y+1 (8), M2 (5).
+  EXPECT_EQ(occurrence_at(whole, 0), 1u);
+  EXPECT_EQ(occurrence_at(whole, 1), 1u);
+  EXPECT_EQ(occurrence_at(whole, 2), 1u);
+  EXPECT_EQ(occurrence_at(whole, 3), 2u);
+  EXPECT_EQ(occurrence_at(whole, 4), 2u);
+  EXPECT_EQ(occurrence_at(whole, 5), 1u);
+  EXPECT_EQ(occurrence_at(whole, 6), 0u);  // no such record
 }
 
 TEST(Resume, LinesWithoutRecordsAndBadOptionsAreRefusedWithTheReason) {

@@ -590,14 +590,7 @@ int run_run(int argc, char** argv) {
   const auto say_resume = [&]() {
     if (line_seen <= 0 || part_seen <= 0) return;
     // Which run of the line's records that was, among the records sent.
-    std::uint64_t runs = 0, index = 0;
-    std::int32_t prev = 0;
-    Segment s;
-    for (auto c = program.cursor(); index < static_cast<std::uint64_t>(part_seen) && c.next(s);
-         ++index) {
-      if (s.line == line_seen && (index == 0 || prev != line_seen)) ++runs;
-      prev = s.line;
-    }
+    std::uint64_t runs = occurrence_at(program, static_cast<std::uint64_t>(part_seen) - 1);
     std::string cmd =
         "tgm-hmi run " + shell_word(file) + " --from-line " + std::to_string(line_seen);
     bool occurrence_known = true;

@@ -64,6 +64,10 @@ struct Resume {
 bool resume_from_line(const PackedProgram& in, const ResumeOptions& o, Resume& out,
                       std::string& error);
 
+//! Which run of its line's records (1-based, as ResumeOptions::occurrence counts them) record
+//! `index` (0-based) of `p` belongs to; 0 when `p` has no such record.
+std::uint64_t occurrence_at(const PackedProgram& p, std::uint64_t index);
+
 //! Single block, the other operator mode that runs a program other than straight through: `in`
 //! with a program stop (M0: the motion stops, the start continues) after each block, i.e.
 //! after the last record of each run of one source line's records, except a block that ends
