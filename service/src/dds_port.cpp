@@ -355,8 +355,8 @@ void DdsPort::take_requests_locked() {
       const bool busy = requests_.full();
       // A repeat first sent to another instance (Request.attempt: the one this one replaced,
       // or another service on the domain): that one may have executed it, and nothing here
-      // can tell. Unless this instance saw the request
-      // (a repeat of it below), it is answered without being executed, as a "busy" is.
+      // can tell. Unless this instance saw the request (a repeat of it below), it is answered
+      // without being executed, as a "busy" is.
       const bool stale =
           r.attempt() > 1 && r.service_instance() != 0 && r.service_instance() != service_instance_;
       ReplyOut door_answer;  // busy or stale: answered here, not executed
