@@ -31,7 +31,7 @@ using test::random_program;
 bool same_block(const BlockReport& a, const BlockReport& b) {
   return a.act_part == b.act_part && a.line == b.line && a.g == b.g && a.length_mm == b.length_mm &&
          a.programmed_mm_min == b.programmed_mm_min && a.peak_mm_min == b.peak_mm_min &&
-         a.duration_s == b.duration_s && a.factor == b.factor;
+         a.duration_s == b.duration_s && a.end_s == b.end_s && a.factor == b.factor;
 }
 
 struct SkipCounts {

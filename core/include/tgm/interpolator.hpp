@@ -76,6 +76,9 @@ struct BlockReport {
   double programmed_mm_min = 0.0;
   double peak_mm_min = 0.0;   //!< highest path speed reached in the block
   double duration_s = 0.0;
+  //! Time at the block's end [s]: calculation steps since create() x their length, every
+  //! state counted (the start of a program run from create() is 0).
+  double end_s = 0.0;
   //! What limited the speed at the block's peak (kFeed when the programmed speed was reached).
   LimitFactor factor = LimitFactor::kNone;
 };

@@ -75,6 +75,10 @@ struct SimulationOptions {
   //! kWorking, error "interrupted"). Core reads no clock: the caller decides what to show when.
   std::function<bool(const SimulationProgress&)> on_progress;
   static constexpr std::uint64_t kProgressPasses = 1024;
+  //! Called after each pass of the run loop in which Act_Part changed (after the pass's block
+  //! reports), with the new Act_Part and the program time at the pass's end [s]: the records
+  //! before it are done by then. A pass is one cycle, or a run of cycles advance() skipped.
+  std::function<void(std::int32_t act_part, double program_time_s)> on_part;
   //! Largest max_time_s [s] (about 31 years of program time).
   static constexpr double kMaxTimeS = 1e9;
 };

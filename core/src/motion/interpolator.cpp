@@ -1795,6 +1795,7 @@ struct Interpolator::Impl {
     b.programmed_mm_min = r.f * 60.0;
     b.peak_mm_min = blk_peak * 60.0;
     b.duration_s = t_end - blk_t0;
+    b.end_s = t_end;
     b.factor = blk_factor;
   }
 

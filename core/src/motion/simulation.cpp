@@ -162,6 +162,7 @@ SimulationSummary Simulation::run_records(std::size_t total, const AppendRecords
     sum.result = StepResult::kErrorInternal;
     return sum;
   }
+  std::int32_t part_seen = ip.registers().act_part;
   std::size_t change = 0;
   auto changes = opt_.rel_speed_changes;
   std::sort(changes.begin(), changes.end());
@@ -316,6 +317,10 @@ SimulationSummary Simulation::run_records(std::size_t total, const AppendRecords
     if (on_cycle) on_cycle(reg);
     if (on_block) {
       for (const BlockReport& b : ip.block_reports()) on_block(b);
+    }
+    if (opt_.on_part && reg.act_part != part_seen) {
+      part_seen = reg.act_part;
+      opt_.on_part(reg.act_part, static_cast<double>(cycle) * T);
     }
     if (r == StepResult::kFinished) {
       sum.result = r;

@@ -1,0 +1,65 @@
+// Program time by record (tgm/program_times.hpp).
+#include "tgm/program_times.hpp"
+
+#include <algorithm>
+#include <utility>
+
+namespace tgm {
+
+double ProgramTimes::elapsed_s(std::int64_t act_part, double in_record_s) const {
+  if (act_part <= 0 || done_s.empty()) return 0.0;
+  const auto k = static_cast<std::uint64_t>(act_part) - 1;
+  if (k >= done_s.size()) return total_s;
+  const double before = k == 0 ? 0.0 : static_cast<double>(done_s[k - 1]);
+  // A NaN (a clock the caller never set) counts as no time in the record.
+  const double in = in_record_s > 0.0 ? in_record_s : 0.0;
+  return std::min(before + in, static_cast<double>(done_s[k]));
+}
+
+std::optional<ProgramTimes> program_times(const MachineConfig& machine,
+                                          const SimulationOptions& options,
+                                          const PackedProgram& program, std::string* error) {
+  ProgramTimes t;
+  t.done_s.resize(program.size());
+  // Records done so far: [0, filled) hold their time. Block reports come for moves only (and
+  // at most Interpolator's kMaxBlockReports a call: a skip across thousands of short chords
+  // drops some), in program order; a record between two reports (an M-function, a dwell, a
+  // dropped report) is done when the next reported move starts.
+  std::uint64_t filled = 0;
+  float last = 0.0F;
+  const auto fill_to = [&](std::uint64_t end, double at) {
+    const float f = std::max(last, static_cast<float>(at));
+    for (; filled < end; ++filled) t.done_s[filled] = f;
+    last = f;
+  };
+  // The records Act_Part has left behind are done (at the resolution of a pass: a cycle,
+  // where a record that takes no motion ends).
+  SimulationOptions o = options;
+  o.on_part = [&](std::int32_t act_part, double at) {
+    if (options.on_part) options.on_part(act_part, at);
+    if (act_part > 1)
+      fill_to(std::min<std::uint64_t>(static_cast<std::uint64_t>(act_part) - 1, t.done_s.size()),
+              at);
+  };
+  auto sim = Simulation::create(machine, o, error);
+  if (!sim) return std::nullopt;
+  const SimulationSummary sum = sim->run(program, {}, [&](const BlockReport& b) {
+    if (b.act_part <= 0) return;
+    const auto k = static_cast<std::uint64_t>(b.act_part) - 1;
+    if (k < filled || k >= t.done_s.size()) return;
+    fill_to(k, b.end_s - b.duration_s);
+    fill_to(k + 1, b.end_s);
+  });
+  if (sum.result != StepResult::kFinished) {
+    if (error) *error = sum.error.empty() ? "the program did not end" : sum.error;
+    return std::nullopt;
+  }
+  t.total_s = sum.program_time_s;
+  fill_to(t.done_s.size(), t.total_s);
+  // The program is done when the run ends (Status 3), which may be after its last move's end
+  // (the smoothing settles, an M-function's wait).
+  if (!t.done_s.empty()) t.done_s.back() = std::max(t.done_s.back(), static_cast<float>(t.total_s));
+  return t;
+}
+
+}  // namespace tgm

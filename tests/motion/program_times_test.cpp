@@ -1,0 +1,169 @@
+// Program time by record (tgm/program_times.hpp), what `tgm-hmi run` shows the time left by.
+// Known values on G-code (a move alone, an M-function's acknowledgement time, a dwell), and a
+// seeded sweep (--times-seed=N, --times-count=N) of random programs against the registers of
+// the same run stepped cycle by cycle: record k is done within the cycle in which Act_Part
+// first moves past it.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "../support/test_params.hpp"
+#include "random_program.hpp"
+#include "tgm/gcode.hpp"
+#include "tgm/intercode_io.hpp"
+#include "tgm/program_times.hpp"
+#include "tgm/simulation.hpp"
+
+namespace tgm {
+namespace {
+
+PackedProgram packed(const std::string& gcode) {
+  const CompileResult r = compile_gcode(gcode, CompileOptions{});
+  EXPECT_TRUE(r.errors.empty()) << (r.errors.empty()
+                                        ? ""
+                                        : format_diagnostic("program", r.errors.front()));
+  PackedProgram p;
+  std::string error;
+  EXPECT_TRUE(PackedProgram::from_program(r.program, p, error)) << error;
+  return p;
+}
+
+double run_time(const MachineConfig& m, const SimulationOptions& o, const PackedProgram& p) {
+  auto sim = Simulation::create(m, o);
+  EXPECT_TRUE(sim);
+  if (!sim) return -1.0;
+  const SimulationSummary s = sim->run(p);
+  EXPECT_EQ(s.result, StepResult::kFinished) << s.error;
+  return s.program_time_s;
+}
+
+TEST(ProgramTimes, AMoveAnAcknowledgementAndADwellTakeTheirOwnTimes) {
+  const MachineConfig m = MachineConfig::default_machine();
+  const double T = m.cycle_time_us * 1e-6;
+  SimulationOptions o;
+  o.m_ack_s = 0.5;
+  // Records: the move, M3 (normal: waits for the PLC), the dwell, the same move again.
+  const PackedProgram p = packed("G90\nG1 X10 F600\nM3\nG4 P1.5\nG1 X20\nM2\n");
+  std::string error;
+  const auto t = program_times(m, o, p, &error);
+  ASSERT_TRUE(t) << error;
+  ASSERT_EQ(t->done_s.size(), p.size());
+  ASSERT_GE(p.size(), 4u);
+  // The move alone, as its own program: 10 mm at 10 mm/s plus the ramps.
+  const double move = run_time(m, o, packed("G90\nG1 X10 F600\nM2\n"));
+  EXPECT_GT(move, 1.0);
+  EXPECT_LT(move, 1.2);
+  EXPECT_NEAR(t->done_s[0], move, T);
+  EXPECT_NEAR(t->done_s[1] - t->done_s[0], 0.5, 2 * T);
+  EXPECT_NEAR(t->done_s[2] - t->done_s[1], 1.5, 2 * T);
+  EXPECT_NEAR(t->done_s[3] - t->done_s[2], move, 2 * T);
+  EXPECT_EQ(t->done_s.back(), static_cast<float>(t->total_s));
+  EXPECT_EQ(t->total_s, run_time(m, o, p));
+  EXPECT_NEAR(t->total_s, 2 * move + 2.0, 4 * T);
+
+  // Elapsed: nothing before the first record, what the first took once the second runs, at
+  // most a record's own time within it, everything past the end.
+  EXPECT_EQ(t->elapsed_s(0, 5.0), 0.0);
+  EXPECT_EQ(t->elapsed_s(1, 0.25), 0.25);
+  EXPECT_EQ(t->elapsed_s(1, 60.0), static_cast<double>(t->done_s[0]));
+  EXPECT_EQ(t->elapsed_s(2, 0.0), static_cast<double>(t->done_s[0]));
+  EXPECT_EQ(t->elapsed_s(2, 0.1), static_cast<double>(t->done_s[0]) + 0.1);
+  EXPECT_EQ(t->elapsed_s(3, -1.0), static_cast<double>(t->done_s[1]));
+  EXPECT_EQ(t->elapsed_s(3, std::nan("")), static_cast<double>(t->done_s[1]));
+  EXPECT_EQ(t->elapsed_s(static_cast<std::int64_t>(p.size()) + 1, 0.0), t->total_s);
+
+  // Half the override: the moves take about twice as long, the waits the same.
+  SimulationOptions slow = o;
+  slow.rel_speed = 0.5;
+  const auto h = program_times(m, slow, p, &error);
+  ASSERT_TRUE(h) << error;
+  EXPECT_NEAR(h->done_s[0], 2.0, 0.1);
+  EXPECT_NEAR(h->done_s[1] - h->done_s[0], 0.5, 2 * T);
+}
+
+TEST(ProgramTimes, ARunThatDoesNotEndGivesNoTimesAndSaysWhy) {
+  const MachineConfig m = MachineConfig::default_machine();
+  SimulationOptions o;
+  o.max_time_s = 0.5;
+  std::string error;
+  EXPECT_FALSE(program_times(m, o, packed("G90\nG1 X100 F600\nM2\n"), &error));
+  EXPECT_FALSE(error.empty());
+  // Interrupted by its caller.
+  SimulationOptions stop;
+  stop.fast_forward = false;  // a pass a cycle: 100 s of program time make 200,000
+  stop.on_progress = [](const SimulationProgress&) { return false; };
+  error.clear();
+  EXPECT_FALSE(program_times(m, stop, packed("G90\nG1 X1000 F600\nM2\n"), &error));
+  EXPECT_NE(error.find("interrupted"), std::string::npos) << error;
+}
+
+// Random programs (the sweeps' generator: lines, arcs, helices, M-functions, dwells, override
+// changes) on random machines: each record is done within the cycle in which the stepped
+// run's Act_Part first shows a later record (or the run ends), and the total is the run's.
+TEST(ProgramTimesSweep, EachRecordIsDoneWhereTheRegistersLeaveIt) {
+  const std::uint64_t seed = test::param_u64("times-seed", "TGM_TIMES_SEED", 1);
+  const std::uint64_t count = test::param_u64("times-count", "TGM_TIMES_COUNT", 30);
+  for (std::uint64_t k = 0; k < count; ++k) {
+    std::mt19937_64 rng(seed * 104729u + k);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    const int axes = 1 + static_cast<int>(u(rng) * 4.0);
+    const MachineConfig m = test::random_machine(rng, axes);
+    test::Generated g = test::random_program(rng, axes, 4 + static_cast<int>(u(rng) * 16.0));
+    for (Segment& s : g.program.segments) {
+      if (s.type == SegmentType::kMFunction && s.aux < 0) {
+        s.aux = static_cast<std::int32_t>(g.program.params.size());
+        g.program.params.push_back(unset_params());
+      }
+    }
+    const std::string ctx = "times seed " + std::to_string(seed) + " program " + std::to_string(k);
+    PackedProgram p;
+    std::string error;
+    ASSERT_TRUE(PackedProgram::from_program(g.program, p, error)) << ctx << ": " << error;
+    SimulationOptions o;
+    o.start_mm = g.program.start_mm;
+    o.m_ack_s = u(rng) * 0.3;
+    o.rel_speed_changes = g.overrides;
+    o.max_time_s = 1e5;
+    const auto t = program_times(m, o, p, &error);
+    ASSERT_TRUE(t) << ctx << ": " << error;
+    ASSERT_EQ(t->done_s.size(), p.size()) << ctx;
+
+    // The same run stepped: the cycle after which Act_Part first shows a record past k.
+    const double T = m.cycle_time_us * 1e-6;
+    SimulationOptions stepped = o;
+    stepped.fast_forward = false;
+    auto sim = Simulation::create(m, stepped);
+    ASSERT_TRUE(sim) << ctx;
+    std::vector<double> left(p.size(), -1.0);
+    std::uint64_t cycles = 0, passed = 0;
+    const SimulationSummary s = sim->run(p, [&](const Registers& r) {
+      ++cycles;
+      const auto beyond =
+          r.status == 3 ? p.size() : static_cast<std::uint64_t>(std::max(r.act_part, 1)) - 1;
+      for (; passed < beyond && passed < p.size(); ++passed)
+        left[passed] = static_cast<double>(cycles) * T;
+    });
+    ASSERT_EQ(s.result, StepResult::kFinished) << ctx << ": " << s.error;
+    EXPECT_EQ(t->total_s, s.program_time_s) << ctx;
+    EXPECT_EQ(t->done_s.back(), static_cast<float>(s.program_time_s)) << ctx;
+    for (std::size_t j = 0; j < p.size(); ++j) {
+      const double d = t->done_s[j];
+      // A float holds the time to 2^-24 of itself.
+      const double eps = 1e-7 + std::fabs(d) * 1.2e-7;
+      ASSERT_GE(left[j], 0.0) << ctx << " record " << j;
+      EXPECT_LE(d, left[j] + eps) << ctx << " record " << j;
+      EXPECT_GE(d, left[j] - T - eps) << ctx << " record " << j;
+      if (j > 0) {
+        EXPECT_GE(d, t->done_s[j - 1]) << ctx << " record " << j;
+      }
+    }
+  }
+}
+
+}  // namespace
+}  // namespace tgm
