@@ -2,10 +2,12 @@
 // the free buffer count; a program larger than Buffer_Size streams while it runs), start it and
 // follow it to the end with a progress display, M29 messages and a summary.
 #include <poll.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
@@ -13,6 +15,8 @@
 #include <mutex>
 #include <optional>
 #include <string>
+#include <thread>
+#include <utility>
 #include <vector>
 
 #include "commands.hpp"
@@ -21,6 +25,7 @@
 #include "tgm/gcode.hpp"
 #include "tgm/intercode_io.hpp"
 #include "tgm/printable.hpp"
+#include "tgm/program_times.hpp"
 #include "tgm/registers.hpp"
 #include "tgm/resume.hpp"
 #include "wait_count.hpp"
@@ -56,6 +61,7 @@ constexpr const char* kUsage =
     "  --timeout S           give up (stop the interpolator, exit 1) after S seconds (default "
     "none)\n"
     "  --quiet               no progress display, only messages and the summary\n"
+    "  --no-estimate         no time estimate (below; none with --quiet either)\n"
     "  --from-here           run a .tgmi file from where the interpolator stands although it\n"
     "                        was compiled from another point (its first move goes from "
     "here)\n" TGM_HMI_RESUME_USAGE
@@ -67,6 +73,12 @@ constexpr const char* kUsage =
     "\n"
     "A G-code FILE is compiled from where the interpolator stands. A .tgmi file runs only from\n"
     "the point it was compiled from (tgm-hmi compile --start), unless --from-here.\n"
+    "\n"
+    "The progress line shows the program time left and the part done by time: the program\n"
+    "is simulated with this config's machine at the Rel_Speed it starts with, normal\n"
+    "M-functions acknowledged after plc.default_m_delay_s / plc.m_delay_s, no operator wait (an\n"
+    "M0, a stop); until that is done (a thread at the lowest priority), the part of the records\n"
+    "sent. The summary gives the estimate beside the time the program took.\n"
     "\n"
     "Ctrl-C (or SIGTERM) stops the interpolator (normal stop on the trajectory) and exits with\n"
     "130, also while it waits for the service (its state, or the reply to the clear or the\n"
@@ -165,13 +177,69 @@ StdinLine stdin_line() {
   return StdinLine::kClosed;
 }
 
+// The time a running program has left: the program run offline (tgm/program_times.hpp) in a
+// thread at the lowest priority while it streams and runs, so that neither waits for it and
+// the service, on the same host or not, gives it no cycle.
+class TimeEstimate {
+ public:
+  TimeEstimate(MachineConfig machine, SimulationOptions options, const PackedProgram& program)
+      : thread_(
+            [this, machine = std::move(machine), options = std::move(options), &program]() mutable {
+              // Linux: a thread's id names that thread alone. Nothing to say if refused: it runs
+              // at the HMI's priority then.
+              (void)::setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), 19);
+              options.on_progress = [this](const SimulationProgress&) {
+                return !cancel_.load(std::memory_order_relaxed);
+              };
+              std::string error;
+              if (auto t = program_times(machine, options, program, &error)) {
+                times_ = std::move(*t);
+              } else {
+                error_ = error.empty() ? "the simulation did not end" : error;
+              }
+              done_.store(true, std::memory_order_release);
+            }) {}
+  TimeEstimate(const TimeEstimate&) = delete;
+  TimeEstimate& operator=(const TimeEstimate&) = delete;
+  ~TimeEstimate() {
+    cancel_.store(true, std::memory_order_relaxed);
+    thread_.join();
+  }
+  //! The times once the run is done; nullptr before, or when it failed.
+  const ProgramTimes* times() const {
+    return done_.load(std::memory_order_acquire) && error_.empty() ? &times_ : nullptr;
+  }
+  //! Why there are none, once the run is done; empty before, or when it succeeded.
+  std::string failure() const {
+    return done_.load(std::memory_order_acquire) ? error_ : std::string();
+  }
+
+ private:
+  std::atomic<bool> cancel_{false}, done_{false};
+  ProgramTimes times_;
+  std::string error_;
+  std::thread thread_;  // last: it starts once the members it writes exist
+};
+
+// A time of up to 999 hours as m:ss or h:mm:ss.
+std::string clock_text(double s) {
+  const auto t = static_cast<long long>(s > 0.0 ? std::round(std::min(s, 999.0 * 3600.0)) : 0.0);
+  char b[32];
+  if (t >= 3600) {
+    std::snprintf(b, sizeof b, "%lld:%02lld:%02lld", t / 3600, t / 60 % 60, t % 60);
+  } else {
+    std::snprintf(b, sizeof b, "%lld:%02lld", t / 60, t % 60);
+  }
+  return b;
+}
+
 }  // namespace
 
 int run_run(int argc, char** argv) {
   Args args(argc, argv, "run", kUsage);
   DdsOverrides overrides;
   std::string file, plot_path, error;
-  bool quiet = false, from_here = false, single = false;
+  bool quiet = false, from_here = false, single = false, no_estimate = false;
   ResumeFlags resume;
   std::string start_text;
   double interval_s = 1.0, m0_s = -1.0, timeout_s = 0.0;
@@ -192,6 +260,7 @@ int run_run(int argc, char** argv) {
                          [](double v) { return v > 0.0 && v <= 1e9; }))
       continue;
     if (args.boolean("--quiet", quiet)) continue;
+    if (args.boolean("--no-estimate", no_estimate)) continue;
     if (args.common()) continue;
     if (args.positional(file)) continue;
     return args.fail();
@@ -514,6 +583,27 @@ int run_run(int argc, char** argv) {
     std::fprintf(stderr, "%s: error: %s; nothing sent\n", file.c_str(), sender.error().c_str());
     return 2;
   }
+  // The time the program takes, simulated while it runs (declared after the program, which it
+  // reads: it ends first).
+  std::optional<TimeEstimate> estimate;
+  if (!quiet && !no_estimate) {
+    MachineConfig machine = config->machine;
+    auto& axes = machine.interpolators[static_cast<std::size_t>(ip)].axes;
+    if (fewer_axes) axes.resize(service_letters.size());
+    // The service's cycle: times are counted in its cycles (a config's may differ).
+    if (st->cycle_time_us() > 0) machine.cycle_time_us = st->cycle_time_us();
+    SimulationOptions so;
+    so.interpolator = ip;
+    const double rel = st->rel_speed();
+    so.rel_speed = std::isfinite(rel) ? std::clamp(rel, 0.01, 2.0) : 1.0;
+    so.m_ack_s = config->plc.default_m_delay_s;
+    for (const auto& [m, delay] : config->plc.m_delay_s) so.m_ack_by_number[m] = delay;
+    so.m0_restart_s = 0.0;
+    so.start_mm = here;
+    so.max_time_s = SimulationOptions::kMaxTimeS;
+    estimate.emplace(std::move(machine), std::move(so), program);
+  }
+  bool estimate_said = false;
   if (st->status() != 0) {
     // A program that did not end (stopped, in an underrun, after an emergency stop) is
     // dropped by the clear: said, with where it stood, since another HMI may still follow it
@@ -585,6 +675,9 @@ int run_run(int argc, char** argv) {
   // registers with it (Act_Line 0), and the run says where it was.
   int line_seen = 0;
   std::int32_t part_seen = 0;  // its record (Act_Part, 1-based)
+  // The record running (Act_Part) and the cycle it was first seen in.
+  std::int32_t est_part = 0;
+  std::uint64_t est_part_since = 0;
   // After the program was dropped: the block search that goes on from the line it stood at
   // (that line again from its start, after an approach).
   const auto say_resume = [&]() {
@@ -902,6 +995,11 @@ int run_run(int argc, char** argv) {
       line_seen = st->act_line();
       part_seen = st->act_part();
     }
+    // Since when the record runs, for the time estimate.
+    if (st->act_part() != est_part) {
+      est_part = st->act_part();
+      est_part_since = st->cycle_counter();
+    }
     if (status == InterpolatorStatus::kEnded && sender.all_confirmed()) break;
     if (status == InterpolatorStatus::kEmpty) {
       clear_progress();
@@ -1022,6 +1120,14 @@ int run_run(int argc, char** argv) {
       // (the next one went on at once after a timed wait, or without a word on a terminal).
       m0_wait = false;
     }
+    if (estimate && !estimate_said) {
+      if (const std::string why = estimate->failure(); !why.empty()) {
+        clear_progress();
+        std::fprintf(stderr, "tgm-hmi run: no time estimate (progress by records): %s\n",
+                     why.c_str());
+        estimate_said = true;
+      }
+    }
     // Progress.
     const auto now = Clock::now();
     // While the service is silent the registers are stale: a log gets no more lines of them
@@ -1032,8 +1138,20 @@ int run_run(int argc, char** argv) {
         (tty ? now - last_line_at >= 100ms
              : now - last_line_at >= std::chrono::duration<double>(interval_s))) {
       last_line_at = now;
-      const double pct = 100.0 * static_cast<double>(std::max(st->act_part(), 0)) /
-                         static_cast<double>(program.size());
+      double pct = 100.0 * static_cast<double>(std::max(st->act_part(), 0)) /
+                   static_cast<double>(program.size());
+      // By time once the estimate is there: what the records before this one take, and as
+      // much of this one's own as it has run.
+      std::string left;
+      if (const ProgramTimes* times = estimate ? estimate->times() : nullptr) {
+        const double in_record =
+            static_cast<double>(st->cycle_counter() -
+                                std::min(est_part_since, st->cycle_counter())) *
+            cycle_s;
+        const double elapsed = times->elapsed_s(st->act_part(), in_record);
+        if (times->total_s > 0.0) pct = 100.0 * elapsed / times->total_s;
+        left = " " + clock_text(times->total_s - elapsed) + " left";
+      }
       char bar[21];
       const int filled = std::clamp(static_cast<int>(pct / 5.0), 0, 20);
       for (int k = 0; k < 20; ++k) bar[k] = k < filled ? '#' : '.';
@@ -1057,9 +1175,9 @@ int run_run(int argc, char** argv) {
         shown = "no state for " + std::to_string(silence.seconds_since_last(now)) + " s";
         wait.clear();
       }
-      std::printf("%s[%s] %5.1f%% line %d/%d%s F%.0f %s%s%s", tty ? "\r\033[K" : "", bar, pct,
-                  st->act_line(), last_line, dro.c_str(), st->act_speed(), shown.c_str(),
-                  wait.c_str(), tty ? "" : "\n");
+      std::printf("%s[%s] %5.1f%%%s line %d/%d%s F%.0f %s%s%s", tty ? "\r\033[K" : "", bar, pct,
+                  left.c_str(), st->act_line(), last_line, dro.c_str(), st->act_speed(),
+                  shown.c_str(), wait.c_str(), tty ? "" : "\n");
       std::fflush(stdout);
       progress_shown = true;
     }
@@ -1083,8 +1201,14 @@ int run_run(int argc, char** argv) {
                     st->position()[static_cast<std::size_t>(a)]);
       dro += b;
     }
+    std::string estimated;
+    if (const ProgramTimes* times = estimate ? estimate->times() : nullptr) {
+      char b[64];
+      std::snprintf(b, sizeof b, ", estimated %.3f s", times->total_s);
+      estimated = b;
+    }
     std::printf(
-        "done: %llu record%s, %d line%s in %.3f s of program time (%llu cycles; %.3f s by the "
+        "done: %llu record%s, %d line%s in %.3f s of program time (%llu cycles%s; %.3f s by the "
         "clock), distance %.3f mm, "
         "%llu M-function wait%s (%.3f s)%s, %zu message%s\n"
         "  end position%s\n"
@@ -1092,7 +1216,7 @@ int run_run(int argc, char** argv) {
         "%llu (%llu during this run)\n",
         static_cast<unsigned long long>(sender.total()), sender.total() == 1 ? "" : "s", last_line,
         last_line == 1 ? "" : "s", program_s,
-        static_cast<unsigned long long>(st->cycle_counter() - start_cycle),
+        static_cast<unsigned long long>(st->cycle_counter() - start_cycle), estimated.c_str(),
         std::chrono::duration<double>(Clock::now() - t0).count(), st->move_distance(),
         static_cast<unsigned long long>(waits.waits), waits.waits == 1 ? "" : "s",
         static_cast<double>(waits.cycles) * cycle_s,
