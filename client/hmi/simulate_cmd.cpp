@@ -34,11 +34,11 @@ namespace {
 
 constexpr const char* kUsage =
     "usage: tgm-hmi simulate FILE [--config YAML] [--interpolator N] [--csv OUT] [--csv-every N]\n"
-    "                             [--rel-speed R] [--check-limits] [--limit-share F] [--m-ack S] "
-    "[--blocks OUT]\n"
-    "                             [--spline POINTS,JERK] [--iir P,Q,F,MASK] [--lookahead OUT]\n"
-    "                             [--stop-at T[:CODE],...] [--restart-after S] [--max-time S]\n"
-    "                             [--start X..,Y..] [--progress-interval S] [--quiet]\n"
+    "                             [--rel-speed R] [--check-limits] [--limit-share F] [--m-ack S]\n"
+    "                             [--blocks OUT] [--spline POINTS,JERK] [--iir P,Q,F,MASK]\n"
+    "                             [--lookahead OUT] [--stop-at T[:CODE],...] [--restart-after S]\n"
+    "                             [--max-time S]"
+    " [--start X..,Y..] [--progress-interval S] [--quiet]\n"
     "                             [--from-line N [--occurrence K] [--approach-feed F]\n"
     "                              [--here X..,Y..]]\n"
     "\n"

@@ -6,14 +6,20 @@
 
 namespace tgm {
 
-double ProgramTimes::elapsed_s(std::int64_t act_part, double in_record_s) const {
+double ProgramTimes::elapsed_s(std::int64_t act_part, double in_record_s,
+                               double in_record_mm) const {
   if (act_part <= 0 || done_s.empty()) return 0.0;
   const auto k = static_cast<std::uint64_t>(act_part) - 1;
   if (k >= done_s.size()) return total_s;
   const double before = k == 0 ? 0.0 : static_cast<double>(done_s[k - 1]);
+  const double own = static_cast<double>(done_s[k]) - before;
+  const double length = k < length_mm.size() ? static_cast<double>(length_mm[k]) : 0.0;
+  if (length > 0.0 && in_record_mm >= 0.0) {
+    return before + own * std::min(in_record_mm / length, 1.0);
+  }
   // A NaN (a clock the caller never set) counts as no time in the record.
   const double in = in_record_s > 0.0 ? in_record_s : 0.0;
-  return std::min(before + in, static_cast<double>(done_s[k]));
+  return before + std::min(in, own);
 }
 
 std::optional<ProgramTimes> program_times(const MachineConfig& machine,
@@ -21,10 +27,11 @@ std::optional<ProgramTimes> program_times(const MachineConfig& machine,
                                           const PackedProgram& program, std::string* error) {
   ProgramTimes t;
   t.done_s.resize(program.size());
-  // Records done so far: [0, filled) hold their time. Block reports come for moves only (and
-  // at most Interpolator's kMaxBlockReports a call: a skip across thousands of short chords
-  // drops some), in program order; a record between two reports (an M-function, a dwell, a
-  // dropped report) is done when the next reported move starts.
+  t.length_mm.resize(program.size());
+  // Records done so far: [0, filled) hold their time. Block reports come for moves only, in
+  // program order (a skip in advance() ends before its reports would overflow); a record
+  // between two reports (an M-function, a dwell, a message) is done by the pass in which
+  // Act_Part leaves it, or, where a pass crosses it, when the move after it starts.
   std::uint64_t filled = 0;
   float last = 0.0F;
   const auto fill_to = [&](std::uint64_t end, double at) {
@@ -49,6 +56,7 @@ std::optional<ProgramTimes> program_times(const MachineConfig& machine,
     if (k < filled || k >= t.done_s.size()) return;
     fill_to(k, b.end_s - b.duration_s);
     fill_to(k + 1, b.end_s);
+    t.length_mm[k] = static_cast<float>(b.length_mm);
   });
   if (sum.result != StepResult::kFinished) {
     if (error) *error = sum.error.empty() ? "the program did not end" : sum.error;

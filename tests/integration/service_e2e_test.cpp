@@ -423,6 +423,36 @@ TEST(ServiceProcesses, ARunShowsTheTimeLeftByTheProgramsTimeAndItsEstimate) {
   EXPECT_EQ(plain.log().find(" left "), std::string::npos) << plain.log();
   EXPECT_EQ(plain.log().find("estimated"), std::string::npos) << plain.log();
   EXPECT_NE(plain.log().find("% line "), std::string::npos) << plain.log();
+
+  // The override halved during a move (the PLC's script, a second after it starts): the part
+  // done goes by the part of its length moved, not by the time it has run.
+  std::ofstream(env.path("half.yaml")) << "- {at_s: 1.5, rel_speed: 0.5}\n";
+  std::ofstream(env.path("one.ngc")) << "G91\nG1 X40 F1200\nM2\n";  // from X40
+  test::Child plc, half;
+  ASSERT_TRUE(plc.start({TGM_PLC_BIN, "--config", env.config(), "--script", env.path("half.yaml")},
+                        env.path("plc.log")));
+  ASSERT_TRUE(half.start({TGM_HMI_BIN, "run", env.path("one.ngc"), "--config", env.config(),
+                          "--progress-interval", "0.1"},
+                         env.path("half.log")));
+  EXPECT_EQ(half.wait(kHang), 0) << half.log();
+  const std::string h = half.log();
+  bool slowed = false;
+  std::size_t seen = 0;
+  for (std::size_t at = h.find(" left line 2/"); at != std::string::npos;
+       at = h.find(" left line 2/", at + 1)) {
+    const double pct = std::strtod(h.c_str() + h.rfind(']', at) + 1, nullptr);
+    const std::size_t x = h.find(" X", at);
+    ASSERT_NE(x, std::string::npos) << h;
+    const double moved = std::strtod(h.c_str() + x + 2, nullptr) - 40.0;
+    // One record: its part of the time is its part of the length (the state's Move_Distance
+    // and Position come in the same sample).
+    EXPECT_NEAR(pct, 100.0 * moved / 40.0, 0.5) << h;
+    slowed = slowed || h.compare(h.find(" F", x), 6, " F600 ") == 0;
+    ++seen;
+  }
+  EXPECT_GT(seen, 5u) << h;
+  EXPECT_TRUE(slowed) << h << plc.log();
+  EXPECT_EQ(plc.interrupt(), 0) << plc.log();
 }
 
 TEST(ServiceProcesses, AKilledStreamingHmiAndAKilledPlcAreSaid) {

@@ -76,6 +76,18 @@ TEST(ProgramTimes, AMoveAnAcknowledgementAndADwellTakeTheirOwnTimes) {
   EXPECT_EQ(t->elapsed_s(3, -1.0), static_cast<double>(t->done_s[1]));
   EXPECT_EQ(t->elapsed_s(3, std::nan("")), static_cast<double>(t->done_s[1]));
   EXPECT_EQ(t->elapsed_s(static_cast<std::int64_t>(p.size()) + 1, 0.0), t->total_s);
+  // Inside a move by the share of its length (10 mm; the M-function and the dwell have none).
+  EXPECT_EQ(t->length_mm[0], 10.0F);
+  EXPECT_EQ(t->length_mm[1], 0.0F);
+  EXPECT_EQ(t->length_mm[2], 0.0F);
+  EXPECT_EQ(t->length_mm[3], 10.0F);
+  EXPECT_DOUBLE_EQ(t->elapsed_s(1, 0.1, 2.5), 0.25 * t->done_s[0]);
+  EXPECT_EQ(t->elapsed_s(1, 0.1, 25.0), static_cast<double>(t->done_s[0]));
+  EXPECT_DOUBLE_EQ(t->elapsed_s(4, 0.0, 5.0),
+                   t->done_s[2] + 0.5 * (static_cast<double>(t->done_s[3]) - t->done_s[2]));
+  EXPECT_EQ(t->elapsed_s(1, 0.1, -1.0), 0.1);
+  EXPECT_EQ(t->elapsed_s(1, 0.1, std::nan("")), 0.1);
+  EXPECT_EQ(t->elapsed_s(3, 0.5, 3.0), static_cast<double>(t->done_s[1]) + 0.5);
 
   // Half the override: the moves take about twice as long, the waits the same.
   SimulationOptions slow = o;
@@ -150,6 +162,10 @@ TEST(ProgramTimesSweep, EachRecordIsDoneWhereTheRegistersLeaveIt) {
     });
     ASSERT_EQ(s.result, StepResult::kFinished) << ctx << ": " << s.error;
     EXPECT_EQ(t->total_s, s.program_time_s) << ctx;
+    // Every move's length: together the run's distance.
+    double length = 0.0;
+    for (const float l : t->length_mm) length += l;
+    EXPECT_NEAR(length, s.distance_mm, 1e-6 + 1e-6 * s.distance_mm) << ctx;
     EXPECT_EQ(t->done_s.back(), static_cast<float>(s.program_time_s)) << ctx;
     for (std::size_t j = 0; j < p.size(); ++j) {
       const double d = t->done_s[j];

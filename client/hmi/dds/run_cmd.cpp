@@ -74,11 +74,12 @@ constexpr const char* kUsage =
     "A G-code FILE is compiled from where the interpolator stands. A .tgmi file runs only from\n"
     "the point it was compiled from (tgm-hmi compile --start), unless --from-here.\n"
     "\n"
-    "The progress line shows the program time left and the part done by time: the program\n"
-    "is simulated with this config's machine at the Rel_Speed it starts with, normal\n"
+    "The progress line shows the part done by time and the time left: the program is\n"
+    "simulated with this config's machine at the Rel_Speed it starts with, normal\n"
     "M-functions acknowledged after plc.default_m_delay_s / plc.m_delay_s, no operator wait (an\n"
-    "M0, a stop); until that is done (a thread at the lowest priority), the part of the records\n"
-    "sent. The summary gives the estimate beside the time the program took.\n"
+    "M0, a stop), and the time left scaled to the Rel_Speed now; until that is done (a thread\n"
+    "at the lowest priority), the part of the records sent. The summary gives the estimate\n"
+    "beside the time the program took.\n"
     "\n"
     "Ctrl-C (or SIGTERM) stops the interpolator (normal stop on the trajectory) and exits with\n"
     "130, also while it waits for the service (its state, or the reply to the clear or the\n"
@@ -586,6 +587,7 @@ int run_run(int argc, char** argv) {
   // The time the program takes, simulated while it runs (declared after the program, which it
   // reads: it ends first).
   std::optional<TimeEstimate> estimate;
+  double est_rel = 1.0;  // the Rel_Speed it is simulated at
   if (!quiet && !no_estimate) {
     MachineConfig machine = config->machine;
     auto& axes = machine.interpolators[static_cast<std::size_t>(ip)].axes;
@@ -596,6 +598,7 @@ int run_run(int argc, char** argv) {
     so.interpolator = ip;
     const double rel = st->rel_speed();
     so.rel_speed = std::isfinite(rel) ? std::clamp(rel, 0.01, 2.0) : 1.0;
+    est_rel = so.rel_speed;
     so.m_ack_s = config->plc.default_m_delay_s;
     for (const auto& [m, delay] : config->plc.m_delay_s) so.m_ack_by_number[m] = delay;
     so.m0_restart_s = 0.0;
@@ -675,9 +678,10 @@ int run_run(int argc, char** argv) {
   // registers with it (Act_Line 0), and the run says where it was.
   int line_seen = 0;
   std::int32_t part_seen = 0;  // its record (Act_Part, 1-based)
-  // The record running (Act_Part) and the cycle it was first seen in.
+  // The record running (Act_Part), the cycle it was first seen in and Move_Distance then.
   std::int32_t est_part = 0;
   std::uint64_t est_part_since = 0;
+  double est_part_mm = 0.0;
   // After the program was dropped: the block search that goes on from the line it stood at
   // (that line again from its start, after an approach).
   const auto say_resume = [&]() {
@@ -999,6 +1003,7 @@ int run_run(int argc, char** argv) {
     if (st->act_part() != est_part) {
       est_part = st->act_part();
       est_part_since = st->cycle_counter();
+      est_part_mm = st->move_distance();
     }
     if (status == InterpolatorStatus::kEnded && sender.all_confirmed()) break;
     if (status == InterpolatorStatus::kEmpty) {
@@ -1141,16 +1146,21 @@ int run_run(int argc, char** argv) {
       double pct = 100.0 * static_cast<double>(std::max(st->act_part(), 0)) /
                    static_cast<double>(program.size());
       // By time once the estimate is there: what the records before this one take, and as
-      // much of this one's own as it has run.
+      // much of this one's own as it has run. The time left at the Rel_Speed now: the moves
+      // take longer at a lower override (not exactly, where a limit, not the feed, sets the
+      // speed, and the waits do not); none while it is below 1 %.
       std::string left;
       if (const ProgramTimes* times = estimate ? estimate->times() : nullptr) {
         const double in_record =
             static_cast<double>(st->cycle_counter() -
                                 std::min(est_part_since, st->cycle_counter())) *
             cycle_s;
-        const double elapsed = times->elapsed_s(st->act_part(), in_record);
+        const double elapsed =
+            times->elapsed_s(st->act_part(), in_record, st->move_distance() - est_part_mm);
         if (times->total_s > 0.0) pct = 100.0 * elapsed / times->total_s;
-        left = " " + clock_text(times->total_s - elapsed) + " left";
+        const double rel = st->rel_speed();
+        left = rel >= 0.01 ? " " + clock_text((times->total_s - elapsed) * est_rel / rel) + " left"
+                           : " --:-- left";
       }
       char bar[21];
       const int filled = std::clamp(static_cast<int>(pct / 5.0), 0, 20);
