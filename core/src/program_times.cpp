@@ -53,10 +53,11 @@ std::optional<ProgramTimes> program_times(const MachineConfig& machine,
   const SimulationSummary sum = sim->run(program, {}, [&](const BlockReport& b) {
     if (b.act_part <= 0) return;
     const auto k = static_cast<std::uint64_t>(b.act_part) - 1;
-    if (k < filled || k >= t.done_s.size()) return;
+    if (k >= t.done_s.size()) return;
+    t.length_mm[k] = static_cast<float>(b.length_mm);
+    if (k < filled) return;
     fill_to(k, b.end_s - b.duration_s);
     fill_to(k + 1, b.end_s);
-    t.length_mm[k] = static_cast<float>(b.length_mm);
   });
   if (sum.result != StepResult::kFinished) {
     if (error) *error = sum.error.empty() ? "the program did not end" : sum.error;
