@@ -33,6 +33,10 @@ bool Args::common() {
          flag("--interpolator", interpolator_text_);
 }
 
+bool Args::compile_flag() {
+  return flag("--block-delete", block_delete_);
+}
+
 bool Args::help() const {
   if (help_given()) std::fputs(usage_, stdout);
   return help_given();
@@ -48,6 +52,12 @@ std::optional<AppConfig> Args::load_app() {
                   std::to_string(count) + "), not '" + interpolator_text_ + "'");
       return std::nullopt;
     }
+  }
+  if (!block_delete_.empty() &&
+      (block_delete_ == "error" ||
+       !parse_block_delete(block_delete_, config->machine.compiler.block_delete))) {
+    usage_error("--block-delete takes run or skip, not '" + block_delete_ + "'");
+    return std::nullopt;
   }
   return config;
 }

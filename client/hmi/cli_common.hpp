@@ -30,6 +30,11 @@ class Args : public cli::ArgReader {
 
   //! Consumes --config, --interpolator, --help.
   bool common();
+  //! Consumes the flags of the commands that compile G-code: --block-delete run|skip (applied
+  //! to the config's compiler.block_delete by load_app()).
+  bool compile_flag();
+  //! True when --block-delete was given (it has no effect on intercode, compiled already).
+  bool block_delete_given() const { return !block_delete_.empty(); }
   //! True (after printing the usage to stdout) when --help was given.
   bool help() const;
 
@@ -49,7 +54,13 @@ class Args : public cli::ArgReader {
   std::string config_path_;
   std::string interpolator_text_;
   int interpolator_ = 0;
+  std::string block_delete_;
 };
+
+//! The error for --block-delete on intercode (FILE's name for the %s).
+inline constexpr const char* kBlockDeleteOnIntercode =
+    "%s: error: --block-delete: the file is intercode, compiled already (its optional blocks "
+    "were run or skipped then: tgm-hmi compile --block-delete)\n";
 
 //! What FileView reads from a pipe or a device (regular files are mapped, of any size): 1 GiB,
 //! several times the longest program the compiler expands (compiler.max_program_segments).

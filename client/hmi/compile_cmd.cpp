@@ -16,7 +16,7 @@ namespace {
 
 constexpr const char* kUsage =
     "usage: tgm-hmi compile FILE [--config YAML] [--interpolator N] [--dump jsonl|text]\n"
-    "                            [--out FILE] [--start X..,Y..]\n"
+    "                            [--out FILE] [--start X..,Y..] [--block-delete run|skip]\n"
     "\n"
     "Compiles a G-code program (FILE; - reads standard input) into intercode for interpolator N\n"
     "(default 0). Given intercode (what --out writes), it checks it and dumps it, copies it or\n"
@@ -34,6 +34,9 @@ constexpr const char* kUsage =
     "                    name start there. The file records it, and `tgm-hmi run` runs the\n"
     "                    file only from there (`tgm-hmi run` compiles G-code from where the\n"
     "                    interpolator stands by itself)\n"
+    "  --block-delete W  lines that start with '/' (optional blocks): run (the block delete\n"
+    "                    switch off) or skip (on); default: the config's\n"
+    "                    compiler.block_delete, error unless set (such a line is refused)\n"
     "\n"
     "Errors go to standard error as FILE:LINE:COL: error: reason, all of them; the exit\n"
     "code is then 2 and nothing is written.\n";
@@ -171,6 +174,7 @@ int run_compile(int argc, char** argv) {
     if (args.flag("--out", out_path)) continue;
     if (args.flag("--start", start_text)) continue;
     if (args.common()) continue;
+    if (args.compile_flag()) continue;
     if (args.positional(file)) continue;
     return args.fail();
   }
@@ -197,8 +201,13 @@ int run_compile(int argc, char** argv) {
   FileView input;
   if (!input.open_or_report(file)) return 2;
   const std::string_view text = input.text();
-  if (is_intercode(file, text))
+  if (is_intercode(file, text)) {
+    if (args.block_delete_given()) {
+      std::fprintf(stderr, kBlockDeleteOnIntercode, file.c_str());
+      return 2;
+    }
     return inspect_intercode(args, file, input, dump, out_path, start_text);
+  }
   CompileOptions options = CompileOptions::from_machine(*machine, args.interpolator());
   if (std::string why; !start_text.empty() &&
                        !parse_start(start_text, options.axis_letters, options.start_mm, why)) {

@@ -39,6 +39,7 @@ constexpr const char* kUsage =
     "                             [--lookahead OUT] [--stop-at T[:CODE],...] [--restart-after S]\n"
     "                             [--max-time S]"
     " [--start X..,Y..] [--progress-interval S] [--quiet]\n"
+    "                             [--block-delete run|skip]\n"
     "                             [--from-line N [--occurrence K] [--approach-feed F]\n"
     "                              [--here X..,Y..]]\n"
     "\n"
@@ -69,6 +70,9 @@ constexpr const char* kUsage =
     "                   zero): the program is compiled from there, as `tgm-hmi run` compiles\n"
     "                   from where the interpolator stands (axes not named: 0); a .tgmi\n"
     "                   file starts where it was compiled from (tgm-hmi compile --start)\n"
+    "  --block-delete W lines that start with '/' (optional blocks): run (the block delete\n"
+    "                   switch off) or skip (on); default: the config's compiler.block_delete,\n"
+    "                   error unless set (such a line is refused)\n"
     "  --rel-speed R    feed override 0.01..2 (default 1)\n"
     "  --check-limits   differentiate Orig_Position per cycle and fail on any per-axis velocity,\n"
     "                   acceleration, jerk or corner-step excess, and on corner steps that add\n"
@@ -251,6 +255,7 @@ int run_simulate(int argc, char** argv) {
     if (args.boolean("--check-limits", check_limits)) continue;
     if (args.boolean("--quiet", quiet)) continue;
     if (args.common()) continue;
+    if (args.compile_flag()) continue;
     if (args.positional(file)) continue;
     return args.fail();
   }
@@ -338,6 +343,10 @@ int run_simulate(int argc, char** argv) {
   // a run that went wrong.
   if (program.size() == 0) {
     std::fprintf(stderr, "%s: error: the program has no records (no move, dwell or M-function)\n", file.c_str());
+    return 2;
+  }
+  if (intercode && args.block_delete_given()) {
+    std::fprintf(stderr, kBlockDeleteOnIntercode, file.c_str());
     return 2;
   }
   // Intercode runs from the point it was compiled from, as `tgm-hmi run` runs it.

@@ -488,7 +488,16 @@ void read_file(Reader& r, const YAML::Node& root, AppConfig& cfg) {
   if (const auto c = root["compiler"]) {
     if (r.section(c, "compiler",
                   {"distance_mode", "default_feed_mm_per_min", "initial_tool", "plc_redefined_m",
-                   "max_program_segments", "max_call_depth"})) {
+                   "max_program_segments", "max_call_depth", "block_delete"})) {
+      if (c["block_delete"]) {
+        std::string mode;
+        if (!r.string(c, "compiler", "block_delete", mode)) {
+          // said
+        } else if (!parse_block_delete(mode, m.compiler.block_delete)) {
+          r.error(c["block_delete"], "compiler.block_delete",
+                  "must be error, run or skip, not '" + mode + "'");
+        }
+      }
       if (c["distance_mode"]) {
         std::string mode;
         if (!r.string(c, "compiler", "distance_mode", mode)) {

@@ -30,6 +30,19 @@ std::string redefine_m_problem(long long m) {
   return why + " cannot be redefined (only M2-M9, M17, M29, M30, M99)";
 }
 
+bool parse_block_delete(std::string_view word, BlockDelete& out) {
+  if (word == "error") {
+    out = BlockDelete::kRefuse;
+  } else if (word == "run") {
+    out = BlockDelete::kRun;
+  } else if (word == "skip") {
+    out = BlockDelete::kSkip;
+  } else {
+    return false;
+  }
+  return true;
+}
+
 char default_axis_letter(int i) {
   static constexpr char kLetters[kMaxAxes + 1] = "XYZABCUVWE";
   return (i >= 0 && i < kMaxAxes) ? kLetters[i] : '?';

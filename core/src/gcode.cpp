@@ -558,6 +558,18 @@ bool Compiler::lex_words(Block& b) {
       }
     }
   }
+  // Block delete: a '/' first on the line (after blanks) marks an optional block.
+  if (opt_.compiler.block_delete != BlockDelete::kRefuse) {
+    std::size_t j = begin;
+    while (j < end && is_space(src_[j])) ++j;
+    if (j < end && src_[j] == '/') {
+      if (opt_.compiler.block_delete == BlockDelete::kSkip) {
+        b.word_count = 0;
+        return true;
+      }
+      i = j + 1;
+    }
+  }
   while (i < end) {
     const char c = src_[i];
     if (is_space(c)) {
@@ -602,14 +614,16 @@ bool Compiler::lex_words(Block& b) {
     if (L >= 'a' && L <= 'z') L = static_cast<char>(L - 'a' + 'A');
     if (L < 'A' || L > 'Z') {
       const auto uc = static_cast<unsigned char>(c);
-      char buf[112];
+      char buf[160];
       std::size_t lead = begin;
       while (lead < i && is_space(src_[lead])) ++lead;
-      if (c == '/' && lead == i) {
+      if (c == '/' && opt_.compiler.block_delete != BlockDelete::kRefuse) {
+        std::snprintf(buf, sizeof buf, "block delete '/' must come first on its line");
+      } else if (c == '/' && lead == i) {
         // RS274's optional block: which lines the switch skips is the operator's, not ours.
         std::snprintf(buf, sizeof buf,
-                      "block delete '/' is not part of this dialect: delete the line, or the '/' "
-                      "to run it");
+                      "block delete '/': whether such lines run or are skipped is not set "
+                      "(compiler.block_delete: run or skip; tgm-hmi --block-delete)");
       } else if (uc >= 0x21 && uc < 0x7f) {
         std::snprintf(buf, sizeof buf, "unexpected character '%c'", c);
       } else if (const std::size_t n = utf8_sequence_length(src_.substr(i, end - i)); n > 1) {

@@ -65,6 +65,43 @@ TEST_F(HmiCompile, ExampleProgramWritesIntercodeEqualToTheInProcessEncoding) {
 // tool (T0, the default config's initial tool) and no D the radius is 0: compile, --dump and
 // simulate say so once, naming the first record that moves so; a program with a radius gets
 // no note.
+// --block-delete run|skip: the operator's switch over the lines that start with '/'; unset,
+// such a line is an error that says how to set it. Intercode was compiled with its choice made.
+TEST_F(HmiCompile, BlockDeleteRunsOrSkipsTheOptionalBlocks) {
+  const fs::path prog = dir_ / "optional.ngc";
+  std::ofstream(prog) << "G90 G1 X10 F1000\n/G1 Y5\nG1 X0\nM2\n";
+  const std::string base = "compile " + prog.string() + " --config " + kConfig;
+  const ProcessResult unset = run(base);
+  EXPECT_EQ(unset.exit_code, 2);
+  EXPECT_NE(unset.err.find("optional.ngc:2:1: error: block delete '/': whether such lines run or "
+                           "are skipped is not set"),
+            std::string::npos)
+      << unset.err;
+  const ProcessResult on = run(base + " --block-delete run --dump text");
+  ASSERT_EQ(on.exit_code, 0) << on.err;
+  EXPECT_NE(on.out.find("Y5.0000"), std::string::npos) << on.out;
+  EXPECT_EQ(std::count(on.out.begin(), on.out.end(), '\n'), 4) << on.out;  // a line a record
+  const fs::path out = dir_ / "optional.tgmi";
+  const ProcessResult off = run(base + " --block-delete skip --out " + out.string());
+  ASSERT_EQ(off.exit_code, 0) << off.err;
+  EXPECT_NE(off.err.find("3 records"), std::string::npos) << off.err;
+  const ProcessResult bad = run(base + " --block-delete yes");
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.err.find("--block-delete takes run or skip, not 'yes'"), std::string::npos)
+      << bad.err;
+  const ProcessResult again =
+      run("compile " + out.string() + " --config " + kConfig + " --block-delete run");
+  EXPECT_EQ(again.exit_code, 2);
+  EXPECT_NE(again.err.find("--block-delete: the file is intercode, compiled already"),
+            std::string::npos)
+      << again.err;
+  // simulate takes the same switch.
+  const ProcessResult sim =
+      run("simulate " + prog.string() + " --config " + kConfig + " --block-delete skip --quiet");
+  ASSERT_EQ(sim.exit_code, 0) << sim.err;
+  EXPECT_NE(sim.out.find("distance:  20.0000 mm"), std::string::npos) << sim.out;
+}
+
 TEST_F(HmiCompile, CompensationIsAppliedAndRadiusZeroIsNotedOnce) {
   const std::string note =
       "note: the first move under G42 (tool radius compensation) with radius 0 (tool T0): the tool "

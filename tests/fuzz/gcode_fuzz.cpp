@@ -1,8 +1,9 @@
 // Fuzz target: arbitrary bytes as a G-code program.
 //
-// Invariants (core/GCODE.md): the compiler never crashes or hangs; a program with errors
-// yields no records and every error has a place and a reason; a program without errors has
-// finite numbers only and survives encode -> decode -> encode unchanged; the dumps do not crash.
+// Invariants (core/GCODE.md): the compiler never crashes or hangs, with block delete refused,
+// run or skipped; a program with errors yields no records and every error has a place and a
+// reason; a program without errors has finite numbers only and survives encode -> decode ->
+// encode unchanged; the dumps do not crash.
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -14,8 +15,10 @@
 
 namespace {
 
-tgm::CompileOptions options(bool ten_axes, bool incremental) {
+tgm::CompileOptions options(bool ten_axes, bool incremental, std::size_t block_delete) {
   tgm::CompileOptions o;
+  // Lines starting with '/': refused, run or skipped (by the input's length).
+  o.compiler.block_delete = static_cast<tgm::BlockDelete>(block_delete % 3);
   o.axis_letters = ten_axes ? "XYZABCUVWE" : "XYZ";
   o.compiler.start_incremental = incremental;
   // Small enough that loops (G26/G27 with K) expand quickly, large enough to hit the limit.
@@ -79,7 +82,7 @@ void prepare_tokens(std::vector<std::string>&) {}
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string_view text(reinterpret_cast<const char*>(data), size);
-  check(text, options(false, true));
-  check(text, options(true, false));
+  check(text, options(false, true, size));
+  check(text, options(true, false, size + 1));
   return 0;
 }

@@ -586,6 +586,25 @@ TEST(Config, KeyGivenTwiceIsAnErrorWithItsLine) {
   EXPECT_TRUE(load.config) << load.errors.front();
 }
 
+// compiler.block_delete: what a line starting with '/' does (error by default, the built-in
+// machine's too).
+TEST(Config, BlockDeleteIsErrorRunOrSkip) {
+  EXPECT_EQ(MachineConfig::default_machine().compiler.block_delete, BlockDelete::kRefuse);
+  for (const auto& [word, mode] :
+       {std::pair{"error", BlockDelete::kRefuse}, std::pair{"run", BlockDelete::kRun},
+        std::pair{"skip", BlockDelete::kSkip}}) {
+    const auto load =
+        load_config_text(std::string("compiler:\n  block_delete: ") + word + "\n", "m.yaml");
+    ASSERT_TRUE(load.config) << word << ": " << load.errors.front();
+    EXPECT_EQ(load.config->machine.compiler.block_delete, mode) << word;
+  }
+  const auto load = load_config_text("compiler:\n  block_delete: on\n", "m.yaml");
+  EXPECT_FALSE(load.config);
+  ASSERT_EQ(load.errors.size(), 1u);
+  EXPECT_EQ(load.errors[0],
+            "m.yaml:2: compiler.block_delete: must be error, run or skip, not 'on'");
+}
+
 // A key with no value ("key:" and nothing after it) is named at its own line. yaml-cpp marks
 // such a value where the next token starts, which may be lines further down: the line after a
 // comment block, or the next section. And a value the reader rejected is said once: validate()

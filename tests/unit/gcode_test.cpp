@@ -468,10 +468,68 @@ TEST(GcodeErrors, UnknownWordAndCharacter) {
               ElementsAre("1:4: unknown word 'A5' (not an axis of this interpolator)"));
   EXPECT_THAT(errors_of("G1 X1 #\n"), ElementsAre("1:7: unexpected character '#'"));
   EXPECT_THAT(errors_of("G1 X1 F100\n  /G1 X2\n"),
-              ElementsAre("2:3: block delete '/' is not part of this dialect: delete the line, or "
-                          "the '/' to run it"));
+              ElementsAre("2:3: block delete '/': whether such lines run or are skipped is not set "
+                          "(compiler.block_delete: run or skip; tgm-hmi --block-delete)"));
   EXPECT_THAT(errors_of("G1 X1 /Y2\n"), ElementsAre("1:7: unexpected character '/'"));
   EXPECT_THAT(errors_of("G1 X1 \xff\n"), ElementsAre("1:7: unexpected byte 0xFF"));
+}
+
+// Block delete: a '/' first on a line (after blanks) marks an optional block, which the
+// operator's switch runs (off) or skips (on). Unset, such a line is refused (above).
+TEST(GcodeBlockDelete, RunIgnoresTheSlashAndSkipLeavesTheLineOut) {
+  const std::string text =
+      "G90 G1 X10 F1000\n"
+      "/G1 Y5\n"
+      "  / G1 Z-1 (an optional plunge)\n"
+      "/\n"
+      "G1 X0\n"
+      "M2\n";
+  CompileOptions run = options();
+  run.compiler.block_delete = BlockDelete::kRun;
+  const Program with = compile_ok(text, run);
+  // The same as the program without the slashes, line for line.
+  const Program plain =
+      compile_ok("G90 G1 X10 F1000\nG1 Y5\n   G1 Z-1 (an optional plunge)\n\nG1 X0\nM2\n");
+  ASSERT_EQ(with.segments.size(), plain.segments.size());
+  for (std::size_t k = 0; k < with.segments.size(); ++k) {
+    EXPECT_EQ(with.segments[k].line, plain.segments[k].line) << k;
+    EXPECT_EQ(with.segments[k].end, plain.segments[k].end) << k;
+  }
+  ASSERT_EQ(with.segments.size(), 5u);  // four moves and the end
+  EXPECT_NEAR(with.segments[2].end[2], -1.0, kTol);
+
+  CompileOptions skip = options();
+  skip.compiler.block_delete = BlockDelete::kSkip;
+  const Program without = compile_ok(text, skip);
+  ASSERT_EQ(without.segments.size(), 3u);
+  EXPECT_EQ(without.segments[0].line, 1);
+  EXPECT_EQ(without.segments[1].line, 5);
+  EXPECT_NEAR(without.segments[1].end[0], 0.0, kTol);
+  EXPECT_NEAR(without.segments[1].end[1], 0.0, kTol);  // Y5 left out
+  EXPECT_NEAR(without.segments[1].end[2], 0.0, kTol);  // Z-1 left out
+}
+
+TEST(GcodeBlockDelete, OnlyTheFirstCharacterMarksABlockAndItsWordsAreCheckedWhenRun) {
+  CompileOptions run = options();
+  run.compiler.block_delete = BlockDelete::kRun;
+  CompileOptions skip = options();
+  skip.compiler.block_delete = BlockDelete::kSkip;
+  for (const CompileOptions& o : {run, skip}) {
+    EXPECT_THAT(errors_of("G1 X1 F100 /Y2\n", o),
+                ElementsAre("1:12: block delete '/' must come first on its line"));
+    EXPECT_THAT(errors_of("N10 /G1 X1 F100\n", o),
+                ElementsAre("1:5: block delete '/' must come first on its line"));
+  }
+  // Run, an optional block is a block like any other, with its errors where they are.
+  EXPECT_THAT(errors_of("G1 X1 F100\n / G1 Q2\n", run), ElementsAre("2:7: unknown word 'Q2'"));
+  EXPECT_THAT(errors_of("G1 X1 F100\n//G1 X2\n", run),
+              ElementsAre("2:2: block delete '/' must come first on its line"));
+  // Skipped, its words are not read: what the switch leaves out does not run.
+  EXPECT_THAT(errors_of("G1 X1 F100\n / G1 Q2\n", skip), IsEmpty());
+  // A label in a skipped line is no label.
+  EXPECT_THAT(errors_of("G25 L7\nM2\n/G29 L7\nG1 X1 F100\nM17\n", skip),
+              ElementsAre("1:5: unknown label L7 (define it with G29 L7)"));
+  EXPECT_THAT(errors_of("G25 L7\nM2\n/G29 L7\nG1 X1 F100\nM17\n", run), IsEmpty());
 }
 
 // A 0x00 byte anywhere makes the text a binary file: one error at the first, where it lies (lines

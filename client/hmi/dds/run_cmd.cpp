@@ -68,6 +68,9 @@ constexpr const char* kUsage =
     "  --start X20,Y5        with --from-line and G-code: where the program was started from\n"
     "                        the first time [mm] (default: zero), so that its G91 moves and the\n"
     "                        axes its G90 lines do not name go where they went then\n"
+    "  --block-delete W      lines that start with '/' (optional blocks): run (the block\n"
+    "                        delete switch off) or skip (on); default: the config's\n"
+    "                        compiler.block_delete, error unless set (such a line is refused)\n"
     "  --single-block        stop after each block (a program stop, as an M0: Enter, or\n"
     "                        --m0-continue S, runs the next), to prove out a new program\n"
     "\n"
@@ -263,6 +266,7 @@ int run_run(int argc, char** argv) {
     if (args.boolean("--quiet", quiet)) continue;
     if (args.boolean("--no-estimate", no_estimate)) continue;
     if (args.common()) continue;
+    if (args.compile_flag()) continue;
     if (args.positional(file)) continue;
     return args.fail();
   }
@@ -324,6 +328,10 @@ int run_run(int argc, char** argv) {
     if (errors > 0)
       std::fprintf(stderr, "%s: %zu error%s, nothing sent\n", file.c_str(), errors,
                    errors == 1 ? "" : "s");
+    return 2;
+  }
+  if (intercode && args.block_delete_given()) {
+    std::fprintf(stderr, kBlockDeleteOnIntercode, file.c_str());
     return 2;
   }
   if (program.size() == 0) {

@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "tgm/intercode.hpp"
@@ -75,9 +76,18 @@ struct ToolConfig {
 };
 
 //! How the G-code compiler reads programs.
+//! What a line that starts with '/' (RS274's block delete, an optional block) does.
+enum class BlockDelete : std::uint8_t {
+  kRefuse,  //!< an error: which lines to leave out is the operator's choice, not a default
+  kRun,     //!< the switch off: the '/' is ignored and the line runs
+  kSkip,    //!< the switch on: the line does nothing (its words are not read)
+};
+
 struct CompilerConfig {
   //! Distance mode at program start: true = G91 (incremental), false = G90 (absolute).
   bool start_incremental = true;
+  //! Lines that start with '/' (compiler.block_delete: error, run or skip).
+  BlockDelete block_delete = BlockDelete::kRefuse;
   //! Feed used by G1/G2/G3 before any F word or M99 [mm/min].
   double default_feed_mm_per_min = 1000.0;
   //! Tool in the spindle when a program starts (Tool_Number before the first T word); 0 is no
@@ -128,5 +138,9 @@ std::string redefine_m_problem(long long m);
 
 //! Default letter of axis `i` (X Y Z A B C U V W E).
 char default_axis_letter(int i);
+
+//! compiler.block_delete's words: "error", "run", "skip" (as written; false for anything else,
+//! `out` unchanged).
+bool parse_block_delete(std::string_view word, BlockDelete& out);
 
 }  // namespace tgm
