@@ -391,11 +391,12 @@ TEST(ServiceProcesses, ARunShowsTheTimeLeftByTheProgramsTimeAndItsEstimate) {
                         env.path("hmi.log")));
   EXPECT_EQ(hmi.wait(kHang), 0) << hmi.log();
   const std::string log = hmi.log();
-  // Progress lines of the long move by time ("[###.......]  35.2% 0:03 left line 2/101").
+  // Progress lines of the long move by time ("[###.......]  35.2% line 2/102 0:03 left X..").
   double most = 0.0;
   std::size_t lines = 0;
-  for (std::size_t at = log.find(" left line 2/"); at != std::string::npos;
-       at = log.find(" left line 2/", at + 1)) {
+  for (std::size_t at = log.find("% line 2/102 "); at != std::string::npos;
+       at = log.find("% line 2/102 ", at + 1)) {
+    if (log.compare(log.find(' ', at + 13), 6, " left ") != 0) continue;  // not estimated yet
     const std::size_t open = log.rfind(']', at);
     ASSERT_NE(open, std::string::npos) << log;
     most = std::max(most, std::strtod(log.c_str() + open + 1, nullptr));
@@ -438,8 +439,9 @@ TEST(ServiceProcesses, ARunShowsTheTimeLeftByTheProgramsTimeAndItsEstimate) {
   const std::string h = half.log();
   bool slowed = false;
   std::size_t seen = 0;
-  for (std::size_t at = h.find(" left line 2/"); at != std::string::npos;
-       at = h.find(" left line 2/", at + 1)) {
+  for (std::size_t at = h.find("% line 2/3 "); at != std::string::npos;
+       at = h.find("% line 2/3 ", at + 1)) {
+    if (h.compare(h.find(' ', at + 11), 6, " left ") != 0) continue;  // not estimated yet
     const double pct = std::strtod(h.c_str() + h.rfind(']', at) + 1, nullptr);
     const std::size_t x = h.find(" X", at);
     ASSERT_NE(x, std::string::npos) << h;

@@ -1193,8 +1193,8 @@ int run_run(int argc, char** argv) {
         shown = "no state for " + std::to_string(silence.seconds_since_last(now)) + " s";
         wait.clear();
       }
-      std::printf("%s[%s] %5.1f%%%s line %d/%d%s F%.0f %s%s%s", tty ? "\r\033[K" : "", bar, pct,
-                  left.c_str(), st->act_line(), last_line, dro.c_str(), st->act_speed(),
+      std::printf("%s[%s] %5.1f%% line %d/%d%s%s F%.0f %s%s%s", tty ? "\r\033[K" : "", bar, pct,
+                  st->act_line(), last_line, left.c_str(), dro.c_str(), st->act_speed(),
                   shown.c_str(), wait.c_str(), tty ? "" : "\n");
       std::fflush(stdout);
       progress_shown = true;
