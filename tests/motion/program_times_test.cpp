@@ -126,12 +126,7 @@ TEST(ProgramTimesSweep, EachRecordIsDoneWhereTheRegistersLeaveIt) {
     const int axes = 1 + static_cast<int>(u(rng) * 4.0);
     const MachineConfig m = test::random_machine(rng, axes);
     test::Generated g = test::random_program(rng, axes, 4 + static_cast<int>(u(rng) * 16.0));
-    for (Segment& s : g.program.segments) {
-      if (s.type == SegmentType::kMFunction && s.aux < 0) {
-        s.aux = static_cast<std::int32_t>(g.program.params.size());
-        g.program.params.push_back(unset_params());
-      }
-    }
+    test::give_m_records_params(g.program);
     const std::string ctx = "times seed " + std::to_string(seed) + " program " + std::to_string(k);
     PackedProgram p;
     std::string error;

@@ -364,6 +364,17 @@ inline double motion_time_limit(const Program& program, const MachineConfig& mac
   return std::max(slowdown * bound_s, 1.25 * stop_s) + slack_s;
 }
 
+// Gives every M record of `p` a parameter set, as intercode does (the compiler's "not set"
+// letters), so that the program survives PackedProgram::from_program unchanged.
+inline void give_m_records_params(Program& p) {
+  for (Segment& s : p.segments) {
+    if (s.type == SegmentType::kMFunction && s.aux < 0) {
+      s.aux = static_cast<std::int32_t>(p.params.size());
+      p.params.push_back(unset_params());
+    }
+  }
+}
+
 inline MachineConfig random_machine(std::mt19937_64& rng, int axes) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   MachineConfig m = MachineConfig::default_machine();

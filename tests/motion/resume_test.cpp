@@ -272,13 +272,7 @@ TEST(ResumeSweep, ResumedProgramsRunTheirTailFromAnywhere) {
     const int axes = 1 + static_cast<int>(u(rng) * 4.0);
     MachineConfig m = test::random_machine(rng, axes);
     test::Generated g = test::random_program(rng, axes, 4 + static_cast<int>(u(rng) * 12.0));
-    // Intercode gives every M record a parameter set (the compiler's "not set" letters).
-    for (Segment& s : g.program.segments) {
-      if (s.type == SegmentType::kMFunction && s.aux < 0) {
-        s.aux = static_cast<std::int32_t>(g.program.params.size());
-        g.program.params.push_back(unset_params());
-      }
-    }
+    test::give_m_records_params(g.program);
     const std::string ctx = "resume seed " + std::to_string(seed) + " program " + std::to_string(k);
     PackedProgram whole;
     std::string error;
