@@ -7,7 +7,9 @@
 // that finishes ends at its last motion's end point. The run is cut off after kMaxProgramS of
 // program time (a fuzzed feed of F0.001 over a long move is slow, not wrong). Most runs also
 // change the override and some give stops on the trajectory (see `Operator`); one in eight is
-// resumed at the line of one of its records (block search) and run from there.
+// resumed at the line of one of its records (block search) and run from there. A finished run
+// of intercode (one in four) is timed by record again (program_times): its total is the run's,
+// its times never go back, and its moves' lengths make the run's distance.
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -28,6 +30,7 @@
 #include "tgm/config.hpp"
 #include "tgm/gcode.hpp"
 #include "tgm/intercode_io.hpp"
+#include "tgm/program_times.hpp"
 #include "tgm/resume.hpp"
 #include "tgm/simulation.hpp"
 
@@ -184,6 +187,28 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       packed = std::move(resumed.program);
     }
     s = sim->run(packed);
+    // The time by record of the same run (tgm/program_times.hpp, the time left of tgm-hmi
+    // run): the run's own total, non-decreasing, and the moves' lengths make its distance.
+    if (s.result == tgm::StepResult::kFinished) {
+      tgm::SimulationOptions plain = o;
+      plain.check_limits = false;  // the same trajectory, checked above
+      const auto t = tgm::program_times(m, plain, packed, &error);
+      TGM_FUZZ_CHECK(t.has_value(), "program_times of a finished run: " + error);
+      TGM_FUZZ_CHECK(t->total_s == s.program_time_s,
+                     "program_times total " + std::to_string(t->total_s) + " s, the run " +
+                         std::to_string(s.program_time_s) + " s");
+      double length = 0.0;
+      for (std::size_t k = 0; k < t->done_s.size(); ++k) {
+        TGM_FUZZ_CHECK(k == 0 || t->done_s[k] >= t->done_s[k - 1],
+                       "record " + std::to_string(k) + " done before the one before it");
+        length += static_cast<double>(t->length_mm[k]);
+      }
+      TGM_FUZZ_CHECK(t->done_s.back() == static_cast<float>(s.program_time_s),
+                     "the last record is not done at the end");
+      TGM_FUZZ_CHECK(std::fabs(length - s.distance_mm) <= 1e-6 + 1e-6 * s.distance_mm,
+                     "lengths " + std::to_string(length) + " mm, the run's distance " +
+                         std::to_string(s.distance_mm) + " mm");
+    }
   } else {
     s = sim->run(r.program);
   }
