@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "../support/test_params.hpp"
+#include "packed_gcode.hpp"
 #include "random_program.hpp"
 #include "tgm/gcode.hpp"
 #include "tgm/intercode_io.hpp"
@@ -22,16 +23,7 @@
 namespace tgm {
 namespace {
 
-PackedProgram packed(const std::string& gcode) {
-  const CompileResult r = compile_gcode(gcode, CompileOptions{});
-  EXPECT_TRUE(r.errors.empty()) << (r.errors.empty()
-                                        ? ""
-                                        : format_diagnostic("program", r.errors.front()));
-  PackedProgram p;
-  std::string error;
-  EXPECT_TRUE(PackedProgram::from_program(r.program, p, error)) << error;
-  return p;
-}
+using test::packed;
 
 double run_time(const MachineConfig& m, const SimulationOptions& o, const PackedProgram& p) {
   auto sim = Simulation::create(m, o);

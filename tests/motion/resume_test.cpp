@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "../support/test_params.hpp"
+#include "packed_gcode.hpp"
 #include "random_program.hpp"
 #include "tgm/gcode.hpp"
 #include "tgm/intercode_io.hpp"
@@ -23,18 +24,7 @@
 namespace tgm {
 namespace {
 
-PackedProgram packed(const std::string& gcode, const std::array<double, kMaxAxes>& start = {}) {
-  CompileOptions o;
-  o.start_mm = start;
-  const CompileResult r = compile_gcode(gcode, o);
-  EXPECT_TRUE(r.errors.empty()) << (r.errors.empty()
-                                        ? ""
-                                        : format_diagnostic("program", r.errors.front()));
-  PackedProgram p;
-  std::string error;
-  EXPECT_TRUE(PackedProgram::from_program(r.program, p, error)) << error;
-  return p;
-}
+using test::packed;
 
 std::vector<Segment> records(const PackedProgram& p) {
   std::vector<Segment> out;
