@@ -22,8 +22,8 @@ namespace tgm {
 struct ProgramTimes {
   //! done_s[k]: the program time [s] at which record k (0-based) is done: a move's end (to
   //! the calculation step), the end of an M-function's wait or of a dwell (to the cycle), for a
-  //! record that takes no time between two moves the start of the second. Non-decreasing;
-  //! 4 bytes a record (a float resolves 4 ms at 9 hours of program time).
+  //! record that takes no time between two moves the start of the second. Non-decreasing.
+  //! Floats, with length_mm 8 bytes a record (a float resolves 4 ms at 9 hours).
   std::vector<float> done_s;
   //! length_mm[k]: the path length of record k [mm] (0 for a record that does not move).
   std::vector<float> length_mm;
@@ -33,10 +33,10 @@ struct ProgramTimes {
   //! Program time [s] elapsed when record `act_part` (Act_Part: 1-based, as the registers
   //! count) has run for `in_record_s` and moved `in_record_mm` along the path: what the
   //! records before it take, plus at most what it takes itself. Inside a move its share of
-  //! that goes by the share of its length moved, which a feed override does not skew (by time,
-  //! a long move at half the override was done half-way along it); by time where it does not
-  //! move, or where in_record_mm is negative or NaN (not known). Past the last record, or with
-  //! act_part beyond the program, total_s; 0 before the first.
+  //! that goes by the share of its length moved, which a feed override does not skew (by time
+  //! alone, a long move at half the override read as done when it was half-way); by time where
+  //! it does not move, or where in_record_mm is negative or NaN (not known). Past the last
+  //! record, or with act_part beyond the program, total_s; 0 before the first.
   double elapsed_s(std::int64_t act_part, double in_record_s, double in_record_mm = -1.0) const;
 };
 
