@@ -545,30 +545,25 @@ bool Compiler::lex_words(Block& b) {
   std::uint32_t seen = 0;  // letters already on this line (G excluded)
   std::size_t i = begin;
   auto col = [&](std::size_t at) { return static_cast<std::uint32_t>(at - begin + 1); };
+  // The line's first character after blanks.
+  std::size_t first = begin;
+  while (first < end && is_space(src_[first])) ++first;
   // A line holding only '%' (tape start/end marker) is ignored.
-  {
-    std::size_t j = begin;
-    while (j < end && is_space(src_[j])) ++j;
-    if (j < end && src_[j] == '%') {
-      std::size_t k = j + 1;
-      while (k < end && is_space(src_[k])) ++k;
-      if (k == end) {
-        b.word_count = 0;
-        return true;
-      }
+  if (first < end && src_[first] == '%') {
+    std::size_t k = first + 1;
+    while (k < end && is_space(src_[k])) ++k;
+    if (k == end) {
+      b.word_count = 0;
+      return true;
     }
   }
-  // Block delete: a '/' first on the line (after blanks) marks an optional block.
-  if (opt_.compiler.block_delete != BlockDelete::kRefuse) {
-    std::size_t j = begin;
-    while (j < end && is_space(src_[j])) ++j;
-    if (j < end && src_[j] == '/') {
-      if (opt_.compiler.block_delete == BlockDelete::kSkip) {
-        b.word_count = 0;
-        return true;
-      }
-      i = j + 1;
+  // Block delete: a '/' first on the line marks an optional block.
+  if (opt_.compiler.block_delete != BlockDelete::kRefuse && first < end && src_[first] == '/') {
+    if (opt_.compiler.block_delete == BlockDelete::kSkip) {
+      b.word_count = 0;
+      return true;
     }
+    i = first + 1;
   }
   while (i < end) {
     const char c = src_[i];
@@ -615,11 +610,9 @@ bool Compiler::lex_words(Block& b) {
     if (L < 'A' || L > 'Z') {
       const auto uc = static_cast<unsigned char>(c);
       char buf[160];
-      std::size_t lead = begin;
-      while (lead < i && is_space(src_[lead])) ++lead;
       if (c == '/' && opt_.compiler.block_delete != BlockDelete::kRefuse) {
         std::snprintf(buf, sizeof buf, "block delete '/' must come first on its line");
-      } else if (c == '/' && lead == i) {
+      } else if (c == '/' && i == first) {
         // RS274's optional block: which lines the switch skips is the operator's, not ours.
         std::snprintf(buf, sizeof buf,
                       "block delete '/': whether such lines run or are skipped is not set "

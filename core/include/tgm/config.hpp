@@ -75,7 +75,6 @@ struct ToolConfig {
   double length_mm = 0.0;
 };
 
-//! How the G-code compiler reads programs.
 //! What a line that starts with '/' (RS274's block delete, an optional block) does.
 enum class BlockDelete : std::uint8_t {
   kRefuse,  //!< an error: which lines to leave out is the operator's choice, not a default
@@ -83,6 +82,7 @@ enum class BlockDelete : std::uint8_t {
   kSkip,    //!< the switch on: the line does nothing (its words are not read)
 };
 
+//! How the G-code compiler reads programs.
 struct CompilerConfig {
   //! Distance mode at program start: true = G91 (incremental), false = G90 (absolute).
   bool start_incremental = true;
