@@ -37,6 +37,15 @@ bool Args::compile_flag() {
   return flag("--block-delete", block_delete_);
 }
 
+bool Args::compile_flags_fit(const std::string& file, bool intercode) const {
+  if (!intercode || block_delete_.empty()) return true;
+  std::fprintf(stderr,
+               "%s: error: --block-delete: the file is intercode, compiled already (its optional "
+               "blocks were run or skipped then: tgm-hmi compile --block-delete)\n",
+               file.c_str());
+  return false;
+}
+
 bool Args::help() const {
   if (help_given()) std::fputs(usage_, stdout);
   return help_given();

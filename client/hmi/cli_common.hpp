@@ -33,8 +33,9 @@ class Args : public cli::ArgReader {
   //! Consumes the flags of the commands that compile G-code: --block-delete run|skip (applied
   //! to the config's compiler.block_delete by load_app()).
   bool compile_flag();
-  //! True when --block-delete was given (it has no effect on intercode, compiled already).
-  bool block_delete_given() const { return !block_delete_.empty(); }
+  //! False, saying why, when --block-delete was given for FILE that is intercode (compiled
+  //! already, its optional blocks run or skipped then).
+  bool compile_flags_fit(const std::string& file, bool intercode) const;
   //! True (after printing the usage to stdout) when --help was given.
   bool help() const;
 
@@ -56,11 +57,6 @@ class Args : public cli::ArgReader {
   int interpolator_ = 0;
   std::string block_delete_;
 };
-
-//! The error for --block-delete on intercode (FILE's name for the %s).
-inline constexpr const char* kBlockDeleteOnIntercode =
-    "%s: error: --block-delete: the file is intercode, compiled already (its optional blocks "
-    "were run or skipped then: tgm-hmi compile --block-delete)\n";
 
 //! What FileView reads from a pipe or a device (regular files are mapped, of any size): 1 GiB,
 //! several times the longest program the compiler expands (compiler.max_program_segments).

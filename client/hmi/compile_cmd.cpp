@@ -201,13 +201,9 @@ int run_compile(int argc, char** argv) {
   FileView input;
   if (!input.open_or_report(file)) return 2;
   const std::string_view text = input.text();
-  if (is_intercode(file, text)) {
-    if (args.block_delete_given()) {
-      std::fprintf(stderr, kBlockDeleteOnIntercode, file.c_str());
-      return 2;
-    }
-    return inspect_intercode(args, file, input, dump, out_path, start_text);
-  }
+  const bool intercode = is_intercode(file, text);
+  if (!args.compile_flags_fit(file, intercode)) return 2;
+  if (intercode) return inspect_intercode(args, file, input, dump, out_path, start_text);
   CompileOptions options = CompileOptions::from_machine(*machine, args.interpolator());
   if (std::string why; !start_text.empty() &&
                        !parse_start(start_text, options.axis_letters, options.start_mm, why)) {

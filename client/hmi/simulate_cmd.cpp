@@ -345,10 +345,7 @@ int run_simulate(int argc, char** argv) {
     std::fprintf(stderr, "%s: error: the program has no records (no move, dwell or M-function)\n", file.c_str());
     return 2;
   }
-  if (intercode && args.block_delete_given()) {
-    std::fprintf(stderr, kBlockDeleteOnIntercode, file.c_str());
-    return 2;
-  }
+  if (!args.compile_flags_fit(file, intercode)) return 2;
   // Intercode runs from the point it was compiled from, as `tgm-hmi run` runs it.
   if (intercode) {
     if (!start_text.empty() &&

@@ -330,10 +330,7 @@ int run_run(int argc, char** argv) {
                    errors == 1 ? "" : "s");
     return 2;
   }
-  if (intercode && args.block_delete_given()) {
-    std::fprintf(stderr, kBlockDeleteOnIntercode, file.c_str());
-    return 2;
-  }
+  if (!args.compile_flags_fit(file, intercode)) return 2;
   if (program.size() == 0) {
     std::fprintf(stderr, "%s: error: the program has no records (no move, dwell or M-function)\n", file.c_str());
     return 2;
