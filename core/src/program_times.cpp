@@ -33,11 +33,9 @@ std::optional<ProgramTimes> program_times(const MachineConfig& machine,
   // between two reports (an M-function, a dwell, a message) is done by the pass in which
   // Act_Part leaves it, or, where a pass crosses it, when the move after it starts.
   std::uint64_t filled = 0;
-  float last = 0.0F;
   const auto fill_to = [&](std::uint64_t end, double at) {
-    const float f = std::max(last, static_cast<float>(at));
+    const float f = std::max(filled == 0 ? 0.0F : t.done_s[filled - 1], static_cast<float>(at));
     for (; filled < end; ++filled) t.done_s[filled] = f;
-    last = f;
   };
   // The records Act_Part has left behind are done (at the resolution of a pass: a cycle,
   // where a record that takes no motion ends).
