@@ -396,6 +396,25 @@ inline MachineConfig random_machine(std::mt19937_64& rng, int axes) {
   return m;
 }
 
+// A random machine of 1..4 axes and a random program of 4 up to 4 + extra_blocks blocks for
+// it, its M records given their parameter sets (give_m_records_params): what the block search
+// and the program-times sweeps draw first from a program's generator.
+struct RandomCase {
+  int axes = 0;
+  MachineConfig machine;
+  Generated generated;
+};
+
+inline RandomCase random_case(std::mt19937_64& rng, int extra_blocks) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  RandomCase c;
+  c.axes = 1 + static_cast<int>(u(rng) * 4.0);
+  c.machine = random_machine(rng, c.axes);
+  c.generated = random_program(rng, c.axes, 4 + static_cast<int>(u(rng) * extra_blocks));
+  give_m_records_params(c.generated.program);
+  return c;
+}
+
 // A machine from a much wider envelope than random_machine's (which the CTest sweeps use): per
 // axis, log-uniform velocity 1..1e4 mm/s, acceleration 10..1e5 mm/s^2, jerk 100..1e8 mm/s^3 and
 // corner tolerance 0.01..100 mm/s, held to realistic relations (v / A 5 ms..5 s, A / J

@@ -259,10 +259,10 @@ TEST(ResumeSweep, ResumedProgramsRunTheirTailFromAnywhere) {
   for (std::uint64_t k = 0; k < count; ++k) {
     std::mt19937_64 rng(seed * 7919u + k);
     std::uniform_real_distribution<double> u(0.0, 1.0);
-    const int axes = 1 + static_cast<int>(u(rng) * 4.0);
-    MachineConfig m = test::random_machine(rng, axes);
-    test::Generated g = test::random_program(rng, axes, 4 + static_cast<int>(u(rng) * 12.0));
-    test::give_m_records_params(g.program);
+    const test::RandomCase c = test::random_case(rng, 12);
+    const int axes = c.axes;
+    const MachineConfig& m = c.machine;
+    const test::Generated& g = c.generated;
     const std::string ctx = "resume seed " + std::to_string(seed) + " program " + std::to_string(k);
     PackedProgram whole;
     std::string error;
