@@ -4,7 +4,9 @@
 #include "tgm/smoothing.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <set>
 #include <string>
 
@@ -41,6 +43,54 @@ bool parse_block_delete(std::string_view word, BlockDelete& out) {
     return false;
   }
   return true;
+}
+
+namespace {
+
+// FNV-1a, 64 bits, over little-endian values.
+class Fnv1a {
+ public:
+  void add(std::uint64_t v) {
+    for (int k = 0; k < 8; ++k) {
+      h_ = (h_ ^ ((v >> (8 * k)) & 0xffu)) * 0x100000001b3ull;
+    }
+  }
+  void add(double v) { add(std::bit_cast<std::uint64_t>(v == 0.0 ? 0.0 : v)); }
+  std::uint64_t value() const { return h_ != 0 ? h_ : 1; }
+
+ private:
+  std::uint64_t h_ = 0xcbf29ce484222325ull;
+};
+
+}  // namespace
+
+std::uint64_t machine_digest(const MachineConfig& machine, int n, int axes) {
+  if (n < 0 || n >= static_cast<int>(machine.interpolators.size())) return 0;
+  const InterpolatorConfig& ip = machine.interpolators[static_cast<std::size_t>(n)];
+  const std::size_t count = std::min(ip.axes.size(), static_cast<std::size_t>(std::max(axes, 0)));
+  Fnv1a h;
+  h.add(std::uint64_t{1});  // the format's version
+  h.add(static_cast<std::uint64_t>(machine.cycle_time_us));
+  const SmoothingConfig& s = machine.smoothing;
+  h.add(static_cast<std::uint64_t>(s.spline_points));
+  h.add(s.spline_jerk_mm_s3);
+  h.add(static_cast<std::uint64_t>(s.iir_p_e6));
+  h.add(static_cast<std::uint64_t>(s.iir_q_e6));
+  h.add(static_cast<std::uint64_t>(s.iir_f_e6));
+  h.add(static_cast<std::uint64_t>(s.iir_axis_mask));
+  h.add(static_cast<std::uint64_t>(ip.buffer_size));
+  h.add(static_cast<std::uint64_t>(count));
+  for (std::size_t i = 0; i < count; ++i) {
+    const AxisConfig& a = ip.axes[i];
+    h.add(static_cast<std::uint64_t>(static_cast<unsigned char>(a.letter)));
+    for (const double v :
+         {a.max_velocity_mm_s, a.max_acceleration_mm_s2, a.max_jerk_mm_s3, a.rapid_velocity_mm_s,
+          a.emergency_deceleration_mm_s2, a.corner_velocity_tolerance_mm_s, a.backlash_mm,
+          a.backlash_ramp_share, a.min_position_mm, a.max_position_mm}) {
+      h.add(v);
+    }
+  }
+  return h.value();
 }
 
 char default_axis_letter(int i) {

@@ -588,6 +588,82 @@ TEST(Config, KeyGivenTwiceIsAnErrorWithItsLine) {
 
 // compiler.block_delete: what a line starting with '/' does (error by default, the built-in
 // machine's too).
+// machine_digest is a format that services and clients of other versions share: pinned by a
+// value computed outside (FNV-1a 64 by hand in Python over the fields in the documented order).
+TEST(MachineDigest, IsPinnedForOneAxisOfDefaults) {
+  MachineConfig m;
+  m.cycle_time_us = 500;
+  m.interpolators.push_back({{AxisConfig{}}, 10000});
+  EXPECT_EQ(machine_digest(m, 0, 1), 0x9e8234af6b47351eull);
+  EXPECT_EQ(machine_digest(m, 0, 10), 0x9e8234af6b47351eull);  // it has one axis
+  EXPECT_EQ(machine_digest(m, 1, 1), 0u);                      // no interpolator 1
+  EXPECT_EQ(machine_digest(m, -1, 1), 0u);
+  m.interpolators[0].axes[0].backlash_mm = -0.0;  // -0 is 0
+  EXPECT_EQ(machine_digest(m, 0, 1), 0x9e8234af6b47351eull);
+}
+
+// Every value that shapes the motion changes it; what does not (compiler, tools, gear ratio,
+// other interpolators, axes beyond the count) leaves it.
+TEST(MachineDigest, FollowsWhatShapesTheMotionAndNothingElse) {
+  const MachineConfig base = MachineConfig::default_machine();
+  const std::uint64_t d = machine_digest(base, 0, 3);
+  ASSERT_NE(d, 0u);
+  EXPECT_EQ(machine_digest(base, 0, 3), d);
+  using Edit = void (*)(MachineConfig&);
+  const std::vector<std::pair<const char*, Edit>> shaping = {
+      {"cycle_time_us", [](MachineConfig& m) { m.cycle_time_us = 250; }},
+      {"spline_points", [](MachineConfig& m) { m.smoothing.spline_points = 50; }},
+      {"spline_jerk", [](MachineConfig& m) { m.smoothing.spline_jerk_mm_s3 *= 2; }},
+      {"iir_p", [](MachineConfig& m) { m.smoothing.iir_p_e6 += 1; }},
+      {"iir_q", [](MachineConfig& m) { m.smoothing.iir_q_e6 += 1; }},
+      {"iir_f", [](MachineConfig& m) { m.smoothing.iir_f_e6 += 1; }},
+      {"iir_mask", [](MachineConfig& m) { m.smoothing.iir_axis_mask = 1; }},
+      {"buffer_size", [](MachineConfig& m) { m.interpolators[0].buffer_size += 1; }},
+      {"letter", [](MachineConfig& m) { m.interpolators[0].axes[2].letter = 'W'; }},
+      {"velocity", [](MachineConfig& m) { m.interpolators[0].axes[2].max_velocity_mm_s += 1; }},
+      {"acceleration",
+       [](MachineConfig& m) { m.interpolators[0].axes[0].max_acceleration_mm_s2 += 1; }},
+      {"jerk", [](MachineConfig& m) { m.interpolators[0].axes[1].max_jerk_mm_s3 += 1; }},
+      {"rapid", [](MachineConfig& m) { m.interpolators[0].axes[1].rapid_velocity_mm_s -= 1; }},
+      {"emergency",
+       [](MachineConfig& m) { m.interpolators[0].axes[0].emergency_deceleration_mm_s2 += 1; }},
+      {"corner",
+       [](MachineConfig& m) { m.interpolators[0].axes[0].corner_velocity_tolerance_mm_s += 1; }},
+      {"backlash", [](MachineConfig& m) { m.interpolators[0].axes[0].backlash_mm = 0.01; }},
+      {"backlash_share",
+       [](MachineConfig& m) { m.interpolators[0].axes[0].backlash_ramp_share = 0.2; }},
+      {"min_position", [](MachineConfig& m) { m.interpolators[0].axes[0].min_position_mm = -5; }},
+      {"max_position", [](MachineConfig& m) { m.interpolators[0].axes[2].max_position_mm = 5; }},
+      {"an axis fewer", [](MachineConfig& m) { m.interpolators[0].axes.pop_back(); }},
+  };
+  for (const auto& [name, edit] : shaping) {
+    MachineConfig m = base;
+    edit(m);
+    EXPECT_NE(machine_digest(m, 0, 3), d) << name;
+  }
+  const std::vector<std::pair<const char*, Edit>> other = {
+      {"ratio", [](MachineConfig& m) { m.interpolators[0].axes[0].ratio_inc_per_mm = 7; }},
+      {"feed", [](MachineConfig& m) { m.compiler.default_feed_mm_per_min = 77; }},
+      {"tools", [](MachineConfig& m) { m.tools.clear(); }},
+      {"interpolator 1", [](MachineConfig& m) { m.interpolators[1].buffer_size += 1; }},
+      {"an axis beyond",
+       [](MachineConfig& m) {
+         m.interpolators[0].axes.push_back(AxisConfig{});
+         m.interpolators[0].axes.back().letter = 'A';
+       }},
+  };
+  for (const auto& [name, edit] : other) {
+    MachineConfig m = base;
+    edit(m);
+    EXPECT_EQ(machine_digest(m, 0, 3), d) << name;
+  }
+  // Two axes of three: the third does not count.
+  MachineConfig two = base;
+  two.interpolators[0].axes[2].max_jerk_mm_s3 += 1;
+  EXPECT_EQ(machine_digest(two, 0, 2), machine_digest(base, 0, 2));
+  EXPECT_NE(machine_digest(base, 0, 2), d);
+}
+
 TEST(Config, BlockDeleteIsErrorRunOrSkip) {
   EXPECT_EQ(MachineConfig::default_machine().compiler.block_delete, BlockDelete::kRefuse);
   for (const auto& [word, mode] :

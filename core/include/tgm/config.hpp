@@ -132,6 +132,17 @@ struct MachineConfig {
   static MachineConfig default_machine();
 };
 
+//! A digest of what shapes interpolator `n`'s motion in `machine`, over its first `axes` axes
+//! (fewer when it has fewer): the cycle time, the smoothing defaults, Buffer_Size and each
+//! axis's letter, limits, backlash and soft limits. Not the compiler, the tools, the start gear
+//! ratios (the PLC writes Ratio), other interpolators or the axes beyond. tgm-service publishes
+//! it (InterpolatorState.machine_digest), so a client that simulates with its own config (the
+//! time estimate of `tgm-hmi run`) can tell that the service moves by another. FNV-1a over the
+//! values in a fixed order (integers as 64-bit, doubles by their IEEE bits, -0 as 0, all little
+//! endian): a format that clients and services of other versions share, pinned by a test.
+//! Never 0 (0 in the state: a service that does not say); 0 for no interpolator `n`.
+std::uint64_t machine_digest(const MachineConfig& machine, int n, int axes);
+
 //! Why M`m` cannot be listed in compiler.plc_redefined_m: empty for the M-numbers the manual
 //! marks "can be redefined" (M2-M9, M17, M29, M30, M99), else "M<m> cannot be redefined (...)".
 std::string redefine_m_problem(long long m);
