@@ -718,6 +718,7 @@ void DdsPort::publish_state(int i, const InterpolatorSnapshot& s, const Snapshot
   state_sample_.message_text(std::string(s.message_text.view()));
   state_sample_.axis_letters(std::string(s.axis_letters.view()));
   state_sample_.plc_setup(s.plc_setup);
+  state_sample_.machine_digest(s.machine_digest);
   state_sample_.cycle_counter(all.cycle);
   state_sample_.cycle_time_us(opt_.cycle_time_us);
   state_sample_.lateness_last_ns(all.lateness.last_ns);

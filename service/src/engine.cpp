@@ -179,6 +179,9 @@ std::optional<Engine> Engine::create(const MachineConfig& machine, const EngineO
     }
     Slot slot(std::move(*ip));
     slot.letters = machine.axis_letters(i);
+    for (int k = 0; k <= kMaxAxes; ++k) {
+      slot.digests[static_cast<std::size_t>(k)] = machine_digest(machine, i, k);
+    }
     if (options.check_limits) {
       slot.checker = LimitChecker::create(machine.interpolators[static_cast<std::size_t>(i)],
                                           machine.cycle_time_us, &why, options.limit_share);
@@ -586,6 +589,8 @@ void Engine::cycle(CyclePort& port, const LatenessStats& lateness) {
     o.message_counter = s.message_counter;
     o.message_text = s.message_text;
     o.axis_letters.set(s.active_letters());
+    o.machine_digest = s.digests[static_cast<std::size_t>(
+        std::clamp(static_cast<int>(reg.number_axes), 0, kMaxAxes))];
     o.plc_setup = !opt_.require_plc_setup ? 0 : awaits_plc_setup(s) ? 1 : 2;
   }
   port.publish(snapshot_);

@@ -851,6 +851,26 @@ TEST(Engine, AProgramCompiledForOtherAxisLettersIsRefused) {
       << port.messages[1].text.view();
 }
 
+// The snapshot carries the digest of what shapes each interpolator's motion, over the axes in
+// use (InterpolatorState.machine_digest): a client simulating with its own config compares it.
+TEST(Engine, TheSnapshotCarriesTheMachineDigestOfTheAxesInUse) {
+  const MachineConfig m = MachineConfig::default_machine();
+  Engine e = make_engine();
+  MockPort port;
+  e.cycle(port, {});
+  for (int i = 0; i < e.count(); ++i) {
+    EXPECT_EQ(port.last.ip[static_cast<std::size_t>(i)].machine_digest, machine_digest(m, i, 3))
+        << i;
+  }
+  port.add_request(Role::kPlc, RequestKind::kWriteNumberAxes, 2).value = 2;
+  e.cycle(port, {});
+  ASSERT_EQ(port.replies.size(), 1u);
+  EXPECT_EQ(port.replies[0].code, ReplyCode::kAccepted) << port.replies[0].reason.view();
+  EXPECT_EQ(port.last.ip[2].machine_digest, machine_digest(m, 2, 2));
+  EXPECT_NE(port.last.ip[2].machine_digest, machine_digest(m, 2, 3));
+  EXPECT_EQ(port.last.ip[0].machine_digest, machine_digest(m, 0, 3));
+}
+
 TEST(Engine, NormalMFunctionWaitsForTheAckAndResumesInTheSameCycle) {
   Engine e = make_engine();
   MockPort port;

@@ -4,6 +4,7 @@
 // calls cycle() at absolute deadlines; tests call it as fast as they like with a mock port.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -115,6 +116,8 @@ class Engine {
     std::uint64_t events = 0;  // EventOut::counter of the last event queued
     std::string letters;       // the config's axis letters (Number_Axes takes the first ones)
     bool plc_setup_done = false;  // a PLC reported its setup (EngineOptions::require_plc_setup)
+    // machine_digest() of the config by Number_Axes (made once: the cycle does not hash).
+    std::array<std::uint64_t, kMaxAxes + 1> digests{};
     //! The letters of the Number_Axes axes in use.
     std::string_view active_letters() const {
       return std::string_view(letters).substr(0,

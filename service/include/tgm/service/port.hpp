@@ -184,6 +184,8 @@ struct InterpolatorSnapshot {
   FixedText<kMaxAxes + 1> axis_letters;
   //! InterpolatorState.plc_setup: 0 not required, 1 not yet reported, 2 reported.
   std::uint8_t plc_setup = 0;
+  //! machine_digest() of the config over the Number_Axes axes (InterpolatorState.machine_digest).
+  std::uint64_t machine_digest = 0;
 };
 
 //! Everything the publisher needs after one cycle.
