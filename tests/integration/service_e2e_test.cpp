@@ -3048,6 +3048,72 @@ TEST(ServiceProcesses, HmiTimesTheProgramByTheServicesCycle) {
       status.start({TGM_HMI_BIN, "status", "--config", env.config()}, env.path("status.log")));
   EXPECT_EQ(status.wait(kHang), 0) << status.log();
   EXPECT_NE(status.log().find(" of 1000 us, lateness"), std::string::npos) << status.log();
+  // Another config, by its cycle time: status says so. The estimate of a run simulates at the
+  // service's cycle, so it has one.
+  EXPECT_NE(status.log().find("warning: interpolator 0: the service's machine config is not " +
+                              env.config() + " ("),
+            std::string::npos)
+      << status.log();
+  std::ofstream(env.path("back.ngc")) << "G90 G1 X0 F600\nM2\n";
+  test::Child timed;
+  ASSERT_TRUE(timed.start({TGM_HMI_BIN, "run", env.path("back.ngc"), "--config", env.config()},
+                          env.path("timed.log")));
+  ASSERT_EQ(timed.wait(kHang), 0) << timed.log();
+  EXPECT_NE(timed.log().find(", estimated "), std::string::npos) << timed.log();
+}
+
+// A service whose axes have other limits than the HMI's config moves the program in another
+// time: the run leaves the estimate out and says why (it simulated by the HMI's limits and
+// said nothing), and status says whose config differs. The state carries the digest.
+TEST(ServiceProcesses, ARunAgainstOtherAxisLimitsLeavesTheEstimateOut) {
+  ServiceEnv env;
+  std::string soft = test::read_text(env.config());
+  ASSERT_TRUE(test::replace_first(soft, "max_jerk_mm_s3: 30000", "max_jerk_mm_s3: 20000"));
+  std::ofstream(env.path("soft.yaml")) << soft;
+  ASSERT_TRUE(env.start_service({"--config", env.path("soft.yaml")}));
+  std::ofstream(env.path("p.ngc")) << "G91 G1 X10 F600\nM2\n";  // each run from where it stands
+  test::Child run;
+  ASSERT_TRUE(run.start({TGM_HMI_BIN, "run", env.path("p.ngc"), "--config", env.config(),
+                         "--progress-interval", "0.1"},
+                        env.path("run.log")));
+  ASSERT_EQ(run.wait(kHang), 0) << run.log();
+  const std::string log = run.log();
+  EXPECT_NE(log.find("tgm-hmi run: no time estimate (progress by records): the service moves "
+                     "interpolator 0 by another machine config than " +
+                     env.config() + " (axis limits"),
+            std::string::npos)
+      << log;
+  EXPECT_EQ(log.find(", estimated "), std::string::npos) << log;
+  EXPECT_EQ(log.find(" left "), std::string::npos) << log;
+  EXPECT_NE(log.find("done: "), std::string::npos) << log;
+
+  test::Child status;
+  ASSERT_TRUE(status.start({TGM_HMI_BIN, "status", "--json", "--config", env.config()},
+                           env.path("status.log")));
+  EXPECT_EQ(status.wait(kHang), 0) << status.log();
+  const std::string s = status.log();
+  EXPECT_NE(s.find("tgm-hmi status: interpolator 0: the service's machine config is not "),
+            std::string::npos)
+      << s;
+  const std::size_t at = s.find("\"machine_digest\":\"");
+  ASSERT_NE(at, std::string::npos) << s;
+  const std::string digest = s.substr(at + 18, 16);
+  EXPECT_EQ(digest.find_first_not_of("0123456789abcdef"), std::string::npos) << s;
+  EXPECT_NE(digest, "0000000000000000") << s;
+
+  // With the service's own config: no warning, and the estimate.
+  test::Child same;
+  ASSERT_TRUE(
+      same.start({TGM_HMI_BIN, "status", "--config", env.path("soft.yaml")}, env.path("same.log")));
+  EXPECT_EQ(same.wait(kHang), 0) << same.log();
+  EXPECT_EQ(same.log().find("warning:"), std::string::npos) << same.log();
+  EXPECT_NE(same.log().find("machine digest " + digest), std::string::npos) << same.log();
+  test::Child timed;
+  ASSERT_TRUE(
+      timed.start({TGM_HMI_BIN, "run", env.path("p.ngc"), "--config", env.path("soft.yaml")},
+                  env.path("timed.log")));
+  ASSERT_EQ(timed.wait(kHang), 0) << timed.log();
+  EXPECT_NE(timed.log().find(", estimated "), std::string::npos) << timed.log();
 }
 
 // tgm-hmi run of a program that waits for M51 at line 2 (no PLC here), until it waits.

@@ -33,7 +33,9 @@ constexpr const char* kStatusUsage =
     "           the key where the register has one, per-axis values keyed by axis letter,\n"
     "           numbers that are not finite as null; for scripts and monitoring\n"
     "  --wait S wait up to S seconds for the service's state (default 10, at most 3600);\n"
-    "           none by then: exit code 1\n";
+    "           none by then: exit code 1\n"
+    "A warning follows (with --json on standard error) when the service's machine digest is\n"
+    "not this config's: its axis limits, cycle time, smoothing or buffer size differ.\n";
 constexpr const char* kWatchUsage =
     "usage: tgm-hmi watch [--interpolator N] [--interval S] [--count K] [--json] [--wait S]\n"
     "                     [--config YAML] [DDS overrides]\n"
@@ -164,6 +166,18 @@ int run_status(int argc, char** argv) {
                      : format_state(*c.client->state(i), letters))
                    .c_str(),
                stdout);
+    if (!same_machine(*c.client->state(i), c.config->machine, i)) {
+      // Said, not an error: the service's config is the one that moves the machine. What this
+      // config would compute for it (an estimate, a simulation) does not hold.
+      const std::string why = "interpolator " + std::to_string(i) +
+                              ": the service's machine config is not " + config_name(*c.config) +
+                              " (axis limits, cycle time, smoothing or buffer size differ)";
+      if (json) {
+        std::fprintf(stderr, "tgm-hmi status: %s\n", why.c_str());
+      } else {
+        std::printf("warning: %s\n", why.c_str());
+      }
+    }
   }
   return 0;
 }

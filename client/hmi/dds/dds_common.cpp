@@ -92,8 +92,7 @@ int wait_for_service(client::Client& c, const AppConfig& config, int interpolato
     const auto now = Clock::now();
     if (!hosted.empty() && !others_since) others_since = now;
     if (others_since && now - *others_since >= std::chrono::seconds(1)) {
-      const std::string mine =
-          config.source_path.empty() ? "the built-in config" : config.source_path;
+      const std::string mine = config_name(config);
       std::fprintf(stderr,
                    "tgm-hmi %s: tgm-service on DDS domain %d hosts interpolator%s %s, not %d (its "
                    "config has %d interpolator%s, %s has %zu): choose one with --interpolator, or "
@@ -185,6 +184,15 @@ namespace {
   out += '\n';
 }
 }  // namespace
+
+std::string config_name(const AppConfig& config) {
+  return config.source_path.empty() ? "the built-in config" : config.source_path;
+}
+
+bool same_machine(const msg::InterpolatorState& s, const MachineConfig& machine, int ip) {
+  return s.machine_digest() == 0 ||
+         s.machine_digest() == machine_digest(machine, ip, s.number_axes());
+}
 
 std::string format_state(const msg::InterpolatorState& s, const std::string& config_letters) {
   // The service's letters, where it sends them: they are what its positions mean.
@@ -312,9 +320,12 @@ std::string format_state(const msg::InterpolatorState& s, const std::string& con
   append_line(out, "  program %u: next_sequence %llu, buffered %d, free %d", s.program_id(),
               static_cast<unsigned long long>(s.next_sequence()), s.buffered_segments(),
               s.free_buffer_slots());
-  append_line(out, "  M-functions handed over %u (the last from line %d); service instance %016llx",
+  append_line(out,
+              "  M-functions handed over %u (the last from line %d); service instance %016llx, "
+              "machine digest %016llx",
               s.m_func_count(), s.m_func_line(),
-              static_cast<unsigned long long>(s.service_instance()));
+              static_cast<unsigned long long>(s.service_instance()),
+              static_cast<unsigned long long>(s.machine_digest()));
   append_line(out,
               "  cycle %llu of %d us, lateness last %.1f us, max %.1f us, p99.9 %.1f us, missed "
               "cycles %llu",
@@ -485,6 +496,10 @@ std::string format_state_json(const msg::InterpolatorState& s, const std::string
   std::snprintf(instance, sizeof instance, "%016llx",
                 static_cast<unsigned long long>(s.service_instance()));
   json_key(out, "service_instance");
+  append_json_string(out, instance);
+  std::snprintf(instance, sizeof instance, "%016llx",
+                static_cast<unsigned long long>(s.machine_digest()));
+  json_key(out, "machine_digest");
   append_json_string(out, instance);
   json_field(out, "cycle_counter", s.cycle_counter());
   json_field(out, "cycle_time_us", s.cycle_time_us());

@@ -82,7 +82,8 @@ constexpr const char* kUsage =
     "M-functions acknowledged after plc.default_m_delay_s / plc.m_delay_s, no operator wait (an\n"
     "M0, a stop), and the time left scaled to the Rel_Speed now; until that is done (a thread\n"
     "at the lowest priority), the part of the records sent. The summary gives the estimate\n"
-    "beside the time the program took.\n"
+    "beside the time the program took. A service whose machine is not this config's (its\n"
+    "state's machine_digest; tgm-hmi status) gets no estimate, and the run says so.\n"
     "\n"
     "Ctrl-C (or SIGTERM) stops the interpolator (normal stop on the trajectory) and exits with\n"
     "130, also while it waits for the service (its state, or the reply to the clear or the\n"
@@ -609,7 +610,16 @@ int run_run(int argc, char** argv) {
     so.m0_restart_s = 0.0;
     so.start_mm = here;
     so.max_time_s = SimulationOptions::kMaxTimeS;
-    estimate.emplace(std::move(machine), std::move(so), program);
+    if (same_machine(*st, machine, ip)) {
+      estimate.emplace(std::move(machine), std::move(so), program);
+    } else {
+      // Simulated by other limits, the times would be wrong without a sign of it.
+      std::fprintf(stderr,
+                   "tgm-hmi run: no time estimate (progress by records): the service moves "
+                   "interpolator %d by another machine config than %s (axis limits, smoothing or "
+                   "buffer size differ)\n",
+                   ip, config_name(*config).c_str());
+    }
   }
   bool estimate_said = false;
   if (st->status() != 0) {
