@@ -4226,6 +4226,44 @@ TEST(ServiceProcesses, ServiceAndPlcLogLinesCarryTheirTime) {
             "tgm-plc: --log-time must be auto, on or off, not 'yes'\n(see tgm-plc --help)\n");
 }
 
+// `tgm-service --check-config` checks a config as the start does, without DDS: usable, it says
+// what the service would set up (with each interpolator's machine digest, which `tgm-hmi
+// status` shows of the running service) and exits 0; not, every problem and exit code 2.
+TEST(ServiceProcesses, CheckConfigSaysWhatTheServiceWouldSetUpOrEveryProblem) {
+  ServiceEnv env;
+  test::Child good;
+  ASSERT_TRUE(good.start({TGM_SERVICE_BIN, "--config", env.config(), "--check-config"},
+                         env.path("good.log")));
+  ASSERT_EQ(good.wait(kHang), 0) << good.log();
+  const std::string g = good.log();
+  EXPECT_EQ(g.rfind("tgm-service: config " + env.config() + " is usable\n", 0), 0u) << g;
+  EXPECT_NE(g.find("  cycle 500 us; DDS domain " + std::to_string(test::test_domain())),
+            std::string::npos)
+      << g;
+  const std::optional<AppConfig> config = load_config_file(env.config()).config;
+  ASSERT_TRUE(config.has_value());
+  for (int i = 0; i < 3; ++i) {
+    char line[160];
+    std::snprintf(line, sizeof line,
+                  "  interpolator %d: axes XYZ, Buffer_Size 10000, machine digest %016llx\n", i,
+                  static_cast<unsigned long long>(machine_digest(config->machine, i, 3)));
+    EXPECT_NE(g.find(line), std::string::npos) << line << "\n" << g;
+  }
+  EXPECT_EQ(g.find("looking"), std::string::npos) << g;  // DDS not joined
+
+  std::string yaml = test::read_text(env.config());
+  ASSERT_TRUE(test::replace_first(yaml, "max_jerk_mm_s3: 30000", "max_jerk_mm_s3: 3"));
+  ASSERT_TRUE(test::replace_first(yaml, "cycle_time_us: 500", "cycle_time_us: 400"));
+  std::ofstream(env.path("bad.yaml")) << yaml;
+  test::Child bad;
+  ASSERT_TRUE(bad.start({TGM_SERVICE_BIN, "--config", env.path("bad.yaml"), "--check-config"},
+                        env.path("bad.log")));
+  EXPECT_EQ(bad.wait(kHang), 2) << bad.log();
+  EXPECT_NE(bad.log().find("max_jerk_mm_s3"), std::string::npos) << bad.log();
+  EXPECT_NE(bad.log().find("cycle_time_us"), std::string::npos) << bad.log();
+  EXPECT_EQ(bad.log().find("usable"), std::string::npos) << bad.log();
+}
+
 TEST(ServiceProcesses, ServiceStopsCleanlyOnSigtermAndRejectsBadFlags) {
   ServiceEnv env;
   test::Child bad;
