@@ -22,6 +22,29 @@ double ProgramTimes::elapsed_s(std::int64_t act_part, double in_record_s,
   return before + std::min(in, own);
 }
 
+double ProgramTimes::left_s(std::int64_t act_part, double in_record_s, double in_record_mm,
+                            double move_scale) const {
+  const double elapsed = elapsed_s(act_part, in_record_s, in_record_mm);
+  const double total_wait = wait_s.empty() ? 0.0 : static_cast<double>(wait_s.back());
+  // The waits behind: those of the records before this one, and this one's time so far when
+  // it does not move.
+  double waited = 0.0;
+  if (act_part > 0 && !done_s.empty()) {
+    const auto k = static_cast<std::uint64_t>(act_part) - 1;
+    if (k >= done_s.size()) {
+      waited = total_wait;
+    } else {
+      waited = k == 0 ? 0.0 : static_cast<double>(wait_s[k - 1]);
+      if (!(length_mm[k] > 0.0F)) {
+        waited += elapsed - (k == 0 ? 0.0 : static_cast<double>(done_s[k - 1]));
+      }
+    }
+  }
+  const double waits_left = std::max(total_wait - waited, 0.0);
+  const double moves_left = std::max(total_s - elapsed - waits_left, 0.0);
+  return moves_left * move_scale + waits_left;
+}
+
 std::optional<ProgramTimes> program_times(const MachineConfig& machine,
                                           const SimulationOptions& options,
                                           const PackedProgram& program, std::string* error) {
@@ -66,6 +89,16 @@ std::optional<ProgramTimes> program_times(const MachineConfig& machine,
   // The program is done when the run ends (Status 3), which may be after its last move's end
   // (the smoothing settles, an M-function's wait).
   if (!t.done_s.empty()) t.done_s.back() = std::max(t.done_s.back(), static_cast<float>(t.total_s));
+  // The waits, summed in double: the records that do not move.
+  t.wait_s.resize(t.done_s.size());
+  double waits = 0.0;
+  for (std::size_t k = 0; k < t.done_s.size(); ++k) {
+    if (!(t.length_mm[k] > 0.0F)) {
+      waits +=
+          static_cast<double>(t.done_s[k]) - (k == 0 ? 0.0 : static_cast<double>(t.done_s[k - 1]));
+    }
+    t.wait_s[k] = static_cast<float>(waits);
+  }
   return t;
 }
 

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <random>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "../support/test_params.hpp"
@@ -88,6 +89,34 @@ TEST(ProgramTimes, AMoveAnAcknowledgementAndADwellTakeTheirOwnTimes) {
   ASSERT_TRUE(h) << error;
   EXPECT_NEAR(h->done_s[0], 2.0, 0.1);
   EXPECT_NEAR(h->done_s[1] - h->done_s[0], 0.5, 2 * T);
+
+  // The waits: the acknowledgement (0.5 s) and the dwell (1.5 s), summed record by record.
+  ASSERT_EQ(t->wait_s.size(), p.size());
+  EXPECT_EQ(t->wait_s[0], 0.0F);
+  EXPECT_NEAR(t->wait_s[1], 0.5, 2 * T);
+  EXPECT_NEAR(t->wait_s[2], 2.0, 3 * T);
+  EXPECT_EQ(t->wait_s[3], t->wait_s[2]);
+  // Left at the Rel_Speed simulated: the rest of the total.
+  for (const auto& [part, in_s, in_mm] :
+       {std::tuple{1, 0.0, 0.0}, std::tuple{1, 0.3, 2.5}, std::tuple{2, 0.2, -1.0},
+        std::tuple{3, 1.0, -1.0}, std::tuple{4, 0.1, 5.0}, std::tuple{9, 0.0, -1.0}}) {
+    EXPECT_NEAR(t->left_s(part, in_s, in_mm, 1.0), t->total_s - t->elapsed_s(part, in_s, in_mm),
+                1e-6)
+        << part;
+  }
+  // At twice the time for the moves: the moves' part doubles, the waits' not. Half-way
+  // through the dwell: the second move (twice) and the dwell's other half.
+  const double move2 = static_cast<double>(t->done_s[3]) - t->done_s[2];
+  EXPECT_NEAR(t->left_s(3, 0.75, -1.0, 2.0), 2.0 * move2 + 0.75 + (t->total_s - t->done_s[3]) * 2.0,
+              1e-5);
+  EXPECT_NEAR(t->left_s(1, 0.0, 0.0, 2.0), 2.0 * (t->total_s - t->wait_s.back()) + t->wait_s.back(),
+              1e-5);
+  EXPECT_EQ(t->left_s(9, 0.0, -1.0, 2.0), 0.0);
+  // Against the run at half the override (an independent oracle): within the ramps' share,
+  // where scaling the waits with the moves missed by their whole time.
+  const double left = t->left_s(1, 0.0, 0.0, 2.0);
+  EXPECT_NEAR(left, h->total_s, 0.1 * h->total_s);
+  EXPECT_LT(std::fabs(left - h->total_s), std::fabs(2.0 * t->total_s - h->total_s) - 1.5);
 }
 
 TEST(ProgramTimes, ARunThatDoesNotEndGivesNoTimesAndSaysWhy) {
@@ -164,6 +193,24 @@ TEST(ProgramTimesSweep, EachRecordIsDoneWhereTheRegistersLeaveIt) {
         EXPECT_GE(d, t->done_s[j - 1]) << ctx << " record " << j;
       }
     }
+    // The waits: the time of the records that do not move, never more than the time so far;
+    // at the start the time left at twice the moves' time is the moves twice and the waits once.
+    double waits = 0.0;
+    for (std::size_t j = 0; j < p.size(); ++j) {
+      if (!(t->length_mm[j] > 0.0F)) {
+        waits += t->done_s[j] - (j == 0 ? 0.0 : static_cast<double>(t->done_s[j - 1]));
+      }
+      const double eps = 1e-6 + 1e-6 * t->done_s[j];
+      EXPECT_NEAR(t->wait_s[j], waits, eps) << ctx << " record " << j;
+      EXPECT_LE(t->wait_s[j], t->done_s[j] + eps) << ctx << " record " << j;
+      const auto part = static_cast<std::int64_t>(j) + 1;
+      EXPECT_NEAR(t->left_s(part, 0.0, 0.0, 1.0), t->total_s - t->elapsed_s(part, 0.0, 0.0), eps)
+          << ctx << " record " << j;
+      EXPECT_GE(t->left_s(part, 0.0, 0.0, 2.0), t->left_s(part, 0.0, 0.0, 1.0) - eps) << ctx;
+    }
+    EXPECT_NEAR(t->left_s(1, 0.0, 0.0, 2.0), 2.0 * t->total_s - t->wait_s.back(),
+                1e-5 * (1.0 + t->total_s))
+        << ctx;
   }
 }
 

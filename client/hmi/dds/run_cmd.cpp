@@ -80,10 +80,11 @@ constexpr const char* kUsage =
     "The progress line shows the part done by time and the time left: the program is\n"
     "simulated with this config's machine at the Rel_Speed it starts with, normal\n"
     "M-functions acknowledged after plc.default_m_delay_s / plc.m_delay_s, no operator wait (an\n"
-    "M0, a stop), and the time left scaled to the Rel_Speed now; until that is done (a thread\n"
-    "at the lowest priority), the part of the records sent. The summary gives the estimate\n"
-    "beside the time the program took. A service whose machine is not this config's (its\n"
-    "state's machine_digest; tgm-hmi status) gets no estimate, and the run says so.\n"
+    "M0, a stop), and the moves of the time left scaled to the Rel_Speed now (the waits for\n"
+    "M-functions and dwells not); until that is done (a thread at the lowest priority), the\n"
+    "part of the records sent. The summary gives the estimate beside the time the program\n"
+    "took. A service whose machine is not this config's (its state's machine_digest; tgm-hmi\n"
+    "status) gets no estimate, and the run says so.\n"
     "\n"
     "Ctrl-C (or SIGTERM) stops the interpolator (normal stop on the trajectory) and exits with\n"
     "130, also while it waits for the service (its state, or the reply to the clear or the\n"
@@ -1163,19 +1164,22 @@ int run_run(int argc, char** argv) {
       // By time once the estimate is there: what the records before this one take, and as
       // much of this one's own as it has run. The time left at the Rel_Speed now: the moves
       // take longer at a lower override (not exactly, where a limit, not the feed, sets the
-      // speed, and the waits do not); none while it is below 1 %.
+      // speed), the waits (M-functions, dwells) as long; none while it is below 1 %.
       std::string left;
       if (const ProgramTimes* times = estimate ? estimate->times() : nullptr) {
         const double in_record =
             static_cast<double>(st->cycle_counter() -
                                 std::min(est_part_since, st->cycle_counter())) *
             cycle_s;
-        const double elapsed =
-            times->elapsed_s(st->act_part(), in_record, st->move_distance() - est_part_mm);
+        const double in_mm = st->move_distance() - est_part_mm;
+        const double elapsed = times->elapsed_s(st->act_part(), in_record, in_mm);
         if (times->total_s > 0.0) pct = 100.0 * elapsed / times->total_s;
         const double rel = st->rel_speed();
-        left = rel >= 0.01 ? " " + clock_text((times->total_s - elapsed) * est_rel / rel) + " left"
-                           : " --:-- left";
+        left =
+            rel >= 0.01
+                ? " " + clock_text(times->left_s(st->act_part(), in_record, in_mm, est_rel / rel)) +
+                      " left"
+                : " --:-- left";
       }
       char bar[21];
       const int filled = std::clamp(static_cast<int>(pct / 5.0), 0, 20);

@@ -23,10 +23,13 @@ struct ProgramTimes {
   //! done_s[k]: the program time [s] at which record k (0-based) is done: a move's end (to
   //! the calculation step), the end of an M-function's wait or of a dwell (to the cycle), for a
   //! record that takes no time between two moves the start of the second. Non-decreasing.
-  //! Floats, with length_mm 8 bytes a record (a float resolves 4 ms at 9 hours).
+  //! Floats, with length_mm and wait_s 12 bytes a record (a float resolves 4 ms at 9 hours).
   std::vector<float> done_s;
   //! length_mm[k]: the path length of record k [mm] (0 for a record that does not move).
   std::vector<float> length_mm;
+  //! wait_s[k]: the program time [s] that records 0..k which do not move take together (an
+  //! M-function's wait, a dwell): the part of done_s[k] a Rel_Speed change does not scale.
+  std::vector<float> wait_s;
   //! Program time of the whole run [s] (SimulationSummary::program_time_s).
   double total_s = 0.0;
 
@@ -38,6 +41,14 @@ struct ProgramTimes {
   //! it does not move, or where in_record_mm is negative or NaN (not known). Past the last
   //! record, or with act_part beyond the program, total_s; 0 before the first.
   double elapsed_s(std::int64_t act_part, double in_record_s, double in_record_mm = -1.0) const;
+
+  //! Program time [s] left at the point elapsed_s() places (the same arguments), with the
+  //! moves taking `move_scale` times as long as simulated and the waits as long: at a Rel_Speed
+  //! r against the r0 simulated, move_scale r0 / r. The moves' part is approximate (a ramp, or a
+  //! speed an axis limit sets, does not scale with the feed); a dwell or an acknowledgement
+  //! scaled with them made a 60 s dwell at half the override count 120 s.
+  double left_s(std::int64_t act_part, double in_record_s, double in_record_mm,
+                double move_scale) const;
 };
 
 //! Runs `program` through Simulation with `options` (its on_progress too: returning false
