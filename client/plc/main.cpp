@@ -1002,6 +1002,19 @@ int plc_main(int argc, char** argv) {
                      "axes %s, this config (%s) has %s: give tgm-plc the service's config",
                      sv.number, theirs.c_str(),
                      tgm::cli::ArgReader::config_file(config_path).path.c_str(), mine.c_str());
+        } else if (s->machine_digest() != 0 &&
+                   s->machine_digest() !=
+                       tgm::machine_digest(config.machine, sv.number, s->number_axes())) {
+          // Said, not refused: the service's config moves the machine, and the smoothing this
+          // PLC sets is its own config's. A mix of two configs is rarely meant.
+          append_log(pending_log, stamp(),
+                     "interpolator %d: warning: the service's machine config is not %s (axis "
+                     "limits, cycle time, smoothing or buffer size differ; its machine digest "
+                     "%016llx, this config's %016llx): give tgm-plc the service's config",
+                     sv.number, tgm::cli::ArgReader::config_file(config_path).path.c_str(),
+                     static_cast<unsigned long long>(s->machine_digest()),
+                     static_cast<unsigned long long>(
+                         tgm::machine_digest(config.machine, sv.number, s->number_axes())));
         }
         // A PLC started while a program is under way (a restart after a crash) leaves the
         // machine as it is: the service keeps the parameters set before, and new ones would

@@ -3101,6 +3101,16 @@ TEST(ServiceProcesses, ARunAgainstOtherAxisLimitsLeavesTheEstimateOut) {
   EXPECT_EQ(digest.find_first_not_of("0123456789abcdef"), std::string::npos) << s;
   EXPECT_NE(digest, "0000000000000000") << s;
 
+  // A PLC with the HMI's config says so at its setup (the smoothing it sets is its config's).
+  test::Child plc;
+  ASSERT_TRUE(
+      plc.start({TGM_PLC_BIN, "--config", env.config(), "--duration", "3"}, env.path("plc.log")));
+  EXPECT_EQ(plc.wait(kHang), 0) << plc.log();
+  EXPECT_NE(plc.log().find("interpolator 0: warning: the service's machine config is not " +
+                           env.config() + " (axis limits"),
+            std::string::npos)
+      << plc.log();
+
   // With the service's own config: no warning, and the estimate.
   test::Child same;
   ASSERT_TRUE(
