@@ -25,11 +25,13 @@ double ProgramTimes::elapsed_s(std::int64_t act_part, double in_record_s,
 double ProgramTimes::left_s(std::int64_t act_part, double in_record_s, double in_record_mm,
                             double move_scale) const {
   const double elapsed = elapsed_s(act_part, in_record_s, in_record_mm);
-  const double total_wait = wait_s.empty() ? 0.0 : static_cast<double>(wait_s.back());
+  // Times made without the waits by record (by hand): every second a move's.
+  const bool by_record = wait_s.size() == done_s.size() && length_mm.size() == done_s.size();
+  const double total_wait = by_record && !wait_s.empty() ? static_cast<double>(wait_s.back()) : 0.0;
   // The waits behind: those of the records before this one, and this one's time so far when
   // it does not move.
   double waited = 0.0;
-  if (act_part > 0 && !done_s.empty()) {
+  if (by_record && act_part > 0 && !done_s.empty()) {
     const auto k = static_cast<std::uint64_t>(act_part) - 1;
     if (k >= done_s.size()) {
       waited = total_wait;

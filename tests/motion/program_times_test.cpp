@@ -112,6 +112,10 @@ TEST(ProgramTimes, AMoveAnAcknowledgementAndADwellTakeTheirOwnTimes) {
   EXPECT_NEAR(t->left_s(1, 0.0, 0.0, 2.0), 2.0 * (t->total_s - t->wait_s.back()) + t->wait_s.back(),
               1e-5);
   EXPECT_EQ(t->left_s(9, 0.0, -1.0, 2.0), 0.0);
+  // Times without the waits by record: all of it scales.
+  ProgramTimes bare = *t;
+  bare.wait_s.clear();
+  EXPECT_NEAR(bare.left_s(1, 0.0, 0.0, 2.0), 2.0 * t->total_s, 1e-6);
   // Against the run at half the override (an independent oracle): within the ramps' share,
   // where scaling the waits with the moves missed by their whole time.
   const double left = t->left_s(1, 0.0, 0.0, 2.0);
