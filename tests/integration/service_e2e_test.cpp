@@ -3101,6 +3101,28 @@ TEST(ServiceProcesses, ARunAgainstOtherAxisLimitsLeavesTheEstimateOut) {
   EXPECT_EQ(digest.find_first_not_of("0123456789abcdef"), std::string::npos) << s;
   EXPECT_NE(digest, "0000000000000000") << s;
 
+  // watch: under every screen, or once on standard error with --json.
+  test::Child watch, watch_json;
+  ASSERT_TRUE(watch.start(
+      {TGM_HMI_BIN, "watch", "--count", "2", "--interval", "0.1", "--config", env.config()},
+      env.path("watch.log")));
+  ASSERT_TRUE(watch_json.start({TGM_HMI_BIN, "watch", "--json", "--count", "3", "--interval", "0.1",
+                                "--config", env.config()},
+                               env.path("watch_json.log")));
+  EXPECT_EQ(watch.wait(kHang), 0) << watch.log();
+  EXPECT_EQ(watch_json.wait(kHang), 0) << watch_json.log();
+  const auto count = [](const std::string& text, const std::string& what) {
+    std::size_t n = 0;
+    for (std::size_t k = text.find(what); k != std::string::npos; k = text.find(what, k + 1)) ++n;
+    return n;
+  };
+  EXPECT_EQ(count(watch.log(), "warning: interpolator 0: the service's machine config is not "), 2u)
+      << watch.log();
+  EXPECT_EQ(count(watch_json.log(),
+                  "tgm-hmi watch: interpolator 0: the service's machine config is not "),
+            1u)
+      << watch_json.log();
+
   // A PLC with the HMI's config says so at its setup (the smoothing it sets is its config's).
   test::Child plc;
   ASSERT_TRUE(

@@ -47,7 +47,9 @@ constexpr const char* kWatchUsage =
     "  --json   one line of JSON per sample (see tgm-hmi status --help), nothing else on\n"
     "           standard output, with state_age_s: the seconds since that state arrived (it\n"
     "           grows when the service stops publishing); warnings go to standard error\n"
-    "  --wait S wait up to S seconds for the service's first state (default 10, at most 3600)\n";
+    "  --wait S wait up to S seconds for the service's first state (default 10, at most 3600)\n"
+    "Under the registers: a warning when the service's machine digest is not this config's\n"
+    "(see tgm-hmi status --help).\n";
 constexpr const char* kStopUsage =
     "usage: tgm-hmi stop [--interpolator N] [--timeout S] [--config YAML] [DDS overrides]\n"
     "\n"
@@ -166,12 +168,9 @@ int run_status(int argc, char** argv) {
                      : format_state(*c.client->state(i), letters))
                    .c_str(),
                stdout);
-    if (!same_machine(*c.client->state(i), c.config->machine, i)) {
-      // Said, not an error: the service's config is the one that moves the machine. What this
-      // config would compute for it (an estimate, a simulation) does not hold.
-      const std::string why = "interpolator " + std::to_string(i) +
-                              ": the service's machine config is not " + config_name(*c.config) +
-                              " (axis limits, cycle time, smoothing or buffer size differ)";
+    // Said, not an error: the service's config is the one that moves the machine. What this
+    // config would compute for it (an estimate, a simulation) does not hold.
+    if (const std::string why = machine_mismatch(*c.client->state(i), *c.config, i); !why.empty()) {
       if (json) {
         std::fprintf(stderr, "tgm-hmi status: %s\n", why.c_str());
       } else {
@@ -229,6 +228,7 @@ int run_watch(int argc, char** argv) {
     return rc;
   const bool tty = !json && ::isatty(1) != 0;
   std::uint64_t malformed_said = 0, other_said = 0;
+  std::string mismatch_said;  // machine_mismatch() said last on standard error (--json)
   // The message topic keeps the last 32 messages for late readers: those written before the
   // first state seen here are history, and said so (they used to look like news).
   const std::uint64_t began_cycle = c.client->state(ip)->cycle_counter();
@@ -299,6 +299,12 @@ int run_watch(int argc, char** argv) {
                      "reads) on domain %d\n",
                      static_cast<unsigned long long>(bad), c.config->dds.domain_id);
       }
+      if (std::string why = machine_mismatch(*c.client->state(ip), *c.config, ip);
+          why != mismatch_said) {
+        mismatch_said = std::move(why);
+        if (!mismatch_said.empty())
+          std::fprintf(stderr, "tgm-hmi watch: %s\n", mismatch_said.c_str());
+      }
       if (const std::uint64_t other = c.client->other_service(ip); other != other_said) {
         other_said = other;
         if (other != 0) {
@@ -315,6 +321,10 @@ int run_watch(int argc, char** argv) {
     if (tty) std::printf("\033[H\033[2J");
     std::fputs(format_state(*c.client->state(ip), c.config->machine.axis_letters(ip)).c_str(), stdout);
     if (!stale.empty()) std::printf("%s\n", stale.c_str());
+    if (const std::string why = machine_mismatch(*c.client->state(ip), *c.config, ip);
+        !why.empty()) {
+      std::printf("warning: %s\n", why.c_str());
+    }
     if (const std::uint64_t other = c.client->other_service(ip); other != 0) {
       std::printf(
           "warning: another tgm-service (instance %016llx) publishes on DDS domain %d too; "

@@ -194,6 +194,12 @@ bool same_machine(const msg::InterpolatorState& s, const MachineConfig& machine,
          s.machine_digest() == machine_digest(machine, ip, s.number_axes());
 }
 
+std::string machine_mismatch(const msg::InterpolatorState& s, const AppConfig& config, int ip) {
+  if (same_machine(s, config.machine, ip)) return {};
+  return "interpolator " + std::to_string(ip) + ": the service's machine config is not " +
+         config_name(config) + " (axis limits, cycle time, smoothing or buffer size differ)";
+}
+
 std::string format_state(const msg::InterpolatorState& s, const std::string& config_letters) {
   // The service's letters, where it sends them: they are what its positions mean.
   const std::string letters =

@@ -47,6 +47,9 @@ std::string config_name(const AppConfig& config);
 //! against machine_digest() of `machine` over the state's Number_Axes. True when the service
 //! does not say (a digest of 0: a service before 0.2.1).
 bool same_machine(const msg::InterpolatorState& s, const MachineConfig& machine, int ip);
+//! What status and watch say when !same_machine(s, config.machine, ip) ("interpolator 0: the
+//! service's machine config is not FILE (...)"); empty when it is the same.
+std::string machine_mismatch(const msg::InterpolatorState& s, const AppConfig& config, int ip);
 
 //! The registers of one interpolator as readable lines, the axes named by the service's
 //! letters (`config_letters` when the state has none).
