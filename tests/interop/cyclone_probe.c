@@ -1,0 +1,181 @@
+/* A client of tgm-service written against Eclipse Cyclone DDS, not Fast DDS: the proof that
+ * the topics match another vendor (idl/tgm.idl: every struct @final, no type objects; DESIGN.md
+ * section 6). The types come from idl/tgm.idl through Cyclone's own IDL compiler (idlc).
+ *
+ * usage: tgm_cyclone_probe DOMAIN [TIMEOUT_S]
+ *
+ * 1. reads interpolator 0's state (tgm_state, a late joiner: TRANSIENT_LOCAL) and prints it;
+ * 2. as a PLC, writes Rel_Speed = 0.5 (tgm_request) and waits for the service's reply
+ *    (tgm_reply, the one with this request's id and client name);
+ * 3. waits for a state that shows Rel_Speed 0.5.
+ * Each step prints one line; exit code 0 when all three worked, 1 naming the step that did
+ * not within TIMEOUT_S seconds (default 10), 2 on bad arguments. */
+#include <inttypes.h>
+#include <stdbool.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "dds/dds.h"
+#include "tgm.h"
+
+static const char kClientName[] = "cyclone-probe";
+
+static int fail(const char* step, const char* why) {
+  fprintf(stderr, "tgm_cyclone_probe: %s: %s\n", step, why);
+  return 1;
+}
+
+/* Takes states of interpolator 0 until `done` accepts one or the deadline passes. */
+static bool wait_state(dds_entity_t reader, dds_time_t deadline,
+                       bool (*done)(const tgm_msg_InterpolatorState*),
+                       tgm_msg_InterpolatorState* out) {
+  while (dds_time() < deadline) {
+    void* samples[1] = {NULL};
+    dds_sample_info_t info[1];
+    const int32_t n = dds_take(reader, samples, info, 1, 1);
+    if (n > 0) {
+      const tgm_msg_InterpolatorState* s = samples[0];
+      const bool ok = info[0].valid_data && s->interpolator == 0 && done(s);
+      if (ok) *out = *s;
+      dds_return_loan(reader, samples, n);
+      if (ok) return true;
+      continue;
+    }
+    dds_sleepfor(DDS_MSECS(10));
+  }
+  return false;
+}
+
+static bool any_state(const tgm_msg_InterpolatorState* s) {
+  (void)s;
+  return true;
+}
+
+static bool half_speed(const tgm_msg_InterpolatorState* s) {
+  return s->rel_speed == 0.5;
+}
+
+int main(int argc, char** argv) {
+  if (argc < 2 || argc > 3) {
+    fprintf(stderr, "usage: tgm_cyclone_probe DOMAIN [TIMEOUT_S]\n");
+    return 2;
+  }
+  char* end = NULL;
+  const long domain = strtol(argv[1], &end, 10);
+  if (*argv[1] == '\0' || *end != '\0' || domain < 0 || domain > 232) {
+    fprintf(stderr, "tgm_cyclone_probe: DOMAIN must be 0..232, not '%s'\n", argv[1]);
+    return 2;
+  }
+  double timeout_s = 10.0;
+  if (argc == 3) {
+    timeout_s = strtod(argv[2], &end);
+    if (*argv[2] == '\0' || *end != '\0' || !(timeout_s > 0.0 && timeout_s <= 3600.0)) {
+      fprintf(stderr, "tgm_cyclone_probe: TIMEOUT_S must be a number in (0, 3600], not '%s'\n",
+              argv[2]);
+      return 2;
+    }
+  }
+  const dds_duration_t timeout = (dds_duration_t)(timeout_s * 1e9);
+
+  const dds_entity_t participant = dds_create_participant((dds_domainid_t)domain, NULL, NULL);
+  if (participant < 0) return fail("participant", dds_strretcode(participant));
+
+  /* tgm_state: RELIABLE, TRANSIENT_LOCAL, KEEP_LAST 1, as tgm's readers; no deadline or
+   * liveliness requested (the writer's offers are stricter than the defaults ask). */
+  dds_qos_t* qos = dds_create_qos();
+  dds_qset_reliability(qos, DDS_RELIABILITY_RELIABLE, DDS_MSECS(100));
+  dds_qset_durability(qos, DDS_DURABILITY_TRANSIENT_LOCAL);
+  dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, 1);
+  const dds_entity_t state_topic =
+      dds_create_topic(participant, &tgm_msg_InterpolatorState_desc, "tgm_state", NULL, NULL);
+  if (state_topic < 0) return fail("state topic", dds_strretcode(state_topic));
+  const dds_entity_t state_reader = dds_create_reader(participant, state_topic, qos, NULL);
+  dds_delete_qos(qos);
+  if (state_reader < 0) return fail("state reader", dds_strretcode(state_reader));
+
+  /* Requests: tgm's request readers want a liveliness lease of at most 100 ms. */
+  qos = dds_create_qos();
+  dds_qset_reliability(qos, DDS_RELIABILITY_RELIABLE, DDS_MSECS(100));
+  dds_qset_durability(qos, DDS_DURABILITY_VOLATILE);
+  dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, 100);
+  dds_qset_liveliness(qos, DDS_LIVELINESS_AUTOMATIC, DDS_MSECS(100));
+  const dds_entity_t request_topic =
+      dds_create_topic(participant, &tgm_msg_Request_desc, "tgm_request", NULL, NULL);
+  if (request_topic < 0) return fail("request topic", dds_strretcode(request_topic));
+  const dds_entity_t request_writer = dds_create_writer(participant, request_topic, qos, NULL);
+  if (request_writer < 0) return fail("request writer", dds_strretcode(request_writer));
+  const dds_entity_t reply_topic =
+      dds_create_topic(participant, &tgm_msg_Reply_desc, "tgm_reply", NULL, NULL);
+  if (reply_topic < 0) return fail("reply topic", dds_strretcode(reply_topic));
+  const dds_entity_t reply_reader = dds_create_reader(participant, reply_topic, qos, NULL);
+  dds_delete_qos(qos);
+  if (reply_reader < 0) return fail("reply reader", dds_strretcode(reply_reader));
+
+  /* 1. The state. */
+  tgm_msg_InterpolatorState s;
+  if (!wait_state(state_reader, dds_time() + timeout, any_state, &s)) {
+    return fail("state", "no state of interpolator 0 from tgm-service");
+  }
+  printf("state: interpolator %u, status %d, cycle %" PRIu64
+         " of %d us, axes %s (Number_Axes %d), "
+         "machine digest %016" PRIx64 ", service instance %016" PRIx64 ", Rel_Speed %g\n",
+         (unsigned)s.interpolator, (int)s.status, s.cycle_counter, (int)s.cycle_time_us,
+         s.axis_letters, (int)s.number_axes, s.machine_digest, s.service_instance, s.rel_speed);
+  fflush(stdout);
+
+  /* 2. A request once the service's request reader and its reply writer have matched
+   * (written before, it would be lost). */
+  const dds_time_t match_by = dds_time() + timeout;
+  for (;;) {
+    dds_publication_matched_status_t pub;
+    dds_subscription_matched_status_t sub;
+    if (dds_get_publication_matched_status(request_writer, &pub) == DDS_RETCODE_OK &&
+        dds_get_subscription_matched_status(reply_reader, &sub) == DDS_RETCODE_OK &&
+        pub.current_count > 0 && sub.current_count > 0) {
+      break;
+    }
+    if (dds_time() >= match_by) return fail("request", "tgm_request or tgm_reply did not match");
+    dds_sleepfor(DDS_MSECS(10));
+  }
+  tgm_msg_Request r;
+  memset(&r, 0, sizeof r);
+  r.request_id = 1;
+  r.role = tgm_msg_CLIENT_ROLE_PLC;
+  snprintf(r.client_name, sizeof r.client_name, "%s", kClientName);
+  r.interpolator = 0;
+  r.kind = tgm_msg_REQUEST_KIND_WRITE_REL_SPEED;
+  r.value = 0.5;
+  r.attempt = 1;
+  const dds_return_t wrote = dds_write(request_writer, &r);
+  if (wrote != DDS_RETCODE_OK) return fail("request", dds_strretcode(wrote));
+  bool replied = false;
+  const dds_time_t reply_by = dds_time() + timeout;
+  while (!replied && dds_time() < reply_by) {
+    void* samples[1] = {NULL};
+    dds_sample_info_t info[1];
+    const int32_t n = dds_take(reply_reader, samples, info, 1, 1);
+    if (n <= 0) {
+      dds_sleepfor(DDS_MSECS(10));
+      continue;
+    }
+    const tgm_msg_Reply* a = samples[0];
+    if (info[0].valid_data && a->request_id == r.request_id &&
+        strcmp(a->client_name, kClientName) == 0) {
+      printf("reply: request %" PRIu64 " accepted %d, code %d, reason '%s', cycle %" PRIu64 "\n",
+             a->request_id, (int)a->accepted, (int)a->code, a->reason, a->cycle_counter);
+      fflush(stdout);
+      replied = true;
+    }
+    dds_return_loan(reply_reader, samples, n);
+  }
+  if (!replied) return fail("reply", "no reply to the Rel_Speed write");
+
+  /* 3. The state shows it. */
+  if (!wait_state(state_reader, dds_time() + timeout, half_speed, &s)) {
+    return fail("state after the write", "no state with Rel_Speed 0.5");
+  }
+  printf("state: Rel_Speed %g at cycle %" PRIu64 "\n", s.rel_speed, s.cycle_counter);
+  dds_delete(participant);
+  return 0;
+}
