@@ -7,8 +7,9 @@
  * 1. reads interpolator 0's state (tgm_state, a late joiner: TRANSIENT_LOCAL) and prints it;
  * 2. as a PLC, writes Rel_Speed = 0.5 (tgm_request) and waits for the service's reply
  *    (tgm_reply, the one with this request's id and client name);
- * 3. waits for a state that shows Rel_Speed 0.5.
- * Each step prints one line; exit code 0 when all three worked, 1 naming the step that did
+ * 3. waits for a state that shows Rel_Speed 0.5;
+ * 4. reads a setpoint of interpolator 0 (tgm_setpoints, BEST_EFFORT: what a drive follows).
+ * Each step prints one line; exit code 0 when all four worked, 1 naming the step that did
  * not within TIMEOUT_S seconds (default 10), 2 on bad arguments. */
 #include <inttypes.h>
 #include <stdbool.h>
@@ -94,6 +95,17 @@ int main(int argc, char** argv) {
   dds_delete_qos(qos);
   if (state_reader < 0) return fail("state reader", dds_strretcode(state_reader));
 
+  /* tgm_setpoints: BEST_EFFORT, VOLATILE, KEEP_LAST 1 (a late setpoint is of no use). */
+  const dds_entity_t setpoints_topic =
+      dds_create_topic(participant, &tgm_msg_Setpoints_desc, "tgm_setpoints", NULL, NULL);
+  if (setpoints_topic < 0) return fail("setpoints topic", dds_strretcode(setpoints_topic));
+  qos = dds_create_qos();
+  dds_qset_reliability(qos, DDS_RELIABILITY_BEST_EFFORT, 0);
+  dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, 1);
+  const dds_entity_t setpoints_reader = dds_create_reader(participant, setpoints_topic, qos, NULL);
+  dds_delete_qos(qos);
+  if (setpoints_reader < 0) return fail("setpoints reader", dds_strretcode(setpoints_reader));
+
   /* Requests: tgm's request readers want a liveliness lease of at most 100 ms. */
   qos = dds_create_qos();
   dds_qset_reliability(qos, DDS_RELIABILITY_RELIABLE, DDS_MSECS(100));
@@ -176,6 +188,30 @@ int main(int argc, char** argv) {
     return fail("state after the write", "no state with Rel_Speed 0.5");
   }
   printf("state: Rel_Speed %g at cycle %" PRIu64 "\n", s.rel_speed, s.cycle_counter);
+  fflush(stdout);
+
+  /* 4. A setpoint. */
+  bool setpoint = false;
+  const dds_time_t setpoint_by = dds_time() + timeout;
+  while (!setpoint && dds_time() < setpoint_by) {
+    void* samples[1] = {NULL};
+    dds_sample_info_t info[1];
+    const int32_t n = dds_take(setpoints_reader, samples, info, 1, 1);
+    if (n <= 0) {
+      dds_sleepfor(DDS_MSECS(10));
+      continue;
+    }
+    const tgm_msg_Setpoints* p = samples[0];
+    if (info[0].valid_data && p->interpolator == 0) {
+      printf("setpoints: cycle %" PRIu64 ", Position %g %g %g mm, PositionInc %" PRId64 " %" PRId64
+             " %" PRId64 "\n",
+             p->cycle_counter, p->position[0], p->position[1], p->position[2], p->position_inc[0],
+             p->position_inc[1], p->position_inc[2]);
+      setpoint = true;
+    }
+    dds_return_loan(setpoints_reader, samples, n);
+  }
+  if (!setpoint) return fail("setpoints", "no setpoint of interpolator 0");
   dds_delete(participant);
   return 0;
 }

@@ -2,8 +2,8 @@
 // types made from idl/tgm.idl by Cyclone's idlc). The IDL is kept for this (every struct @final,
 // no type objects; DESIGN.md section 6), and nothing showed that it works: with type objects
 // registered Cyclone refuses to match Fast DDS 2.9's topics. The probe reads the state as a
-// late joiner, writes Rel_Speed as a PLC and takes the reply; tgm-hmi status, a Fast DDS client,
-// then sees the value the Cyclone client wrote.
+// late joiner, writes Rel_Speed as a PLC and takes the reply, and reads a setpoint as a drive
+// would; tgm-hmi status, a Fast DDS client, then sees the value the Cyclone client wrote.
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -52,6 +52,8 @@ TEST(Interop, ACycloneDdsClientReadsTheStateWritesAsAPlcAndIsAnswered) {
   EXPECT_NE(log.find("Rel_Speed 1\n"), std::string::npos) << log;
   EXPECT_NE(log.find("reply: request 1 accepted 1, code 0, reason ''"), std::string::npos) << log;
   EXPECT_NE(log.find("state: Rel_Speed 0.5 at cycle "), std::string::npos) << log;
+  // The drives' topic: the machine stands at 0 (PositionInc = Position x 1000 inc/mm).
+  EXPECT_NE(log.find(", Position 0 0 0 mm, PositionInc 0 0 0\n"), std::string::npos) << log;
 
   // A Fast DDS client sees what the Cyclone client wrote.
   test::Child status;
