@@ -27,34 +27,59 @@ static int fail(const char* step, const char* why) {
   return 1;
 }
 
-/* Takes states of interpolator 0 until `done` accepts one or the deadline passes. */
-static bool wait_state(dds_entity_t reader, dds_time_t deadline,
-                       bool (*done)(const tgm_msg_InterpolatorState*),
-                       tgm_msg_InterpolatorState* out) {
+/* Takes samples from `reader` one at a time until `accept(sample, context)` returns true for
+ * one with valid data, or the deadline passes. */
+static bool take_until(dds_entity_t reader, dds_time_t deadline,
+                       bool (*accept)(const void* sample, void* context), void* context) {
   while (dds_time() < deadline) {
     void* samples[1] = {NULL};
     dds_sample_info_t info[1];
     const int32_t n = dds_take(reader, samples, info, 1, 1);
-    if (n > 0) {
-      const tgm_msg_InterpolatorState* s = samples[0];
-      const bool ok = info[0].valid_data && s->interpolator == 0 && done(s);
-      if (ok) *out = *s;
-      dds_return_loan(reader, samples, n);
-      if (ok) return true;
+    if (n <= 0) {
+      dds_sleepfor(DDS_MSECS(10));
       continue;
     }
-    dds_sleepfor(DDS_MSECS(10));
+    const bool ok = info[0].valid_data && accept(samples[0], context);
+    dds_return_loan(reader, samples, n);
+    if (ok) return true;
   }
   return false;
 }
 
-static bool any_state(const tgm_msg_InterpolatorState* s) {
-  (void)s;
+/* A state of interpolator 0, copied to context. */
+static bool any_state(const void* sample, void* context) {
+  const tgm_msg_InterpolatorState* s = sample;
+  if (s->interpolator != 0) return false;
+  *(tgm_msg_InterpolatorState*)context = *s;
   return true;
 }
 
-static bool half_speed(const tgm_msg_InterpolatorState* s) {
-  return s->rel_speed == 0.5;
+/* A state of interpolator 0 at Rel_Speed 0.5, copied to context. */
+static bool half_speed(const void* sample, void* context) {
+  const tgm_msg_InterpolatorState* s = sample;
+  return s->rel_speed == 0.5 && any_state(sample, context);
+}
+
+/* The reply to the request in context, printed. */
+static bool reply_to(const void* sample, void* context) {
+  const tgm_msg_Reply* a = sample;
+  const tgm_msg_Request* r = context;
+  if (a->request_id != r->request_id || strcmp(a->client_name, r->client_name) != 0) return false;
+  printf("reply: request %" PRIu64 " accepted %d, code %d, reason '%s', cycle %" PRIu64 "\n",
+         a->request_id, (int)a->accepted, (int)a->code, a->reason, a->cycle_counter);
+  return true;
+}
+
+/* A setpoint of interpolator 0, printed. */
+static bool setpoint(const void* sample, void* context) {
+  (void)context;
+  const tgm_msg_Setpoints* p = sample;
+  if (p->interpolator != 0) return false;
+  printf("setpoints: cycle %" PRIu64 ", Position %g %g %g mm, PositionInc %" PRId64 " %" PRId64
+         " %" PRId64 "\n",
+         p->cycle_counter, p->position[0], p->position[1], p->position[2], p->position_inc[0],
+         p->position_inc[1], p->position_inc[2]);
+  return true;
 }
 
 int main(int argc, char** argv) {
@@ -126,7 +151,7 @@ int main(int argc, char** argv) {
 
   /* 1. The state. */
   tgm_msg_InterpolatorState s;
-  if (!wait_state(state_reader, dds_time() + timeout, any_state, &s)) {
+  if (!take_until(state_reader, dds_time() + timeout, any_state, &s)) {
     return fail("state", "no state of interpolator 0 from tgm-service");
   }
   printf("state: interpolator %u, status %d, cycle %" PRIu64
@@ -161,57 +186,22 @@ int main(int argc, char** argv) {
   r.attempt = 1;
   const dds_return_t wrote = dds_write(request_writer, &r);
   if (wrote != DDS_RETCODE_OK) return fail("request", dds_strretcode(wrote));
-  bool replied = false;
-  const dds_time_t reply_by = dds_time() + timeout;
-  while (!replied && dds_time() < reply_by) {
-    void* samples[1] = {NULL};
-    dds_sample_info_t info[1];
-    const int32_t n = dds_take(reply_reader, samples, info, 1, 1);
-    if (n <= 0) {
-      dds_sleepfor(DDS_MSECS(10));
-      continue;
-    }
-    const tgm_msg_Reply* a = samples[0];
-    if (info[0].valid_data && a->request_id == r.request_id &&
-        strcmp(a->client_name, kClientName) == 0) {
-      printf("reply: request %" PRIu64 " accepted %d, code %d, reason '%s', cycle %" PRIu64 "\n",
-             a->request_id, (int)a->accepted, (int)a->code, a->reason, a->cycle_counter);
-      fflush(stdout);
-      replied = true;
-    }
-    dds_return_loan(reply_reader, samples, n);
+  if (!take_until(reply_reader, dds_time() + timeout, reply_to, &r)) {
+    return fail("reply", "no reply to the Rel_Speed write");
   }
-  if (!replied) return fail("reply", "no reply to the Rel_Speed write");
+  fflush(stdout);
 
   /* 3. The state shows it. */
-  if (!wait_state(state_reader, dds_time() + timeout, half_speed, &s)) {
+  if (!take_until(state_reader, dds_time() + timeout, half_speed, &s)) {
     return fail("state after the write", "no state with Rel_Speed 0.5");
   }
   printf("state: Rel_Speed %g at cycle %" PRIu64 "\n", s.rel_speed, s.cycle_counter);
   fflush(stdout);
 
   /* 4. A setpoint. */
-  bool setpoint = false;
-  const dds_time_t setpoint_by = dds_time() + timeout;
-  while (!setpoint && dds_time() < setpoint_by) {
-    void* samples[1] = {NULL};
-    dds_sample_info_t info[1];
-    const int32_t n = dds_take(setpoints_reader, samples, info, 1, 1);
-    if (n <= 0) {
-      dds_sleepfor(DDS_MSECS(10));
-      continue;
-    }
-    const tgm_msg_Setpoints* p = samples[0];
-    if (info[0].valid_data && p->interpolator == 0) {
-      printf("setpoints: cycle %" PRIu64 ", Position %g %g %g mm, PositionInc %" PRId64 " %" PRId64
-             " %" PRId64 "\n",
-             p->cycle_counter, p->position[0], p->position[1], p->position[2], p->position_inc[0],
-             p->position_inc[1], p->position_inc[2]);
-      setpoint = true;
-    }
-    dds_return_loan(setpoints_reader, samples, n);
+  if (!take_until(setpoints_reader, dds_time() + timeout, setpoint, NULL)) {
+    return fail("setpoints", "no setpoint of interpolator 0");
   }
-  if (!setpoint) return fail("setpoints", "no setpoint of interpolator 0");
   dds_delete(participant);
   return 0;
 }
