@@ -27,6 +27,21 @@ static int fail(const char* step, const char* why) {
   return 1;
 }
 
+/* A reader, or a writer, of topic `name` with `qos`; negative, and said, when the topic or the
+ * endpoint cannot be made. */
+static dds_entity_t endpoint(dds_entity_t participant, const dds_topic_descriptor_t* type,
+                             const char* name, const dds_qos_t* qos, bool writer) {
+  const dds_entity_t topic = dds_create_topic(participant, type, name, NULL, NULL);
+  if (topic < 0) {
+    fail(name, dds_strretcode(topic));
+    return topic;
+  }
+  const dds_entity_t e = writer ? dds_create_writer(participant, topic, qos, NULL)
+                                : dds_create_reader(participant, topic, qos, NULL);
+  if (e < 0) fail(name, dds_strretcode(e));
+  return e;
+}
+
 /* Takes samples from `reader` one at a time until `accept(sample, context)` returns true for
  * one with valid data, or the deadline passes. */
 static bool take_until(dds_entity_t reader, dds_time_t deadline,
@@ -113,23 +128,19 @@ int main(int argc, char** argv) {
   dds_qset_reliability(qos, DDS_RELIABILITY_RELIABLE, DDS_MSECS(100));
   dds_qset_durability(qos, DDS_DURABILITY_TRANSIENT_LOCAL);
   dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, 1);
-  const dds_entity_t state_topic =
-      dds_create_topic(participant, &tgm_msg_InterpolatorState_desc, "tgm_state", NULL, NULL);
-  if (state_topic < 0) return fail("state topic", dds_strretcode(state_topic));
-  const dds_entity_t state_reader = dds_create_reader(participant, state_topic, qos, NULL);
+  const dds_entity_t state_reader =
+      endpoint(participant, &tgm_msg_InterpolatorState_desc, "tgm_state", qos, false);
   dds_delete_qos(qos);
-  if (state_reader < 0) return fail("state reader", dds_strretcode(state_reader));
+  if (state_reader < 0) return 1;
 
   /* tgm_setpoints: BEST_EFFORT, VOLATILE, KEEP_LAST 1 (a late setpoint is of no use). */
-  const dds_entity_t setpoints_topic =
-      dds_create_topic(participant, &tgm_msg_Setpoints_desc, "tgm_setpoints", NULL, NULL);
-  if (setpoints_topic < 0) return fail("setpoints topic", dds_strretcode(setpoints_topic));
   qos = dds_create_qos();
   dds_qset_reliability(qos, DDS_RELIABILITY_BEST_EFFORT, 0);
   dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, 1);
-  const dds_entity_t setpoints_reader = dds_create_reader(participant, setpoints_topic, qos, NULL);
+  const dds_entity_t setpoints_reader =
+      endpoint(participant, &tgm_msg_Setpoints_desc, "tgm_setpoints", qos, false);
   dds_delete_qos(qos);
-  if (setpoints_reader < 0) return fail("setpoints reader", dds_strretcode(setpoints_reader));
+  if (setpoints_reader < 0) return 1;
 
   /* Requests: tgm's request readers want a liveliness lease of at most 100 ms. */
   qos = dds_create_qos();
@@ -137,17 +148,12 @@ int main(int argc, char** argv) {
   dds_qset_durability(qos, DDS_DURABILITY_VOLATILE);
   dds_qset_history(qos, DDS_HISTORY_KEEP_LAST, 100);
   dds_qset_liveliness(qos, DDS_LIVELINESS_AUTOMATIC, DDS_MSECS(100));
-  const dds_entity_t request_topic =
-      dds_create_topic(participant, &tgm_msg_Request_desc, "tgm_request", NULL, NULL);
-  if (request_topic < 0) return fail("request topic", dds_strretcode(request_topic));
-  const dds_entity_t request_writer = dds_create_writer(participant, request_topic, qos, NULL);
-  if (request_writer < 0) return fail("request writer", dds_strretcode(request_writer));
-  const dds_entity_t reply_topic =
-      dds_create_topic(participant, &tgm_msg_Reply_desc, "tgm_reply", NULL, NULL);
-  if (reply_topic < 0) return fail("reply topic", dds_strretcode(reply_topic));
-  const dds_entity_t reply_reader = dds_create_reader(participant, reply_topic, qos, NULL);
+  const dds_entity_t request_writer =
+      endpoint(participant, &tgm_msg_Request_desc, "tgm_request", qos, true);
+  const dds_entity_t reply_reader =
+      endpoint(participant, &tgm_msg_Reply_desc, "tgm_reply", qos, false);
   dds_delete_qos(qos);
-  if (reply_reader < 0) return fail("reply reader", dds_strretcode(reply_reader));
+  if (request_writer < 0 || reply_reader < 0) return 1;
 
   /* 1. The state. */
   tgm_msg_InterpolatorState s;
