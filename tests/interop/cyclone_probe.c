@@ -18,7 +18,9 @@
 #include <string.h>
 
 #include "dds/dds.h"
-#include "tgm.h"
+/* The generated types: of idl/tgm.idl, or of an older version's IDL (TGM_PROBE_BEFORE_DIGEST:
+ * 0.2.0's, without InterpolatorState.machine_digest). */
+#include TGM_PROBE_TYPES
 
 static const char kClientName[] = "cyclone-probe";
 
@@ -161,10 +163,13 @@ int main(int argc, char** argv) {
     return fail("state", "no state of interpolator 0 from tgm-service");
   }
   printf("state: interpolator %u, status %d, cycle %" PRIu64
-         " of %d us, axes %s (Number_Axes %d), "
-         "machine digest %016" PRIx64 ", service instance %016" PRIx64 ", Rel_Speed %g\n",
+         " of %d us, axes %s (Number_Axes %d), ",
          (unsigned)s.interpolator, (int)s.status, s.cycle_counter, (int)s.cycle_time_us,
-         s.axis_letters, (int)s.number_axes, s.machine_digest, s.service_instance, s.rel_speed);
+         s.axis_letters, (int)s.number_axes);
+#ifndef TGM_PROBE_BEFORE_DIGEST
+  printf("machine digest %016" PRIx64 ", ", s.machine_digest);
+#endif
+  printf("service instance %016" PRIx64 ", Rel_Speed %g\n", s.service_instance, s.rel_speed);
   fflush(stdout);
 
   /* 2. A request once the service's request reader and its reply writer have matched

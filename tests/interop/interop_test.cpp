@@ -23,32 +23,27 @@ using test::ServiceEnv;
 
 constexpr auto kHang = 60s;
 
-TEST(Interop, ACycloneDdsClientReadsTheStateWritesAsAPlcAndIsAnswered) {
-#ifndef TGM_CYCLONE_PROBE_BIN
-  // A missing probe is a failure where the environment asks for Cyclone DDS (CI).
-  if (const char* v = std::getenv("TGM_REQUIRE_CYCLONE"); v != nullptr && std::string(v) == "1") {
-    FAIL() << "tgm_cyclone_probe was not built (Cyclone DDS: cyclonedds-dev, cyclonedds-tools) "
-              "but TGM_REQUIRE_CYCLONE=1";
-  }
-  GTEST_SKIP() << "Cyclone DDS not found at configure time (cyclonedds-dev, cyclonedds-tools)";
-#else
+// Runs `probe` against a service of its own and checks its lines; `digest`: whether its types
+// have InterpolatorState.machine_digest (0.2.1 on).
+void probe_the_service(const char* probe_bin, bool digest) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());
   test::Child probe;
-  ASSERT_TRUE(probe.start({TGM_CYCLONE_PROBE_BIN, std::to_string(test::test_domain()), "30"},
-                          env.path("probe.log")));
+  ASSERT_TRUE(
+      probe.start({probe_bin, std::to_string(test::test_domain()), "30"}, env.path("probe.log")));
   ASSERT_EQ(probe.wait(kHang), 0) << probe.log();
   const std::string log = probe.log();
   // The state as the service's config makes it: every field read by Cyclone's own types.
   const std::optional<AppConfig> config = load_config_file(env.config()).config;
   ASSERT_TRUE(config.has_value());
-  char digest[48];
-  std::snprintf(digest, sizeof digest, "machine digest %016llx,",
+  char fields[96];
+  std::snprintf(fields, sizeof fields,
+                " of 500 us, axes XYZ (Number_Axes 3), machine digest %016llx,",
                 static_cast<unsigned long long>(machine_digest(config->machine, 0, 3)));
+  const std::string expected =
+      digest ? fields : " of 500 us, axes XYZ (Number_Axes 3), service instance ";
   EXPECT_NE(log.find("state: interpolator 0, status 0, cycle "), std::string::npos) << log;
-  EXPECT_NE(log.find(" of 500 us, axes XYZ (Number_Axes 3), " + std::string(digest)),
-            std::string::npos)
-      << log;
+  EXPECT_NE(log.find(expected), std::string::npos) << expected << "\n" << log;
   EXPECT_NE(log.find("Rel_Speed 1\n"), std::string::npos) << log;
   EXPECT_NE(log.find("reply: request 1 accepted 1, code 0, reason ''"), std::string::npos) << log;
   EXPECT_NE(log.find("state: Rel_Speed 0.5 at cycle "), std::string::npos) << log;
@@ -61,6 +56,34 @@ TEST(Interop, ACycloneDdsClientReadsTheStateWritesAsAPlcAndIsAnswered) {
                            env.path("status.log")));
   ASSERT_EQ(status.wait(kHang), 0) << status.log();
   EXPECT_NE(status.log().find("\"rel_speed\":0.5"), std::string::npos) << status.log();
+}
+
+#ifndef TGM_CYCLONE_PROBE_BIN
+// A missing probe is a failure where the environment asks for Cyclone DDS (CI).
+void no_probe() {
+  if (const char* v = std::getenv("TGM_REQUIRE_CYCLONE"); v != nullptr && std::string(v) == "1") {
+    FAIL() << "tgm_cyclone_probe was not built (Cyclone DDS: cyclonedds-dev, cyclonedds-tools) "
+              "but TGM_REQUIRE_CYCLONE=1";
+  }
+  GTEST_SKIP() << "Cyclone DDS not found at configure time (cyclonedds-dev, cyclonedds-tools)";
+}
+#endif
+
+TEST(Interop, ACycloneDdsClientReadsTheStateWritesAsAPlcAndIsAnswered) {
+#ifndef TGM_CYCLONE_PROBE_BIN
+  no_probe();
+#else
+  probe_the_service(TGM_CYCLONE_PROBE_BIN, true);
+#endif
+}
+
+// Upgrading the service before its clients: a client built from 0.2.0's IDL (tgm-0.2.0.idl,
+// without InterpolatorState.machine_digest) reads the state, is answered and reads setpoints.
+TEST(Interop, AClientOfVersion020ReadsThisServicesState) {
+#ifndef TGM_CYCLONE_PROBE_0_2_0_BIN
+  no_probe();
+#else
+  probe_the_service(TGM_CYCLONE_PROBE_0_2_0_BIN, false);
 #endif
 }
 
