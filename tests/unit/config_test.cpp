@@ -586,8 +586,6 @@ TEST(Config, KeyGivenTwiceIsAnErrorWithItsLine) {
   EXPECT_TRUE(load.config) << load.errors.front();
 }
 
-// compiler.block_delete: what a line starting with '/' does (error by default, the built-in
-// machine's too).
 // machine_digest is a format that services and clients of other versions share: pinned by a
 // value computed outside (FNV-1a 64 by hand in Python over the fields in the documented order).
 TEST(MachineDigest, IsPinnedForOneAxisOfDefaults) {
@@ -664,6 +662,8 @@ TEST(MachineDigest, FollowsWhatShapesTheMotionAndNothingElse) {
   EXPECT_NE(machine_digest(base, 0, 2), d);
 }
 
+// compiler.block_delete: what a line starting with '/' does (error by default, the built-in
+// machine's too).
 TEST(Config, BlockDeleteIsErrorRunOrSkip) {
   EXPECT_EQ(MachineConfig::default_machine().compiler.block_delete, BlockDelete::kRefuse);
   for (const auto& [word, mode] :
