@@ -1002,9 +1002,7 @@ int plc_main(int argc, char** argv) {
                      "axes %s, this config (%s) has %s: give tgm-plc the service's config",
                      sv.number, theirs.c_str(),
                      tgm::cli::ArgReader::config_file(config_path).path.c_str(), mine.c_str());
-        } else if (s->machine_digest() != 0 &&
-                   s->machine_digest() !=
-                       tgm::machine_digest(config.machine, sv.number, s->number_axes())) {
+        } else if (!tgm::client::same_machine(*s, config.machine, sv.number)) {
           // Said, not refused: the service's config moves the machine, and the smoothing this
           // PLC sets is its own config's. A mix of two configs is rarely meant.
           append_log(pending_log, stamp(),
@@ -1272,8 +1270,7 @@ int plc_main(int argc, char** argv) {
                    "interpolator%s %s: tgm-service on DDS domain %d hosts %s only (its config has "
                    "fewer interpolators than %s): not served until a service hosts %s",
                    unhosted == 1 ? "" : "s", missing.c_str(), config.dds.domain_id, hosted.c_str(),
-                   config.source_path.empty() ? "the built-in config" : config.source_path.c_str(),
-                   unhosted == 1 ? "it" : "them");
+                   tgm::client::config_name(config).c_str(), unhosted == 1 ? "it" : "them");
       }
     }
     if (!found_at && hosted.empty() && now - last_wait_log > 5s) {

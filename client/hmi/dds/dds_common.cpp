@@ -92,7 +92,7 @@ int wait_for_service(client::Client& c, const AppConfig& config, int interpolato
     const auto now = Clock::now();
     if (!hosted.empty() && !others_since) others_since = now;
     if (others_since && now - *others_since >= std::chrono::seconds(1)) {
-      const std::string mine = config_name(config);
+      const std::string mine = client::config_name(config);
       std::fprintf(stderr,
                    "tgm-hmi %s: tgm-service on DDS domain %d hosts interpolator%s %s, not %d (its "
                    "config has %d interpolator%s, %s has %zu): choose one with --interpolator, or "
@@ -185,19 +185,11 @@ namespace {
 }
 }  // namespace
 
-std::string config_name(const AppConfig& config) {
-  return config.source_path.empty() ? "the built-in config" : config.source_path;
-}
-
-bool same_machine(const msg::InterpolatorState& s, const MachineConfig& machine, int ip) {
-  return s.machine_digest() == 0 ||
-         s.machine_digest() == machine_digest(machine, ip, s.number_axes());
-}
-
 std::string machine_mismatch(const msg::InterpolatorState& s, const AppConfig& config, int ip) {
-  if (same_machine(s, config.machine, ip)) return {};
+  if (client::same_machine(s, config.machine, ip)) return {};
   return "interpolator " + std::to_string(ip) + ": the service's machine config is not " +
-         config_name(config) + " (axis limits, cycle time, smoothing or buffer size differ)";
+         client::config_name(config) +
+         " (axis limits, cycle time, smoothing or buffer size differ)";
 }
 
 std::string format_state(const msg::InterpolatorState& s, const std::string& config_letters) {

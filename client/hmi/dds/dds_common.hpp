@@ -40,15 +40,8 @@ int wait_for_service(client::Client& c, const AppConfig& config, int interpolato
 //! reason printed, 130 on Ctrl-C.
 int wait_for_plc_setup(client::Client& c, int interpolator, const char* command, double wait_s);
 
-//! The config's file for messages, "the built-in config" when it was none.
-std::string config_name(const AppConfig& config);
-
-//! Whether the service moves interpolator `ip` by `machine`: its InterpolatorState.machine_digest
-//! against machine_digest() of `machine` over the state's Number_Axes. True when the service
-//! does not say (a digest of 0: a service before 0.2.1).
-bool same_machine(const msg::InterpolatorState& s, const MachineConfig& machine, int ip);
-//! What status and watch say when !same_machine(s, config.machine, ip) ("interpolator 0: the
-//! service's machine config is not FILE (...)"); empty when it is the same.
+//! What status and watch say when !client::same_machine(s, config.machine, ip) ("interpolator 0:
+//! the service's machine config is not FILE (...)"); empty when it is the same.
 std::string machine_mismatch(const msg::InterpolatorState& s, const AppConfig& config, int ip);
 
 //! The registers of one interpolator as readable lines, the axes named by the service's

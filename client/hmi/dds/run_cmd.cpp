@@ -611,7 +611,7 @@ int run_run(int argc, char** argv) {
     so.m0_restart_s = 0.0;
     so.start_mm = here;
     so.max_time_s = SimulationOptions::kMaxTimeS;
-    if (same_machine(*st, machine, ip)) {
+    if (client::same_machine(*st, machine, ip)) {
       estimate.emplace(std::move(machine), std::move(so), program);
     } else {
       // Simulated by other limits, the times would be wrong without a sign of it.
@@ -619,7 +619,7 @@ int run_run(int argc, char** argv) {
                    "tgm-hmi run: no time estimate (progress by records): the service moves "
                    "interpolator %d by another machine config than %s (axis limits, smoothing or "
                    "buffer size differ)\n",
-                   ip, config_name(*config).c_str());
+                   ip, client::config_name(*config).c_str());
     }
   }
   bool estimate_said = false;

@@ -67,6 +67,15 @@ std::string describe(const Reply& r) {
   return "refused (" + std::string(reply_code_name(r.code)) + "): " + printable(r.reason);
 }
 
+std::string config_name(const AppConfig& config) {
+  return config.source_path.empty() ? "the built-in config" : config.source_path;
+}
+
+bool same_machine(const msg::InterpolatorState& s, const MachineConfig& machine, int ip) {
+  return s.machine_digest() == 0 ||
+         s.machine_digest() == machine_digest(machine, ip, s.number_axes());
+}
+
 std::string_view status_name(std::int32_t status) {
   switch (status) {
     case 0: return "empty";

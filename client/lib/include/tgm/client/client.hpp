@@ -92,6 +92,13 @@ std::string unique_client_name(std::string_view participant);
 //! "empty", "running", "ended", "ready", "emergency ramp", "emergency stopped", "underrun".
 std::string_view status_name(std::int32_t status);
 
+//! The config's file for messages, "the built-in config" when it was none.
+std::string config_name(const AppConfig& config);
+//! Whether the service moves interpolator `ip` by `machine`: its InterpolatorState.machine_digest
+//! against tgm::machine_digest() of `machine` over the state's Number_Axes. True when the service
+//! does not say (a digest of 0: a service before 0.2.1).
+bool same_machine(const msg::InterpolatorState& s, const MachineConfig& machine, int ip);
+
 //! Requests as start(), command() and set_rel_speed() send them, for Client::send() (which
 //! does not wait for the reply).
 msg::Request start_request(int interpolator);
