@@ -6,12 +6,21 @@
 
 namespace tgm {
 
+namespace {
+
+// When record k starts: when the one before it is done (0 for the first).
+double start_of(const std::vector<float>& done_s, std::size_t k) {
+  return k == 0 ? 0.0 : static_cast<double>(done_s[k - 1]);
+}
+
+}  // namespace
+
 double ProgramTimes::elapsed_s(std::int64_t act_part, double in_record_s,
                                double in_record_mm) const {
   if (act_part <= 0 || done_s.empty()) return 0.0;
   const auto k = static_cast<std::uint64_t>(act_part) - 1;
   if (k >= done_s.size()) return total_s;
-  const double before = k == 0 ? 0.0 : static_cast<double>(done_s[k - 1]);
+  const double before = start_of(done_s, k);
   const double own = static_cast<double>(done_s[k]) - before;
   const double length = k < length_mm.size() ? static_cast<double>(length_mm[k]) : 0.0;
   if (length > 0.0 && in_record_mm >= 0.0) {
@@ -25,24 +34,16 @@ double ProgramTimes::elapsed_s(std::int64_t act_part, double in_record_s,
 double ProgramTimes::left_s(std::int64_t act_part, double in_record_s, double in_record_mm,
                             double move_scale) const {
   const double elapsed = elapsed_s(act_part, in_record_s, in_record_mm);
-  // Times made without the waits by record (by hand): every second a move's.
-  const bool by_record = wait_s.size() == done_s.size() && length_mm.size() == done_s.size();
-  const double total_wait = by_record && !wait_s.empty() ? static_cast<double>(wait_s.back()) : 0.0;
-  // The waits behind: those of the records before this one, and this one's time so far when
-  // it does not move.
-  double waited = 0.0;
-  if (by_record && act_part > 0 && !done_s.empty()) {
-    const auto k = static_cast<std::uint64_t>(act_part) - 1;
-    if (k >= done_s.size()) {
-      waited = total_wait;
-    } else {
-      waited = k == 0 ? 0.0 : static_cast<double>(wait_s[k - 1]);
-      if (!(length_mm[k] > 0.0F)) {
-        waited += elapsed - (k == 0 ? 0.0 : static_cast<double>(done_s[k - 1]));
-      }
-    }
+  // The waits still to come: those of the records after record act_part, and what is left of
+  // its own time when it does not move. Times made without the waits by record (by hand):
+  // every second a move's.
+  double waits_left = 0.0;
+  const auto k = static_cast<std::uint64_t>(std::max<std::int64_t>(act_part, 1)) - 1;
+  if (wait_s.size() == done_s.size() && length_mm.size() == done_s.size() && k < done_s.size()) {
+    waits_left = static_cast<double>(wait_s.back()) - static_cast<double>(wait_s[k]);
+    if (!(length_mm[k] > 0.0F)) waits_left += static_cast<double>(done_s[k]) - elapsed;
+    waits_left = std::max(waits_left, 0.0);
   }
-  const double waits_left = std::max(total_wait - waited, 0.0);
   const double moves_left = std::max(total_s - elapsed - waits_left, 0.0);
   return moves_left * move_scale + waits_left;
 }
@@ -96,8 +97,7 @@ std::optional<ProgramTimes> program_times(const MachineConfig& machine,
   double waits = 0.0;
   for (std::size_t k = 0; k < t.done_s.size(); ++k) {
     if (!(t.length_mm[k] > 0.0F)) {
-      waits +=
-          static_cast<double>(t.done_s[k]) - (k == 0 ? 0.0 : static_cast<double>(t.done_s[k - 1]));
+      waits += static_cast<double>(t.done_s[k]) - start_of(t.done_s, k);
     }
     t.wait_s[k] = static_cast<float>(waits);
   }
