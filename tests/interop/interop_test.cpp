@@ -4,6 +4,8 @@
 // registered Cyclone refuses to match Fast DDS 2.9's topics. The probe reads the state as a
 // late joiner, writes Rel_Speed as a PLC and takes the reply, and reads a setpoint as a drive
 // would; tgm-hmi status, a Fast DDS client, then sees the value the Cyclone client wrote.
+// tgm_cyclone_run is an HMI and a PLC: it streams a program, starts it, acknowledges its
+// M-function from the event topic and reads its message.
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -61,16 +63,14 @@ void probe_the_service(const char* probe_bin, bool digest) {
   EXPECT_NE(status.log().find("\"rel_speed\":0.5"), std::string::npos) << status.log();
 }
 
-#ifndef TGM_CYCLONE_PROBE_BIN
 // A missing probe is a failure where the environment asks for Cyclone DDS (CI).
-void no_probe() {
+[[maybe_unused]] void no_probe() {
   if (const char* v = std::getenv("TGM_REQUIRE_CYCLONE"); v != nullptr && std::string(v) == "1") {
     FAIL() << "tgm_cyclone_probe was not built (Cyclone DDS: cyclonedds-dev, cyclonedds-tools) "
               "but TGM_REQUIRE_CYCLONE=1";
   }
   GTEST_SKIP() << "Cyclone DDS not found at configure time (cyclonedds-dev, cyclonedds-tools)";
 }
-#endif
 
 TEST(Interop, ACycloneDdsClientReadsTheStateWritesAsAPlcAndIsAnswered) {
 #ifndef TGM_CYCLONE_PROBE_BIN
@@ -87,6 +87,55 @@ TEST(Interop, AClientOfVersion020ReadsThisServicesState) {
   no_probe();
 #else
   probe_the_service(TGM_CYCLONE_PROBE_0_2_0_BIN, false);
+#endif
+}
+
+// A program run by a Cyclone DDS client as both the HMI and the PLC, with the service's
+// plc.setup_before_start on: setup, stream, start, the M-function's event and acknowledgement,
+// the M29 message, the end. Then a Fast DDS client reads the same end and the same message.
+TEST(Interop, ACycloneDdsHmiAndPlcRunAProgramWithItsMFunctionAndMessage) {
+#ifndef TGM_CYCLONE_RUN_BIN
+  no_probe();
+#else
+  test::ConfigEdits edits;
+  edits.plc_setup_before_start = true;
+  ServiceEnv env(edits);
+  ASSERT_TRUE(env.start_service());
+  test::Child run;
+  ASSERT_TRUE(run.start({TGM_CYCLONE_RUN_BIN, std::to_string(test::test_domain()), "30"},
+                        env.path("run.log")));
+  ASSERT_EQ(run.wait(kHang), 0) << run.log();
+  const std::string log = run.log();
+  EXPECT_NE(log.find("state: status 0, program 0, axes XYZ\n"), std::string::npos) << log;
+  // Setup, start and acknowledgement: requests 1, 2 and 3, each accepted.
+  for (const char* id : {"1", "2", "3"}) {
+    EXPECT_NE(log.find(std::string("reply: request ") + id + " accepted 1, code 0, reason ''"),
+              std::string::npos)
+        << id << "\n"
+        << log;
+  }
+  EXPECT_NE(log.find("program: 5 records of program 1129923377 taken, "), std::string::npos) << log;
+  // The motion stopped at the end of G1 X5 for M3 (line 2), waiting for the PLC (section
+  // state 4 WAIT_MFUNC or 5 WAIT_MFUNC_WAIT_FOR_END).
+  EXPECT_NE(log.find("event: M_Func 3 (count 1, line 2), Run_Flag section state "),
+            std::string::npos)
+      << log;
+  EXPECT_NE(log.find("state at M3: Orig_Position X 5, Act_Speed 0 mm/min\n"), std::string::npos)
+      << log;
+  EXPECT_NE(log.find("message: 'hello from cyclone', severity 0, line 3\n"), std::string::npos)
+      << log;
+  // Act_Part stays at the last motion (record 4, G1 X0) through M30, as in `tgm-hmi simulate`.
+  EXPECT_NE(log.find("state: status 3, Orig_Position X 0, Act_Part 4, M-functions 1\n"),
+            std::string::npos)
+      << log;
+
+  // The Fast DDS side sees the same: the end at X 0 and the program's message.
+  test::Child status;
+  ASSERT_TRUE(status.start({TGM_HMI_BIN, "status", "--json", "--config", env.config()},
+                           env.path("status.log")));
+  ASSERT_EQ(status.wait(kHang), 0) << status.log();
+  EXPECT_NE(status.log().find("\"status\":3"), std::string::npos) << status.log();
+  EXPECT_NE(status.log().find("hello from cyclone"), std::string::npos) << status.log();
 #endif
 }
 
