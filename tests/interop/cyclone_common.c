@@ -13,18 +13,19 @@ int fail(const char* step, const char* why) {
   return 1;
 }
 
-bool parse_args(int argc, char** argv, const char* usage, long* domain, dds_duration_t* timeout) {
+int start_client(int argc, char** argv, const char* usage, dds_entity_t* participant,
+                 dds_duration_t* timeout) {
   program_name = argv[0];
   if (strrchr(program_name, '/') != NULL) program_name = strrchr(program_name, '/') + 1;
   if (argc < 2 || argc > 3) {
     fprintf(stderr, "usage: %s\n", usage);
-    return false;
+    return 2;
   }
   char* end = NULL;
-  *domain = strtol(argv[1], &end, 10);
-  if (*argv[1] == '\0' || *end != '\0' || *domain < 0 || *domain > 232) {
+  const long domain = strtol(argv[1], &end, 10);
+  if (*argv[1] == '\0' || *end != '\0' || domain < 0 || domain > 232) {
     fprintf(stderr, "%s: DOMAIN must be 0..232, not '%s'\n", program_name, argv[1]);
-    return false;
+    return 2;
   }
   double timeout_s = 10.0;
   if (argc == 3) {
@@ -32,11 +33,13 @@ bool parse_args(int argc, char** argv, const char* usage, long* domain, dds_dura
     if (*argv[2] == '\0' || *end != '\0' || !(timeout_s > 0.0 && timeout_s <= 3600.0)) {
       fprintf(stderr, "%s: TIMEOUT_S must be a number in (0, 3600], not '%s'\n", program_name,
               argv[2]);
-      return false;
+      return 2;
     }
   }
   *timeout = (dds_duration_t)(timeout_s * 1e9);
-  return true;
+  *participant = dds_create_participant((dds_domainid_t)domain, NULL, NULL);
+  if (*participant < 0) return fail("participant", dds_strretcode(*participant));
+  return 0;
 }
 
 dds_entity_t endpoint(dds_entity_t participant, const dds_topic_descriptor_t* type,
@@ -65,6 +68,24 @@ dds_entity_t endpoint(dds_entity_t participant, const dds_topic_descriptor_t* ty
   dds_delete_qos(qos);
   if (e < 0) fail(name, dds_strretcode(e));
   return e;
+}
+
+bool state_and_request_endpoints(dds_entity_t participant, dds_entity_t* state_reader,
+                                 dds_entity_t* request_writer, dds_entity_t* reply_reader) {
+  *state_reader =
+      endpoint(participant, &tgm_msg_InterpolatorState_desc, "tgm_state",
+               (topic_qos){.reliable = true, .transient_local = true, .depth = 1}, false);
+  const topic_qos request_qos = {.reliable = true, .depth = 100, .liveliness = true};
+  *request_writer = endpoint(participant, &tgm_msg_Request_desc, "tgm_request", request_qos, true);
+  *reply_reader = endpoint(participant, &tgm_msg_Reply_desc, "tgm_reply", request_qos, false);
+  return *state_reader >= 0 && *request_writer >= 0 && *reply_reader >= 0;
+}
+
+bool any_state(const void* sample, void* context) {
+  const tgm_msg_InterpolatorState* s = sample;
+  if (s->interpolator != 0) return false;
+  *(tgm_msg_InterpolatorState*)context = *s;
+  return true;
 }
 
 bool take_until(dds_entity_t reader, dds_time_t deadline,
@@ -100,6 +121,19 @@ bool wait_matched(const dds_entity_t* endpoints, int n, dds_time_t deadline) {
     if (dds_time() >= deadline) return false;
     dds_sleepfor(DDS_MSECS(10));
   }
+}
+
+tgm_msg_Request new_request(const char* client, uint64_t id, tgm_msg_ClientRole role,
+                            tgm_msg_RequestKind kind, uint64_t service_instance) {
+  tgm_msg_Request r;
+  memset(&r, 0, sizeof r);
+  r.request_id = id;
+  r.role = role;
+  snprintf(r.client_name, sizeof r.client_name, "%s", client);
+  r.interpolator = 0;
+  r.kind = kind;
+  r.service_instance = service_instance;
+  return r;
 }
 
 /* The reply to the request in context[0], copied to context[1]. */

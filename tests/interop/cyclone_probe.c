@@ -22,14 +22,6 @@
 
 static const char kClientName[] = "cyclone-probe";
 
-/* A state of interpolator 0, copied to context. */
-static bool any_state(const void* sample, void* context) {
-  const tgm_msg_InterpolatorState* s = sample;
-  if (s->interpolator != 0) return false;
-  *(tgm_msg_InterpolatorState*)context = *s;
-  return true;
-}
-
 /* A state of interpolator 0 at Rel_Speed 0.5, copied to context. */
 static bool half_speed(const void* sample, void* context) {
   const tgm_msg_InterpolatorState* s = sample;
@@ -49,30 +41,21 @@ static bool setpoint(const void* sample, void* context) {
 }
 
 int main(int argc, char** argv) {
-  long domain = 0;
+  dds_entity_t participant = 0;
   dds_duration_t timeout = 0;
-  if (!parse_args(argc, argv, "tgm_cyclone_probe DOMAIN [TIMEOUT_S]", &domain, &timeout)) {
-    return 2;
-  }
-  const dds_entity_t participant = dds_create_participant((dds_domainid_t)domain, NULL, NULL);
-  if (participant < 0) return fail("participant", dds_strretcode(participant));
+  const int started =
+      start_client(argc, argv, "tgm_cyclone_probe DOMAIN [TIMEOUT_S]", &participant, &timeout);
+  if (started != 0) return started;
 
-  /* QoS as tgm's endpoints (config/fastdds_profiles.xml). tgm_state: RELIABLE,
-   * TRANSIENT_LOCAL, KEEP_LAST 1; no deadline or liveliness asked (the writer offers stricter
-   * ones than the defaults ask). tgm_setpoints: BEST_EFFORT, VOLATILE, KEEP_LAST 1 (a late
-   * setpoint is of no use). Requests and replies: tgm's request readers want a liveliness lease
-   * of at most 100 ms. */
-  const dds_entity_t state_reader =
-      endpoint(participant, &tgm_msg_InterpolatorState_desc, "tgm_state",
-               (topic_qos){.reliable = true, .transient_local = true, .depth = 1}, false);
+  /* QoS as tgm's endpoints (config/fastdds_profiles.xml); tgm_setpoints: BEST_EFFORT, VOLATILE,
+   * KEEP_LAST 1 (a late setpoint is of no use). */
+  dds_entity_t state_reader = 0;
+  dds_entity_t request_writer = 0;
+  dds_entity_t reply_reader = 0;
   const dds_entity_t setpoints_reader = endpoint(participant, &tgm_msg_Setpoints_desc,
                                                  "tgm_setpoints", (topic_qos){.depth = 1}, false);
-  const topic_qos request_qos = {.reliable = true, .depth = 100, .liveliness = true};
-  const dds_entity_t request_writer =
-      endpoint(participant, &tgm_msg_Request_desc, "tgm_request", request_qos, true);
-  const dds_entity_t reply_reader =
-      endpoint(participant, &tgm_msg_Reply_desc, "tgm_reply", request_qos, false);
-  if (state_reader < 0 || setpoints_reader < 0 || request_writer < 0 || reply_reader < 0) {
+  if (!state_and_request_endpoints(participant, &state_reader, &request_writer, &reply_reader) ||
+      setpoints_reader < 0) {
     return 1;
   }
 
@@ -97,15 +80,9 @@ int main(int argc, char** argv) {
   if (!wait_matched(requests, 2, dds_time() + timeout)) {
     return fail("request", "tgm_request or tgm_reply did not match");
   }
-  tgm_msg_Request r;
-  memset(&r, 0, sizeof r);
-  r.request_id = 1;
-  r.role = tgm_msg_CLIENT_ROLE_PLC;
-  snprintf(r.client_name, sizeof r.client_name, "%s", kClientName);
-  r.interpolator = 0;
-  r.kind = tgm_msg_REQUEST_KIND_WRITE_REL_SPEED;
+  tgm_msg_Request r = new_request(kClientName, 1, tgm_msg_CLIENT_ROLE_PLC,
+                                  tgm_msg_REQUEST_KIND_WRITE_REL_SPEED, s.service_instance);
   r.value = 0.5;
-  r.service_instance = s.service_instance;
   tgm_msg_Reply reply;
   if (!request(request_writer, reply_reader, &r, &reply, dds_time() + timeout)) {
     return fail("reply", "no reply to the Rel_Speed write");

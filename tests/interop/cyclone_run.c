@@ -29,14 +29,6 @@ static const char kClientName[] = "cyclone-run";
 static const uint32_t kProgramId = 0x43594331; /* "CYC1" */
 static const char kText[] = "hello from cyclone";
 
-/* A state of interpolator 0, copied to context. */
-static bool any_state(const void* sample, void* context) {
-  const tgm_msg_InterpolatorState* s = sample;
-  if (s->interpolator != 0) return false;
-  *(tgm_msg_InterpolatorState*)context = *s;
-  return true;
-}
-
 /* A state showing this program loaded whole. */
 static bool loaded(const void* sample, void* context) {
   const tgm_msg_InterpolatorState* s = sample;
@@ -96,36 +88,34 @@ static tgm_msg_Segment m_function(int32_t m, uint8_t kind, int32_t line, double 
   return g;
 }
 
-static tgm_msg_Request plain_request(uint64_t id, tgm_msg_ClientRole role, tgm_msg_RequestKind kind,
-                                     uint64_t service_instance) {
-  tgm_msg_Request r;
-  memset(&r, 0, sizeof r);
-  r.request_id = id;
-  r.role = role;
-  snprintf(r.client_name, sizeof r.client_name, "%s", kClientName);
-  r.interpolator = 0;
-  r.kind = kind;
-  r.service_instance = service_instance;
-  return r;
+/* Request `r` of this client, written until answered: true when accepted; else false, the
+ * step and the reason said. */
+static bool accepted(dds_entity_t writer, dds_entity_t reply_reader, tgm_msg_Request r,
+                     const char* step, dds_duration_t timeout) {
+  tgm_msg_Reply reply;
+  if (!request(writer, reply_reader, &r, &reply, dds_time() + timeout)) {
+    fail(step, "no reply");
+    return false;
+  }
+  if (!reply.accepted) fail(step, reply.reason);
+  return reply.accepted;
 }
 
 int main(int argc, char** argv) {
-  long domain = 0;
+  dds_entity_t participant = 0;
   dds_duration_t timeout = 0;
-  if (!parse_args(argc, argv, "tgm_cyclone_run DOMAIN [TIMEOUT_S]", &domain, &timeout)) {
-    return 2;
-  }
-  const dds_entity_t participant = dds_create_participant((dds_domainid_t)domain, NULL, NULL);
-  if (participant < 0) return fail("participant", dds_strretcode(participant));
+  const int started =
+      start_client(argc, argv, "tgm_cyclone_run DOMAIN [TIMEOUT_S]", &participant, &timeout);
+  if (started != 0) return started;
 
-  /* QoS as tgm's endpoints (config/fastdds_profiles.xml): tgm_state RELIABLE, TRANSIENT_LOCAL,
-   * KEEP_LAST 1; tgm_event RELIABLE, VOLATILE, KEEP_LAST 100; tgm_message RELIABLE,
-   * TRANSIENT_LOCAL, KEEP_LAST 32; tgm_program RELIABLE, VOLATILE, KEEP_ALL; requests and
-   * replies RELIABLE, VOLATILE. Where tgm's readers ask for a liveliness lease of at most
-   * 100 ms, the writer offers it. */
-  const dds_entity_t state_reader =
-      endpoint(participant, &tgm_msg_InterpolatorState_desc, "tgm_state",
-               (topic_qos){.reliable = true, .transient_local = true, .depth = 1}, false);
+  /* QoS as tgm's endpoints (config/fastdds_profiles.xml): tgm_event RELIABLE, VOLATILE,
+   * KEEP_LAST 100; tgm_message RELIABLE, TRANSIENT_LOCAL, KEEP_LAST 32; tgm_program RELIABLE,
+   * VOLATILE, KEEP_ALL, with the 100 ms liveliness lease tgm's program reader asks for. */
+  dds_entity_t state_reader = 0;
+  dds_entity_t request_writer = 0;
+  dds_entity_t reply_reader = 0;
+  const bool made =
+      state_and_request_endpoints(participant, &state_reader, &request_writer, &reply_reader);
   const dds_entity_t event_reader =
       endpoint(participant, &tgm_msg_InterpolatorEvent_desc, "tgm_event",
                (topic_qos){.reliable = true, .depth = 100}, false);
@@ -135,15 +125,7 @@ int main(int argc, char** argv) {
   const dds_entity_t program_writer =
       endpoint(participant, &tgm_msg_ProgramChunk_desc, "tgm_program",
                (topic_qos){.reliable = true, .depth = 0, .liveliness = true}, true);
-  const topic_qos request_qos = {.reliable = true, .depth = 100, .liveliness = true};
-  const dds_entity_t request_writer =
-      endpoint(participant, &tgm_msg_Request_desc, "tgm_request", request_qos, true);
-  const dds_entity_t reply_reader =
-      endpoint(participant, &tgm_msg_Reply_desc, "tgm_reply", request_qos, false);
-  if (state_reader < 0 || event_reader < 0 || message_reader < 0 || program_writer < 0 ||
-      request_writer < 0 || reply_reader < 0) {
-    return 1;
-  }
+  if (!made || event_reader < 0 || message_reader < 0 || program_writer < 0) return 1;
 
   /* 1. The state, and every endpoint matched: an event or a chunk written before is lost. */
   tgm_msg_InterpolatorState s;
@@ -160,13 +142,12 @@ int main(int argc, char** argv) {
   }
 
   /* 2. The PLC's setup. */
-  tgm_msg_Reply reply;
-  tgm_msg_Request r =
-      plain_request(1, tgm_msg_CLIENT_ROLE_PLC, tgm_msg_REQUEST_KIND_PLC_SETUP_DONE, instance);
-  if (!request(request_writer, reply_reader, &r, &reply, dds_time() + timeout)) {
-    return fail("setup", "no reply to the PLC's setup done");
+  if (!accepted(request_writer, reply_reader,
+                new_request(kClientName, 1, tgm_msg_CLIENT_ROLE_PLC,
+                            tgm_msg_REQUEST_KIND_PLC_SETUP_DONE, instance),
+                "setup", timeout)) {
+    return 1;
   }
-  if (!reply.accepted) return fail("setup", reply.reason);
 
   /* 3. The program, one chunk, written again (the same sequence number: the service drops a
    * chunk it has taken) while no state shows it taken. */
@@ -202,11 +183,12 @@ int main(int argc, char** argv) {
   fflush(stdout);
 
   /* 4. Start. */
-  r = plain_request(2, tgm_msg_CLIENT_ROLE_HMI, tgm_msg_REQUEST_KIND_START, instance);
-  if (!request(request_writer, reply_reader, &r, &reply, dds_time() + timeout)) {
-    return fail("start", "no reply to the start");
+  if (!accepted(request_writer, reply_reader,
+                new_request(kClientName, 2, tgm_msg_CLIENT_ROLE_HMI, tgm_msg_REQUEST_KIND_START,
+                            instance),
+                "start", timeout)) {
+    return 1;
   }
-  if (!reply.accepted) return fail("start", reply.reason);
 
   /* 5. M3: the event, the position it stopped at, the acknowledgement. */
   tgm_msg_InterpolatorEvent e;
@@ -221,14 +203,12 @@ int main(int argc, char** argv) {
   }
   printf("state at M3: Orig_Position X %g, Act_Speed %g mm/min\n", s.orig_position[0], s.act_speed);
   fflush(stdout);
-  r = plain_request(3, tgm_msg_CLIENT_ROLE_PLC, tgm_msg_REQUEST_KIND_WRITE_M_FUNC, instance);
-  r.value = 0.0;
-  r.m_func_acknowledged = 3;
-  r.m_func_count_acknowledged = e.m_func_count;
-  if (!request(request_writer, reply_reader, &r, &reply, dds_time() + timeout)) {
-    return fail("acknowledge", "no reply to M_Func = 0");
-  }
-  if (!reply.accepted) return fail("acknowledge", reply.reason);
+  tgm_msg_Request ack = new_request(kClientName, 3, tgm_msg_CLIENT_ROLE_PLC,
+                                    tgm_msg_REQUEST_KIND_WRITE_M_FUNC, instance);
+  ack.value = 0.0;
+  ack.m_func_acknowledged = 3;
+  ack.m_func_count_acknowledged = e.m_func_count;
+  if (!accepted(request_writer, reply_reader, ack, "acknowledge", timeout)) return 1;
 
   /* 6. The M29 message. */
   tgm_msg_Message m;
