@@ -8,6 +8,7 @@
 #include <spawn.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstring>
@@ -91,6 +92,54 @@ TEST(DdsLoopback, AMalformedSampleIsDroppedAndTheNextOneArrives) {
   }
   EXPECT_TRUE(seen);
   EXPECT_GT(dds::malformed_samples(), dropped);  // reads, not samples (Fast DDS may retry)
+}
+
+// A state of an older version's layout (a service not yet upgraded) ends before the fields
+// appended since. The generated code drops such a sample, so a client upgraded first read no
+// state at all (session 92: a 0.2.0 state written by Cyclone DDS, tests/interop). Cut at every
+// length from eight bytes before the end of 0.2.0's last field (plc_setup) to the whole: from
+// that end on the state reads, every field it has as written and those it lacks at 0; shorter,
+// it is dropped as malformed.
+TEST(DdsLoopback, AStateOfAnOlderLayoutReadsWithTheFieldsItLacksAtZero) {
+  msg::InterpolatorState full;
+  full.interpolator(2);
+  full.status(3);
+  full.axis_letters("XYZ");
+  full.cycle_counter(77);
+  full.machine_digest(0x0123456789abcdefULL);
+  // plc_setup's byte: where the serialized states with two values of it differ.
+  full.plc_setup(1);
+  const std::string one = test::serialized<msg::InterpolatorStatePubSubType>(full);
+  full.plc_setup(2);
+  const std::string bytes = test::serialized<msg::InterpolatorStatePubSubType>(full);
+  ASSERT_EQ(one.size(), bytes.size());
+  const auto at = std::mismatch(one.begin(), one.end(), bytes.begin()).first - one.begin();
+  ASSERT_LT(static_cast<std::size_t>(at), bytes.size() - 8) << "plc_setup not found";
+  const std::size_t end_of_0_2_0 = static_cast<std::size_t>(at) + 1;
+
+  dds::CheckedType<msg::InterpolatorStatePubSubType> type;
+  for (std::size_t length = end_of_0_2_0 - 8; length <= bytes.size(); ++length) {
+    eprosima::fastrtps::rtps::SerializedPayload_t payload(static_cast<std::uint32_t>(bytes.size()));
+    std::memcpy(payload.data, bytes.data(), length);
+    payload.length = static_cast<std::uint32_t>(length);
+    msg::InterpolatorState got;
+    got.machine_digest(99);  // a value the read must not leave behind
+    const std::uint64_t malformed = dds::malformed_samples();
+    const bool read = type.deserialize(&payload, &got);
+    if (length < end_of_0_2_0) {
+      EXPECT_FALSE(read) << length;
+      EXPECT_EQ(dds::malformed_samples(), malformed + 1) << length;
+      continue;
+    }
+    ASSERT_TRUE(read) << length << " of " << bytes.size();
+    EXPECT_EQ(dds::malformed_samples(), malformed) << length;
+    EXPECT_EQ(got.interpolator(), 2);
+    EXPECT_EQ(got.status(), 3);
+    EXPECT_EQ(got.axis_letters().to_string(), "XYZ");
+    EXPECT_EQ(got.cycle_counter(), 77u);
+    EXPECT_EQ(got.plc_setup(), 2);
+    EXPECT_EQ(got.machine_digest(), length == bytes.size() ? full.machine_digest() : 0u) << length;
+  }
 }
 
 TEST(DdsLoopback, ProgramStreamDeliversEveryChunkOnceInOrder) {

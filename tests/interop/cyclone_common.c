@@ -63,6 +63,7 @@ dds_entity_t endpoint(dds_entity_t participant, const dds_topic_descriptor_t* ty
     dds_qset_history(qos, DDS_HISTORY_KEEP_ALL, 0);
   }
   if (q.liveliness) dds_qset_liveliness(qos, DDS_LIVELINESS_AUTOMATIC, DDS_MSECS(100));
+  if (q.deadline) dds_qset_deadline(qos, DDS_MSECS(100));
   const dds_entity_t e = writer ? dds_create_writer(participant, topic, qos, NULL)
                                 : dds_create_reader(participant, topic, qos, NULL);
   dds_delete_qos(qos);

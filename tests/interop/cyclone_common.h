@@ -20,12 +20,13 @@ int start_client(int argc, char** argv, const char* usage, dds_entity_t* partici
 
 /* The QoS of tgm's topics (config/fastdds_profiles.xml), as a reader or writer of another
  * vendor needs them to match: reliability, durability, history depth (0: KEEP_ALL) and, where
- * tgm's endpoints ask for one, a 100 ms automatic liveliness lease. */
+ * tgm's endpoints ask for them, a 100 ms automatic liveliness lease and a 100 ms deadline. */
 typedef struct {
   bool reliable;
   bool transient_local;
   int depth;
   bool liveliness;
+  bool deadline;
 } topic_qos;
 
 /* A reader, or a writer, of topic `name`; negative, and said, when the topic or the endpoint

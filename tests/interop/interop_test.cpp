@@ -139,5 +139,32 @@ TEST(Interop, ACycloneDdsHmiAndPlcRunAProgramWithItsMFunctionAndMessage) {
 #endif
 }
 
+// An HMI upgraded before its service: this version's tgm-hmi reads the state of a 0.2.0 service
+// (written by tgm_cyclone_old_state_0_2_0 in 0.2.0's layout, without machine_digest). The
+// generated code dropped such a sample as too short, so status found no state at all (session
+// 92); now the fields the old layout lacks read as 0, and status says the digest is not said.
+TEST(Interop, ThisVersionsHmiReadsTheStateOfA020Service) {
+#ifndef TGM_CYCLONE_OLD_STATE_0_2_0_BIN
+  no_probe();
+#else
+  ServiceEnv env;  // its config alone: the "service" is the writer of 0.2.0's layout
+  test::Child old;
+  ASSERT_TRUE(
+      old.start({TGM_CYCLONE_OLD_STATE_0_2_0_BIN, std::to_string(test::test_domain()), "60"},
+                env.path("old.log")));
+  test::Child status;
+  ASSERT_TRUE(status.start({TGM_HMI_BIN, "status", "--wait", "30", "--config", env.config()},
+                           env.path("status.log")));
+  ASSERT_EQ(status.wait(kHang), 0) << status.log() << old.log();
+  const std::string log = status.log();
+  EXPECT_NE(log.find("Interpolator 0: Status 0 (empty"), std::string::npos) << log;
+  EXPECT_NE(log.find("service instance 000000001d5e41ce, machine digest not said (tgm-service "
+                     "before 0.2.1)"),
+            std::string::npos)
+      << log;
+  old.interrupt();
+#endif
+}
+
 }  // namespace
 }  // namespace tgm

@@ -17,6 +17,9 @@
 #include <thread>
 #include <vector>
 
+#include <fastcdr/Cdr.h>
+#include <fastcdr/FastBuffer.h>
+#include <fastcdr/exceptions/NotEnoughMemoryException.h>
 #include <fastdds/rtps/transport/UDPv4TransportDescriptor.h>
 #include <fastrtps/xmlparser/XMLProfileManager.h>
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
@@ -300,6 +303,34 @@ Participant::Participant(const DdsConfig& config, std::string_view role, std::st
 namespace detail {
 std::atomic<std::uint64_t> g_malformed_samples{0};
 }  // namespace detail
+
+bool detail::read_older_layout(const msg::InterpolatorStatePubSubType* /*type*/,
+                               eprosima::fastrtps::rtps::SerializedPayload_t* payload, void* data) {
+  // plc_setup is 0, 1 or 2 in every state a service writes: a value it cannot have marks it
+  // unread.
+  constexpr std::uint8_t kUnread = 0xff;
+  msg::InterpolatorState s;
+  s.plc_setup(kUnread);
+  try {
+    eprosima::fastcdr::FastBuffer buffer(reinterpret_cast<char*>(payload->data), payload->length);
+    eprosima::fastcdr::Cdr cdr(buffer, eprosima::fastcdr::Cdr::DEFAULT_ENDIAN,
+                               eprosima::fastcdr::Cdr::DDS_CDR);
+    cdr.read_encapsulation();
+    payload->encapsulation =
+        cdr.endianness() == eprosima::fastcdr::Cdr::BIG_ENDIANNESS ? CDR_BE : CDR_LE;
+    s.deserialize(cdr);
+    return false;  // read whole: it failed for another reason
+  } catch (const eprosima::fastcdr::exception::NotEnoughMemoryException&) {
+    // It ended early: fine if after 0.2.0's last field, which the read then got to.
+  } catch (const eprosima::fastcdr::exception::Exception&) {
+    return false;
+  } catch (const std::bad_alloc&) {
+    return false;
+  }
+  if (s.plc_setup() == kUnread) return false;
+  *static_cast<msg::InterpolatorState*>(data) = std::move(s);
+  return true;
+}
 
 std::uint64_t malformed_samples() {
   return detail::g_malformed_samples.load(std::memory_order_relaxed);

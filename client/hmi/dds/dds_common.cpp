@@ -318,12 +318,17 @@ std::string format_state(const msg::InterpolatorState& s, const std::string& con
   append_line(out, "  program %u: next_sequence %llu, buffered %d, free %d", s.program_id(),
               static_cast<unsigned long long>(s.next_sequence()), s.buffered_segments(),
               s.free_buffer_slots());
+  // 0: a service before 0.2.1, whose state has no digest (read as an older layout).
+  char digest[48] = "not said (tgm-service before 0.2.1)";
+  if (s.machine_digest() != 0) {
+    std::snprintf(digest, sizeof digest, "%016llx",
+                  static_cast<unsigned long long>(s.machine_digest()));
+  }
   append_line(out,
               "  M-functions handed over %u (the last from line %d); service instance %016llx, "
-              "machine digest %016llx",
+              "machine digest %s",
               s.m_func_count(), s.m_func_line(),
-              static_cast<unsigned long long>(s.service_instance()),
-              static_cast<unsigned long long>(s.machine_digest()));
+              static_cast<unsigned long long>(s.service_instance()), digest);
   append_line(out,
               "  cycle %llu of %d us, lateness last %.1f us, max %.1f us, p99.9 %.1f us, missed "
               "cycles %llu",

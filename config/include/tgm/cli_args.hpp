@@ -12,7 +12,7 @@
 namespace tgm::cli {
 
 //! tgm's version (the project version of the top-level CMakeLists.txt), as every binary's
-//! --version prints it: "tgm-service 0.2.1".
+//! --version prints it: "tgm-service 0.2.2".
 const char* version();
 
 class ArgReader {

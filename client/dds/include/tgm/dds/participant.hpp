@@ -32,6 +32,7 @@
 #include <fastdds/dds/topic/TypeSupport.hpp>
 
 #include "tgm/dds/topics.hpp"
+#include "tgm/msg/tgmPubSubTypes.h"
 #include "tgm/yaml_config.hpp"
 
 namespace tgm::dds {
@@ -45,6 +46,20 @@ std::uint64_t malformed_samples();
 
 namespace detail {
 extern std::atomic<std::uint64_t> g_malformed_samples;
+
+//! Reads `payload` into `data` as a sample of an older tgm version's layout of the type, which
+//! ends before the fields appended since (idl/tgm.idl: fields are only ever appended): those
+//! read as their defaults (0). Overloaded for the types that grew since the oldest layout this
+//! version reads (0.2.0's); the others have none.
+inline bool read_older_layout(const void* /*type*/,
+                              eprosima::fastrtps::rtps::SerializedPayload_t* /*payload*/,
+                              void* /*data*/) {
+  return false;
+}
+//! InterpolatorState: 0.2.0's ends at plc_setup (0.2.1 appended machine_digest). A sample that
+//! ends before plc_setup is no layout of a version this one reads: not taken.
+bool read_older_layout(const msg::InterpolatorStatePubSubType* type,
+                       eprosima::fastrtps::rtps::SerializedPayload_t* payload, void* data);
 }  // namespace detail
 
 //! The generated type support `PubSubType` with a deserialize() that never throws. The
@@ -53,6 +68,9 @@ extern std::atomic<std::uint64_t> g_malformed_samples;
 //! escaped Fast DDS's take and terminated the process: one malformed sample from any
 //! participant on the domain stopped tgm-service. A sample that cannot be read is dropped
 //! (Fast DDS skips a sample whose deserialize() fails) and counted (malformed_samples()).
+//! A sample of an older version's layout of a type that grew since is read, the fields it
+//! lacks at their defaults (detail::read_older_layout): the generated code drops it, so a
+//! client upgraded before its service read no state of it at all.
 template <class PubSubType>
 class CheckedType : public PubSubType {
  public:
@@ -62,6 +80,7 @@ class CheckedType : public PubSubType {
     } catch (const eprosima::fastcdr::exception::Exception&) {
     } catch (const std::bad_alloc&) {
     }
+    if (detail::read_older_layout(static_cast<const PubSubType*>(this), payload, data)) return true;
     detail::g_malformed_samples.fetch_add(1, std::memory_order_relaxed);
     return false;
   }
