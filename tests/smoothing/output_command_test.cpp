@@ -515,6 +515,48 @@ TEST(Commands, ExecuteRatioSplineIirAndPositionSet) {
   EXPECT_EQ(execute_command(4, p, standing(), s, o, nullptr).code, RequestCode::kUnsupported);
 }
 
+// in_effect() says what Commands -2 / -1 set (the state publishes it, tgm-hmi run simulates with
+// it), and a stage configured from it smooths the same, bit for bit.
+TEST(Commands, TheSmoothingInEffectIsWhatTheCommandsSetAndConfiguresTheSame) {
+  const InterpolatorConfig cfg = three_axes(0.0);
+  SmoothingStage s(3, 500);
+  OutputStage o(cfg);
+  // Both off: the spline's points 0, the IIR's mask 0 and IirParams' defaults.
+  SmoothingConfig c = s.in_effect();
+  EXPECT_EQ(c.spline_points, 0);
+  EXPECT_EQ(c.iir_axis_mask, 0u);
+  EXPECT_EQ(c.iir_p_e6, IirParams{}.p_e6);
+  Params p{};
+  p = {120, 3'000'000};
+  ASSERT_TRUE(execute_command(-2, p, standing(), s, o, nullptr).ok());
+  p = {3'000'000, 2'000'000, 8'000'000, 0b1111'0110};  // bits beyond the 3 axes are not used
+  ASSERT_TRUE(execute_command(-1, p, standing(), s, o, nullptr).ok());
+  c = s.in_effect();
+  EXPECT_EQ(c.spline_points, 120);
+  EXPECT_EQ(c.spline_jerk_mm_s3, 3e6);
+  EXPECT_EQ(c.iir_p_e6, 3'000'000);
+  EXPECT_EQ(c.iir_q_e6, 2'000'000);
+  EXPECT_EQ(c.iir_f_e6, 8'000'000);
+  EXPECT_EQ(c.iir_axis_mask, 0b110u);
+
+  SmoothingStage t(3, 500);
+  ASSERT_TRUE(t.configure_spline(c.spline_points, std::llround(c.spline_jerk_mm_s3)).ok());
+  ASSERT_TRUE(t.configure_iir({c.iir_p_e6, c.iir_q_e6, c.iir_f_e6, c.iir_axis_mask}).ok());
+  const double zero[3] = {0.0, 0.0, 0.0};
+  s.reset(zero);
+  t.reset(zero);
+  for (int k = 0; k < 2000; ++k) {
+    // A ramp with a corner: the spline and both filtered axes have work.
+    const double x = 0.01 * std::min(k, 500);
+    const double in[3] = {x, 0.5 * x, k < 500 ? 0.0 : 0.002 * (k - 500)};
+    s.step(in);
+    t.step(in);
+    for (int i = 0; i < 3; ++i) ASSERT_EQ(s.position()[i], t.position()[i]) << k << " " << i;
+  }
+  EXPECT_EQ(t.in_effect().spline_points, c.spline_points);
+  EXPECT_EQ(t.in_effect().iir_axis_mask, c.iir_axis_mask);
+}
+
 // A position set lands within the +-1e9 mm every record's end point is held to, or is refused
 // before anything changes: with an Offset of 1e15 inc and a Ratio of 1e-6 inc/mm it computed
 // -1e21 mm, and the first move from there ran for ever (RandomRequests found it through

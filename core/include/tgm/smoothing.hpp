@@ -285,6 +285,11 @@ class SmoothingStage {
 
   const SplineSmoother& spline() const { return spline_; }
   const IirFilter& iir() const { return iir_; }
+  //! The smoothing in effect as the config and Commands -2 / -1 give it: spline points (0 =
+  //! off) and jerk limit, IIR p, q, f and the used bits of the mask (0 = off; p, q, f are then
+  //! the last ones applied, or IirParams' defaults). configure_spline / configure_iir of it
+  //! make a stage that smooths the same.
+  SmoothingConfig in_effect() const;
   int axes() const { return axes_; }
   double calc_step_s() const { return dt_; }
 

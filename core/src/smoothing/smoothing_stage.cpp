@@ -34,6 +34,18 @@ RequestResult SmoothingStage::configure_iir(const IirParams& params) {
   return iir_.configure(params, axes_);
 }
 
+SmoothingConfig SmoothingStage::in_effect() const {
+  SmoothingConfig c;
+  c.spline_points = spline_.delay_steps();
+  c.spline_jerk_mm_s3 = spline_.jerk_limit_mm_s3();
+  const IirParams& p = iir_.params();
+  c.iir_p_e6 = p.p_e6;
+  c.iir_q_e6 = p.q_e6;
+  c.iir_f_e6 = p.f_e6;
+  c.iir_axis_mask = iir_.mask();
+  return c;
+}
+
 void SmoothingStage::reset(const double* position_mm) {
   spline_.reset(position_mm);
   iir_.reset(position_mm);
