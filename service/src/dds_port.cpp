@@ -719,6 +719,12 @@ void DdsPort::publish_state(int i, const InterpolatorSnapshot& s, const Snapshot
   state_sample_.axis_letters(std::string(s.axis_letters.view()));
   state_sample_.plc_setup(s.plc_setup);
   state_sample_.machine_digest(s.machine_digest);
+  state_sample_.spline_points(s.smoothing.spline_points);
+  state_sample_.spline_jerk_mm_s3(s.smoothing.spline_jerk_mm_s3);
+  state_sample_.iir_p_e6(s.smoothing.iir_p_e6);
+  state_sample_.iir_q_e6(s.smoothing.iir_q_e6);
+  state_sample_.iir_f_e6(s.smoothing.iir_f_e6);
+  state_sample_.iir_axis_mask(s.smoothing.iir_axis_mask);
   state_sample_.cycle_counter(all.cycle);
   state_sample_.cycle_time_us(opt_.cycle_time_us);
   state_sample_.lateness_last_ns(all.lateness.last_ns);

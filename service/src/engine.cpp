@@ -592,6 +592,7 @@ void Engine::cycle(CyclePort& port, const LatenessStats& lateness) {
     o.machine_digest = s.digests[static_cast<std::size_t>(
         std::clamp(static_cast<int>(reg.number_axes), 0, kMaxAxes))];
     o.plc_setup = !opt_.require_plc_setup ? 0 : awaits_plc_setup(s) ? 1 : 2;
+    o.smoothing = s.ip.smoothing().in_effect();
   }
   port.publish(snapshot_);
 }

@@ -8,7 +8,6 @@
 #include <spawn.h>
 #include <sys/wait.h>
 
-#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstring>
@@ -98,24 +97,41 @@ TEST(DdsLoopback, AMalformedSampleIsDroppedAndTheNextOneArrives) {
 // appended since. The generated code drops such a sample, so a client upgraded first read no
 // state at all (session 92: a 0.2.0 state written by Cyclone DDS, tests/interop). Cut at every
 // length from eight bytes before the end of 0.2.0's last field (plc_setup) to the whole: from
-// that end on the state reads, every field it has as written and those it lacks at 0; shorter,
-// it is dropped as malformed.
+// that end on the state reads, every field it holds whole as written and the rest at 0 (0.2.1's
+// machine_digest, 0.2.2's smoothing); shorter, it is dropped as malformed.
 TEST(DdsLoopback, AStateOfAnOlderLayoutReadsWithTheFieldsItLacksAtZero) {
   msg::InterpolatorState full;
   full.interpolator(2);
   full.status(3);
   full.axis_letters("XYZ");
   full.cycle_counter(77);
-  full.machine_digest(0x0123456789abcdefULL);
-  // plc_setup's byte: where the serialized states with two values of it differ.
-  full.plc_setup(1);
-  const std::string one = test::serialized<msg::InterpolatorStatePubSubType>(full);
   full.plc_setup(2);
+  full.machine_digest(0x0123456789abcdefULL);
+  full.spline_points(120);
+  full.iir_p_e6(3'000'000);
+  full.iir_axis_mask(6);
   const std::string bytes = test::serialized<msg::InterpolatorStatePubSubType>(full);
-  ASSERT_EQ(one.size(), bytes.size());
-  const auto at = std::mismatch(one.begin(), one.end(), bytes.begin()).first - one.begin();
-  ASSERT_LT(static_cast<std::size_t>(at), bytes.size() - 8) << "plc_setup not found";
-  const std::size_t end_of_0_2_0 = static_cast<std::size_t>(at) + 1;
+  // Where a field ends: one past the last byte that differs between two serializations with
+  // other values of it (little endian: the most significant byte is the last).
+  const auto end_of = [&](auto set) {
+    msg::InterpolatorState other = full;
+    set(other);
+    const std::string o = test::serialized<msg::InterpolatorStatePubSubType>(other);
+    std::size_t end = 0;
+    for (std::size_t i = 0; i < o.size() && i < bytes.size(); ++i) {
+      if (o[i] != bytes[i]) end = i + 1;
+    }
+    return end;
+  };
+  const std::size_t end_of_0_2_0 = end_of([](msg::InterpolatorState& s) { s.plc_setup(1); });
+  const std::size_t end_of_0_2_1 =
+      end_of([](msg::InterpolatorState& s) { s.machine_digest(0xff23456789abcdefULL); });
+  const std::size_t end_of_spline_points =
+      end_of([](msg::InterpolatorState& s) { s.spline_points(0x7f000078); });
+  ASSERT_GT(end_of_0_2_1, end_of_0_2_0);
+  ASSERT_GT(end_of_spline_points, end_of_0_2_1);
+  ASSERT_EQ(end_of([](msg::InterpolatorState& s) { s.iir_axis_mask(0xff000006u); }), bytes.size())
+      << "iir_axis_mask is not the last field any more";
 
   dds::CheckedType<msg::InterpolatorStatePubSubType> type;
   for (std::size_t length = end_of_0_2_0 - 8; length <= bytes.size(); ++length) {
@@ -123,7 +139,8 @@ TEST(DdsLoopback, AStateOfAnOlderLayoutReadsWithTheFieldsItLacksAtZero) {
     std::memcpy(payload.data, bytes.data(), length);
     payload.length = static_cast<std::uint32_t>(length);
     msg::InterpolatorState got;
-    got.machine_digest(99);  // a value the read must not leave behind
+    got.machine_digest(99);  // values the read must not leave behind
+    got.iir_axis_mask(99);
     const std::uint64_t malformed = dds::malformed_samples();
     const bool read = type.deserialize(&payload, &got);
     if (length < end_of_0_2_0) {
@@ -138,7 +155,9 @@ TEST(DdsLoopback, AStateOfAnOlderLayoutReadsWithTheFieldsItLacksAtZero) {
     EXPECT_EQ(got.axis_letters().to_string(), "XYZ");
     EXPECT_EQ(got.cycle_counter(), 77u);
     EXPECT_EQ(got.plc_setup(), 2);
-    EXPECT_EQ(got.machine_digest(), length == bytes.size() ? full.machine_digest() : 0u) << length;
+    EXPECT_EQ(got.machine_digest(), length >= end_of_0_2_1 ? full.machine_digest() : 0u) << length;
+    EXPECT_EQ(got.spline_points(), length >= end_of_spline_points ? 120 : 0) << length;
+    EXPECT_EQ(got.iir_axis_mask(), length == bytes.size() ? 6u : 0u) << length;
   }
 }
 

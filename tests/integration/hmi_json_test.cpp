@@ -86,6 +86,13 @@ TEST(HmiJson, StatusWritesOneObjectPerLineWithEveryValueReadable) {
   s.program_stop(true);
   s.off_trajectory(true);
   s.program_id(4711);  // a program was loaded: "the program was dropped"
+  s.cycle_time_us(500);
+  s.spline_points(100);
+  s.spline_jerk_mm_s3(2'000'000);
+  s.iir_p_e6(3'000'000);
+  s.iir_q_e6(2'000'000);
+  s.iir_f_e6(8'000'000);
+  s.iir_axis_mask(5);  // X and Z
   std::atomic<bool> done{false};
   std::thread writer([&] {
     while (!done) {
@@ -113,6 +120,10 @@ TEST(HmiJson, StatusWritesOneObjectPerLineWithEveryValueReadable) {
       << text_all;
   EXPECT_NE(text_all.find("  Command_Parameter: 0 0 0"), std::string::npos) << text_all;
   EXPECT_NE(text_all.find("  M_Function_Parameter: A1.5 Z-2\n"), std::string::npos) << text_all;
+  EXPECT_NE(text_all.find("  Smoothing: Spline 100 points (10.0 ms at 500 us cycles), jerk limit "
+                          "2000000 mm/s^3; IIR p 3, q 2, f 8 ms on X Z\n"),
+            std::string::npos)
+      << text_all;
   EXPECT_NE(text_lines[0].find("Status 1 (running, at an M0 program stop: start continues, off "
                                "the trajectory: the program was dropped)"),
             std::string::npos)
@@ -159,6 +170,12 @@ TEST(HmiJson, StatusWritesOneObjectPerLineWithEveryValueReadable) {
   EXPECT_TRUE(j["look_ahead_buffer"][1].IsNull());
   EXPECT_EQ(j["message_counter"].as<int>(), 4);
   EXPECT_EQ(j["message_text"].as<std::string>(), text);
+  EXPECT_EQ(j["smoothing"]["spline_points"].as<int>(), 100);
+  EXPECT_EQ(j["smoothing"]["spline_jerk_mm_s3"].as<double>(), 2e6);
+  EXPECT_EQ(j["smoothing"]["iir_p_e6"].as<long long>(), 3'000'000);
+  EXPECT_EQ(j["smoothing"]["iir_q_e6"].as<long long>(), 2'000'000);
+  EXPECT_EQ(j["smoothing"]["iir_f_e6"].as<long long>(), 8'000'000);
+  EXPECT_EQ(j["smoothing"]["iir_axis_mask"].as<unsigned>(), 5u);
   // No bare NaN or inf: JSON has none, and a strict reader stops at them.
   EXPECT_EQ(lines[0].find("nan"), std::string::npos) << lines[0];
   EXPECT_EQ(lines[0].find("inf"), std::string::npos) << lines[0];
@@ -184,6 +201,10 @@ TEST(HmiJson, StatusAndWatchShowTheRealServicesRegisters) {
     EXPECT_EQ(j["number"].as<int>(), i);
     EXPECT_EQ(j["number_axes"].as<int>(), 3);
     EXPECT_EQ(j["cycle_time_us"].as<int>(), 500);
+    // The config's smoothing: spline and IIR off, IIR p, q, f the config's.
+    EXPECT_EQ(j["smoothing"]["spline_points"].as<int>(), 0);
+    EXPECT_EQ(j["smoothing"]["iir_p_e6"].as<long long>(), 2'000'000);
+    EXPECT_EQ(j["smoothing"]["iir_axis_mask"].as<unsigned>(), 0u);
     if (i == 0) instance = j["service_instance"].as<std::string>();
     EXPECT_EQ(j["service_instance"].as<std::string>(), instance);
   }

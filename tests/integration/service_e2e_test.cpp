@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -3886,6 +3887,49 @@ TEST(ServiceProcesses, PlcScriptErrorsNameTheLineAndTheReason) {
     EXPECT_NE(plc.log().find("tgm-plc: " + script + cases[i].second), std::string::npos)
         << cases[i].first << plc.log();
   }
+}
+
+// The smoothing in effect is in the state: the config's at the start, then what the PLC set
+// with Command -2 / -1 (before 0.2.2 an HMI could not see it; the machine digest keeps the
+// config's). tgm-hmi status shows it, on the interpolator the PLC set only.
+TEST(ServiceProcesses, StatusShowsTheSmoothingThePlcSet) {
+  ServiceEnv env;
+  ASSERT_TRUE(env.start_service());
+  client::Client plc(env.dds(), client::Role::kPlc);
+  ASSERT_TRUE(plc.wait_for_state(1, kHang));
+  EXPECT_EQ(plc.state(1)->spline_points(), 0);
+  EXPECT_EQ(plc.state(1)->iir_p_e6(), 2'000'000);
+  const std::uint64_t digest = plc.state(1)->machine_digest();
+  const std::array<std::int32_t, 2> spline{120, 3'000'000};
+  const std::array<std::int32_t, 4> iir{3'000'000, 2'000'000, 8'000'000, 0b110};
+  const client::Reply a = plc.command(1, -2, spline);
+  ASSERT_TRUE(a.accepted) << client::describe(a);
+  const client::Reply b = plc.command(1, -1, iir);
+  ASSERT_TRUE(b.accepted) << client::describe(b);
+  ASSERT_TRUE(plc.wait_until(
+      1, [](const msg::InterpolatorState& s) { return s.iir_axis_mask() == 0b110; }, kHang));
+  const msg::InterpolatorState now = *plc.state(1);
+  EXPECT_EQ(now.spline_points(), 120);
+  EXPECT_EQ(now.spline_jerk_mm_s3(), 3e6);
+  EXPECT_EQ(now.iir_p_e6(), 3'000'000);
+  EXPECT_EQ(now.iir_q_e6(), 2'000'000);
+  EXPECT_EQ(now.iir_f_e6(), 8'000'000);
+  EXPECT_EQ(now.machine_digest(), digest);
+
+  test::Child status;
+  ASSERT_TRUE(status.start({TGM_HMI_BIN, "status", "--interpolator", "1", "--config", env.config()},
+                           env.path("status.log")));
+  ASSERT_EQ(status.wait(kHang), 0) << status.log();
+  EXPECT_NE(status.log().find("  Smoothing: Spline 120 points (12.0 ms at 500 us cycles), jerk "
+                              "limit 3000000 mm/s^3; IIR p 3, q 2, f 8 ms on Y Z\n"),
+            std::string::npos)
+      << status.log();
+  test::Child other;
+  ASSERT_TRUE(other.start({TGM_HMI_BIN, "status", "--interpolator", "0", "--config", env.config()},
+                          env.path("other.log")));
+  ASSERT_EQ(other.wait(kHang), 0) << other.log();
+  EXPECT_NE(other.log().find("  Smoothing: Spline off; IIR off\n"), std::string::npos)
+      << other.log();
 }
 
 // tgm-plc --script runs each step once, at its time after the service was found, and logs it

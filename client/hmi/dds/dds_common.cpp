@@ -329,6 +329,7 @@ std::string format_state(const msg::InterpolatorState& s, const std::string& con
               "machine digest %s",
               s.m_func_count(), s.m_func_line(),
               static_cast<unsigned long long>(s.service_instance()), digest);
+  append_line(out, "  Smoothing: %s", client::describe_smoothing(s, letters).c_str());
   append_line(out,
               "  cycle %llu of %d us, lateness last %.1f us, max %.1f us, p99.9 %.1f us, missed "
               "cycles %llu",
@@ -504,6 +505,21 @@ std::string format_state_json(const msg::InterpolatorState& s, const std::string
                 static_cast<unsigned long long>(s.machine_digest()));
   json_key(out, "machine_digest");
   append_json_string(out, instance);
+  // The smoothing in effect; null where the service does not say (before 0.2.2).
+  const std::optional<SmoothingConfig> smoothing = client::smoothing_in_effect(s);
+  json_key(out, "smoothing");
+  if (!smoothing) {
+    out += "null";
+  } else {
+    out += '{';
+    json_field(out, "spline_points", smoothing->spline_points);
+    json_field(out, "spline_jerk_mm_s3", smoothing->spline_jerk_mm_s3);
+    json_field(out, "iir_p_e6", smoothing->iir_p_e6);
+    json_field(out, "iir_q_e6", smoothing->iir_q_e6);
+    json_field(out, "iir_f_e6", smoothing->iir_f_e6);
+    json_field(out, "iir_axis_mask", smoothing->iir_axis_mask);
+    out += '}';
+  }
   json_field(out, "cycle_counter", s.cycle_counter());
   json_field(out, "cycle_time_us", s.cycle_time_us());
   json_field(out, "lateness_last_ns", s.lateness_last_ns());

@@ -612,6 +612,9 @@ int run_run(int argc, char** argv) {
     so.start_mm = here;
     so.max_time_s = SimulationOptions::kMaxTimeS;
     if (client::same_machine(*st, machine, ip)) {
+      // The smoothing the service applies now: the PLC may have set another than the config's
+      // (Command -2 / -1), which the digest does not follow.
+      if (const auto smoothing = client::smoothing_in_effect(*st)) machine.smoothing = *smoothing;
       estimate.emplace(std::move(machine), std::move(so), program);
     } else {
       // Simulated by other limits, the times would be wrong without a sign of it.

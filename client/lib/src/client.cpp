@@ -76,6 +76,51 @@ bool same_machine(const msg::InterpolatorState& s, const MachineConfig& machine,
          s.machine_digest() == machine_digest(machine, ip, s.number_axes());
 }
 
+std::optional<SmoothingConfig> smoothing_in_effect(const msg::InterpolatorState& s) {
+  if (s.iir_p_e6() == 0) return std::nullopt;
+  SmoothingConfig c;
+  c.spline_points = s.spline_points();
+  c.spline_jerk_mm_s3 = s.spline_jerk_mm_s3();
+  c.iir_p_e6 = s.iir_p_e6();
+  c.iir_q_e6 = s.iir_q_e6();
+  c.iir_f_e6 = s.iir_f_e6();
+  c.iir_axis_mask = s.iir_axis_mask();
+  return c;
+}
+
+std::string describe_smoothing(const msg::InterpolatorState& s, std::string_view letters) {
+  const std::optional<SmoothingConfig> c = smoothing_in_effect(s);
+  if (!c) return "not said (tgm-service before 0.2.2)";
+  char buf[160];
+  std::string out;
+  if (c->spline_points == 0) {
+    out = "Spline off";
+  } else {
+    // The spline delays by its points in calculation steps (a fifth of the cycle). In double:
+    // a foreign writer's values may be anything.
+    std::snprintf(buf, sizeof buf,
+                  "Spline %d points (%.1f ms at %d us cycles), jerk limit %.0f mm/s^3",
+                  c->spline_points, c->spline_points * (s.cycle_time_us() / 5000.0),
+                  s.cycle_time_us(), c->spline_jerk_mm_s3);
+    out = buf;
+  }
+  if (c->iir_axis_mask == 0) return out + "; IIR off";
+  std::snprintf(buf, sizeof buf, "; IIR p %g, q %g, f %g ms on",
+                static_cast<double>(c->iir_p_e6) * 1e-6, static_cast<double>(c->iir_q_e6) * 1e-6,
+                static_cast<double>(c->iir_f_e6) * 1e-6);
+  out += buf;
+  for (int i = 0; i < kMaxAxes; ++i) {
+    if ((c->iir_axis_mask >> i & 1u) == 0) continue;
+    out += ' ';
+    if (static_cast<std::size_t>(i) < letters.size()) {
+      out += letters[static_cast<std::size_t>(i)];
+    } else {
+      out += "axis " + std::to_string(i);
+    }
+  }
+  return out;
+}
+
 std::string_view status_name(std::int32_t status) {
   switch (status) {
     case 0: return "empty";

@@ -9,6 +9,7 @@
 #include <cstring>
 #include <string_view>
 
+#include "tgm/config.hpp"
 #include "tgm/intercode.hpp"
 #include "tgm/registers.hpp"
 #include "tgm/service/lateness.hpp"
@@ -186,6 +187,8 @@ struct InterpolatorSnapshot {
   std::uint8_t plc_setup = 0;
   //! machine_digest() of the config over the Number_Axes axes (InterpolatorState.machine_digest).
   std::uint64_t machine_digest = 0;
+  //! The smoothing in effect (InterpolatorState.spline_points ... iir_axis_mask).
+  SmoothingConfig smoothing;
 };
 
 //! Everything the publisher needs after one cycle.

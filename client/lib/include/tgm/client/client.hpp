@@ -98,6 +98,14 @@ std::string config_name(const AppConfig& config);
 //! against tgm::machine_digest() of `machine` over the state's Number_Axes. True when the service
 //! does not say (a digest of 0: a service before 0.2.1).
 bool same_machine(const msg::InterpolatorState& s, const MachineConfig& machine, int ip);
+//! The smoothing the service applies to interpolator s.interpolator() (its config's, or what
+//! the PLC set with Command -2 / -1 since); nullopt when the state does not say (a service
+//! before 0.2.2: iir_p_e6 0).
+std::optional<SmoothingConfig> smoothing_in_effect(const msg::InterpolatorState& s);
+//! smoothing_in_effect() for a person: "Spline 100 points (10.0 ms at 500 us cycles), jerk
+//! limit 1000000 mm/s^3; IIR off", the IIR as "IIR p 2, q 1, f 6 ms on X Z" (`letters`: the
+//! axes' letters); "not said (tgm-service before 0.2.2)".
+std::string describe_smoothing(const msg::InterpolatorState& s, std::string_view letters);
 
 //! Requests as start(), command() and set_rel_speed() send them, for Client::send() (which
 //! does not wait for the reply).
