@@ -3930,6 +3930,19 @@ TEST(ServiceProcesses, StatusShowsTheSmoothingThePlcSet) {
   ASSERT_EQ(other.wait(kHang), 0) << other.log();
   EXPECT_NE(other.log().find("  Smoothing: Spline off; IIR off\n"), std::string::npos)
       << other.log();
+
+  // tgm-hmi run simulates its estimate with that smoothing (with the spline off, as on
+  // interpolator 0, it keeps its config's jerk: the state's 0 is no config's value).
+  std::ofstream(env.path("p.ngc")) << "G1 Y4 F1200\nM2\n";
+  for (const char* ip : {"1", "0"}) {
+    test::Child run;
+    ASSERT_TRUE(run.start(
+        {TGM_HMI_BIN, "run", env.path("p.ngc"), "--interpolator", ip, "--config", env.config()},
+        env.path(std::string("run") + ip + ".log")));
+    ASSERT_EQ(run.wait(kHang), 0) << run.log();
+    EXPECT_NE(run.log().find(", estimated "), std::string::npos) << ip << "\n" << run.log();
+    EXPECT_EQ(run.log().find("no time estimate"), std::string::npos) << ip << "\n" << run.log();
+  }
 }
 
 // tgm-plc --script runs each step once, at its time after the service was found, and logs it

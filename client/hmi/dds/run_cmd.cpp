@@ -614,7 +614,7 @@ int run_run(int argc, char** argv) {
     if (client::same_machine(*st, machine, ip)) {
       // The smoothing the service applies now: the PLC may have set another than the config's
       // (Command -2 / -1), which the digest does not follow.
-      if (const auto smoothing = client::smoothing_in_effect(*st)) machine.smoothing = *smoothing;
+      machine.smoothing = client::smoothing_for_simulation(machine.smoothing, *st);
       estimate.emplace(std::move(machine), std::move(so), program);
     } else {
       // Simulated by other limits, the times would be wrong without a sign of it.

@@ -88,6 +88,22 @@ std::optional<SmoothingConfig> smoothing_in_effect(const msg::InterpolatorState&
   return c;
 }
 
+SmoothingConfig smoothing_for_simulation(const SmoothingConfig& own,
+                                         const msg::InterpolatorState& s) {
+  SmoothingConfig c = own;
+  const std::optional<SmoothingConfig> now = smoothing_in_effect(s);
+  if (!now) return c;
+  c.spline_points = now->spline_points;
+  if (now->spline_points != 0) c.spline_jerk_mm_s3 = now->spline_jerk_mm_s3;
+  c.iir_axis_mask = now->iir_axis_mask;
+  if (now->iir_axis_mask != 0) {
+    c.iir_p_e6 = now->iir_p_e6;
+    c.iir_q_e6 = now->iir_q_e6;
+    c.iir_f_e6 = now->iir_f_e6;
+  }
+  return c;
+}
+
 std::string describe_smoothing(const msg::InterpolatorState& s, std::string_view letters) {
   const std::optional<SmoothingConfig> c = smoothing_in_effect(s);
   if (!c) return "not said (tgm-service before 0.2.2)";

@@ -56,8 +56,9 @@ inline bool read_older_layout(const void* /*type*/,
                               void* /*data*/) {
   return false;
 }
-//! InterpolatorState: 0.2.0's ends at plc_setup (0.2.1 appended machine_digest). A sample that
-//! ends before plc_setup is no layout of a version this one reads: not taken.
+//! InterpolatorState: 0.2.0's ends at plc_setup (0.2.1 appended machine_digest, 0.2.2 the
+//! smoothing in effect). A sample that ends before plc_setup is no layout of a version this one
+//! reads: not taken.
 bool read_older_layout(const msg::InterpolatorStatePubSubType* type,
                        eprosima::fastrtps::rtps::SerializedPayload_t* payload, void* data);
 }  // namespace detail

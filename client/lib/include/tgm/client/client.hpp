@@ -102,6 +102,12 @@ bool same_machine(const msg::InterpolatorState& s, const MachineConfig& machine,
 //! the PLC set with Command -2 / -1 since); nullopt when the state does not say (a service
 //! before 0.2.2: iir_p_e6 0).
 std::optional<SmoothingConfig> smoothing_in_effect(const msg::InterpolatorState& s);
+//! `own` (a config's smoothing) with what the state says is in effect, for a simulation of what
+//! the service will do: the spline and the IIR as the service has them; where one is off, its
+//! parameters stay `own`'s (an off spline's jerk reads 0, which a config refuses). `own` alone
+//! from a service that does not say.
+SmoothingConfig smoothing_for_simulation(const SmoothingConfig& own,
+                                         const msg::InterpolatorState& s);
 //! smoothing_in_effect() for a person: "Spline 100 points (10.0 ms at 500 us cycles), jerk
 //! limit 1000000 mm/s^3; IIR off", the IIR as "IIR p 2, q 1, f 6 ms on X Z" (`letters`: the
 //! axes' letters); "not said (tgm-service before 0.2.2)".
