@@ -109,6 +109,9 @@ class Engine {
     // Last program id a refusal message was sent for (kNoProgram: none; 0 is an id a bad
     // client may send, whose refusals it used to swallow).
     std::uint64_t refused_program = kNoProgram;
+    // next_sequence + 1 where the loaded program's stream last had a gap said (0: none): one
+    // warning per place the stream stands at, not one per chunk behind the gap.
+    std::uint64_t gap_said_at = 0;
     std::uint32_t message_seen = 0;
     std::uint64_t unexecuted_seen = 0;  // Interpolator::unexecuted_commands() already said
     std::uint32_t message_counter = 0;
