@@ -227,7 +227,7 @@ TEST(ServiceSoak, ProgramAfterProgramEndsWhereTheSimulationEndsAndMemoryStaysBou
               rss_warm_kb, rss_end_kb, programs,
               static_cast<double>(rss_end_kb - rss_warm_kb) / static_cast<double>(programs - 2),
               allowed_kb);
-#if defined(__SANITIZE_ADDRESS__)
+#if defined(TGM_PROCESSES_ASAN)
   // AddressSanitizer keeps freed blocks in its quarantine (up to 256 MB) and adds shadow memory,
   // so the resident set grows with every allocation (+1.9 MB a program, session 48). There
   // LeakSanitizer checks the service at its exit instead: a leak makes its exit status non-zero.
