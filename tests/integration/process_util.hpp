@@ -11,7 +11,9 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -154,6 +156,33 @@ inline long proc_status_kb(pid_t pid, const std::string& field) {
       return std::strtol(line.c_str() + field.size() + 1, nullptr, 10);
   }
   return -1;
+}
+
+//! Sends SIGSTOP to `pid` and waits until every thread of it is stopped (state T in
+//! /proc/PID/task/TID/stat): kill() returns once the signal is queued, and a thread that is
+//! running or runnable then may still take a sample off the network first (with four tests at
+//! once on two cores a request written right after kill() was answered by the process being
+//! stopped, session 93). False if `pid` does not stop within `timeout`.
+inline bool stop_process(pid_t pid, std::chrono::milliseconds timeout = std::chrono::seconds(10)) {
+  if (::kill(pid, SIGSTOP) != 0) return false;
+  const std::string tasks = "/proc/" + std::to_string(pid) + "/task";
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (std::chrono::steady_clock::now() < deadline) {
+    bool all = true;
+    int seen = 0;
+    for (const auto& t : std::filesystem::directory_iterator(tasks)) {
+      std::ifstream f(t.path() / "stat");
+      std::string stat((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+      // pid (comm) state ...: comm may hold spaces and parentheses; the state follows the last ')'.
+      const auto close = stat.rfind(')');
+      if (close == std::string::npos || close + 2 >= stat.size()) continue;  // the thread ended
+      ++seen;
+      if (stat[close + 2] != 'T' && stat[close + 2] != 't') all = false;
+    }
+    if (all && seen > 0) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  return false;
 }
 
 //! Counts occurrences of `what` in `text`.

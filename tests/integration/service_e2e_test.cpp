@@ -2497,16 +2497,16 @@ TEST(ServiceProcesses, ARepeatFirstSentToAReplacedServiceIsNotExecuted) {
 }
 
 // The case it is for: tgm::client::Client writes a request to a service that stops answering
-// (SIGSTOP: it may or may not execute it) and is killed; a new service comes up on the domain,
-// and the client's repeat reaches it. The new one does not execute it and says why; the client
-// has its answer instead of a timeout.
+// (SIGSTOP, every thread stopped before the request is written) and is killed; a new service
+// comes up on the domain, and the client's repeat reaches it. The new one does not execute it
+// and says why; the client has its answer instead of a timeout.
 TEST(ServiceProcesses, AClientsRepeatToARestartedServiceIsAnsweredNotExecuted) {
   ServiceEnv env;
   ASSERT_TRUE(env.start_service());
   client::Client plc(env.dds(), client::Role::kPlc);
   ASSERT_TRUE(plc.wait_for_state(0, kHang));
   const std::uint64_t first = plc.state(0)->service_instance();
-  ASSERT_EQ(::kill(env.service.pid(), SIGSTOP), 0);
+  ASSERT_TRUE(test::stop_process(env.service.pid()));
   std::thread restart([&] {
     std::this_thread::sleep_for(300ms);
     env.service.interrupt(kHang, SIGKILL);
