@@ -160,18 +160,22 @@ inline long proc_status_kb(pid_t pid, const std::string& field) {
 
 //! Sends SIGSTOP to `pid` and waits until every thread of it is stopped (state T in
 //! /proc/PID/task/TID/stat): kill() returns once the signal is queued, and a thread that is
-//! running or runnable then may still take a sample off the network first (with four tests at
-//! once on two cores a request written right after kill() was answered by the process being
-//! stopped, session 93). False if `pid` does not stop within `timeout`.
+//! running or runnable may still take a sample off the network. (With four tests at once on two
+//! cores, a request written right after kill() was accepted at its first send in two of four
+//! suite runs, session 93; not reproduced alone, so that window is the likely cause, not a
+//! proven one.) False if `pid` does not stop within `timeout` or cannot be read.
 inline bool stop_process(pid_t pid, std::chrono::milliseconds timeout = std::chrono::seconds(10)) {
   if (::kill(pid, SIGSTOP) != 0) return false;
-  const std::string tasks = "/proc/" + std::to_string(pid) + "/task";
+  const std::filesystem::path tasks = "/proc/" + std::to_string(pid) + "/task";
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   while (std::chrono::steady_clock::now() < deadline) {
+    std::error_code ec;
+    std::filesystem::directory_iterator it(tasks, ec);
+    if (ec) return false;  // the process is gone
     bool all = true;
     int seen = 0;
-    for (const auto& t : std::filesystem::directory_iterator(tasks)) {
-      std::ifstream f(t.path() / "stat");
+    for (; it != std::filesystem::directory_iterator(); it.increment(ec)) {
+      std::ifstream f(it->path() / "stat");
       std::string stat((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
       // pid (comm) state ...: comm may hold spaces and parentheses; the state follows the last ')'.
       const auto close = stat.rfind(')');
@@ -179,7 +183,7 @@ inline bool stop_process(pid_t pid, std::chrono::milliseconds timeout = std::chr
       ++seen;
       if (stat[close + 2] != 'T' && stat[close + 2] != 't') all = false;
     }
-    if (all && seen > 0) return true;
+    if (!ec && all && seen > 0) return true;
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
   }
   return false;
