@@ -13,7 +13,6 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <iterator>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -175,8 +174,7 @@ inline bool stop_process(pid_t pid, std::chrono::milliseconds timeout = std::chr
     bool all = true;
     int seen = 0;
     for (; it != std::filesystem::directory_iterator(); it.increment(ec)) {
-      std::ifstream f(it->path() / "stat");
-      std::string stat((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+      const std::string stat = read_text(it->path() / "stat");
       // pid (comm) state ...: comm may hold spaces and parentheses; the state follows the last ')'.
       const auto close = stat.rfind(')');
       if (close == std::string::npos || close + 2 >= stat.size()) continue;  // the thread ended
