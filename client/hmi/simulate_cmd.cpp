@@ -75,9 +75,11 @@ constexpr const char* kUsage =
     "                   error unless set (such a line is refused)\n"
     "  --rel-speed R    feed override 0.01..2 (default 1)\n"
     "  --check-limits   differentiate Orig_Position per cycle and fail on any per-axis velocity,\n"
-    "                   acceleration, jerk or corner-step excess, and on corner steps that add\n"
-    "                   up over 10 ms beyond the acceleration limit (mean_acceleration; listed\n"
-    "                   with cycle and line)\n"
+    "                   acceleration, jerk or corner-step excess, on corner steps that add\n"
+    "                   up over 10 ms beyond the acceleration limit (mean_acceleration), and on\n"
+    "                   acceleration steps from a change of curvature at a junction beyond\n"
+    "                   corner_acceleration_tolerance_mm_s2 (corner_acceleration; listed with\n"
+    "                   cycle and line)\n"
     "  --limit-share F  with --check-limits (implied): check against F (0..1] of each limit\n"
     "                   (the motion is unchanged), e.g. 0.8 lists where the program uses more\n"
     "                   than 80 % of one\n"
@@ -700,16 +702,18 @@ int run_simulate(int argc, char** argv) {
       std::fprintf(report, "limits checked at %g x the configured ones (--limit-share)\n", share);
     std::fprintf(report,
                  "axis   |v| peak / limit [mm/s]   |a| peak / limit [mm/s^2]   |j| peak / limit "
-                 "[mm/s^3]   corner step / tol [mm/s]\n");
+                 "[mm/s^3]   corner step / tol [mm/s]   curvature step / tol [mm/s^2]\n");
     for (int i = 0; i < n; ++i) {
       const auto ui = static_cast<std::size_t>(i);
       const AxisConfig& a = axes[ui];
       std::fprintf(
           report,
-          "%c      %9.3f / %-9.3f      %10.1f / %-10.1f      %11.0f / %-11.0f      %7.3f / %.3f\n",
+          "%c      %9.3f / %-9.3f      %10.1f / %-10.1f      %11.0f / %-11.0f      %7.3f / %-7.3f"
+          "       %9.1f / %.1f\n",
           a.letter, sum.peaks[ui].velocity_mm_s, a.max_velocity_mm_s,
           sum.peaks[ui].acceleration_mm_s2, a.max_acceleration_mm_s2, sum.peaks[ui].jerk_mm_s3,
-          a.max_jerk_mm_s3, sum.peaks[ui].corner_step_mm_s, a.corner_velocity_tolerance_mm_s);
+          a.max_jerk_mm_s3, sum.peaks[ui].corner_step_mm_s, a.corner_velocity_tolerance_mm_s,
+          sum.peaks[ui].corner_acceleration_mm_s2, corner_acceleration_tolerance(a));
     }
     for (int i = 0; i < n; ++i) {
       // Why such an axis peaks below its limits: the planner leaves the ramp its share.

@@ -266,6 +266,7 @@ const std::set<std::string> kAxisKeys = {"letter",
                                          "rapid_velocity_mm_s",
                                          "emergency_deceleration_mm_s2",
                                          "corner_velocity_tolerance_mm_s",
+                                         "corner_acceleration_tolerance_mm_s2",
                                          "ratio_inc_per_mm",
                                          "backlash_mm",
                                          "backlash_ramp_share",
@@ -294,6 +295,7 @@ void read_axis(Reader& r, const YAML::Node& n, const std::string& path, AxisConf
   r.number(n, path, "rapid_velocity_mm_s", a.rapid_velocity_mm_s);
   r.number(n, path, "emergency_deceleration_mm_s2", a.emergency_deceleration_mm_s2);
   r.number(n, path, "corner_velocity_tolerance_mm_s", a.corner_velocity_tolerance_mm_s);
+  r.number(n, path, "corner_acceleration_tolerance_mm_s2", a.corner_acceleration_tolerance_mm_s2);
   r.number(n, path, "ratio_inc_per_mm", a.ratio_inc_per_mm);
   r.number(n, path, "backlash_mm", a.backlash_mm);
   r.number(n, path, "backlash_ramp_share", a.backlash_ramp_share);

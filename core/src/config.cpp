@@ -89,6 +89,9 @@ std::uint64_t machine_digest(const MachineConfig& machine, int n, int axes) {
           a.backlash_ramp_share, a.min_position_mm, a.max_position_mm}) {
       h.add(v);
     }
+    // Only when set: left at 0 it follows from the jerk and the corner tolerance above, and
+    // the fingerprints of the configs written before the key existed stay what they were.
+    if (a.corner_acceleration_tolerance_mm_s2 != 0.0) h.add(a.corner_acceleration_tolerance_mm_s2);
   }
   return h.value();
 }
@@ -164,6 +167,10 @@ std::vector<std::string> MachineConfig::validate() const {
                kMaxAcceleration, "mm/s^2");
       in_range("corner_velocity_tolerance_mm_s", a.corner_velocity_tolerance_mm_s,
                kMinCornerTolerance, kMaxCornerTolerance, "mm/s");
+      if (a.corner_acceleration_tolerance_mm_s2 != 0.0) {  // 0: derived (config.hpp)
+        in_range("corner_acceleration_tolerance_mm_s2", a.corner_acceleration_tolerance_mm_s2,
+                 kMinAcceleration, kMaxAcceleration, "mm/s^2");
+      }
       // The interpolator used to raise a lower one to max_acceleration_mm_s2 without a word.
       if (finite_positive(a.emergency_deceleration_mm_s2) &&
           finite_positive(a.max_acceleration_mm_s2) &&

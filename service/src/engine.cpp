@@ -442,13 +442,13 @@ void Engine::check_limits(CyclePort& port, int i) {
       break;
     }
     const LimitViolation& v = stored[stored_before + k];
-    static constexpr const char* kUnit[] = {"mm/s", "mm/s^2", "mm/s^3", "mm/s", "mm/s^2"};
+    static constexpr const char* kUnit[] = {"mm/s", "mm/s^2", "mm/s^3", "mm/s", "mm/s^2", "mm/s^2"};
     const auto q = static_cast<std::size_t>(v.quantity);
     char text[200];
     std::snprintf(text, sizeof text, "limit excess: axis %c %s %.6g > %.6g %s (cycle %llu)",
                   cfg.axes[static_cast<std::size_t>(v.axis)].letter,
-                  limit_quantity_name(v.quantity), v.value, v.limit, q < 5 ? kUnit[q] : "",
-                  static_cast<unsigned long long>(v.cycle));
+                  limit_quantity_name(v.quantity), v.value, v.limit,
+                  q < std::size(kUnit) ? kUnit[q] : "", static_cast<unsigned long long>(v.cycle));
     send(text, v.line);
     ++s.limit_messages;
   }

@@ -78,6 +78,7 @@ constexpr const char* kUsage =
     "  --state-period-ms N    publish each state at least every N ms (default 20, 1..50)\n"
     "  --setpoint-decimation N  publish setpoints every Nth cycle (default 1, 1..10000)\n"
     "  --check-limits         check every axis' velocity, acceleration, jerk and corner steps\n"
+    "                         (of velocity, and of acceleration where the curvature changes)\n"
     "                         on the interpolated positions each cycle; each excess goes to\n"
     "                         the HMI as a warning (axis, size, limit, line, cycle)\n"
     "  --limit-share F        with --check-limits (implied): check against F (0..1] of each\n"

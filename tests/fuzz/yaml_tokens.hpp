@@ -105,6 +105,7 @@ inline std::vector<std::string> yaml_tokens() {
       "max_jerk_mm_s3",
       "emergency_deceleration_mm_s2",
       "corner_velocity_tolerance_mm_s",
+      "corner_acceleration_tolerance_mm_s2",
       "ratio_inc_per_mm",
       "backlash_mm",
       "backlash_ramp_share",

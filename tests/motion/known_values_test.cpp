@@ -237,6 +237,67 @@ TEST(KnownValues, ArcIsCappedByEachPlaneAxisAtItsLargestShareOnTheSweep) {
   EXPECT_LE(s.peaks[0].velocity_mm_s, 5.0);
 }
 
+// Where a line runs into an arc tangentially, the axis across the line steps its acceleration
+// by v^2 / r at once, and where an arc runs into one of the other turn by 2 v^2 / r: held to
+// the corner acceleration tolerance (default sqrt(2 J tol) = sqrt(2 x 30,000 x 2) = 346.4
+// mm/s^2 on the default machine), the junction is crossed at 0.999 x sqrt(tol_a r / m) (m = 1
+// or 2), and the checker's peak curvature step is within 0.5 % below the tolerance. At F 6000
+// into an arc of 10 mm the arc's own cap (0.97 x sqrt(A r / 2) = 84.0 mm/s, a centripetal
+// acceleration of 705.7 mm/s^2) is above the junction's 58.8 mm/s; a tolerance of 1e6 leaves
+// the junction to that cap, 100 mm/s^2 lowers it, and two arcs of one circle have no step.
+TEST(KnownValues, ACurvatureStepAtAJunctionIsHeldToTheCornerAccelerationTolerance) {
+  const double r = 10.0, tol_a = std::sqrt(2.0 * 30000.0 * 2.0);
+  EXPECT_DOUBLE_EQ(corner_acceleration_tolerance(machine().interpolators[0].axes[1]), tol_a);
+  const auto with_tolerance = [](double t) {
+    MachineConfig m = machine();
+    for (AxisConfig& a : m.interpolators[0].axes) a.corner_acceleration_tolerance_mm_s2 = t;
+    return m;
+  };
+  ProgramBuilder into;  // along X, then a quarter circle turning towards +Y
+  into.line({20.0, 0.0, 0.0}, 6000.0).arc(true, {20.0 + r, r, 0.0}, {20.0, r}, 6000.0).end();
+  const auto s = simulate(into.program());
+  expect_clean(s);
+  EXPECT_GE(s.peaks[1].corner_acceleration_mm_s2, 0.995 * tol_a);
+  EXPECT_LE(s.peaks[1].corner_acceleration_mm_s2, tol_a);
+  const auto off = simulate(into.program(), {}, {}, with_tolerance(1e6));
+  expect_clean(off);
+  const double cap = 0.97 * std::sqrt(0.5 * 1500.0 * r);
+  EXPECT_NEAR(off.peaks[1].corner_acceleration_mm_s2, cap * cap / r, 0.01 * cap * cap / r);
+  EXPECT_LT(off.program_time_s, s.program_time_s);
+  const auto tight = simulate(into.program(), {}, {}, with_tolerance(100.0));
+  expect_clean(tight);
+  EXPECT_GE(tight.peaks[1].corner_acceleration_mm_s2, 0.995 * 100.0);
+  EXPECT_LE(tight.peaks[1].corner_acceleration_mm_s2, 100.0);
+  EXPECT_GT(tight.program_time_s, s.program_time_s);
+
+  // On into an arc of the other turn: X's acceleration steps from -v^2 / r to +v^2 / r.
+  ProgramBuilder flip;
+  flip.line({20.0, 0.0, 0.0}, 6000.0)
+      .arc(true, {20.0 + r, r, 0.0}, {20.0, r}, 6000.0)
+      .arc(false, {20.0 + 2.0 * r, 2.0 * r, 0.0}, {20.0 + 2.0 * r, r}, 6000.0)
+      .end();
+  const auto sf = simulate(flip.program());
+  expect_clean(sf);
+  EXPECT_GE(sf.peaks[0].corner_acceleration_mm_s2, 0.995 * tol_a);
+  EXPECT_LE(sf.peaks[0].corner_acceleration_mm_s2, tol_a);
+
+  // Two halves of one circle: no step, and the junction is crossed at the arc's cap.
+  ProgramBuilder circle;
+  circle.arc(true, {2.0 * r, 0.0, 0.0}, {r, 0.0}, 6000.0)
+      .arc(true, {0.0, 0.0, 0.0}, {r, 0.0}, 6000.0)
+      .end();
+  double at_junction = 0.0;
+  std::int32_t part = 0;
+  const auto sc = simulate(circle.program(), {}, [&](const Registers& reg) {
+    if (reg.act_part == 2 && part == 1) at_junction = reg.act_speed / 60.0;
+    part = reg.act_part;
+  });
+  expect_clean(sc);
+  EXPECT_LT(sc.peaks[0].corner_acceleration_mm_s2, 1e-6 * tol_a);
+  EXPECT_LT(sc.peaks[1].corner_acceleration_mm_s2, 1e-6 * tol_a);
+  EXPECT_NEAR(at_junction, cap, 1e-6 * cap);
+}
+
 TEST(KnownValues, HelixPitch) {
   // Two full turns (turns = 1) of radius 5 rising 6 mm: pitch 3 mm per turn.
   ProgramBuilder b(3, {5.0, 0.0, 0.0});

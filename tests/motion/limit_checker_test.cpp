@@ -181,6 +181,59 @@ TEST(LimitCheckerQuantities, CornerStepsThatAddUpAreAMeanAccelerationExcess) {
   EXPECT_EQ(slow->violation_count(), 0u);
 }
 
+// The acceleration step a junction's change of curvature makes (CornerEvent::da_curvature) is
+// held to corner_acceleration_tolerance_mm_s2, or where that is 0 to sqrt(2 J tol): 447.2
+// mm/s^2 on these axes (100,000 mm/s^3, 1 mm/s). The event's da is taken out of the jerk as
+// before, so a step alone is no jerk excess; 1.01 x the tolerance is reported with its cycle
+// and line, 0.99 x is not, and the share scales the tolerance as it does the limits.
+TEST(LimitCheckerQuantities, ACurvatureStepAboveTheCornerAccelerationToleranceIsReported) {
+  const auto run = [](LimitChecker& ch, double da) {
+    for (std::uint64_t c = 1; c <= 12; ++c) {
+      Registers r;
+      r.number_axes = 3;
+      r.cycle = c;
+      r.act_line = static_cast<std::int32_t>(c);
+      r.status = static_cast<std::int32_t>(InterpolatorStatus::kRunning);
+      // X at 10 mm/s; from the event (cycle 6, half way) Y accelerates at da.
+      const double t = static_cast<double>(c) * kT, t0 = 5.5 * kT;
+      r.orig_position[0] = 10.0 * t;
+      if (t > t0) r.orig_position[1] = 0.5 * da * (t - t0) * (t - t0);
+      CornerEvent e;
+      e.cycle = 6;
+      e.fraction = 0.5;
+      e.da[1] = da;
+      e.da_curvature[1] = da;
+      ch.add_cycle(r,
+                   c == 6 ? std::span<const CornerEvent>(&e, 1) : std::span<const CornerEvent>());
+    }
+  };
+  const double tol_a = std::sqrt(2.0 * 100000.0 * 1.0);
+  EXPECT_DOUBLE_EQ(corner_acceleration_tolerance(round_axes().axes[1]), tol_a);
+  auto over = LimitChecker::create(round_axes(), kCycleUs);
+  auto within = LimitChecker::create(round_axes(), kCycleUs);
+  ASSERT_TRUE(over && within);
+  run(*over, -1.01 * tol_a);
+  run(*within, 0.99 * tol_a);
+  EXPECT_EQ(expect_only(*over, LimitQuantity::kCornerAcceleration, 1, 1.01 * tol_a, tol_a, 6, 6),
+            1u);
+  EXPECT_STREQ(limit_quantity_name(LimitQuantity::kCornerAcceleration), "corner_acceleration");
+  EXPECT_EQ(within->violation_count(), 0u);
+  EXPECT_NEAR(within->peaks()[1].corner_acceleration_mm_s2, 0.99 * tol_a, 1e-9);
+  // A tolerance of its own, and the share.
+  InterpolatorConfig ip = round_axes();
+  for (AxisConfig& a : ip.axes) a.corner_acceleration_tolerance_mm_s2 = 300.0;
+  auto own = LimitChecker::create(ip, kCycleUs);
+  auto half = LimitChecker::create(round_axes(), kCycleUs, nullptr, 0.5);
+  ASSERT_TRUE(own && half);
+  run(*own, 0.99 * tol_a);
+  run(*half, 0.99 * tol_a);
+  EXPECT_EQ(expect_only(*own, LimitQuantity::kCornerAcceleration, 1, 0.99 * tol_a, 300.0, 6, 6),
+            1u);
+  EXPECT_EQ(
+      expect_only(*half, LimitQuantity::kCornerAcceleration, 1, 0.99 * tol_a, 0.5 * tol_a, 6, 6),
+      1u);
+}
+
 // A share below 1 scales every limit: 110 mm/s passes at share 1 against 120 and is reported
 // at share 0.5 against 60.
 TEST(LimitCheckerQuantities, TheShareScalesTheLimits) {

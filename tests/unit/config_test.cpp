@@ -282,6 +282,35 @@ TEST(Config, AxisLimitsOutsideTheTestedRangeAreErrorsWithTheirLine) {
   EXPECT_TRUE(load.config) << (load.errors.empty() ? "" : load.errors.front());
 }
 
+// corner_acceleration_tolerance_mm_s2: left out or 0, derived from the jerk limit and the
+// corner tolerance (config.hpp); set, within the acceleration range.
+TEST(Config, CornerAccelerationToleranceIsDerivedUnlessSet) {
+  auto load = load_config_text(
+      "axis_defaults: {max_jerk_mm_s3: 50000, corner_velocity_tolerance_mm_s: 1}\n"
+      "interpolators:\n"
+      "  - axes: [{letter: X}, {letter: Y, corner_acceleration_tolerance_mm_s2: 500},\n"
+      "           {letter: Z, corner_acceleration_tolerance_mm_s2: 0}]\n",
+      "m.yaml");
+  ASSERT_TRUE(load.config) << (load.errors.empty() ? "" : load.errors.front());
+  const auto& axes = load.config->machine.interpolators[0].axes;
+  EXPECT_DOUBLE_EQ(corner_acceleration_tolerance(axes[0]), std::sqrt(2.0 * 50000.0 * 1.0));
+  EXPECT_DOUBLE_EQ(corner_acceleration_tolerance(axes[1]), 500.0);
+  EXPECT_DOUBLE_EQ(corner_acceleration_tolerance(axes[2]), corner_acceleration_tolerance(axes[0]));
+  load = load_config_text(
+      "interpolators:\n"
+      "  - axes: [{letter: X, corner_acceleration_tolerance_mm_s2: 2e6},\n"
+      "           {letter: Y, corner_acceleration_tolerance_mm_s2: -3}]\n",
+      "m.yaml");
+  EXPECT_FALSE(load.config);
+  ASSERT_EQ(load.errors.size(), 2u);
+  EXPECT_EQ(load.errors[0],
+            "m.yaml:2: interpolators[0].axes[0].corner_acceleration_tolerance_mm_s2: must be "
+            "0.1..1e+06 mm/s^2, not 2e+06");
+  EXPECT_EQ(load.errors[1],
+            "m.yaml:3: interpolators[0].axes[1].corner_acceleration_tolerance_mm_s2: must be > 0, "
+            "not -3");
+}
+
 TEST(Config, NonNumbersAndBadSyntaxAreErrors) {
   auto load = load_config_text("cycle_time_us: fast\n", "m.yaml");
   EXPECT_TRUE(has_error(load.errors, "m.yaml:1: cycle_time_us: must be a whole number, not 'fast'"));
@@ -627,6 +656,10 @@ TEST(MachineDigest, FollowsWhatShapesTheMotionAndNothingElse) {
        [](MachineConfig& m) { m.interpolators[0].axes[0].emergency_deceleration_mm_s2 += 1; }},
       {"corner",
        [](MachineConfig& m) { m.interpolators[0].axes[0].corner_velocity_tolerance_mm_s += 1; }},
+      {"corner_acceleration",
+       [](MachineConfig& m) {
+         m.interpolators[0].axes[1].corner_acceleration_tolerance_mm_s2 = 500.0;
+       }},
       {"backlash", [](MachineConfig& m) { m.interpolators[0].axes[0].backlash_mm = 0.01; }},
       {"backlash_share",
        [](MachineConfig& m) { m.interpolators[0].axes[0].backlash_ramp_share = 0.2; }},

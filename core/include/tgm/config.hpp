@@ -2,6 +2,7 @@
 // them directly. `validate()` reports every bad value as "key.path: reason".
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <string_view>
@@ -40,6 +41,12 @@ struct AxisConfig {
   double emergency_deceleration_mm_s2 = 5000.0;
   //! Largest velocity step of this axis accepted at a corner without slowing down [mm/s].
   double corner_velocity_tolerance_mm_s = 2.0;
+  //! Largest acceleration step of this axis accepted at a junction where the path's curvature
+  //! changes (a line into an arc, two arcs that turn opposite ways) without slowing down
+  //! [mm/s^2]. 0, the default: sqrt(2 x max_jerk_mm_s3 x corner_velocity_tolerance_mm_s), the
+  //! step that a ramp at the jerk limit follows within the corner velocity tolerance
+  //! (corner_acceleration_tolerance()).
+  double corner_acceleration_tolerance_mm_s2 = 0.0;
   //! Gear ratio [inc/mm] at start (Command 1024 changes it).
   double ratio_inc_per_mm = 1000.0;
   //! Backlash compensated on direction reversal [mm].
@@ -58,6 +65,14 @@ struct AxisConfig {
 //! with backlash, else 1.
 inline double planned_limit_share(const AxisConfig& a) {
   return a.backlash_mm > 0.0 ? 1.0 - a.backlash_ramp_share : 1.0;
+}
+
+//! The acceleration step accepted at a junction [mm/s^2]: corner_acceleration_tolerance_mm_s2,
+//! or when that is 0 the one derived from the jerk limit and the corner velocity tolerance.
+inline double corner_acceleration_tolerance(const AxisConfig& a) {
+  return a.corner_acceleration_tolerance_mm_s2 > 0.0
+             ? a.corner_acceleration_tolerance_mm_s2
+             : std::sqrt(2.0 * a.max_jerk_mm_s3 * a.corner_velocity_tolerance_mm_s);
 }
 
 //! One interpolator (axis group).

@@ -64,6 +64,10 @@ struct CornerEvent {
   //! Per-axis velocity step [mm/s] and acceleration step [mm/s^2] at the crossing.
   std::array<double, kMaxAxes> dv{};
   std::array<double, kMaxAxes> da{};
+  //! The part of da from the change of curvature, v^2 (k_out - k_in) [mm/s^2]: what the
+  //! planner holds to corner_acceleration_tolerance_mm_s2 (the rest is the path acceleration
+  //! turned with the tangent).
+  std::array<double, kMaxAxes> da_curvature{};
 };
 
 //! Summary of one executed motion record: how fast it ran and what limited it.

@@ -8,7 +8,9 @@
 // before taking the second difference (dv removed) and the third difference (dv and da removed),
 // and checks each announced dv against the tolerance. What remains is a weighted average of the
 // physical acceleration / jerk between the corners, so the only tolerance needed is floating
-// point noise (MOTION.md, "Limit checker").
+// point noise (MOTION.md, "Limit checker"). The part of each announced acceleration step that
+// a change of curvature makes (CornerEvent::da_curvature) is checked against the corner
+// acceleration tolerance, as dv is against the corner velocity tolerance.
 #pragma once
 
 #include <algorithm>
@@ -37,9 +39,13 @@ enum class LimitQuantity : std::uint8_t {
   //! corner tolerance spread over the window. Catches steps that each keep the tolerance but
   //! add up (a run of short chords).
   kMeanAcceleration = 4,
+  //! Acceleration step at a junction from the change of curvature (CornerEvent::da_curvature)
+  //! above corner_acceleration_tolerance_mm_s2.
+  kCornerAcceleration = 5,
 };
 
-//! "velocity", "acceleration", "jerk", "corner_step", "mean_acceleration".
+//! "velocity", "acceleration", "jerk", "corner_step", "mean_acceleration",
+//! "corner_acceleration".
 const char* limit_quantity_name(LimitQuantity q);
 
 //! One excess.
@@ -58,6 +64,7 @@ struct AxisPeaks {
   double acceleration_mm_s2 = 0.0;
   double jerk_mm_s3 = 0.0;
   double corner_step_mm_s = 0.0;
+  double corner_acceleration_mm_s2 = 0.0;  //!< largest |CornerEvent::da_curvature|
 };
 
 //! Checks one interpolator's output cycle by cycle.
@@ -121,7 +128,7 @@ class LimitChecker {
 
   int n_ = 0;
   double T_ = 0.0;
-  std::array<double, kMaxAxes> vmax_{}, amax_{}, jmax_{}, tol_{}, emax_{}, ejmax_{};
+  std::array<double, kMaxAxes> vmax_{}, amax_{}, jmax_{}, tol_{}, tol_a_{}, emax_{}, ejmax_{};
   // The last four cycles, a ring: sample k (0 = newest) is in slot (head_ - k) & 3.
   std::array<std::array<double, kMaxAxes>, 4> x_{};
   std::array<bool, 4> emergency_{};

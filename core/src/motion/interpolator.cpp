@@ -365,6 +365,7 @@ struct Interpolator::Impl {
   // limit it could not keep with all of it (spend_allowance).
   double allowance = 1.0;
   std::array<double, kMaxAxes> vmax{}, amax{}, jmax{}, rapid{}, tol{};
+  std::array<double, kMaxAxes> tol_a{};  // acceleration step accepted at a junction [mm/s^2]
   double rho = 1.0;        // emergency / normal deceleration ratio (min over axes, >= 1)
   // The axes of G17, G18, G19 by the axes' letters (plane_axes), and those of X and Y, whose
   // tangent the LookAheadBuffer shows (kMaxAxes: the letter is not configured).
@@ -399,6 +400,7 @@ struct Interpolator::Impl {
   // ---- planning tail (where the next appended motion starts) ----
   std::array<double, kMaxAxes> pt_end{};
   std::array<double, kMaxAxes> pt_tangent{};
+  std::array<double, kMaxAxes> pt_curvature{};  // d^2x/ds^2 at the end of the last motion
   bool pt_have_motion = false;
   bool pt_stop_since = true;
   double pt_f = 0.0, pt_m = 0.0, pt_length = 0.0;
@@ -569,6 +571,32 @@ struct Interpolator::Impl {
       if (d > 1e-12) c = std::min(c, kLimitSafety * tol[i] / d);
     }
     return c;
+  }
+
+  // Speed limit at the junction into a record of geometry g from the curvature step there.
+  // Crossed at v, axis i's acceleration steps by v^2 (k_out,i - k_in,i) (k: d^2x/ds^2; an arc's
+  // centripetal acceleration starts or ends, or turns the other way), in no time: a jerk the
+  // per-cycle limit checker, which takes out the steps at junctions, does not see. Held to the
+  // axis' corner acceleration tolerance as the velocity step is to the corner velocity
+  // tolerance. Without it a dense CAM program (tgm_gen_cam_program --lines 3000 --seed 7)
+  // entered arcs from arcs of the other turn at up to 3.7 x the tolerance (X stepping by
+  // 1,277 mm/s^2 within a cycle, which its jerk limit takes 43 ms to build). The tangential part of
+  // the step (an acceleration along the path turned with it at a corner) is not planned: a corner
+  // crossed at its limit speed is crossed near the end of its braking (core/MOTION.md, Planner).
+  double curvature_step_limit(const Geometry& g) const {
+    if (!g.arc && std::none_of(pt_curvature.begin(), pt_curvature.begin() + n,
+                               [](double k) { return k != 0.0; })) {
+      return kInf;  // a line after a line
+    }
+    double k0[kMaxAxes];
+    motion::geometry_curvature(g, n, 0.0, k0);
+    double w = kInf;
+    for (int i = 0; i < n; ++i) {
+      const auto u = static_cast<std::size_t>(i);
+      const double dk = std::fabs(k0[i] - pt_curvature[u]);
+      if (dk > 0.0) w = std::min(w, kLimitSafety * std::sqrt(tol_a[u] / dk));
+    }
+    return w;
   }
 
   // A run of short chords turns the path as an arc does, but in steps the corner tolerance
@@ -1150,6 +1178,7 @@ struct Interpolator::Impl {
         take(r.m, r.m_reason);
         take(2.0 * pt_f, LimitFactor::kFeed);
         take(2.0 * r.f, LimitFactor::kFeed);
+        take(curvature_step_limit(r.g), LimitFactor::kCorner);
         note_junction(pt_tangent);
         const TurnBound tb = turn_bound(t0);
         take(chord_turn_limit(tb, t0, std::min(pt_length, r.g.length), w), LimitFactor::kCorner);
@@ -1169,6 +1198,7 @@ struct Interpolator::Impl {
         jh_count = 0;  // a new run starts from rest
       }
       motion::geometry_tangent(r.g, n, r.g.length, pt_tangent.data());
+      motion::geometry_curvature(r.g, n, r.g.length, pt_curvature.data());
       pt_end = r.g.end;
       pt_have_motion = true;
       pt_stop_since = false;
@@ -2218,10 +2248,13 @@ struct Interpolator::Impl {
     for (int i = 0; i < kMaxAxes; ++i) {
       if (i < n) {
         e.dv[static_cast<std::size_t>(i)] = vj * (t_out[i] - t_in[i]);
-        e.da[static_cast<std::size_t>(i)] = aj * (t_out[i] - t_in[i]) + vj * vj * (k_out[i] - k_in[i]);
+        const auto u = static_cast<std::size_t>(i);
+        e.da_curvature[u] = vj * vj * (k_out[i] - k_in[i]);
+        e.da[u] = aj * (t_out[i] - t_in[i]) + e.da_curvature[u];
       } else {
         e.dv[static_cast<std::size_t>(i)] = 0.0;
         e.da[static_cast<std::size_t>(i)] = 0.0;
+        e.da_curvature[static_cast<std::size_t>(i)] = 0.0;
       }
     }
   }
@@ -4060,6 +4093,7 @@ std::optional<Interpolator> Interpolator::create(const MachineConfig& machine, i
     m.inv_half_j[ui] = 2.0 / m.jmax[ui];
     m.rapid[ui] = std::min(a.rapid_velocity_mm_s, m.vmax[ui]);
     m.tol[ui] = a.corner_velocity_tolerance_mm_s;
+    m.tol_a[ui] = share * corner_acceleration_tolerance(a);
     m.rho = std::min(m.rho, a.emergency_deceleration_mm_s2 / m.amax[ui]);
   }
   m.turn_w = LimitChecker::window_cycles_for(m.T) * m.T;

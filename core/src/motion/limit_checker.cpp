@@ -13,6 +13,8 @@ const char* limit_quantity_name(LimitQuantity q) {
     case LimitQuantity::kCornerStep: return "corner_step";
     case LimitQuantity::kMeanAcceleration:
       return "mean_acceleration";
+    case LimitQuantity::kCornerAcceleration:
+      return "corner_acceleration";
   }
   return "?";
 }
@@ -37,6 +39,7 @@ std::optional<LimitChecker> LimitChecker::create(const InterpolatorConfig& axes,
     c.amax_[i] = share * a.max_acceleration_mm_s2;
     c.jmax_[i] = share * a.max_jerk_mm_s3;
     c.tol_[i] = share * a.corner_velocity_tolerance_mm_s;
+    c.tol_a_[i] = share * corner_acceleration_tolerance(a);
     // The emergency ramp may decelerate harder; its jerk scales with the same ratio.
     const double ratio = std::max(1.0, a.emergency_deceleration_mm_s2 / a.max_acceleration_mm_s2);
     c.emax_[i] = c.amax_[i] * ratio;
@@ -152,6 +155,11 @@ void LimitChecker::add(std::uint64_t cycle, std::int32_t line, std::int32_t stat
       peaks_[ui].corner_step_mm_s = std::max(peaks_[ui].corner_step_mm_s, dv);
       if (dv > tol_[ui] * (1.0 + kRelativeTolerance) + 1e-9) {
         report(cycle, line, i, LimitQuantity::kCornerStep, dv, tol_[ui]);
+      }
+      const double da = std::fabs(e.da_curvature[ui]);
+      peaks_[ui].corner_acceleration_mm_s2 = std::max(peaks_[ui].corner_acceleration_mm_s2, da);
+      if (da > tol_a_[ui] * (1.0 + kRelativeTolerance) + 1e-9) {
+        report(cycle, line, i, LimitQuantity::kCornerAcceleration, da, tol_a_[ui]);
       }
     }
   }
