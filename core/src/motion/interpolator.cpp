@@ -584,10 +584,6 @@ struct Interpolator::Impl {
   // the step (an acceleration along the path turned with it at a corner) is not planned: a corner
   // crossed at its limit speed is crossed near the end of its braking (core/MOTION.md, Planner).
   double curvature_step_limit(const Geometry& g) const {
-    if (!g.arc && std::none_of(pt_curvature.begin(), pt_curvature.begin() + n,
-                               [](double k) { return k != 0.0; })) {
-      return kInf;  // a line after a line
-    }
     double k0[kMaxAxes];
     motion::geometry_curvature(g, n, 0.0, k0);
     double w = kInf;
